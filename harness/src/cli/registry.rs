@@ -1,0 +1,67 @@
+//! `rtconf registry vuids|diff|show`: thin wrappers over `vk_registry::report`.
+
+use clap::Subcommand;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+#[derive(Subcommand)]
+pub enum RegistryCommand {
+    /// The VUIDs a source defines, one per line, sorted (or records as JSON).
+    Vuids {
+        /// A registry directory, a validusage.json, or a man page (repeatable; default: the installed registry).
+        #[arg(long = "from")]
+        from: Vec<PathBuf>,
+        /// Only this command's VUIDs.
+        #[arg(long)]
+        command: Option<String>,
+        #[arg(long)]
+        json: bool,
+    },
+    /// VUIDs added, removed and changed between two sources.
+    Diff {
+        a: PathBuf,
+        b: PathBuf,
+        #[arg(long)]
+        command: Option<String>,
+    },
+    /// A command, structure or enum of vk.xml with its attributes.
+    Show {
+        name: String,
+        /// A registry directory or a vk.xml (default: the installed registry).
+        #[arg(long = "from")]
+        from: Option<PathBuf>,
+    },
+}
+
+fn print(s: &str) -> Result<i32, String> {
+    let mut out = std::io::stdout().lock();
+    // A closed pipe (`| head`) is not an error worth a message.
+    let _ = out.write_all(s.as_bytes());
+    Ok(0)
+}
+
+pub fn run(c: RegistryCommand) -> Result<i32, String> {
+    match c {
+        RegistryCommand::Vuids { from, command, json } => {
+            let set = super::load_sources(&from)?;
+            let text = if json {
+                vk_registry::report::vuids_json(&set, command.as_deref())
+            } else {
+                vk_registry::report::vuids_plain(&set, command.as_deref())
+            };
+            print(&text)
+        }
+        RegistryCommand::Diff { a, b, command } => {
+            let sa = vk_registry::source::load_vuids(&a).map_err(|e| e.to_string())?;
+            let sb = vk_registry::source::load_vuids(&b).map_err(|e| e.to_string())?;
+            print(&vk_registry::report::diff(&sa, &sb, command.as_deref()))
+        }
+        RegistryCommand::Show { name, from } => {
+            let dir = from.unwrap_or_else(|| PathBuf::from(vk_registry::source::DEFAULT_REGISTRY_DIR));
+            let xml = if dir.is_dir() { dir.join("vk.xml") } else { dir };
+            let reg = vk_registry::xml::Registry::load(Path::new(&xml)).map_err(|e| e.to_string())?;
+            let text = vk_registry::report::show(&reg, &name).map_err(|e| e.to_string())?;
+            print(&text)
+        }
+    }
+}
