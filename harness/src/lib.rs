@@ -3,10 +3,12 @@
 
 pub mod error;
 pub mod layout;
+pub mod probe;
 pub mod shaders;
 pub mod structs;
 pub mod vk_tables;
 pub mod vulkan;
 
 pub use error::HarnessError;
+pub use probe::probe;
 pub use vulkan::Driver;
