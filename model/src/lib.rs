@@ -1,0 +1,20 @@
+//! rtconf's executable reference model: device profiles, the world and the call, the rule table built
+//! from the registry's VUIDs, verdicts, and the meaning of a valid launch.
+//!
+//! Pure and deterministic: the same case always gets the same verdict and the same expected output.
+
+pub mod call;
+pub mod case;
+pub mod flags;
+pub mod profile;
+pub mod rules;
+pub mod semantics;
+pub mod verdict;
+pub mod world;
+
+pub use call::{Address, Call, StridedRegion, Table};
+pub use case::{Case, Intent};
+pub use profile::DeviceProfile;
+pub use rules::{validate, RuleSet};
+pub use verdict::{Verdict, Violation};
+pub use world::World;

@@ -1,0 +1,431 @@
+//! Executable predicates: the closed set of checks a rule row can run, each evaluated against a
+//! prepared [`Context`](super::Context) with no string work.
+
+use super::Context;
+use crate::call::{Call, Param, Table};
+use crate::flags::{BufferUsage, PipelineCreate, QueueFlags};
+use crate::semantics::{hit_record, miss_record, record_handle};
+use crate::world::{CommandBufferLifecycle, GeometryKind, HandleRef, MemoryBinding, RayTarget, ShaderGroup};
+
+/// A number a rule compares against.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Operand {
+    Const(u64),
+    /// A device limit, looked up in the profile (`Struct::member` or `Struct::member[i]`).
+    Limit(String),
+    /// The product of several operands (`maxComputeWorkGroupCount[0] × maxComputeWorkGroupSize[0]`).
+    Product(Vec<Operand>),
+    /// The size of the buffer the parameter's address or table lies in.
+    SizeOfBufferOf(Param),
+    /// Another parameter of the call.
+    Param(Param),
+}
+
+/// What a compiled or hand-written rule checks.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Predicate {
+    /// `param % operand == 0`.
+    MultipleOf(Param, Operand),
+    /// `param <= operand`.
+    AtMost(Param, Operand),
+    /// `param < operand`.
+    LessThan(Param, Operand),
+    /// `param == operand`.
+    Equal(Param, Operand),
+    /// If the bound pipeline has the flag, the parameter must not be zero.
+    NonZeroIfPipelineFlag(Param, PipelineCreate),
+    /// The named feature must be enabled.
+    FeatureEnabled(String),
+    /// If the bound pipeline has the flag, the named feature must be enabled.
+    FeatureEnabledIfPipelineFlag(PipelineCreate, String),
+    /// The buffer the parameter's address was queried from has the usage bit.
+    BufferUsage(Param, BufferUsage),
+    /// The buffer of the parameter, if not sparse, is bound completely and contiguously to one memory.
+    BoundContiguously(Param),
+    /// Every address of `[param, param + len)` lies in the same buffer; `len` from an operand.
+    RangeInOneBuffer(Param, Operand),
+    /// A region whose size is not zero lies inside one buffer (`VkStridedDeviceAddressRegionKHR-size-04631`).
+    RegionInOneBuffer,
+    /// A region whose size is not zero has a stride at most its buffer's size (`-size-04632`).
+    RegionStrideWithinBuffer,
+    /// The NV table's buffer, when given, is a buffer of the world.
+    ValidBufferHandle(Table),
+    /// The indirect command's dimension `i` is at most the operand.
+    IndirectDimensionAtMost(u8, Operand),
+    /// The product of the indirect command's dimensions is at most the operand.
+    IndirectInvocationsAtMost(Operand),
+    NotProtectedCommandBuffer,
+    Recording,
+    PoolSupports(QueueFlags),
+    OutsideRenderPass,
+    OutsideVideoCoding,
+    PipelineBound,
+    /// Hand rules that read the launch: see each variant's VUID in `hand.rs`.
+    HandlesFromBoundPipeline,
+    RecursionWithinPipelineLimit,
+    NoNullMissReached,
+    NoNullHitReached(NullHitKind),
+    HitGroupTypeMatchesGeometry(GeometryKind),
+    DynamicStackSizeSet,
+    NoStaticStateSet,
+    NoProtectedResourceFromUnprotected,
+}
+
+/// Which NO_NULL_* hit flag a rule speaks of.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NullHitKind {
+    AnyHit,
+    ClosestHit,
+    Intersection,
+}
+
+/// One failed check: the parameter path and the problem.
+pub struct Failure {
+    pub context: String,
+    pub problem: String,
+}
+
+impl Operand {
+    /// The operand's value; None when a limit is missing from the profile (the rule is then not judged).
+    fn value(&self, cx: &Context) -> Option<u64> {
+        match self {
+            Operand::Const(v) => Some(*v),
+            Operand::Limit(name) => cx.profile.limit(name),
+            Operand::Product(ops) => ops.iter().try_fold(1u64, |a, o| Some(a.saturating_mul(o.value(cx)?))),
+            Operand::SizeOfBufferOf(p) => cx.call.buffer_of(cx.world, *p).map(|b| b.size),
+            Operand::Param(p) => Some(cx.call.value(*p)),
+        }
+    }
+
+    fn describe(&self, cx: &Context) -> String {
+        match self {
+            Operand::Const(v) => v.to_string(),
+            Operand::Limit(name) => format!("{name} ({})", cx.profile.limit(name).map_or("?".into(), |v| v.to_string())),
+            Operand::Product(ops) => ops.iter().map(|o| o.describe(cx)).collect::<Vec<_>>().join(" × "),
+            Operand::SizeOfBufferOf(p) => format!("the size of the buffer of {}", cx.call.param_path(*p)),
+            Operand::Param(p) => cx.call.param_path(*p),
+        }
+    }
+}
+
+fn fail(context: impl Into<String>, problem: impl Into<String>) -> Option<Failure> {
+    Some(Failure { context: context.into(), problem: problem.into() })
+}
+
+impl Predicate {
+    /// Whether the parameter is part of the call at all (the raygen table has no stride for NV).
+    fn applies(p: Param, call: &Call) -> bool {
+        match (call, p) {
+            (Call::TraceRaysNv(_), Param::TableStride(Table::Raygen)) => false,
+            (Call::TraceRaysNv(_), Param::TableSize(_)) => false,
+            _ => true,
+        }
+    }
+
+    /// Checks the predicate; every failure found is pushed (a region rule may fail for several regions).
+    pub fn check(&self, cx: &Context, out: &mut Vec<Failure>) {
+        let call = cx.call;
+        let world = cx.world;
+        let mut push = |f: Option<Failure>| {
+            if let Some(f) = f {
+                out.push(f)
+            }
+        };
+        match self {
+            Predicate::MultipleOf(p, op) => {
+                if !Self::applies(*p, call) {
+                    return;
+                }
+                let v = call.value(*p);
+                if let Some(m) = op.value(cx) {
+                    if m != 0 && v % m != 0 {
+                        push(fail(call.param_path(*p), format!("{v} is not a multiple of {}", op.describe(cx))));
+                    }
+                }
+            }
+            Predicate::AtMost(p, op) | Predicate::LessThan(p, op) | Predicate::Equal(p, op) => {
+                if !Self::applies(*p, call) {
+                    return;
+                }
+                // An NV table given no buffer is unused: offset rules about its buffer do not apply.
+                if matches!(op, Operand::SizeOfBufferOf(_)) && call.buffer_of(world, *p).is_none() {
+                    return;
+                }
+                let v = call.value(*p);
+                let Some(m) = op.value(cx) else { return };
+                let (ok, rel) = match self {
+                    Predicate::AtMost(..) => (v <= m, "greater than"),
+                    Predicate::LessThan(..) => (v < m, "not less than"),
+                    _ => (v == m, "not equal to"),
+                };
+                if !ok {
+                    push(fail(call.param_path(*p), format!("{v} is {rel} {}", op.describe(cx))));
+                }
+            }
+            Predicate::NonZeroIfPipelineFlag(p, flag) => {
+                if let Some(pl) = world.bound_pipeline() {
+                    let zero = call.address(*p).map_or(call.value(*p) == 0, |a| a.is_null());
+                    if pl.flags.contains(*flag) && zero {
+                        push(fail(call.param_path(*p), format!("is zero but the pipeline has {}", flag.names().join("|"))));
+                    }
+                }
+            }
+            Predicate::FeatureEnabled(f) => {
+                if !world.device.feature(f) {
+                    push(fail("world.device.features", format!("`{f}` is not enabled")));
+                }
+            }
+            Predicate::FeatureEnabledIfPipelineFlag(flag, f) => {
+                if world.bound_pipeline().is_some_and(|pl| pl.flags.contains(*flag)) && !world.device.feature(f) {
+                    push(fail("world.device.features", format!("`{f}` is not enabled but the pipeline has {}", flag.names().join("|"))));
+                }
+            }
+            Predicate::BufferUsage(p, usage) => {
+                if let Some(addr) = call.address(*p) {
+                    if addr.is_null() {
+                        return;
+                    }
+                }
+                match call.buffer_of(world, *p) {
+                    Some(b) if !b.usage.contains(*usage) => push(fail(
+                        call.param_path(*p),
+                        format!("buffer `{}` lacks {}", b.name, usage.names().join("|")),
+                    )),
+                    None if call.address(*p).is_some_and(|a| !a.is_null()) => {
+                        push(fail(call.param_path(*p), "the address lies in no buffer of the world"))
+                    }
+                    _ => {}
+                }
+            }
+            Predicate::BoundContiguously(p) => {
+                if let Some(b) = call.buffer_of(world, *p) {
+                    if !b.is_sparse() && b.memory != MemoryBinding::Whole {
+                        push(fail(call.param_path(*p), format!("buffer `{}` is not bound to one memory object", b.name)));
+                    }
+                }
+            }
+            Predicate::RangeInOneBuffer(p, len) => {
+                let Some(addr) = call.address(*p) else { return };
+                let Some(len) = len.value(cx) else { return };
+                match addr.buffer() {
+                    Some((name, off)) => match world.buffer(name) {
+                        Some(b) if off.saturating_add(len) <= b.size => {}
+                        Some(b) => push(fail(call.param_path(*p), format!("[{off}, {off}+{len}) passes the end of `{}` ({} bytes)", b.name, b.size))),
+                        None => push(fail(call.param_path(*p), format!("no buffer `{name}` in the world"))),
+                    },
+                    None => push(fail(call.param_path(*p), "the address lies in no buffer of the world")),
+                }
+            }
+            Predicate::RegionInOneBuffer | Predicate::RegionStrideWithinBuffer => {
+                let Some(regions) = call.regions() else { return };
+                for (t, r) in Table::ALL.iter().zip(regions) {
+                    if r.size == 0 {
+                        continue;
+                    }
+                    let ctx = t.khr_param();
+                    let Some((name, off)) = r.address.buffer() else {
+                        push(fail(format!("{ctx}->deviceAddress"), "a region of non-zero size lies in no buffer of the world"));
+                        continue;
+                    };
+                    let Some(b) = world.buffer(name) else {
+                        push(fail(format!("{ctx}->deviceAddress"), format!("no buffer `{name}` in the world")));
+                        continue;
+                    };
+                    if matches!(self, Predicate::RegionInOneBuffer) {
+                        if off.saturating_add(r.size) > b.size {
+                            push(fail(format!("{ctx}->size"), format!("[{off}, {off}+{}) passes the end of `{}` ({} bytes)", r.size, b.name, b.size)));
+                        }
+                    } else if r.stride > b.size {
+                        push(fail(format!("{ctx}->stride"), format!("{} is greater than the size of `{}` ({})", r.stride, b.name, b.size)));
+                    }
+                }
+            }
+            Predicate::ValidBufferHandle(t) => {
+                if let Some(Some(name)) = call.nv_table(*t).map(|n| n.buffer.as_ref()) {
+                    if world.buffer(name).is_none() {
+                        push(fail(format!("{}TableBuffer", t.nv_stem()), format!("`{name}` is not a buffer of the world")));
+                    }
+                } else if *t == Table::Raygen && call.nv_table(*t).is_some() {
+                    push(fail("raygenShaderBindingTableBuffer", "VK_NULL_HANDLE is not a valid buffer"));
+                }
+            }
+            Predicate::IndirectDimensionAtMost(i, op) => {
+                if let (Some(d), Some(m)) = (call.dimensions(world), op.value(cx)) {
+                    let v = d[*i as usize] as u64;
+                    if v > m {
+                        let field = ["width", "height", "depth"][*i as usize];
+                        push(fail(format!("indirect command.{field}"), format!("{v} is greater than {}", op.describe(cx))));
+                    }
+                }
+            }
+            Predicate::IndirectInvocationsAtMost(op) => {
+                if let (Some(d), Some(m)) = (call.dimensions(world), op.value(cx)) {
+                    let v = d.iter().map(|&x| x as u64).product::<u64>();
+                    if v > m {
+                        push(fail("indirect command", format!("width × height × depth = {v} is greater than {}", op.describe(cx))));
+                    }
+                }
+            }
+            Predicate::NotProtectedCommandBuffer => {
+                if world.command_buffer.protected {
+                    push(fail("commandBuffer", "is a protected command buffer"));
+                }
+            }
+            Predicate::Recording => {
+                if world.command_buffer.lifecycle != CommandBufferLifecycle::Recording {
+                    push(fail("commandBuffer", format!("is in the {:?} state", world.command_buffer.lifecycle)));
+                }
+            }
+            Predicate::PoolSupports(q) => {
+                if !world.command_buffer.pool_queue.intersects(*q) {
+                    push(fail("commandBuffer", format!("its pool's queue family lacks {}", q.names().join(" or "))));
+                }
+            }
+            Predicate::OutsideRenderPass => {
+                if world.command_buffer.in_render_pass {
+                    push(fail("commandBuffer", "is inside a render pass instance"));
+                }
+            }
+            Predicate::OutsideVideoCoding => {
+                if world.command_buffer.in_video_coding {
+                    push(fail("commandBuffer", "is inside a video coding scope"));
+                }
+            }
+            Predicate::PipelineBound => {
+                if world.bound_pipeline().is_none() {
+                    push(fail("commandBuffer", "no ray tracing pipeline is bound"));
+                }
+            }
+            Predicate::HandlesFromBoundPipeline => {
+                for (table, index) in reached_records(cx) {
+                    if let Some(HandleRef::Foreign(g)) = record_handle(world, call, table, index) {
+                        push(fail(format!("{table:?} record {index}"), format!("holds group {g} of another pipeline")));
+                    }
+                }
+            }
+            Predicate::RecursionWithinPipelineLimit => {
+                if let Some(pl) = world.bound_pipeline() {
+                    let depth = world.launch.recursion_depth();
+                    if depth > pl.max_recursion_depth && launches_anything(cx) {
+                        push(fail("world.launch", format!("shader calls reach depth {depth}, the pipeline allows {}", pl.max_recursion_depth)));
+                    }
+                }
+            }
+            Predicate::NoNullMissReached => {
+                let Some(pl) = world.bound_pipeline() else { return };
+                if !pl.flags.contains(PipelineCreate::RAY_TRACING_NO_NULL_MISS_SHADERS_BIT_KHR) {
+                    return;
+                }
+                for (table, index) in reached_records(cx) {
+                    if table == Table::Miss && record_handle(world, call, table, index) == Some(HandleRef::Zero) {
+                        push(fail(format!("miss record {index}"), "is a zero group but the pipeline has NO_NULL_MISS_SHADERS"));
+                    }
+                }
+            }
+            Predicate::NoNullHitReached(kind) => {
+                let Some(pl) = world.bound_pipeline() else { return };
+                let flag = match kind {
+                    NullHitKind::AnyHit => PipelineCreate::RAY_TRACING_NO_NULL_ANY_HIT_SHADERS_BIT_KHR,
+                    NullHitKind::ClosestHit => PipelineCreate::RAY_TRACING_NO_NULL_CLOSEST_HIT_SHADERS_BIT_KHR,
+                    NullHitKind::Intersection => PipelineCreate::RAY_TRACING_NO_NULL_INTERSECTION_SHADERS_BIT_KHR,
+                };
+                if !pl.flags.contains(flag) {
+                    return;
+                }
+                for (index, geometry) in reached_hit_records(cx) {
+                    let relevant = *kind != NullHitKind::Intersection || geometry == GeometryKind::Aabbs;
+                    if relevant && record_handle(world, call, Table::Hit, index) == Some(HandleRef::Zero) {
+                        push(fail(format!("hit record {index}"), format!("is a zero group but the pipeline has {}", flag.names().join(""))));
+                    }
+                }
+            }
+            Predicate::HitGroupTypeMatchesGeometry(kind) => {
+                let Some(pl) = world.bound_pipeline() else { return };
+                for (index, geometry) in reached_hit_records(cx) {
+                    if geometry != *kind {
+                        continue;
+                    }
+                    if let Some(HandleRef::Group(g)) = record_handle(world, call, Table::Hit, index) {
+                        let ok = match (pl.groups.get(g as usize), kind) {
+                            (Some(ShaderGroup::TrianglesHit { .. }), GeometryKind::Triangles) => true,
+                            (Some(ShaderGroup::ProceduralHit { .. }), GeometryKind::Aabbs) => true,
+                            _ => false,
+                        };
+                        if !ok {
+                            push(fail(format!("hit record {index}"), format!("group {g} is not a {kind:?} hit group")));
+                        }
+                    }
+                }
+            }
+            Predicate::DynamicStackSizeSet => {
+                if world.bound_pipeline().is_some_and(|p| p.dynamic_stack_size) && !world.command_buffer.stack_size_set {
+                    push(fail("commandBuffer", "the pipeline's stack size is dynamic and was never set"));
+                }
+            }
+            Predicate::NoStaticStateSet => {
+                if world.bound_pipeline().is_some_and(|p| !p.dynamic_stack_size) && world.command_buffer.stack_size_set {
+                    push(fail("commandBuffer", "the stack size was set but the pipeline's is static"));
+                }
+            }
+            Predicate::NoProtectedResourceFromUnprotected => {
+                if world.command_buffer.protected || cx.profile.has_feature("protectedNoFault") || cx.profile.limit("protectedNoFault") == Some(1) {
+                    return;
+                }
+                for p in cx.used_buffer_params() {
+                    if let Some(b) = call.buffer_of(world, p) {
+                        if b.flags.contains(crate::flags::BufferCreate::PROTECTED_BIT) {
+                            push(fail(call.param_path(p), format!("buffer `{}` is protected", b.name)));
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Whether the launch runs any invocation (dimensions known and none zero).
+fn launches_anything(cx: &Context) -> bool {
+    cx.call.dimensions(cx.world).is_none_or(|d| d.iter().all(|&x| x > 0))
+}
+
+/// The (table, record index) pairs the launch reads: the raygen record, the miss and hit records its
+/// rays reach, and the callable records it executes.
+pub fn reached_records(cx: &Context) -> Vec<(Table, u64)> {
+    if !launches_anything(cx) {
+        return vec![];
+    }
+    let mut out = vec![(Table::Raygen, 0)];
+    let launch = &cx.world.launch;
+    for ray in &launch.rays {
+        match hit_target(cx, ray) {
+            Some((idx, _)) => out.push((Table::Hit, idx)),
+            None => out.push((Table::Miss, miss_record(ray.miss_index))),
+        }
+    }
+    out.extend(launch.callables.iter().map(|&c| (Table::Callable, c as u64)));
+    out.sort_by_key(|(t, i)| (*t, *i));
+    out.dedup();
+    out
+}
+
+/// The hit record a ray reaches and the geometry kind it comes from, or None if it misses.
+fn hit_target(cx: &Context, ray: &crate::world::TraceRay) -> Option<(u64, GeometryKind)> {
+    let RayTarget::Geometry { instance, geometry } = ray.target else { return None };
+    let inst = cx.world.launch.instances.get(instance as usize)?;
+    if inst.mask as u32 & ray.cull_mask & 0xFF == 0 {
+        return None;
+    }
+    let kind = *inst.geometries.get(geometry as usize)?;
+    Some((hit_record(inst.sbt_record_offset, geometry, ray.sbt_offset, ray.sbt_stride), kind))
+}
+
+/// The hit records the launch reaches, with the kind of geometry each is reached from.
+fn reached_hit_records(cx: &Context) -> Vec<(u64, GeometryKind)> {
+    if !launches_anything(cx) {
+        return vec![];
+    }
+    let mut v: Vec<(u64, GeometryKind)> = cx.world.launch.rays.iter().filter_map(|r| hit_target(cx, r)).collect();
+    v.sort_by_key(|(i, k)| (*i, *k as u8));
+    v.dedup();
+    v
+}

@@ -1,0 +1,102 @@
+//! What a valid launch does, per launch ID: which shader binding table record each ray reaches and so
+//! which shader group writes the output (semantics.md §6, §7). The harness compares this with the
+//! records the raygen shader wrote.
+
+use crate::call::{Call, Table};
+use crate::world::{GeometryKind, HandleRef, RayTarget, ShaderGroup, World};
+
+/// Output word the harness pre-fills: the launch ID did not run.
+pub const NOT_RUN: u32 = 0xFFFF_FFFF;
+/// Output word when the ray was traced but no shader wrote the payload (zero group, or no closest-hit).
+pub const UNTOUCHED: u32 = 0xFFFF_FFFE;
+/// High half of the output word written by a miss shader of group `g`: `MISS_TAG | g`.
+pub const MISS_TAG: u32 = 0x0001_0000;
+/// High half of the output word written by a closest-hit shader of group `g`: `HIT_TAG | g`.
+pub const HIT_TAG: u32 = 0x0002_0000;
+
+
+/// The expected output of a valid launch: one word per launch ID, x fastest.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ExpectedLaunch {
+    pub dimensions: [u32; 3],
+    pub words: Vec<u32>,
+}
+
+/// The miss record a ray reaches (`missIndex & 0xFFFF`, semantics.md §6).
+pub fn miss_record(miss_index: u32) -> u64 {
+    (miss_index & 0xFFFF) as u64
+}
+
+/// The hit record a ray reaches on geometry `geometry` of an instance with `instance_offset`.
+pub fn hit_record(instance_offset: u32, geometry: u32, sbt_offset: u32, sbt_stride: u32) -> u64 {
+    (instance_offset & 0xFF_FFFF) as u64 + geometry as u64 * (sbt_stride & 0xF) as u64 + (sbt_offset & 0xF) as u64
+}
+
+/// The handle a table's record holds: (buffer, offset) resolved through the call's region or NV table.
+pub fn record_handle(world: &World, call: &Call, table: Table, index: u64) -> Option<HandleRef> {
+    match call {
+        Call::TraceRaysNv(_) => {
+            let t = call.nv_table(table)?;
+            let stride = if table == Table::Raygen { 0 } else { t.stride };
+            world.handle_at(t.buffer.as_deref()?, t.offset + stride * index)
+        }
+        _ => {
+            let r = call.region(table)?;
+            let (b, off) = r.address.buffer()?;
+            world.handle_at(b, off + r.stride * index)
+        }
+    }
+}
+
+/// The word the launch writes for a ray, given the handles it reaches.
+fn word_for_ray(world: &World, call: &Call, ray_index: usize) -> u32 {
+    let ray = &world.launch.rays[ray_index];
+    let pipeline = world.bound_pipeline();
+    let group_of = |h: Option<HandleRef>| -> Option<u32> {
+        match h {
+            Some(HandleRef::Group(g)) => Some(g),
+            _ => None,
+        }
+    };
+    let miss = |world: &World| -> u32 {
+        match group_of(record_handle(world, call, Table::Miss, miss_record(ray.miss_index))) {
+            Some(g) => MISS_TAG | g,
+            None => UNTOUCHED,
+        }
+    };
+    let RayTarget::Geometry { instance, geometry } = ray.target else { return miss(world) };
+    let Some(inst) = world.launch.instances.get(instance as usize) else { return miss(world) };
+    if inst.mask as u32 & ray.cull_mask & 0xFF == 0 {
+        return miss(world);
+    }
+    let Some(kind) = inst.geometries.get(geometry as usize) else { return miss(world) };
+    let idx = hit_record(inst.sbt_record_offset, geometry, ray.sbt_offset, ray.sbt_stride);
+    let group = group_of(record_handle(world, call, Table::Hit, idx));
+    let shader_group = group.and_then(|g| pipeline?.groups.get(g as usize).copied());
+    match (kind, shader_group) {
+        // A procedural primitive is only hit when an intersection shader reports it.
+        (GeometryKind::Aabbs, Some(ShaderGroup::ProceduralHit { intersection: true, closest_hit, .. })) => {
+            if closest_hit {
+                HIT_TAG | group.unwrap_or(0)
+            } else {
+                UNTOUCHED
+            }
+        }
+        (GeometryKind::Aabbs, _) => miss(world),
+        (GeometryKind::Triangles, Some(ShaderGroup::TrianglesHit { closest_hit: true, .. })) => {
+            HIT_TAG | group.unwrap_or(0)
+        }
+        (GeometryKind::Triangles, _) => UNTOUCHED,
+    }
+}
+
+/// The expected output words of a valid call, or None when the dimensions are not known.
+pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
+    let dims = call.dimensions(world)?;
+    let n = dims.iter().map(|&d| d as usize).product::<usize>();
+    let rays = world.launch.rays.len();
+    let words = (0..n)
+        .map(|id| if rays == 0 { UNTOUCHED } else { word_for_ray(world, call, id % rays) })
+        .collect();
+    Some(ExpectedLaunch { dimensions: dims, words })
+}

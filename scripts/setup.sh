@@ -1,0 +1,56 @@
+#!/usr/bin/env bash
+# rtconf set-up: installs what the conformance run and the tests need on Debian 12 (bookworm).
+# Idempotent: does nothing when everything is already present. Never adds trixie or sid.
+set -euo pipefail
+
+need=()
+have_pkg() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q 'install ok installed'; }
+
+lvp_icd=/usr/share/vulkan/icd.d/lvp_icd.json
+lavapipe_ok() {
+  # bookworm's own Mesa (22.3) has no ray tracing; we need the backports one (>= 25).
+  have_pkg mesa-vulkan-drivers || return 1
+  local v
+  v=$(dpkg-query -W -f='${Version}' mesa-vulkan-drivers)
+  dpkg --compare-versions "$v" ge 24 && [ -f "$lvp_icd" ]
+}
+
+for p in libvulkan1 libvulkan-dev vulkan-validationlayers glslang-tools vulkan-tools; do
+  have_pkg "$p" || need+=("$p")
+done
+
+if [ ${#need[@]} -eq 0 ] && lavapipe_ok; then
+  exit 0
+fi
+
+if [ "$(id -u)" -ne 0 ]; then
+  SUDO=sudo
+else
+  SUDO=
+fi
+
+codename=$(. /etc/os-release && echo "${VERSION_CODENAME:-}")
+if [ "$codename" != "bookworm" ]; then
+  echo "rtconf setup: this script targets Debian 12 (bookworm); found '${codename:-unknown}'." >&2
+  echo "Install by hand: Mesa >= 24 lavapipe with ray tracing, libvulkan-dev, vulkan-validationlayers, glslang-tools." >&2
+  exit 1
+fi
+
+# The backports suite, written with the same mirror the machine already uses.
+bp=/etc/apt/sources.list.d/rtconf-bookworm-backports.list
+if ! grep -rqs 'bookworm-backports' /etc/apt/sources.list /etc/apt/sources.list.d/; then
+  # The first non-security mirror of an active line: deb822 "URIs:" or one-line "deb URL".
+  mirror=$(cat /etc/apt/sources.list /etc/apt/sources.list.d/*.list /etc/apt/sources.list.d/*.sources 2>/dev/null \
+           | grep -E '^(URIs:|deb )' | grep -oE 'https?://[^ ]+' | grep -v security | head -n1 || true)
+  mirror=${mirror:-http://deb.debian.org/debian}
+  echo "deb ${mirror%/} bookworm-backports main" | $SUDO tee "$bp" >/dev/null
+fi
+
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+lavapipe_ok || $SUDO apt-get install -y -qq -t bookworm-backports mesa-vulkan-drivers
+if [ ${#need[@]} -gt 0 ]; then
+  $SUDO apt-get install -y -qq "${need[@]}"
+fi
+lavapipe_ok || { echo "rtconf setup: lavapipe with ray tracing is still missing after install" >&2; exit 1; }
+echo "rtconf setup: done"
