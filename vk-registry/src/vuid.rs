@@ -249,7 +249,7 @@ pub fn split_vuid(id: &str) -> Option<VuidParts<'_>> {
     if scope.is_empty() || rest.is_empty() {
         return None;
     }
-    let valid = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-');
+    let valid = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-' || b == b':');
     if !valid(scope) || !valid(rest) {
         return None;
     }
@@ -350,6 +350,14 @@ impl Out {
         self.space = false;
         self.s.push(c);
     }
+    /// Push a run of ASCII characters that holds no whitespace.
+    fn push_run(&mut self, t: &str) {
+        if self.space && !self.s.is_empty() {
+            self.s.push(' ');
+        }
+        self.space = false;
+        self.s.push_str(t);
+    }
     fn push_str(&mut self, t: &str) {
         for c in t.chars() {
             self.push(c);
@@ -425,8 +433,9 @@ fn run(s: &str, mode: Mode, out: &mut Out) {
                 out.push(b[i + 1] as char);
                 i += 2;
             }
-            b'*' if mode == Mode::Markdown && !in_code && i + 1 < b.len() && b[i + 1] == b'*' => {
-                i += 2;
+            b'*' if mode == Mode::Markdown && !in_code => {
+                // emphasis markers (`**must**`, `*n*`); literal asterisks are escaped in Markdown
+                i += 1;
             }
             b'[' if mode == Mode::Markdown && !in_code => {
                 if let Some((text_end, link_end)) = md_link(b, i) {
@@ -438,8 +447,17 @@ fn run(s: &str, mode: Mode, out: &mut Out) {
                 }
             }
             _ if c < 0x80 => {
-                out.push(c as char);
-                i += 1;
+                // copy a run of ordinary ASCII bytes at once
+                let start = i;
+                while i < b.len() && is_plain_byte(b[i]) {
+                    i += 1;
+                }
+                if i > start {
+                    out.push_run(&s[start..i]);
+                } else {
+                    out.push(c as char);
+                    i += 1;
+                }
             }
             _ => {
                 let ch = s[i..].chars().next().unwrap_or('\u{fffd}');
@@ -448,6 +466,11 @@ fn run(s: &str, mode: Mode, out: &mut Out) {
             }
         }
     }
+}
+
+#[inline]
+fn is_plain_byte(c: u8) -> bool {
+    c.is_ascii_graphic() && !matches!(c, b'<' | b'&' | b'`' | b'\\' | b'*' | b'[')
 }
 
 fn is_block_tag(name: &str) -> bool {

@@ -441,19 +441,10 @@ impl Registry {
         }
     }
 
-    fn build_index(&mut self) {
-        let mut ix = Index::default();
+    fn build_index(&mut self, values: HashMap<String, (usize, usize)>, groups: HashMap<String, usize>) {
+        let mut ix = Index { values, groups, ..Index::default() };
         for (i, t) in self.types.iter().enumerate() {
             ix.types.entry(t.name.clone()).or_insert(i);
-        }
-        for (i, g) in self.enum_groups.iter().enumerate() {
-            ix.groups.entry(g.name.clone()).or_insert(i);
-            for (j, v) in g.values.iter().enumerate() {
-                ix.values.entry(v.name.clone()).or_insert((i, j));
-            }
-        }
-        for (j, v) in self.ext_constants.iter().enumerate() {
-            ix.values.entry(v.name.clone()).or_insert((usize::MAX, j));
         }
         for (i, c) in self.commands.iter().enumerate() {
             ix.commands.entry(c.name.clone()).or_insert(i);
@@ -512,7 +503,7 @@ fn member_attrs(m: &Member) -> String {
 enum Ev<'a> {
     Open(BytesStart<'a>, bool),
     Close,
-    Text(Cow<'a, str>),
+    Text(quick_xml::events::BytesText<'a>),
 }
 
 struct Parser<'a> {
@@ -605,8 +596,8 @@ impl<'a> Parser<'a> {
                 Event::Start(e) => Ev::Open(e, false),
                 Event::Empty(e) => Ev::Open(e, true),
                 Event::End(_) => Ev::Close,
-                Event::Text(t) => Ev::Text(t.unescape().map_err(|e| self.xml_err(e))?),
-                Event::CData(t) => Ev::Text(Cow::Owned(String::from_utf8_lossy(&t).into_owned())),
+                Event::Text(t) => Ev::Text(t),
+                Event::CData(t) => Ev::Text(quick_xml::events::BytesText::from_escaped(String::from_utf8_lossy(&t).into_owned())),
                 Event::Comment(_) | Event::Decl(_) | Event::PI(_) | Event::DocType(_) => continue,
                 Event::Eof => return Ok(None),
             }));
@@ -637,6 +628,10 @@ impl<'a> Parser<'a> {
         Ok(())
     }
 
+    fn unescape<'t>(&self, t: &'t quick_xml::events::BytesText<'a>) -> Result<Cow<'t, str>, RegistryError> {
+        t.unescape().map_err(|e| self.xml_err(e))
+    }
+
     fn start_pos(&self) -> usize {
         // buffer_position is just after the tag; find its '<' for error locations
         let p = (self.r.buffer_position() as usize).min(self.src.len());
@@ -650,19 +645,36 @@ impl<'a> Parser<'a> {
         )
     }
 
-    fn attrs(&self, e: &BytesStart<'a>) -> Result<Vec<(&'static str, String)>, RegistryError> {
+    fn attrs<'e>(&self, e: &'e BytesStart<'a>) -> Result<Vec<(&'static str, Cow<'e, str>)>, RegistryError> {
         // keys are interned against a fixed list to keep matching cheap
         let mut out = Vec::new();
-        for a in e.attributes() {
+        for a in e.attributes().with_checks(false) {
             let a = a.map_err(|err| self.err_at(self.start_pos(), format!("malformed attribute: {err}")))?;
             let key = intern(a.key.as_ref());
-            let raw = std::str::from_utf8(&a.value).map_err(|_| self.err_at(self.start_pos(), "attribute is not UTF-8"))?;
-            let val = if raw.contains('&') {
-                quick_xml::escape::unescape(raw)
-                    .map_err(|err| self.err_at(self.start_pos(), format!("bad escape in attribute: {err}")))?
-                    .into_owned()
-            } else {
-                raw.to_string()
+            if key.is_empty() {
+                continue;
+            }
+            let val: Cow<'e, str> = match a.value {
+                Cow::Borrowed(bytes) => {
+                    let raw = std::str::from_utf8(bytes).map_err(|_| self.err_at(self.start_pos(), "attribute is not UTF-8"))?;
+                    if raw.contains('&') {
+                        Cow::Owned(
+                            quick_xml::escape::unescape(raw)
+                                .map_err(|err| self.err_at(self.start_pos(), format!("bad escape in attribute: {err}")))?
+                                .into_owned(),
+                        )
+                    } else {
+                        Cow::Borrowed(raw)
+                    }
+                }
+                Cow::Owned(bytes) => {
+                    let raw = String::from_utf8(bytes).map_err(|_| self.err_at(self.start_pos(), "attribute is not UTF-8"))?;
+                    Cow::Owned(
+                        quick_xml::escape::unescape(&raw)
+                            .map_err(|err| self.err_at(self.start_pos(), format!("bad escape in attribute: {err}")))?
+                            .into_owned(),
+                    )
+                }
             };
             out.push((key, val));
         }
@@ -687,14 +699,14 @@ impl<'a> Parser<'a> {
         }
         while let Some(ev) = self.next()? {
             match ev {
-                Ev::Text(t) if t.trim().is_empty() => {}
+                Ev::Text(t) if t.iter().all(|b| b.is_ascii_whitespace()) => {}
                 _ => return Err(self.err_here("content after </registry>")),
             }
         }
         self.apply_pending()?;
         self.resolve_aliases();
         let mut reg = self.reg;
-        reg.build_index();
+        reg.build_index(self.values, self.groups);
         Ok(reg)
     }
 
@@ -757,9 +769,9 @@ impl<'a> Parser<'a> {
         };
         for (k, v) in self.attrs(e)? {
             match k {
-                "name" => t.name = v,
+                "name" => t.name = v.into_owned(),
                 "category" => {
-                    t.category = match v.as_str() {
+                    t.category = match &*v {
                         "struct" => TypeCategory::Struct,
                         "union" => TypeCategory::Union,
                         "handle" => TypeCategory::Handle,
@@ -772,25 +784,24 @@ impl<'a> Parser<'a> {
                         other => return Err(self.err_at(pos, format!("unknown type category `{other}`"))),
                     }
                 }
-                "alias" => t.alias = Some(v),
-                "api" => t.api = Some(v),
+                "alias" => t.alias = Some(v.into_owned()),
+                "api" => t.api = Some(v.into_owned()),
                 "parent" => t.parent = split_list(&v),
-                "objtypeenum" => t.objtypeenum = Some(v),
-                "requires" => t.requires = Some(v),
-                "bitvalues" => t.bitvalues = Some(v),
+                "objtypeenum" => t.objtypeenum = Some(v.into_owned()),
+                "requires" => t.requires = Some(v.into_owned()),
+                "bitvalues" => t.bitvalues = Some(v.into_owned()),
                 "structextends" => t.structextends = split_list(&v),
                 "returnedonly" => t.returnedonly = v == "true",
                 "allowduplicate" => t.allowduplicate = v == "true",
-                "deprecated" => t.deprecated = Some(v),
+                "deprecated" => t.deprecated = Some(v.into_owned()),
                 _ => {}
             }
         }
         if !empty {
-            let mut depth_text = String::new();
             loop {
                 match self.child("type")? {
                     Ev::Close => break,
-                    Ev::Text(s) => depth_text.push_str(&s),
+                    Ev::Text(_) => {}
                     Ev::Open(c, cempty) => match c.name().as_ref() {
                         b"member" => {
                             let m = self.member(&c, cempty, "member")?;
@@ -849,7 +860,7 @@ impl<'a> Parser<'a> {
         loop {
             match self.child(ctx)? {
                 Ev::Close => return Ok(s),
-                Ev::Text(t) => s.push_str(&t),
+                Ev::Text(t) => s.push_str(&self.unescape(&t)?),
                 Ev::Open(c, _) => return Err(self.unexpected(&c, ctx)),
             }
         }
@@ -862,19 +873,19 @@ impl<'a> Parser<'a> {
         for (k, v) in self.attrs(e)? {
             match k {
                 "optional" => m.optional = v.split(',').map(|x| x.trim() == "true").collect(),
-                "len" => m.len = Some(v),
-                "altlen" => m.altlen = Some(v),
-                "values" => m.values = Some(v),
+                "len" => m.len = Some(v.into_owned()),
+                "altlen" => m.altlen = Some(v.into_owned()),
+                "values" => m.values = Some(v.into_owned()),
                 "noautovalidity" => m.noautovalidity = v == "true",
-                "limittype" => m.limittype = Some(v),
-                "selector" => m.selector = Some(v),
-                "selection" => m.selection = Some(v),
-                "externsync" => m.externsync = Some(v),
-                "objecttype" => m.objecttype = Some(v),
-                "stride" => m.stride = Some(v),
+                "limittype" => m.limittype = Some(v.into_owned()),
+                "selector" => m.selector = Some(v.into_owned()),
+                "selection" => m.selection = Some(v.into_owned()),
+                "externsync" => m.externsync = Some(v.into_owned()),
+                "objecttype" => m.objecttype = Some(v.into_owned()),
+                "stride" => m.stride = Some(v.into_owned()),
                 "validstructs" => m.validstructs = split_list(&v),
-                "api" => m.api = Some(v),
-                "deprecated" => m.deprecated = Some(v),
+                "api" => m.api = Some(v.into_owned()),
+                "deprecated" => m.deprecated = Some(v.into_owned()),
                 _ => {}
             }
         }
@@ -889,6 +900,7 @@ impl<'a> Parser<'a> {
             match self.child(ctx)? {
                 Ev::Close => break,
                 Ev::Text(t) => {
+                    let t = self.unescape(&t)?;
                     decl.push_str(&t);
                     match stage {
                         1 => between.push_str(&t),
@@ -949,14 +961,14 @@ impl<'a> Parser<'a> {
         let mut c = Command::default();
         for (k, v) in self.attrs(e)? {
             match k {
-                "name" => c.name = v,
-                "alias" => c.alias = Some(v),
-                "api" => c.api = Some(v),
+                "name" => c.name = v.into_owned(),
+                "alias" => c.alias = Some(v.into_owned()),
+                "api" => c.api = Some(v.into_owned()),
                 "successcodes" => c.successcodes = split_list(&v),
                 "errorcodes" => c.errorcodes = split_list(&v),
                 "queues" => c.queues = split_list(&v),
-                "renderpass" => c.renderpass = Some(v),
-                "videocoding" => c.videocoding = Some(v),
+                "renderpass" => c.renderpass = Some(v.into_owned()),
+                "videocoding" => c.videocoding = Some(v.into_owned()),
                 "cmdbufferlevel" => c.cmdbufferlevel = split_list(&v),
                 "tasks" => c.tasks = split_list(&v),
                 _ => {}
@@ -1014,9 +1026,9 @@ impl<'a> Parser<'a> {
         let mut g = EnumGroup { name: String::new(), kind: EnumKind::Constants, bitwidth: None, values: Vec::new() };
         for (k, v) in self.attrs(e)? {
             match k {
-                "name" => g.name = v,
+                "name" => g.name = v.into_owned(),
                 "type" => {
-                    g.kind = match v.as_str() {
+                    g.kind = match &*v {
                         "enum" => EnumKind::Enum,
                         "bitmask" => EnumKind::Bitmask,
                         "constants" => EnumKind::Constants,
@@ -1087,17 +1099,17 @@ impl<'a> Parser<'a> {
         let (mut extends, mut offset, mut extnumber, mut neg, mut api, mut has) = (None, None, None, false, None, false);
         for (k, val) in self.attrs(e)? {
             match k {
-                "name" => v.name = val,
+                "name" => v.name = val.into_owned(),
                 "value" => {
                     has = true;
                     match parse_int_literal(&val) {
                         Some(x) if !val.contains('.') && !val.contains('"') => {
                             v.value = Some(x);
                             if val.contains('~') || val.contains('U') || val.contains('(') {
-                                v.raw = Some(val);
+                                v.raw = Some(val.into_owned());
                             }
                         }
-                        _ => v.raw = Some(val),
+                        _ => v.raw = Some(val.into_owned()),
                     }
                 }
                 "bitpos" => {
@@ -1111,7 +1123,7 @@ impl<'a> Parser<'a> {
                 }
                 "alias" => {
                     has = true;
-                    v.alias = Some(val)
+                    v.alias = Some(val.into_owned())
                 }
                 "offset" => {
                     has = true;
@@ -1121,11 +1133,11 @@ impl<'a> Parser<'a> {
                     extnumber = Some(val.parse::<i64>().map_err(|_| self.err_at(pos, format!("bad extnumber `{val}`")))?)
                 }
                 "dir" => neg = val == "-",
-                "extends" => extends = Some(val),
-                "type" => v.c_type = Some(val),
-                "api" => api = Some(val),
-                "protect" => v.protect = Some(val),
-                "deprecated" => v.deprecated = Some(val),
+                "extends" => extends = Some(val.into_owned()),
+                "type" => v.c_type = Some(val.into_owned()),
+                "api" => api = Some(val.into_owned()),
+                "protect" => v.protect = Some(val.into_owned()),
+                "deprecated" => v.deprecated = Some(val.into_owned()),
                 _ => {}
             }
         }
@@ -1152,8 +1164,8 @@ impl<'a> Parser<'a> {
         let mut f = Feature { name: String::new(), number: String::new(), api: Vec::new(), depends: None, require: Vec::new(), remove: Vec::new() };
         for (k, v) in self.attrs(e)? {
             match k {
-                "name" => f.name = v,
-                "number" => f.number = v,
+                "name" => f.name = v.into_owned(),
+                "number" => f.number = v.into_owned(),
                 "api" => f.api = split_list(&v),
                 "depends" => f.depends = Some(self.condition(&v, pos)?),
                 _ => {}
@@ -1212,9 +1224,9 @@ impl<'a> Parser<'a> {
         for (k, v) in self.attrs(e)? {
             match k {
                 "depends" => r.depends = Some(self.condition(&v, pos)?),
-                "api" => r.api = Some(v),
-                "comment" => r.comment = Some(v),
-                "extension" | "feature" => old_deps.push(v),
+                "api" => r.api = Some(v.into_owned()),
+                "comment" => r.comment = Some(v.into_owned()),
+                "extension" | "feature" => old_deps.push(v.into_owned()),
                 _ => {}
             }
         }
@@ -1232,7 +1244,7 @@ impl<'a> Parser<'a> {
                         let cpos = self.start_pos();
                         match c.name().as_ref() {
                             b"type" | b"command" => {
-                                let name = self.attrs(&c)?.into_iter().find(|(k, _)| *k == "name").map(|(_, v)| v);
+                                let name = self.attrs(&c)?.into_iter().find(|(k, _)| *k == "name").map(|(_, v)| v.into_owned());
                                 let is_type = c.name().as_ref() == b"type";
                                 self.skip(&c, cempty)?;
                                 let Some(name) = name else {
@@ -1255,7 +1267,7 @@ impl<'a> Parser<'a> {
                                     None => self
                                         .attrs(&c)
                                         .ok()
-                                        .and_then(|a| a.into_iter().find(|(k, _)| *k == "name").map(|(_, v)| v))
+                                        .and_then(|a| a.into_iter().find(|(k, _)| *k == "name").map(|(_, v)| v.into_owned()))
                                         .unwrap_or_default(),
                                 };
                                 r.enums.push(name);
@@ -1268,7 +1280,7 @@ impl<'a> Parser<'a> {
                             b"feature" => {
                                 let a = self.attrs(&c)?;
                                 self.skip(&c, cempty)?;
-                                let get = |k: &str| a.iter().find(|(kk, _)| *kk == k).map(|(_, v)| v.clone()).unwrap_or_default();
+                                let get = |k: &str| a.iter().find(|(kk, _)| *kk == k).map(|(_, v)| v.to_string()).unwrap_or_default();
                                 r.features.push(FeatureRef { name: get("name"), structure: get("struct") });
                             }
                             b"comment" => self.skip(&c, cempty)?,
@@ -1304,21 +1316,21 @@ impl<'a> Parser<'a> {
         let mut requires = None;
         for (k, v) in self.attrs(e)? {
             match k {
-                "name" => x.name = v,
+                "name" => x.name = v.into_owned(),
                 "number" => x.number = v.parse().map_err(|_| self.err_at(pos, format!("bad extension number `{v}`")))?,
-                "type" => x.ext_type = Some(v),
+                "type" => x.ext_type = Some(v.into_owned()),
                 "supported" => x.supported = split_list(&v),
                 "depends" => x.depends = Some(self.condition(&v, pos)?),
-                "requires" => requires = Some(v),
-                "promotedto" => x.promotedto = Some(v),
-                "deprecatedby" => x.deprecatedby = Some(v),
-                "obsoletedby" => x.obsoletedby = Some(v),
-                "platform" => x.platform = Some(v),
+                "requires" => requires = Some(v.into_owned()),
+                "promotedto" => x.promotedto = Some(v.into_owned()),
+                "deprecatedby" => x.deprecatedby = Some(v.into_owned()),
+                "obsoletedby" => x.obsoletedby = Some(v.into_owned()),
+                "platform" => x.platform = Some(v.into_owned()),
                 "provisional" => x.provisional = v == "true",
                 "specialuse" => x.specialuse = split_list(&v),
                 "ratified" => x.ratified = split_list(&v),
-                "author" => x.author = Some(v),
-                "contact" => x.contact = Some(v),
+                "author" => x.author = Some(v.into_owned()),
+                "contact" => x.contact = Some(v.into_owned()),
                 _ => {}
             }
         }
