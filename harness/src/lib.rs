@@ -2,7 +2,10 @@
 //! runs the trace call, and reports what the layer said and what the shaders wrote.
 
 pub mod error;
+pub mod execute;
 pub mod layout;
+pub mod observe;
+pub mod realise;
 pub mod probe;
 pub mod shaders;
 pub mod structs;
@@ -10,5 +13,7 @@ pub mod vk_tables;
 pub mod vulkan;
 
 pub use error::HarnessError;
+pub use execute::{execute, Executor};
+pub use observe::{CaseResult, Observation, Status};
 pub use probe::probe;
 pub use vulkan::Driver;
