@@ -36,16 +36,6 @@ fn main() {
         assert!(Path::new(p).exists(), "{} not found", p.display());
     }
 
-    let text = std::fs::read_to_string(&vk_xml).unwrap();
-    let raw = time(9, || {
-        let mut r = quick_xml::Reader::from_str(&text);
-        let mut n = 0usize;
-        loop { match r.read_event().unwrap() { quick_xml::events::Event::Eof => break, quick_xml::events::Event::Start(e) | quick_xml::events::Event::Empty(e) => { n += e.attributes().with_checks(false).count(); } _ => n += 1 } }
-        n
-    });
-    let parse_only = time(9, || vk_registry::Registry::parse(&text).unwrap());
-    let read_only = time(9, || std::fs::read_to_string(&vk_xml).unwrap());
-    eprintln!("raw quick-xml {raw:.1} ms, parse-from-str {parse_only:.1} ms, read {read_only:.1}");
     let a = time(9, || {
         let r = vk_registry::Registry::load(&vk_xml).expect("vk-registry reads vk.xml");
         assert!(r.command("vkCmdTraceRaysIndirectKHR").is_some());

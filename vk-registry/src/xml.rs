@@ -13,6 +13,32 @@ use quick_xml::Reader;
 use serde::{Deserialize, Serialize};
 use std::borrow::Cow;
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+
+/// A small multiplicative hasher for the name indexes (names are trusted registry input).
+#[derive(Default, Clone, Copy)]
+struct NameHasher(u64);
+
+impl Hasher for NameHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        const K: u64 = 0x517c_c1b7_2722_0a95;
+        let mut h = self.0;
+        let mut chunks = bytes.chunks_exact(8);
+        for c in &mut chunks {
+            let w = u64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]);
+            h = (h.rotate_left(5) ^ w).wrapping_mul(K);
+        }
+        for &b in chunks.remainder() {
+            h = (h.rotate_left(5) ^ u64::from(b)).wrapping_mul(K);
+        }
+        self.0 = h;
+    }
+}
+
+type FastMap<K, V> = HashMap<K, V, BuildHasherDefault<NameHasher>>;
 use std::fmt::Write;
 use std::path::Path;
 
@@ -221,13 +247,13 @@ pub struct Registry {
 
 #[derive(Debug, Clone, Default)]
 struct Index {
-    types: HashMap<String, usize>,
-    groups: HashMap<String, usize>,
+    types: FastMap<String, usize>,
+    groups: FastMap<String, usize>,
     /// value name -> (group index or usize::MAX for ext_constants, value index)
-    values: HashMap<String, (usize, usize)>,
-    commands: HashMap<String, usize>,
-    features: HashMap<String, usize>,
-    extensions: HashMap<String, usize>,
+    values: FastMap<String, (usize, usize)>,
+    commands: FastMap<String, usize>,
+    features: FastMap<String, usize>,
+    extensions: FastMap<String, usize>,
 }
 
 impl Registry {
@@ -441,7 +467,7 @@ impl Registry {
         }
     }
 
-    fn build_index(&mut self, values: HashMap<String, (usize, usize)>, groups: HashMap<String, usize>) {
+    fn build_index(&mut self, values: FastMap<String, (usize, usize)>, groups: FastMap<String, usize>) {
         let mut ix = Index { values, groups, ..Index::default() };
         for (i, t) in self.types.iter().enumerate() {
             ix.types.entry(t.name.clone()).or_insert(i);
@@ -512,8 +538,8 @@ struct Parser<'a> {
     r: Reader<&'a [u8]>,
     reg: Registry,
     /// enum value name -> (group, index), maintained while parsing for de-duplication
-    values: HashMap<String, (usize, usize)>,
-    groups: HashMap<String, usize>,
+    values: FastMap<String, (usize, usize)>,
+    groups: FastMap<String, usize>,
     pending_ext: Vec<(String, PendingValue)>,
 }
 
@@ -524,7 +550,7 @@ struct PendingValue {
 }
 
 fn is_vulkan_api(api: Option<&str>) -> bool {
-    api.map_or(true, |a| a.split(',').any(|x| x.trim() == "vulkan"))
+    !api.is_some_and(|a| !a.split(',').any(|x| x.trim() == "vulkan"))
 }
 
 fn split_list(s: &str) -> Vec<String> {
@@ -570,8 +596,8 @@ impl<'a> Parser<'a> {
             origin,
             r,
             reg: Registry::default(),
-            values: HashMap::new(),
-            groups: HashMap::new(),
+            values: FastMap::default(),
+            groups: FastMap::default(),
             pending_ext: Vec::new(),
         }
     }
@@ -1393,7 +1419,7 @@ impl<'a> Parser<'a> {
     }
 
     fn resolve_aliases(&mut self) {
-        let lookup = |reg: &Registry, values: &HashMap<String, (usize, usize)>, name: &str| -> Option<(usize, usize)> {
+        let lookup = |reg: &Registry, values: &FastMap<String, (usize, usize)>, name: &str| -> Option<(usize, usize)> {
             let _ = reg;
             values.get(name).copied()
         };
