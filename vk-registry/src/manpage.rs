@@ -118,7 +118,7 @@ fn prototype(text: &str, name: &str, origin: &str) -> Result<String, RegistryErr
         let end = rest.find(");");
         let fence = rest.find("```");
         return match end {
-            Some(e) if !fence.is_some_and(|f| f < e) => Ok(collapse_proto(&text[line_start..at + e + 2])),
+            Some(e) if fence.unwrap_or(usize::MAX) > e => Ok(collapse_proto(&text[line_start..at + e + 2])),
             _ => Err(RegistryError::at_offset(origin, text, at, format!("prototype of {name} is not closed by `);` (truncated page?)"))),
         };
     }

@@ -7,7 +7,7 @@ use crate::xml::Registry;
 use std::fmt::Write;
 
 fn selected<'a>(set: &'a VuidSet, command: Option<&'a str>) -> impl Iterator<Item = &'a VuidRecord> + 'a {
-    set.records.iter().filter(move |r| !command.is_some_and(|c| r.scope != c))
+    set.records.iter().filter(move |r| command.unwrap_or(&r.scope) == r.scope)
 }
 
 /// One VUID id per line, sorted; with `command`, only the VUIDs whose scope is that command.

@@ -550,7 +550,7 @@ struct PendingValue {
 }
 
 fn is_vulkan_api(api: Option<&str>) -> bool {
-    !api.is_some_and(|a| !a.split(',').any(|x| x.trim() == "vulkan"))
+    api.unwrap_or("vulkan").split(',').any(|x| x.trim() == "vulkan")
 }
 
 fn split_list(s: &str) -> Vec<String> {
