@@ -95,7 +95,9 @@ fn hand_rule(scope: &str, tag: &str) -> Option<Predicate> {
             "rayTracingMotionBlurPipelineTraceRaysIndirect".into(),
         ),
         // VUID-…-None-02700 / -None-08606: a pipeline is bound.
-        "02700" | "08606" => Predicate::PipelineBound,
+        // (-None-08607: with shaderObject enabled, a pipeline or shader objects; ray tracing stages have
+        // no shader objects, so a pipeline must be bound.)
+        "02700" | "08606" | "08607" => Predicate::PipelineBound,
         _ => return None,
     })
 }
@@ -191,6 +193,7 @@ impl RuleSet {
             .rows
             .iter()
             .filter(|r| r.status == Status::Executable && applies_to(&r.scope, command) && r.condition.eval(&enabled))
+            .filter_map(|r| Some((r, r.predicate.as_ref()?.for_device(profile)?)))
             .collect();
         Judge { profile, active }
     }
@@ -206,7 +209,8 @@ pub fn applies_to(scope: &str, command: &str) -> bool {
 /// The rows that apply to one command on one device, ready to judge calls.
 pub struct Judge<'a> {
     profile: &'a DeviceProfile,
-    active: Vec<&'a Row>,
+    /// Each applicable row with its predicate resolved for the device.
+    active: Vec<(&'a Row, Predicate)>,
 }
 
 /// What a predicate sees.
@@ -233,12 +237,10 @@ impl Judge<'_> {
         let cx = Context { profile: self.profile, world, call };
         let mut failures = Vec::new();
         let mut violations = Vec::new();
-        for row in &self.active {
-            if let Some(p) = &row.predicate {
-                p.check(&cx, &mut failures);
-                for f in failures.drain(..) {
-                    violations.push(Violation { vuid: row.vuid.clone(), context: f.context, problem: f.problem });
-                }
+        for (row, p) in &self.active {
+            p.check(&cx, &mut failures);
+            for f in failures.drain(..) {
+                violations.push(Violation { vuid: row.vuid.clone(), context: f.context, problem: f.problem });
             }
         }
         violations.sort();

@@ -50,10 +50,10 @@ pub enum Predicate {
     RegionStrideWithinBuffer,
     /// The NV table's buffer, when given, is a buffer of the world.
     ValidBufferHandle(Table),
-    /// The indirect command's dimension `i` is at most the operand.
-    IndirectDimensionAtMost(u8, Operand),
-    /// The product of the indirect command's dimensions is at most the operand.
-    IndirectInvocationsAtMost(Operand),
+    /// The launch dimension `i` (for the indirect call: read from memory) is at most the operand.
+    LaunchDimensionAtMost(u8, Operand),
+    /// The product of the launch dimensions is at most the operand.
+    LaunchInvocationsAtMost(Operand),
     NotProtectedCommandBuffer,
     Recording,
     PoolSupports(QueueFlags),
@@ -112,7 +112,40 @@ fn fail(context: impl Into<String>, problem: impl Into<String>) -> Option<Failur
     Some(Failure { context: context.into(), problem: problem.into() })
 }
 
+impl Operand {
+    /// The operand with every device limit replaced by its value; None when the profile lacks one.
+    fn resolved(&self, profile: &crate::profile::DeviceProfile) -> Option<Operand> {
+        Some(match self {
+            Operand::Limit(name) => Operand::Const(profile.limit(name)?),
+            Operand::Product(ops) => {
+                Operand::Product(ops.iter().map(|o| o.resolved(profile)).collect::<Option<Vec<_>>>()?)
+            }
+            other => other.clone(),
+        })
+    }
+}
+
 impl Predicate {
+    /// The predicate for one device: limits looked up once (so judging a call does no string work), or
+    /// None when the rule cannot apply there (a limit the profile lacks, `protectedNoFault` supported).
+    pub fn for_device(&self, profile: &crate::profile::DeviceProfile) -> Option<Predicate> {
+        Some(match self {
+            Predicate::MultipleOf(p, o) => Predicate::MultipleOf(*p, o.resolved(profile)?),
+            Predicate::AtMost(p, o) => Predicate::AtMost(*p, o.resolved(profile)?),
+            Predicate::LessThan(p, o) => Predicate::LessThan(*p, o.resolved(profile)?),
+            Predicate::Equal(p, o) => Predicate::Equal(*p, o.resolved(profile)?),
+            Predicate::RangeInOneBuffer(p, o) => Predicate::RangeInOneBuffer(*p, o.resolved(profile)?),
+            Predicate::LaunchDimensionAtMost(i, o) => Predicate::LaunchDimensionAtMost(*i, o.resolved(profile)?),
+            Predicate::LaunchInvocationsAtMost(o) => Predicate::LaunchInvocationsAtMost(o.resolved(profile)?),
+            Predicate::NoProtectedResourceFromUnprotected
+                if profile.has_feature("protectedNoFault") || profile.limit("protectedNoFault") == Some(1) =>
+            {
+                return None
+            }
+            other => other.clone(),
+        })
+    }
+
     /// Whether the parameter is part of the call at all (the raygen table has no stride for NV).
     fn applies(p: Param, call: &Call) -> bool {
         match (call, p) {
@@ -249,7 +282,7 @@ impl Predicate {
                     push(fail("raygenShaderBindingTableBuffer", "VK_NULL_HANDLE is not a valid buffer"));
                 }
             }
-            Predicate::IndirectDimensionAtMost(i, op) => {
+            Predicate::LaunchDimensionAtMost(i, op) => {
                 if let (Some(d), Some(m)) = (call.dimensions(world), op.value(cx)) {
                     let v = d[*i as usize] as u64;
                     if v > m {
@@ -258,7 +291,7 @@ impl Predicate {
                     }
                 }
             }
-            Predicate::IndirectInvocationsAtMost(op) => {
+            Predicate::LaunchInvocationsAtMost(op) => {
                 if let (Some(d), Some(m)) = (call.dimensions(world), op.value(cx)) {
                     let v = d.iter().map(|&x| x as u64).product::<u64>();
                     if v > m {
@@ -368,7 +401,8 @@ impl Predicate {
                 }
             }
             Predicate::NoProtectedResourceFromUnprotected => {
-                if world.command_buffer.protected || cx.profile.has_feature("protectedNoFault") || cx.profile.limit("protectedNoFault") == Some(1) {
+                // (`protectedNoFault` devices drop this rule in `for_device`.)
+                if world.command_buffer.protected {
                     return;
                 }
                 for p in cx.used_buffer_params() {

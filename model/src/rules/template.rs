@@ -155,13 +155,13 @@ fn indirect_command_shape(text: &str) -> Option<Predicate> {
     let dim = DIM.get_or_init(|| Regex::new(r"^(width|height|depth) must be less than or equal to (.+)$").unwrap());
     if let Some(c) = dim.captures(&t) {
         let i = ["width", "height", "depth"].iter().position(|d| *d == &c[1])? as u8;
-        return Some(Predicate::IndirectDimensionAtMost(i, operand(&c[2])?));
+        return Some(Predicate::LaunchDimensionAtMost(i, operand(&c[2])?));
     }
     let product = PRODUCT.get_or_init(|| {
         Regex::new(r"^width (?:\{times\}|×) height (?:\{times\}|×) depth must be less than or equal to (.+)$").unwrap()
     });
     let c = product.captures(&t)?;
-    Some(Predicate::IndirectInvocationsAtMost(operand(&c[1])?))
+    Some(Predicate::LaunchInvocationsAtMost(operand(&c[1])?))
 }
 
 /// Compiles one VUID's normalised text for `command` (or a structure scope), or None when no template
@@ -170,6 +170,10 @@ pub fn compile(scope: &str, command: &str, text: &str) -> Option<Predicate> {
     let text = text.trim().trim_end_matches('.');
     if scope == "VkTraceRaysIndirectCommandKHR" {
         return indirect_command_shape(text);
+    }
+    // The product of the launch dimensions reads the same for direct calls and indirect commands.
+    if let Some(p @ Predicate::LaunchInvocationsAtMost(_)) = indirect_command_shape(text) {
+        return Some(p);
     }
     let cleaned = clean(text);
     for (re, build) in shapes() {
@@ -249,7 +253,7 @@ mod tests {
         check(
             "VkTraceRaysIndirectCommandKHR",
             "`width` must be less than or equal to `VkPhysicalDeviceLimits`::`maxComputeWorkGroupCount`[0] {times} `VkPhysicalDeviceLimits`::`maxComputeWorkGroupSize`[0]",
-            Some(Predicate::IndirectDimensionAtMost(
+            Some(Predicate::LaunchDimensionAtMost(
                 0,
                 Operand::Product(vec![
                     Operand::Limit("VkPhysicalDeviceLimits::maxComputeWorkGroupCount[0]".into()),
