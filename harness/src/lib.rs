@@ -11,9 +11,11 @@ pub mod shaders;
 pub mod structs;
 pub mod vk_tables;
 pub mod vulkan;
+pub mod worker;
 
 pub use error::HarnessError;
 pub use execute::{execute, Executor};
 pub use observe::{CaseResult, Observation, Status};
 pub use probe::probe;
 pub use vulkan::Driver;
+pub use worker::{run_in_workers, run_in_workers_with, worker_main, WorkerCommand};

@@ -1,93 +1,12 @@
 //! Cases run on real lavapipe under the validation layer: a valid indirect launch whose read-back words
 //! equal the model's expectation, and invalid calls whose VUIDs the 1.3.239 layer reports.
 
+mod common;
+
+use common::{at, valid_case};
 use harness::{execute, Driver, Executor, Status};
-use model::call::{Address, Call, StridedRegion, TraceRaysIndirect};
+use model::call::Call;
 use model::case::{Case, Intent};
-use model::flags::BufferUsage;
-use model::world::*;
-
-fn device() -> DeviceState {
-    DeviceState {
-        extensions: ["VK_KHR_ray_tracing_pipeline", "VK_KHR_acceleration_structure", "VK_KHR_deferred_host_operations"]
-            .map(String::from)
-            .into(),
-        features: ["rayTracingPipeline", "rayTracingPipelineTraceRaysIndirect", "bufferDeviceAddress", "accelerationStructure"]
-            .map(String::from)
-            .into(),
-    }
-}
-
-fn at(buffer: &str, offset: u64) -> Address {
-    Address::InBuffer { buffer: buffer.into(), offset }
-}
-
-/// Raygen + two miss groups + one triangle hit group; records laid out at shaderGroupBaseAlignment (32);
-/// three rays (hit the triangle, miss with index 0, miss with index 1); an indirect 4x2x1 launch.
-fn valid_case() -> Case {
-    let sbt_usage = BufferUsage::SHADER_BINDING_TABLE_BIT_KHR | BufferUsage::SHADER_DEVICE_ADDRESS_BIT;
-    let records = |offset, handles: Vec<HandleRef>| Contents::ShaderRecords { offset, stride: 32, handles };
-    let world = World {
-        device: device(),
-        buffers: vec![
-            Buffer {
-                name: "sbt".into(),
-                size: 256,
-                usage: sbt_usage,
-                flags: Default::default(),
-                memory: MemoryBinding::Whole,
-                contents: vec![
-                    records(0, vec![HandleRef::Group(0)]),
-                    records(64, vec![HandleRef::Group(1), HandleRef::Group(2)]),
-                    records(128, vec![HandleRef::Group(3)]),
-                ],
-            },
-            Buffer {
-                name: "indirect".into(),
-                size: 64,
-                usage: BufferUsage::INDIRECT_BUFFER_BIT | BufferUsage::SHADER_DEVICE_ADDRESS_BIT,
-                flags: Default::default(),
-                memory: MemoryBinding::Whole,
-                contents: vec![Contents::TraceRaysIndirectCommand { offset: 0, width: 4, height: 2, depth: 1 }],
-            },
-        ],
-        pipeline: Some(Pipeline {
-            api: PipelineApi::Khr,
-            flags: Default::default(),
-            groups: vec![
-                ShaderGroup::General { stage: GeneralStage::Raygen },
-                ShaderGroup::General { stage: GeneralStage::Miss },
-                ShaderGroup::General { stage: GeneralStage::Miss },
-                ShaderGroup::TrianglesHit { closest_hit: true, any_hit: false },
-            ],
-            max_recursion_depth: 1,
-            dynamic_stack_size: false,
-        }),
-        command_buffer: CommandBufferState::default(),
-        launch: Launch {
-            instances: vec![Instance { geometries: vec![GeometryKind::Triangles], sbt_record_offset: 0, mask: 0xff }],
-            rays: vec![
-                ray(RayTarget::Geometry { instance: 0, geometry: 0 }, 0),
-                ray(RayTarget::Nothing, 0),
-                ray(RayTarget::Nothing, 1),
-            ],
-            callables: vec![],
-            extra_recursion: 0,
-        },
-    };
-    let call = Call::TraceRaysIndirect(TraceRaysIndirect {
-        raygen: StridedRegion { address: at("sbt", 0), stride: 32, size: 32 },
-        miss: StridedRegion { address: at("sbt", 64), stride: 32, size: 64 },
-        hit: StridedRegion { address: at("sbt", 128), stride: 32, size: 32 },
-        callable: StridedRegion::unused(),
-        indirect_address: at("indirect", 0),
-    });
-    Case { name: "hand-made-valid".into(), profile: "lavapipe".into(), seed: None, intent: Intent::Valid, world, call }
-}
-
-fn ray(target: RayTarget, miss_index: u32) -> TraceRay {
-    TraceRay { target, sbt_offset: 0, sbt_stride: 0, miss_index, cull_mask: 0xff, ray_flags: 0 }
-}
 
 fn executor() -> Executor {
     Executor::new(Driver::Lavapipe).expect("lavapipe and the validation layer are installed by scripts/setup.sh")

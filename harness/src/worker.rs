@@ -1,0 +1,270 @@
+//! Worker processes for `rtconf run`: each case runs in a child (`rtconf worker`) that reads cases as JSON
+//! lines on stdin and writes results as JSON lines on stdout, so a driver crash or hang costs one case.
+//! The driver comes from the environment variable [`DRIVER_ENV`] (`lavapipe`, `nvidia` or an ICD path).
+
+use crate::execute::{execute, Executor};
+use crate::observe::{CaseResult, Observation, Status};
+use crate::vulkan::Driver;
+use model::case::Case;
+use std::collections::VecDeque;
+use std::io::{BufRead, BufReader, Read, Write};
+use std::path::PathBuf;
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// Environment variable naming the driver a worker loads (default `lavapipe`).
+pub const DRIVER_ENV: &str = "RTCONF_DRIVER";
+
+/// One request on a worker's stdin.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct WorkerRequest {
+    pub index: usize,
+    pub case: Case,
+}
+
+/// The worker loop: one JSON request per stdin line, one [`CaseResult`] per stdout line. Returns the exit code.
+pub fn worker_main() -> i32 {
+    let driver = Driver::parse(&std::env::var(DRIVER_ENV).unwrap_or_else(|_| "lavapipe".into()));
+    let mut executor: Option<Result<Executor, String>> = None;
+    let stdin = std::io::stdin();
+    let mut stdout = std::io::stdout();
+    for line in stdin.lock().lines() {
+        let Ok(line) = line else { return 2 };
+        if line.trim().is_empty() {
+            continue;
+        }
+        let started = Instant::now();
+        let (index, name, observation) = match serde_json::from_str::<WorkerRequest>(&line) {
+            Err(e) => (usize::MAX, String::new(), Observation::crash(format!("worker could not read its request: {e}"))),
+            Ok(req) => {
+                inject_fault(&req.case.name);
+                let ctx = executor.get_or_insert_with(|| Executor::new(driver.clone()).map_err(|e| e.to_string()));
+                let obs = match ctx {
+                    Ok(ctx) => execute(&req.case, ctx),
+                    Err(e) => Observation::crash(e.clone()),
+                };
+                (req.index, req.case.name, obs)
+            }
+        };
+        let result = CaseResult { index, name, observation, millis: started.elapsed().as_secs_f64() * 1000.0 };
+        let Ok(text) = serde_json::to_string(&result) else { return 3 };
+        if writeln!(stdout, "{text}").and_then(|_| stdout.flush()).is_err() {
+            return 4;
+        }
+    }
+    0
+}
+
+/// Environment variable that turns on fault injection for the pool's own tests: a case named
+/// `fault-abort…` aborts the worker and one named `fault-hang…` never answers.
+pub const FAULTS_ENV: &str = "RTCONF_WORKER_FAULTS";
+
+fn inject_fault(name: &str) {
+    if std::env::var_os(FAULTS_ENV).is_none() {
+        return;
+    }
+    if name.starts_with("fault-abort") {
+        std::process::abort();
+    }
+    if name.starts_with("fault-hang") {
+        loop {
+            std::thread::sleep(Duration::from_secs(3600));
+        }
+    }
+}
+
+/// How to start a worker process.
+#[derive(Debug, Clone)]
+pub struct WorkerCommand {
+    pub program: PathBuf,
+    pub args: Vec<String>,
+    pub env: Vec<(String, String)>,
+}
+
+impl WorkerCommand {
+    /// `current_exe() worker`, the `rtconf worker` subcommand.
+    pub fn current_exe() -> std::io::Result<WorkerCommand> {
+        Ok(WorkerCommand { program: std::env::current_exe()?, args: vec!["worker".into()], env: Vec::new() })
+    }
+}
+
+struct Worker {
+    child: Child,
+    stdin: ChildStdin,
+    lines: Receiver<String>,
+    stderr: Arc<Mutex<Vec<u8>>>,
+}
+
+impl Worker {
+    fn spawn(cmd: &WorkerCommand) -> std::io::Result<Worker> {
+        let mut child = Command::new(&cmd.program)
+            .args(&cmd.args)
+            .envs(cmd.env.iter().map(|(k, v)| (k, v)))
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()?;
+        let stdin = child.stdin.take().ok_or_else(|| std::io::Error::other("worker has no stdin"))?;
+        let stdout = child.stdout.take().ok_or_else(|| std::io::Error::other("worker has no stdout"))?;
+        let mut err = child.stderr.take().ok_or_else(|| std::io::Error::other("worker has no stderr"))?;
+        let (tx, lines) = mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines() {
+                let Ok(line) = line else { break };
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        let stderr = Arc::new(Mutex::new(Vec::new()));
+        let keep = stderr.clone();
+        std::thread::spawn(move || {
+            let mut buf = [0u8; 4096];
+            while let Ok(n) = err.read(&mut buf) {
+                if n == 0 {
+                    break;
+                }
+                let mut k = keep.lock().unwrap_or_else(|e| e.into_inner());
+                k.extend_from_slice(&buf[..n]);
+                let len = k.len();
+                if len > 8192 {
+                    k.drain(..len - 8192);
+                }
+            }
+        });
+        Ok(Worker { child, stdin, lines, stderr })
+    }
+
+    fn stderr_tail(&self) -> String {
+        let k = self.stderr.lock().unwrap_or_else(|e| e.into_inner());
+        let text = String::from_utf8_lossy(&k).into_owned();
+        let lines: Vec<&str> = text.lines().collect();
+        lines[lines.len().saturating_sub(5)..].join("\n")
+    }
+
+    fn stop(mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+enum Outcome {
+    Done(CaseResult),
+    /// The worker is gone or hung; the case's result says which.
+    Lost(CaseResult),
+}
+
+fn run_one(w: &mut Worker, index: usize, case: &Case, timeout: Duration) -> Outcome {
+    let started = Instant::now();
+    let lost = |status: Status| {
+        Outcome::Lost(CaseResult {
+            index,
+            name: case.name.clone(),
+            observation: Observation::with_status(status),
+            millis: started.elapsed().as_secs_f64() * 1000.0,
+        })
+    };
+    let req = WorkerRequest { index, case: case.clone() };
+    let Ok(text) = serde_json::to_string(&req) else {
+        return lost(Status::Crash { message: "the case could not be serialised".into() });
+    };
+    if writeln!(w.stdin, "{text}").and_then(|_| w.stdin.flush()).is_err() {
+        return lost(Status::Crash { message: format!("the worker exited before taking the case; stderr: {}", w.stderr_tail()) });
+    }
+    loop {
+        let left = timeout.saturating_sub(started.elapsed());
+        match w.lines.recv_timeout(left) {
+            // Other output (a test harness's own text) is not a result; a result may follow it on a line.
+            Ok(line) => {
+                let Some(start) = line.find('{') else { continue };
+                return match serde_json::from_str::<CaseResult>(&line[start..]) {
+                    Ok(r) if r.index == index => Outcome::Done(r),
+                    Ok(_) | Err(_) => continue,
+                }
+            }
+            Err(RecvTimeoutError::Timeout) => return lost(Status::Timeout { seconds: timeout.as_secs_f64() }),
+            Err(RecvTimeoutError::Disconnected) => {
+                let code = w.child.wait().map(|s| s.to_string()).unwrap_or_else(|e| e.to_string());
+                std::thread::sleep(Duration::from_millis(20));
+                return lost(Status::Crash { message: format!("the worker died ({code}); stderr: {}", w.stderr_tail()) });
+            }
+        }
+    }
+}
+
+/// Runs `cases` on `jobs` worker processes (`current_exe() worker`), `timeout` per case; a worker that crashes
+/// or hangs is replaced and its case reported `crash` or `timeout`. Results arrive in completion order.
+pub fn run_in_workers(cases: &[Case], jobs: usize, timeout: Duration, on_result: impl FnMut(CaseResult)) {
+    match WorkerCommand::current_exe() {
+        Ok(cmd) => run_in_workers_with(&cmd, cases, jobs, timeout, on_result),
+        Err(e) => {
+            let mut on_result = on_result;
+            for (index, case) in cases.iter().enumerate() {
+                on_result(CaseResult {
+                    index,
+                    name: case.name.clone(),
+                    observation: Observation::crash(format!("cannot find the rtconf executable to start workers: {e}")),
+                    millis: 0.0,
+                });
+            }
+        }
+    }
+}
+
+/// [`run_in_workers`] with an explicit worker command.
+pub fn run_in_workers_with(
+    cmd: &WorkerCommand,
+    cases: &[Case],
+    jobs: usize,
+    timeout: Duration,
+    mut on_result: impl FnMut(CaseResult),
+) {
+    let queue: Arc<Mutex<VecDeque<usize>>> = Arc::new(Mutex::new((0..cases.len()).collect()));
+    let (tx, rx) = mpsc::channel::<CaseResult>();
+    std::thread::scope(|s| {
+        for _ in 0..jobs.max(1).min(cases.len().max(1)) {
+            let queue = queue.clone();
+            let tx = tx.clone();
+            s.spawn(move || {
+                let mut worker: Option<Worker> = None;
+                loop {
+                    let Some(index) = queue.lock().unwrap_or_else(|e| e.into_inner()).pop_front() else { break };
+                    let case = &cases[index];
+                    if worker.is_none() {
+                        match Worker::spawn(cmd) {
+                            Ok(w) => worker = Some(w),
+                            Err(e) => {
+                                let obs = Observation::crash(format!("cannot start worker {}: {e}", cmd.program.display()));
+                                let _ = tx.send(CaseResult { index, name: case.name.clone(), observation: obs, millis: 0.0 });
+                                continue;
+                            }
+                        }
+                    }
+                    let w = worker.as_mut().expect("spawned above");
+                    match run_one(w, index, case, timeout) {
+                        Outcome::Done(r) => {
+                            let _ = tx.send(r);
+                        }
+                        Outcome::Lost(r) => {
+                            if let Some(w) = worker.take() {
+                                w.stop();
+                            }
+                            let _ = tx.send(r);
+                        }
+                    }
+                }
+                if let Some(w) = worker.take() {
+                    drop(w.stdin);
+                    let mut child = w.child;
+                    let _ = child.wait();
+                }
+            });
+        }
+        drop(tx);
+        for r in rx {
+            on_result(r);
+        }
+    });
+}
