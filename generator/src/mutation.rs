@@ -51,6 +51,8 @@ pub enum Mutation {
     RecursionTooDeep,
     NullMissReached,
     NullHitReached(NullHit),
+    /// NO_NULL_CLOSEST_HIT / NO_NULL_INTERSECTION pipeline with the hit table's address zero.
+    NullHitTableWithNoNullFlag(NullHit),
     /// A reached hit record holds a group of the wrong kind for the geometry.
     HitGroupMismatch(GeometryKind),
     DynamicStackSizeNotSet,
@@ -144,6 +146,8 @@ pub fn mutations_for(vuid: &str) -> Option<Mutation> {
                 "03512" => Mutation::NullHitReached(NullHit::AnyHit),
                 "03513" => Mutation::NullHitReached(NullHit::ClosestHit),
                 "03514" => Mutation::NullHitReached(NullHit::Intersection),
+                "03696" => Mutation::NullHitTableWithNoNullFlag(NullHit::ClosestHit),
+                "03697" => Mutation::NullHitTableWithNoNullFlag(NullHit::Intersection),
                 "04735" => Mutation::HitGroupMismatch(GeometryKind::Triangles),
                 "04736" => Mutation::HitGroupMismatch(GeometryKind::Aabbs),
                 // vkCmdTraceRaysKHR's own dimension rules share the indirect structure's tags.
@@ -455,6 +459,12 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
                 NullHit::ClosestHit => (PipelineCreate::RAY_TRACING_NO_NULL_CLOSEST_HIT_SHADERS_BIT_KHR, if knob % 2 == 0 { GeometryKind::Triangles } else { GeometryKind::Aabbs }),
                 NullHit::Intersection => (PipelineCreate::RAY_TRACING_NO_NULL_INTERSECTION_SHADERS_BIT_KHR, GeometryKind::Aabbs),
             };
+            // The other NO_NULL hit flags would make the zero record a second violation: they go.
+            plan.flags.remove(
+                PipelineCreate::RAY_TRACING_NO_NULL_ANY_HIT_SHADERS_BIT_KHR
+                    | PipelineCreate::RAY_TRACING_NO_NULL_CLOSEST_HIT_SHADERS_BIT_KHR
+                    | PipelineCreate::RAY_TRACING_NO_NULL_INTERSECTION_SHADERS_BIT_KHR,
+            );
             plan.flags.insert(flag);
             // The pipeline can only be created with the flag if every hit group has the shader it names.
             for g in plan.groups.iter_mut() {
@@ -466,6 +476,31 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
             }
             add_hit_ray(&mut plan, geometry, HandleRef::Zero);
             keep_recursion(&mut plan);
+        }
+        Mutation::NullHitTableWithNoNullFlag(kind) => {
+            // No ray may reach a hit record once the table is gone: rays that aim at geometry are dropped.
+            plan.tables[Table::Hit as usize].records.clear();
+            plan.launch.rays.retain(|r| r.target == RayTarget::Nothing);
+            if kind == NullHit::ClosestHit {
+                plan.flags.insert(PipelineCreate::RAY_TRACING_NO_NULL_CLOSEST_HIT_SHADERS_BIT_KHR);
+                for g in plan.groups.iter_mut() {
+                    if let ShaderGroup::TrianglesHit { closest_hit, .. } | ShaderGroup::ProceduralHit { closest_hit, .. } = g {
+                        *closest_hit = true;
+                    }
+                }
+            } else {
+                plan.flags.insert(PipelineCreate::RAY_TRACING_NO_NULL_INTERSECTION_SHADERS_BIT_KHR);
+            }
+            // The other hit flag would now be violated too; it is not part of this case.
+            let other = if kind == NullHit::ClosestHit {
+                PipelineCreate::RAY_TRACING_NO_NULL_INTERSECTION_SHADERS_BIT_KHR
+            } else {
+                PipelineCreate::RAY_TRACING_NO_NULL_CLOSEST_HIT_SHADERS_BIT_KHR
+            };
+            plan.flags.remove(other);
+            if plan.launch.rays.is_empty() && plan.launch.callables.is_empty() {
+                plan.max_recursion_depth = plan.max_recursion_depth.min(lim.max_recursion as u32);
+            }
         }
         Mutation::HitGroupMismatch(kind) => {
             let gi = GroupIndex::of(&plan.groups);

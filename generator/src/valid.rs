@@ -321,6 +321,11 @@ pub fn resolve(raw: &Raw, profile: &DeviceProfile, lim: &Limits, command: Comman
     if no_null_any {
         flags.insert(PipelineCreate::RAY_TRACING_NO_NULL_ANY_HIT_SHADERS_BIT_KHR);
     }
+    // With the hit table unused, NO_NULL_CLOSEST_HIT and NO_NULL_INTERSECTION are violations (03696, 03697).
+    if hit_records.is_empty() {
+        no_null_closest = false;
+        no_null_isect = false;
+    }
     if no_null_closest {
         flags.insert(PipelineCreate::RAY_TRACING_NO_NULL_CLOSEST_HIT_SHADERS_BIT_KHR);
     }
