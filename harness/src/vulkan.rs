@@ -105,7 +105,7 @@ unsafe extern "system" fn messenger_callback(
     let (id, message) = if data.is_null() {
         (String::new(), String::new())
     } else {
-        ((*data).p_message_id_name, (*data).p_message).pipe(|(a, b)| (text(a), text(b)))
+        (text((*data).p_message_id_name), text((*data).p_message))
     };
     let severity = if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::ERROR) {
         "error"
@@ -127,13 +127,6 @@ unsafe extern "system" fn messenger_callback(
         vk::FALSE
     }
 }
-
-trait Pipe: Sized {
-    fn pipe<R>(self, f: impl FnOnce(Self) -> R) -> R {
-        f(self)
-    }
-}
-impl<T> Pipe for T {}
 
 /// A loaded driver: entry, instance, and (with validation) the layer's messenger.
 pub struct VkInstance {
