@@ -205,7 +205,7 @@ pub enum GeometryKind {
     Aabbs,
 }
 
-/// One instance of the scene's top-level structure; geometry `g` of it sits at x = 4 * index + 2 * g
+/// One instance of the scene's top-level structure; geometry `g` of instance `i` sits at (2g, 4i, 0)
 /// in the harness's layout, so rays can aim at exactly one.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]

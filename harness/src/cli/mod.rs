@@ -3,7 +3,11 @@
 
 mod check;
 mod coverage;
+mod gen;
+mod probe;
 mod registry;
+mod replay;
+mod run;
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -24,6 +28,17 @@ enum Command {
     Coverage(coverage::CoverageArgs),
     /// The model's verdict on case files.
     Check(check::CheckArgs),
+    /// Write generated cases (valid, or violating one VUID) as YAML files.
+    Gen(gen::GenArgs),
+    /// Capture a real device's profile (Vulkan Profiles JSON).
+    Probe(probe::ProbeArgs),
+    /// A conformance run: generated cases on a driver under the validation layer, compared with the model.
+    Run(run::RunArgs),
+    /// One case on a driver with the full comparison.
+    Replay(replay::ReplayArgs),
+    /// (internal) Run cases read from stdin; used by `run`'s worker processes.
+    #[command(hide = true)]
+    Worker,
 }
 
 /// Sources of VUIDs named on the command line, or the installed registry.
@@ -50,6 +65,11 @@ pub fn main() -> i32 {
         Command::Registry(c) => registry::run(c),
         Command::Coverage(a) => coverage::run(a),
         Command::Check(a) => check::run(a),
+        Command::Gen(a) => gen::run(a),
+        Command::Probe(a) => probe::run(a),
+        Command::Run(a) => run::run(a),
+        Command::Replay(a) => replay::run(a),
+        Command::Worker => Ok(harness::worker::worker_main()),
     };
     match result {
         Ok(code) => code,
@@ -60,12 +80,17 @@ pub fn main() -> i32 {
     }
 }
 
+/// The repository root (profiles/, triage/, cases/); `RTCONF_HOME` overrides it for an installed binary.
+pub fn repo_dir() -> PathBuf {
+    match std::env::var("RTCONF_HOME") {
+        Ok(d) => PathBuf::from(d),
+        Err(_) => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(".."),
+    }
+}
+
 /// The directory holding the committed device profiles (`profiles/` at the repository root).
 pub fn profiles_dir() -> PathBuf {
-    if let Ok(d) = std::env::var("RTCONF_PROFILES") {
-        return PathBuf::from(d);
-    }
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join("profiles")
+    repo_dir().join("profiles")
 }
 
 /// A profile by short name (`lavapipe`, `nvidia-h100`) from `profiles/`, or by path.

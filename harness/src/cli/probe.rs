@@ -1,0 +1,31 @@
+//! `rtconf probe`: capture a real device's profile through the harness and write it as Vulkan Profiles JSON.
+
+use clap::Args;
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct ProbeArgs {
+    /// lavapipe, nvidia, or the path of an ICD manifest.
+    #[arg(long, default_value = "lavapipe")]
+    driver: String,
+    /// Output file (default: standard output).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// The profile's short name (default: the driver's).
+    #[arg(long)]
+    name: Option<String>,
+}
+
+pub fn run(a: ProbeArgs) -> Result<i32, String> {
+    let driver = harness::vulkan::Driver::parse(&a.driver);
+    let mut profile = harness::probe::probe(driver).map_err(|e| e.to_string())?;
+    if let Some(n) = a.name {
+        profile.name = n;
+    }
+    let text = profile.to_profiles_json();
+    match a.out {
+        Some(p) => std::fs::write(&p, text).map_err(|e| format!("{}: {e}", p.display()))?,
+        None => print!("{text}"),
+    }
+    Ok(0)
+}

@@ -1,0 +1,280 @@
+//! `rtconf run`: generate cases for the requested commands and VUIDs, run them on a driver in worker
+//! processes, compare with the model, and stream `results.jsonl`; then `summary.json` and a table.
+
+use clap::Args;
+use generator::CaseSpec;
+use harness::compare::{compare, CaseReport, Outcome, Triage};
+use harness::worker::run_in_workers;
+use model::{Case, DeviceProfile, RuleSet};
+use std::collections::{BTreeMap, BTreeSet};
+use std::io::{BufRead, Write};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+#[derive(Args)]
+pub struct RunArgs {
+    /// lavapipe, nvidia, or the path of an ICD manifest.
+    #[arg(long, default_value = "lavapipe")]
+    driver: String,
+    /// The device profile cases are generated from (default: the driver's name; nvidia → nvidia-h100).
+    #[arg(long)]
+    profile: Option<String>,
+    /// Commands to run (repeatable; default: every trace command the profile supports).
+    #[arg(long)]
+    command: Vec<String>,
+    /// Only these VUIDs' invalid cases (repeatable; default: every executable VUID with a mutation).
+    #[arg(long)]
+    vuid: Vec<String>,
+    /// Cases per VUID and valid cases per command.
+    #[arg(long, default_value_t = 4)]
+    count: usize,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Worker processes.
+    #[arg(long, default_value_t = 2)]
+    jobs: usize,
+    /// Seconds a case may take.
+    #[arg(long, default_value_t = 60)]
+    timeout: u64,
+    #[arg(long, default_value = "out/run")]
+    out: PathBuf,
+    /// Continue a killed run: cases already in results.jsonl are not run again.
+    #[arg(long)]
+    resume: bool,
+    /// Registry sources for the rules (default: the installed registry, the layer's own version).
+    #[arg(long = "from")]
+    from: Vec<PathBuf>,
+    /// Triage files (default: triage/layer-<registry version>.yaml and triage/<driver>.yaml, where present).
+    #[arg(long)]
+    triage: Vec<PathBuf>,
+}
+
+/// Per-VUID agreement counts of `summary.json`.
+#[derive(Default, serde::Serialize)]
+struct VuidTally {
+    cases: usize,
+    model: usize,
+    layer: usize,
+    agree: usize,
+}
+
+#[derive(Default, serde::Serialize)]
+struct Summary {
+    driver: String,
+    profile: String,
+    registry: Option<String>,
+    cases: usize,
+    passed: usize,
+    failed: usize,
+    triaged: usize,
+    unsupported: usize,
+    crashes: usize,
+    timeouts: usize,
+    vuids: BTreeMap<String, VuidTally>,
+}
+
+pub fn default_profile_name(driver: &str) -> String {
+    match driver {
+        "nvidia" => "nvidia-h100".into(),
+        "lavapipe" | "lvp" => "lavapipe".into(),
+        other => Path::new(other).file_stem().map_or("icd".into(), |s| s.to_string_lossy().into_owned()),
+    }
+}
+
+/// The specs of a run: one valid spec per command, and one per (command, VUID) that has a mutation.
+fn plan_specs(a: &RunArgs, rules: &RuleSet, profile: &DeviceProfile) -> Vec<CaseSpec> {
+    let commands: Vec<String> = if a.command.is_empty() {
+        model::rules::TRACE_COMMANDS
+            .iter()
+            .filter(|c| **c != "vkCmdTraceRaysNV" || profile.has_extension("VK_NV_ray_tracing"))
+            .map(|c| c.to_string())
+            .collect()
+    } else {
+        a.command.clone()
+    };
+    let mut specs = Vec::new();
+    for c in &commands {
+        let Some(command) = generator::Command::from_vk_name(c) else { continue };
+        if a.vuid.is_empty() {
+            specs.push(CaseSpec::valid(command));
+        }
+        for row in rules.rows.iter().filter(|r| r.status == model::rules::Status::Executable) {
+            if !model::rules::applies_to(&row.scope, c) {
+                continue;
+            }
+            if !a.vuid.is_empty() && !a.vuid.contains(&row.vuid) {
+                continue;
+            }
+            if generator::mutation::mutations_for(&row.vuid).is_some() {
+                specs.push(CaseSpec::violate(command, &row.vuid));
+            }
+        }
+    }
+    specs
+}
+
+/// The triage entries of the named files, or of the layer's and the driver's default files.
+fn load_triage(named: &[PathBuf], layer_version: Option<&str>, driver: &str) -> Result<Triage, String> {
+    let dir = super::repo_dir().join("triage");
+    let (paths, must_exist) = if named.is_empty() {
+        let mut v = vec![dir.join(format!("{driver}.yaml"))];
+        if let Some(ver) = layer_version {
+            v.push(dir.join(format!("layer-{ver}.yaml")));
+        }
+        (v, false)
+    } else {
+        (named.to_vec(), true)
+    };
+    let mut all = Triage::default();
+    for p in paths {
+        match std::fs::read_to_string(&p) {
+            Ok(t) => all.entries.extend(Triage::from_yaml(&p.display().to_string(), &t)?.entries),
+            Err(_) if !must_exist => {}
+            Err(e) => return Err(format!("triage file {}: {e}", p.display())),
+        }
+    }
+    Ok(all)
+}
+
+fn done_cases(results: &Path) -> BTreeSet<String> {
+    let Ok(f) = std::fs::File::open(results) else { return BTreeSet::new() };
+    std::io::BufReader::new(f)
+        .lines()
+        .map_while(Result::ok)
+        .filter_map(|l| serde_json::from_str::<CaseReport>(&l).ok())
+        .map(|r| r.case)
+        .collect()
+}
+
+pub fn run(a: RunArgs) -> Result<i32, String> {
+    let set = super::load_sources(&a.from)?;
+    let rules = RuleSet::from_vuids(&set);
+    let profile_name = a.profile.clone().unwrap_or_else(|| default_profile_name(&a.driver));
+    let profile = super::profile_for(&profile_name)?;
+    let driver = harness::vulkan::Driver::parse(&a.driver);
+    if !driver.icd_path().exists() {
+        return Err(format!(
+            "driver `{}`: no ICD manifest at {} (for lavapipe run `bash scripts/setup.sh`)",
+            a.driver,
+            driver.icd_path().display()
+        ));
+    }
+    let triage = load_triage(&a.triage, set.version.as_deref(), &driver.name())?;
+    std::fs::create_dir_all(a.out.join("failures")).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    let results_path = a.out.join("results.jsonl");
+    let done = if a.resume {
+        done_cases(&results_path)
+    } else {
+        let _ = std::fs::remove_file(&results_path);
+        BTreeSet::new()
+    };
+    let mut results = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(&results_path)
+        .map_err(|e| format!("{}: {e}", results_path.display()))?;
+    std::env::set_var(harness::worker::DRIVER_ENV, &a.driver);
+
+    let specs = plan_specs(&a, &rules, &profile);
+    let total = specs.len() * a.count;
+    let bar = if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        let b = indicatif::ProgressBar::new(total as u64);
+        b.set_style(
+            indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} cases {elapsed_precise} {msg}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        b
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    let mut gen_errors = Vec::new();
+    for (i, spec) in specs.iter().enumerate() {
+        // One spec at a time: cases are generated, run and written before the next batch, so memory
+        // stays flat however long the run.
+        let cases = match generator::generate(&profile, &profile_name, &rules, spec, a.count, a.seed.wrapping_add(i as u64)) {
+            Ok(c) => c,
+            Err(e) => {
+                gen_errors.push(format!("{spec:?}: {e}"));
+                bar.inc(a.count as u64);
+                continue;
+            }
+        };
+        let todo: Vec<Case> = cases.into_iter().filter(|c| !done.contains(&c.name)).collect();
+        bar.inc((a.count - todo.len()) as u64);
+        let mut write_error = None;
+        run_in_workers(&todo, a.jobs, Duration::from_secs(a.timeout), |res| {
+            let case = &todo[res.index.min(todo.len() - 1)];
+            let verdict = model::validate(&rules, &profile, &case.world, &case.call);
+            let report = compare(case, &verdict, &res.observation, &triage, res.millis);
+            if report.outcome != Outcome::Pass && report.outcome != Outcome::Unsupported {
+                let _ = std::fs::write(a.out.join("failures").join(format!("{}.yaml", case.name)), case.to_yaml());
+            }
+            let line = serde_json::to_string(&report).unwrap_or_default();
+            if let Err(e) = writeln!(results, "{line}").and_then(|_| results.flush()) {
+                write_error = Some(e.to_string());
+            }
+            bar.inc(1);
+        });
+        if let Some(e) = write_error {
+            return Err(format!("{}: {e}", results_path.display()));
+        }
+    }
+    bar.finish_and_clear();
+    let summary = summarise(&results_path, &a.driver, &profile_name, set.version.clone())?;
+    std::fs::write(a.out.join("summary.json"), serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n")
+        .map_err(|e| e.to_string())?;
+    print_summary(&summary, &a.out);
+    for e in &gen_errors {
+        eprintln!("rtconf: could not generate {e}");
+    }
+    let unexpected = summary.failed + summary.crashes + summary.timeouts;
+    Ok(if unexpected > 0 || !gen_errors.is_empty() { 1 } else { 0 })
+}
+
+/// Reads `results.jsonl` back (streaming) into the summary, so a resumed run counts every case once.
+fn summarise(path: &Path, driver: &str, profile: &str, registry: Option<String>) -> Result<Summary, String> {
+    let f = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut s = Summary { driver: driver.into(), profile: profile.into(), registry, ..Default::default() };
+    let mut seen = BTreeSet::new();
+    for line in std::io::BufReader::new(f).lines().map_while(Result::ok) {
+        let Ok(r) = serde_json::from_str::<CaseReport>(&line) else { continue };
+        if !seen.insert(r.case.clone()) {
+            continue;
+        }
+        s.cases += 1;
+        match r.outcome {
+            Outcome::Pass => s.passed += 1,
+            Outcome::Fail => s.failed += 1,
+            Outcome::Triaged => s.triaged += 1,
+            Outcome::Unsupported => s.unsupported += 1,
+            Outcome::Crash => s.crashes += 1,
+            Outcome::Timeout => s.timeouts += 1,
+        }
+        if matches!(r.outcome, Outcome::Unsupported | Outcome::Crash | Outcome::Timeout) {
+            continue;
+        }
+        let m: BTreeSet<&String> = r.model.iter().collect();
+        let l: BTreeSet<&String> = r.layer.iter().collect();
+        for v in m.union(&l) {
+            let t = s.vuids.entry((*v).clone()).or_default();
+            t.cases += 1;
+            t.model += m.contains(v) as usize;
+            t.layer += l.contains(v) as usize;
+            t.agree += (m.contains(v) == l.contains(v)) as usize;
+        }
+    }
+    Ok(s)
+}
+
+fn print_summary(s: &Summary, out: &Path) {
+    println!("{:<78} {:>6} {:>6} {:>6} {:>6}", "VUID", "cases", "model", "layer", "agree");
+    for (v, t) in &s.vuids {
+        println!("{:<78} {:>6} {:>6} {:>6} {:>6}", v, t.cases, t.model, t.layer, t.agree);
+    }
+    println!();
+    println!(
+        "{} cases on {} (profile {}): {} passed, {} failed, {} triaged, {} unsupported, {} crashes, {} timeouts",
+        s.cases, s.driver, s.profile, s.passed, s.failed, s.triaged, s.unsupported, s.crashes, s.timeouts
+    );
+    println!("results: {}/results.jsonl, summary: {}/summary.json, failing cases: {}/failures/", out.display(), out.display(), out.display());
+}

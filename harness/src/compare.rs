@@ -1,0 +1,181 @@
+//! The one place where the model's verdict and expected output meet the driver's observation: per case,
+//! the model's VUIDs, the layer's VUIDs, the output check, and the outcome against the triage file.
+
+use crate::observe::{Observation, Status};
+use model::rules::modelled_scope;
+use model::{Case, Intent, Verdict};
+use std::collections::BTreeSet;
+
+/// A known, written-down disagreement: a layer gap, a driver bug, or a model limitation.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TriageEntry {
+    pub vuid: String,
+    /// `layer-gap` (the layer does not check it), `layer-extra`, `driver`, or `model`.
+    pub kind: String,
+    pub reason: String,
+    /// A case file that reproduces it.
+    #[serde(default)]
+    pub case: Option<String>,
+}
+
+/// The triage file of one driver and layer version.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Triage {
+    #[serde(default)]
+    pub layer_version: Option<String>,
+    #[serde(default)]
+    pub entries: Vec<TriageEntry>,
+}
+
+impl Triage {
+    pub fn from_yaml(path: &str, text: &str) -> Result<Triage, String> {
+        serde_yaml::from_str(text).map_err(|e| {
+            let loc = e.location().map(|l| format!(":{}:{}", l.line(), l.column())).unwrap_or_default();
+            format!("{path}{loc}: {e}")
+        })
+    }
+
+    pub fn covers(&self, vuid: &str) -> Option<&TriageEntry> {
+        self.entries.iter().find(|e| e.vuid == vuid)
+    }
+}
+
+/// How one case ended against the model and the triage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Outcome {
+    /// Model and driver agree.
+    Pass,
+    /// They disagree and no triage entry explains it.
+    Fail,
+    /// They disagree exactly as a triage entry says.
+    Triaged,
+    Unsupported,
+    Crash,
+    Timeout,
+}
+
+/// One line of `results.jsonl`.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CaseReport {
+    pub case: String,
+    pub command: String,
+    /// The VUID an invalid case targets; None for valid cases.
+    pub target: Option<String>,
+    pub outcome: Outcome,
+    /// VUIDs the model says the call violates.
+    pub model: Vec<String>,
+    /// VUIDs of the modelled commands the layer reported.
+    pub layer: Vec<String>,
+    /// Other VUIDs the layer reported (outside the modelled scopes), kept for the record.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub layer_other: Vec<String>,
+    /// For valid cases: whether the output words equal the model's expectation.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub output_matches: Option<bool>,
+    /// What went wrong or what triage entry applied.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub detail: String,
+    pub millis: f64,
+}
+
+/// Compares one case's observation with the model.
+pub fn compare(case: &Case, verdict: &Verdict, obs: &Observation, triage: &Triage, millis: f64) -> CaseReport {
+    let model: Vec<String> = verdict.vuids().into_iter().map(String::from).collect();
+    let (layer, layer_other): (Vec<String>, Vec<String>) =
+        obs.layer_vuids.iter().cloned().partition(|v| vuid_scope(v).is_some_and(modelled_scope));
+    let target = match &case.intent {
+        Intent::Valid => None,
+        Intent::Violates { vuid, .. } => Some(vuid.clone()),
+    };
+    let mut report = CaseReport {
+        case: case.name.clone(),
+        command: case.call.command().to_string(),
+        target,
+        outcome: Outcome::Pass,
+        model: model.clone(),
+        layer: layer.clone(),
+        layer_other,
+        output_matches: None,
+        detail: String::new(),
+        millis,
+    };
+    match &obs.status {
+        Status::Unsupported { reason } => {
+            report.outcome = Outcome::Unsupported;
+            report.detail = reason.clone();
+            return report;
+        }
+        Status::Crash { message } => {
+            report.outcome = Outcome::Crash;
+            report.detail = message.clone();
+            return report;
+        }
+        Status::Timeout { seconds } => {
+            report.outcome = Outcome::Timeout;
+            report.detail = format!("after {seconds:.1} s");
+            return report;
+        }
+        Status::Ran => {}
+    }
+    let mut problems = Vec::new();
+    let mut triaged = Vec::new();
+    let m: BTreeSet<&String> = model.iter().collect();
+    let l: BTreeSet<&String> = layer.iter().collect();
+    for v in m.symmetric_difference(&l) {
+        let side = if m.contains(v) { "model only" } else { "layer only" };
+        match triage.covers(v) {
+            Some(t) => triaged.push(format!("{v} ({side}; triaged {}: {})", t.kind, t.reason)),
+            None => problems.push(format!("{v}: {side}")),
+        }
+    }
+    if case.intent == Intent::Valid {
+        if !model.is_empty() {
+            problems.push(format!("the model judges this valid-by-construction case invalid: {}", model.join(", ")));
+        }
+        if obs.layer_vuids.iter().any(|v| !l.contains(v)) {
+            problems.push(format!("the layer reported {} on a valid case", report.layer_other.join(", ")));
+        }
+        if let Some(expected) = model::semantics::expected_launch(&case.world, &case.call) {
+            match &obs.output {
+                Some(words) => {
+                    let ok = *words == expected.words;
+                    report.output_matches = Some(ok);
+                    if !ok {
+                        let first = words.iter().zip(&expected.words).position(|(a, b)| a != b);
+                        problems.push(match first {
+                            Some(i) => format!(
+                                "output word {i}: driver 0x{:08x}, model 0x{:08x}",
+                                words[i], expected.words[i]
+                            ),
+                            None => format!("output has {} words, model expects {}", words.len(), expected.words.len()),
+                        });
+                    }
+                }
+                None => problems.push("no output was read back".into()),
+            }
+        }
+    } else if let Some(t) = &report.target {
+        if !m.contains(t) {
+            problems.push(format!("the model does not report the target {t}"));
+        }
+    }
+    report.outcome = if !problems.is_empty() {
+        Outcome::Fail
+    } else if !triaged.is_empty() {
+        Outcome::Triaged
+    } else {
+        Outcome::Pass
+    };
+    let mut detail = problems;
+    detail.extend(triaged);
+    report.detail = detail.join("; ");
+    report
+}
+
+/// The scope part of a VUID (`vkCmdTraceRaysIndirectKHR` of `VUID-vkCmdTraceRaysIndirectKHR-stride-03686`).
+pub fn vuid_scope(vuid: &str) -> Option<&str> {
+    vuid.strip_prefix("VUID-")?.split('-').next()
+}
