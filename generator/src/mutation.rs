@@ -675,6 +675,8 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
             tp.separate = true;
             tp.lead = 0;
             tp.size_override = Some(lim.handle_size);
+            // The smallest stride before layout, so the buffer is as small as the record.
+            tp.stride = lim.min_stride();
             let (align, max_stride) = (lim.stride_align, lim.max_stride);
             let extra = (knob % 2) as u64 * align;
             let mut err = None;
@@ -695,7 +697,7 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
                     r.stride = stride;
                 }
             }));
-            if round_up(lim.handle_size + 1, align) + extra > max_stride {
+            if round_up(lim.min_stride() + 1, align) + extra > max_stride {
                 err = Some(unsupported("a stride above the buffer size would exceed maxShaderGroupStride".into()));
             }
             if let Some(e) = err {

@@ -252,8 +252,9 @@ pub fn realize(plan: &Plan, lim: &Limits) -> (World, Call) {
             (Table::Raygen, None) => tp.stride,
             (_, None) => n * tp.stride + tp.size_extra,
         };
-        // Bytes the region's records and size occupy from its offset.
-        let extent = size.max((n - 1) * tp.stride + lim.handle_size);
+        // Bytes the region's records and size occupy from its offset; at least one stride, so the
+        // buffer is never smaller than the stride (VkStridedDeviceAddressRegionKHR-size-04632).
+        let extent = size.max((n - 1) * tp.stride + lim.handle_size).max(tp.stride);
         let contents = |offset| Contents::ShaderRecords { offset, stride: tp.stride, handles: tp.records.clone() };
         if tp.separate {
             let offset = tp.lead + tp.misalign;
