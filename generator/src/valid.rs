@@ -188,7 +188,12 @@ pub fn resolve(raw: &Raw, profile: &DeviceProfile, lim: &Limits, command: Comman
         .instances
         .iter()
         .map(|(geoms, off)| Instance {
-            geometries: geoms.iter().map(|&aabb| if aabb { GeometryKind::Aabbs } else { GeometryKind::Triangles }).collect(),
+            // One bottom-level structure holds geometries of one type (triangles or AABBs), so the
+            // first draw decides the kind of every geometry of the instance.
+            geometries: {
+                let kind = if geoms.first() == Some(&true) { GeometryKind::Aabbs } else { GeometryKind::Triangles };
+                vec![kind; geoms.len()]
+            },
             sbt_record_offset: *off,
             mask: 0xff,
         })
@@ -280,6 +285,18 @@ pub fn resolve(raw: &Raw, profile: &DeviceProfile, lim: &Limits, command: Comman
             }
         }
         hit_records.push(h);
+    }
+
+    // A ray at an AABB whose hit record is a zero group is never reported (no intersection shader):
+    // it misses, so it reads a miss record as well.
+    for r in &rays {
+        if let RayTarget::Geometry { instance, geometry } = r.target {
+            let inst = &instances[instance as usize];
+            let idx = hit_record(inst.sbt_record_offset, geometry, r.sbt_offset, r.sbt_stride);
+            if inst.geometries[geometry as usize] == GeometryKind::Aabbs && hit_records.get(idx as usize) == Some(&HandleRef::Zero) {
+                miss_reach.push(r.miss_index as u64);
+            }
+        }
     }
 
     // Miss records.

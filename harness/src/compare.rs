@@ -81,6 +81,23 @@ pub struct CaseReport {
     pub millis: f64,
 }
 
+/// The report of a valid case that is not run because its launch reads outside its tables (undefined
+/// behaviour the driver may crash on): a generator or case-file bug, reported as a failure.
+pub fn undefined_case(case: &Case, reads: &[String]) -> CaseReport {
+    CaseReport {
+        case: case.name.clone(),
+        command: case.call.command().to_string(),
+        target: None,
+        outcome: Outcome::Fail,
+        model: vec![],
+        layer: vec![],
+        layer_other: vec![],
+        output_matches: None,
+        detail: format!("not run: the valid case's launch has undefined reads: {}", reads.join("; ")),
+        millis: 0.0,
+    }
+}
+
 /// Compares one case's observation with the model.
 pub fn compare(case: &Case, verdict: &Verdict, obs: &Observation, triage: &Triage, millis: f64) -> CaseReport {
     let model: Vec<String> = verdict.vuids().into_iter().map(String::from).collect();

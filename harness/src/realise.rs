@@ -499,6 +499,13 @@ impl DeviceCache {
         instances: &[Instance],
         scene: &mut Scene,
     ) -> Result<(), RealiseError> {
+        // A bottom-level structure holds geometries of one type; a case that mixes them cannot be built
+        // validly, so it is not realised rather than handed to the driver.
+        if let Some(i) = instances.iter().position(|inst| inst.geometries.windows(2).any(|w| w[0] != w[1])) {
+            return Err(RealiseError::Unsupported(format!(
+                "instance {i} mixes triangle and AABB geometries; one acceleration structure holds one type"
+            )));
+        }
         let dev = &self.dev;
         let input_usage = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
             | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;

@@ -45,6 +45,11 @@ pub fn worker_main() -> i32 {
                     Ok(ctx) => execute(&req.case, ctx),
                     Err(e) => Observation::crash(e.clone()),
                 };
+                // A lost device stays lost: start the next case on a fresh instance and device rather
+                // than let every later case of this worker hang or fail for it.
+                if matches!(&obs.status, Status::Crash { message } if message.contains("DEVICE_LOST")) {
+                    executor = None;
+                }
                 (req.index, req.case.name, obs)
             }
         };

@@ -90,6 +90,91 @@ fn word_for_ray(world: &World, call: &Call, ray_index: usize) -> u32 {
     }
 }
 
+/// Whether the bound pipeline's group `g` is a procedural hit group with an intersection shader: only
+/// then is an AABB ever reported (semantics.md §3, §6: a zero group's intersection never reports).
+fn reports_aabb(world: &World, group: Option<HandleRef>) -> bool {
+    match group {
+        Some(HandleRef::Group(g)) => matches!(
+            world.bound_pipeline().and_then(|p| p.groups.get(g as usize)),
+            Some(ShaderGroup::ProceduralHit { intersection: true, .. })
+        ),
+        _ => false,
+    }
+}
+
+/// Every shader binding table record the launch reads, as (table, record index), sorted: the raygen
+/// record, the hit record of each ray that reaches geometry, the miss record of each ray that misses
+/// (including rays at an AABB nothing reports), and the callable records executed. Empty when the
+/// launch runs no invocation.
+pub fn records_read(world: &World, call: &Call) -> Vec<(Table, u64)> {
+    if call.dimensions(world).is_some_and(|d| d.contains(&0)) {
+        return vec![];
+    }
+    let mut out = vec![(Table::Raygen, 0)];
+    let launch = &world.launch;
+    for ray in &launch.rays {
+        let hit = match ray.target {
+            RayTarget::Geometry { instance, geometry } => launch
+                .instances
+                .get(instance as usize)
+                .filter(|inst| inst.mask as u32 & ray.cull_mask & 0xFF != 0)
+                .and_then(|inst| Some((inst, *inst.geometries.get(geometry as usize)?, geometry))),
+            RayTarget::Nothing => None,
+        };
+        match hit {
+            Some((inst, kind, geometry)) => {
+                let idx = hit_record(inst.sbt_record_offset, geometry, ray.sbt_offset, ray.sbt_stride);
+                out.push((Table::Hit, idx));
+                if kind == GeometryKind::Aabbs && !reports_aabb(world, record_handle(world, call, Table::Hit, idx)) {
+                    out.push((Table::Miss, miss_record(ray.miss_index)));
+                }
+            }
+            None => out.push((Table::Miss, miss_record(ray.miss_index))),
+        }
+    }
+    out.extend(launch.callables.iter().map(|&c| (Table::Callable, c as u64)));
+    out.sort();
+    out.dedup();
+    out
+}
+
+/// Reads of the launch that the spec leaves undefined: a record in a null region, or past its region's
+/// size (KHR) or its buffer's end (NV). A valid case must have none; the driver's output for such a
+/// case is never judged.
+pub fn undefined_reads(handle_size: u64, world: &World, call: &Call) -> Vec<String> {
+    let mut out = Vec::new();
+    for (table, index) in records_read(world, call) {
+        match call {
+            Call::TraceRaysNv(_) => {
+                let Some(t) = call.nv_table(table) else { continue };
+                let stride = if table == Table::Raygen { 0 } else { t.stride };
+                let end = t.offset + stride * index + handle_size;
+                match t.buffer.as_deref().and_then(|b| world.buffer(b)) {
+                    None => out.push(format!("{table:?} record {index} is read but the table has no buffer")),
+                    Some(b) if end > b.size => out.push(format!(
+                        "{table:?} record {index} ends at byte {end}, past the end of `{}` ({} bytes)",
+                        b.name, b.size
+                    )),
+                    Some(_) => {}
+                }
+            }
+            _ => {
+                let Some(r) = call.region(table) else { continue };
+                if r.address.is_null() {
+                    out.push(format!("{table:?} record {index} is read but the region's address is null"));
+                } else if r.stride * index + handle_size > r.size {
+                    out.push(format!(
+                        "{table:?} record {index} ends at byte {} of the region, past its size {}",
+                        r.stride * index + handle_size,
+                        r.size
+                    ));
+                }
+            }
+        }
+    }
+    out
+}
+
 /// The expected output words of a valid call, or None when the dimensions are not known.
 pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
     let dims = call.dimensions(world)?;

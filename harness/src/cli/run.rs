@@ -25,6 +25,9 @@ pub struct RunArgs {
     /// Only these VUIDs' invalid cases (repeatable; default: every executable VUID with a mutation).
     #[arg(long)]
     vuid: Vec<String>,
+    /// Only valid cases (with read-back); no invalid ones.
+    #[arg(long, conflicts_with = "vuid")]
+    valid_only: bool,
     /// Cases per VUID and valid cases per command.
     #[arg(long, default_value_t = 4)]
     count: usize,
@@ -97,6 +100,9 @@ fn plan_specs(a: &RunArgs, rules: &RuleSet, profile: &DeviceProfile) -> Vec<Case
         let Some(command) = generator::Command::from_vk_name(c) else { continue };
         if a.vuid.is_empty() {
             specs.push(CaseSpec::valid(command));
+        }
+        if a.valid_only {
+            continue;
         }
         for row in rules.rows.iter().filter(|r| r.status == model::rules::Status::Executable) {
             if !model::rules::applies_to(&row.scope, c) {
@@ -199,8 +205,22 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
                 continue;
             }
         };
-        let todo: Vec<Case> = cases.into_iter().filter(|c| !done.contains(&c.name)).collect();
+        let mut todo: Vec<Case> = cases.into_iter().filter(|c| !done.contains(&c.name)).collect();
         bar.inc((a.count - todo.len()) as u64);
+        // A valid case whose launch reads outside its tables is undefined behaviour: never hand it to
+        // the driver; report it as the generator bug it is.
+        let handle_size = profile.limit("shaderGroupHandleSize").unwrap_or(32);
+        todo.retain(|c| {
+            let reads = model::semantics::undefined_reads(handle_size, &c.world, &c.call);
+            if c.intent != model::Intent::Valid || reads.is_empty() {
+                return true;
+            }
+            let report = harness::compare::undefined_case(c, &reads);
+            let _ = std::fs::write(a.out.join("failures").join(format!("{}.yaml", c.name)), c.to_yaml());
+            let _ = writeln!(results, "{}", serde_json::to_string(&report).unwrap_or_default());
+            bar.inc(1);
+            false
+        });
         let mut write_error = None;
         run_in_workers(&todo, a.jobs, Duration::from_secs(a.timeout), |res| {
             let case = &todo[res.index.min(todo.len() - 1)];

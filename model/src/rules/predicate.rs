@@ -4,7 +4,7 @@
 use super::Context;
 use crate::call::{Call, Param, Table};
 use crate::flags::{BufferUsage, PipelineCreate, QueueFlags};
-use crate::semantics::{hit_record, miss_record, record_handle};
+use crate::semantics::{hit_record, record_handle};
 use crate::world::{CommandBufferLifecycle, GeometryKind, HandleRef, MemoryBinding, RayTarget, ShaderGroup};
 
 /// A number a rule compares against.
@@ -422,24 +422,9 @@ fn launches_anything(cx: &Context) -> bool {
     cx.call.dimensions(cx.world).is_none_or(|d| d.iter().all(|&x| x > 0))
 }
 
-/// The (table, record index) pairs the launch reads: the raygen record, the miss and hit records its
-/// rays reach, and the callable records it executes.
+/// The (table, record index) pairs the launch reads (see [`crate::semantics::records_read`]).
 pub fn reached_records(cx: &Context) -> Vec<(Table, u64)> {
-    if !launches_anything(cx) {
-        return vec![];
-    }
-    let mut out = vec![(Table::Raygen, 0)];
-    let launch = &cx.world.launch;
-    for ray in &launch.rays {
-        match hit_target(cx, ray) {
-            Some((idx, _)) => out.push((Table::Hit, idx)),
-            None => out.push((Table::Miss, miss_record(ray.miss_index))),
-        }
-    }
-    out.extend(launch.callables.iter().map(|&c| (Table::Callable, c as u64)));
-    out.sort_by_key(|(t, i)| (*t, *i));
-    out.dedup();
-    out
+    crate::semantics::records_read(cx.world, cx.call)
 }
 
 /// The hit record a ray reaches and the geometry kind it comes from, or None if it misses.
