@@ -1,1 +1,42 @@
-//! Shared helpers for the workspace-level tests (see tests/tests/).
+//! Shared helpers for the workspace-level tests (see tests/tests/): the repository's paths, the
+//! installed registry's rule table, and the committed device profiles.
+
+use model::{DeviceProfile, RuleSet};
+use std::path::{Path, PathBuf};
+
+/// The repository root.
+pub fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The seeds folder beside the repository (`../shared/seeds`).
+pub fn seeds() -> PathBuf {
+    repo().join("..").join("shared").join("seeds")
+}
+
+/// The installed registry's VUIDs (1.3.239 on Debian 12; `bash scripts/setup.sh` installs it).
+pub fn installed_vuids() -> vk_registry::vuid::VuidSet {
+    vk_registry::source::load_vuids(Path::new(vk_registry::source::DEFAULT_REGISTRY_DIR))
+        .expect("the installed registry: run `bash scripts/setup.sh`")
+}
+
+pub fn installed_rules() -> RuleSet {
+    RuleSet::from_vuids(&installed_vuids())
+}
+
+/// A committed profile by name (`lavapipe`, `nvidia-h100`).
+pub fn profile(name: &str) -> DeviceProfile {
+    let path = repo().join("profiles").join(format!("{name}.json"));
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    DeviceProfile::from_profiles_json(name, &text).expect("a committed profile parses")
+}
+
+/// Every committed profile's name.
+pub fn profile_names() -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(repo().join("profiles"))
+        .expect("profiles/")
+        .filter_map(|e| e.ok()?.path().file_stem().map(|s| s.to_string_lossy().into_owned()))
+        .collect();
+    v.sort();
+    v
+}

@@ -37,6 +37,34 @@ impl Triage {
         })
     }
 
+    /// The entries of the named files; with none named, of `dir/<driver>.yaml` and
+    /// `dir/layer-<layer version>.yaml` where they exist.
+    pub fn load(
+        dir: &std::path::Path,
+        named: &[std::path::PathBuf],
+        layer_version: Option<&str>,
+        driver: &str,
+    ) -> Result<Triage, String> {
+        let (paths, must_exist) = if named.is_empty() {
+            let mut v = vec![dir.join(format!("{driver}.yaml"))];
+            if let Some(ver) = layer_version {
+                v.push(dir.join(format!("layer-{ver}.yaml")));
+            }
+            (v, false)
+        } else {
+            (named.to_vec(), true)
+        };
+        let mut all = Triage::default();
+        for p in paths {
+            match std::fs::read_to_string(&p) {
+                Ok(t) => all.entries.extend(Triage::from_yaml(&p.display().to_string(), &t)?.entries),
+                Err(_) if !must_exist => {}
+                Err(e) => return Err(format!("triage file {}: {e}", p.display())),
+            }
+        }
+        Ok(all)
+    }
+
     pub fn covers(&self, vuid: &str) -> Option<&TriageEntry> {
         self.entries.iter().find(|e| e.vuid == vuid)
     }

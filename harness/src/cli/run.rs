@@ -119,29 +119,6 @@ fn plan_specs(a: &RunArgs, rules: &RuleSet, profile: &DeviceProfile) -> Vec<Case
     specs
 }
 
-/// The triage entries of the named files, or of the layer's and the driver's default files.
-fn load_triage(named: &[PathBuf], layer_version: Option<&str>, driver: &str) -> Result<Triage, String> {
-    let dir = super::repo_dir().join("triage");
-    let (paths, must_exist) = if named.is_empty() {
-        let mut v = vec![dir.join(format!("{driver}.yaml"))];
-        if let Some(ver) = layer_version {
-            v.push(dir.join(format!("layer-{ver}.yaml")));
-        }
-        (v, false)
-    } else {
-        (named.to_vec(), true)
-    };
-    let mut all = Triage::default();
-    for p in paths {
-        match std::fs::read_to_string(&p) {
-            Ok(t) => all.entries.extend(Triage::from_yaml(&p.display().to_string(), &t)?.entries),
-            Err(_) if !must_exist => {}
-            Err(e) => return Err(format!("triage file {}: {e}", p.display())),
-        }
-    }
-    Ok(all)
-}
-
 fn done_cases(results: &Path) -> BTreeSet<String> {
     let Ok(f) = std::fs::File::open(results) else { return BTreeSet::new() };
     std::io::BufReader::new(f)
@@ -165,7 +142,7 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
             driver.icd_path().display()
         ));
     }
-    let triage = load_triage(&a.triage, set.version.as_deref(), &driver.name())?;
+    let triage = Triage::load(&super::repo_dir().join("triage"), &a.triage, set.version.as_deref(), &driver.name())?;
     std::fs::create_dir_all(a.out.join("failures")).map_err(|e| format!("{}: {e}", a.out.display()))?;
     let results_path = a.out.join("results.jsonl");
     let done = if a.resume {

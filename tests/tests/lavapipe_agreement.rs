@@ -1,0 +1,78 @@
+//! vkCmdTraceRaysIndirectKHR on the real lavapipe under the real validation layer: for every executable
+//! VUID with a mutation, generated invalid cases are recorded (never submitted) and the layer's verdict
+//! must agree with the model's or match the triage file; valid cases are submitted and their read-back
+//! output must equal the model's expected launch.
+
+use generator::{CaseSpec, Command};
+use harness::compare::{compare, Outcome, Triage};
+use harness::{Driver, Executor};
+use rtconf_tests::{installed_rules, profile, repo};
+use std::collections::BTreeMap;
+
+const COMMAND: &str = "vkCmdTraceRaysIndirectKHR";
+
+fn run(cases: &[model::Case], ex: &mut Executor, rules: &model::RuleSet, p: &model::DeviceProfile, triage: &Triage) -> Vec<harness::compare::CaseReport> {
+    cases
+        .iter()
+        .map(|c| {
+            let verdict = model::validate(rules, p, &c.world, &c.call);
+            let obs = harness::execute(c, ex);
+            compare(c, &verdict, &obs, triage, 0.0)
+        })
+        .collect()
+}
+
+#[test]
+fn the_layer_agrees_with_the_model_on_every_executable_vuid_or_the_triage_says_why() {
+    std::env::set_var("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json");
+    let rules = installed_rules();
+    let p = profile("lavapipe");
+    let triage = Triage::load(&repo().join("triage"), &[], rules.version.as_deref(), "lavapipe").expect("triage files parse");
+    let mut ex = Executor::new(Driver::Lavapipe).expect("lavapipe and the validation layer: run `bash scripts/setup.sh`");
+
+    let mut outcomes: BTreeMap<String, Vec<Outcome>> = BTreeMap::new();
+    let mut failures = Vec::new();
+    for row in rules.rows.iter().filter(|r| r.status == model::rules::Status::Executable && model::rules::applies_to(&r.scope, COMMAND)) {
+        let spec = CaseSpec::violate(Command::TraceRaysIndirect, &row.vuid);
+        let cases = match generator::generate(&p, "lavapipe", &rules, &spec, 3, 11) {
+            Ok(c) => c,
+            Err(generator::GenError::Unsupported(why)) => {
+                outcomes.entry(row.vuid.clone()).or_default().push(Outcome::Unsupported);
+                eprintln!("{}: not expressible on lavapipe: {why}", row.vuid);
+                continue;
+            }
+            Err(e) => panic!("{}: {e}", row.vuid),
+        };
+        for r in run(&cases, &mut ex, &rules, &p, &triage) {
+            if matches!(r.outcome, Outcome::Fail | Outcome::Crash | Outcome::Timeout) {
+                failures.push(format!("{}: {:?} {}", r.case, r.outcome, r.detail));
+            }
+            outcomes.entry(row.vuid.clone()).or_default().push(r.outcome);
+        }
+    }
+    assert!(failures.is_empty(), "disagreements not in the triage file:\n{}", failures.join("\n"));
+    let agreed = outcomes.values().filter(|o| o.contains(&Outcome::Pass)).count();
+    let exercised = outcomes.values().filter(|o| o.iter().any(|x| *x != Outcome::Unsupported)).count();
+    // Most rules the layer checks agree outright; the rest are written down in triage/.
+    assert!(exercised >= 35, "only {exercised} VUIDs exercised: {outcomes:?}");
+    assert!(agreed >= 15, "only {agreed} VUIDs agreed outright: {outcomes:?}");
+}
+
+#[test]
+fn valid_launches_write_what_the_model_expects_and_the_layer_stays_silent() {
+    std::env::set_var("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json");
+    let rules = installed_rules();
+    let p = profile("lavapipe");
+    let triage = Triage::load(&repo().join("triage"), &[], rules.version.as_deref(), "lavapipe").expect("triage files parse");
+    let mut ex = Executor::new(Driver::Lavapipe).expect("lavapipe and the validation layer");
+    let cases = generator::generate(&p, "lavapipe", &rules, &CaseSpec::valid(Command::TraceRaysIndirect), 40, 3).expect("valid cases");
+    let reports = run(&cases, &mut ex, &rules, &p, &triage);
+    let bad: Vec<String> = reports
+        .iter()
+        .filter(|r| !matches!(r.outcome, Outcome::Pass | Outcome::Triaged))
+        .map(|r| format!("{}: {:?} {}", r.case, r.outcome, r.detail))
+        .collect();
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+    let read_back = reports.iter().filter(|r| r.output_matches == Some(true)).count();
+    assert!(read_back >= 30, "only {read_back} of 40 valid cases compared their output");
+}
