@@ -556,6 +556,12 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
         Mutation::NotRecording => {
             plan.command_buffer.lifecycle =
                 [CommandBufferLifecycle::Executable, CommandBufferLifecycle::Initial, CommandBufferLifecycle::Invalid][knob as usize % 3];
+            // Nothing is bound in a command buffer that was never begun: the pipeline rule fires too.
+            if plan.command_buffer.lifecycle == CommandBufferLifecycle::Initial {
+                for tag in ["02700", "08606", "08607"] {
+                    also.extend(registry_vuid(input.rules, cmd.vk_name(), tag));
+                }
+            }
         }
         Mutation::PoolWithoutCompute => {
             let families: Vec<QueueFlags> = queue_families(input.profile)

@@ -291,9 +291,10 @@ impl World {
         self.buffers.iter().find(|b| b.name == name)
     }
 
-    /// The pipeline bound at the ray tracing bind point, if any.
+    /// The pipeline bound at the ray tracing bind point, if any. A command buffer in the initial state
+    /// has recorded nothing since it was allocated or reset, so nothing is bound in it.
     pub fn bound_pipeline(&self) -> Option<&Pipeline> {
-        if self.command_buffer.pipeline_bound {
+        if self.command_buffer.pipeline_bound && self.command_buffer.lifecycle != CommandBufferLifecycle::Initial {
             self.pipeline.as_ref()
         } else {
             None

@@ -52,6 +52,9 @@ pub struct RunArgs {
     triage: Vec<PathBuf>,
 }
 
+/// Cases generated ahead of the workers: bounds memory, and amortises worker start-up.
+const CHUNK: usize = 512;
+
 /// Per-VUID agreement counts of `summary.json`.
 #[derive(Default, serde::Serialize)]
 struct VuidTally {
@@ -171,36 +174,16 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
         indicatif::ProgressBar::hidden()
     };
     let mut gen_errors = Vec::new();
-    for (i, spec) in specs.iter().enumerate() {
-        // One spec at a time: cases are generated, run and written before the next batch, so memory
-        // stays flat however long the run.
-        let cases = match generator::generate(&profile, &profile_name, &rules, spec, a.count, a.seed.wrapping_add(i as u64)) {
-            Ok(c) => c,
-            Err(e) => {
-                gen_errors.push(format!("{spec:?}: {e}"));
-                bar.inc(a.count as u64);
-                continue;
-            }
-        };
-        let mut todo: Vec<Case> = cases.into_iter().filter(|c| !done.contains(&c.name)).collect();
-        bar.inc((a.count - todo.len()) as u64);
-        // A valid case whose launch reads outside its tables is undefined behaviour: never hand it to
-        // the driver; report it as the generator bug it is.
-        let handle_size = profile.limit("shaderGroupHandleSize").unwrap_or(32);
-        todo.retain(|c| {
-            let reads = model::semantics::undefined_reads(handle_size, &c.world, &c.call);
-            if c.intent != model::Intent::Valid || reads.is_empty() {
-                return true;
-            }
-            let report = harness::compare::undefined_case(c, &reads);
-            let _ = std::fs::write(a.out.join("failures").join(format!("{}.yaml", c.name)), c.to_yaml());
-            let _ = writeln!(results, "{}", serde_json::to_string(&report).unwrap_or_default());
-            bar.inc(1);
-            false
-        });
+    let handle_size = profile.limit("shaderGroupHandleSize").unwrap_or(32);
+    // Cases are generated spec by spec into a bounded chunk; a full chunk runs on one set of workers
+    // (which keep their devices and pipelines warm) and its results are written before the next
+    // chunk is generated, so memory stays flat however long the run.
+    let mut chunk: Vec<Case> = Vec::with_capacity(CHUNK);
+    let run_chunk = |chunk: &mut Vec<Case>, results: &mut std::fs::File| -> Result<(), String> {
+        let cases = std::mem::take(chunk);
         let mut write_error = None;
-        run_in_workers(&todo, a.jobs, Duration::from_secs(a.timeout), |res| {
-            let case = &todo[res.index.min(todo.len() - 1)];
+        run_in_workers(&cases, a.jobs, Duration::from_secs(a.timeout), |res| {
+            let case = &cases[res.index.min(cases.len() - 1)];
             let verdict = model::validate(&rules, &profile, &case.world, &case.call);
             let report = compare(case, &verdict, &res.observation, &triage, res.millis);
             if report.outcome != Outcome::Pass && report.outcome != Outcome::Unsupported {
@@ -212,9 +195,43 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
             }
             bar.inc(1);
         });
-        if let Some(e) = write_error {
-            return Err(format!("{}: {e}", results_path.display()));
+        match write_error {
+            Some(e) => Err(format!("{}: {e}", results_path.display())),
+            None => Ok(()),
         }
+    };
+    for (i, spec) in specs.iter().enumerate() {
+        let cases = match generator::generate(&profile, &profile_name, &rules, spec, a.count, a.seed.wrapping_add(i as u64)) {
+            Ok(c) => c,
+            Err(e) => {
+                gen_errors.push(format!("{spec:?}: {e}"));
+                bar.inc(a.count as u64);
+                continue;
+            }
+        };
+        for c in cases {
+            if done.contains(&c.name) {
+                bar.inc(1);
+                continue;
+            }
+            // A valid case whose launch reads outside its tables is undefined behaviour: never hand it
+            // to the driver; report it as the generator bug it is.
+            let reads = model::semantics::undefined_reads(handle_size, &c.world, &c.call);
+            if c.intent == model::Intent::Valid && !reads.is_empty() {
+                let report = harness::compare::undefined_case(&c, &reads);
+                let _ = std::fs::write(a.out.join("failures").join(format!("{}.yaml", c.name)), c.to_yaml());
+                let _ = writeln!(results, "{}", serde_json::to_string(&report).unwrap_or_default());
+                bar.inc(1);
+                continue;
+            }
+            chunk.push(c);
+            if chunk.len() == CHUNK {
+                run_chunk(&mut chunk, &mut results)?;
+            }
+        }
+    }
+    if !chunk.is_empty() {
+        run_chunk(&mut chunk, &mut results)?;
     }
     bar.finish_and_clear();
     let summary = summarise(&results_path, &a.driver, &profile_name, set.version.clone())?;
