@@ -41,6 +41,9 @@ pub struct RunArgs {
     timeout: u64,
     #[arg(long, default_value = "out/run")]
     out: PathBuf,
+    /// Shrink up to this many failing cases to minimal ones in cases/regressions/ (in this process).
+    #[arg(long, default_value_t = 0)]
+    shrink: usize,
     /// Continue a killed run: cases already in results.jsonl are not run again.
     #[arg(long)]
     resume: bool,
@@ -234,9 +237,13 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
         run_chunk(&mut chunk, &mut results)?;
     }
     bar.finish_and_clear();
-    let summary = summarise(&results_path, &a.driver, &profile_name, set.version.clone())?;
+    let (summary, junit) = summarise(&results_path, &a.driver, &profile_name, set.version.clone())?;
     std::fs::write(a.out.join("summary.json"), serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n")
         .map_err(|e| e.to_string())?;
+    std::fs::write(a.out.join("junit.xml"), junit).map_err(|e| e.to_string())?;
+    if a.shrink > 0 {
+        shrink_failures(&a, &rules, &profile, &profile_name, &triage, &results_path);
+    }
     print_summary(&summary, &a.out);
     for e in &gen_errors {
         eprintln!("rtconf: could not generate {e}");
@@ -246,15 +253,31 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
 }
 
 /// Reads `results.jsonl` back (streaming) into the summary, so a resumed run counts every case once.
-fn summarise(path: &Path, driver: &str, profile: &str, registry: Option<String>) -> Result<Summary, String> {
+/// Also returns the JUnit report of the run (one suite per command), for CI systems.
+fn summarise(path: &Path, driver: &str, profile: &str, registry: Option<String>) -> Result<(Summary, String), String> {
+    use quick_junit::{NonSuccessKind, Report, TestCase, TestCaseStatus, TestSuite};
     let f = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let mut s = Summary { driver: driver.into(), profile: profile.into(), registry, ..Default::default() };
     let mut seen = BTreeSet::new();
+    let mut suites: BTreeMap<String, TestSuite> = BTreeMap::new();
     for line in std::io::BufReader::new(f).lines().map_while(Result::ok) {
         let Ok(r) = serde_json::from_str::<CaseReport>(&line) else { continue };
         if !seen.insert(r.case.clone()) {
             continue;
         }
+        let mut status = match r.outcome {
+            Outcome::Pass | Outcome::Triaged => TestCaseStatus::success(),
+            Outcome::Unsupported => TestCaseStatus::skipped(),
+            Outcome::Fail => TestCaseStatus::non_success(NonSuccessKind::Failure),
+            Outcome::Crash | Outcome::Timeout => TestCaseStatus::non_success(NonSuccessKind::Error),
+        };
+        if !r.detail.is_empty() {
+            status.set_message(r.detail.clone());
+        }
+        let mut tc = TestCase::new(r.case.clone(), status);
+        tc.set_classname(format!("{driver}.{}", r.command));
+        tc.set_time(Duration::from_secs_f64(r.millis.max(0.0) / 1000.0));
+        suites.entry(r.command.clone()).or_insert_with(|| TestSuite::new(r.command.clone())).add_test_case(tc);
         s.cases += 1;
         match r.outcome {
             Outcome::Pass => s.passed += 1,
@@ -277,7 +300,59 @@ fn summarise(path: &Path, driver: &str, profile: &str, registry: Option<String>)
             t.agree += (m.contains(v) == l.contains(v)) as usize;
         }
     }
-    Ok(s)
+    let mut report = Report::new(format!("rtconf on {driver}"));
+    report.add_test_suites(suites.into_values());
+    let junit = report.to_string().map_err(|e| e.to_string())?;
+    Ok((s, junit))
+}
+
+/// Shrinks up to `a.shrink` failing cases of the run, each to a minimal case that still fails the same
+/// way on the driver, written to `cases/regressions/` with its seed (replay it with `rtconf replay`).
+fn shrink_failures(a: &RunArgs, rules: &RuleSet, profile: &DeviceProfile, profile_name: &str, triage: &Triage, results: &Path) {
+    let Ok(f) = std::fs::File::open(results) else { return };
+    let failing: Vec<String> = std::io::BufReader::new(f)
+        .lines()
+        .map_while(Result::ok)
+        .filter_map(|l| serde_json::from_str::<CaseReport>(&l).ok())
+        .filter(|r| r.outcome == Outcome::Fail)
+        .map(|r| r.case)
+        .take(a.shrink)
+        .collect();
+    if failing.is_empty() {
+        return;
+    }
+    let executor = match harness::Executor::new(harness::vulkan::Driver::parse(&a.driver)) {
+        Ok(e) => std::cell::RefCell::new(e),
+        Err(e) => {
+            eprintln!("rtconf: cannot shrink: {e}");
+            return;
+        }
+    };
+    let dir = super::repo_dir().join("cases").join("regressions");
+    for name in failing {
+        let path = a.out.join("failures").join(format!("{name}.yaml"));
+        let Some(case) = std::fs::read_to_string(&path).ok().and_then(|t| Case::from_yaml(&name, &t).ok()) else { continue };
+        let Some((seed, index)) = case.seed.as_deref().and_then(|s| s.split_once('/')) else { continue };
+        let (Ok(seed), Ok(index)) = (seed.parse::<u64>(), index.parse::<usize>()) else { continue };
+        let Some(command) = generator::Command::from_vk_name(case.call.command()) else { continue };
+        let mut spec = match &case.intent {
+            model::Intent::Valid => CaseSpec::valid(command),
+            model::Intent::Violates { vuid, .. } => CaseSpec::violate(command, vuid),
+        };
+        if name.contains("-limits-") {
+            spec = spec.at_limits();
+        }
+        let fails = |c: &Case| {
+            let verdict = model::validate(rules, profile, &c.world, &c.call);
+            let obs = harness::execute(c, &mut executor.borrow_mut());
+            compare(c, &verdict, &obs, triage, 0.0).outcome == Outcome::Fail
+        };
+        match generator::shrink_failure(profile, profile_name, rules, &spec, seed, index, &dir, fails) {
+            Ok(Some(s)) => println!("shrunk {name} in {} steps: {}", s.steps, s.path.display()),
+            Ok(None) => println!("{name} no longer fails when regenerated from its seed; kept as {}", path.display()),
+            Err(e) => eprintln!("rtconf: shrinking {name}: {e}"),
+        }
+    }
 }
 
 fn print_summary(s: &Summary, out: &Path) {
@@ -290,5 +365,8 @@ fn print_summary(s: &Summary, out: &Path) {
         "{} cases on {} (profile {}): {} passed, {} failed, {} triaged, {} unsupported, {} crashes, {} timeouts",
         s.cases, s.driver, s.profile, s.passed, s.failed, s.triaged, s.unsupported, s.crashes, s.timeouts
     );
-    println!("results: {}/results.jsonl, summary: {}/summary.json, failing cases: {}/failures/", out.display(), out.display(), out.display());
+    println!(
+        "results: {0}/results.jsonl, summary: {0}/summary.json, junit: {0}/junit.xml, failing cases: {0}/failures/",
+        out.display()
+    );
 }
