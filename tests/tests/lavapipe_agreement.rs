@@ -11,43 +11,67 @@ use std::collections::BTreeMap;
 
 const COMMAND: &str = "vkCmdTraceRaysIndirectKHR";
 
-fn run(cases: &[model::Case], ex: &mut Executor, rules: &model::RuleSet, p: &model::DeviceProfile, triage: &Triage) -> Vec<harness::compare::CaseReport> {
-    cases
-        .iter()
-        .map(|c| {
-            let verdict = model::validate(rules, p, &c.world, &c.call);
-            let obs = harness::execute(c, ex);
-            compare(c, &verdict, &obs, triage, 0.0)
-        })
-        .collect()
+/// lavapipe under the validation layer, with the installed registry's rules and the triage files.
+struct Lavapipe {
+    rules: model::RuleSet,
+    profile: model::DeviceProfile,
+    triage: Triage,
+    executor: Executor,
+}
+
+impl Lavapipe {
+    fn new() -> Lavapipe {
+        std::env::set_var("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json");
+        let rules = installed_rules();
+        let triage = Triage::load(&repo().join("triage"), &[], rules.version.as_deref(), "lavapipe").expect("triage files parse");
+        let executor = Executor::new(Driver::Lavapipe).expect("lavapipe and the validation layer: run `bash scripts/setup.sh`");
+        Lavapipe { rules, profile: profile("lavapipe"), triage, executor }
+    }
+
+    fn generate(&self, spec: &CaseSpec, count: usize, seed: u64) -> Result<Vec<model::Case>, generator::GenError> {
+        generator::generate(&self.profile, "lavapipe", &self.rules, spec, count, seed)
+    }
+
+    fn run(&mut self, cases: &[model::Case]) -> Vec<harness::compare::CaseReport> {
+        cases
+            .iter()
+            .map(|c| {
+                let verdict = model::validate(&self.rules, &self.profile, &c.world, &c.call);
+                let obs = harness::execute(c, &mut self.executor);
+                compare(c, &verdict, &obs, &self.triage, 0.0)
+            })
+            .collect()
+    }
 }
 
 #[test]
 fn the_layer_agrees_with_the_model_on_every_executable_vuid_or_the_triage_says_why() {
-    std::env::set_var("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json");
-    let rules = installed_rules();
-    let p = profile("lavapipe");
-    let triage = Triage::load(&repo().join("triage"), &[], rules.version.as_deref(), "lavapipe").expect("triage files parse");
-    let mut ex = Executor::new(Driver::Lavapipe).expect("lavapipe and the validation layer: run `bash scripts/setup.sh`");
-
+    let mut lvp = Lavapipe::new();
+    let rows: Vec<String> = lvp
+        .rules
+        .rows
+        .iter()
+        .filter(|r| r.status == model::rules::Status::Executable && model::rules::applies_to(&r.scope, COMMAND))
+        .map(|r| r.vuid.clone())
+        .collect();
     let mut outcomes: BTreeMap<String, Vec<Outcome>> = BTreeMap::new();
     let mut failures = Vec::new();
-    for row in rules.rows.iter().filter(|r| r.status == model::rules::Status::Executable && model::rules::applies_to(&r.scope, COMMAND)) {
-        let spec = CaseSpec::violate(Command::TraceRaysIndirect, &row.vuid);
-        let cases = match generator::generate(&p, "lavapipe", &rules, &spec, 3, 11) {
+    for vuid in &rows {
+        let spec = CaseSpec::violate(Command::TraceRaysIndirect, vuid);
+        let cases = match lvp.generate(&spec, 3, 11) {
             Ok(c) => c,
             Err(generator::GenError::Unsupported(why)) => {
-                outcomes.entry(row.vuid.clone()).or_default().push(Outcome::Unsupported);
-                eprintln!("{}: not expressible on lavapipe: {why}", row.vuid);
+                outcomes.entry(vuid.clone()).or_default().push(Outcome::Unsupported);
+                eprintln!("{vuid}: not expressible on lavapipe: {why}");
                 continue;
             }
-            Err(e) => panic!("{}: {e}", row.vuid),
+            Err(e) => panic!("{vuid}: {e}"),
         };
-        for r in run(&cases, &mut ex, &rules, &p, &triage) {
+        for r in lvp.run(&cases) {
             if matches!(r.outcome, Outcome::Fail | Outcome::Crash | Outcome::Timeout) {
                 failures.push(format!("{}: {:?} {}", r.case, r.outcome, r.detail));
             }
-            outcomes.entry(row.vuid.clone()).or_default().push(r.outcome);
+            outcomes.entry(vuid.clone()).or_default().push(r.outcome);
         }
     }
     assert!(failures.is_empty(), "disagreements not in the triage file:\n{}", failures.join("\n"));
@@ -60,13 +84,9 @@ fn the_layer_agrees_with_the_model_on_every_executable_vuid_or_the_triage_says_w
 
 #[test]
 fn valid_launches_write_what_the_model_expects_and_the_layer_stays_silent() {
-    std::env::set_var("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json");
-    let rules = installed_rules();
-    let p = profile("lavapipe");
-    let triage = Triage::load(&repo().join("triage"), &[], rules.version.as_deref(), "lavapipe").expect("triage files parse");
-    let mut ex = Executor::new(Driver::Lavapipe).expect("lavapipe and the validation layer");
-    let cases = generator::generate(&p, "lavapipe", &rules, &CaseSpec::valid(Command::TraceRaysIndirect), 40, 3).expect("valid cases");
-    let reports = run(&cases, &mut ex, &rules, &p, &triage);
+    let mut lvp = Lavapipe::new();
+    let cases = lvp.generate(&CaseSpec::valid(Command::TraceRaysIndirect), 40, 3).expect("valid cases");
+    let reports = lvp.run(&cases);
     let bad: Vec<String> = reports
         .iter()
         .filter(|r| !matches!(r.outcome, Outcome::Pass | Outcome::Triaged))

@@ -37,6 +37,9 @@ fn print(s: &str) -> Result<i32, String> {
     let mut out = std::io::stdout().lock();
     // A closed pipe (`| head`) is not an error worth a message.
     let _ = out.write_all(s.as_bytes());
+    if !s.is_empty() && !s.ends_with('\n') {
+        let _ = out.write_all(b"\n");
+    }
     Ok(0)
 }
 
