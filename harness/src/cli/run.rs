@@ -237,10 +237,10 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
         run_chunk(&mut chunk, &mut results)?;
     }
     bar.finish_and_clear();
-    let (summary, junit) = summarise(&results_path, &a.driver, &profile_name, set.version.clone())?;
+    let summary = summarise(&results_path, &a.driver, &profile_name, set.version.clone())?;
     std::fs::write(a.out.join("summary.json"), serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n")
         .map_err(|e| e.to_string())?;
-    std::fs::write(a.out.join("junit.xml"), junit).map_err(|e| e.to_string())?;
+    write_junit(&results_path, &a.out.join("junit.xml"), &summary)?;
     if a.shrink > 0 {
         shrink_failures(&a, &rules, &profile, &profile_name, &triage, &results_path);
     }
@@ -252,32 +252,17 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
     Ok(if unexpected > 0 || !gen_errors.is_empty() { 1 } else { 0 })
 }
 
-/// Reads `results.jsonl` back (streaming) into the summary, so a resumed run counts every case once.
-/// Also returns the JUnit report of the run (one suite per command), for CI systems.
-fn summarise(path: &Path, driver: &str, profile: &str, registry: Option<String>) -> Result<(Summary, String), String> {
-    use quick_junit::{NonSuccessKind, Report, TestCase, TestCaseStatus, TestSuite};
+/// The reports of `results.jsonl`, read one line at a time.
+fn reports(path: &Path) -> Result<impl Iterator<Item = CaseReport>, String> {
     let f = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(std::io::BufReader::new(f).lines().map_while(Result::ok).filter_map(|l| serde_json::from_str::<CaseReport>(&l).ok()))
+}
+
+/// Reads `results.jsonl` back, streaming, into the summary; a resumed run never runs a case twice, so
+/// each line is one case. Memory is per VUID, not per case.
+fn summarise(path: &Path, driver: &str, profile: &str, registry: Option<String>) -> Result<Summary, String> {
     let mut s = Summary { driver: driver.into(), profile: profile.into(), registry, ..Default::default() };
-    let mut seen = BTreeSet::new();
-    let mut suites: BTreeMap<String, TestSuite> = BTreeMap::new();
-    for line in std::io::BufReader::new(f).lines().map_while(Result::ok) {
-        let Ok(r) = serde_json::from_str::<CaseReport>(&line) else { continue };
-        if !seen.insert(r.case.clone()) {
-            continue;
-        }
-        let mut status = match r.outcome {
-            Outcome::Pass | Outcome::Triaged => TestCaseStatus::success(),
-            Outcome::Unsupported => TestCaseStatus::skipped(),
-            Outcome::Fail => TestCaseStatus::non_success(NonSuccessKind::Failure),
-            Outcome::Crash | Outcome::Timeout => TestCaseStatus::non_success(NonSuccessKind::Error),
-        };
-        if !r.detail.is_empty() {
-            status.set_message(r.detail.clone());
-        }
-        let mut tc = TestCase::new(r.case.clone(), status);
-        tc.set_classname(format!("{driver}.{}", r.command));
-        tc.set_time(Duration::from_secs_f64(r.millis.max(0.0) / 1000.0));
-        suites.entry(r.command.clone()).or_insert_with(|| TestSuite::new(r.command.clone())).add_test_case(tc);
+    for r in reports(path)? {
         s.cases += 1;
         match r.outcome {
             Outcome::Pass => s.passed += 1,
@@ -300,10 +285,43 @@ fn summarise(path: &Path, driver: &str, profile: &str, registry: Option<String>)
             t.agree += (m.contains(v) == l.contains(v)) as usize;
         }
     }
-    let mut report = Report::new(format!("rtconf on {driver}"));
-    report.add_test_suites(suites.into_values());
-    let junit = report.to_string().map_err(|e| e.to_string())?;
-    Ok((s, junit))
+    Ok(s)
+}
+
+fn xml_escape(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}
+
+/// Writes the JUnit report (one suite for the run; triaged cases pass, unsupported ones are skipped),
+/// streaming from `results.jsonl` so memory does not grow with the run.
+fn write_junit(results: &Path, out: &Path, s: &Summary) -> Result<(), String> {
+    let mut w = std::io::BufWriter::new(std::fs::File::create(out).map_err(|e| format!("{}: {e}", out.display()))?);
+    let name = xml_escape(&format!("rtconf on {}", s.driver));
+    let errors = s.crashes + s.timeouts;
+    let head = format!(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites name=\"{name}\" tests=\"{}\" failures=\"{}\" errors=\"{errors}\">\n  <testsuite name=\"{name}\" tests=\"{}\" failures=\"{}\" errors=\"{errors}\" skipped=\"{}\">\n",
+        s.cases, s.failed, s.cases, s.failed, s.unsupported
+    );
+    let io = |e: std::io::Error| format!("{}: {e}", out.display());
+    w.write_all(head.as_bytes()).map_err(io)?;
+    for r in reports(results)? {
+        let open = format!(
+            "    <testcase name=\"{}\" classname=\"{}.{}\" time=\"{:.3}\"",
+            xml_escape(&r.case),
+            xml_escape(&s.driver),
+            xml_escape(&r.command),
+            r.millis.max(0.0) / 1000.0
+        );
+        let msg = xml_escape(&r.detail);
+        let body = match r.outcome {
+            Outcome::Pass | Outcome::Triaged => "/>\n".to_string(),
+            Outcome::Unsupported => format!("><skipped message=\"{msg}\"/></testcase>\n"),
+            Outcome::Fail => format!("><failure message=\"{msg}\"/></testcase>\n"),
+            Outcome::Crash | Outcome::Timeout => format!("><error message=\"{:?}: {msg}\"/></testcase>\n", r.outcome),
+        };
+        w.write_all(open.as_bytes()).and_then(|_| w.write_all(body.as_bytes())).map_err(io)?;
+    }
+    w.write_all(b"  </testsuite>\n</testsuites>\n").and_then(|_| w.flush()).map_err(io)
 }
 
 /// Shrinks up to `a.shrink` failing cases of the run, each to a minimal case that still fails the same
