@@ -63,6 +63,7 @@ fn case(miss_stride: u64, width: u32) -> Case {
             callables: vec![],
             extra_recursion: 0,
         },
+        resources: Default::default(), // issue 4
     };
     let valid = miss_stride % 16 == 0;
     Case {

@@ -8,6 +8,7 @@ pub mod call;
 pub mod case;
 pub mod flags;
 pub mod profile;
+pub mod resources; // issue 4: the resource world and its rules
 pub mod rules;
 pub mod semantics;
 pub mod verdict;

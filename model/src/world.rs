@@ -284,6 +284,9 @@ pub struct World {
     pub command_buffer: CommandBufferState,
     #[serde(default)]
     pub launch: Launch,
+    /// issue 4: descriptors, views, samplers, push constants and the shaders' resource use.
+    #[serde(default, skip_serializing_if = "crate::resources::ResourceState::is_empty")]
+    pub resources: crate::resources::ResourceState,
 }
 
 impl World {

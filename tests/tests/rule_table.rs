@@ -37,7 +37,13 @@ fn the_seeds_man_pages_and_the_registry_together_leave_no_vuid_without_a_row() {
 #[test]
 fn the_template_compiler_produces_at_least_forty_percent_of_executable_rows() {
     let rules = installed_rules();
-    let executable: Vec<_> = rules.rows.iter().filter(|r| r.status == Status::Executable).collect();
+    // issue 4: the resource-access rules read the resource world, not the call's parameters the
+    // template compiler reads; they are hand rules by nature and do not count here.
+    let executable: Vec<_> = rules
+        .rows
+        .iter()
+        .filter(|r| r.status == Status::Executable && !matches!(r.predicate, Some(model::rules::predicate::Predicate::Resource(_))))
+        .collect();
     let template = executable.iter().filter(|r| r.source == Some(Source::Template)).count();
     assert!(!executable.is_empty());
     assert!(template * 100 >= executable.len() * 40, "{template} of {} executable rows compiled", executable.len());

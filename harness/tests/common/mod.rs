@@ -72,6 +72,7 @@ pub fn valid_case() -> Case {
             callables: vec![],
             extra_recursion: 0,
         },
+        resources: Default::default(), // issue 4
     };
     let call = Call::TraceRaysIndirect(TraceRaysIndirect {
         raygen: StridedRegion { address: at("sbt", 0), stride: 32, size: 32 },

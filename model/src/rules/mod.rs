@@ -136,6 +136,20 @@ impl Row {
             row.status = Status::Executable;
             row.source = Some(Source::Hand);
             row.predicate = Some(p);
+        } else if let Some(e) = crate::resources::rule_for(r) {
+            // issue 4: the resource-access rules shared with draw/dispatch.
+            match e {
+                crate::resources::Entry::Executable { rule, note } => {
+                    row.status = Status::Executable;
+                    row.source = Some(Source::Hand);
+                    row.predicate = Some(Predicate::Resource(rule));
+                    row.reason = note;
+                }
+                crate::resources::Entry::NotExecutable(why) => {
+                    row.status = Status::NotExecutable;
+                    row.reason = Some(why);
+                }
+            }
         } else {
             let (status, reason) = reasons::classify(r);
             row.status = status;

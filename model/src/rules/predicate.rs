@@ -69,6 +69,8 @@ pub enum Predicate {
     DynamicStackSizeSet,
     NoStaticStateSet,
     NoProtectedResourceFromUnprotected,
+    /// issue 4: a resource-access rule shared with draw/dispatch, judged by `crate::resources`.
+    Resource(crate::resources::ResourceRule),
 }
 
 /// Which NO_NULL_* hit flag a rule speaks of.
@@ -165,6 +167,8 @@ impl Predicate {
             }
         };
         match self {
+            // issue 4: resource rules judge the world's resource state.
+            Predicate::Resource(r) => r.check(cx, out),
             Predicate::MultipleOf(p, op) => {
                 if !Self::applies(*p, call) {
                     return;
