@@ -65,8 +65,10 @@ impl Triage {
         Ok(all)
     }
 
+    /// The entry for a VUID; an entry's `vuid` may hold `*` wildcards (`VUID-vkCmdTraceRays*KHR-None-03429`
+    /// covers the direct and the indirect command).
     pub fn covers(&self, vuid: &str) -> Option<&TriageEntry> {
-        self.entries.iter().find(|e| e.vuid == vuid)
+        self.entries.iter().find(|e| wildcard_match(&e.vuid, vuid))
     }
 }
 
@@ -223,4 +225,38 @@ pub fn compare(case: &Case, verdict: &Verdict, obs: &Observation, triage: &Triag
 /// The scope part of a VUID (`vkCmdTraceRaysIndirectKHR` of `VUID-vkCmdTraceRaysIndirectKHR-stride-03686`).
 pub fn vuid_scope(vuid: &str) -> Option<&str> {
     vuid.strip_prefix("VUID-")?.split('-').next()
+}
+
+/// Whether `text` matches `pattern`, where `*` stands for any run of characters.
+fn wildcard_match(pattern: &str, text: &str) -> bool {
+    let mut parts = pattern.split('*');
+    let first = parts.next().unwrap_or("");
+    let Some(mut rest) = text.strip_prefix(first) else { return false };
+    let parts: Vec<&str> = parts.collect();
+    for (i, part) in parts.iter().enumerate() {
+        if i == parts.len() - 1 {
+            return rest.ends_with(part);
+        }
+        match rest.find(part) {
+            Some(at) => rest = &rest[at + part.len()..],
+            None => return false,
+        }
+    }
+    rest.is_empty()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::wildcard_match;
+
+    #[test]
+    fn triage_patterns_match_both_trace_commands_and_nothing_else() {
+        let p = "VUID-vkCmdTraceRays*KHR-None-03429";
+        assert!(wildcard_match(p, "VUID-vkCmdTraceRaysKHR-None-03429"));
+        assert!(wildcard_match(p, "VUID-vkCmdTraceRaysIndirectKHR-None-03429"));
+        assert!(!wildcard_match(p, "VUID-vkCmdTraceRaysNV-None-03429"));
+        assert!(!wildcard_match(p, "VUID-vkCmdTraceRaysKHR-None-034290"));
+        assert!(wildcard_match("VUID-x", "VUID-x"));
+        assert!(!wildcard_match("VUID-x", "VUID-xy"));
+    }
 }
