@@ -10,6 +10,7 @@ pub mod mutation;
 pub mod plan;
 pub mod profiles;
 pub mod registry;
+pub mod resources; // issue 4: resource worlds and their mutations
 pub mod valid;
 
 pub use mutation::{mutations_for, Mutation, NullHit};
@@ -219,8 +220,21 @@ pub fn generate(
     count: usize,
     seed: u64,
 ) -> Result<Vec<Case>, GenError> {
+    generate_range(profile, profile_name, rules, spec, 0..count, seed)
+}
+
+/// Cases `range` of a spec's sequence for `seed` — the same cases `generate` makes at those indices,
+/// so a long run can be generated a slice at a time.
+pub fn generate_range(
+    profile: &DeviceProfile,
+    profile_name: &str,
+    rules: &RuleSet,
+    spec: &CaseSpec,
+    range: std::ops::Range<usize>,
+    seed: u64,
+) -> Result<Vec<Case>, GenError> {
     let strategy = case_strategy(profile, profile_name, rules, spec)?;
-    (0..count)
+    range
         .map(|i| {
             let mut runner = case_runner(seed, i as u64);
             let mut case = strategy.new_tree(&mut runner).map_err(|e| GenError::Io(e.to_string()))?.current();

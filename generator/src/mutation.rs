@@ -76,6 +76,8 @@ pub enum Mutation {
     NvOffsetPastBuffer(Table),
     /// NV: the table's buffer is not a valid handle.
     NvInvalidBuffer(Table),
+    /// issue 4: a resource-access rule broken in the world's resource state (`crate::resources`).
+    Resource(crate::resources::ResourceMutation),
 }
 
 fn tables_by_tag(tag: &str, tags: [&str; 4]) -> Option<Table> {
@@ -84,6 +86,10 @@ fn tables_by_tag(tag: &str, tags: [&str; 4]) -> Option<Table> {
 
 /// The mutation that violates `vuid`, if one is written.
 pub fn mutations_for(vuid: &str) -> Option<Mutation> {
+    // issue 4: resource-access rules have their own mutations.
+    if let Some(m) = crate::resources::mutation_for(vuid) {
+        return Some(Mutation::Resource(m));
+    }
     let rest = vuid.strip_prefix("VUID-")?;
     let (scope, rest) = rest.split_once('-')?;
     let tag = rest.rsplit('-').next()?;
@@ -216,6 +222,8 @@ pub fn supported(m: Mutation, profile: &DeviceProfile, command: Command) -> Resu
     let unsupported = |why: &str| Err(GenError::Unsupported(format!("{m:?} on {}: {why}", profile.name)));
     let families = queue_families(profile);
     match m {
+        // issue 4: resource mutations decide for themselves.
+        Mutation::Resource(r) => crate::resources::supported(r, profile),
         Mutation::MotionPipelineWithoutFeature if !profile.has_extension("VK_NV_ray_tracing_motion_blur") => {
             unsupported("no VK_NV_ray_tracing_motion_blur")
         }
@@ -354,6 +362,10 @@ fn buffer_mut<'w>(world: &'w mut World, name: &str) -> &'w mut model::world::Buf
 
 /// Applies a mutation to a valid plan and realises it.
 pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutated, GenError> {
+    // issue 4: resource mutations edit the realised world.
+    if let Mutation::Resource(r) = m {
+        return crate::resources::apply(r, plan, input);
+    }
     supported(m, input.profile, input.command)?;
     let lim = input.lim;
     let knob = input.knob;
@@ -732,6 +744,8 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
                 }
             }));
         }
+        // issue 4: handled at the top of this function.
+        Mutation::Resource(_) => unreachable!("resource mutations return early"),
         Mutation::NvInvalidBuffer(t) => {
             ensure_used(&mut plan, t);
             let none = t == Table::Raygen && knob % 2 == 0;
