@@ -86,7 +86,9 @@ pub fn default_profile_name(driver: &str) -> String {
     match driver {
         "nvidia" => "nvidia-h100".into(),
         "lavapipe" | "lvp" => "lavapipe".into(),
-        other => Path::new(other).file_stem().map_or("icd".into(), |s| s.to_string_lossy().into_owned()),
+        other => Path::new(other)
+            .file_stem()
+            .map_or("icd".into(), |s| s.to_string_lossy().into_owned()),
     }
 }
 
@@ -103,14 +105,20 @@ fn plan_specs(a: &RunArgs, rules: &RuleSet, profile: &DeviceProfile) -> Vec<Case
     };
     let mut specs = Vec::new();
     for c in &commands {
-        let Some(command) = generator::Command::from_vk_name(c) else { continue };
+        let Some(command) = generator::Command::from_vk_name(c) else {
+            continue;
+        };
         if a.vuid.is_empty() {
             specs.push(CaseSpec::valid(command));
         }
         if a.valid_only {
             continue;
         }
-        for row in rules.rows.iter().filter(|r| r.status == model::rules::Status::Executable) {
+        for row in rules
+            .rows
+            .iter()
+            .filter(|r| r.status == model::rules::Status::Executable)
+        {
             if !model::rules::applies_to(&row.scope, c) {
                 continue;
             }
@@ -126,7 +134,9 @@ fn plan_specs(a: &RunArgs, rules: &RuleSet, profile: &DeviceProfile) -> Vec<Case
 }
 
 fn done_cases(results: &Path) -> BTreeSet<String> {
-    let Ok(f) = std::fs::File::open(results) else { return BTreeSet::new() };
+    let Ok(f) = std::fs::File::open(results) else {
+        return BTreeSet::new();
+    };
     std::io::BufReader::new(f)
         .lines()
         .map_while(Result::ok)
@@ -138,7 +148,10 @@ fn done_cases(results: &Path) -> BTreeSet<String> {
 pub fn run(a: RunArgs) -> Result<i32, String> {
     let set = super::load_sources(&a.from)?;
     let rules = RuleSet::from_vuids(&set);
-    let profile_name = a.profile.clone().unwrap_or_else(|| default_profile_name(&a.driver));
+    let profile_name = a
+        .profile
+        .clone()
+        .unwrap_or_else(|| default_profile_name(&a.driver));
     let profile = super::profile_for(&profile_name)?;
     let driver = harness::vulkan::Driver::parse(&a.driver);
     if !driver.icd_path().exists() {
@@ -148,8 +161,14 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
             driver.icd_path().display()
         ));
     }
-    let triage = Triage::load(&super::repo_dir().join("triage"), &a.triage, set.version.as_deref(), &driver.name())?;
-    std::fs::create_dir_all(a.out.join("failures")).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    let triage = Triage::load(
+        &super::repo_dir().join("triage"),
+        &a.triage,
+        set.version.as_deref(),
+        &driver.name(),
+    )?;
+    std::fs::create_dir_all(a.out.join("failures"))
+        .map_err(|e| format!("{}: {e}", a.out.display()))?;
     let results_path = a.out.join("results.jsonl");
     let done = if a.resume {
         done_cases(&results_path)
@@ -169,8 +188,10 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
     let bar = if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
         let b = indicatif::ProgressBar::new(total as u64);
         b.set_style(
-            indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} cases {elapsed_precise} {msg}")
-                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+            indicatif::ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} cases {elapsed_precise} {msg}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
         );
         b
     } else {
@@ -190,7 +211,10 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
             let verdict = model::validate(&rules, &profile, &case.world, &case.call);
             let report = compare(case, &verdict, &res.observation, &triage, res.millis);
             if report.outcome != Outcome::Pass && report.outcome != Outcome::Unsupported {
-                let _ = std::fs::write(a.out.join("failures").join(format!("{}.yaml", case.name)), case.to_yaml());
+                let _ = std::fs::write(
+                    a.out.join("failures").join(format!("{}.yaml", case.name)),
+                    case.to_yaml(),
+                );
             }
             let line = serde_json::to_string(&report).unwrap_or_default();
             if let Err(e) = writeln!(results, "{line}").and_then(|_| results.flush()) {
@@ -203,33 +227,52 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
             None => Ok(()),
         }
     };
+    let slices = |count: usize| {
+        (0..count)
+            .step_by(CHUNK)
+            .map(move |start| start..(start + CHUNK).min(count))
+    };
     for (i, spec) in specs.iter().enumerate() {
-        let cases = match generator::generate(&profile, &profile_name, &rules, spec, a.count, a.seed.wrapping_add(i as u64)) {
-            Ok(c) => c,
-            Err(e) => {
-                gen_errors.push(format!("{spec:?}: {e}"));
-                bar.inc(a.count as u64);
-                continue;
-            }
-        };
-        for c in cases {
-            if done.contains(&c.name) {
-                bar.inc(1);
-                continue;
-            }
-            // A valid case whose launch reads outside its tables is undefined behaviour: never hand it
-            // to the driver; report it as the generator bug it is.
-            let reads = model::semantics::undefined_reads(handle_size, &c.world, &c.call);
-            if c.intent == model::Intent::Valid && !reads.is_empty() {
-                let report = harness::compare::undefined_case(&c, &reads);
-                let _ = std::fs::write(a.out.join("failures").join(format!("{}.yaml", c.name)), c.to_yaml());
-                let _ = writeln!(results, "{}", serde_json::to_string(&report).unwrap_or_default());
-                bar.inc(1);
-                continue;
-            }
-            chunk.push(c);
-            if chunk.len() == CHUNK {
-                run_chunk(&mut chunk, &mut results)?;
+        let seed = a.seed.wrapping_add(i as u64);
+        for range in slices(a.count) {
+            let len = range.len();
+            let cases =
+                match generator::generate_range(&profile, &profile_name, &rules, spec, range, seed)
+                {
+                    Ok(c) => c,
+                    Err(e) => {
+                        gen_errors.push(format!("{spec:?}: {e}"));
+                        bar.inc((a.count) as u64);
+                        break;
+                    }
+                };
+            debug_assert!(cases.len() == len);
+            for c in cases {
+                if done.contains(&c.name) {
+                    bar.inc(1);
+                    continue;
+                }
+                // A valid case whose launch reads outside its tables is undefined behaviour: never hand it
+                // to the driver; report it as the generator bug it is.
+                let reads = model::semantics::undefined_reads(handle_size, &c.world, &c.call);
+                if c.intent == model::Intent::Valid && !reads.is_empty() {
+                    let report = harness::compare::undefined_case(&c, &reads);
+                    let _ = std::fs::write(
+                        a.out.join("failures").join(format!("{}.yaml", c.name)),
+                        c.to_yaml(),
+                    );
+                    let _ = writeln!(
+                        results,
+                        "{}",
+                        serde_json::to_string(&report).unwrap_or_default()
+                    );
+                    bar.inc(1);
+                    continue;
+                }
+                chunk.push(c);
+                if chunk.len() == CHUNK {
+                    run_chunk(&mut chunk, &mut results)?;
+                }
             }
         }
     }
@@ -238,8 +281,11 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
     }
     bar.finish_and_clear();
     let summary = summarise(&results_path, &a.driver, &profile_name, set.version.clone())?;
-    std::fs::write(a.out.join("summary.json"), serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n")
-        .map_err(|e| e.to_string())?;
+    std::fs::write(
+        a.out.join("summary.json"),
+        serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n",
+    )
+    .map_err(|e| e.to_string())?;
     write_junit(&results_path, &a.out.join("junit.xml"), &summary)?;
     if a.shrink > 0 {
         shrink_failures(&a, &rules, &profile, &profile_name, &triage, &results_path);
@@ -249,19 +295,36 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
         eprintln!("rtconf: could not generate {e}");
     }
     let unexpected = summary.failed + summary.crashes + summary.timeouts;
-    Ok(if unexpected > 0 || !gen_errors.is_empty() { 1 } else { 0 })
+    Ok(if unexpected > 0 || !gen_errors.is_empty() {
+        1
+    } else {
+        0
+    })
 }
 
 /// The reports of `results.jsonl`, read one line at a time.
 fn reports(path: &Path) -> Result<impl Iterator<Item = CaseReport>, String> {
     let f = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    Ok(std::io::BufReader::new(f).lines().map_while(Result::ok).filter_map(|l| serde_json::from_str::<CaseReport>(&l).ok()))
+    Ok(std::io::BufReader::new(f)
+        .lines()
+        .map_while(Result::ok)
+        .filter_map(|l| serde_json::from_str::<CaseReport>(&l).ok()))
 }
 
 /// Reads `results.jsonl` back, streaming, into the summary; a resumed run never runs a case twice, so
 /// each line is one case. Memory is per VUID, not per case.
-fn summarise(path: &Path, driver: &str, profile: &str, registry: Option<String>) -> Result<Summary, String> {
-    let mut s = Summary { driver: driver.into(), profile: profile.into(), registry, ..Default::default() };
+fn summarise(
+    path: &Path,
+    driver: &str,
+    profile: &str,
+    registry: Option<String>,
+) -> Result<Summary, String> {
+    let mut s = Summary {
+        driver: driver.into(),
+        profile: profile.into(),
+        registry,
+        ..Default::default()
+    };
     for r in reports(path)? {
         s.cases += 1;
         match r.outcome {
@@ -272,7 +335,10 @@ fn summarise(path: &Path, driver: &str, profile: &str, registry: Option<String>)
             Outcome::Crash => s.crashes += 1,
             Outcome::Timeout => s.timeouts += 1,
         }
-        if matches!(r.outcome, Outcome::Unsupported | Outcome::Crash | Outcome::Timeout) {
+        if matches!(
+            r.outcome,
+            Outcome::Unsupported | Outcome::Crash | Outcome::Timeout
+        ) {
             continue;
         }
         let m: BTreeSet<&String> = r.model.iter().collect();
@@ -289,13 +355,18 @@ fn summarise(path: &Path, driver: &str, profile: &str, registry: Option<String>)
 }
 
 fn xml_escape(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
 }
 
 /// Writes the JUnit report (one suite for the run; triaged cases pass, unsupported ones are skipped),
 /// streaming from `results.jsonl` so memory does not grow with the run.
 fn write_junit(results: &Path, out: &Path, s: &Summary) -> Result<(), String> {
-    let mut w = std::io::BufWriter::new(std::fs::File::create(out).map_err(|e| format!("{}: {e}", out.display()))?);
+    let mut w = std::io::BufWriter::new(
+        std::fs::File::create(out).map_err(|e| format!("{}: {e}", out.display()))?,
+    );
     let name = xml_escape(&format!("rtconf on {}", s.driver));
     let errors = s.crashes + s.timeouts;
     let head = format!(
@@ -317,17 +388,32 @@ fn write_junit(results: &Path, out: &Path, s: &Summary) -> Result<(), String> {
             Outcome::Pass | Outcome::Triaged => "/>\n".to_string(),
             Outcome::Unsupported => format!("><skipped message=\"{msg}\"/></testcase>\n"),
             Outcome::Fail => format!("><failure message=\"{msg}\"/></testcase>\n"),
-            Outcome::Crash | Outcome::Timeout => format!("><error message=\"{:?}: {msg}\"/></testcase>\n", r.outcome),
+            Outcome::Crash | Outcome::Timeout => {
+                format!("><error message=\"{:?}: {msg}\"/></testcase>\n", r.outcome)
+            }
         };
-        w.write_all(open.as_bytes()).and_then(|_| w.write_all(body.as_bytes())).map_err(io)?;
+        w.write_all(open.as_bytes())
+            .and_then(|_| w.write_all(body.as_bytes()))
+            .map_err(io)?;
     }
-    w.write_all(b"  </testsuite>\n</testsuites>\n").and_then(|_| w.flush()).map_err(io)
+    w.write_all(b"  </testsuite>\n</testsuites>\n")
+        .and_then(|_| w.flush())
+        .map_err(io)
 }
 
 /// Shrinks up to `a.shrink` failing cases of the run, each to a minimal case that still fails the same
 /// way on the driver, written to `cases/regressions/` with its seed (replay it with `rtconf replay`).
-fn shrink_failures(a: &RunArgs, rules: &RuleSet, profile: &DeviceProfile, profile_name: &str, triage: &Triage, results: &Path) {
-    let Ok(f) = std::fs::File::open(results) else { return };
+fn shrink_failures(
+    a: &RunArgs,
+    rules: &RuleSet,
+    profile: &DeviceProfile,
+    profile_name: &str,
+    triage: &Triage,
+    results: &Path,
+) {
+    let Ok(f) = std::fs::File::open(results) else {
+        return;
+    };
     let failing: Vec<String> = std::io::BufReader::new(f)
         .lines()
         .map_while(Result::ok)
@@ -349,10 +435,21 @@ fn shrink_failures(a: &RunArgs, rules: &RuleSet, profile: &DeviceProfile, profil
     let dir = super::repo_dir().join("cases").join("regressions");
     for name in failing {
         let path = a.out.join("failures").join(format!("{name}.yaml"));
-        let Some(case) = std::fs::read_to_string(&path).ok().and_then(|t| Case::from_yaml(&name, &t).ok()) else { continue };
-        let Some((seed, index)) = case.seed.as_deref().and_then(|s| s.split_once('/')) else { continue };
-        let (Ok(seed), Ok(index)) = (seed.parse::<u64>(), index.parse::<usize>()) else { continue };
-        let Some(command) = generator::Command::from_vk_name(case.call.command()) else { continue };
+        let Some(case) = std::fs::read_to_string(&path)
+            .ok()
+            .and_then(|t| Case::from_yaml(&name, &t).ok())
+        else {
+            continue;
+        };
+        let Some((seed, index)) = case.seed.as_deref().and_then(|s| s.split_once('/')) else {
+            continue;
+        };
+        let (Ok(seed), Ok(index)) = (seed.parse::<u64>(), index.parse::<usize>()) else {
+            continue;
+        };
+        let Some(command) = generator::Command::from_vk_name(case.call.command()) else {
+            continue;
+        };
         let mut spec = match &case.intent {
             model::Intent::Valid => CaseSpec::valid(command),
             model::Intent::Violates { vuid, .. } => CaseSpec::violate(command, vuid),
@@ -365,18 +462,36 @@ fn shrink_failures(a: &RunArgs, rules: &RuleSet, profile: &DeviceProfile, profil
             let obs = harness::execute(c, &mut executor.borrow_mut());
             compare(c, &verdict, &obs, triage, 0.0).outcome == Outcome::Fail
         };
-        match generator::shrink_failure(profile, profile_name, rules, &spec, seed, index, &dir, fails) {
+        match generator::shrink_failure(
+            profile,
+            profile_name,
+            rules,
+            &spec,
+            seed,
+            index,
+            &dir,
+            fails,
+        ) {
             Ok(Some(s)) => println!("shrunk {name} in {} steps: {}", s.steps, s.path.display()),
-            Ok(None) => println!("{name} no longer fails when regenerated from its seed; kept as {}", path.display()),
+            Ok(None) => println!(
+                "{name} no longer fails when regenerated from its seed; kept as {}",
+                path.display()
+            ),
             Err(e) => eprintln!("rtconf: shrinking {name}: {e}"),
         }
     }
 }
 
 fn print_summary(s: &Summary, out: &Path) {
-    println!("{:<78} {:>6} {:>6} {:>6} {:>6}", "VUID", "cases", "model", "layer", "agree");
+    println!(
+        "{:<78} {:>6} {:>6} {:>6} {:>6}",
+        "VUID", "cases", "model", "layer", "agree"
+    );
     for (v, t) in &s.vuids {
-        println!("{:<78} {:>6} {:>6} {:>6} {:>6}", v, t.cases, t.model, t.layer, t.agree);
+        println!(
+            "{:<78} {:>6} {:>6} {:>6} {:>6}",
+            v, t.cases, t.model, t.layer, t.agree
+        );
     }
     println!();
     println!(
