@@ -79,7 +79,18 @@ struct Summary {
     unsupported: usize,
     crashes: usize,
     timeouts: usize,
+    /// Peak resident memory of the runner process itself (workers excluded), in KiB (Linux).
+    runner_peak_rss_kib: Option<u64>,
+    /// Wall time of the run, in seconds.
+    seconds: f64,
     vuids: BTreeMap<String, VuidTally>,
+}
+
+/// `VmHWM` of this process from /proc (None elsewhere).
+fn peak_rss_kib() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
 }
 
 pub fn default_profile_name(driver: &str) -> String {
@@ -146,6 +157,7 @@ fn done_cases(results: &Path) -> BTreeSet<String> {
 }
 
 pub fn run(a: RunArgs) -> Result<i32, String> {
+    let started = std::time::Instant::now();
     let set = super::load_sources(&a.from)?;
     let rules = RuleSet::from_vuids(&set);
     let profile_name = a
@@ -280,7 +292,9 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
         run_chunk(&mut chunk, &mut results)?;
     }
     bar.finish_and_clear();
-    let summary = summarise(&results_path, &a.driver, &profile_name, set.version.clone())?;
+    let mut summary = summarise(&results_path, &a.driver, &profile_name, set.version.clone())?;
+    summary.runner_peak_rss_kib = peak_rss_kib();
+    summary.seconds = started.elapsed().as_secs_f64();
     std::fs::write(
         a.out.join("summary.json"),
         serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n",
@@ -497,6 +511,12 @@ fn print_summary(s: &Summary, out: &Path) {
     println!(
         "{} cases on {} (profile {}): {} passed, {} failed, {} triaged, {} unsupported, {} crashes, {} timeouts",
         s.cases, s.driver, s.profile, s.passed, s.failed, s.triaged, s.unsupported, s.crashes, s.timeouts
+    );
+    println!(
+        "{:.1} s, {:.0} cases/s, runner peak RSS {} KiB",
+        s.seconds,
+        s.cases as f64 / s.seconds.max(1e-9),
+        s.runner_peak_rss_kib.map_or("?".into(), |k| k.to_string())
     );
     println!(
         "results: {0}/results.jsonl, summary: {0}/summary.json, junit: {0}/junit.xml, failing cases: {0}/failures/",
