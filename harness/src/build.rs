@@ -1,0 +1,706 @@
+//! Realises build cases on a device: buffers at 4096-aligned addresses with the model's memory image
+//! (written through the device's addresses), acceleration structures at their buffer ranges, and
+//! `vkCmdBuildAccelerationStructuresIndirectKHR` recorded under the validation layer with the messenger
+//! returning VK_TRUE (never submitted). A valid case runs as the equivalent direct build
+//! (`vkCmdBuildAccelerationStructuresKHR` with the ranges the model reads from memory) and the result is
+//! checked by tracing one ray per built primitive (ray query in a compute shader) against the model's
+//! primitive list. Where the device has `accelerationStructureIndirectBuild`, the indirect build runs
+//! for real too and must trace the same.
+
+use crate::realise::{Allocation, RealiseError};
+use crate::vulkan::{VkDevice, VkInstance};
+use ash::vk;
+use model::build::call::{BuildGeometryInfo, BuildMode, GeometryData, IndexType, VertexFormat};
+use model::build::semantics::Shape;
+use model::build::world::AddressResolver;
+use model::build::{AsType, BuildCase, BuildRuleSet, BuildSizes, BuiltPrimitive};
+use model::call::BUFFER_PLACEMENT_ALIGNMENT;
+use model::DeviceProfile;
+use std::collections::{BTreeMap, BTreeSet};
+use std::sync::Arc;
+
+/// What one build case did on the device.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct BuildObservation {
+    pub case: String,
+    /// `ran`, `unsupported: …` or `failed: …`.
+    pub status: String,
+    /// VUIDs the layer reported for the indirect call, sorted.
+    pub layer_vuids: Vec<String>,
+    /// VUIDs the model predicts with the device's build sizes, sorted.
+    pub model_vuids: Vec<String>,
+    /// The sizes the device reported per info.
+    pub device_sizes: Vec<BuildSizes>,
+    /// For valid cases: rays traced against the directly built structure, and those that disagreed.
+    pub rays: usize,
+    pub ray_mismatches: Vec<String>,
+    /// Layer messages for the direct build of a valid case (must be none).
+    pub direct_layer_vuids: Vec<String>,
+}
+
+fn fail(what: &'static str) -> impl Fn(vk::Result) -> String {
+    move |r| format!("{what} failed: {r:?}")
+}
+
+fn realise_err(e: RealiseError) -> String {
+    match e {
+        RealiseError::Unsupported(s) => format!("unsupported: {s}"),
+        RealiseError::Failed(s) => s,
+    }
+}
+
+/// Device objects of one case.
+struct Realised {
+    buffers: BTreeMap<String, Allocation>,
+    structures: BTreeMap<String, (vk::AccelerationStructureKHR, u64)>,
+}
+
+impl AddressResolver for Realised {
+    fn buffer(&self, name: &str) -> Option<u64> {
+        self.buffers.get(name).map(|a| a.address)
+    }
+    fn structure(&self, name: &str) -> Option<u64> {
+        self.structures.get(name).map(|s| s.1)
+    }
+}
+
+impl Realised {
+    fn destroy(self, dev: &VkDevice) {
+        if let Some(accel) = &dev.accel {
+            for (_, (s, _)) in self.structures {
+                // SAFETY: nothing pending uses it (callers wait).
+                unsafe { accel.destroy_acceleration_structure(s, None) };
+            }
+        }
+        for (_, a) in self.buffers {
+            a.destroy(dev);
+        }
+    }
+}
+
+fn vk_index(t: IndexType) -> vk::IndexType {
+    match t {
+        IndexType::None => vk::IndexType::NONE_KHR,
+        IndexType::Uint8 => vk::IndexType::UINT8_EXT,
+        IndexType::Uint16 => vk::IndexType::UINT16,
+        IndexType::Uint32 => vk::IndexType::UINT32,
+    }
+}
+
+fn vk_format(f: VertexFormat) -> vk::Format {
+    match f {
+        VertexFormat::R32g32b32Sfloat => vk::Format::R32G32B32_SFLOAT,
+        VertexFormat::R32g32Sfloat => vk::Format::R32G32_SFLOAT,
+        VertexFormat::R16g16b16a16Sfloat => vk::Format::R16G16B16A16_SFLOAT,
+        VertexFormat::R16g16Sfloat => vk::Format::R16G16_SFLOAT,
+    }
+}
+
+fn vk_type(t: AsType) -> vk::AccelerationStructureTypeKHR {
+    match t {
+        AsType::TopLevel => vk::AccelerationStructureTypeKHR::TOP_LEVEL,
+        AsType::BottomLevel => vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL,
+        AsType::Generic => vk::AccelerationStructureTypeKHR::GENERIC,
+    }
+}
+
+/// The Vulkan geometries of an info (None for geometry types the harness does not realise).
+fn vk_geometries(info: &BuildGeometryInfo, r: &Realised) -> Option<Vec<vk::AccelerationStructureGeometryKHR<'static>>> {
+    info.geometries
+        .iter()
+        .map(|g| {
+            let a = |x: &model::call::Address| vk::DeviceOrHostAddressConstKHR { device_address: r.address(x) };
+            let (ty, data) = match &g.data {
+                GeometryData::Triangles { vertex_format, vertex_data, vertex_stride, max_vertex, index_type, index_data, transform_data, motion_vertex_data: None, opacity_micromap: None } => (
+                    vk::GeometryTypeKHR::TRIANGLES,
+                    vk::AccelerationStructureGeometryDataKHR {
+                        triangles: vk::AccelerationStructureGeometryTrianglesDataKHR::default()
+                            .vertex_format(vk_format(*vertex_format))
+                            .vertex_data(a(vertex_data))
+                            .vertex_stride(*vertex_stride)
+                            .max_vertex(*max_vertex)
+                            .index_type(vk_index(*index_type))
+                            .index_data(a(index_data))
+                            .transform_data(a(transform_data)),
+                    },
+                ),
+                GeometryData::Aabbs { data, stride } => (
+                    vk::GeometryTypeKHR::AABBS,
+                    vk::AccelerationStructureGeometryDataKHR {
+                        aabbs: vk::AccelerationStructureGeometryAabbsDataKHR::default().data(a(data)).stride(*stride),
+                    },
+                ),
+                GeometryData::Instances { array_of_pointers, data } => (
+                    vk::GeometryTypeKHR::INSTANCES,
+                    vk::AccelerationStructureGeometryDataKHR {
+                        instances: vk::AccelerationStructureGeometryInstancesDataKHR::default()
+                            .array_of_pointers(*array_of_pointers)
+                            .data(a(data)),
+                    },
+                ),
+                _ => return None,
+            };
+            Some(vk::AccelerationStructureGeometryKHR::default().geometry_type(ty).geometry(data).flags(vk::GeometryFlagsKHR::from_raw(g.flags.0)))
+        })
+        .collect()
+}
+
+fn vk_info<'a>(info: &BuildGeometryInfo, geoms: &'a [vk::AccelerationStructureGeometryKHR<'static>], r: &Realised) -> vk::AccelerationStructureBuildGeometryInfoKHR<'a> {
+    let mode = match info.mode {
+        BuildMode::Build => vk::BuildAccelerationStructureModeKHR::BUILD,
+        BuildMode::Update => vk::BuildAccelerationStructureModeKHR::UPDATE,
+        BuildMode::Other(v) => vk::BuildAccelerationStructureModeKHR::from_raw(v as i32),
+    };
+    let handle = |n: &Option<String>| n.as_ref().and_then(|n| r.structures.get(n)).map_or(vk::AccelerationStructureKHR::null(), |s| s.0);
+    vk::AccelerationStructureBuildGeometryInfoKHR::default()
+        .ty(vk_type(info.ty))
+        .flags(vk::BuildAccelerationStructureFlagsKHR::from_raw(info.flags.0))
+        .mode(mode)
+        .src_acceleration_structure(handle(&info.src))
+        .dst_acceleration_structure(handle(&info.dst))
+        .geometries(geoms)
+        .scratch_data(vk::DeviceOrHostAddressKHR { device_address: r.address(&info.scratch) })
+}
+
+/// A device for build cases: the case's extensions and features plus ray query for the traced check.
+pub fn device_for(inst: &Arc<VkInstance>, case: &BuildCase) -> Result<VkDevice, String> {
+    let mut ext = case.world.device.extensions.clone();
+    let mut feat = case.world.device.features.clone();
+    if inst.device_extensions().contains("VK_KHR_ray_query") {
+        ext.insert("VK_KHR_ray_query".into());
+        feat.insert("rayQuery".into());
+    }
+    VkDevice::new(inst.clone(), &ext, &feat).map_err(|e| match e {
+        crate::vulkan::DeviceError::Unsupported(s) => format!("unsupported: {s}"),
+        crate::vulkan::DeviceError::Failed(e) => e.to_string(),
+    })
+}
+
+fn realise(dev: &VkDevice, case: &BuildCase) -> Result<Realised, String> {
+    let accel = dev.accel.as_ref().ok_or("unsupported: the case does not enable VK_KHR_acceleration_structure")?;
+    let mut r = Realised { buffers: BTreeMap::new(), structures: BTreeMap::new() };
+    let made = (|| -> Result<(), String> {
+        for b in &case.world.buffers {
+            if b.is_sparse() || b.memory != model::world::MemoryBinding::Whole {
+                return Err(format!("unsupported: buffer `{}`: only wholly bound, non-sparse buffers are realised", b.name));
+            }
+            let usage = vk::BufferUsageFlags::from_raw(b.usage.0 as u32) | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+            let a = Allocation::new(dev, b.size, usage, vk::BufferCreateFlags::from_raw(b.flags.0 as u32), BUFFER_PLACEMENT_ALIGNMENT).map_err(realise_err)?;
+            r.buffers.insert(b.name.clone(), a);
+        }
+        for s in &case.world.structures {
+            let buf = r.buffers.get(&s.buffer).ok_or_else(|| format!("structure `{}`: no buffer `{}`", s.name, s.buffer))?;
+            let info = vk::AccelerationStructureCreateInfoKHR::default().buffer(buf.buffer).offset(s.offset).size(s.size).ty(vk_type(s.ty));
+            // SAFETY: the buffer lives as long as the structure.
+            let h = unsafe { accel.create_acceleration_structure(&info, None) }.map_err(fail("vkCreateAccelerationStructureKHR"))?;
+            // SAFETY: valid structure.
+            let addr = unsafe {
+                accel.get_acceleration_structure_device_address(&vk::AccelerationStructureDeviceAddressInfoKHR::default().acceleration_structure(h))
+            };
+            r.structures.insert(s.name.clone(), (h, addr));
+        }
+        for b in &case.world.buffers {
+            let bytes = case.world.image(&b.name, &r).expect("buffer of the world");
+            r.buffers[&b.name].write(0, &bytes);
+        }
+        Ok(())
+    })();
+    match made {
+        Ok(()) => Ok(r),
+        Err(e) => {
+            r.destroy(dev);
+            Err(e)
+        }
+    }
+}
+
+/// The sizes the device reports for each info of the call with its maxima.
+fn device_sizes(dev: &VkDevice, case: &BuildCase, r: &Realised) -> Option<Vec<BuildSizes>> {
+    let accel = dev.accel.as_ref()?;
+    case.call
+        .infos
+        .iter()
+        .zip(&case.call.max_primitive_counts)
+        .map(|(info, max)| {
+            let geoms = vk_geometries(info, r)?;
+            let vi = vk_info(info, &geoms, r);
+            let mut s = vk::AccelerationStructureBuildSizesInfoKHR::default();
+            if max.len() != geoms.len() {
+                return None;
+            }
+            // SAFETY: counts match the geometries.
+            unsafe { accel.get_acceleration_structure_build_sizes(vk::AccelerationStructureBuildTypeKHR::DEVICE, &vi, max, &mut s) };
+            Some(BuildSizes { structure: s.acceleration_structure_size, build_scratch: s.build_scratch_size, update_scratch: s.update_scratch_size })
+        })
+        .collect()
+}
+
+struct Commands {
+    pool: vk::CommandPool,
+    cb: vk::CommandBuffer,
+    fence: vk::Fence,
+}
+
+impl Commands {
+    fn new(dev: &VkDevice) -> Result<Commands, String> {
+        let d = &dev.device;
+        // SAFETY: valid create infos.
+        unsafe {
+            let pool = d
+                .create_command_pool(&vk::CommandPoolCreateInfo::default().queue_family_index(dev.queue_family).flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER), None)
+                .map_err(fail("vkCreateCommandPool"))?;
+            let cb = d
+                .allocate_command_buffers(&vk::CommandBufferAllocateInfo::default().command_pool(pool).level(vk::CommandBufferLevel::PRIMARY).command_buffer_count(1))
+                .map_err(fail("vkAllocateCommandBuffers"))?[0];
+            let fence = d.create_fence(&vk::FenceCreateInfo::default(), None).map_err(fail("vkCreateFence"))?;
+            Ok(Commands { pool, cb, fence })
+        }
+    }
+    fn begin(&self, dev: &VkDevice) -> Result<(), String> {
+        // SAFETY: the command buffer is idle.
+        unsafe {
+            dev.device.reset_command_buffer(self.cb, vk::CommandBufferResetFlags::empty()).map_err(fail("vkResetCommandBuffer"))?;
+            dev.device.begin_command_buffer(self.cb, &vk::CommandBufferBeginInfo::default()).map_err(fail("vkBeginCommandBuffer"))
+        }
+    }
+    fn submit(&self, dev: &VkDevice) -> Result<(), String> {
+        let d = &dev.device;
+        // SAFETY: recorded command buffer, unsignalled fence.
+        unsafe {
+            d.end_command_buffer(self.cb).map_err(fail("vkEndCommandBuffer"))?;
+            let cbs = [self.cb];
+            d.queue_submit(dev.queue, &[vk::SubmitInfo::default().command_buffers(&cbs)], self.fence).map_err(fail("vkQueueSubmit"))?;
+            d.wait_for_fences(&[self.fence], true, 60_000_000_000).map_err(fail("vkWaitForFences"))?;
+            d.reset_fences(&[self.fence]).map_err(fail("vkResetFences"))
+        }
+    }
+    fn barrier(&self, dev: &VkDevice) {
+        let b = vk::MemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR)
+            .dst_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR | vk::AccessFlags::SHADER_READ);
+        // SAFETY: recording.
+        unsafe {
+            dev.device.cmd_pipeline_barrier(
+                self.cb,
+                vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR,
+                vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR | vk::PipelineStageFlags::COMPUTE_SHADER,
+                vk::DependencyFlags::empty(),
+                &[b],
+                &[],
+                &[],
+            )
+        };
+    }
+    fn destroy(self, dev: &VkDevice) {
+        // SAFETY: idle.
+        unsafe {
+            dev.device.destroy_fence(self.fence, None);
+            dev.device.destroy_command_pool(self.pool, None);
+        }
+    }
+}
+
+fn vuids(messages: &[crate::vulkan::LayerMessage]) -> Vec<String> {
+    let s: BTreeSet<String> = messages.iter().filter(|m| m.id.starts_with("VUID-")).map(|m| m.id.clone()).collect();
+    s.into_iter().collect()
+}
+
+/// Records the indirect call under the layer (dropped by the messenger, never submitted) and returns
+/// the VUIDs the layer reported.
+fn record_indirect(inst: &VkInstance, dev: &VkDevice, cmds: &Commands, case: &BuildCase, r: &Realised) -> Result<Vec<String>, String> {
+    let accel = dev.accel.as_ref().ok_or("unsupported: no VK_KHR_acceleration_structure")?;
+    let geoms: Vec<Vec<vk::AccelerationStructureGeometryKHR>> =
+        case.call.infos.iter().map(|i| vk_geometries(i, r)).collect::<Option<_>>().ok_or("unsupported: geometry type not realised")?;
+    let infos: Vec<vk::AccelerationStructureBuildGeometryInfoKHR> = case.call.infos.iter().zip(&geoms).map(|(i, g)| vk_info(i, g, r)).collect();
+    let addrs: Vec<u64> = case.call.indirect_addresses.iter().map(|a| r.address(a)).collect();
+    let maxima: Vec<&[u32]> = case.call.max_primitive_counts.iter().map(|v| v.as_slice()).collect();
+    cmds.begin(dev)?;
+    inst.collector.clear();
+    inst.collector.set_abort(true);
+    // SAFETY: recording; with the messenger returning VK_TRUE the layer drops an invalid call.
+    unsafe { accel.cmd_build_acceleration_structures_indirect(cmds.cb, &infos, &addrs, &case.call.indirect_strides, &maxima) };
+    inst.collector.set_abort(false);
+    let msgs = inst.collector.take();
+    // SAFETY: ending a recording command buffer, never submitted.
+    unsafe {
+        let _ = dev.device.end_command_buffer(cmds.cb);
+    }
+    Ok(vuids(&msgs))
+}
+
+/// Runs one build case: the indirect call under the layer, the model's verdict with the device's sizes,
+/// and for a case valid apart from `unavoidable`, the direct build traced against the model.
+pub fn run_case(inst: &Arc<VkInstance>, profile: &DeviceProfile, rules: &BuildRuleSet, case: &BuildCase, unavoidable: &[String]) -> BuildObservation {
+    let mut obs = BuildObservation {
+        case: case.name.clone(),
+        status: "ran".into(),
+        layer_vuids: vec![],
+        model_vuids: vec![],
+        device_sizes: vec![],
+        rays: 0,
+        ray_mismatches: vec![],
+        direct_layer_vuids: vec![],
+    };
+    // The harness records into a fresh primary command buffer of a compute-capable pool, outside any
+    // render pass or video coding scope; other command buffer states are not realised yet.
+    if case.world.command_buffer != model::world::CommandBufferState::default() || case.world.between_suspended_render_passes {
+        obs.status = "unsupported: command buffer states other than a plain recording primary are not realised for builds".into();
+        return obs;
+    }
+    let dev = match device_for(inst, case) {
+        Ok(d) => d,
+        Err(e) => {
+            obs.status = e;
+            return obs;
+        }
+    };
+    let result = (|| -> Result<(), String> {
+        let r = realise(&dev, case)?;
+        let cmds = Commands::new(&dev)?;
+        let out = (|| -> Result<(), String> {
+            let mut world = case.world.clone();
+            if let Some(s) = device_sizes(&dev, case, &r) {
+                obs.device_sizes = s.clone();
+                world.sizes = s;
+            }
+            let verdict = rules.validate(profile, &world, &case.call);
+            let set: BTreeSet<String> = verdict.violations.into_iter().map(|v| v.vuid).collect();
+            obs.model_vuids = set.iter().cloned().collect();
+            obs.layer_vuids = record_indirect(inst, &dev, &cmds, case, &r)?;
+            if obs.model_vuids.iter().all(|v| unavoidable.contains(v)) {
+                let (n, bad, direct) = direct_and_trace(inst, &dev, &cmds, case, &r, &world)?;
+                obs.rays = n;
+                obs.ray_mismatches = bad;
+                obs.direct_layer_vuids = direct;
+            }
+            Ok(())
+        })();
+        cmds.destroy(&dev);
+        r.destroy(&dev);
+        out
+    })();
+    if let Err(e) = result {
+        obs.status = if e.starts_with("unsupported") { e } else { format!("failed: {e}") };
+    }
+    obs
+}
+
+/// One ray per built primitive: origin above the primitive, direction +z, and what it must report.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExpectedRay {
+    pub origin: [f32; 3],
+    /// (instance, geometry, primitive) when it must hit; None when it must miss.
+    pub hit: Option<(u32, u32, u32)>,
+}
+
+/// The rays that check a built structure, from the model's primitives (top-level: instances of the
+/// one-triangle BLAS the generator uses, whose triangle's centroid is (0, -1/6)).
+pub fn expected_rays(prims: &[BuiltPrimitive], top: bool) -> Vec<ExpectedRay> {
+    prims
+        .iter()
+        .filter_map(|p| {
+            let (x, y) = match &p.shape {
+                Shape::Triangle(v) if p.active => ((v[0][0] + v[1][0] + v[2][0]) / 3.0, (v[0][1] + v[1][1] + v[2][1]) / 3.0),
+                Shape::Triangle(v) => ((v[1][0] + v[2][0]) / 2.0, (v[1][1] + v[2][1]) / 2.0),
+                Shape::Aabb { min, max } => {
+                    let x = if min[0].is_nan() { max[0] - 0.5 } else { (min[0] + max[0]) / 2.0 };
+                    (x, (min[1] + max[1]) / 2.0)
+                }
+                Shape::Instance(rec) => (rec.transform[3], rec.transform[7] - 1.0 / 6.0),
+            };
+            if !x.is_finite() || !y.is_finite() {
+                return None;
+            }
+            let hit = p.active.then(|| if top { (p.primitive, 0, 0) } else { (0, p.geometry, p.primitive) });
+            Some(ExpectedRay { origin: [x, y, -1.0], hit })
+        })
+        .collect()
+}
+
+const TRACE_COMP: &str = r#"#version 460
+#extension GL_EXT_ray_query : require
+layout(local_size_x = 1) in;
+layout(set = 0, binding = 0) uniform accelerationStructureEXT scene;
+layout(set = 0, binding = 1, std430) readonly buffer Rays { vec4 origins[]; };
+layout(set = 0, binding = 2, std430) buffer Hits { uvec4 hits[]; };
+layout(set = 0, binding = 3, std430) readonly buffer Boxes { uint base[8]; vec4 box[]; };
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    vec3 o = origins[i].xyz;
+    rayQueryEXT q;
+    rayQueryInitializeEXT(q, scene, gl_RayFlagsNoneEXT, 0xFF, o, 0.0, vec3(0.0, 0.0, 1.0), 100.0);
+    while (rayQueryProceedEXT(q)) {
+        if (rayQueryGetIntersectionTypeEXT(q, false) == gl_RayQueryCandidateIntersectionAABBEXT) {
+            uint g = rayQueryGetIntersectionGeometryIndexEXT(q, false);
+            uint p = rayQueryGetIntersectionPrimitiveIndexEXT(q, false);
+            vec4 lo = box[2u * (base[g] + p)];
+            vec4 hi = box[2u * (base[g] + p) + 1u];
+            if (o.x >= lo.x && o.x <= hi.x && o.y >= lo.y && o.y <= hi.y) {
+                rayQueryGenerateIntersectionEXT(q, max(lo.z - o.z, 0.0));
+            }
+        } else {
+            rayQueryConfirmIntersectionEXT(q);
+        }
+    }
+    if (rayQueryGetIntersectionTypeEXT(q, true) == gl_RayQueryCommittedIntersectionNoneEXT) {
+        hits[i] = uvec4(0u, 0u, 0u, 0u);
+    } else {
+        hits[i] = uvec4(1u, uint(rayQueryGetIntersectionInstanceIdEXT(q, true)),
+                        uint(rayQueryGetIntersectionGeometryIndexEXT(q, true)),
+                        uint(rayQueryGetIntersectionPrimitiveIndexEXT(q, true)));
+    }
+}
+"#;
+
+fn compile_trace_shader() -> Result<Vec<u32>, String> {
+    let dir = std::env::temp_dir().join(format!("rtconf-build-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
+    let src = dir.join("trace.comp");
+    let spv = dir.join("trace.spv");
+    std::fs::write(&src, TRACE_COMP).map_err(|e| e.to_string())?;
+    let out = std::process::Command::new("glslangValidator")
+        .args(["--target-env", "vulkan1.2", "-V"])
+        .arg(&src)
+        .arg("-o")
+        .arg(&spv)
+        .output()
+        .map_err(|e| format!("unsupported: glslangValidator is not available ({e})"))?;
+    if !out.status.success() {
+        return Err(format!("glslangValidator: {}", String::from_utf8_lossy(&out.stdout)));
+    }
+    let bytes = std::fs::read(&spv).map_err(|e| e.to_string())?;
+    Ok(bytes.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
+}
+
+/// Builds one structure directly: returns (structure, its address, storage and scratch allocations).
+fn build_direct(
+    dev: &VkDevice,
+    cmds: &Commands,
+    ty: vk::AccelerationStructureTypeKHR,
+    geoms: &[vk::AccelerationStructureGeometryKHR],
+    ranges: &[vk::AccelerationStructureBuildRangeInfoKHR],
+) -> Result<(vk::AccelerationStructureKHR, u64, Allocation, Allocation), String> {
+    let accel = dev.accel.as_ref().ok_or("no acceleration structure extension")?;
+    let counts: Vec<u32> = ranges.iter().map(|r| r.primitive_count).collect();
+    let info = vk::AccelerationStructureBuildGeometryInfoKHR::default().ty(ty).mode(vk::BuildAccelerationStructureModeKHR::BUILD).geometries(geoms);
+    let mut sizes = vk::AccelerationStructureBuildSizesInfoKHR::default();
+    // SAFETY: counts match.
+    unsafe { accel.get_acceleration_structure_build_sizes(vk::AccelerationStructureBuildTypeKHR::DEVICE, &info, &counts, &mut sizes) };
+    let storage = Allocation::new(dev, sizes.acceleration_structure_size.max(256), vk::BufferUsageFlags::ACCELERATION_STRUCTURE_STORAGE_KHR | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, vk::BufferCreateFlags::empty(), 256).map_err(realise_err)?;
+    let scratch = Allocation::new(dev, sizes.build_scratch_size.max(1), vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, vk::BufferCreateFlags::empty(), 256).map_err(realise_err)?;
+    // SAFETY: storage is large enough.
+    let s = unsafe { accel.create_acceleration_structure(&vk::AccelerationStructureCreateInfoKHR::default().buffer(storage.buffer).size(sizes.acceleration_structure_size).ty(ty), None) }
+        .map_err(fail("vkCreateAccelerationStructureKHR"))?;
+    // SAFETY: valid structure.
+    let addr = unsafe { accel.get_acceleration_structure_device_address(&vk::AccelerationStructureDeviceAddressInfoKHR::default().acceleration_structure(s)) };
+    cmds.begin(dev)?;
+    let info = info.dst_acceleration_structure(s).scratch_data(vk::DeviceOrHostAddressKHR { device_address: scratch.address });
+    // SAFETY: recording.
+    unsafe { accel.cmd_build_acceleration_structures(cmds.cb, &[info], &[ranges]) };
+    cmds.submit(dev)?;
+    Ok((s, addr, storage, scratch))
+}
+
+/// The valid case as a direct build with the ranges the model reads, then one ray per primitive.
+/// Returns (rays traced, mismatches, layer VUIDs of the direct build).
+fn direct_and_trace(
+    inst: &VkInstance,
+    dev: &VkDevice,
+    cmds: &Commands,
+    case: &BuildCase,
+    r: &Realised,
+    world: &model::build::BuildWorld,
+) -> Result<(usize, Vec<String>, Vec<String>), String> {
+    if !dev.has_feature("rayQuery") {
+        return Err("unsupported: the traced check needs rayQuery".into());
+    }
+    if case.call.infos.len() != 1 {
+        return Err("unsupported: the traced check handles one build info".into());
+    }
+    let accel = dev.accel.as_ref().ok_or("no acceleration structure extension")?;
+    let info = &case.call.infos[0];
+    let top = info.ty == AsType::TopLevel;
+    let mem = world.memory();
+    let ranges = model::build::indirect_ranges(&mem, &case.call, 0).map_err(|e| e.to_string())?;
+    let prims = model::build::build_primitives(&mem, info, &ranges).map_err(|e| e.to_string())?;
+    drop(mem);
+    let mut extra: Vec<Allocation> = Vec::new();
+    let mut extra_as: Vec<vk::AccelerationStructureKHR> = Vec::new();
+    let result = (|| -> Result<(usize, Vec<String>, Vec<String>), String> {
+        // Top-level cases reference the BLAS: build it first (one triangle at the origin).
+        if top {
+            let tri: Vec<u8> = [-0.5f32, -0.5, 0.0, 0.5, -0.5, 0.0, 0.0, 0.5, 0.0].iter().flat_map(|f| f.to_le_bytes()).collect();
+            let (blas, _) = r.structures.get(generator_blas()).copied().ok_or("the top-level case has no `blas` structure")?;
+            let vb = Allocation::new(dev, 64, vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, vk::BufferCreateFlags::empty(), 256).map_err(realise_err)?;
+            vb.write(0, &tri);
+            let g = [vk::AccelerationStructureGeometryKHR::default().geometry_type(vk::GeometryTypeKHR::TRIANGLES).geometry(vk::AccelerationStructureGeometryDataKHR {
+                triangles: vk::AccelerationStructureGeometryTrianglesDataKHR::default()
+                    .vertex_format(vk::Format::R32G32B32_SFLOAT)
+                    .vertex_data(vk::DeviceOrHostAddressConstKHR { device_address: vb.address })
+                    .vertex_stride(12)
+                    .max_vertex(2)
+                    .index_type(vk::IndexType::NONE_KHR),
+            })];
+            let scratch = Allocation::new(dev, 1 << 16, vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, vk::BufferCreateFlags::empty(), 256).map_err(realise_err)?;
+            let bi = vk::AccelerationStructureBuildGeometryInfoKHR::default()
+                .ty(vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL)
+                .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
+                .geometries(&g)
+                .dst_acceleration_structure(blas)
+                .scratch_data(vk::DeviceOrHostAddressKHR { device_address: scratch.address });
+            cmds.begin(dev)?;
+            // SAFETY: recording.
+            unsafe { accel.cmd_build_acceleration_structures(cmds.cb, &[bi], &[&[vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(1)]]) };
+            cmds.submit(dev)?;
+            extra.push(vb);
+            extra.push(scratch);
+        }
+        // The direct build of the case, with the same ranges, under the layer.
+        let geoms = vk_geometries(info, r).ok_or("unsupported: geometry type not realised")?;
+        let vi = vk_info(info, &geoms, r);
+        let vranges: Vec<vk::AccelerationStructureBuildRangeInfoKHR> = ranges
+            .iter()
+            .map(|x| vk::AccelerationStructureBuildRangeInfoKHR { primitive_count: x.primitive_count, primitive_offset: x.primitive_offset, first_vertex: x.first_vertex, transform_offset: x.transform_offset })
+            .collect();
+        inst.collector.clear();
+        cmds.begin(dev)?;
+        // SAFETY: recording a valid direct build.
+        unsafe { accel.cmd_build_acceleration_structures(cmds.cb, &[vi], &[&vranges]) };
+        cmds.barrier(dev);
+        cmds.submit(dev)?;
+        let direct = vuids(&inst.collector.take());
+        let (dst, dst_addr) = r.structures.get(info.dst.as_deref().unwrap_or("")).copied().ok_or("no dst")?;
+        // A bottom-level result is traced through a one-instance TLAS.
+        let scene = if top {
+            dst
+        } else {
+            let rec = vk::AccelerationStructureInstanceKHR {
+                transform: vk::TransformMatrixKHR { matrix: [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0] },
+                instance_custom_index_and_mask: vk::Packed24_8::new(0, 0xff),
+                instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(0, 0),
+                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR { device_handle: dst_addr },
+            };
+            let ib = Allocation::new(dev, 64, vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, vk::BufferCreateFlags::empty(), 256).map_err(realise_err)?;
+            ib.write(0, crate::structs::as_bytes(&rec));
+            let g = [vk::AccelerationStructureGeometryKHR::default().geometry_type(vk::GeometryTypeKHR::INSTANCES).geometry(vk::AccelerationStructureGeometryDataKHR {
+                instances: vk::AccelerationStructureGeometryInstancesDataKHR::default().data(vk::DeviceOrHostAddressConstKHR { device_address: ib.address }),
+            })];
+            let (tlas, _, st, sc) = build_direct(dev, cmds, vk::AccelerationStructureTypeKHR::TOP_LEVEL, &g, &[vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(1)])?;
+            extra.extend([ib, st, sc]);
+            extra_as.push(tlas);
+            tlas
+        };
+        let rays = expected_rays(&prims, top);
+        let boxes = box_table(info, &prims);
+        let hits = trace(dev, cmds, scene, &rays, &boxes, &mut extra)?;
+        let mut bad = Vec::new();
+        for (k, (ray, h)) in rays.iter().zip(&hits).enumerate() {
+            let got = (h[0] == 1).then_some((h[1], h[2], h[3]));
+            if got != ray.hit {
+                bad.push(format!("ray {k} at {:?}: expected {:?}, device {:?}", ray.origin, ray.hit, got));
+            }
+        }
+        Ok((rays.len(), bad, direct))
+    })();
+    for s in extra_as {
+        // SAFETY: idle.
+        unsafe { accel.destroy_acceleration_structure(s, None) };
+    }
+    for a in extra {
+        a.destroy(dev);
+    }
+    result
+}
+
+fn generator_blas() -> &'static str {
+    "blas"
+}
+
+/// Per-geometry base indices (8 slots) and the boxes of every AABB primitive, as floats.
+fn box_table(info: &BuildGeometryInfo, prims: &[BuiltPrimitive]) -> Vec<u8> {
+    let mut base = [0u32; 8];
+    let mut boxes: Vec<f32> = Vec::new();
+    let mut n = 0u32;
+    for g in 0..info.geometries.len().min(8) {
+        base[g] = n;
+        for p in prims.iter().filter(|p| p.geometry == g as u32) {
+            if let Shape::Aabb { min, max } = &p.shape {
+                boxes.extend([min[0], min[1], min[2], 0.0, max[0], max[1], max[2], 0.0]);
+                n += 1;
+            }
+        }
+    }
+    let mut bytes: Vec<u8> = base.iter().flat_map(|b| b.to_le_bytes()).collect();
+    bytes.extend(boxes.iter().flat_map(|f| f.to_le_bytes()));
+    bytes.resize(bytes.len().max(64), 0);
+    bytes
+}
+
+/// Traces the rays with the ray query shader; one `[hit, instance, geometry, primitive]` per ray.
+fn trace(dev: &VkDevice, cmds: &Commands, scene: vk::AccelerationStructureKHR, rays: &[ExpectedRay], boxes: &[u8], keep: &mut Vec<Allocation>) -> Result<Vec<[u32; 4]>, String> {
+    if rays.is_empty() {
+        return Ok(vec![]);
+    }
+    let code = compile_trace_shader()?;
+    let d = &dev.device;
+    let sb = vk::BufferUsageFlags::STORAGE_BUFFER;
+    let origins: Vec<u8> = rays.iter().flat_map(|r| [r.origin[0], r.origin[1], r.origin[2], 0.0]).flat_map(|f: f32| f.to_le_bytes()).collect();
+    let rb = Allocation::new(dev, origins.len() as u64, sb, vk::BufferCreateFlags::empty(), 1).map_err(realise_err)?;
+    rb.write(0, &origins);
+    let hb = Allocation::new(dev, 16 * rays.len() as u64, sb, vk::BufferCreateFlags::empty(), 1).map_err(realise_err)?;
+    let bb = Allocation::new(dev, boxes.len() as u64, sb, vk::BufferCreateFlags::empty(), 1).map_err(realise_err)?;
+    bb.write(0, boxes);
+    let stage = vk::ShaderStageFlags::COMPUTE;
+    let bind = |b: u32, t: vk::DescriptorType| vk::DescriptorSetLayoutBinding::default().binding(b).descriptor_type(t).descriptor_count(1).stage_flags(stage);
+    let bindings = [
+        bind(0, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR),
+        bind(1, vk::DescriptorType::STORAGE_BUFFER),
+        bind(2, vk::DescriptorType::STORAGE_BUFFER),
+        bind(3, vk::DescriptorType::STORAGE_BUFFER),
+    ];
+    // SAFETY: valid create infos; everything is destroyed below after the wait.
+    let out = unsafe {
+        let dsl = d.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None).map_err(fail("vkCreateDescriptorSetLayout"))?;
+        let sets = [dsl];
+        let pl = d.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&sets), None).map_err(fail("vkCreatePipelineLayout"))?;
+        let module = d.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None).map_err(fail("vkCreateShaderModule"))?;
+        let st = vk::PipelineShaderStageCreateInfo::default().stage(stage).module(module).name(c"main");
+        let pipe = d
+            .create_compute_pipelines(vk::PipelineCache::null(), &[vk::ComputePipelineCreateInfo::default().stage(st).layout(pl)], None)
+            .map_err(|(_, r)| format!("vkCreateComputePipelines failed: {r:?}"))?[0];
+        let sizes = [
+            vk::DescriptorPoolSize { ty: vk::DescriptorType::ACCELERATION_STRUCTURE_KHR, descriptor_count: 1 },
+            vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: 3 },
+        ];
+        let pool = d.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None).map_err(fail("vkCreateDescriptorPool"))?;
+        let set = d.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&sets)).map_err(fail("vkAllocateDescriptorSets"))?[0];
+        let scenes = [scene];
+        let mut asw = vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&scenes);
+        let bi = |a: &Allocation| [vk::DescriptorBufferInfo { buffer: a.buffer, offset: 0, range: vk::WHOLE_SIZE }];
+        let (b1, b2, b3) = (bi(&rb), bi(&hb), bi(&bb));
+        let mut w0 = vk::WriteDescriptorSet::default().dst_set(set).dst_binding(0).descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR).push_next(&mut asw);
+        w0.descriptor_count = 1;
+        let writes = [
+            w0,
+            vk::WriteDescriptorSet::default().dst_set(set).dst_binding(1).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&b1),
+            vk::WriteDescriptorSet::default().dst_set(set).dst_binding(2).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&b2),
+            vk::WriteDescriptorSet::default().dst_set(set).dst_binding(3).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&b3),
+        ];
+        d.update_descriptor_sets(&writes, &[]);
+        let run = (|| -> Result<(), String> {
+            cmds.begin(dev)?;
+            d.cmd_bind_pipeline(cmds.cb, vk::PipelineBindPoint::COMPUTE, pipe);
+            d.cmd_bind_descriptor_sets(cmds.cb, vk::PipelineBindPoint::COMPUTE, pl, 0, &[set], &[]);
+            d.cmd_dispatch(cmds.cb, rays.len() as u32, 1, 1);
+            cmds.submit(dev)
+        })();
+        d.destroy_descriptor_pool(pool, None);
+        d.destroy_pipeline(pipe, None);
+        d.destroy_shader_module(module, None);
+        d.destroy_pipeline_layout(pl, None);
+        d.destroy_descriptor_set_layout(dsl, None);
+        run.map(|()| hb.read_u32s(4 * rays.len()).chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect::<Vec<_>>())
+    };
+    keep.extend([rb, hb, bb]);
+    out
+}
