@@ -13,7 +13,12 @@ fn every_modelled_vuid_of_the_installed_registry_has_exactly_one_row() {
     let expected: Vec<&str> = set.records.iter().filter(|r| modelled_scope(&r.scope)).map(|r| r.id.as_str()).collect();
     let rows: Vec<&str> = rules.rows.iter().map(|r| r.vuid.as_str()).collect();
     assert_eq!(rows, expected);
-    assert!(rules.rows.iter().all(|r| (r.status == Status::Executable) == r.predicate.is_some()));
+    // A trace-command row executes through its predicate; the build command's rows execute through
+    // `model::build::BuildRuleSet`, which compiles the same registry records.
+    for r in &rules.rows {
+        let build = model::rules::BUILD_COMMANDS.contains(&r.scope.as_str());
+        assert!(build || (r.status == Status::Executable) == r.predicate.is_some(), "{}", r.vuid);
+    }
     assert!(rules.rows.iter().filter(|r| r.status != Status::Executable).all(|r| r.reason.is_some()));
 }
 
@@ -34,18 +39,23 @@ fn the_seeds_man_pages_and_the_registry_together_leave_no_vuid_without_a_row() {
     assert!((340..=380).contains(&of_three), "{of_three} rows for the three commands");
 }
 
+/// The template compiler's share of the trace commands' own rules (the resource-access rules shared
+/// with draw/dispatch and the build command's rules are hand-written by design: their texts quantify
+/// over descriptors and geometries, which no template shape reads).
 #[test]
-fn the_template_compiler_produces_at_least_forty_percent_of_executable_rows() {
+fn the_template_compiler_produces_at_least_forty_percent_of_the_trace_commands_rules() {
     let rules = installed_rules();
-    // issue 4: the resource-access rules read the resource world, not the call's parameters the
-    // template compiler reads; they are hand rules by nature and do not count here.
+    let trace = |r: &&model::rules::Row| {
+        model::rules::TRACE_COMMANDS.contains(&r.scope.as_str()) || model::rules::TRACE_STRUCTURES.contains(&r.scope.as_str())
+    };
     let executable: Vec<_> = rules
         .rows
         .iter()
+        .filter(trace)
         .filter(|r| r.status == Status::Executable && !matches!(r.predicate, Some(model::rules::predicate::Predicate::Resource(_))))
         .collect();
     let template = executable.iter().filter(|r| r.source == Some(Source::Template)).count();
-    assert!(!executable.is_empty());
+    assert!(executable.len() >= 100, "{} executable trace-command rows", executable.len());
     assert!(template * 100 >= executable.len() * 40, "{template} of {} executable rows compiled", executable.len());
 }
 
