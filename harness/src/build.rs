@@ -453,6 +453,11 @@ void main() {
 "#;
 
 fn compile_trace_shader() -> Result<Vec<u32>, String> {
+    static SPIRV: std::sync::OnceLock<Result<Vec<u32>, String>> = std::sync::OnceLock::new();
+    SPIRV.get_or_init(compile_trace_shader_now).clone()
+}
+
+fn compile_trace_shader_now() -> Result<Vec<u32>, String> {
     let dir = std::env::temp_dir().join(format!("rtconf-build-{}", std::process::id()));
     std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
     let src = dir.join("trace.comp");

@@ -10,6 +10,9 @@ use model::build::BuildRuleSet;
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::Arc;
 
+/// One Vulkan instance at a time: the tests share lavapipe and the layer in one process.
+static DEVICE: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 fn setup() -> (Arc<VkInstance>, model::DeviceProfile, BuildRuleSet) {
     let inst = Arc::new(VkInstance::new(Driver::Lavapipe, true).expect("lavapipe and the layer are installed by scripts/setup.sh"));
     let profile = generator::profiles::load("lavapipe").unwrap();
@@ -21,6 +24,7 @@ fn setup() -> (Arc<VkInstance>, model::DeviceProfile, BuildRuleSet) {
 
 #[test]
 fn valid_builds_trace_as_the_model_says_and_the_layer_reports_the_missing_feature() {
+    let _one = DEVICE.lock().unwrap_or_else(|e| e.into_inner());
     let (inst, profile, rules) = setup();
     let unavoidable = generator::build::unavoidable(&profile);
     let mut traced = 0;
@@ -72,6 +76,7 @@ fn expected_rays_hit_active_primitives_and_miss_inactive_ones() {
 /// Invalid cases: the layer's VUIDs against the model's, per target VUID (printed as the agreement table).
 #[test]
 fn invalid_builds_under_the_layer_agree_with_the_model_or_are_known_layer_gaps() {
+    let _one = DEVICE.lock().unwrap_or_else(|e| e.into_inner());
     let (inst, profile, rules) = setup();
     let unavoidable = generator::build::unavoidable(&profile);
     let mut table: BTreeMap<String, (usize, usize, BTreeSet<String>)> = BTreeMap::new();
