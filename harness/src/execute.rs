@@ -4,13 +4,13 @@
 
 use crate::error::HarnessError;
 use crate::observe::{Observation, Status};
-use crate::realise::{Allocation, DeviceCache, RealiseError, RAY_RECORD_SIZE};
+use crate::realise::{Allocation, DeviceCache, RealiseError, Tlas, RAY_RECORD_SIZE};
 use crate::vulkan::{DeviceError, Driver, VkDevice, VkInstance};
 use ash::vk;
 use model::call::{Address, Call, StridedRegion};
 use model::case::{Case, Intent};
 use model::flags::QueueFlags;
-use model::world::{CommandBufferLevel, CommandBufferLifecycle, RayTarget, World};
+use model::world::{CommandBufferLevel, CommandBufferLifecycle, PipelineApi, RayTarget, World};
 use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Duration;
@@ -36,8 +36,12 @@ impl Executor {
         &self.inst.driver
     }
 
+    fn device_key(world: &World) -> String {
+        serde_json::to_string(&world.device).unwrap_or_default()
+    }
+
     fn device(&mut self, world: &World) -> Result<&mut DeviceCache, Observation> {
-        let key = serde_json::to_string(&world.device).unwrap_or_default();
+        let key = Self::device_key(world);
         if !self.devices.contains_key(&key) {
             let made = match VkDevice::new(self.inst.clone(), &world.device.extensions, &world.device.features) {
                 Ok(dev) => DeviceCache::new(dev).map_err(|e| match e {
@@ -69,6 +73,10 @@ fn realise_failure(e: RealiseError) -> Observation {
 }
 
 /// Runs one case and reports what the layer said and, for valid cases, what the shaders wrote.
+///
+/// A submission that ends in ERROR_DEVICE_LOST is a crash of this case; one that does not finish in
+/// [`Executor::gpu_timeout`] is its timeout. Either way the device is dropped from the executor without
+/// touching it again (its objects are leaked, see `DeviceCache::lost`), so no later case reuses it.
 pub fn execute(case: &Case, ctx: &mut Executor) -> Observation {
     let timeout = ctx.gpu_timeout;
     let collector = ctx.inst.collector.clone();
@@ -78,17 +86,25 @@ pub fn execute(case: &Case, ctx: &mut Executor) -> Observation {
     };
     let mut buffers = Vec::new();
     let result = run(case, cache, &mut buffers, timeout, &collector);
-    // Nothing recorded is pending: valid cases waited, invalid ones were never submitted.
-    // SAFETY: the command buffers are not in use by the GPU.
-    unsafe {
-        let _ = cache.dev.device.reset_command_buffer(cache.primary, vk::CommandBufferResetFlags::empty());
-        let _ = cache.dev.device.reset_command_buffer(cache.secondary, vk::CommandBufferResetFlags::empty());
-    }
-    for (_, a) in buffers {
-        a.destroy(&cache.dev);
+    let lost = cache.lost;
+    if !lost {
+        // Nothing recorded is pending: valid cases waited, invalid ones were never submitted.
+        // SAFETY: the command buffers are not in use by the GPU.
+        unsafe {
+            let _ = cache.dev.device.reset_command_buffer(cache.primary, vk::CommandBufferResetFlags::empty());
+            let _ = cache.dev.device.reset_command_buffer(cache.secondary, vk::CommandBufferResetFlags::empty());
+        }
+        for (_, a) in buffers {
+            a.destroy(&cache.dev);
+        }
     }
     collector.set_abort(false);
     collector.clear();
+    if lost {
+        // Dropping a lost cache leaks its objects instead of waiting on the device.
+        ctx.devices.remove(&Executor::device_key(&case.world));
+        collector.clear();
+    }
     match result {
         Ok(obs) => obs,
         Err(e) => realise_failure(e),
@@ -109,10 +125,13 @@ fn run(
     let world = &case.world;
     let valid = matches!(case.intent, Intent::Valid);
     let cbs = &world.command_buffer;
-    if matches!(case.call, Call::TraceRaysNv(_)) {
-        return Err(RealiseError::Unsupported("vkCmdTraceRaysNV is not realised by the harness yet".into()));
+    let nv_call = matches!(case.call, Call::TraceRaysNv(_));
+    if nv_call && cache.dev.nv.is_none() {
+        return Err(RealiseError::Unsupported(
+            "the case does not enable VK_NV_ray_tracing, so vkCmdTraceRaysNV cannot be called".into(),
+        ));
     }
-    if cache.dev.rt.is_none() {
+    if !nv_call && cache.dev.rt.is_none() {
         return Err(RealiseError::Unsupported(
             "the case does not enable VK_KHR_ray_tracing_pipeline, so vkCmdTraceRays*KHR cannot be called".into(),
         ));
@@ -135,24 +154,34 @@ fn run(
         return Err(RealiseError::Unsupported(format!("a launch of {words} IDs is larger than the harness reads back")));
     }
     let pipeline = world.pipeline.as_ref();
+    // The scene and descriptor layout follow the pipeline's API (an NV pipeline reads an NV structure).
+    let api = pipeline.map_or(if nv_call { PipelineApi::Nv } else { PipelineApi::Khr }, |p| p.api);
     *buffers = cache.case_buffers(world, pipeline.map(|p| (p, trace)))?;
-    let tlas = if trace { Some(cache.scene(&world.launch.instances)?) } else { None };
-    let layouts = cache.layouts(trace)?;
-    let vk_pipeline = match pipeline {
-        Some(p) => Some(cache.pipeline(p, trace, false)?.pipeline),
-        None => None,
+    let tlas = if trace { Some(cache.scene(&world.launch.instances, api)?) } else { None };
+    let layouts = cache.layouts(trace, api)?;
+    let (vk_pipeline, stack_size) = match pipeline {
+        Some(p) => {
+            let real = cache.pipeline(p, trace, false)?;
+            (Some(real.pipeline), real.default_stack_size)
+        }
+        None => (None, 0),
     };
     let render_pass = if cbs.in_render_pass { Some(cache.empty_render_pass()?) } else { None };
-    cache.io_buffers(words.min(MAX_OUTPUT_WORDS), world.launch.rays.len())?;
-    let (out, rays) = (cache.output.as_ref().expect("made above"), cache.rays.as_ref().expect("made above"));
-    // Output pre-filled with NOT_RUN; rays header and records.
+    let launch = &world.launch;
+    cache.io_buffers(words.min(MAX_OUTPUT_WORDS), launch.rays.len(), launch.callables.len())?;
+    let (out, rays, calls) = (
+        cache.output.as_ref().expect("made above"),
+        cache.rays.as_ref().expect("made above"),
+        cache.callables.as_ref().expect("made above"),
+    );
+    // Output pre-filled with NOT_RUN; rays header (count, capacity, extra recursion) and records; callables.
     let fill: Vec<u8> = std::iter::repeat_n(model::semantics::NOT_RUN.to_ne_bytes(), words).flatten().collect();
     out.write(0, &fill);
-    let mut ray_bytes: Vec<u8> = Vec::with_capacity(16 + world.launch.rays.len() * RAY_RECORD_SIZE);
-    for v in [world.launch.rays.len() as u32, words.min(MAX_OUTPUT_WORDS) as u32, 0, 0] {
+    let mut ray_bytes: Vec<u8> = Vec::with_capacity(16 + launch.rays.len() * RAY_RECORD_SIZE);
+    for v in [launch.rays.len() as u32, words.min(MAX_OUTPUT_WORDS) as u32, launch.extra_recursion, 0] {
         ray_bytes.extend_from_slice(&v.to_ne_bytes());
     }
-    for r in &world.launch.rays {
+    for r in &launch.rays {
         let (x, y) = match r.target {
             RayTarget::Nothing => (-1000.0f32, -1000.0f32),
             RayTarget::Geometry { instance, geometry } => (2.0 * geometry as f32, 4.0 * instance as f32),
@@ -165,6 +194,11 @@ fn run(
         }
     }
     rays.write(0, &ray_bytes);
+    let mut call_bytes: Vec<u8> = Vec::with_capacity(16 + launch.callables.len() * 4);
+    for v in [launch.callables.len() as u32, 0, 0, 0].iter().chain(&launch.callables) {
+        call_bytes.extend_from_slice(&v.to_ne_bytes());
+    }
+    calls.write(0, &call_bytes);
 
     let d = &cache.dev.device;
     // Descriptor set.
@@ -178,33 +212,50 @@ fn run(
     };
     let out_info = [vk::DescriptorBufferInfo { buffer: out.buffer, offset: 0, range: vk::WHOLE_SIZE }];
     let rays_info = [vk::DescriptorBufferInfo { buffer: rays.buffer, offset: 0, range: vk::WHOLE_SIZE }];
-    let tl = [tlas.unwrap_or(vk::AccelerationStructureKHR::null())];
-    let mut as_write = vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&tl);
-    let mut writes = vec![
+    let calls_info = [vk::DescriptorBufferInfo { buffer: calls.buffer, offset: 0, range: vk::WHOLE_SIZE }];
+    fn storage(set: vk::DescriptorSet, binding: u32, info: &[vk::DescriptorBufferInfo]) -> vk::WriteDescriptorSet<'_> {
         vk::WriteDescriptorSet::default()
             .dst_set(set)
-            .dst_binding(1)
+            .dst_binding(binding)
             .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-            .buffer_info(&out_info),
-        vk::WriteDescriptorSet::default()
-            .dst_set(set)
-            .dst_binding(2)
-            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-            .buffer_info(&rays_info),
-    ];
-    if trace {
-        let mut w = vk::WriteDescriptorSet::default()
-            .dst_set(set)
-            .dst_binding(0)
-            .descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR)
-            .push_next(&mut as_write);
-        w.descriptor_count = 1;
-        writes.push(w);
+            .buffer_info(info)
     }
-    // SAFETY: writes reference live objects.
+    let mut writes = vec![storage(set, 1, &out_info), storage(set, 2, &rays_info), storage(set, 3, &calls_info)];
+    let tl_khr = [match tlas {
+        Some(Tlas::Khr(t)) => t,
+        _ => vk::AccelerationStructureKHR::null(),
+    }];
+    let tl_nv = [match tlas {
+        Some(Tlas::Nv(t)) => t,
+        _ => vk::AccelerationStructureNV::null(),
+    }];
+    let mut as_khr = vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&tl_khr);
+    let mut as_nv = vk::WriteDescriptorSetAccelerationStructureNV::default().acceleration_structures(&tl_nv);
+    match tlas {
+        Some(Tlas::Khr(_)) => {
+            let mut w = vk::WriteDescriptorSet::default()
+                .dst_set(set)
+                .dst_binding(0)
+                .descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR)
+                .push_next(&mut as_khr);
+            w.descriptor_count = 1;
+            writes.push(w);
+        }
+        Some(Tlas::Nv(_)) => {
+            let mut w = vk::WriteDescriptorSet::default()
+                .dst_set(set)
+                .dst_binding(0)
+                .descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_NV)
+                .push_next(&mut as_nv);
+            w.descriptor_count = 1;
+            writes.push(w);
+        }
+        None => {}
+    }
+    // SAFETY: writes reference live objects; every binding of the layout is written.
     unsafe { d.update_descriptor_sets(&writes, &[]) };
 
-    // Addresses.
+    // Addresses and buffers by name.
     let addr = |a: &Address| -> Result<u64, RealiseError> {
         match a {
             Address::Raw(v) => Ok(*v),
@@ -215,7 +266,16 @@ fn run(
                 .ok_or_else(|| RealiseError::Unsupported(format!("the call names buffer `{buffer}`, which the world lacks"))),
         }
     };
-    let rt = cache.dev.rt.as_ref().expect("checked above");
+    let buffer_named = |name: &Option<String>| -> Result<vk::Buffer, RealiseError> {
+        match name {
+            None => Ok(vk::Buffer::null()),
+            Some(n) => buffers
+                .iter()
+                .find(|(b, _)| b == n)
+                .map(|(_, a)| a.buffer)
+                .ok_or_else(|| RealiseError::Unsupported(format!("the call names buffer `{n}`, which the world lacks"))),
+        }
+    };
     let secondary = cbs.level == CommandBufferLevel::Secondary;
     let cb = if secondary { cache.secondary } else { cache.primary };
     let d = &cache.dev.device;
@@ -228,10 +288,32 @@ fn run(
                 begin = begin.inheritance_info(&inherit);
             }
             d.begin_command_buffer(cb, &begin).map_err(|r| RealiseError::Failed(format!("vkBeginCommandBuffer: {r:?}")))?;
+            if trace {
+                // The scene was built by an earlier submission: a memory dependency from its build to the
+                // shaders' reads (submission order alone gives only an execution dependency). Recorded
+                // before any render pass begins, where a barrier would need a subpass self-dependency.
+                let barrier = vk::MemoryBarrier::default()
+                    .src_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR)
+                    .dst_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR);
+                d.cmd_pipeline_barrier(
+                    cb,
+                    vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR,
+                    vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
+                    vk::DependencyFlags::empty(),
+                    &[barrier],
+                    &[],
+                    &[],
+                );
+            }
             if let Some(p) = vk_pipeline.filter(|_| cbs.pipeline_bound) {
                 d.cmd_bind_pipeline(cb, vk::PipelineBindPoint::RAY_TRACING_KHR, p);
                 if cbs.stack_size_set {
-                    rt.cmd_set_ray_tracing_pipeline_stack_size(cb, 4096);
+                    if let Some(rt) = &cache.dev.rt {
+                        // The spec's default stack size for the pipeline (a fixed guess can be too small on
+                        // a real GPU once closest-hit shaders recurse: undefined behaviour, not a test).
+                        let size = if stack_size == 0 { 4096 } else { stack_size };
+                        rt.cmd_set_ray_tracing_pipeline_stack_size(cb, size);
+                    }
                 }
             }
             d.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::RAY_TRACING_KHR, layouts.pipeline, 0, &[set], &[]);
@@ -250,20 +332,42 @@ fn run(
             }
         }
     }
-    // The call itself, with only its messages collected.
-    let regions = case.call.regions().expect("KHR call");
-    let [rg, ms, ht, cl] = [region(regions[0], &addr)?, region(regions[1], &addr)?, region(regions[2], &addr)?, region(regions[3], &addr)?];
-    let indirect = match &case.call {
-        Call::TraceRaysIndirect(c) => Some(addr(&c.indirect_address)?),
-        _ => None,
+    // The call's arguments, resolved before collecting so only the call's own messages are kept.
+    enum Resolved {
+        Khr([vk::StridedDeviceAddressRegionKHR; 4], Option<u64>),
+        Nv([(vk::Buffer, u64, u64); 4]),
+    }
+    let resolved = match &case.call {
+        Call::TraceRaysNv(c) => {
+            let t = |t: &model::call::NvTable| -> Result<(vk::Buffer, u64, u64), RealiseError> {
+                Ok((buffer_named(&t.buffer)?, t.offset, t.stride))
+            };
+            Resolved::Nv([t(&c.raygen)?, t(&c.miss)?, t(&c.hit)?, t(&c.callable)?])
+        }
+        _ => {
+            let regions = case.call.regions().expect("KHR call");
+            let r = [region(regions[0], &addr)?, region(regions[1], &addr)?, region(regions[2], &addr)?, region(regions[3], &addr)?];
+            let indirect = match &case.call {
+                Call::TraceRaysIndirect(c) => Some(addr(&c.indirect_address)?),
+                _ => None,
+            };
+            Resolved::Khr(r, indirect)
+        }
     };
     collector.clear();
     collector.set_abort(!valid);
     // SAFETY: for valid cases every parameter is valid; for invalid ones the layer drops the call.
     unsafe {
-        match (&case.call, indirect) {
-            (Call::TraceRays(c), _) => rt.cmd_trace_rays(cb, &rg, &ms, &ht, &cl, c.width, c.height, c.depth),
-            (_, Some(a)) => rt.cmd_trace_rays_indirect(cb, &rg, &ms, &ht, &cl, a),
+        match (&case.call, &resolved) {
+            (Call::TraceRays(c), Resolved::Khr([rg, ms, ht, cl], _)) => {
+                cache.dev.rt.as_ref().expect("checked above").cmd_trace_rays(cb, rg, ms, ht, cl, c.width, c.height, c.depth)
+            }
+            (Call::TraceRaysIndirect(_), Resolved::Khr([rg, ms, ht, cl], Some(a))) => {
+                cache.dev.rt.as_ref().expect("checked above").cmd_trace_rays_indirect(cb, rg, ms, ht, cl, *a)
+            }
+            (Call::TraceRaysNv(c), Resolved::Nv([rg, ms, ht, cl])) => cache.dev.nv.as_ref().expect("checked above").cmd_trace_rays(
+                cb, rg.0, rg.1, ms.0, ms.1, ms.2, ht.0, ht.1, ht.2, cl.0, cl.1, cl.2, c.width, c.height, c.depth,
+            ),
             _ => {}
         }
     }

@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """Regenerates harness/src/vk_tables.rs from the registry: the member lists (type, name, array length) of
-the feature and property structures the probe reads. Run: python3 harness/src/gen_vk_tables.py [vk.xml]"""
+the feature and property structures the probe reads. Run: python3 harness/src/gen_vk_tables.py [vk.xml [OUT.rs]] (OUT defaults to harness/src/vk_tables.rs).
+harness/tests/vk_tables_drift.rs checks that the committed file equals this script's output."""
 import re, sys, xml.etree.ElementTree as ET
 
 REG = sys.argv[1] if len(sys.argv) > 1 else "/usr/share/vulkan/registry/vk.xml"
@@ -56,4 +57,5 @@ for s in STRUCTS:
     out += rows
     out.append("];")
     out.append("")
-open(__file__.replace("gen_vk_tables.py", "vk_tables.rs"), "w").write("\n".join(out))
+OUT = sys.argv[2] if len(sys.argv) > 2 else __file__.replace("gen_vk_tables.py", "vk_tables.rs")
+open(OUT, "w").write("\n".join(out))

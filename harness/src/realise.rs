@@ -27,13 +27,67 @@ fn vkfail(what: &'static str) -> impl Fn(vk::Result) -> RealiseError {
     move |r| RealiseError::Failed(format!("{what} failed: {r:?}"))
 }
 
-/// A buffer with host-visible memory, mapped, and its device address (0 without bufferDeviceAddress).
+/// One memory object behind (part of) a buffer: where it sits in the buffer and its host mapping.
+struct Piece {
+    memory: vk::DeviceMemory,
+    /// Byte offset in the buffer where this memory's range starts.
+    at: u64,
+    /// Bytes of the buffer backed by this memory.
+    len: u64,
+    /// Host pointer to the buffer byte `at`.
+    ptr: *mut u8,
+}
+
+/// A buffer with host-visible memory, mapped, and its device address (0 without bufferDeviceAddress). Most
+/// buffers have one memory object; a sparse buffer of a `Scattered` case has two, and an `Unbound` sparse
+/// buffer none. Memory that is not HOST_COHERENT is flushed after host writes and invalidated before reads.
 pub struct Allocation {
     pub buffer: vk::Buffer,
-    pub memory: vk::DeviceMemory,
     pub address: u64,
     pub size: u64,
-    pub ptr: *mut u8,
+    pieces: Vec<Piece>,
+    /// The device, kept only when the memory is not HOST_COHERENT (to flush and invalidate).
+    non_coherent: Option<ash::Device>,
+}
+
+/// How a buffer's pages are bound, for [`Allocation::sparse`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SparsePlan {
+    /// No memory bound at all.
+    Unbound,
+    /// The whole buffer bound to one memory object.
+    One,
+    /// The first half of the sparse blocks bound to one memory object, the rest to a second.
+    Two,
+}
+
+/// A host-visible memory type for `bits`: coherent if there is one, else any host-visible type (flushed).
+fn host_memory_type(dev: &VkDevice, bits: u32) -> Option<(u32, bool)> {
+    let visible = vk::MemoryPropertyFlags::HOST_VISIBLE;
+    dev.memory_type(bits, visible | vk::MemoryPropertyFlags::HOST_COHERENT)
+        .map(|t| (t, true))
+        .or_else(|| dev.memory_type(bits, visible).map(|t| (t, false)))
+}
+
+fn allocate(dev: &VkDevice, size: u64, memory_type: u32) -> Result<vk::DeviceMemory, RealiseError> {
+    let mut flags_info = vk::MemoryAllocateFlagsInfo::default().flags(vk::MemoryAllocateFlags::DEVICE_ADDRESS);
+    let mut ai = vk::MemoryAllocateInfo::default().allocation_size(size).memory_type_index(memory_type);
+    if dev.has_feature("bufferDeviceAddress") {
+        ai = ai.push_next(&mut flags_info);
+    }
+    // SAFETY: valid allocate info.
+    unsafe { dev.device.allocate_memory(&ai, None) }
+        .map_err(|r| RealiseError::Failed(format!("vkAllocateMemory({size}) failed: {r:?}")))
+}
+
+fn address_of(dev: &VkDevice, b: vk::Buffer) -> u64 {
+    if dev.has_feature("bufferDeviceAddress") {
+        // SAFETY: b is bound completely to memory allocated with DEVICE_ADDRESS, or sparse
+        // (VUID-VkBufferDeviceAddressInfo-buffer-02600 exempts sparse buffers).
+        unsafe { dev.device.get_buffer_device_address(&vk::BufferDeviceAddressInfo::default().buffer(b)) }
+    } else {
+        0
+    }
 }
 
 impl Allocation {
@@ -52,26 +106,19 @@ impl Allocation {
         let mut buffer = unsafe { d.create_buffer(&info, None) }.map_err(vkfail("vkCreateBuffer"))?;
         // SAFETY: buffer is valid.
         let req = unsafe { d.get_buffer_memory_requirements(buffer) };
-        let host = vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT;
-        let Some(mt) = dev.memory_type(req.memory_type_bits, host) else {
+        let Some((mt, coherent)) = host_memory_type(dev, req.memory_type_bits) else {
             // SAFETY: destroying what we created.
             unsafe { d.destroy_buffer(buffer, None) };
-            return Err(RealiseError::Unsupported("no host-visible, coherent memory type for a buffer".into()));
+            return Err(RealiseError::Unsupported("no host-visible memory type for a buffer".into()));
         };
         let bda = dev.has_feature("bufferDeviceAddress");
         let alloc_size = req.size + if align > 1 { align } else { 0 };
-        let mut flags_info = vk::MemoryAllocateFlagsInfo::default().flags(vk::MemoryAllocateFlags::DEVICE_ADDRESS);
-        let mut ai = vk::MemoryAllocateInfo::default().allocation_size(alloc_size).memory_type_index(mt);
-        if bda {
-            ai = ai.push_next(&mut flags_info);
-        }
-        // SAFETY: valid allocate info.
-        let memory = match unsafe { d.allocate_memory(&ai, None) } {
+        let memory = match allocate(dev, alloc_size, mt) {
             Ok(m) => m,
-            Err(r) => {
+            Err(e) => {
                 // SAFETY: destroying what we created.
                 unsafe { d.destroy_buffer(buffer, None) };
-                return Err(RealiseError::Failed(format!("vkAllocateMemory({alloc_size}) failed: {r:?}")));
+                return Err(e);
             }
         };
         let cleanup = |buffer: vk::Buffer| {
@@ -81,20 +128,12 @@ impl Allocation {
                 d.free_memory(memory, None);
             }
         };
-        let address_of = |b: vk::Buffer| -> u64 {
-            if bda {
-                // SAFETY: b is bound to memory allocated with DEVICE_ADDRESS.
-                unsafe { d.get_buffer_device_address(&vk::BufferDeviceAddressInfo::default().buffer(b)) }
-            } else {
-                0
-            }
-        };
         // SAFETY: fresh buffer, fresh memory large enough.
         if let Err(r) = unsafe { d.bind_buffer_memory(buffer, memory, 0) } {
             cleanup(buffer);
             return Err(RealiseError::Failed(format!("vkBindBufferMemory failed: {r:?}")));
         }
-        let mut address = address_of(buffer);
+        let mut address = address_of(dev, buffer);
         let mut offset = 0;
         if bda && align > 1 && address % align != 0 {
             let delta = align - address % align;
@@ -108,14 +147,21 @@ impl Allocation {
             // SAFETY: replacing the buffer by an identical one bound at the aligning offset.
             unsafe { d.destroy_buffer(buffer, None) };
             // SAFETY: valid create info.
-            buffer = unsafe { d.create_buffer(&info, None) }.map_err(vkfail("vkCreateBuffer"))?;
+            buffer = match unsafe { d.create_buffer(&info, None) } {
+                Ok(b) => b,
+                Err(r) => {
+                    // SAFETY: freeing what we allocated.
+                    unsafe { d.free_memory(memory, None) };
+                    return Err(RealiseError::Failed(format!("vkCreateBuffer failed: {r:?}")));
+                }
+            };
             // SAFETY: offset + size fits the allocation.
             if let Err(r) = unsafe { d.bind_buffer_memory(buffer, memory, delta) } {
                 cleanup(buffer);
                 return Err(RealiseError::Failed(format!("vkBindBufferMemory failed: {r:?}")));
             }
             offset = delta;
-            address = address_of(buffer);
+            address = address_of(dev, buffer);
             if address % align != 0 {
                 cleanup(buffer);
                 return Err(RealiseError::Unsupported(format!(
@@ -133,33 +179,160 @@ impl Allocation {
         };
         // SAFETY: mapped range covers offset..offset+size.
         let ptr = unsafe { ptr.add(offset as usize) };
-        // SAFETY: zero the buffer's bytes.
-        unsafe { std::ptr::write_bytes(ptr, 0, size as usize) };
-        Ok(Allocation { buffer, memory, address, size, ptr })
+        let a = Allocation {
+            buffer,
+            address,
+            size,
+            pieces: vec![Piece { memory, at: 0, len: size, ptr }],
+            non_coherent: (!coherent).then(|| d.clone()),
+        };
+        a.write(0, &vec![0u8; size as usize]);
+        Ok(a)
     }
 
-    /// Copies `bytes` to `offset`, cutting what would fall past the end of the buffer.
-    pub fn write(&self, offset: u64, bytes: &[u8]) {
-        if offset >= self.size {
-            return;
+    /// Creates a sparse buffer (`flags` has SPARSE_BINDING) and binds its pages with `vkQueueBindSparse` as
+    /// `plan` says, waiting on `fence` (unsignalled, left unsignalled) for the binding to finish.
+    pub fn sparse(
+        dev: &VkDevice,
+        fence: vk::Fence,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+        flags: vk::BufferCreateFlags,
+        plan: SparsePlan,
+    ) -> Result<Allocation, RealiseError> {
+        let d = &dev.device;
+        let info = vk::BufferCreateInfo::default().size(size.max(1)).usage(usage).flags(flags);
+        // SAFETY: valid create info (the caller checked sparseBinding is enabled).
+        let buffer = unsafe { d.create_buffer(&info, None) }.map_err(vkfail("vkCreateBuffer"))?;
+        let mut a = Allocation { buffer, address: 0, size, pieces: Vec::new(), non_coherent: None };
+        match a.bind_sparse(dev, fence, plan) {
+            Ok(()) => Ok(a),
+            Err(e) => {
+                a.destroy(dev);
+                Err(e)
+            }
         }
-        let n = bytes.len().min((self.size - offset) as usize);
-        // SAFETY: the range lies inside the mapped buffer.
-        unsafe { std::ptr::copy_nonoverlapping(bytes.as_ptr(), self.ptr.add(offset as usize), n) };
+    }
+
+    fn bind_sparse(&mut self, dev: &VkDevice, fence: vk::Fence, plan: SparsePlan) -> Result<(), RealiseError> {
+        let d = &dev.device;
+        // SAFETY: valid buffer.
+        let req = unsafe { d.get_buffer_memory_requirements(self.buffer) };
+        let block = req.alignment.max(1);
+        let blocks = req.size.div_ceil(block);
+        let ranges: Vec<(u64, u64)> = match plan {
+            SparsePlan::Unbound => vec![],
+            SparsePlan::One => vec![(0, blocks * block)],
+            SparsePlan::Two if blocks < 2 => {
+                return Err(RealiseError::Unsupported(format!(
+                    "a sparse buffer of {} bytes is one sparse block ({block} bytes) here, so its pages cannot be \
+                     scattered over two memory objects",
+                    self.size
+                )))
+            }
+            SparsePlan::Two => vec![(0, blocks / 2 * block), (blocks / 2 * block, (blocks - blocks / 2) * block)],
+        };
+        if !ranges.is_empty() {
+            let Some((mt, coherent)) = host_memory_type(dev, req.memory_type_bits) else {
+                return Err(RealiseError::Unsupported(
+                    "no host-visible memory type for a sparse buffer (the harness writes its contents from the host)".into(),
+                ));
+            };
+            if !coherent {
+                self.non_coherent = Some(d.clone());
+            }
+            for &(at, len) in &ranges {
+                let memory = allocate(dev, len, mt)?;
+                // SAFETY: host-visible memory, whole range.
+                let ptr = match unsafe { d.map_memory(memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()) } {
+                    Ok(p) => p as *mut u8,
+                    Err(r) => {
+                        // SAFETY: freeing what we allocated.
+                        unsafe { d.free_memory(memory, None) };
+                        return Err(RealiseError::Failed(format!("vkMapMemory failed: {r:?}")));
+                    }
+                };
+                self.pieces.push(Piece { memory, at, len, ptr });
+            }
+            let binds: Vec<vk::SparseMemoryBind> = self
+                .pieces
+                .iter()
+                .map(|p| vk::SparseMemoryBind { resource_offset: p.at, size: p.len, memory: p.memory, memory_offset: 0, flags: Default::default() })
+                .collect();
+            let buffer_binds = [vk::SparseBufferMemoryBindInfo::default().buffer(self.buffer).binds(&binds)];
+            let bind = [vk::BindSparseInfo::default().buffer_binds(&buffer_binds)];
+            // SAFETY: the queue's family has SPARSE_BINDING (checked by the caller); the fence is unsignalled.
+            unsafe {
+                d.queue_bind_sparse(dev.queue, &bind, fence).map_err(vkfail("vkQueueBindSparse"))?;
+                d.wait_for_fences(&[fence], true, 10_000_000_000).map_err(vkfail("vkWaitForFences (sparse binding)"))?;
+                d.reset_fences(&[fence]).map_err(vkfail("vkResetFences"))?;
+            }
+            self.write(0, &vec![0u8; self.size as usize]);
+        }
+        self.address = address_of(dev, self.buffer);
+        if dev.has_feature("bufferDeviceAddress") && self.address % BUFFER_PLACEMENT_ALIGNMENT != 0 {
+            return Err(RealiseError::Unsupported(format!(
+                "the driver placed a sparse buffer at {:#x}, not a multiple of {BUFFER_PLACEMENT_ALIGNMENT}",
+                self.address
+            )));
+        }
+        Ok(())
+    }
+
+    /// The memory objects behind the buffer (one, two for a scattered sparse buffer, none when unbound).
+    pub fn memory_count(&self) -> usize {
+        self.pieces.len()
+    }
+
+    /// Copies `bytes` to `offset`, cutting what would fall past the end of the buffer or onto unbound pages.
+    pub fn write(&self, offset: u64, bytes: &[u8]) {
+        let end = (offset + bytes.len() as u64).min(self.size);
+        for p in &self.pieces {
+            let (lo, hi) = (offset.max(p.at), end.min(p.at + p.len));
+            if lo >= hi {
+                continue;
+            }
+            // SAFETY: lo..hi lies inside this piece's mapped range.
+            unsafe {
+                std::ptr::copy_nonoverlapping(bytes.as_ptr().add((lo - offset) as usize), p.ptr.add((lo - p.at) as usize), (hi - lo) as usize)
+            };
+        }
+        self.sync(true);
     }
 
     pub fn read_u32s(&self, count: usize) -> Vec<u32> {
+        self.sync(false);
         let n = count.min((self.size / 4) as usize);
-        // SAFETY: the range lies inside the mapped buffer; u32 reads of a 4-aligned mapping.
-        unsafe { std::slice::from_raw_parts(self.ptr as *const u32, n) }.to_vec()
+        let mut bytes = vec![0u8; n * 4];
+        for p in &self.pieces {
+            let (lo, hi) = (p.at.min(bytes.len() as u64), (p.at + p.len).min(bytes.len() as u64));
+            if lo < hi {
+                // SAFETY: lo..hi lies inside this piece's mapped range.
+                unsafe { std::ptr::copy_nonoverlapping(p.ptr, bytes.as_mut_ptr().add(lo as usize), (hi - lo) as usize) };
+            }
+        }
+        bytes.chunks_exact(4).map(|c| u32::from_ne_bytes([c[0], c[1], c[2], c[3]])).collect()
+    }
+
+    /// Flushes host writes (`to_device`) or invalidates host caches before reading, on non-coherent memory.
+    fn sync(&self, to_device: bool) {
+        let Some(d) = &self.non_coherent else { return };
+        let ranges: Vec<vk::MappedMemoryRange> =
+            self.pieces.iter().map(|p| vk::MappedMemoryRange::default().memory(p.memory).offset(0).size(vk::WHOLE_SIZE)).collect();
+        // SAFETY: every memory object is mapped whole; WHOLE_SIZE from offset 0 needs no atom alignment.
+        unsafe {
+            let _ = if to_device { d.flush_mapped_memory_ranges(&ranges) } else { d.invalidate_mapped_memory_ranges(&ranges) };
+        }
     }
 
     pub fn destroy(self, dev: &VkDevice) {
-        // SAFETY: the GPU no longer uses the buffer (callers wait first).
+        // SAFETY: the GPU no longer uses the buffer (callers wait first, or the device is lost).
         unsafe {
             dev.device.destroy_buffer(self.buffer, None);
-            dev.device.unmap_memory(self.memory);
-            dev.device.free_memory(self.memory, None);
+            for p in &self.pieces {
+                dev.device.unmap_memory(p.memory);
+                dev.device.free_memory(p.memory, None);
+            }
         }
     }
 }
@@ -176,19 +349,73 @@ pub struct RealPipeline {
     pub pipeline: vk::Pipeline,
     pub handles: Vec<u8>,
     pub group_count: usize,
+    /// The stack size the spec's default formula gives for the pipeline's recursion depth (section "Ray
+    /// Tracing Pipeline Stack"), used for `vkCmdSetRayTracingPipelineStackSizeKHR`; 0 for NV pipelines.
+    pub default_stack_size: u32,
 }
 
-/// A built scene: BLASes, TLAS and their buffers.
+/// The top-level structure of a built scene, of the extension the case's pipeline uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Tlas {
+    Khr(vk::AccelerationStructureKHR),
+    Nv(vk::AccelerationStructureNV),
+}
+
+/// A built scene: BLASes, TLAS and their buffers (and, for NV structures, their memory).
 pub struct Scene {
-    pub tlas: vk::AccelerationStructureKHR,
+    pub tlas: Tlas,
     structures: Vec<vk::AccelerationStructureKHR>,
+    nv_structures: Vec<vk::AccelerationStructureNV>,
+    nv_memory: Vec<vk::DeviceMemory>,
     buffers: Vec<Allocation>,
+}
+
+/// The stack size of the spec's default pipeline stack computation ("Ray Tracing Pipeline Stack"):
+/// `raygen + min(1, depth) × max(closestHit, miss, intersection + anyHit) + max(0, depth - 1) ×
+/// max(closestHit, miss) + 2 × callable`, each term the largest stack size of that shader kind. A pipeline
+/// with dynamic stack size must be given at least this (an arbitrary constant is too small on real GPUs
+/// once closest-hit shaders trace again).
+fn default_stack_size(
+    rt: &ash::khr::ray_tracing_pipeline::Device,
+    pipeline: vk::Pipeline,
+    groups: &[(vk::RayTracingShaderGroupTypeKHR, [u32; 4])],
+    depth: u32,
+) -> u32 {
+    let unused = vk::SHADER_UNUSED_KHR;
+    let (mut raygen, mut miss, mut callable, mut closest, mut any, mut isect) = (0u64, 0u64, 0u64, 0u64, 0u64, 0u64);
+    for (g, (ty, [gen, ch, ah, is])) in groups.iter().enumerate() {
+        // SAFETY: valid pipeline and group; only shaders the group has are queried.
+        let size = |which| unsafe { rt.get_ray_tracing_shader_group_stack_size(pipeline, g as u32, which) };
+        if *ty == vk::RayTracingShaderGroupTypeKHR::GENERAL && *gen != unused {
+            // Which general stage this is does not matter for the maximum of its own kind; count it in all
+            // three general kinds conservatively.
+            let s = size(vk::ShaderGroupShaderKHR::GENERAL);
+            raygen = raygen.max(s);
+            miss = miss.max(s);
+            callable = callable.max(s);
+        }
+        if *ch != unused {
+            closest = closest.max(size(vk::ShaderGroupShaderKHR::CLOSEST_HIT));
+        }
+        if *ah != unused {
+            any = any.max(size(vk::ShaderGroupShaderKHR::ANY_HIT));
+        }
+        if *is != unused {
+            isect = isect.max(size(vk::ShaderGroupShaderKHR::INTERSECTION));
+        }
+    }
+    let d = depth as u64;
+    let total = raygen
+        + d.min(1) * closest.max(miss).max(isect + any)
+        + d.saturating_sub(1) * closest.max(miss)
+        + 2 * callable;
+    total.min(u32::MAX as u64) as u32
 }
 
 /// Per-device objects the harness reuses across cases.
 pub struct DeviceCache {
-    modules: HashMap<ShaderKind, vk::ShaderModule>,
-    layouts: HashMap<bool, Layouts>,
+    modules: HashMap<(ShaderKind, bool), vk::ShaderModule>,
+    layouts: HashMap<(bool, bool), Layouts>,
     pipelines: HashMap<String, Result<RealPipeline, String>>,
     scenes: HashMap<String, Result<Scene, String>>,
     pub command_pool: vk::CommandPool,
@@ -199,6 +426,11 @@ pub struct DeviceCache {
     /// Output words and rays, reused and grown as needed.
     pub output: Option<Allocation>,
     pub rays: Option<Allocation>,
+    /// The callable record indices the raygen executes: a 16-byte header (count) and one u32 each.
+    pub callables: Option<Allocation>,
+    /// Set when a submission ended in DEVICE_LOST or a timeout: nothing may be recorded on this device
+    /// again, and dropping it neither waits for it nor resets what is pending on it.
+    pub lost: bool,
     pub render_pass: Option<(vk::RenderPass, vk::Framebuffer)>,
     pub dev: VkDevice,
 }
@@ -231,12 +463,15 @@ impl DeviceCache {
             let primary = alloc(vk::CommandBufferLevel::PRIMARY).map_err(vkfail("vkAllocateCommandBuffers"))?;
             let secondary = alloc(vk::CommandBufferLevel::SECONDARY).map_err(vkfail("vkAllocateCommandBuffers"))?;
             let fence = d.create_fence(&vk::FenceCreateInfo::default(), None).map_err(vkfail("vkCreateFence"))?;
-            let mut sizes = vec![vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: 4 }];
+            let mut sizes = vec![vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: 6 }];
             if dev.accel.is_some() {
                 sizes.push(vk::DescriptorPoolSize {
                     ty: vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
                     descriptor_count: 2,
                 });
+            }
+            if dev.nv.is_some() {
+                sizes.push(vk::DescriptorPoolSize { ty: vk::DescriptorType::ACCELERATION_STRUCTURE_NV, descriptor_count: 2 });
             }
             let descriptor_pool = d
                 .create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(2).pool_sizes(&sizes), None)
@@ -253,50 +488,49 @@ impl DeviceCache {
                 descriptor_pool,
                 output: None,
                 rays: None,
+                callables: None,
+                lost: false,
                 render_pass: None,
                 dev,
             })
         }
     }
 
-    fn module(&mut self, kind: ShaderKind) -> Result<vk::ShaderModule, RealiseError> {
-        if let Some(m) = self.modules.get(&kind) {
+    fn module(&mut self, kind: ShaderKind, api: PipelineApi) -> Result<vk::ShaderModule, RealiseError> {
+        if let Some(m) = self.modules.get(&(kind, api == PipelineApi::Nv)) {
             return Ok(*m);
         }
-        let code = shaders::spirv(kind)?;
+        let code = shaders::spirv(kind, api)?;
         // SAFETY: valid SPIR-V words.
         let m = unsafe { self.dev.device.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None) }
             .map_err(vkfail("vkCreateShaderModule"))?;
-        self.modules.insert(kind, m);
+        self.modules.insert((kind, api == PipelineApi::Nv), m);
         Ok(m)
     }
 
-    /// Layouts for the raygen variant: with the scene at binding 0 (`trace`) or without.
-    pub fn layouts(&mut self, trace: bool) -> Result<Layouts, RealiseError> {
-        if let Some(l) = self.layouts.get(&trace) {
+    /// Layouts for the raygen variant: with the scene at binding 0 (`trace`, a KHR or NV acceleration
+    /// structure by `api`) or without. Binding 1 is the output, 2 the rays, 3 the callable indices; the
+    /// closest-hit reads the scene and the rays to trace its ray again.
+    pub fn layouts(&mut self, trace: bool, api: PipelineApi) -> Result<Layouts, RealiseError> {
+        if let Some(l) = self.layouts.get(&(trace, api == PipelineApi::Nv)) {
             return Ok(*l);
         }
-        let stages = vk::ShaderStageFlags::RAYGEN_KHR;
-        let mut bindings = vec![
+        let raygen = vk::ShaderStageFlags::RAYGEN_KHR;
+        let traced = if trace { raygen | vk::ShaderStageFlags::CLOSEST_HIT_KHR } else { raygen };
+        let storage = |binding: u32, stages| {
             vk::DescriptorSetLayoutBinding::default()
-                .binding(1)
+                .binding(binding)
                 .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
                 .descriptor_count(1)
-                .stage_flags(stages),
-            vk::DescriptorSetLayoutBinding::default()
-                .binding(2)
-                .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-                .descriptor_count(1)
-                .stage_flags(stages),
-        ];
+                .stage_flags(stages)
+        };
+        let mut bindings = vec![storage(1, raygen), storage(2, traced), storage(3, raygen)];
         if trace {
-            bindings.push(
-                vk::DescriptorSetLayoutBinding::default()
-                    .binding(0)
-                    .descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR)
-                    .descriptor_count(1)
-                    .stage_flags(stages),
-            );
+            let ty = match api {
+                PipelineApi::Khr => vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
+                PipelineApi::Nv => vk::DescriptorType::ACCELERATION_STRUCTURE_NV,
+            };
+            bindings.push(vk::DescriptorSetLayoutBinding::default().binding(0).descriptor_type(ty).descriptor_count(1).stage_flags(traced));
         }
         let d = &self.dev.device;
         // SAFETY: valid create infos.
@@ -310,7 +544,7 @@ impl DeviceCache {
             unsafe { d.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&sets), None) }
                 .map_err(vkfail("vkCreatePipelineLayout"))?;
         let l = Layouts { set, pipeline };
-        self.layouts.insert(trace, l);
+        self.layouts.insert((trace, api == PipelineApi::Nv), l);
         Ok(l)
     }
 
@@ -334,24 +568,31 @@ impl DeviceCache {
     }
 
     fn create_pipeline(&mut self, p: &Pipeline, trace: bool) -> Result<RealPipeline, RealiseError> {
-        if p.api == PipelineApi::Nv {
-            return Err(RealiseError::Unsupported("VK_NV_ray_tracing pipelines are not realised by the harness yet".into()));
+        let api = p.api;
+        match api {
+            PipelineApi::Khr if self.dev.rt.is_none() => {
+                return Err(RealiseError::Unsupported(
+                    "the case does not enable VK_KHR_ray_tracing_pipeline, so no ray tracing pipeline can be made".into(),
+                ))
+            }
+            PipelineApi::Nv if self.dev.nv.is_none() => {
+                return Err(RealiseError::Unsupported(
+                    "the case does not enable VK_NV_ray_tracing, so no NV ray tracing pipeline can be made".into(),
+                ))
+            }
+            _ => {}
         }
-        if self.dev.rt.is_none() {
-            return Err(RealiseError::Unsupported(
-                "the case does not enable VK_KHR_ray_tracing_pipeline, so no ray tracing pipeline can be made".into(),
-            ));
-        }
-        let layouts = self.layouts(trace)?;
+        let layouts = self.layouts(trace, api)?;
         let raygen = if trace { ShaderKind::RaygenTrace } else { ShaderKind::RaygenPlain };
-        // (group index, stage flag, module) per stage, and the group create infos.
+        let closest = if trace { ShaderKind::ClosestHitTrace } else { ShaderKind::ClosestHitPlain };
+        // (group index, stage flag, module) per stage, and per group (type, [general, closest, any, intersection]).
         let mut stage_list: Vec<(u32, vk::ShaderStageFlags, vk::ShaderModule)> = Vec::new();
-        let mut groups = Vec::new();
+        let mut groups: Vec<(vk::RayTracingShaderGroupTypeKHR, [u32; 4])> = Vec::new();
         let unused = vk::SHADER_UNUSED_KHR;
         for (g, group) in p.groups.iter().enumerate() {
             let g = g as u32;
             let mut add = |this: &mut Self, kind: ShaderKind, stage: vk::ShaderStageFlags| -> Result<u32, RealiseError> {
-                let m = this.module(kind)?;
+                let m = this.module(kind, api)?;
                 stage_list.push((g, stage, m));
                 Ok(stage_list.len() as u32 - 1)
             };
@@ -363,16 +604,11 @@ impl DeviceCache {
                         GeneralStage::Callable => (ShaderKind::Callable, vk::ShaderStageFlags::CALLABLE_KHR),
                     };
                     let s = add(self, kind, flag)?;
-                    vk::RayTracingShaderGroupCreateInfoKHR::default()
-                        .ty(vk::RayTracingShaderGroupTypeKHR::GENERAL)
-                        .general_shader(s)
-                        .closest_hit_shader(unused)
-                        .any_hit_shader(unused)
-                        .intersection_shader(unused)
+                    (vk::RayTracingShaderGroupTypeKHR::GENERAL, [s, unused, unused, unused])
                 }
                 ShaderGroup::TrianglesHit { closest_hit, any_hit } | ShaderGroup::ProceduralHit { closest_hit, any_hit, .. } => {
                     let procedural = matches!(group, ShaderGroup::ProceduralHit { .. });
-                    let ch = if *closest_hit { add(self, ShaderKind::ClosestHit, vk::ShaderStageFlags::CLOSEST_HIT_KHR)? } else { unused };
+                    let ch = if *closest_hit { add(self, closest, vk::ShaderStageFlags::CLOSEST_HIT_KHR)? } else { unused };
                     let ah = if *any_hit { add(self, ShaderKind::AnyHit, vk::ShaderStageFlags::ANY_HIT_KHR)? } else { unused };
                     let is = match group {
                         ShaderGroup::ProceduralHit { intersection: true, .. } => {
@@ -385,16 +621,12 @@ impl DeviceCache {
                         }
                         _ => unused,
                     };
-                    vk::RayTracingShaderGroupCreateInfoKHR::default()
-                        .ty(if procedural {
-                            vk::RayTracingShaderGroupTypeKHR::PROCEDURAL_HIT_GROUP
-                        } else {
-                            vk::RayTracingShaderGroupTypeKHR::TRIANGLES_HIT_GROUP
-                        })
-                        .general_shader(unused)
-                        .closest_hit_shader(ch)
-                        .any_hit_shader(ah)
-                        .intersection_shader(is)
+                    let ty = if procedural {
+                        vk::RayTracingShaderGroupTypeKHR::PROCEDURAL_HIT_GROUP
+                    } else {
+                        vk::RayTracingShaderGroupTypeKHR::TRIANGLES_HIT_GROUP
+                    };
+                    (ty, [unused, ch, ah, is])
                 }
             };
             groups.push(info);
@@ -416,16 +648,65 @@ impl DeviceCache {
                 vk::PipelineShaderStageCreateInfo::default().stage(*flag).module(*m).name(main).specialization_info(spec)
             })
             .collect();
+        let flags = vk::PipelineCreateFlags::from_raw(p.flags.0 as u32);
+        let hs = self.dev.limits.handle_size as usize;
+        let n = p.groups.len();
+        if api == PipelineApi::Nv {
+            let hs = self.dev.limits.nv_handle_size as usize;
+            let nv_groups: Vec<vk::RayTracingShaderGroupCreateInfoNV> = groups
+                .iter()
+                .map(|(ty, [gen, ch, ah, is])| {
+                    vk::RayTracingShaderGroupCreateInfoNV::default()
+                        .ty(*ty)
+                        .general_shader(*gen)
+                        .closest_hit_shader(*ch)
+                        .any_hit_shader(*ah)
+                        .intersection_shader(*is)
+                })
+                .collect();
+            // The KHR-only flags (NO_NULL_*, SKIP_*, LIBRARY) are not NV pipeline flags.
+            let info = vk::RayTracingPipelineCreateInfoNV::default()
+                .flags(flags & (vk::PipelineCreateFlags::DISABLE_OPTIMIZATION | vk::PipelineCreateFlags::DEFER_COMPILE_NV))
+                .stages(&stages)
+                .groups(&nv_groups)
+                .max_recursion_depth(p.max_recursion_depth)
+                .layout(layouts.pipeline);
+            let nv = self.dev.nv.as_ref().expect("checked above");
+            // SAFETY: every pointer in `info` outlives the call.
+            let pipeline = unsafe { nv.create_ray_tracing_pipelines(vk::PipelineCache::null(), &[info], None) }
+                .map_err(|(_, r)| RealiseError::Failed(format!("vkCreateRayTracingPipelinesNV failed: {r:?}")))?[0];
+            let mut handles = vec![0u8; hs * n];
+            if n > 0 {
+                // SAFETY: valid pipeline, group range inside it, data sized for the groups.
+                if let Err(r) = unsafe { nv.get_ray_tracing_shader_group_handles(pipeline, 0, n as u32, &mut handles) } {
+                    // SAFETY: destroying what we created.
+                    unsafe { self.dev.device.destroy_pipeline(pipeline, None) };
+                    return Err(RealiseError::Failed(format!("vkGetRayTracingShaderGroupHandlesNV failed: {r:?}")));
+                }
+            }
+            return Ok(RealPipeline { pipeline, handles, group_count: n, default_stack_size: 0 });
+        }
+        let khr_groups: Vec<vk::RayTracingShaderGroupCreateInfoKHR> = groups
+            .iter()
+            .map(|(ty, [gen, ch, ah, is])| {
+                vk::RayTracingShaderGroupCreateInfoKHR::default()
+                    .ty(*ty)
+                    .general_shader(*gen)
+                    .closest_hit_shader(*ch)
+                    .any_hit_shader(*ah)
+                    .intersection_shader(*is)
+            })
+            .collect();
         let dynamic = [vk::DynamicState::RAY_TRACING_PIPELINE_STACK_SIZE_KHR];
         let dyn_info = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic);
+        // The payload is `Payload { uint word, depth, ray; }` (12 bytes); the shaders declare no hit attributes.
         let iface = vk::RayTracingPipelineInterfaceCreateInfoKHR::default()
-            .max_pipeline_ray_payload_size(4)
+            .max_pipeline_ray_payload_size(12)
             .max_pipeline_ray_hit_attribute_size(8);
-        let flags = vk::PipelineCreateFlags::from_raw(p.flags.0 as u32);
         let mut info = vk::RayTracingPipelineCreateInfoKHR::default()
             .flags(flags)
             .stages(&stages)
-            .groups(&groups)
+            .groups(&khr_groups)
             .max_pipeline_ray_recursion_depth(p.max_recursion_depth)
             .layout(layouts.pipeline);
         if p.dynamic_stack_size {
@@ -440,23 +721,23 @@ impl DeviceCache {
             rt.create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), vk::PipelineCache::null(), &[info], None)
         }
         .map_err(|(_, r)| RealiseError::Failed(format!("vkCreateRayTracingPipelinesKHR failed: {r:?}")))?[0];
-        let hs = self.dev.limits.handle_size as usize;
-        let n = p.groups.len();
-        let handles = if flags.contains(vk::PipelineCreateFlags::LIBRARY_KHR) || n == 0 {
+        let library = flags.contains(vk::PipelineCreateFlags::LIBRARY_KHR);
+        let handles = if library || n == 0 {
             vec![0u8; hs * n]
         } else {
             // SAFETY: valid pipeline, group range inside it.
             unsafe { rt.get_ray_tracing_shader_group_handles(pipeline, 0, n as u32, hs * n) }
                 .map_err(vkfail("vkGetRayTracingShaderGroupHandlesKHR"))?
         };
-        Ok(RealPipeline { pipeline, handles, group_count: n })
+        let default_stack_size = if library { 0 } else { default_stack_size(rt, pipeline, &groups, p.max_recursion_depth) };
+        Ok(RealPipeline { pipeline, handles, group_count: n, default_stack_size })
     }
 
     /// The scene for a list of instances (cached).
-    pub fn scene(&mut self, instances: &[Instance]) -> Result<vk::AccelerationStructureKHR, RealiseError> {
-        let key = serde_json::to_string(instances).unwrap_or_default();
+    pub fn scene(&mut self, instances: &[Instance], api: PipelineApi) -> Result<Tlas, RealiseError> {
+        let key = format!("{api:?}|{}", serde_json::to_string(instances).unwrap_or_default());
         if !self.scenes.contains_key(&key) {
-            let built = self.build_scene(instances).map_err(|e| match e {
+            let built = self.build_scene(instances, api).map_err(|e| match e {
                 RealiseError::Unsupported(s) => format!("unsupported: {s}"),
                 RealiseError::Failed(s) => s,
             });
@@ -471,7 +752,33 @@ impl DeviceCache {
         }
     }
 
-    fn build_scene(&mut self, instances: &[Instance]) -> Result<Scene, RealiseError> {
+    fn build_scene(&mut self, instances: &[Instance], api: PipelineApi) -> Result<Scene, RealiseError> {
+        // A bottom-level structure holds geometries of one type; a case that mixes them cannot be built
+        // validly, so it is not realised rather than handed to the driver.
+        if let Some(i) = instances.iter().position(|inst| inst.geometries.windows(2).any(|w| w[0] != w[1])) {
+            return Err(RealiseError::Unsupported(format!(
+                "instance {i} mixes triangle and AABB geometries; one acceleration structure holds one type"
+            )));
+        }
+        let mut scene = Scene {
+            tlas: Tlas::Khr(vk::AccelerationStructureKHR::null()),
+            structures: Vec::new(),
+            nv_structures: Vec::new(),
+            nv_memory: Vec::new(),
+            buffers: Vec::new(),
+        };
+        if api == PipelineApi::Nv {
+            let Some(nv) = self.dev.nv.clone() else {
+                return Err(RealiseError::Unsupported("the case traces rays but does not enable VK_NV_ray_tracing".into()));
+            };
+            return match self.build_nv_scene_into(&nv, instances, &mut scene) {
+                Ok(()) => Ok(scene),
+                Err(e) => {
+                    self.destroy_scene(scene);
+                    Err(e)
+                }
+            };
+        }
         let Some(accel) = self.dev.accel.clone() else {
             return Err(RealiseError::Unsupported(
                 "the case traces rays but does not enable VK_KHR_acceleration_structure".into(),
@@ -482,7 +789,6 @@ impl DeviceCache {
                 "the case traces rays but does not enable accelerationStructure and bufferDeviceAddress".into(),
             ));
         }
-        let mut scene = Scene { tlas: vk::AccelerationStructureKHR::null(), structures: Vec::new(), buffers: Vec::new() };
         let result = self.build_scene_into(&accel, instances, &mut scene);
         match result {
             Ok(()) => Ok(scene),
@@ -499,13 +805,6 @@ impl DeviceCache {
         instances: &[Instance],
         scene: &mut Scene,
     ) -> Result<(), RealiseError> {
-        // A bottom-level structure holds geometries of one type; a case that mixes them cannot be built
-        // validly, so it is not realised rather than handed to the driver.
-        if let Some(i) = instances.iter().position(|inst| inst.geometries.windows(2).any(|w| w[0] != w[1])) {
-            return Err(RealiseError::Unsupported(format!(
-                "instance {i} mixes triangle and AABB geometries; one acceleration structure holds one type"
-            )));
-        }
         let dev = &self.dev;
         let input_usage = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
             | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
@@ -544,6 +843,13 @@ impl DeviceCache {
         let mut builds: Vec<(Vec<vk::AccelerationStructureGeometryKHR>, Vec<vk::AccelerationStructureBuildRangeInfoKHR>, vk::AccelerationStructureKHR, u64)> =
             Vec::new();
         for (i, inst) in instances.iter().enumerate() {
+            if inst.geometries.is_empty() {
+                // An instance without geometry is made inactive (reference 0, semantics.md §4): it keeps its
+                // place in the instance numbering, and no bottom-level structure of zero geometries (whose
+                // size query some drivers answer with 0) is built.
+                blas_addresses.push(0);
+                continue;
+            }
             let mut geoms = Vec::new();
             let mut ranges = Vec::new();
             for (g, kind) in inst.geometries.iter().enumerate() {
@@ -663,7 +969,7 @@ impl DeviceCache {
         }
         .map_err(vkfail("vkCreateAccelerationStructureKHR"))?;
         scene.structures.push(tlas);
-        scene.tlas = tlas;
+        scene.tlas = Tlas::Khr(tlas);
         let tlas_scratch = scratch.address;
         scene.buffers.push(storage);
         scene.buffers.push(scratch);
@@ -707,21 +1013,193 @@ impl DeviceCache {
         self.submit_and_wait(std::time::Duration::from_secs(60))
     }
 
-    /// Submits the primary command buffer and waits for it.
-    pub fn submit_and_wait(&self, timeout: std::time::Duration) -> Result<(), RealiseError> {
+    /// The scene as VK_NV_ray_tracing structures: one bottom-level `VkAccelerationStructureNV` per instance
+    /// (its geometries as `VkGeometryNV`, buffer + offset based), a top-level one over
+    /// `VkAccelerationStructureInstanceNV` records, each bound to its own memory, built with
+    /// `vkCmdBuildAccelerationStructureNV` (barrier between the levels), submitted and waited for.
+    fn build_nv_scene_into(
+        &mut self,
+        nv: &ash::nv::ray_tracing::Device,
+        instances: &[Instance],
+        scene: &mut Scene,
+    ) -> Result<(), RealiseError> {
+        let dev = &self.dev;
+        let usage = vk::BufferUsageFlags::RAY_TRACING_NV;
+        let none = vk::BufferCreateFlags::empty();
+        // Geometry input, as for KHR: one triangle or box per geometry; offsets 16-aligned (AABBs need 8).
+        let mut input: Vec<u8> = Vec::new();
+        let mut offsets: Vec<Vec<u64>> = Vec::new();
+        for (i, inst) in instances.iter().enumerate() {
+            let mut per = Vec::new();
+            for (g, kind) in inst.geometries.iter().enumerate() {
+                let (cx, cy) = (2.0 * g as f32, 4.0 * i as f32);
+                while input.len() % 16 != 0 {
+                    input.push(0);
+                }
+                per.push(input.len() as u64);
+                let floats: Vec<f32> = match kind {
+                    GeometryKind::Triangles => vec![cx - 0.5, cy - 0.5, 0.0, cx + 0.5, cy - 0.5, 0.0, cx, cy + 0.5, 0.0],
+                    GeometryKind::Aabbs => vec![cx - 0.5, cy - 0.5, -0.5, cx + 0.5, cy + 0.5, 0.5],
+                };
+                floats.iter().for_each(|f| input.extend_from_slice(&f.to_ne_bytes()));
+            }
+            offsets.push(per);
+        }
+        let inputs = Allocation::new(dev, input.len().max(16) as u64, usage, none, 256)?;
+        inputs.write(0, &input);
+        let input_buffer = inputs.buffer;
+        scene.buffers.push(inputs);
+
+        // Creates a structure for `info`, binds it to fresh memory and makes a scratch buffer for its build.
+        let make = |info: vk::AccelerationStructureInfoNV, scene: &mut Scene| -> Result<(vk::AccelerationStructureNV, vk::Buffer), RealiseError> {
+            // SAFETY: valid description whose geometry pointers outlive the call.
+            let s = unsafe { nv.create_acceleration_structure(&vk::AccelerationStructureCreateInfoNV::default().info(info), None) }
+                .map_err(vkfail("vkCreateAccelerationStructureNV"))?;
+            scene.nv_structures.push(s);
+            let req = |ty| {
+                // SAFETY: valid structure.
+                unsafe {
+                    nv.get_acceleration_structure_memory_requirements(
+                        &vk::AccelerationStructureMemoryRequirementsInfoNV::default().ty(ty).acceleration_structure(s),
+                    )
+                }
+                .memory_requirements
+            };
+            let object = req(vk::AccelerationStructureMemoryRequirementsTypeNV::OBJECT);
+            let scratch = req(vk::AccelerationStructureMemoryRequirementsTypeNV::BUILD_SCRATCH);
+            let mt = dev
+                .memory_type(object.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL)
+                .or_else(|| dev.memory_type(object.memory_type_bits, vk::MemoryPropertyFlags::empty()))
+                .ok_or_else(|| RealiseError::Unsupported("no memory type for an NV acceleration structure".into()))?;
+            let ai = vk::MemoryAllocateInfo::default().allocation_size(object.size.max(1)).memory_type_index(mt);
+            // SAFETY: valid allocate info.
+            let memory = unsafe { dev.device.allocate_memory(&ai, None) }.map_err(vkfail("vkAllocateMemory"))?;
+            scene.nv_memory.push(memory);
+            let bind = [vk::BindAccelerationStructureMemoryInfoNV::default().acceleration_structure(s).memory(memory)];
+            // SAFETY: fresh memory of the required type and size.
+            unsafe { nv.bind_acceleration_structure_memory(&bind) }.map_err(vkfail("vkBindAccelerationStructureMemoryNV"))?;
+            let scratch_buf = Allocation::new(dev, scratch.size.max(1), usage, none, scratch.alignment.max(256))?;
+            let b = scratch_buf.buffer;
+            scene.buffers.push(scratch_buf);
+            Ok((s, b))
+        };
+
+        let mut handles = Vec::new();
+        let mut blas_builds: Vec<(Vec<vk::GeometryNV>, vk::AccelerationStructureNV, vk::Buffer)> = Vec::new();
+        for (i, inst) in instances.iter().enumerate() {
+            if inst.geometries.is_empty() {
+                handles.push(0u64);
+                continue;
+            }
+            let geoms: Vec<vk::GeometryNV> = inst
+                .geometries
+                .iter()
+                .enumerate()
+                .map(|(g, kind)| {
+                    let at = offsets[i][g];
+                    let mut data = vk::GeometryDataNV::default();
+                    let ty = match kind {
+                        GeometryKind::Triangles => {
+                            data.triangles = vk::GeometryTrianglesNV::default()
+                                .vertex_data(input_buffer)
+                                .vertex_offset(at)
+                                .vertex_count(3)
+                                .vertex_stride(12)
+                                .vertex_format(vk::Format::R32G32B32_SFLOAT)
+                                .index_type(vk::IndexType::NONE_NV);
+                            vk::GeometryTypeNV::TRIANGLES
+                        }
+                        GeometryKind::Aabbs => {
+                            data.aabbs = vk::GeometryAABBNV::default().aabb_data(input_buffer).num_aab_bs(1).stride(24).offset(at);
+                            vk::GeometryTypeNV::AABBS
+                        }
+                    };
+                    vk::GeometryNV::default().geometry_type(ty).geometry(data)
+                })
+                .collect();
+            let info = vk::AccelerationStructureInfoNV::default().ty(vk::AccelerationStructureTypeNV::BOTTOM_LEVEL).geometries(&geoms);
+            let (blas, scratch) = make(info, scene)?;
+            // SAFETY: the structure is bound to memory.
+            let handle = unsafe { nv.get_acceleration_structure_handle(blas) }.map_err(vkfail("vkGetAccelerationStructureHandleNV"))?;
+            handles.push(handle);
+            blas_builds.push((geoms, blas, scratch));
+        }
+        let records: Vec<vk::AccelerationStructureInstanceNV> = instances
+            .iter()
+            .zip(&handles)
+            .map(|(inst, handle)| vk::AccelerationStructureInstanceNV {
+                transform: vk::TransformMatrixKHR { matrix: [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0] },
+                instance_custom_index_and_mask: vk::Packed24_8::new(0, inst.mask),
+                instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(inst.sbt_record_offset & 0xFF_FFFF, 0),
+                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR { device_handle: *handle },
+            })
+            .collect();
+        let record_bytes: Vec<u8> = records.iter().flat_map(|r| crate::structs::as_bytes(r).to_vec()).collect();
+        let inst_buf = Allocation::new(dev, record_bytes.len().max(64) as u64, usage, none, 256)?;
+        inst_buf.write(0, &record_bytes);
+        let inst_buffer = inst_buf.buffer;
+        scene.buffers.push(inst_buf);
+        let tlas_info = vk::AccelerationStructureInfoNV::default()
+            .ty(vk::AccelerationStructureTypeNV::TOP_LEVEL)
+            .instance_count(instances.len() as u32);
+        let (tlas, tlas_scratch) = make(tlas_info, scene)?;
+        scene.tlas = Tlas::Nv(tlas);
+
+        let d = &self.dev.device;
+        let cb = self.primary;
+        // SAFETY: the command buffer is idle; every structure is bound to memory.
+        unsafe {
+            d.reset_command_buffer(cb, vk::CommandBufferResetFlags::empty()).map_err(vkfail("vkResetCommandBuffer"))?;
+            d.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT))
+                .map_err(vkfail("vkBeginCommandBuffer"))?;
+            for (geoms, blas, scratch) in &blas_builds {
+                let info = vk::AccelerationStructureInfoNV::default().ty(vk::AccelerationStructureTypeNV::BOTTOM_LEVEL).geometries(geoms);
+                nv.cmd_build_acceleration_structure(cb, &info, vk::Buffer::null(), 0, false, *blas, vk::AccelerationStructureNV::null(), *scratch, 0);
+            }
+            let barrier = vk::MemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_NV)
+                .dst_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_READ_NV);
+            d.cmd_pipeline_barrier(
+                cb,
+                vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_NV,
+                vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_NV | vk::PipelineStageFlags::RAY_TRACING_SHADER_NV,
+                vk::DependencyFlags::empty(),
+                &[barrier],
+                &[],
+                &[],
+            );
+            nv.cmd_build_acceleration_structure(cb, &tlas_info, inst_buffer, 0, false, tlas, vk::AccelerationStructureNV::null(), tlas_scratch, 0);
+            d.end_command_buffer(cb).map_err(vkfail("vkEndCommandBuffer"))?;
+        }
+        self.submit_and_wait(std::time::Duration::from_secs(60))
+    }
+
+    /// Submits the primary command buffer and waits for it. A lost device or a submission that does not
+    /// finish marks the cache [`lost`](Self::lost): nothing is recorded or submitted on it again.
+    pub fn submit_and_wait(&mut self, timeout: std::time::Duration) -> Result<(), RealiseError> {
+        if self.lost {
+            return Err(RealiseError::Failed("the device was lost by an earlier case (ERROR_DEVICE_LOST)".into()));
+        }
         let d = &self.dev.device;
         let cbs = [self.primary];
         let submit = [vk::SubmitInfo::default().command_buffers(&cbs)];
         // SAFETY: the command buffer is executable; the fence is unsignalled.
         unsafe {
-            d.queue_submit(self.dev.queue, &submit, self.fence).map_err(vkfail("vkQueueSubmit"))?;
+            if let Err(r) = d.queue_submit(self.dev.queue, &submit, self.fence) {
+                self.lost |= r == vk::Result::ERROR_DEVICE_LOST;
+                return Err(RealiseError::Failed(format!("vkQueueSubmit failed: {r:?}")));
+            }
             let waited = d.wait_for_fences(&[self.fence], true, timeout.as_nanos().min(u64::MAX as u128) as u64);
             match waited {
                 Ok(()) => {}
                 Err(vk::Result::TIMEOUT) => {
-                    return Err(RealiseError::Failed(format!("TIMEOUT: the GPU did not finish within {timeout:?}")))
+                    self.lost = true;
+                    return Err(RealiseError::Failed(format!("TIMEOUT: the GPU did not finish within {timeout:?}")));
                 }
-                Err(r) => return Err(RealiseError::Failed(format!("vkWaitForFences failed: {r:?}"))),
+                Err(r) => {
+                    self.lost |= r == vk::Result::ERROR_DEVICE_LOST;
+                    return Err(RealiseError::Failed(format!("vkWaitForFences failed: {r:?}")));
+                }
             }
             d.reset_fences(&[self.fence]).map_err(vkfail("vkResetFences"))?;
         }
@@ -735,13 +1213,24 @@ impl DeviceCache {
                 unsafe { accel.destroy_acceleration_structure(s, None) };
             }
         }
+        if let Some(nv) = &self.dev.nv {
+            for s in scene.nv_structures {
+                // SAFETY: no pending work uses the structure.
+                unsafe { nv.destroy_acceleration_structure(s, None) };
+            }
+        }
+        for m in scene.nv_memory {
+            // SAFETY: the structures bound to it are destroyed above.
+            unsafe { self.dev.device.free_memory(m, None) };
+        }
         for b in scene.buffers {
             b.destroy(&self.dev);
         }
     }
 
-    /// Buffers at least `words` output words and `rays` ray records large (grown when needed).
-    pub fn io_buffers(&mut self, words: usize, rays: usize) -> Result<(), RealiseError> {
+    /// Buffers at least `words` output words, `rays` ray records and `callables` callable indices large
+    /// (grown when needed).
+    pub fn io_buffers(&mut self, words: usize, rays: usize, callables: usize) -> Result<(), RealiseError> {
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let want_out = (words.max(1) * 4) as u64;
         if self.output.as_ref().is_none_or(|a| a.size < want_out) {
@@ -756,6 +1245,13 @@ impl DeviceCache {
                 a.destroy(&self.dev);
             }
             self.rays = Some(Allocation::new(&self.dev, want_rays.max(4096), usage, vk::BufferCreateFlags::empty(), 1)?);
+        }
+        let want_calls = (16 + callables.max(1) * 4) as u64;
+        if self.callables.as_ref().is_none_or(|a| a.size < want_calls) {
+            if let Some(a) = self.callables.take() {
+                a.destroy(&self.dev);
+            }
+            self.callables = Some(Allocation::new(&self.dev, want_calls.max(256), usage, vk::BufferCreateFlags::empty(), 1)?);
         }
         Ok(())
     }
@@ -803,7 +1299,10 @@ impl DeviceCache {
         out: &mut Vec<(String, Allocation)>,
     ) -> Result<(), RealiseError> {
         use model::world::MemoryBinding;
-        let hs = self.dev.limits.handle_size as usize;
+        let hs = match pipeline {
+            Some((p, _)) if p.api == PipelineApi::Nv => self.dev.limits.nv_handle_size,
+            _ => self.dev.limits.handle_size,
+        } as usize;
         let needs_foreign = world.buffers.iter().any(|b| {
             b.contents.iter().any(|c| matches!(c, Contents::ShaderRecords { handles, .. } if handles.iter().any(|h| matches!(h, HandleRef::Foreign(_)))))
         });
@@ -824,26 +1323,41 @@ impl DeviceCache {
             ));
         }
         for b in &world.buffers {
-            if b.is_sparse() {
-                let why = if self.dev.sparse_binding {
-                    "sparse buffers are not realised by the harness yet"
-                } else {
-                    "the case has a sparse buffer but the device lacks sparseBinding"
-                };
-                return Err(RealiseError::Unsupported(format!("buffer `{}`: {why}", b.name)));
-            }
-            if b.memory != MemoryBinding::Whole {
-                return Err(RealiseError::Unsupported(format!(
-                    "buffer `{}`: memory binding {:?} is not realised by the harness yet",
-                    b.name, b.memory
-                )));
-            }
             let usage = vk::BufferUsageFlags::from_raw(b.usage.0 as u32);
             let flags = vk::BufferCreateFlags::from_raw(b.flags.0 as u32);
             if b.size == 0 {
                 return Err(RealiseError::Unsupported(format!("buffer `{}` has size 0, which cannot be created", b.name)));
             }
-            let a = Allocation::new(&self.dev, b.size, usage, flags, BUFFER_PLACEMENT_ALIGNMENT)?;
+            let a = if b.is_sparse() {
+                let plan = match b.memory {
+                    MemoryBinding::Whole => SparsePlan::One,
+                    MemoryBinding::Unbound => SparsePlan::Unbound,
+                    MemoryBinding::Scattered => SparsePlan::Two,
+                };
+                self.check_sparse(b)?;
+                Allocation::sparse(&self.dev, self.fence, b.size, usage, flags, plan)?
+            } else {
+                match b.memory {
+                    MemoryBinding::Whole => {}
+                    MemoryBinding::Unbound => {
+                        return Err(RealiseError::Unsupported(format!(
+                            "buffer `{}` is not sparse and has no memory bound: vkGetBufferDeviceAddress on it is \
+                             itself invalid (VUID-VkBufferDeviceAddressInfo-buffer-02600: a non-sparse buffer must be \
+                             bound completely and contiguously to a single VkDeviceMemory object), so the harness \
+                             cannot give it the address the call uses",
+                            b.name
+                        )))
+                    }
+                    MemoryBinding::Scattered => {
+                        return Err(RealiseError::Unsupported(format!(
+                            "buffer `{}` is not sparse, so it cannot be bound to several memory objects \
+                             (vkBindBufferMemory binds one; VUID-VkBufferDeviceAddressInfo-buffer-02600)",
+                            b.name
+                        )))
+                    }
+                }
+                Allocation::new(&self.dev, b.size, usage, flags, BUFFER_PLACEMENT_ALIGNMENT)?
+            };
             for c in &b.contents {
                 match c {
                     Contents::ShaderRecords { offset, stride, handles } => {
@@ -873,8 +1387,51 @@ impl DeviceCache {
     }
 }
 
+impl DeviceCache {
+    /// Why a sparse buffer cannot be made validly here, if it cannot: the features its flags need must be
+    /// enabled (VUID-VkBufferCreateInfo-flags-00915/00916/00917) and the harness's queue must bind sparse.
+    fn check_sparse(&self, b: &model::world::Buffer) -> Result<(), RealiseError> {
+        use model::flags::BufferCreate;
+        let needs = [
+            (BufferCreate::SPARSE_BINDING_BIT, "sparseBinding", "VUID-VkBufferCreateInfo-flags-00915"),
+            (BufferCreate::SPARSE_RESIDENCY_BIT, "sparseResidencyBuffer", "VUID-VkBufferCreateInfo-flags-00916"),
+            (BufferCreate::SPARSE_ALIASED_BIT, "sparseResidencyAliased", "VUID-VkBufferCreateInfo-flags-00917"),
+        ];
+        for (flag, feature, vuid) in needs {
+            if b.flags.contains(flag) && !self.dev.has_feature(feature) {
+                return Err(RealiseError::Unsupported(format!(
+                    "buffer `{}` is sparse but the case does not enable {feature}, so creating it is invalid ({vuid})",
+                    b.name
+                )));
+            }
+        }
+        if !b.flags.contains(BufferCreate::SPARSE_BINDING_BIT) {
+            return Err(RealiseError::Unsupported(format!(
+                "buffer `{}` has sparse residency/aliasing flags without SPARSE_BINDING (VUID-VkBufferCreateInfo-flags-00918)",
+                b.name
+            )));
+        }
+        if !self.dev.sparse_binding {
+            return Err(RealiseError::Unsupported(format!(
+                "buffer `{}` is sparse but the device lacks sparseBinding or its compute queue family has no \
+                 VK_QUEUE_SPARSE_BINDING_BIT, so vkQueueBindSparse cannot bind it",
+                b.name
+            )));
+        }
+        Ok(())
+    }
+}
+
 impl Drop for DeviceCache {
     fn drop(&mut self) {
+        if self.lost {
+            // A lost device: destroying its objects is allowed but waiting on it may not return on every
+            // driver, and a timed-out submission may still be running. Leak every object (handles have no
+            // destructor of their own) and the VkDevice with the instance it holds, rather than free memory
+            // the GPU may still use or block the process; the worker then starts a fresh instance.
+            self.dev.leak = true;
+            return;
+        }
         // SAFETY: the device is idle after this wait; everything below was made from it.
         unsafe {
             let _ = self.dev.device.device_wait_idle();
@@ -911,6 +1468,9 @@ impl Drop for DeviceCache {
             a.destroy(&self.dev);
         }
         if let Some(a) = self.rays.take() {
+            a.destroy(&self.dev);
+        }
+        if let Some(a) = self.callables.take() {
             a.destroy(&self.dev);
         }
     }

@@ -342,6 +342,8 @@ pub struct RtLimits {
     pub handle_alignment: u32,
     pub base_alignment: u32,
     pub scratch_alignment: u32,
+    /// `VkPhysicalDeviceRayTracingPropertiesNV::shaderGroupHandleSize` (0 without VK_NV_ray_tracing).
+    pub nv_handle_size: u32,
 }
 
 /// A logical device with exactly a case's extensions and features, and what the harness needs of it.
@@ -357,6 +359,11 @@ pub struct VkDevice {
     pub memory: vk::PhysicalDeviceMemoryProperties,
     pub limits: RtLimits,
     pub sparse_binding: bool,
+    /// VK_NV_ray_tracing, when the case enables it.
+    pub nv: Option<ash::nv::ray_tracing::Device>,
+    /// Set by the owner when the device was lost or a submission never finished: dropping then neither
+    /// waits for nor destroys the device, and keeps its instance alive (a leak, never a hang).
+    pub leak: bool,
 }
 
 impl VkDevice {
@@ -398,6 +405,9 @@ impl VkDevice {
         let rt = extensions
             .contains("VK_KHR_ray_tracing_pipeline")
             .then(|| ash::khr::ray_tracing_pipeline::Device::new(&inst.instance, &device));
+        let nv = extensions
+            .contains("VK_NV_ray_tracing")
+            .then(|| ash::nv::ray_tracing::Device::new(&inst.instance, &device));
         let accel = extensions
             .contains("VK_KHR_acceleration_structure")
             .then(|| ash::khr::acceleration_structure::Device::new(&inst.instance, &device));
@@ -405,7 +415,11 @@ impl VkDevice {
         let memory = unsafe { inst.instance.get_physical_device_memory_properties(inst.physical) };
         let mut rtp = vk::PhysicalDeviceRayTracingPipelinePropertiesKHR::default();
         let mut asp = vk::PhysicalDeviceAccelerationStructurePropertiesKHR::default();
+        let mut nvp = vk::PhysicalDeviceRayTracingPropertiesNV::default();
         let mut p2 = vk::PhysicalDeviceProperties2::default();
+        if available.contains("VK_NV_ray_tracing") {
+            p2 = p2.push_next(&mut nvp);
+        }
         if available.contains("VK_KHR_ray_tracing_pipeline") {
             p2 = p2.push_next(&mut rtp);
         }
@@ -414,11 +428,14 @@ impl VkDevice {
         }
         // SAFETY: chain of structures the device supports.
         unsafe { inst.instance.get_physical_device_properties2(inst.physical, &mut p2) };
+        // A case with only VK_NV_ray_tracing lays its tables out with the NV properties.
+        let nv_only = rtp.shader_group_handle_size == 0;
         let limits = RtLimits {
-            handle_size: rtp.shader_group_handle_size,
-            handle_alignment: rtp.shader_group_handle_alignment,
-            base_alignment: rtp.shader_group_base_alignment,
+            handle_size: if nv_only { nvp.shader_group_handle_size } else { rtp.shader_group_handle_size },
+            handle_alignment: if nv_only { nvp.shader_group_handle_size } else { rtp.shader_group_handle_alignment },
+            base_alignment: if nv_only { nvp.shader_group_base_alignment } else { rtp.shader_group_base_alignment },
             scratch_alignment: asp.min_acceleration_structure_scratch_offset_alignment,
+            nv_handle_size: nvp.shader_group_handle_size,
         };
         let sparse_binding = supported.get("VkPhysicalDeviceFeatures::sparseBinding").copied().unwrap_or(false)
             && families[family].queue_flags.contains(vk::QueueFlags::SPARSE_BINDING);
@@ -434,6 +451,8 @@ impl VkDevice {
             memory,
             limits,
             sparse_binding,
+            nv,
+            leak: false,
         })
     }
 
@@ -452,6 +471,10 @@ impl VkDevice {
 
 impl Drop for VkDevice {
     fn drop(&mut self) {
+        if self.leak {
+            std::mem::forget(self.inst.clone());
+            return;
+        }
         // SAFETY: every object made from the device is destroyed by its owner before this runs.
         unsafe {
             let _ = self.device.device_wait_idle();

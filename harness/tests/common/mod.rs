@@ -60,10 +60,11 @@ pub fn valid_case() -> Case {
             ],
             max_recursion_depth: 1,
             dynamic_stack_size: false,
+            allow_cluster_acceleration_structures: false,
         }),
         command_buffer: CommandBufferState::default(),
         launch: Launch {
-            instances: vec![Instance { geometries: vec![GeometryKind::Triangles], sbt_record_offset: 0, mask: 0xff }],
+            instances: vec![Instance { geometries: vec![GeometryKind::Triangles], sbt_record_offset: 0, mask: 0xff, cluster: false }],
             rays: vec![
                 ray(RayTarget::Geometry { instance: 0, geometry: 0 }, 0),
                 ray(RayTarget::Nothing, 0),
@@ -98,5 +99,37 @@ pub fn bad_miss_stride_case() -> Case {
         c.miss.size = 80;
     }
     case.intent = Intent::Violates { vuid: "VUID-vkCmdTraceRaysIndirectKHR-stride-03686".into(), also: vec![] };
+    case
+}
+
+/// A direct 3x2x1 launch whose raygen executes callable records 1 and 0 and whose closest-hit traces its ray
+/// twice more (extra_recursion 2, maxPipelineRayRecursionDepth 3): raygen, miss, triangle hit, two callable
+/// groups; rays hit the triangle, miss with index 0, miss with index 1.
+#[allow(dead_code)] // used by the lavapipe tests only
+pub fn recursive_callable_case() -> Case {
+    let mut case = valid_case();
+    case.name = "hand-made-callables-recursion".into();
+    let w = &mut case.world;
+    w.buffers[0].contents.push(Contents::ShaderRecords {
+        offset: 192,
+        stride: 32,
+        handles: vec![HandleRef::Group(4), HandleRef::Group(5)],
+    });
+    let p = w.pipeline.as_mut().expect("the valid case has a pipeline");
+    p.groups.push(ShaderGroup::General { stage: GeneralStage::Callable });
+    p.groups.push(ShaderGroup::General { stage: GeneralStage::Callable });
+    p.max_recursion_depth = 3;
+    w.launch.callables = vec![1, 0];
+    w.launch.extra_recursion = 2;
+    let Call::TraceRaysIndirect(c) = &case.call else { unreachable!() };
+    case.call = Call::TraceRays(model::call::TraceRays {
+        raygen: c.raygen.clone(),
+        miss: c.miss.clone(),
+        hit: c.hit.clone(),
+        callable: StridedRegion { address: at("sbt", 192), stride: 32, size: 64 },
+        width: 3,
+        height: 2,
+        depth: 1,
+    });
     case
 }
