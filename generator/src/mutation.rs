@@ -323,7 +323,7 @@ fn add_hit_ray(plan: &mut Plan, kind: GeometryKind, h: HandleRef) {
     let table = &mut plan.tables[Table::Hit as usize];
     let idx = table.records.len() as u32;
     table.records.push(h);
-    plan.launch.instances.push(Instance { geometries: vec![kind], sbt_record_offset: idx, mask: 0xff });
+    plan.launch.instances.push(Instance { geometries: vec![kind], sbt_record_offset: idx, mask: 0xff, cluster: false });
     let instance = plan.launch.instances.len() as u32 - 1;
     plan.launch.rays.push(TraceRay {
         target: RayTarget::Geometry { instance, geometry: 0 },

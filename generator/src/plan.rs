@@ -341,6 +341,7 @@ pub fn realize(plan: &Plan, lim: &Limits) -> (World, Call) {
             groups: plan.groups.clone(),
             max_recursion_depth: plan.max_recursion_depth,
             dynamic_stack_size: plan.dynamic_stack_size,
+            allow_cluster_acceleration_structures: false,
         }),
         command_buffer: plan.command_buffer.clone(),
         launch: plan.launch.clone(),

@@ -196,6 +196,7 @@ pub fn resolve(raw: &Raw, profile: &DeviceProfile, lim: &Limits, command: Comman
             },
             sbt_record_offset: *off,
             mask: 0xff,
+            cluster: false,
         })
         .collect();
     let mut targets = vec![RayTarget::Nothing];

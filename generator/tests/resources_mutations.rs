@@ -98,15 +98,20 @@ fn vendor_mutations_fire_their_rule_in_the_model() {
             let tags = mutate(m, &mut st, &mut case.world.device, &mut case.world.command_buffer, &profile, k as u32).unwrap();
             case.world.resources = st;
             let row = rules.row(&vuid).unwrap();
-            let mut exts = case.world.device.extensions.clone();
-            // Enable what the row's condition names, as a device with the extension would.
-            for n in row.condition.names() {
-                if !n.starts_with("VK_VERSION_") {
-                    exts.insert(n.to_string());
+            // Enable what the row's condition names, as a device with the extension would: all of them,
+            // or, where the condition excludes one (`…+(A,B)+!(B)`), one of them at a time.
+            let base = case.world.device.extensions.clone();
+            let names: Vec<String> =
+                row.condition.names().into_iter().filter(|n| !n.starts_with("VK_VERSION_")).map(String::from).collect();
+            let mut candidates = vec![names.clone()];
+            candidates.extend(names.iter().map(|n| vec![n.clone()]));
+            for extra in candidates {
+                let mut exts = base.clone();
+                exts.extend(extra);
+                if row.condition.eval(&|n: &str| exts.contains(n) || n.starts_with("VK_VERSION_1_")) {
+                    case.world.device.extensions = exts;
+                    break;
                 }
-            }
-            if row.condition.eval(&|n: &str| exts.contains(n) || n.starts_with("VK_VERSION_1_")) {
-                case.world.device.extensions = exts;
             }
             let v = model::validate(&rules, &profile, &case.world, &case.call);
             let got: BTreeSet<String> = v.vuids().into_iter().map(String::from).collect();

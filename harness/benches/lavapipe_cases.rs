@@ -55,10 +55,11 @@ fn case(miss_stride: u64, width: u32) -> Case {
             ],
             max_recursion_depth: 1,
             dynamic_stack_size: false,
+            allow_cluster_acceleration_structures: false,
         }),
         command_buffer: CommandBufferState::default(),
         launch: Launch {
-            instances: vec![Instance { geometries: vec![GeometryKind::Triangles], sbt_record_offset: 0, mask: 0xff }],
+            instances: vec![Instance { geometries: vec![GeometryKind::Triangles], sbt_record_offset: 0, mask: 0xff, cluster: false }],
             rays: vec![ray(RayTarget::Geometry { instance: 0, geometry: 0 }, 0), ray(RayTarget::Nothing, 1)],
             callables: vec![],
             extra_recursion: 0,

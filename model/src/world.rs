@@ -136,6 +136,9 @@ pub struct Pipeline {
     /// Created with `VK_DYNAMIC_STATE_RAY_TRACING_PIPELINE_STACK_SIZE_KHR`.
     #[serde(default, skip_serializing_if = "is_default")]
     pub dynamic_stack_size: bool,
+    /// `VkRayTracingPipelineClusterAccelerationStructureCreateInfoNV::allowClusterAccelerationStructure`.
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub allow_cluster_acceleration_structures: bool,
 }
 
 /// Command buffer lifecycle state.
@@ -216,6 +219,9 @@ pub struct Instance {
     pub sbt_record_offset: u32,
     #[serde(default = "full_mask")]
     pub mask: u8,
+    /// The instance references a cluster acceleration structure (VK_NV_cluster_acceleration_structure).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub cluster: bool,
 }
 
 /// What a ray traced by the raygen shader aims at.

@@ -86,6 +86,9 @@ fn hand_rule(scope: &str, tag: &str) -> Option<Predicate> {
         "04736" => Predicate::HitGroupTypeMatchesGeometry(crate::world::GeometryKind::Aabbs),
         // VUID-…-commandBuffer-02701 and -None-09458: dynamic stack size set when dynamic.
         "02701" | "09458" => Predicate::DynamicStackSizeSet,
+        // VUID-…-allowClusterAccelerationStructure-10577/10578 (and the indirect command's): a scene
+        // with cluster acceleration structures needs a pipeline created to allow them.
+        "10577" | "10578" | "10579" => Predicate::ClusterStructuresAllowed,
         // VUID-…-None-02859 and -None-08608: no dynamic state set that the pipeline has static.
         "02859" | "08608" => Predicate::NoStaticStateSet,
         // VUID-…-commandBuffer-02707: no protected resource from an unprotected command buffer.

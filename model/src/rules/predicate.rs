@@ -67,6 +67,7 @@ pub enum Predicate {
     NoNullHitReached(NullHitKind),
     HitGroupTypeMatchesGeometry(GeometryKind),
     DynamicStackSizeSet,
+    ClusterStructuresAllowed,
     NoStaticStateSet,
     NoProtectedResourceFromUnprotected,
     /// issue 4: a resource-access rule shared with draw/dispatch, judged by `crate::resources`.
@@ -392,6 +393,12 @@ impl Predicate {
                             push(fail(format!("hit record {index}"), format!("group {g} is not a {kind:?} hit group")));
                         }
                     }
+                }
+            }
+            Predicate::ClusterStructuresAllowed => {
+                let Some(pl) = world.bound_pipeline() else { return };
+                if !pl.allow_cluster_acceleration_structures && world.launch.instances.iter().any(|i| i.cluster) {
+                    push(fail("world.launch.instances", "the scene holds a cluster acceleration structure but the pipeline does not allow them"));
                 }
             }
             Predicate::DynamicStackSizeSet => {
