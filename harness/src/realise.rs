@@ -1317,7 +1317,9 @@ impl DeviceCache {
             }
             _ => Vec::new(),
         };
-        if !self.dev.has_feature("bufferDeviceAddress") && !world.buffers.is_empty() {
+        // KHR calls name buffers by device address; vkCmdTraceRaysNV names them by handle and needs none.
+        let wants_address = pipeline.is_none_or(|(p, _)| p.api == PipelineApi::Khr);
+        if !self.dev.has_feature("bufferDeviceAddress") && wants_address && !world.buffers.is_empty() {
             return Err(RealiseError::Unsupported(
                 "the case does not enable bufferDeviceAddress, so the harness cannot give its buffers addresses".into(),
             ));
