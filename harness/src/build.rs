@@ -8,7 +8,7 @@
 //! for real too and must trace the same.
 
 use crate::realise::{Allocation, RealiseError};
-use crate::vulkan::{VkDevice, VkInstance};
+use crate::vulkan::{LayerMessage, VkDevice, VkInstance};
 use ash::vk;
 use model::build::call::{BuildGeometryInfo, BuildMode, GeometryData, IndexType, VertexFormat};
 use model::build::semantics::Shape;
@@ -20,13 +20,16 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::sync::Arc;
 
 /// What one build case did on the device.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct BuildObservation {
     pub case: String,
-    /// `ran`, `unsupported: …` or `failed: …`.
+    /// `ran`, `unsupported: …`, `failed: …`, `crash: …` or `timeout: …` (the last two from the worker pool).
     pub status: String,
     /// VUIDs the layer reported for the indirect call, sorted.
     pub layer_vuids: Vec<String>,
+    /// The layer's messages for the indirect call, in full.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub layer_messages: Vec<LayerMessage>,
     /// VUIDs the model predicts with the device's build sizes, sorted.
     pub model_vuids: Vec<String>,
     /// The sizes the device reported per info.
@@ -34,8 +37,41 @@ pub struct BuildObservation {
     /// For valid cases: rays traced against the directly built structure, and those that disagreed.
     pub rays: usize,
     pub ray_mismatches: Vec<String>,
+    /// What each ray reported: `(instance, geometry, primitive)` of its hit, or None for a miss.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ray_hits: Vec<Option<(u32, u32, u32)>>,
+    /// How the rays were traced: `ray-query` (compute shader) or `pipeline` (raygen + closest-hit).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub check: String,
     /// Layer messages for the direct build of a valid case (must be none).
     pub direct_layer_vuids: Vec<String>,
+    /// Where the device has accelerationStructureIndirectBuild: the indirect build ran for real, and
+    /// how its traced result differed from the direct build's (must not).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub indirect_ran: bool,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub indirect_vs_direct: Vec<String>,
+    /// Layer VUIDs of the real indirect build (must be none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub indirect_layer_vuids: Vec<String>,
+}
+
+/// Which traced check a valid case uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TraceCheck {
+    /// Ray query where the device has it, else a ray tracing pipeline.
+    #[default]
+    Auto,
+    RayQuery,
+    Pipeline,
+}
+
+/// How a build case is run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub struct BuildOptions {
+    #[serde(default)]
+    pub check: TraceCheck,
 }
 
 fn fail(what: &'static str) -> impl Fn(vk::Result) -> String {
@@ -162,13 +198,21 @@ fn vk_info<'a>(info: &BuildGeometryInfo, geoms: &'a [vk::AccelerationStructureGe
         .scratch_data(vk::DeviceOrHostAddressKHR { device_address: r.address(&info.scratch) })
 }
 
-/// A device for build cases: the case's extensions and features plus ray query for the traced check.
-pub fn device_for(inst: &Arc<VkInstance>, case: &BuildCase) -> Result<VkDevice, String> {
+/// A device for build cases: the case's extensions and features plus what the traced check needs
+/// (ray query, or a ray tracing pipeline where ray query is absent or the pipeline check is asked for).
+pub fn device_for(inst: &Arc<VkInstance>, case: &BuildCase, check: TraceCheck) -> Result<VkDevice, String> {
     let mut ext = case.world.device.extensions.clone();
     let mut feat = case.world.device.features.clone();
-    if inst.device_extensions().contains("VK_KHR_ray_query") {
+    let available = inst.device_extensions();
+    let query = available.contains("VK_KHR_ray_query");
+    if check != TraceCheck::Pipeline && query {
         ext.insert("VK_KHR_ray_query".into());
         feat.insert("rayQuery".into());
+    }
+    let pipeline = check == TraceCheck::Pipeline || (check == TraceCheck::Auto && !query);
+    if pipeline && available.contains("VK_KHR_ray_tracing_pipeline") {
+        ext.insert("VK_KHR_ray_tracing_pipeline".into());
+        feat.insert("rayTracingPipeline".into());
     }
     VkDevice::new(inst.clone(), &ext, &feat).map_err(|e| match e {
         crate::vulkan::DeviceError::Unsupported(s) => format!("unsupported: {s}"),
@@ -278,12 +322,16 @@ impl Commands {
         let b = vk::MemoryBarrier::default()
             .src_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR)
             .dst_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR | vk::AccessFlags::SHADER_READ);
+        let mut dst = vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR | vk::PipelineStageFlags::COMPUTE_SHADER;
+        if dev.has_feature("rayTracingPipeline") {
+            dst |= vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR;
+        }
         // SAFETY: recording.
         unsafe {
             dev.device.cmd_pipeline_barrier(
                 self.cb,
                 vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR,
-                vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR | vk::PipelineStageFlags::COMPUTE_SHADER,
+                dst,
                 vk::DependencyFlags::empty(),
                 &[b],
                 &[],
@@ -305,15 +353,26 @@ fn vuids(messages: &[crate::vulkan::LayerMessage]) -> Vec<String> {
     s.into_iter().collect()
 }
 
+/// The Vulkan form of the case's indirect call: infos (with their geometries kept alive), addresses,
+/// strides and maxima.
+fn indirect_args<'a>(
+    case: &'a BuildCase,
+    r: &Realised,
+    geoms: &'a [Vec<vk::AccelerationStructureGeometryKHR<'static>>],
+) -> (Vec<vk::AccelerationStructureBuildGeometryInfoKHR<'a>>, Vec<u64>, Vec<&'a [u32]>) {
+    let infos = case.call.infos.iter().zip(geoms).map(|(i, g)| vk_info(i, g, r)).collect();
+    let addrs = case.call.indirect_addresses.iter().map(|a| r.address(a)).collect();
+    let maxima = case.call.max_primitive_counts.iter().map(|v| v.as_slice()).collect();
+    (infos, addrs, maxima)
+}
+
 /// Records the indirect call under the layer (dropped by the messenger, never submitted) and returns
-/// the VUIDs the layer reported.
-fn record_indirect(inst: &VkInstance, dev: &VkDevice, cmds: &Commands, case: &BuildCase, r: &Realised) -> Result<Vec<String>, String> {
+/// the layer's messages.
+fn record_indirect(inst: &VkInstance, dev: &VkDevice, cmds: &Commands, case: &BuildCase, r: &Realised) -> Result<Vec<LayerMessage>, String> {
     let accel = dev.accel.as_ref().ok_or("unsupported: no VK_KHR_acceleration_structure")?;
     let geoms: Vec<Vec<vk::AccelerationStructureGeometryKHR>> =
         case.call.infos.iter().map(|i| vk_geometries(i, r)).collect::<Option<_>>().ok_or("unsupported: geometry type not realised")?;
-    let infos: Vec<vk::AccelerationStructureBuildGeometryInfoKHR> = case.call.infos.iter().zip(&geoms).map(|(i, g)| vk_info(i, g, r)).collect();
-    let addrs: Vec<u64> = case.call.indirect_addresses.iter().map(|a| r.address(a)).collect();
-    let maxima: Vec<&[u32]> = case.call.max_primitive_counts.iter().map(|v| v.as_slice()).collect();
+    let (infos, addrs, maxima) = indirect_args(case, r, &geoms);
     cmds.begin(dev)?;
     inst.collector.clear();
     inst.collector.set_abort(true);
@@ -325,29 +384,33 @@ fn record_indirect(inst: &VkInstance, dev: &VkDevice, cmds: &Commands, case: &Bu
     unsafe {
         let _ = dev.device.end_command_buffer(cmds.cb);
     }
-    Ok(vuids(&msgs))
+    Ok(msgs)
+}
+
+/// Runs one build case with the default options (see [`run_case_with`]).
+pub fn run_case(inst: &Arc<VkInstance>, profile: &DeviceProfile, rules: &BuildRuleSet, case: &BuildCase, unavoidable: &[String]) -> BuildObservation {
+    run_case_with(inst, profile, rules, case, unavoidable, BuildOptions::default())
 }
 
 /// Runs one build case: the indirect call under the layer, the model's verdict with the device's sizes,
-/// and for a case valid apart from `unavoidable`, the direct build traced against the model.
-pub fn run_case(inst: &Arc<VkInstance>, profile: &DeviceProfile, rules: &BuildRuleSet, case: &BuildCase, unavoidable: &[String]) -> BuildObservation {
-    let mut obs = BuildObservation {
-        case: case.name.clone(),
-        status: "ran".into(),
-        layer_vuids: vec![],
-        model_vuids: vec![],
-        device_sizes: vec![],
-        rays: 0,
-        ray_mismatches: vec![],
-        direct_layer_vuids: vec![],
-    };
+/// and for a case valid apart from `unavoidable`, the direct build traced against the model (and, where
+/// the device has accelerationStructureIndirectBuild, the indirect build for real, traced the same).
+pub fn run_case_with(
+    inst: &Arc<VkInstance>,
+    profile: &DeviceProfile,
+    rules: &BuildRuleSet,
+    case: &BuildCase,
+    unavoidable: &[String],
+    options: BuildOptions,
+) -> BuildObservation {
+    let mut obs = BuildObservation { case: case.name.clone(), status: "ran".into(), ..Default::default() };
     // The harness records into a fresh primary command buffer of a compute-capable pool, outside any
     // render pass or video coding scope; other command buffer states are not realised yet.
     if case.world.command_buffer != model::world::CommandBufferState::default() || case.world.between_suspended_render_passes {
         obs.status = "unsupported: command buffer states other than a plain recording primary are not realised for builds".into();
         return obs;
     }
-    let dev = match device_for(inst, case) {
+    let dev = match device_for(inst, case, options.check) {
         Ok(d) => d,
         Err(e) => {
             obs.status = e;
@@ -366,12 +429,10 @@ pub fn run_case(inst: &Arc<VkInstance>, profile: &DeviceProfile, rules: &BuildRu
             let verdict = rules.validate(profile, &world, &case.call);
             let set: BTreeSet<String> = verdict.violations.into_iter().map(|v| v.vuid).collect();
             obs.model_vuids = set.iter().cloned().collect();
-            obs.layer_vuids = record_indirect(inst, &dev, &cmds, case, &r)?;
+            obs.layer_messages = record_indirect(inst, &dev, &cmds, case, &r)?;
+            obs.layer_vuids = vuids(&obs.layer_messages);
             if obs.model_vuids.iter().all(|v| unavoidable.contains(v)) {
-                let (n, bad, direct) = direct_and_trace(inst, &dev, &cmds, case, &r, &world)?;
-                obs.rays = n;
-                obs.ray_mismatches = bad;
-                obs.direct_layer_vuids = direct;
+                direct_and_trace(inst, &dev, &cmds, case, &r, &world, options.check, &mut obs)?;
             }
             Ok(())
         })();
@@ -454,15 +515,16 @@ void main() {
 
 fn compile_trace_shader() -> Result<Vec<u32>, String> {
     static SPIRV: std::sync::OnceLock<Result<Vec<u32>, String>> = std::sync::OnceLock::new();
-    SPIRV.get_or_init(compile_trace_shader_now).clone()
+    SPIRV.get_or_init(|| compile_glsl("trace.comp", TRACE_COMP)).clone()
 }
 
-fn compile_trace_shader_now() -> Result<Vec<u32>, String> {
+/// Compiles one GLSL shader with glslangValidator (the stage from the file name's extension).
+fn compile_glsl(file: &str, text: &str) -> Result<Vec<u32>, String> {
     let dir = std::env::temp_dir().join(format!("rtconf-build-{}", std::process::id()));
     std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
-    let src = dir.join("trace.comp");
-    let spv = dir.join("trace.spv");
-    std::fs::write(&src, TRACE_COMP).map_err(|e| e.to_string())?;
+    let src = dir.join(file);
+    let spv = dir.join(format!("{file}.spv"));
+    std::fs::write(&src, text).map_err(|e| e.to_string())?;
     let out = std::process::Command::new("glslangValidator")
         .args(["--target-env", "vulkan1.2", "-V"])
         .arg(&src)
@@ -471,7 +533,7 @@ fn compile_trace_shader_now() -> Result<Vec<u32>, String> {
         .output()
         .map_err(|e| format!("unsupported: glslangValidator is not available ({e})"))?;
     if !out.status.success() {
-        return Err(format!("glslangValidator: {}", String::from_utf8_lossy(&out.stdout)));
+        return Err(format!("glslangValidator {file}: {}", String::from_utf8_lossy(&out.stdout)));
     }
     let bytes = std::fs::read(&spv).map_err(|e| e.to_string())?;
     Ok(bytes.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
@@ -502,12 +564,37 @@ fn build_direct(
     let info = info.dst_acceleration_structure(s).scratch_data(vk::DeviceOrHostAddressKHR { device_address: scratch.address });
     // SAFETY: recording.
     unsafe { accel.cmd_build_acceleration_structures(cmds.cb, &[info], &[ranges]) };
+    cmds.barrier(dev);
     cmds.submit(dev)?;
     Ok((s, addr, storage, scratch))
 }
 
-/// The valid case as a direct build with the ranges the model reads, then one ray per primitive.
-/// Returns (rays traced, mismatches, layer VUIDs of the direct build).
+/// How the structure under test is built.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum BuildPath {
+    /// `vkCmdBuildAccelerationStructuresKHR` with the ranges the model reads from memory.
+    Direct,
+    /// The case's own `vkCmdBuildAccelerationStructuresIndirectKHR`, submitted.
+    Indirect,
+}
+
+/// The check a device gets: ray query unless the pipeline is asked for or ray query is absent.
+fn resolve_check(dev: &VkDevice, check: TraceCheck) -> Result<TraceCheck, String> {
+    let query = dev.has_feature("rayQuery");
+    let pipeline = dev.has_feature("rayTracingPipeline") && dev.rt.is_some();
+    match check {
+        TraceCheck::RayQuery if query => Ok(TraceCheck::RayQuery),
+        TraceCheck::Pipeline if pipeline => Ok(TraceCheck::Pipeline),
+        TraceCheck::Auto if query => Ok(TraceCheck::RayQuery),
+        TraceCheck::Auto if pipeline => Ok(TraceCheck::Pipeline),
+        _ => Err(format!("unsupported: the traced check ({check:?}) needs rayQuery or rayTracingPipeline")),
+    }
+}
+
+/// The valid case as a direct build with the ranges the model reads, then one ray per primitive; where
+/// the device has accelerationStructureIndirectBuild, the case's indirect build is submitted too and
+/// traced with the same rays, and must report what the direct build did.
+#[allow(clippy::too_many_arguments)]
 fn direct_and_trace(
     inst: &VkInstance,
     dev: &VkDevice,
@@ -515,10 +602,10 @@ fn direct_and_trace(
     case: &BuildCase,
     r: &Realised,
     world: &model::build::BuildWorld,
-) -> Result<(usize, Vec<String>, Vec<String>), String> {
-    if !dev.has_feature("rayQuery") {
-        return Err("unsupported: the traced check needs rayQuery".into());
-    }
+    check: TraceCheck,
+    obs: &mut BuildObservation,
+) -> Result<(), String> {
+    let check = resolve_check(dev, check)?;
     if case.call.infos.len() != 1 {
         return Err("unsupported: the traced check handles one build info".into());
     }
@@ -530,8 +617,7 @@ fn direct_and_trace(
     let prims = model::build::build_primitives(&mem, info, &ranges).map_err(|e| e.to_string())?;
     drop(mem);
     let mut extra: Vec<Allocation> = Vec::new();
-    let mut extra_as: Vec<vk::AccelerationStructureKHR> = Vec::new();
-    let result = (|| -> Result<(usize, Vec<String>, Vec<String>), String> {
+    let result = (|| -> Result<(), String> {
         // Top-level cases reference the BLAS: build it first (one triangle at the origin).
         if top {
             let tri: Vec<u8> = [-0.5f32, -0.5, 0.0, 0.5, -0.5, 0.0, 0.0, 0.5, 0.0].iter().flat_map(|f| f.to_le_bytes()).collect();
@@ -556,26 +642,95 @@ fn direct_and_trace(
             cmds.begin(dev)?;
             // SAFETY: recording.
             unsafe { accel.cmd_build_acceleration_structures(cmds.cb, &[bi], &[&[vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(1)]]) };
+            cmds.barrier(dev);
             cmds.submit(dev)?;
             extra.push(vb);
             extra.push(scratch);
         }
-        // The direct build of the case, with the same ranges, under the layer.
+        let rays = expected_rays(&prims, top);
+        let boxes = box_table(info, &prims);
+        let (hits, direct) = build_and_trace(inst, dev, cmds, case, r, &ranges, BuildPath::Direct, check, &rays, &boxes)?;
+        obs.check = match check {
+            TraceCheck::Pipeline => "pipeline",
+            _ => "ray-query",
+        }
+        .into();
+        obs.direct_layer_vuids = direct;
+        obs.rays = rays.len();
+        obs.ray_hits = hits.clone();
+        for (k, (ray, got)) in rays.iter().zip(&hits).enumerate() {
+            if *got != ray.hit {
+                obs.ray_mismatches.push(format!("ray {k} at {:?}: expected {:?}, device {:?}", ray.origin, ray.hit, got));
+            }
+        }
+        if dev.has_feature("accelerationStructureIndirectBuild") {
+            let (ihits, ivuids) = build_and_trace(inst, dev, cmds, case, r, &ranges, BuildPath::Indirect, check, &rays, &boxes)?;
+            obs.indirect_ran = true;
+            obs.indirect_layer_vuids = ivuids;
+            for (k, (d, i)) in hits.iter().zip(&ihits).enumerate() {
+                if d != i {
+                    obs.indirect_vs_direct.push(format!("ray {k} at {:?}: direct build {d:?}, indirect build {i:?}", rays[k].origin));
+                }
+            }
+        }
+        Ok(())
+    })();
+    for a in extra {
+        a.destroy(dev);
+    }
+    result
+}
+
+/// Builds the case's destination one way, under the layer, and traces the rays at it (a bottom-level
+/// result through a one-instance TLAS). Returns what each ray hit and the layer's VUIDs for the build.
+#[allow(clippy::too_many_arguments)]
+fn build_and_trace(
+    inst: &VkInstance,
+    dev: &VkDevice,
+    cmds: &Commands,
+    case: &BuildCase,
+    r: &Realised,
+    ranges: &[model::build::RangeInfo],
+    path: BuildPath,
+    check: TraceCheck,
+    rays: &[ExpectedRay],
+    boxes: &[u8],
+) -> Result<(Vec<Option<(u32, u32, u32)>>, Vec<String>), String> {
+    let accel = dev.accel.as_ref().ok_or("no acceleration structure extension")?;
+    let info = &case.call.infos[0];
+    let top = info.ty == AsType::TopLevel;
+    let mut extra: Vec<Allocation> = Vec::new();
+    let mut extra_as: Vec<vk::AccelerationStructureKHR> = Vec::new();
+    let result = (|| -> Result<(Vec<Option<(u32, u32, u32)>>, Vec<String>), String> {
         let geoms = vk_geometries(info, r).ok_or("unsupported: geometry type not realised")?;
-        let vi = vk_info(info, &geoms, r);
-        let vranges: Vec<vk::AccelerationStructureBuildRangeInfoKHR> = ranges
-            .iter()
-            .map(|x| vk::AccelerationStructureBuildRangeInfoKHR { primitive_count: x.primitive_count, primitive_offset: x.primitive_offset, first_vertex: x.first_vertex, transform_offset: x.transform_offset })
-            .collect();
         inst.collector.clear();
         cmds.begin(dev)?;
-        // SAFETY: recording a valid direct build.
-        unsafe { accel.cmd_build_acceleration_structures(cmds.cb, &[vi], &[&vranges]) };
+        match path {
+            BuildPath::Direct => {
+                let vi = vk_info(info, &geoms, r);
+                let vranges: Vec<vk::AccelerationStructureBuildRangeInfoKHR> = ranges
+                    .iter()
+                    .map(|x| vk::AccelerationStructureBuildRangeInfoKHR { primitive_count: x.primitive_count, primitive_offset: x.primitive_offset, first_vertex: x.first_vertex, transform_offset: x.transform_offset })
+                    .collect();
+                // SAFETY: recording a valid direct build.
+                unsafe { accel.cmd_build_acceleration_structures(cmds.cb, &[vi], &[&vranges]) };
+            }
+            BuildPath::Indirect => {
+                let all = [geoms.clone()];
+                let (infos, addrs, maxima) = indirect_args(case, r, &all);
+                // The range records are read by the build as indirect data.
+                let b = vk::MemoryBarrier::default().src_access_mask(vk::AccessFlags::HOST_WRITE).dst_access_mask(vk::AccessFlags::INDIRECT_COMMAND_READ);
+                // SAFETY: recording a valid indirect build on a device with accelerationStructureIndirectBuild.
+                unsafe {
+                    dev.device.cmd_pipeline_barrier(cmds.cb, vk::PipelineStageFlags::HOST, vk::PipelineStageFlags::DRAW_INDIRECT, vk::DependencyFlags::empty(), &[b], &[], &[]);
+                    accel.cmd_build_acceleration_structures_indirect(cmds.cb, &infos, &addrs, &case.call.indirect_strides, &maxima);
+                }
+            }
+        }
         cmds.barrier(dev);
         cmds.submit(dev)?;
-        let direct = vuids(&inst.collector.take());
+        let layer = vuids(&inst.collector.take());
         let (dst, dst_addr) = r.structures.get(info.dst.as_deref().unwrap_or("")).copied().ok_or("no dst")?;
-        // A bottom-level result is traced through a one-instance TLAS.
         let scene = if top {
             dst
         } else {
@@ -595,17 +750,13 @@ fn direct_and_trace(
             extra_as.push(tlas);
             tlas
         };
-        let rays = expected_rays(&prims, top);
-        let boxes = box_table(info, &prims);
-        let hits = trace(dev, cmds, scene, &rays, &boxes, &mut extra)?;
-        let mut bad = Vec::new();
-        for (k, (ray, h)) in rays.iter().zip(&hits).enumerate() {
-            let got = (h[0] == 1).then_some((h[1], h[2], h[3]));
-            if got != ray.hit {
-                bad.push(format!("ray {k} at {:?}: expected {:?}, device {:?}", ray.origin, ray.hit, got));
-            }
-        }
-        Ok((rays.len(), bad, direct))
+        let procedural = info.geometries.iter().any(|g| matches!(g.data, GeometryData::Aabbs { .. }));
+        let words = match check {
+            TraceCheck::Pipeline => trace_pipeline(dev, cmds, scene, rays, boxes, procedural, &mut extra)?,
+            _ => trace(dev, cmds, scene, rays, boxes, &mut extra)?,
+        };
+        let hits = words.iter().map(|h| (h[0] == 1).then_some((h[1], h[2], h[3]))).collect();
+        Ok((hits, layer))
     })();
     for s in extra_as {
         // SAFETY: idle.
@@ -708,4 +859,218 @@ fn trace(dev: &VkDevice, cmds: &Commands, scene: vk::AccelerationStructureKHR, r
     };
     keep.extend([rb, hb, bb]);
     out
+}
+
+/// The pipeline check's shaders: raygen traces ray `i` from `origins[i]` along +z; closest-hit writes
+/// `(1, gl_InstanceID, gl_GeometryIndexEXT, gl_PrimitiveID)`, miss writes zeros; the intersection
+/// shader reports an AABB hit exactly where the ray query check generates one.
+const PIPE_RGEN: &str = r#"#version 460
+#extension GL_EXT_ray_tracing : require
+layout(set = 0, binding = 0) uniform accelerationStructureEXT scene;
+layout(set = 0, binding = 1, std430) readonly buffer Rays { vec4 origins[]; };
+layout(set = 0, binding = 2, std430) buffer Hits { uvec4 hits[]; };
+layout(location = 0) rayPayloadEXT uvec4 payload;
+void main() {
+    uint i = gl_LaunchIDEXT.x;
+    payload = uvec4(0u);
+    traceRayEXT(scene, gl_RayFlagsNoneEXT, 0xFF, 0, 0, 0, origins[i].xyz, 0.0, vec3(0.0, 0.0, 1.0), 100.0, 0);
+    hits[i] = payload;
+}
+"#;
+
+const PIPE_RCHIT: &str = r#"#version 460
+#extension GL_EXT_ray_tracing : require
+layout(location = 0) rayPayloadInEXT uvec4 payload;
+void main() {
+    payload = uvec4(1u, uint(gl_InstanceID), uint(gl_GeometryIndexEXT), uint(gl_PrimitiveID));
+}
+"#;
+
+const PIPE_RMISS: &str = r#"#version 460
+#extension GL_EXT_ray_tracing : require
+layout(location = 0) rayPayloadInEXT uvec4 payload;
+void main() {
+    payload = uvec4(0u);
+}
+"#;
+
+const PIPE_RINT: &str = r#"#version 460
+#extension GL_EXT_ray_tracing : require
+layout(set = 0, binding = 3, std430) readonly buffer Boxes { uint base[8]; vec4 box[]; };
+void main() {
+    uint g = gl_GeometryIndexEXT;
+    uint p = gl_PrimitiveID;
+    vec3 o = gl_ObjectRayOriginEXT;
+    vec4 lo = box[2u * (base[g] + p)];
+    vec4 hi = box[2u * (base[g] + p) + 1u];
+    if (o.x >= lo.x && o.x <= hi.x && o.y >= lo.y && o.y <= hi.y) {
+        reportIntersectionEXT(max(lo.z - o.z, 0.0), 0u);
+    }
+}
+"#;
+
+/// SPIR-V of the pipeline check's four shaders (raygen, miss, closest-hit, intersection), compiled once.
+fn pipeline_shaders() -> Result<[Vec<u32>; 4], String> {
+    static SPIRV: std::sync::OnceLock<Result<[Vec<u32>; 4], String>> = std::sync::OnceLock::new();
+    SPIRV
+        .get_or_init(|| {
+            Ok([
+                compile_glsl("check.rgen", PIPE_RGEN)?,
+                compile_glsl("check.rmiss", PIPE_RMISS)?,
+                compile_glsl("check.rchit", PIPE_RCHIT)?,
+                compile_glsl("check.rint", PIPE_RINT)?,
+            ])
+        })
+        .clone()
+}
+
+fn align_up(v: u64, a: u64) -> u64 {
+    v.div_ceil(a.max(1)) * a.max(1)
+}
+
+/// Traces the rays with a ray tracing pipeline (for devices without ray query); one
+/// `[hit, instance, geometry, primitive]` per ray, as [`trace`] reports them. Every geometry uses hit
+/// record 0 (sbtRecordStride 0): the triangles hit group, or the procedural one for AABB builds.
+fn trace_pipeline(
+    dev: &VkDevice,
+    cmds: &Commands,
+    scene: vk::AccelerationStructureKHR,
+    rays: &[ExpectedRay],
+    boxes: &[u8],
+    procedural: bool,
+    keep: &mut Vec<Allocation>,
+) -> Result<Vec<[u32; 4]>, String> {
+    if rays.is_empty() {
+        return Ok(vec![]);
+    }
+    let rt = dev.rt.as_ref().ok_or("unsupported: the pipeline check needs VK_KHR_ray_tracing_pipeline")?;
+    let code = pipeline_shaders()?;
+    let d = &dev.device;
+    let sb = vk::BufferUsageFlags::STORAGE_BUFFER;
+    let origins: Vec<u8> = rays.iter().flat_map(|r| [r.origin[0], r.origin[1], r.origin[2], 0.0]).flat_map(|f: f32| f.to_le_bytes()).collect();
+    let rb = Allocation::new(dev, origins.len() as u64, sb, vk::BufferCreateFlags::empty(), 1).map_err(realise_err)?;
+    rb.write(0, &origins);
+    keep.push(rb);
+    let hb = Allocation::new(dev, 16 * rays.len() as u64, sb, vk::BufferCreateFlags::empty(), 1).map_err(realise_err)?;
+    keep.push(hb);
+    let bb = Allocation::new(dev, boxes.len() as u64, sb, vk::BufferCreateFlags::empty(), 1).map_err(realise_err)?;
+    bb.write(0, boxes);
+    keep.push(bb);
+    let (rb, hb, bb) = (&keep[keep.len() - 3], &keep[keep.len() - 2], &keep[keep.len() - 1]);
+    let (rb_buf, hb_buf, bb_buf) = (rb.buffer, hb.buffer, bb.buffer);
+    let stages = vk::ShaderStageFlags::RAYGEN_KHR | vk::ShaderStageFlags::INTERSECTION_KHR;
+    let bind = |b: u32, t: vk::DescriptorType| vk::DescriptorSetLayoutBinding::default().binding(b).descriptor_type(t).descriptor_count(1).stage_flags(stages);
+    let bindings = [
+        bind(0, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR),
+        bind(1, vk::DescriptorType::STORAGE_BUFFER),
+        bind(2, vk::DescriptorType::STORAGE_BUFFER),
+        bind(3, vk::DescriptorType::STORAGE_BUFFER),
+    ];
+    let l = dev.limits;
+    let handle = l.handle_size as u64;
+    let record = align_up(handle, l.handle_alignment as u64);
+    let region = align_up(record, l.base_alignment as u64);
+    // SAFETY: valid create infos; everything made here is destroyed below after the wait.
+    unsafe {
+        let dsl = d.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None).map_err(fail("vkCreateDescriptorSetLayout"))?;
+        let sets = [dsl];
+        let pl = d.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&sets), None);
+        let mut modules = Vec::new();
+        let made = (|| -> Result<Vec<[u32; 4]>, String> {
+            let pl = pl.map_err(fail("vkCreatePipelineLayout"))?;
+            let kinds = [vk::ShaderStageFlags::RAYGEN_KHR, vk::ShaderStageFlags::MISS_KHR, vk::ShaderStageFlags::CLOSEST_HIT_KHR, vk::ShaderStageFlags::INTERSECTION_KHR];
+            for c in &code {
+                modules.push(d.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(c), None).map_err(fail("vkCreateShaderModule"))?);
+            }
+            let st: Vec<vk::PipelineShaderStageCreateInfo> =
+                modules.iter().zip(kinds).map(|(m, k)| vk::PipelineShaderStageCreateInfo::default().stage(k).module(*m).name(c"main")).collect();
+            let unused = vk::SHADER_UNUSED_KHR;
+            let general = |s: u32| {
+                vk::RayTracingShaderGroupCreateInfoKHR::default()
+                    .ty(vk::RayTracingShaderGroupTypeKHR::GENERAL)
+                    .general_shader(s)
+                    .closest_hit_shader(unused)
+                    .any_hit_shader(unused)
+                    .intersection_shader(unused)
+            };
+            let groups = [
+                general(0),
+                general(1),
+                vk::RayTracingShaderGroupCreateInfoKHR::default()
+                    .ty(vk::RayTracingShaderGroupTypeKHR::TRIANGLES_HIT_GROUP)
+                    .general_shader(unused)
+                    .closest_hit_shader(2)
+                    .any_hit_shader(unused)
+                    .intersection_shader(unused),
+                vk::RayTracingShaderGroupCreateInfoKHR::default()
+                    .ty(vk::RayTracingShaderGroupTypeKHR::PROCEDURAL_HIT_GROUP)
+                    .general_shader(unused)
+                    .closest_hit_shader(2)
+                    .any_hit_shader(unused)
+                    .intersection_shader(3),
+            ];
+            let ci = vk::RayTracingPipelineCreateInfoKHR::default().stages(&st).groups(&groups).max_pipeline_ray_recursion_depth(1).layout(pl);
+            let pipe = rt
+                .create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), vk::PipelineCache::null(), &[ci], None)
+                .map_err(|(_, r)| format!("vkCreateRayTracingPipelinesKHR failed: {r:?}"))?[0];
+            let inner = (|| -> Result<Vec<[u32; 4]>, String> {
+                let handles = rt.get_ray_tracing_shader_group_handles(pipe, 0, 4, 4 * handle as usize).map_err(fail("vkGetRayTracingShaderGroupHandlesKHR"))?;
+                let h = |g: usize| &handles[g * handle as usize..(g + 1) * handle as usize];
+                let sbt = Allocation::new(
+                    dev,
+                    3 * region,
+                    vk::BufferUsageFlags::SHADER_BINDING_TABLE_KHR | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                    vk::BufferCreateFlags::empty(),
+                    l.base_alignment.max(1) as u64,
+                )
+                .map_err(realise_err)?;
+                sbt.write(0, h(0));
+                sbt.write(region, h(1));
+                sbt.write(2 * region, h(if procedural { 3 } else { 2 }));
+                let at = |k: u64| vk::StridedDeviceAddressRegionKHR { device_address: sbt.address + k * region, stride: record, size: record };
+                let rgen = vk::StridedDeviceAddressRegionKHR { stride: record, ..at(0) };
+                let (miss, hit) = (at(1), at(2));
+                let call = vk::StridedDeviceAddressRegionKHR::default();
+                let sizes = [
+                    vk::DescriptorPoolSize { ty: vk::DescriptorType::ACCELERATION_STRUCTURE_KHR, descriptor_count: 1 },
+                    vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: 3 },
+                ];
+                let pool = d.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None).map_err(fail("vkCreateDescriptorPool"))?;
+                let run = (|| -> Result<(), String> {
+                    let set = d.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&sets)).map_err(fail("vkAllocateDescriptorSets"))?[0];
+                    let scenes = [scene];
+                    let mut asw = vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&scenes);
+                    let bi = |b: vk::Buffer| [vk::DescriptorBufferInfo { buffer: b, offset: 0, range: vk::WHOLE_SIZE }];
+                    let (b1, b2, b3) = (bi(rb_buf), bi(hb_buf), bi(bb_buf));
+                    let mut w0 = vk::WriteDescriptorSet::default().dst_set(set).dst_binding(0).descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR).push_next(&mut asw);
+                    w0.descriptor_count = 1;
+                    let writes = [
+                        w0,
+                        vk::WriteDescriptorSet::default().dst_set(set).dst_binding(1).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&b1),
+                        vk::WriteDescriptorSet::default().dst_set(set).dst_binding(2).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&b2),
+                        vk::WriteDescriptorSet::default().dst_set(set).dst_binding(3).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&b3),
+                    ];
+                    d.update_descriptor_sets(&writes, &[]);
+                    cmds.begin(dev)?;
+                    d.cmd_bind_pipeline(cmds.cb, vk::PipelineBindPoint::RAY_TRACING_KHR, pipe);
+                    d.cmd_bind_descriptor_sets(cmds.cb, vk::PipelineBindPoint::RAY_TRACING_KHR, pl, 0, &[set], &[]);
+                    rt.cmd_trace_rays(cmds.cb, &rgen, &miss, &hit, &call, rays.len() as u32, 1, 1);
+                    cmds.submit(dev)
+                })();
+                d.destroy_descriptor_pool(pool, None);
+                sbt.destroy(dev);
+                run.map(|()| hb.read_u32s(4 * rays.len()).chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect())
+            })();
+            d.destroy_pipeline(pipe, None);
+            inner
+        })();
+        for m in modules {
+            d.destroy_shader_module(m, None);
+        }
+        if let Ok(pl) = pl {
+            d.destroy_pipeline_layout(pl, None);
+        }
+        d.destroy_descriptor_set_layout(dsl, None);
+        made
+    }
 }
