@@ -78,6 +78,14 @@ fn realise_failure(e: RealiseError) -> Observation {
 /// [`Executor::gpu_timeout`] is its timeout. Either way the device is dropped from the executor without
 /// touching it again (its objects are leaked, see `DeviceCache::lost`), so no later case reuses it.
 pub fn execute(case: &Case, ctx: &mut Executor) -> Observation {
+    // The resource world (descriptor sets, samplers, images, the shader accesses they declare) is
+    // judged by the model but not yet realised on a device: running such a case without it would show
+    // the layer a call that violates nothing, so it is reported unsupported, never passed or failed.
+    if !case.world.resources.is_empty() {
+        return Observation::unsupported(
+            "the harness does not realise resource states yet (descriptor sets, samplers, images and the shader accesses of issue 4)",
+        );
+    }
     let timeout = ctx.gpu_timeout;
     let collector = ctx.inst.collector.clone();
     let cache = match ctx.device(&case.world) {
