@@ -42,23 +42,19 @@ pub struct CaseError {
     pub problem: String,
 }
 
-impl Case {
-    /// Parses a case from YAML, reporting the line and column of what is wrong.
-    pub fn from_yaml(path: &str, text: &str) -> Result<Case, CaseError> {
-        serde_yaml::from_str(text).map_err(|e| CaseError {
-            path: path.to_string(),
-            location: e.location().map(|l| (l.line(), l.column())),
-            problem: e.to_string(),
-        })
-    }
+/// Parses any case type from YAML, reporting the line and column of what is wrong.
+pub fn parse_yaml<T: serde::de::DeserializeOwned>(path: &str, text: &str) -> Result<T, CaseError> {
+    serde_yaml::from_str(text).map_err(|e| CaseError {
+        path: path.to_string(),
+        location: e.location().map(|l| (l.line(), l.column())),
+        problem: e.to_string(),
+    })
+}
 
-    pub fn to_yaml(&self) -> String {
-        serde_yaml::to_string(self).expect("a case always serialises")
-    }
-
-    /// The VUIDs the case expects its verdict to hold, sorted.
+impl Intent {
+    /// The VUIDs a verdict must hold for this intent, sorted.
     pub fn expected_vuids(&self) -> Vec<String> {
-        match &self.intent {
+        match self {
             Intent::Valid => vec![],
             Intent::Violates { vuid, also } => {
                 let mut v: Vec<String> = std::iter::once(vuid.clone()).chain(also.iter().cloned()).collect();
@@ -67,5 +63,21 @@ impl Case {
                 v
             }
         }
+    }
+}
+
+impl Case {
+    /// Parses a case from YAML, reporting the line and column of what is wrong.
+    pub fn from_yaml(path: &str, text: &str) -> Result<Case, CaseError> {
+        parse_yaml(path, text)
+    }
+
+    pub fn to_yaml(&self) -> String {
+        serde_yaml::to_string(self).expect("a case always serialises")
+    }
+
+    /// The VUIDs the case expects its verdict to hold, sorted.
+    pub fn expected_vuids(&self) -> Vec<String> {
+        self.intent.expected_vuids()
     }
 }

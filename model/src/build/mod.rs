@@ -31,11 +31,7 @@ pub struct BuildCase {
 
 impl BuildCase {
     pub fn from_yaml(path: &str, text: &str) -> Result<BuildCase, CaseError> {
-        serde_yaml::from_str(text).map_err(|e| CaseError {
-            path: path.to_string(),
-            location: e.location().map(|l| (l.line(), l.column())),
-            problem: e.to_string(),
-        })
+        crate::case::parse_yaml(path, text)
     }
 
     pub fn to_yaml(&self) -> String {
@@ -44,14 +40,6 @@ impl BuildCase {
 
     /// The VUIDs the case expects its verdict to hold, sorted.
     pub fn expected_vuids(&self) -> Vec<String> {
-        match &self.intent {
-            Intent::Valid => vec![],
-            Intent::Violates { vuid, also } => {
-                let mut v: Vec<String> = std::iter::once(vuid.clone()).chain(also.iter().cloned()).collect();
-                v.sort();
-                v.dedup();
-                v
-            }
-        }
+        self.intent.expected_vuids()
     }
 }
