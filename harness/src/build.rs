@@ -1074,3 +1074,70 @@ fn trace_pipeline(
         made
     }
 }
+
+/// Named ways a driver's build may depart from the model: each rewrites the ranges the build reads.
+const DEVIATIONS: &[(&str, fn(&GeometryData, model::build::RangeInfo) -> model::build::RangeInfo)] = &[
+    ("indexed-first-vertex-ignored", |g, r| match g {
+        GeometryData::Triangles { index_type, .. } if *index_type != IndexType::None => model::build::RangeInfo { first_vertex: 0, ..r },
+        _ => r,
+    }),
+    ("first-vertex-applied-twice", |g, r| match g {
+        GeometryData::Triangles { .. } => model::build::RangeInfo { first_vertex: r.first_vertex.saturating_mul(2), ..r },
+        _ => r,
+    }),
+];
+
+/// The name of the deviation (see [`DEVIATIONS`]) that explains a valid case's ray mismatches exactly:
+/// the same rays cast on the CPU at the structure built under the deviation report precisely what the
+/// device reported. None when no deviation, or more than a CPU cast can decide (a ray grazing an edge,
+/// a non-triangle build), explains them.
+pub fn deviation(case: &BuildCase, obs: &BuildObservation) -> Option<&'static str> {
+    let info = case.call.infos.first()?;
+    if obs.ray_hits.is_empty() || case.call.infos.len() != 1 || info.ty != AsType::BottomLevel {
+        return None;
+    }
+    let mem = case.world.memory();
+    let ranges = model::build::indirect_ranges(&mem, &case.call, 0).ok()?;
+    let prims = model::build::build_primitives(&mem, info, &ranges).ok()?;
+    let rays = expected_rays(&prims, false);
+    if rays.len() != obs.ray_hits.len() {
+        return None;
+    }
+    DEVIATIONS.iter().find_map(|(name, f)| {
+        let alt: Vec<model::build::RangeInfo> = info.geometries.iter().zip(&ranges).map(|(g, r)| f(&g.data, *r)).collect();
+        if alt == ranges {
+            return None;
+        }
+        let alt_prims = model::build::build_primitives(&mem, info, &alt).ok()?;
+        let hits: Option<Vec<Option<(u32, u32, u32)>>> = rays.iter().map(|r| cast(&alt_prims, r.origin)).collect();
+        (hits? == obs.ray_hits).then_some(*name)
+    })
+}
+
+/// What a ray from `origin` along +z (t in [0, 100]) hits among triangle primitives, on the CPU; the
+/// outer None when it cannot be decided (a ray within 1e-4 of an edge, a non-triangle primitive).
+fn cast(prims: &[BuiltPrimitive], origin: [f32; 3]) -> Option<Option<(u32, u32, u32)>> {
+    let mut best: Option<(f32, (u32, u32, u32))> = None;
+    for p in prims.iter().filter(|p| p.active) {
+        let Shape::Triangle(v) = &p.shape else { return None };
+        let (ox, oy) = (origin[0] as f64, origin[1] as f64);
+        let x = |i: usize| v[i][0] as f64;
+        let y = |i: usize| v[i][1] as f64;
+        let area = (x(1) - x(0)) * (y(2) - y(0)) - (x(2) - x(0)) * (y(1) - y(0));
+        if !area.is_finite() || area.abs() < 1e-9 {
+            continue;
+        }
+        let edge = |a: usize, b: usize| ((x(b) - x(a)) * (oy - y(a)) - (ox - x(a)) * (y(b) - y(a))) / area;
+        let w = [edge(1, 2), edge(2, 0), edge(0, 1)];
+        if w.iter().all(|c| *c > 1e-4) {
+            let z = w[0] * v[0][2] as f64 + w[1] * v[1][2] as f64 + w[2] * v[2][2] as f64;
+            let t = (z - origin[2] as f64) as f32;
+            if (0.0..=100.0).contains(&t) && best.map_or(true, |(bt, _)| t < bt) {
+                best = Some((t, (0, p.geometry, p.primitive)));
+            }
+        } else if w.iter().all(|c| *c > -1e-4) {
+            return None;
+        }
+    }
+    Some(best.map(|b| b.1))
+}

@@ -222,6 +222,111 @@ pub fn compare(case: &Case, verdict: &Verdict, obs: &Observation, triage: &Triag
     report
 }
 
+/// Compares one build case's observation with the model. `model` is the model's verdict for the world
+/// with the device's build sizes; `unavoidable` the VUIDs every case violates on the device (the missing
+/// accelerationStructureIndirectBuild), so a case expecting no more than those is a valid one: its
+/// indirect call must draw exactly them, and the traced check of its direct build (and, on a device
+/// with the feature, of its real indirect build) must agree with the model's primitives.
+pub fn compare_build(
+    case: &model::build::BuildCase,
+    model: &[String],
+    obs: &crate::build::BuildObservation,
+    unavoidable: &[String],
+    triage: &Triage,
+    millis: f64,
+) -> CaseReport {
+    let command = model::build::call::COMMAND;
+    let expected = case.expected_vuids();
+    let valid = expected.iter().all(|v| unavoidable.contains(v));
+    let (layer, layer_other): (Vec<String>, Vec<String>) =
+        obs.layer_vuids.iter().cloned().partition(|v| vuid_scope(v) == Some(command));
+    let target = match &case.intent {
+        Intent::Violates { vuid, .. } if !valid => Some(vuid.clone()),
+        _ => None,
+    };
+    let mut report = CaseReport {
+        case: case.name.clone(),
+        command: command.to_string(),
+        target,
+        outcome: Outcome::Pass,
+        model: model.to_vec(),
+        layer: layer.clone(),
+        layer_other,
+        output_matches: None,
+        detail: String::new(),
+        millis,
+    };
+    let status = obs.status.as_str();
+    if status != "ran" {
+        let (outcome, detail) = if let Some(r) = status.strip_prefix("unsupported: ") {
+            (Outcome::Unsupported, r)
+        } else if let Some(r) = status.strip_prefix("timeout: ") {
+            (Outcome::Timeout, r)
+        } else {
+            (Outcome::Crash, status.strip_prefix("crash: ").unwrap_or(status))
+        };
+        report.outcome = outcome;
+        report.detail = detail.to_string();
+        return report;
+    }
+    let mut problems = Vec::new();
+    let mut triaged = Vec::new();
+    let m: BTreeSet<&String> = model.iter().collect();
+    let l: BTreeSet<&String> = layer.iter().collect();
+    for v in m.symmetric_difference(&l) {
+        let side = if m.contains(v) { "model only" } else { "layer only" };
+        match triage.covers(v) {
+            Some(t) => triaged.push(format!("{v} ({side}; triaged {}: {})", t.kind, t.reason)),
+            None => problems.push(format!("{v}: {side}")),
+        }
+    }
+    if valid {
+        let extra: Vec<&String> = model.iter().filter(|v| !unavoidable.contains(v)).collect();
+        if !extra.is_empty() {
+            problems.push(format!("the model judges this valid-by-construction case invalid with the device's sizes: {extra:?}"));
+        }
+        if !report.layer_other.is_empty() {
+            problems.push(format!("the layer reported {} on a valid case", report.layer_other.join(", ")));
+        }
+        if !obs.direct_layer_vuids.is_empty() {
+            problems.push(format!("the layer reported {} for the equivalent direct build", obs.direct_layer_vuids.join(", ")));
+        }
+        if !obs.indirect_layer_vuids.is_empty() {
+            problems.push(format!("the layer reported {} for the real indirect build", obs.indirect_layer_vuids.join(", ")));
+        }
+        if extra.is_empty() {
+            let ok = obs.ray_mismatches.is_empty() && obs.indirect_vs_direct.is_empty();
+            report.output_matches = Some(ok);
+            if !obs.ray_mismatches.is_empty() {
+                let key = format!("output:{command}:{}", crate::build::deviation(case, obs).unwrap_or("rays"));
+                let first = obs.ray_mismatches[0].clone();
+                match triage.covers(&key) {
+                    Some(t) => triaged.push(format!("{key} ({} of {} rays, first {first}; triaged {}: {})", obs.ray_mismatches.len(), obs.rays, t.kind, t.reason)),
+                    None => problems.push(format!("{key}: {} of {} rays disagree with the model's primitives, first {first}", obs.ray_mismatches.len(), obs.rays)),
+                }
+            }
+            if let Some(first) = obs.indirect_vs_direct.first() {
+                problems.push(format!("the real indirect build traces differently from the direct build: {first}"));
+            }
+        }
+    } else if let Some(t) = &report.target {
+        if !m.contains(t) {
+            problems.push(format!("the model does not report the target {t}"));
+        }
+    }
+    report.outcome = if !problems.is_empty() {
+        Outcome::Fail
+    } else if !triaged.is_empty() {
+        Outcome::Triaged
+    } else {
+        Outcome::Pass
+    };
+    let mut detail = problems;
+    detail.extend(triaged);
+    report.detail = detail.join("; ");
+    report
+}
+
 /// The scope part of a VUID (`vkCmdTraceRaysIndirectKHR` of `VUID-vkCmdTraceRaysIndirectKHR-stride-03686`).
 pub fn vuid_scope(vuid: &str) -> Option<&str> {
     vuid.strip_prefix("VUID-")?.split('-').next()

@@ -738,3 +738,55 @@ pub fn generate(profile: &DeviceProfile, seed: u64, plans: usize) -> Vec<BuildCa
     }
     out
 }
+
+/// The plan at `(seed, index, attempt)`: each drawn from its own generator, so any index range of a
+/// spec can be generated alone (chunked runs) and gives the same cases.
+fn plan_at(seed: u64, index: usize, attempt: u32) -> Option<BuildPlan> {
+    use proptest::strategy::ValueTree;
+    use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
+    let mut bytes = [0u8; 32];
+    bytes[..8].copy_from_slice(&seed.to_le_bytes());
+    bytes[8..16].copy_from_slice(&(index as u64).to_le_bytes());
+    bytes[16..20].copy_from_slice(&attempt.to_le_bytes());
+    bytes[20] = 0xb1; // distinct from `generate`'s streams
+    let mut runner = TestRunner::new_with_rng(Config::default(), TestRng::from_seed(RngAlgorithm::ChaCha, &bytes));
+    plan_strategy().new_tree(&mut runner).ok().map(|t| t.current())
+}
+
+/// The mutation tail of a full VUID of the command, if the generator has one.
+pub fn mutation_for(vuid_name: &str) -> Option<&'static str> {
+    MUTATIONS.iter().copied().find(|t| vuid(t) == vuid_name)
+}
+
+/// Cases `range` of one spec: valid cases (`target` None) or cases violating `target` (a full VUID with
+/// a mutation). Case `k` is the first of up to 64 plans drawn for `(seed, k)` that the mutation fits;
+/// an index no plan fits gives no case. Names are `build-<seed>-<k>-valid` / `build-<seed>-<k>-<tail>`.
+pub fn generate_range(profile: &DeviceProfile, target: Option<&str>, seed: u64, range: std::ops::Range<usize>) -> Vec<BuildCase> {
+    let tail = match target {
+        None => None,
+        Some(v) => match mutation_for(v) {
+            Some(t) => Some(t),
+            None => return vec![],
+        },
+    };
+    let mut out = Vec::new();
+    for k in range {
+        for attempt in 0..64u32 {
+            let Some(plan) = plan_at(seed, k, attempt) else { continue };
+            let mut base = realise(&plan, profile, &format!("build-{seed}-{k}-valid"));
+            base.seed = Some(format!("{seed}/{k}/{attempt}"));
+            let case = match tail {
+                None => Some(base),
+                Some(t) => mutate(&base, t, profile).map(|mut m| {
+                    m.name = format!("build-{seed}-{k}-{t}");
+                    m
+                }),
+            };
+            if let Some(c) = case {
+                out.push(c);
+                break;
+            }
+        }
+    }
+    out
+}

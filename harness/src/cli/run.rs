@@ -1,10 +1,13 @@
 //! `rtconf run`: generate cases for the requested commands and VUIDs, run them on a driver in worker
 //! processes, compare with the model, and stream `results.jsonl`; then `summary.json` and a table.
+//! `--command vkCmdBuildAccelerationStructuresIndirectKHR` runs build cases the same way: valid cases and
+//! one spec per executable build VUID with a mutation, generated a chunk at a time, judged again with
+//! the sizes the device reported, compared by `compare_build`.
 
 use clap::Args;
 use generator::CaseSpec;
-use harness::compare::{compare, CaseReport, Outcome, Triage};
-use harness::worker::run_in_workers;
+use harness::compare::{compare, compare_build, CaseReport, Outcome, Triage};
+use harness::worker::{run_builds_in_workers, run_in_workers, BuildRequest};
 use model::{Case, DeviceProfile, RuleSet};
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::{BufRead, Write};
@@ -19,7 +22,8 @@ pub struct RunArgs {
     /// The device profile cases are generated from (default: the driver's name; nvidia → nvidia-h100).
     #[arg(long)]
     profile: Option<String>,
-    /// Commands to run (repeatable; default: every trace command the profile supports).
+    /// Commands to run (repeatable; default: every trace command the profile supports). The build
+    /// command vkCmdBuildAccelerationStructuresIndirectKHR runs only when named.
     #[arg(long)]
     command: Vec<String>,
     /// Only these VUIDs' invalid cases (repeatable; default: every executable VUID with a mutation).
@@ -196,7 +200,9 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
     std::env::set_var(harness::worker::DRIVER_ENV, &a.driver);
 
     let specs = plan_specs(&a, &rules, &profile);
-    let total = specs.len() * a.count;
+    let build_rules = model::build::BuildRuleSet::from_vuids(&set);
+    let build_specs = if a.command.iter().any(|c| c == BUILD_COMMAND) { build_specs(&a, &build_rules) } else { vec![] };
+    let total = (specs.len() + build_specs.len()) * a.count;
     let bar = if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
         let b = indicatif::ProgressBar::new(total as u64);
         b.set_style(
@@ -291,6 +297,10 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
     if !chunk.is_empty() {
         run_chunk(&mut chunk, &mut results)?;
     }
+    if a.command.iter().any(|c| c == BUILD_COMMAND) {
+        run_builds(&a, &set, &profile, &profile_name, &triage, &done, &bar, &mut results)
+            .map_err(|e| format!("{}: {e}", results_path.display()))?;
+    }
     bar.finish_and_clear();
     let mut summary = summarise(&results_path, &a.driver, &profile_name, set.version.clone())?;
     summary.runner_peak_rss_kib = peak_rss_kib();
@@ -314,6 +324,120 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
     } else {
         0
     })
+}
+
+/// The build command's name on the command line.
+const BUILD_COMMAND: &str = model::build::call::COMMAND;
+
+/// The build specs of a run: `None` for valid cases, then every executable build VUID with a mutation.
+fn build_specs(a: &RunArgs, rules: &model::build::BuildRuleSet) -> Vec<Option<String>> {
+    let mut specs = Vec::new();
+    if a.vuid.is_empty() {
+        specs.push(None);
+    }
+    if a.valid_only {
+        return specs;
+    }
+    let mut seen = BTreeSet::new();
+    for row in &rules.rows {
+        if !a.vuid.is_empty() && !a.vuid.contains(&row.vuid) {
+            continue;
+        }
+        if generator::build::mutation_for(&row.vuid).is_some() && seen.insert(row.vuid.clone()) {
+            specs.push(Some(row.vuid.clone()));
+        }
+    }
+    specs
+}
+
+/// The profile file a worker loads (as `super::profile_for` resolves a name).
+fn profile_path(name: &str) -> PathBuf {
+    if name.ends_with(".json") || name.contains('/') {
+        PathBuf::from(name)
+    } else {
+        super::profiles_dir().join(format!("{name}.json"))
+    }
+}
+
+/// Runs the build specs: cases generated a chunk at a time into worker requests, each result judged
+/// again by the model with the device's sizes and written to `results.jsonl` as it arrives.
+#[allow(clippy::too_many_arguments)]
+fn run_builds(
+    a: &RunArgs,
+    set: &vk_registry::vuid::VuidSet,
+    profile: &DeviceProfile,
+    profile_name: &str,
+    triage: &Triage,
+    done: &BTreeSet<String>,
+    bar: &indicatif::ProgressBar,
+    results: &mut std::fs::File,
+) -> Result<(), String> {
+    let rules = model::build::BuildRuleSet::from_vuids(set);
+    generator::build::use_rules(rules.clone());
+    let unavoidable = generator::build::unavoidable(profile);
+    let sources = super::sources_or_default(&a.from);
+    let sources: Vec<PathBuf> = sources.iter().map(|p| std::fs::canonicalize(p).unwrap_or_else(|_| p.clone())).collect();
+    let ppath = profile_path(profile_name);
+    let ppath = std::fs::canonicalize(&ppath).unwrap_or(ppath);
+    let mut write_error = None;
+    let mut run_chunk = |chunk: &mut Vec<BuildRequest>, results: &mut std::fs::File| {
+        let reqs = std::mem::take(chunk);
+        run_builds_in_workers(&reqs, a.jobs, Duration::from_secs(a.timeout), |res| {
+            let req = &reqs[res.index.min(reqs.len() - 1)];
+            let case = &req.build;
+            let mut world = case.world.clone();
+            if !res.observation.device_sizes.is_empty() {
+                world.sizes = res.observation.device_sizes.clone();
+            }
+            let verdict = rules.validate(profile, &world, &case.call);
+            let model: BTreeSet<String> = verdict.violations.into_iter().map(|v| v.vuid).collect();
+            let model: Vec<String> = model.into_iter().collect();
+            let report = compare_build(case, &model, &res.observation, &unavoidable, triage, res.millis);
+            if report.outcome != Outcome::Pass && report.outcome != Outcome::Unsupported {
+                let _ = std::fs::write(a.out.join("failures").join(format!("{}.yaml", case.name)), case.to_yaml());
+            }
+            let line = serde_json::to_string(&report).unwrap_or_default();
+            if let Err(e) = writeln!(results, "{line}").and_then(|_| results.flush()) {
+                write_error = Some(e.to_string());
+            }
+            bar.inc(1);
+        });
+    };
+    let mut chunk: Vec<BuildRequest> = Vec::with_capacity(CHUNK);
+    for (i, target) in build_specs(a, &rules).iter().enumerate() {
+        let seed = a.seed.wrapping_add(i as u64);
+        for start in (0..a.count).step_by(CHUNK) {
+            let range = start..(start + CHUNK).min(a.count);
+            let len = range.len();
+            let cases = generator::build::generate_range(profile, target.as_deref(), seed, range);
+            // Indices no plan fits give no case: counted done on the bar.
+            bar.inc((len - cases.len()) as u64);
+            for c in cases {
+                if done.contains(&c.name) {
+                    bar.inc(1);
+                    continue;
+                }
+                chunk.push(BuildRequest {
+                    index: 0,
+                    build: c,
+                    profile_name: profile_name.to_string(),
+                    profile_path: ppath.clone(),
+                    sources: sources.clone(),
+                    options: Default::default(),
+                });
+                if chunk.len() == CHUNK {
+                    run_chunk(&mut chunk, results);
+                }
+            }
+        }
+    }
+    if !chunk.is_empty() {
+        run_chunk(&mut chunk, results);
+    }
+    match write_error {
+        Some(e) => Err(e),
+        None => Ok(()),
+    }
 }
 
 /// The reports of `results.jsonl`, read one line at a time.
