@@ -78,13 +78,10 @@ fn realise_failure(e: RealiseError) -> Observation {
 /// [`Executor::gpu_timeout`] is its timeout. Either way the device is dropped from the executor without
 /// touching it again (its objects are leaked, see `DeviceCache::lost`), so no later case reuses it.
 pub fn execute(case: &Case, ctx: &mut Executor) -> Observation {
-    // The resource world (descriptor sets, samplers, images, the shader accesses they declare) is
-    // judged by the model but not yet realised on a device: running such a case without it would show
-    // the layer a call that violates nothing, so it is reported unsupported, never passed or failed.
-    if !case.world.resources.is_empty() {
-        return Observation::unsupported(
-            "the harness does not realise resource states yet (descriptor sets, samplers, images and the shader accesses of issue 4)",
-        );
+    // issue 4 hook: resource states are realised by `crate::resources`; what it cannot realise is
+    // unsupported (running without it would show the layer a call that violates nothing).
+    if let Some(why) = crate::resources::unsupported(&case.world) {
+        return Observation::unsupported(why);
     }
     let timeout = ctx.gpu_timeout;
     let collector = ctx.inst.collector.clone();
@@ -93,8 +90,14 @@ pub fn execute(case: &Case, ctx: &mut Executor) -> Observation {
         Err(obs) => return obs,
     };
     let mut buffers = Vec::new();
-    let result = run(case, cache, &mut buffers, timeout, &collector);
+    let mut res: Option<crate::resources::Realised> = None;
+    let result = run(case, cache, &mut buffers, &mut res, timeout, &collector);
     let lost = cache.lost;
+    // issue 4 hook: the case's resource objects (and its pipeline) go with the case; a lost device leaks them.
+    match res {
+        Some(r) if !lost => r.destroy(cache),
+        _ => cache.resource_pipeline = None,
+    }
     if !lost {
         // Nothing recorded is pending: valid cases waited, invalid ones were never submitted.
         // SAFETY: the command buffers are not in use by the GPU.
@@ -127,6 +130,7 @@ fn run(
     case: &Case,
     cache: &mut DeviceCache,
     buffers: &mut Vec<(String, Allocation)>,
+    res: &mut Option<crate::resources::Realised>,
     timeout: Duration,
     collector: &crate::vulkan::Collector,
 ) -> Result<Observation, RealiseError> {
@@ -164,6 +168,12 @@ fn run(
     let pipeline = world.pipeline.as_ref();
     // The scene and descriptor layout follow the pipeline's API (an NV pipeline reads an NV structure).
     let api = pipeline.map_or(if nv_call { PipelineApi::Nv } else { PipelineApi::Khr }, |p| p.api);
+    // issue 4 hook: the resource state, and the case's pipeline with its templated raygen, before the
+    // shader binding tables are filled with that pipeline's handles.
+    if !world.resources.is_empty() {
+        let harness_set = cache.layouts(trace, api)?.set;
+        *res = Some(crate::resources::Realised::new(cache, world, trace, harness_set)?);
+    }
     *buffers = cache.case_buffers(world, pipeline.map(|p| (p, trace)))?;
     let tlas = if trace { Some(cache.scene(&world.launch.instances, api)?) } else { None };
     let layouts = cache.layouts(trace, api)?;
@@ -313,6 +323,9 @@ fn run(
                     &[],
                 );
             }
+            if let Some(r) = res.as_ref() {
+                r.record_transitions(d, cb); // issue 4 hook
+            }
             if let Some(p) = vk_pipeline.filter(|_| cbs.pipeline_bound) {
                 d.cmd_bind_pipeline(cb, vk::PipelineBindPoint::RAY_TRACING_KHR, p);
                 if cbs.stack_size_set {
@@ -324,7 +337,13 @@ fn run(
                     }
                 }
             }
-            d.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::RAY_TRACING_KHR, layouts.pipeline, 0, &[set], &[]);
+            // issue 4 hook: with a resource state the harness set is bound with the case pipeline's
+            // realised layout, then the case's own binds and pushes follow.
+            let harness_layout = res.as_ref().map_or(layouts.pipeline, |r| r.harness_layout);
+            d.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::RAY_TRACING_KHR, harness_layout, 0, &[set], &[]);
+            if let Some(r) = res.as_ref() {
+                r.record_binds(d, cb);
+            }
             if let Some((rp, fb)) = render_pass {
                 let begin = vk::RenderPassBeginInfo::default()
                     .render_pass(rp)

@@ -8,6 +8,7 @@ pub mod execute;
 pub mod layout;
 pub mod observe;
 pub mod realise;
+pub mod resources; // issue 4
 pub mod probe;
 pub mod shaders;
 pub mod structs;

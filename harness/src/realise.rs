@@ -432,6 +432,10 @@ pub struct DeviceCache {
     /// again, and dropping it neither waits for it nor resets what is pending on it.
     pub lost: bool,
     pub render_pass: Option<(vk::RenderPass, vk::Framebuffer)>,
+    /// issue 4 hook: the pipeline of a case with a resource state (its own raygen module and pipeline
+    /// layout, made by `crate::resources`), returned by [`DeviceCache::pipeline`] for the case's own
+    /// (non-foreign) pipeline while that case runs. Owned and destroyed by `crate::resources::Realised`.
+    pub resource_pipeline: Option<RealPipeline>,
     pub dev: VkDevice,
 }
 
@@ -491,6 +495,7 @@ impl DeviceCache {
                 callables: None,
                 lost: false,
                 render_pass: None,
+                resource_pipeline: None,
                 dev,
             })
         }
@@ -550,6 +555,10 @@ impl DeviceCache {
 
     /// The pipeline for a description (cached); `foreign` makes a second, distinct pipeline of it.
     pub fn pipeline(&mut self, p: &Pipeline, trace: bool, foreign: bool) -> Result<&RealPipeline, RealiseError> {
+        // issue 4 hook: a case with a resource state runs its own pipeline (see `resource_pipeline`).
+        if !foreign && self.resource_pipeline.is_some() {
+            return Ok(self.resource_pipeline.as_ref().expect("checked"));
+        }
         let key = format!("{}|{trace}|{foreign}", serde_json::to_string(p).unwrap_or_default());
         if !self.pipelines.contains_key(&key) {
             let made = self.create_pipeline(p, trace).map_err(|e| match e {
@@ -568,6 +577,19 @@ impl DeviceCache {
     }
 
     fn create_pipeline(&mut self, p: &Pipeline, trace: bool) -> Result<RealPipeline, RealiseError> {
+        let layout = self.layouts(trace, p.api)?.pipeline;
+        self.create_pipeline_with(p, trace, layout, None)
+    }
+
+    /// issue 4 hook: the pipeline for a description with `layout` and, when given, `raygen` as the module
+    /// of every raygen stage (used by `crate::resources` for cases with a resource state). Not cached.
+    pub fn create_pipeline_with(
+        &mut self,
+        p: &Pipeline,
+        trace: bool,
+        layout: vk::PipelineLayout,
+        raygen_module: Option<vk::ShaderModule>,
+    ) -> Result<RealPipeline, RealiseError> {
         let api = p.api;
         match api {
             PipelineApi::Khr if self.dev.rt.is_none() => {
@@ -582,7 +604,6 @@ impl DeviceCache {
             }
             _ => {}
         }
-        let layouts = self.layouts(trace, api)?;
         let raygen = if trace { ShaderKind::RaygenTrace } else { ShaderKind::RaygenPlain };
         let closest = if trace { ShaderKind::ClosestHitTrace } else { ShaderKind::ClosestHitPlain };
         // (group index, stage flag, module) per stage, and per group (type, [general, closest, any, intersection]).
@@ -592,7 +613,10 @@ impl DeviceCache {
         for (g, group) in p.groups.iter().enumerate() {
             let g = g as u32;
             let mut add = |this: &mut Self, kind: ShaderKind, stage: vk::ShaderStageFlags| -> Result<u32, RealiseError> {
-                let m = this.module(kind, api)?;
+                let m = match raygen_module {
+                    Some(m) if kind == raygen => m,
+                    _ => this.module(kind, api)?,
+                };
                 stage_list.push((g, stage, m));
                 Ok(stage_list.len() as u32 - 1)
             };
@@ -670,7 +694,7 @@ impl DeviceCache {
                 .stages(&stages)
                 .groups(&nv_groups)
                 .max_recursion_depth(p.max_recursion_depth)
-                .layout(layouts.pipeline);
+                .layout(layout);
             let nv = self.dev.nv.as_ref().expect("checked above");
             // SAFETY: every pointer in `info` outlives the call.
             let pipeline = unsafe { nv.create_ray_tracing_pipelines(vk::PipelineCache::null(), &[info], None) }
@@ -708,7 +732,7 @@ impl DeviceCache {
             .stages(&stages)
             .groups(&khr_groups)
             .max_pipeline_ray_recursion_depth(p.max_recursion_depth)
-            .layout(layouts.pipeline);
+            .layout(layout);
         if p.dynamic_stack_size {
             info = info.dynamic_state(&dyn_info);
         }

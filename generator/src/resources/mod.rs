@@ -337,7 +337,10 @@ pub fn mutate(
                 // Bound with a layout whose set 0 is defined differently.
                 st.set_layouts.push(SetLayout { name: "sl-other".into(), bindings: vec![LayoutBinding { binding: 9, ty: DescriptorType::Sampler, count: 1 }] });
                 st.pipeline_layouts.push(PipelineLayout { name: "pl-other".into(), sets: vec!["sl-other".into()], push_ranges: vec![PushRange { offset: 0, size: 16 }] });
-                st.bound_sets[0].layout = "pl-other".into();
+                // A set of that layout, so the bind itself is valid (binding `ds0` with `pl-other` would
+                // also break VUID-vkCmdBindDescriptorSets-pDescriptorSets-00358).
+                st.descriptor_sets.push(DescriptorSet { name: "ds-other".into(), layout: "sl-other".into(), writes: vec![] });
+                st.bound_sets[0] = BoundSet { set: 0, descriptor_set: "ds-other".into(), layout: "pl-other".into() };
             }
         }
         "02698" | "06425" | "08602" => {

@@ -664,10 +664,12 @@ impl ResourceState {
     }
 
     /// Whether two pipeline layouts are compatible for set `n`: identically defined set layouts for
-    /// sets 0 through `n` (compared by definition, not by name).
+    /// sets 0 through `n` (compared by definition, not by name) and identical push constant ranges
+    /// (the specification's "Pipeline Layout Compatibility").
     pub fn compatible_for_set(&self, a: &str, b: &str, n: u32) -> bool {
         let (Some(a), Some(b)) = (self.pipeline_layout_named(a), self.pipeline_layout_named(b)) else { return false };
-        (0..=n as usize).all(|i| match (a.sets.get(i), b.sets.get(i)) {
+        a.push_ranges == b.push_ranges
+            && (0..=n as usize).all(|i| match (a.sets.get(i), b.sets.get(i)) {
             (Some(x), Some(y)) => match (self.set_layout(x), self.set_layout(y)) {
                 (Some(x), Some(y)) => x.bindings == y.bindings,
                 _ => false,
@@ -711,4 +713,19 @@ fn is_zero(v: &u32) -> bool {
 }
 fn is_default<T: Default + PartialEq>(v: &T) -> bool {
     *v == T::default()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn compatibility_for_a_set_needs_the_same_push_constant_ranges() {
+        let sl = SetLayout { name: "s".into(), bindings: vec![LayoutBinding { binding: 0, ty: DescriptorType::UniformBuffer, count: 1 }] };
+        let pl = |name: &str, size| PipelineLayout { name: name.into(), sets: vec!["s".into()], push_ranges: vec![PushRange { offset: 0, size }] };
+        let rs = ResourceState { set_layouts: vec![sl], pipeline_layouts: vec![pl("a", 16), pl("b", 16), pl("c", 32)], ..Default::default() };
+        assert!(rs.compatible_for_set("a", "b", 0));
+        assert!(!rs.compatible_for_set("a", "c", 0));
+        assert!(!rs.compatible_for_set("a", "b", 1), "set 1 is in neither layout");
+    }
 }

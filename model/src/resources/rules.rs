@@ -486,7 +486,11 @@ impl ResourceRule {
                 if !via_sets || (*unless_descriptor_buffer && rs.pipeline_descriptor_buffer) {
                     return;
                 }
-                for r in resolve(rs) {
+                // Only sets bound compatibly are the pipeline's: a set bound with an incompatible
+                // layout (02697/08600) has no descriptors the pipeline uses.
+                let pl = rs.pipeline_layout.as_deref().unwrap_or_default();
+                let usable = |n: u32| rs.bound(n).is_some_and(|b| rs.compatible_for_set(&b.layout, pl, n));
+                for r in resolve(rs).into_iter().filter(|r| usable(r.access.set)) {
                     if let Some(p) = descriptor_problem(rs, &r) {
                         fail(r.at(), p);
                     }
