@@ -298,7 +298,7 @@ pub fn compare_build(
             let ok = obs.ray_mismatches.is_empty() && obs.indirect_vs_direct.is_empty();
             report.output_matches = Some(ok);
             if !obs.ray_mismatches.is_empty() {
-                let key = format!("output:{command}:{}", crate::build::deviation(case, obs).unwrap_or("rays"));
+                let key = format!("output:{command}:{}", crate::build::deviation(case, obs).unwrap_or_else(|| "rays".into()));
                 let first = obs.ray_mismatches[0].clone();
                 match triage.covers(&key) {
                     Some(t) => triaged.push(format!("{key} ({} of {} rays, first {first}; triaged {}: {})", obs.ray_mismatches.len(), obs.rays, t.kind, t.reason)),

@@ -39,3 +39,24 @@ fn pipeline_check_reports_what_ray_query_reports() {
     assert!(rays > 20, "only {rays} rays traced");
     assert_eq!(kinds.len(), 3, "triangles, AABBs and instances are all traced: {kinds:?}");
 }
+
+/// The discriminating firstVertex case: lavapipe's hits are exactly those of firstVertex applied twice,
+/// and of no other named deviation; the model's own primitives cast on the CPU give the expected hits.
+#[test]
+fn lavapipe_first_vertex_deviation_is_named_by_the_cpu_cast() {
+    let inst = Arc::new(VkInstance::new(Driver::Lavapipe, true).expect("lavapipe and the layer are installed by scripts/setup.sh"));
+    let profile = generator::profiles::load("lavapipe").unwrap();
+    let set = vk_registry::source::load_vuids(std::path::Path::new("/usr/share/vulkan/registry")).unwrap();
+    let rules = BuildRuleSet::from_vuids(&set);
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/build/indexed-first-vertex-shifted-primitives.yaml");
+    let case = BuildCase::from_yaml("shifted", &std::fs::read_to_string(path).unwrap()).unwrap();
+    let obs = run_case_with(&inst, &profile, &rules, &case, &generator::build::unavoidable(&profile), BuildOptions { check: TraceCheck::Pipeline });
+    assert_eq!(obs.status, "ran");
+    assert_eq!(obs.rays, 2);
+    // FIXME(lavapipe, Mesa 25.0.7): a fixed driver traces [(0,0,0), (0,0,1)] and this fails.
+    assert_eq!(obs.ray_hits, vec![None, Some((0, 0, 0))]);
+    assert_eq!(harness::build::deviation(&case, &obs).as_deref(), Some("first-vertex-applied-twice"));
+    let mut model_obs = obs.clone();
+    model_obs.ray_hits = vec![Some((0, 0, 0)), Some((0, 0, 1))];
+    assert_eq!(harness::build::deviation(&case, &model_obs), None, "the model's own hits are no deviation");
+}

@@ -463,10 +463,12 @@ pub fn mutate(case: &BuildCase, tail: &str, profile: &DeviceProfile) -> Option<B
             bump(&mut call.infos[0].scratch, m / 2);
         }
         "03671" | "12258" => {
-            buffer_mut(w, "scratch").size = w.sizes[0].build_scratch - 1;
+            // Far below what any device asks (the harness judges again with the device's sizes).
+            buffer_mut(w, "scratch").size = 8;
         }
         "03802" => call.infos[0].scratch = Address::Raw(0x10_0000),
-        "03652" => w.structures[0].size = w.sizes[0].structure - 1,
+        // Far below what any device asks (the harness judges again with the device's sizes).
+        "03652" => w.structures[0].size = 16,
         "03699" | "03700" => {
             let want = if tag == "03699" { AsType::TopLevel } else { AsType::BottomLevel };
             if call.infos[0].ty != want {
@@ -534,6 +536,26 @@ pub fn mutate(case: &BuildCase, tail: &str, profile: &DeviceProfile) -> Option<B
                 ("03811", GeometryData::Aabbs { data, .. }) => *data = Address::Raw(0x4_0000_0000_0000),
                 ("03813", GeometryData::Instances { data, .. }) => *data = Address::Raw(0x4_0000_0000_0000),
                 _ => return None,
+            }
+            // shift_from moved the bumped target a second time (it lies past `from`): undo that once.
+            let delta = match tag {
+                "03711" => 2,
+                "03712" => 1,
+                "03714" | "03716" => 4,
+                "03715" | "03810" => 8,
+                _ => 0,
+            };
+            if delta > 0 {
+                let target = match (tag, &mut call.infos[0].geometries[0].data) {
+                    ("03711", GeometryData::Triangles { vertex_data, .. }) => vertex_data,
+                    ("03712", GeometryData::Triangles { index_data, .. }) => index_data,
+                    ("03810", GeometryData::Triangles { transform_data, .. }) => transform_data,
+                    (_, GeometryData::Aabbs { data, .. } | GeometryData::Instances { data, .. }) => data,
+                    _ => return None,
+                };
+                if let Address::InBuffer { offset, .. } = target {
+                    *offset -= delta;
+                }
             }
         }
         "06707" | "12281" => {
