@@ -3,9 +3,11 @@
 //! `vkCmdBuildAccelerationStructuresIndirectKHR` recorded under the validation layer with the messenger
 //! returning VK_TRUE (never submitted). A valid case runs as the equivalent direct build
 //! (`vkCmdBuildAccelerationStructuresKHR` with the ranges the model reads from memory) and the result is
-//! checked by tracing one ray per built primitive (ray query in a compute shader) against the model's
-//! primitive list. Where the device has `accelerationStructureIndirectBuild`, the indirect build runs
-//! for real too and must trace the same.
+//! checked by tracing one ray per built primitive against the model's primitive list: with ray query in
+//! a compute shader, or — where the device lacks rayQuery, or when asked ([`TraceCheck::Pipeline`]) —
+//! with a ray tracing pipeline (raygen, closest-hit, intersection for AABBs). Where the device has
+//! `accelerationStructureIndirectBuild`, the case's indirect build is submitted for real too and must
+//! trace as the direct build does. [`deviation`] names known driver departures by a CPU cast.
 
 use crate::realise::{Allocation, RealiseError};
 use crate::vulkan::{LayerMessage, VkDevice, VkInstance};
