@@ -215,7 +215,10 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
     } else {
         indicatif::ProgressBar::hidden()
     };
+    // Specs a generator cannot make on this profile (a feature or queue the device lacks) are listed,
+    // not failed; any other generator error is a failure of the run.
     let mut gen_errors = Vec::new();
+    let mut not_expressible = Vec::new();
     let handle_size = profile.limit("shaderGroupHandleSize").unwrap_or(32);
     // Cases are generated spec by spec into a bounded chunk; a full chunk runs on one set of workers
     // (which keep their devices and pipelines warm) and its results are written before the next
@@ -258,9 +261,14 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
                 match generator::generate_range(&profile, &profile_name, &rules, spec, range, seed)
                 {
                     Ok(c) => c,
+                    Err(e @ generator::GenError::Unsupported(_)) => {
+                        not_expressible.push(format!("{}: {e}", spec_label(spec)));
+                        bar.inc(a.count as u64);
+                        break;
+                    }
                     Err(e) => {
-                        gen_errors.push(format!("{spec:?}: {e}"));
-                        bar.inc((a.count) as u64);
+                        gen_errors.push(format!("{}: {e}", spec_label(spec)));
+                        bar.inc(a.count as u64);
                         break;
                     }
                 };
@@ -315,6 +323,12 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
         shrink_failures(&a, &rules, &profile, &profile_name, &triage, &results_path);
     }
     print_summary(&summary, &a.out);
+    if !not_expressible.is_empty() {
+        println!("{} specs are not expressible on profile {profile_name}:", not_expressible.len());
+        for e in &not_expressible {
+            println!("  {e}");
+        }
+    }
     for e in &gen_errors {
         eprintln!("rtconf: could not generate {e}");
     }
@@ -324,6 +338,14 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
     } else {
         0
     })
+}
+
+/// A spec as a person reads it: the command and the VUID it violates, or `valid`.
+fn spec_label(spec: &CaseSpec) -> String {
+    match &spec.intent {
+        generator::SpecIntent::Valid => format!("{} valid", spec.command.vk_name()),
+        generator::SpecIntent::Violate(v) => v.clone(),
+    }
 }
 
 /// The build command's name on the command line.
