@@ -104,3 +104,24 @@ fn families_not_realised_are_unsupported_with_a_reason() {
         }
     }
 }
+
+#[test]
+fn generated_valid_resource_states_run_silently() {
+    // The generator's valid states (every access subset, Unknown formats, pushes, atomics) on the
+    // valid case's launch: the layer stays silent and the words are the model's.
+    let profile = generator::profiles::load("lavapipe").expect("profiles/lavapipe.json");
+    let mut ctx = executor();
+    let base = case("trace-indirect-valid-resources");
+    let expected = model::semantics::expected_launch(&base.world, &base.call).expect("dimensions are known");
+    let mut ran = 0;
+    for (choice, bits) in [(0, 0x1ff), (1, 0x1ff), (2, 0x0ff), (3, 0x17f), (5, 0x041), (6, 0x103), (7, 0x1ff), (11, 0x0a5)] {
+        let mut c = base.clone();
+        c.world.resources = generator::resources::valid_state(&profile, choice, bits);
+        let obs = execute(&c, &mut ctx);
+        assert_eq!(obs.status, Status::Ran, "choice {choice} bits {bits:#x}: {obs:?}");
+        assert!(obs.layer_vuids.is_empty(), "choice {choice} bits {bits:#x}: {:#?}", obs.layer_messages);
+        assert_eq!(obs.output.as_deref(), Some(expected.words.as_slice()), "choice {choice} bits {bits:#x}");
+        ran += 1;
+    }
+    assert_eq!(ran, 8);
+}
