@@ -30,9 +30,17 @@ enum CheckArg {
     Pipeline,
 }
 
+/// The triage files `rtconf run` uses for this layer version and driver, so a replay judges a case
+/// exactly as the run did.
+fn default_triage(layer_version: Option<&str>, driver: &str) -> Result<Triage, String> {
+    let name = harness::vulkan::Driver::parse(driver).name();
+    Triage::load(&super::repo_dir().join("triage"), &[], layer_version, &name)
+}
+
 pub fn run(a: ReplayArgs) -> Result<i32, String> {
     let shown = a.case.display().to_string();
-    let text = std::fs::read_to_string(&a.case).map_err(|e| format!("{shown}: cannot read: {e}"))?;
+    let text =
+        std::fs::read_to_string(&a.case).map_err(|e| format!("{shown}: cannot read: {e}"))?;
     let case = match model::Case::from_yaml(&shown, &text) {
         Ok(c) => c,
         Err(trace_err) => match model::build::BuildCase::from_yaml(&shown, &text) {
@@ -49,23 +57,64 @@ pub fn run(a: ReplayArgs) -> Result<i32, String> {
     let mut ex = harness::execute::Executor::new(driver).map_err(|e| e.to_string())?;
     let started = std::time::Instant::now();
     let obs = harness::execute::execute(&case, &mut ex);
-    let report = compare(&case, &verdict, &obs, &Triage::default(), started.elapsed().as_secs_f64() * 1000.0);
+    let triage = default_triage(set.version.as_deref(), &a.driver)?;
+    let report = compare(
+        &case,
+        &verdict,
+        &obs,
+        &triage,
+        started.elapsed().as_secs_f64() * 1000.0,
+    );
     println!("case:    {}", case.name);
     println!("intent:  {:?}", case.intent);
     println!("status:  {:?}", obs.status);
-    println!("model:   {}", if report.model.is_empty() { "valid".into() } else { report.model.join(", ") });
+    println!(
+        "model:   {}",
+        if report.model.is_empty() {
+            "valid".into()
+        } else {
+            report.model.join(", ")
+        }
+    );
     for v in &verdict.violations {
         println!("         {} at {}: {}", v.vuid, v.context, v.problem);
     }
-    println!("layer:   {}", if obs.layer_vuids.is_empty() { "nothing".into() } else { obs.layer_vuids.join(", ") });
+    println!(
+        "layer:   {}",
+        if obs.layer_vuids.is_empty() {
+            "nothing".into()
+        } else {
+            obs.layer_vuids.join(", ")
+        }
+    );
     for m in &obs.layer_messages {
-        println!("         [{}] {}", m.severity, m.text.chars().take(300).collect::<String>());
+        println!(
+            "         [{}] {}",
+            m.severity,
+            m.text.chars().take(300).collect::<String>()
+        );
     }
     if let Some(ok) = report.output_matches {
-        println!("output:  {}", if ok { "matches the model" } else { "DIFFERS from the model" });
+        println!(
+            "output:  {}",
+            if ok {
+                "matches the model"
+            } else {
+                "DIFFERS from the model"
+            }
+        );
     }
     println!("outcome: {:?} {}", report.outcome, report.detail);
-    Ok(if report.outcome == harness::compare::Outcome::Pass { 0 } else { 1 })
+    Ok(
+        if matches!(
+            report.outcome,
+            harness::compare::Outcome::Pass | harness::compare::Outcome::Triaged
+        ) {
+            0
+        } else {
+            1
+        },
+    )
 }
 
 /// Whether a file that parses as neither kind was meant as a build case (its call has `infos`).
@@ -84,14 +133,23 @@ fn run_build(a: &ReplayArgs, case: model::build::BuildCase) -> Result<i32, Strin
     let profile = super::profile_for(a.profile.as_deref().unwrap_or(&case.profile))?;
     let unavoidable = generator::build::unavoidable(&profile);
     let driver = harness::vulkan::Driver::parse(&a.driver);
-    let inst = std::sync::Arc::new(harness::vulkan::VkInstance::new(driver, true).map_err(|e| e.to_string())?);
+    let inst = std::sync::Arc::new(
+        harness::vulkan::VkInstance::new(driver, true).map_err(|e| e.to_string())?,
+    );
     let check = match a.check {
         CheckArg::Auto => TraceCheck::Auto,
         CheckArg::RayQuery => TraceCheck::RayQuery,
         CheckArg::Pipeline => TraceCheck::Pipeline,
     };
     let started = std::time::Instant::now();
-    let obs = harness::build::run_case_with(&inst, &profile, &rules, &case, &unavoidable, BuildOptions { check });
+    let obs = harness::build::run_case_with(
+        &inst,
+        &profile,
+        &rules,
+        &case,
+        &unavoidable,
+        BuildOptions { check },
+    );
     let millis = started.elapsed().as_secs_f64() * 1000.0;
     let mut world = case.world.clone();
     if !obs.device_sizes.is_empty() {
@@ -100,23 +158,43 @@ fn run_build(a: &ReplayArgs, case: model::build::BuildCase) -> Result<i32, Strin
     let verdict = rules.validate(&profile, &world, &case.call);
     let mut model: Vec<String> = verdict.violations.iter().map(|v| v.vuid.clone()).collect();
     model.dedup();
-    let report = compare_build(&case, &model, &obs, &unavoidable, &Triage::default(), millis);
+    let triage = default_triage(set.version.as_deref(), &a.driver)?;
+    let report = compare_build(&case, &model, &obs, &unavoidable, &triage, millis);
     println!("case:    {} (build)", case.name);
     println!("intent:  {:?}", case.intent);
     println!("status:  {}", obs.status);
     println!("sizes:   {:?}", obs.device_sizes);
-    println!("model:   {}", if model.is_empty() { "valid".into() } else { model.join(", ") });
+    println!(
+        "model:   {}",
+        if model.is_empty() {
+            "valid".into()
+        } else {
+            model.join(", ")
+        }
+    );
     for v in &verdict.violations {
         println!("         {} at {}: {}", v.vuid, v.context, v.problem);
     }
-    println!("layer:   {}", if obs.layer_vuids.is_empty() { "nothing".into() } else { obs.layer_vuids.join(", ") });
+    println!(
+        "layer:   {}",
+        if obs.layer_vuids.is_empty() {
+            "nothing".into()
+        } else {
+            obs.layer_vuids.join(", ")
+        }
+    );
     for m in &obs.layer_messages {
         println!("         [{}] {}: {}", m.severity, m.id, m.text);
     }
     if !obs.check.is_empty() {
         println!("check:   {} ray(s) traced with {}", obs.rays, obs.check);
         for (k, h) in obs.ray_hits.iter().enumerate() {
-            println!("         ray {k}: {}", h.map_or("miss".into(), |(i, g, p)| format!("instance {i} geometry {g} primitive {p}")));
+            println!(
+                "         ray {k}: {}",
+                h.map_or("miss".into(), |(i, g, p)| format!(
+                    "instance {i} geometry {g} primitive {p}"
+                ))
+            );
         }
         for m in &obs.ray_mismatches {
             println!("         MISMATCH {m}");
@@ -125,15 +203,37 @@ fn run_build(a: &ReplayArgs, case: model::build::BuildCase) -> Result<i32, Strin
             println!("         the device's hits are exactly those of the build under `{d}`");
         }
         if !obs.direct_layer_vuids.is_empty() {
-            println!("         direct build: layer reported {}", obs.direct_layer_vuids.join(", "));
+            println!(
+                "         direct build: layer reported {}",
+                obs.direct_layer_vuids.join(", ")
+            );
         }
         if obs.indirect_ran {
-            println!("indirect: ran for real; {} ray(s) differ from the direct build", obs.indirect_vs_direct.len());
+            println!(
+                "indirect: ran for real; {} ray(s) differ from the direct build",
+                obs.indirect_vs_direct.len()
+            );
         }
     }
     if let Some(ok) = report.output_matches {
-        println!("output:  {}", if ok { "matches the model" } else { "DIFFERS from the model" });
+        println!(
+            "output:  {}",
+            if ok {
+                "matches the model"
+            } else {
+                "DIFFERS from the model"
+            }
+        );
     }
     println!("outcome: {:?} {}", report.outcome, report.detail);
-    Ok(if report.outcome == harness::compare::Outcome::Pass { 0 } else { 1 })
+    Ok(
+        if matches!(
+            report.outcome,
+            harness::compare::Outcome::Pass | harness::compare::Outcome::Triaged
+        ) {
+            0
+        } else {
+            1
+        },
+    )
 }
