@@ -35,7 +35,12 @@ pub fn profile(name: &str) -> DeviceProfile {
 pub fn profile_names() -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(repo().join("profiles"))
         .expect("profiles/")
-        .filter_map(|e| e.ok()?.path().file_stem().map(|s| s.to_string_lossy().into_owned()))
+        .filter_map(|e| {
+            e.ok()?
+                .path()
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+        })
         .collect();
     v.sort();
     v

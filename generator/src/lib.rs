@@ -63,11 +63,19 @@ pub struct CaseSpec {
 
 impl CaseSpec {
     pub fn valid(command: Command) -> CaseSpec {
-        CaseSpec { command, intent: SpecIntent::Valid, dimensions: DimensionRange::Small }
+        CaseSpec {
+            command,
+            intent: SpecIntent::Valid,
+            dimensions: DimensionRange::Small,
+        }
     }
 
     pub fn violate(command: Command, vuid: &str) -> CaseSpec {
-        CaseSpec { command, intent: SpecIntent::Violate(vuid.to_string()), dimensions: DimensionRange::Small }
+        CaseSpec {
+            command,
+            intent: SpecIntent::Violate(vuid.to_string()),
+            dimensions: DimensionRange::Small,
+        }
     }
 
     /// The same request with dimensions up to the profile's limits.
@@ -95,18 +103,38 @@ pub fn executable_vuids(rules: &RuleSet, command: Command) -> Vec<String> {
 }
 
 /// Checks that a spec can be generated on a profile: the command's extension, the VUID's row and mutation.
-pub fn check_spec(profile: &DeviceProfile, rules: &RuleSet, spec: &CaseSpec) -> Result<Option<Mutation>, GenError> {
-    let ext = if spec.command.is_nv() { "VK_NV_ray_tracing" } else { "VK_KHR_ray_tracing_pipeline" };
+pub fn check_spec(
+    profile: &DeviceProfile,
+    rules: &RuleSet,
+    spec: &CaseSpec,
+) -> Result<Option<Mutation>, GenError> {
+    let ext = if spec.command.is_nv() {
+        "VK_NV_ray_tracing"
+    } else {
+        "VK_KHR_ray_tracing_pipeline"
+    };
     if !profile.has_extension(ext) {
-        return Err(GenError::Unsupported(format!("{} needs {ext}, which `{}` lacks", spec.command.vk_name(), profile.name)));
+        return Err(GenError::Unsupported(format!(
+            "{} needs {ext}, which `{}` lacks",
+            spec.command.vk_name(),
+            profile.name
+        )));
     }
-    let SpecIntent::Violate(vuid) = &spec.intent else { return Ok(None) };
+    let SpecIntent::Violate(vuid) = &spec.intent else {
+        return Ok(None);
+    };
     let row = rules
         .row(vuid)
         .filter(|r| applies_to(&r.scope, spec.command.vk_name()))
-        .ok_or_else(|| GenError::NotForCommand { vuid: vuid.clone(), command: spec.command.vk_name().into() })?;
+        .ok_or_else(|| GenError::NotForCommand {
+            vuid: vuid.clone(),
+            command: spec.command.vk_name().into(),
+        })?;
     if row.status != Status::Executable {
-        return Err(GenError::NotExecutable { vuid: vuid.clone(), status: format!("{:?}", row.status) });
+        return Err(GenError::NotExecutable {
+            vuid: vuid.clone(),
+            status: format!("{:?}", row.status),
+        });
     }
     let m = mutations_for(vuid).ok_or_else(|| GenError::NoMutation(vuid.clone()))?;
     mutation::supported(m, profile, spec.command)?;
@@ -121,7 +149,10 @@ pub fn check_spec(profile: &DeviceProfile, rules: &RuleSet, spec: &CaseSpec) -> 
         profile.has_extension(name)
     });
     if !ok {
-        return Err(GenError::Unsupported(format!("{vuid}: its registry condition does not hold on `{}`", profile.name)));
+        return Err(GenError::Unsupported(format!(
+            "{vuid}: its registry condition does not hold on `{}`",
+            profile.name
+        )));
     }
     Ok(Some(m))
 }
@@ -144,7 +175,14 @@ pub fn case_strategy(
             .prop_map(move |raw| {
                 let plan = valid::resolve(&raw, &profile, &lim, command, dims);
                 let (world, call) = plan::realize(&plan, &lim);
-                Case { name: String::new(), profile: profile_name.clone(), seed: None, intent: Intent::Valid, world, call }
+                Case {
+                    name: String::new(),
+                    profile: profile_name.clone(),
+                    seed: None,
+                    intent: Intent::Valid,
+                    world,
+                    call,
+                }
             })
             .boxed()),
         (Some(m), SpecIntent::Violate(vuid)) => {
@@ -156,20 +194,40 @@ pub fn case_strategy(
                 .map_err(|e| GenError::Io(e.to_string()))?
                 .current();
             let probe = valid::resolve(&probe_raw, &profile, &lim, command, dims);
-            let input = |knob, pick| mutation::MutationInput { profile: &profile, rules: &rules, lim: &lim, command, vuid: &vuid, knob, pick };
+            let input = |knob, pick| mutation::MutationInput {
+                profile: &profile,
+                rules: &rules,
+                lim: &lim,
+                command,
+                vuid: &vuid,
+                knob,
+                pick,
+            };
             mutation::apply(m, probe, &input(0, 0))?;
             // Knob 0 (the boundary value) is drawn most often and is where shrinking goes.
             let knob = proptest::prop_oneof![3 => proptest::strategy::Just(0u32), 2 => 0..4u32];
             Ok((valid::raw_strategy(), knob, 0..4u32)
                 .prop_map(move |(raw, knob, pick)| {
                     let plan = valid::resolve(&raw, &profile, &lim, command, dims);
-                    let input = mutation::MutationInput { profile: &profile, rules: &rules, lim: &lim, command, vuid: &vuid, knob, pick };
-                    let mutated = mutation::apply(m, plan, &input).expect("a mutation that applied once applies to every plan");
+                    let input = mutation::MutationInput {
+                        profile: &profile,
+                        rules: &rules,
+                        lim: &lim,
+                        command,
+                        vuid: &vuid,
+                        knob,
+                        pick,
+                    };
+                    let mutated = mutation::apply(m, plan, &input)
+                        .expect("a mutation that applied once applies to every plan");
                     Case {
                         name: String::new(),
                         profile: profile_name.clone(),
                         seed: None,
-                        intent: Intent::Violates { vuid: vuid.clone(), also: mutated.also },
+                        intent: Intent::Violates {
+                            vuid: vuid.clone(),
+                            also: mutated.also,
+                        },
                         world: mutated.world,
                         call: mutated.call,
                     }
@@ -191,20 +249,30 @@ fn seed_bytes(seed: u64, index: u64) -> [u8; 32] {
 
 fn runner_for(derived: u64) -> TestRunner {
     let bytes = seed_bytes(derived, 0);
-    TestRunner::new_with_rng(Config::default(), TestRng::from_seed(RngAlgorithm::ChaCha, &bytes))
+    TestRunner::new_with_rng(
+        Config::default(),
+        TestRng::from_seed(RngAlgorithm::ChaCha, &bytes),
+    )
 }
 
 /// A runner whose RNG is fixed by (seed, index), so each case can be rebuilt alone.
 pub fn case_runner(seed: u64, index: u64) -> TestRunner {
     let bytes = seed_bytes(seed, index);
-    TestRunner::new_with_rng(Config::default(), TestRng::from_seed(RngAlgorithm::ChaCha, &bytes))
+    TestRunner::new_with_rng(
+        Config::default(),
+        TestRng::from_seed(RngAlgorithm::ChaCha, &bytes),
+    )
 }
 
 /// The name of case `index` of a spec.
 pub fn case_name(spec: &CaseSpec, seed: u64, index: usize) -> String {
     match &spec.intent {
         SpecIntent::Valid => {
-            let limits = if spec.dimensions == DimensionRange::Limits { "-limits" } else { "" };
+            let limits = if spec.dimensions == DimensionRange::Limits {
+                "-limits"
+            } else {
+                ""
+            };
             format!("{}-valid{limits}-{seed}-{index}", spec.command.case_stem())
         }
         SpecIntent::Violate(vuid) => format!("{}-{seed}-{index}", short_vuid(vuid)),
@@ -237,7 +305,10 @@ pub fn generate_range(
     range
         .map(|i| {
             let mut runner = case_runner(seed, i as u64);
-            let mut case = strategy.new_tree(&mut runner).map_err(|e| GenError::Io(e.to_string()))?.current();
+            let mut case = strategy
+                .new_tree(&mut runner)
+                .map_err(|e| GenError::Io(e.to_string()))?
+                .current();
             case.name = case_name(spec, seed, i);
             case.seed = Some(format!("{seed}/{i}"));
             Ok(case)
@@ -270,7 +341,9 @@ pub fn shrink_failure(
 ) -> Result<Option<Shrunk>, GenError> {
     let strategy = case_strategy(profile, profile_name, rules, spec)?;
     let mut runner = case_runner(seed, index as u64);
-    let mut tree = strategy.new_tree(&mut runner).map_err(|e| GenError::Io(e.to_string()))?;
+    let mut tree = strategy
+        .new_tree(&mut runner)
+        .map_err(|e| GenError::Io(e.to_string()))?;
     let name = case_name(spec, seed, index);
     let stamp = |mut c: Case| {
         c.name = name.clone();
@@ -301,6 +374,11 @@ pub fn shrink_failure(
     }
     std::fs::create_dir_all(dir).map_err(|e| GenError::Io(format!("{}: {e}", dir.display())))?;
     let path = dir.join(format!("{name}.yaml"));
-    std::fs::write(&path, best.to_yaml()).map_err(|e| GenError::Io(format!("{}: {e}", path.display())))?;
-    Ok(Some(Shrunk { case: best, path, steps }))
+    std::fs::write(&path, best.to_yaml())
+        .map_err(|e| GenError::Io(format!("{}: {e}", path.display())))?;
+    Ok(Some(Shrunk {
+        case: best,
+        path,
+        steps,
+    }))
 }

@@ -2,14 +2,16 @@
 //! values first (knob 0 is always the boundary: alignment + 1 byte, limit + 1, one byte past the end),
 //! and says which co-violations the device makes unavoidable, decided from what the rules mean.
 
-use crate::plan::{queue_families, realize, round_up, table_buffer, Command, Limits, Plan, INDIRECT};
+use crate::plan::{
+    queue_families, realize, round_up, table_buffer, Command, Limits, Plan, INDIRECT,
+};
 use crate::valid::GroupIndex;
 use crate::GenError;
 use model::flags::{BufferCreate, BufferUsage, PipelineCreate, QueueFlags};
 use model::rules::RuleSet;
 use model::world::{
-    CommandBufferLifecycle, Contents, GeneralStage, GeometryKind, HandleRef, Instance, MemoryBinding, RayTarget,
-    ShaderGroup, TraceRay,
+    CommandBufferLifecycle, Contents, GeneralStage, GeometryKind, HandleRef, Instance,
+    MemoryBinding, RayTarget, ShaderGroup, TraceRay,
 };
 use model::{Call, DeviceProfile, Table, World};
 
@@ -182,7 +184,9 @@ pub fn mutations_for(vuid: &str) -> Option<Mutation> {
             }
             if tag == "parameter" {
                 let field = rest.strip_suffix("-parameter")?;
-                let t = Table::ALL.into_iter().find(|t| field == format!("{}TableBuffer", t.nv_stem()))?;
+                let t = Table::ALL
+                    .into_iter()
+                    .find(|t| field == format!("{}TableBuffer", t.nv_stem()))?;
                 return Some(Mutation::NvInvalidBuffer(t));
             }
             Some(match tag {
@@ -219,33 +223,57 @@ pub struct Mutated {
 
 /// Whether a mutation can be expressed on a profile (without building a case).
 pub fn supported(m: Mutation, profile: &DeviceProfile, command: Command) -> Result<(), GenError> {
-    let unsupported = |why: &str| Err(GenError::Unsupported(format!("{m:?} on {}: {why}", profile.name)));
+    let unsupported = |why: &str| {
+        Err(GenError::Unsupported(format!(
+            "{m:?} on {}: {why}",
+            profile.name
+        )))
+    };
     let families = queue_families(profile);
     match m {
         // issue 4: resource mutations decide for themselves.
         Mutation::Resource(r) => crate::resources::supported(r, profile),
-        Mutation::MotionPipelineWithoutFeature if !profile.has_extension("VK_NV_ray_tracing_motion_blur") => {
+        Mutation::MotionPipelineWithoutFeature
+            if !profile.has_extension("VK_NV_ray_tracing_motion_blur") =>
+        {
             unsupported("no VK_NV_ray_tracing_motion_blur")
         }
-        Mutation::ProtectedResource | Mutation::ProtectedCommandBuffer if !profile.has_feature("protectedMemory") => {
+        Mutation::ProtectedResource | Mutation::ProtectedCommandBuffer
+            if !profile.has_feature("protectedMemory") =>
+        {
             unsupported("protectedMemory is not supported")
         }
-        Mutation::ProtectedResource if profile.has_feature("protectedNoFault") || profile.limit("protectedNoFault") == Some(1) => {
+        Mutation::ProtectedResource
+            if profile.has_feature("protectedNoFault")
+                || profile.limit("protectedNoFault") == Some(1) =>
+        {
             unsupported("protectedNoFault is supported, so protected resources are allowed")
         }
-        Mutation::ProtectedCommandBuffer if !families.iter().any(|q| q.contains(QueueFlags::PROTECTED_BIT)) => {
+        Mutation::ProtectedCommandBuffer
+            if !families
+                .iter()
+                .any(|q| q.contains(QueueFlags::PROTECTED_BIT)) =>
+        {
             unsupported("no queue family supports protected submissions")
         }
-        Mutation::PoolWithoutCompute if !families.iter().any(|q| !q.is_empty_set() && !q.contains(QueueFlags::COMPUTE_BIT)) => {
+        Mutation::PoolWithoutCompute
+            if !families
+                .iter()
+                .any(|q| !q.is_empty_set() && !q.contains(QueueFlags::COMPUTE_BIT)) =>
+        {
             unsupported("every queue family supports compute")
         }
         Mutation::InsideVideoCoding
-            if !families.iter().any(|q| q.intersects(QueueFlags::VIDEO_DECODE_BIT_KHR | QueueFlags::VIDEO_ENCODE_BIT_KHR)) =>
+            if !families.iter().any(|q| {
+                q.intersects(QueueFlags::VIDEO_DECODE_BIT_KHR | QueueFlags::VIDEO_ENCODE_BIT_KHR)
+            }) =>
         {
             unsupported("no queue family supports video coding")
         }
         Mutation::InsideRenderPass
-            if !families.iter().any(|q| q.contains(QueueFlags::GRAPHICS_BIT | QueueFlags::COMPUTE_BIT)) =>
+            if !families
+                .iter()
+                .any(|q| q.contains(QueueFlags::GRAPHICS_BIT | QueueFlags::COMPUTE_BIT)) =>
         {
             unsupported("no queue family supports graphics and compute")
         }
@@ -280,8 +308,13 @@ fn miss_handle(plan: &mut Plan) -> HandleRef {
     if let Some(&g) = gi.miss.first() {
         return HandleRef::Group(g);
     }
-    if plan.flags.contains(PipelineCreate::RAY_TRACING_NO_NULL_MISS_SHADERS_BIT_KHR) {
-        plan.groups.push(ShaderGroup::General { stage: GeneralStage::Miss });
+    if plan
+        .flags
+        .contains(PipelineCreate::RAY_TRACING_NO_NULL_MISS_SHADERS_BIT_KHR)
+    {
+        plan.groups.push(ShaderGroup::General {
+            stage: GeneralStage::Miss,
+        });
         return HandleRef::Group(plan.groups.len() as u32 - 1);
     }
     HandleRef::Zero
@@ -314,7 +347,14 @@ fn add_miss_ray(plan: &mut Plan, h: HandleRef) {
     let table = &mut plan.tables[Table::Miss as usize];
     let idx = table.records.len() as u32;
     table.records.push(h);
-    plan.launch.rays.push(TraceRay { target: RayTarget::Nothing, sbt_offset: 0, sbt_stride: 0, miss_index: idx, cull_mask: 0xff, ray_flags: 0 });
+    plan.launch.rays.push(TraceRay {
+        target: RayTarget::Nothing,
+        sbt_offset: 0,
+        sbt_stride: 0,
+        miss_index: idx,
+        cull_mask: 0xff,
+        ray_flags: 0,
+    });
     ensure_launch(plan);
 }
 
@@ -323,10 +363,18 @@ fn add_hit_ray(plan: &mut Plan, kind: GeometryKind, h: HandleRef) {
     let table = &mut plan.tables[Table::Hit as usize];
     let idx = table.records.len() as u32;
     table.records.push(h);
-    plan.launch.instances.push(Instance { geometries: vec![kind], sbt_record_offset: idx, mask: 0xff, cluster: false });
+    plan.launch.instances.push(Instance {
+        geometries: vec![kind],
+        sbt_record_offset: idx,
+        mask: 0xff,
+        cluster: false,
+    });
     let instance = plan.launch.instances.len() as u32 - 1;
     plan.launch.rays.push(TraceRay {
-        target: RayTarget::Geometry { instance, geometry: 0 },
+        target: RayTarget::Geometry {
+            instance,
+            geometry: 0,
+        },
         sbt_offset: 0,
         sbt_stride: 0,
         miss_index: 0,
@@ -357,7 +405,11 @@ fn misalignment(align: u64, knob: u32) -> Option<u64> {
 }
 
 fn buffer_mut<'w>(world: &'w mut World, name: &str) -> &'w mut model::world::Buffer {
-    world.buffers.iter_mut().find(|b| b.name == name).expect("realised plans name their buffers")
+    world
+        .buffers
+        .iter_mut()
+        .find(|b| b.name == name)
+        .expect("realised plans name their buffers")
 }
 
 /// Applies a mutation to a valid plan and realises it.
@@ -370,29 +422,38 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
     let lim = input.lim;
     let knob = input.knob;
     let cmd = input.command;
-    let unsupported = |why: String| GenError::Unsupported(format!("{m:?} on {}: {why}", input.profile.name));
+    let unsupported =
+        |why: String| GenError::Unsupported(format!("{m:?} on {}: {why}", input.profile.name));
     let mut also: Vec<String> = vec![];
     // Edits made after layout, on the realised world and call.
     let mut post: Vec<Box<dyn FnOnce(&mut World, &mut Call)>> = vec![];
     match m {
         Mutation::MisalignTableAddress(t) => {
             ensure_used(&mut plan, t);
-            plan.tables[t as usize].misalign =
-                misalignment(lim.base_align, knob).ok_or_else(|| unsupported("base alignment is 1".into()))?;
+            plan.tables[t as usize].misalign = misalignment(lim.base_align, knob)
+                .ok_or_else(|| unsupported("base alignment is 1".into()))?;
         }
         Mutation::MisalignTableStride(t) => {
             ensure_used(&mut plan, t);
-            let delta = misalignment(lim.stride_align, knob).ok_or_else(|| unsupported("stride alignment is 1".into()))?;
+            let delta = misalignment(lim.stride_align, knob)
+                .ok_or_else(|| unsupported("stride alignment is 1".into()))?;
             let tp = &mut plan.tables[t as usize];
-            let base = if tp.stride + delta > lim.max_stride { lim.min_stride() } else { tp.stride };
+            let base = if tp.stride + delta > lim.max_stride {
+                lim.min_stride()
+            } else {
+                tp.stride
+            };
             if base + delta > lim.max_stride {
-                return Err(unsupported("no misaligned stride fits under maxShaderGroupStride".into()));
+                return Err(unsupported(
+                    "no misaligned stride fits under maxShaderGroupStride".into(),
+                ));
             }
             tp.stride = base + delta;
         }
         Mutation::TableStrideAboveMax(t) => {
             ensure_used(&mut plan, t);
-            plan.tables[t as usize].stride = round_up(lim.max_stride + 1, lim.stride_align) + (knob % 3) as u64 * lim.stride_align;
+            plan.tables[t as usize].stride = round_up(lim.max_stride + 1, lim.stride_align)
+                + (knob % 3) as u64 * lim.stride_align;
         }
         Mutation::RaygenSizeNotStride => {
             let tp = &mut plan.tables[Table::Raygen as usize];
@@ -405,19 +466,37 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
         Mutation::TableBufferUsage(t) => {
             ensure_used(&mut plan, t);
             plan.tables[t as usize].separate = true;
-            post.push(Box::new(move |w, _| buffer_mut(w, &table_buffer(t)).usage.remove(BufferUsage::SHADER_BINDING_TABLE_BIT_KHR)));
+            post.push(Box::new(move |w, _| {
+                buffer_mut(w, &table_buffer(t))
+                    .usage
+                    .remove(BufferUsage::SHADER_BINDING_TABLE_BIT_KHR)
+            }));
         }
         Mutation::TableBufferMemory(t) => {
             ensure_used(&mut plan, t);
             plan.tables[t as usize].separate = true;
-            let mem = if knob % 2 == 0 { MemoryBinding::Unbound } else { MemoryBinding::Scattered };
-            post.push(Box::new(move |w, _| buffer_mut(w, &table_buffer(t)).memory = mem));
+            let mem = if knob % 2 == 0 {
+                MemoryBinding::Unbound
+            } else {
+                MemoryBinding::Scattered
+            };
+            post.push(Box::new(move |w, _| {
+                buffer_mut(w, &table_buffer(t)).memory = mem
+            }));
         }
         Mutation::IndirectBufferUsage => {
-            post.push(Box::new(|w, _| buffer_mut(w, INDIRECT).usage.remove(BufferUsage::INDIRECT_BUFFER_BIT)));
+            post.push(Box::new(|w, _| {
+                buffer_mut(w, INDIRECT)
+                    .usage
+                    .remove(BufferUsage::INDIRECT_BUFFER_BIT)
+            }));
         }
         Mutation::IndirectBufferMemory => {
-            let mem = if knob % 2 == 0 { MemoryBinding::Unbound } else { MemoryBinding::Scattered };
+            let mem = if knob % 2 == 0 {
+                MemoryBinding::Unbound
+            } else {
+                MemoryBinding::Scattered
+            };
             post.push(Box::new(move |w, _| buffer_mut(w, INDIRECT).memory = mem));
         }
         Mutation::MisalignIndirectAddress => {
@@ -433,12 +512,17 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
             plan.device.features.remove(f);
         }
         Mutation::MotionPipelineWithoutFeature => {
-            plan.flags.insert(PipelineCreate::RAY_TRACING_ALLOW_MOTION_BIT_NV);
-            plan.device.extensions.insert("VK_NV_ray_tracing_motion_blur".into());
+            plan.flags
+                .insert(PipelineCreate::RAY_TRACING_ALLOW_MOTION_BIT_NV);
+            plan.device
+                .extensions
+                .insert("VK_NV_ray_tracing_motion_blur".into());
             if input.profile.has_feature("rayTracingMotionBlur") {
                 plan.device.features.insert("rayTracingMotionBlur".into());
             }
-            plan.device.features.remove("rayTracingMotionBlurPipelineTraceRaysIndirect");
+            plan.device
+                .features
+                .remove("rayTracingMotionBlurPipelineTraceRaysIndirect");
         }
         Mutation::ForeignHandle => {
             ensure_launch(&mut plan);
@@ -446,7 +530,11 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
             if knob % 2 == 0 {
                 plan.tables[Table::Raygen as usize].records[0] = HandleRef::Foreign(0);
             } else {
-                let g = GroupIndex::of(&plan.groups).miss.first().copied().unwrap_or(0);
+                let g = GroupIndex::of(&plan.groups)
+                    .miss
+                    .first()
+                    .copied()
+                    .unwrap_or(0);
                 add_miss_ray(&mut plan, HandleRef::Foreign(g));
                 keep_recursion(&mut plan);
             }
@@ -461,15 +549,33 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
             plan.max_recursion_depth = if knob % 2 == 0 { depth - 1 } else { 0 };
         }
         Mutation::NullMissReached => {
-            plan.flags.insert(PipelineCreate::RAY_TRACING_NO_NULL_MISS_SHADERS_BIT_KHR);
+            plan.flags
+                .insert(PipelineCreate::RAY_TRACING_NO_NULL_MISS_SHADERS_BIT_KHR);
             add_miss_ray(&mut plan, HandleRef::Zero);
             keep_recursion(&mut plan);
         }
         Mutation::NullHitReached(kind) => {
             let (flag, geometry) = match kind {
-                NullHit::AnyHit => (PipelineCreate::RAY_TRACING_NO_NULL_ANY_HIT_SHADERS_BIT_KHR, if knob % 2 == 0 { GeometryKind::Triangles } else { GeometryKind::Aabbs }),
-                NullHit::ClosestHit => (PipelineCreate::RAY_TRACING_NO_NULL_CLOSEST_HIT_SHADERS_BIT_KHR, if knob % 2 == 0 { GeometryKind::Triangles } else { GeometryKind::Aabbs }),
-                NullHit::Intersection => (PipelineCreate::RAY_TRACING_NO_NULL_INTERSECTION_SHADERS_BIT_KHR, GeometryKind::Aabbs),
+                NullHit::AnyHit => (
+                    PipelineCreate::RAY_TRACING_NO_NULL_ANY_HIT_SHADERS_BIT_KHR,
+                    if knob % 2 == 0 {
+                        GeometryKind::Triangles
+                    } else {
+                        GeometryKind::Aabbs
+                    },
+                ),
+                NullHit::ClosestHit => (
+                    PipelineCreate::RAY_TRACING_NO_NULL_CLOSEST_HIT_SHADERS_BIT_KHR,
+                    if knob % 2 == 0 {
+                        GeometryKind::Triangles
+                    } else {
+                        GeometryKind::Aabbs
+                    },
+                ),
+                NullHit::Intersection => (
+                    PipelineCreate::RAY_TRACING_NO_NULL_INTERSECTION_SHADERS_BIT_KHR,
+                    GeometryKind::Aabbs,
+                ),
             };
             // The other NO_NULL hit flags would make the zero record a second violation: they go.
             plan.flags.remove(
@@ -481,8 +587,16 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
             // The pipeline can only be created with the flag if every hit group has the shader it names.
             for g in plan.groups.iter_mut() {
                 match (kind, g) {
-                    (NullHit::AnyHit, ShaderGroup::TrianglesHit { any_hit, .. } | ShaderGroup::ProceduralHit { any_hit, .. }) => *any_hit = true,
-                    (NullHit::ClosestHit, ShaderGroup::TrianglesHit { closest_hit, .. } | ShaderGroup::ProceduralHit { closest_hit, .. }) => *closest_hit = true,
+                    (
+                        NullHit::AnyHit,
+                        ShaderGroup::TrianglesHit { any_hit, .. }
+                        | ShaderGroup::ProceduralHit { any_hit, .. },
+                    ) => *any_hit = true,
+                    (
+                        NullHit::ClosestHit,
+                        ShaderGroup::TrianglesHit { closest_hit, .. }
+                        | ShaderGroup::ProceduralHit { closest_hit, .. },
+                    ) => *closest_hit = true,
                     _ => {}
                 }
             }
@@ -494,14 +608,18 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
             plan.tables[Table::Hit as usize].records.clear();
             plan.launch.rays.retain(|r| r.target == RayTarget::Nothing);
             if kind == NullHit::ClosestHit {
-                plan.flags.insert(PipelineCreate::RAY_TRACING_NO_NULL_CLOSEST_HIT_SHADERS_BIT_KHR);
+                plan.flags
+                    .insert(PipelineCreate::RAY_TRACING_NO_NULL_CLOSEST_HIT_SHADERS_BIT_KHR);
                 for g in plan.groups.iter_mut() {
-                    if let ShaderGroup::TrianglesHit { closest_hit, .. } | ShaderGroup::ProceduralHit { closest_hit, .. } = g {
+                    if let ShaderGroup::TrianglesHit { closest_hit, .. }
+                    | ShaderGroup::ProceduralHit { closest_hit, .. } = g
+                    {
                         *closest_hit = true;
                     }
                 }
             } else {
-                plan.flags.insert(PipelineCreate::RAY_TRACING_NO_NULL_INTERSECTION_SHADERS_BIT_KHR);
+                plan.flags
+                    .insert(PipelineCreate::RAY_TRACING_NO_NULL_INTERSECTION_SHADERS_BIT_KHR);
             }
             // The other hit flag would now be violated too; it is not part of this case.
             let other = if kind == NullHit::ClosestHit {
@@ -516,8 +634,13 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
         }
         Mutation::HitGroupMismatch(kind) => {
             let gi = GroupIndex::of(&plan.groups);
-            let ch = plan.flags.contains(PipelineCreate::RAY_TRACING_NO_NULL_CLOSEST_HIT_SHADERS_BIT_KHR) || knob % 2 == 0;
-            let ah = plan.flags.contains(PipelineCreate::RAY_TRACING_NO_NULL_ANY_HIT_SHADERS_BIT_KHR);
+            let ch = plan
+                .flags
+                .contains(PipelineCreate::RAY_TRACING_NO_NULL_CLOSEST_HIT_SHADERS_BIT_KHR)
+                || knob % 2 == 0;
+            let ah = plan
+                .flags
+                .contains(PipelineCreate::RAY_TRACING_NO_NULL_ANY_HIT_SHADERS_BIT_KHR);
             let wrong = match kind {
                 GeometryKind::Triangles => gi.procedural.first().copied(),
                 GeometryKind::Aabbs => gi.triangles.first().copied(),
@@ -526,8 +649,15 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
                 Some(g) => g,
                 None => {
                     plan.groups.push(match kind {
-                        GeometryKind::Triangles => ShaderGroup::ProceduralHit { closest_hit: ch, any_hit: ah, intersection: true },
-                        GeometryKind::Aabbs => ShaderGroup::TrianglesHit { closest_hit: ch, any_hit: ah },
+                        GeometryKind::Triangles => ShaderGroup::ProceduralHit {
+                            closest_hit: ch,
+                            any_hit: ah,
+                            intersection: true,
+                        },
+                        GeometryKind::Aabbs => ShaderGroup::TrianglesHit {
+                            closest_hit: ch,
+                            any_hit: ah,
+                        },
                     });
                     plan.groups.len() as u32 - 1
                 }
@@ -548,7 +678,11 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
             let t = Table::ALL[input.pick as usize % 4];
             ensure_used(&mut plan, t);
             plan.tables[t as usize].separate = true;
-            post.push(Box::new(move |w, _| buffer_mut(w, &table_buffer(t)).flags.insert(BufferCreate::PROTECTED_BIT)));
+            post.push(Box::new(move |w, _| {
+                buffer_mut(w, &table_buffer(t))
+                    .flags
+                    .insert(BufferCreate::PROTECTED_BIT)
+            }));
         }
         Mutation::ProtectedCommandBuffer => {
             plan.device.features.insert("protectedMemory".into());
@@ -566,8 +700,11 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
             plan.command_buffer.protected = true;
         }
         Mutation::NotRecording => {
-            plan.command_buffer.lifecycle =
-                [CommandBufferLifecycle::Executable, CommandBufferLifecycle::Initial, CommandBufferLifecycle::Invalid][knob as usize % 3];
+            plan.command_buffer.lifecycle = [
+                CommandBufferLifecycle::Executable,
+                CommandBufferLifecycle::Initial,
+                CommandBufferLifecycle::Invalid,
+            ][knob as usize % 3];
             // Nothing is bound in a command buffer that was never begun: the pipeline rule fires too.
             if plan.command_buffer.lifecycle == CommandBufferLifecycle::Initial {
                 for tag in ["02700", "08606", "08607"] {
@@ -583,7 +720,11 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
             plan.command_buffer.pool_queue = families[input.pick as usize % families.len()];
         }
         Mutation::InsideRenderPass => {
-            if !plan.command_buffer.pool_queue.contains(QueueFlags::GRAPHICS_BIT) {
+            if !plan
+                .command_buffer
+                .pool_queue
+                .contains(QueueFlags::GRAPHICS_BIT)
+            {
                 plan.command_buffer.pool_queue = queue_families(input.profile)
                     .into_iter()
                     .find(|q| q.contains(QueueFlags::GRAPHICS_BIT | QueueFlags::COMPUTE_BIT))
@@ -612,22 +753,31 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
             plan.dims[(knob % 3) as usize] = 0;
         }
         Mutation::DimensionAboveLimit(i) => {
-            let over = lim.max_dim[i as usize] + 1 + (knob % 2) as u64 * lim.max_dim[i as usize] / 2;
+            let over =
+                lim.max_dim[i as usize] + 1 + (knob % 2) as u64 * lim.max_dim[i as usize] / 2;
             if over > u32::MAX as u64 {
-                return Err(unsupported(format!("the limit of dimension {i} is at u32::MAX")));
+                return Err(unsupported(format!(
+                    "the limit of dimension {i} is at u32::MAX"
+                )));
             }
             plan.dims = [1, 1, 1];
             plan.dims[i as usize] = over as u32;
             if let Some(max_inv) = lim.max_invocations {
                 if over > max_inv {
                     // width × height × depth is then above maxRayDispatchInvocationCount too.
-                    let scope = if cmd == Command::TraceRaysIndirect { "VkTraceRaysIndirectCommandKHR" } else { cmd.vk_name() };
+                    let scope = if cmd == Command::TraceRaysIndirect {
+                        "VkTraceRaysIndirectCommandKHR"
+                    } else {
+                        cmd.vk_name()
+                    };
                     also.extend(registry_vuid(input.rules, scope, "03641"));
                 }
             }
         }
         Mutation::InvocationsAboveLimit => {
-            let max_inv = lim.max_invocations.ok_or_else(|| unsupported("no maxRayDispatchInvocationCount".into()))?;
+            let max_inv = lim
+                .max_invocations
+                .ok_or_else(|| unsupported("no maxRayDispatchInvocationCount".into()))?;
             let target = max_inv + 1 + (knob % 2) as u64 * max_inv;
             let mut dims = [1u64; 3];
             let mut product = 1u64;
@@ -665,7 +815,11 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
         Mutation::StrideAboveBufferSize => {
             // One record in a buffer of its own, the region exactly the handle; raygen would also break
             // size == stride, so miss or callable.
-            let t = if input.pick % 2 == 0 { Table::Miss } else { Table::Callable };
+            let t = if input.pick % 2 == 0 {
+                Table::Miss
+            } else {
+                Table::Callable
+            };
             match t {
                 Table::Miss => {
                     let h = miss_handle(&mut plan);
@@ -716,7 +870,9 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
                 }
             }));
             if round_up(lim.min_stride() + 1, align) + extra > max_stride {
-                err = Some(unsupported("a stride above the buffer size would exceed maxShaderGroupStride".into()));
+                err = Some(unsupported(
+                    "a stride above the buffer size would exceed maxShaderGroupStride".into(),
+                ));
             }
             if let Some(e) = err {
                 return Err(e);
@@ -757,7 +913,11 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
                         Table::Hit => &mut x.hit,
                         Table::Callable => &mut x.callable,
                     };
-                    table.buffer = if none { None } else { Some("destroyed-buffer".into()) };
+                    table.buffer = if none {
+                        None
+                    } else {
+                        Some("destroyed-buffer".into())
+                    };
                 }
             }));
         }

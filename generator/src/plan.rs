@@ -8,13 +8,15 @@ use crate::GenError;
 use model::call::{NvTable, TraceRays, TraceRaysIndirect, TraceRaysNv};
 use model::flags::{BufferUsage, PipelineCreate, QueueFlags};
 use model::world::{
-    Buffer, CommandBufferState, Contents, DeviceState, HandleRef, Launch, MemoryBinding, Pipeline, PipelineApi,
-    ShaderGroup,
+    Buffer, CommandBufferState, Contents, DeviceState, HandleRef, Launch, MemoryBinding, Pipeline,
+    PipelineApi, ShaderGroup,
 };
 use model::{Address, Call, DeviceProfile, StridedRegion, Table, World};
 
 /// The trace command a case calls.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
 pub enum Command {
     TraceRaysIndirect,
     TraceRays,
@@ -22,7 +24,11 @@ pub enum Command {
 }
 
 impl Command {
-    pub const ALL: [Command; 3] = [Command::TraceRaysIndirect, Command::TraceRays, Command::TraceRaysNv];
+    pub const ALL: [Command; 3] = [
+        Command::TraceRaysIndirect,
+        Command::TraceRays,
+        Command::TraceRaysNv,
+    ];
 
     /// The Vulkan command name.
     pub fn vk_name(self) -> &'static str {
@@ -67,7 +73,10 @@ pub struct Limits {
 }
 
 fn need(profile: &DeviceProfile, name: &str) -> Result<u64, GenError> {
-    profile.limit(name).ok_or_else(|| GenError::MissingLimit { profile: profile.name.clone(), limit: name.to_string() })
+    profile.limit(name).ok_or_else(|| GenError::MissingLimit {
+        profile: profile.name.clone(),
+        limit: name.to_string(),
+    })
 }
 
 impl Limits {
@@ -77,7 +86,10 @@ impl Limits {
             let handle_size = need(profile, &format!("{s}shaderGroupHandleSize"))?;
             let mut max_dim = [0; 3];
             for (i, d) in max_dim.iter_mut().enumerate() {
-                *d = need(profile, &format!("VkPhysicalDeviceLimits::maxComputeWorkGroupCount[{i}]"))?;
+                *d = need(
+                    profile,
+                    &format!("VkPhysicalDeviceLimits::maxComputeWorkGroupCount[{i}]"),
+                )?;
             }
             Ok(Limits {
                 handle_size,
@@ -92,8 +104,14 @@ impl Limits {
             let s = "VkPhysicalDeviceRayTracingPipelinePropertiesKHR::";
             let mut max_dim = [0; 3];
             for (i, d) in max_dim.iter_mut().enumerate() {
-                let count = need(profile, &format!("VkPhysicalDeviceLimits::maxComputeWorkGroupCount[{i}]"))?;
-                let size = need(profile, &format!("VkPhysicalDeviceLimits::maxComputeWorkGroupSize[{i}]"))?;
+                let count = need(
+                    profile,
+                    &format!("VkPhysicalDeviceLimits::maxComputeWorkGroupCount[{i}]"),
+                )?;
+                let size = need(
+                    profile,
+                    &format!("VkPhysicalDeviceLimits::maxComputeWorkGroupSize[{i}]"),
+                )?;
                 *d = count.saturating_mul(size);
             }
             Ok(Limits {
@@ -116,7 +134,10 @@ impl Limits {
     /// The valid strides strategies choose from: the smallest, a few larger multiples, the maximum.
     pub fn stride_choices(&self) -> Vec<u64> {
         let min = self.min_stride();
-        let mut v: Vec<u64> = (0..3).map(|k| min + k * self.stride_align).filter(|s| *s <= self.max_stride).collect();
+        let mut v: Vec<u64> = (0..3)
+            .map(|k| min + k * self.stride_align)
+            .filter(|s| *s <= self.max_stride)
+            .collect();
         let top = self.max_stride / self.stride_align * self.stride_align;
         if top >= min && !v.contains(&top) {
             v.push(top);
@@ -238,7 +259,14 @@ struct Placed {
 pub fn realize(plan: &Plan, lim: &Limits) -> (World, Call) {
     let nv = plan.command.is_nv();
     let mut buffers: Vec<Buffer> = Vec::new();
-    let mut shared = Buffer { name: SHARED_SBT.into(), size: 0, usage: sbt_usage(), flags: Default::default(), memory: MemoryBinding::Whole, contents: vec![] };
+    let mut shared = Buffer {
+        name: SHARED_SBT.into(),
+        size: 0,
+        usage: sbt_usage(),
+        flags: Default::default(),
+        memory: MemoryBinding::Whole,
+        contents: vec![],
+    };
     let mut cursor = 0u64;
     let mut placed: [Option<Placed>; 4] = [None, None, None, None];
     for t in Table::ALL {
@@ -254,8 +282,14 @@ pub fn realize(plan: &Plan, lim: &Limits) -> (World, Call) {
         };
         // Bytes the region's records and size occupy from its offset; at least one stride, so the
         // buffer is never smaller than the stride (VkStridedDeviceAddressRegionKHR-size-04632).
-        let extent = size.max((n - 1) * tp.stride + lim.handle_size).max(tp.stride);
-        let contents = |offset| Contents::ShaderRecords { offset, stride: tp.stride, handles: tp.records.clone() };
+        let extent = size
+            .max((n - 1) * tp.stride + lim.handle_size)
+            .max(tp.stride);
+        let contents = |offset| Contents::ShaderRecords {
+            offset,
+            stride: tp.stride,
+            handles: tp.records.clone(),
+        };
         if tp.separate {
             let offset = tp.lead + tp.misalign;
             let bsize = tp.buffer_size_override.unwrap_or(offset + extent);
@@ -267,13 +301,23 @@ pub fn realize(plan: &Plan, lim: &Limits) -> (World, Call) {
                 memory: MemoryBinding::Whole,
                 contents: vec![contents(offset)],
             });
-            placed[t as usize] = Some(Placed { buffer: table_buffer(t), offset, stride: tp.stride, size });
+            placed[t as usize] = Some(Placed {
+                buffer: table_buffer(t),
+                offset,
+                stride: tp.stride,
+                size,
+            });
         } else {
             let offset = round_up(cursor, lim.base_align) + tp.lead + tp.misalign;
             // The next region starts past this one's records, so no write covers another table's record.
             cursor = offset + extent;
             shared.contents.push(contents(offset));
-            placed[t as usize] = Some(Placed { buffer: SHARED_SBT.into(), offset, stride: tp.stride, size });
+            placed[t as usize] = Some(Placed {
+                buffer: SHARED_SBT.into(),
+                offset,
+                stride: tp.stride,
+                size,
+            });
         }
     }
     if !shared.contents.is_empty() {
@@ -290,20 +334,36 @@ pub fn realize(plan: &Plan, lim: &Limits) -> (World, Call) {
             usage: BufferUsage::INDIRECT_BUFFER_BIT | BufferUsage::SHADER_DEVICE_ADDRESS_BIT,
             flags: Default::default(),
             memory: MemoryBinding::Whole,
-            contents: vec![Contents::TraceRaysIndirectCommand { offset, width: dims[0], height: dims[1], depth: dims[2] }],
+            contents: vec![Contents::TraceRaysIndirectCommand {
+                offset,
+                width: dims[0],
+                height: dims[1],
+                depth: dims[2],
+            }],
         });
     }
     let region = |t: Table| match &placed[t as usize] {
         Some(p) => StridedRegion {
-            address: Address::InBuffer { buffer: p.buffer.clone(), offset: p.offset },
+            address: Address::InBuffer {
+                buffer: p.buffer.clone(),
+                offset: p.offset,
+            },
             stride: p.stride,
             size: p.size,
         },
         None => StridedRegion::unused(),
     };
     let nv_table = |t: Table| match &placed[t as usize] {
-        Some(p) => NvTable { buffer: Some(p.buffer.clone()), offset: p.offset, stride: if t == Table::Raygen { 0 } else { p.stride } },
-        None => NvTable { buffer: None, offset: 0, stride: 0 },
+        Some(p) => NvTable {
+            buffer: Some(p.buffer.clone()),
+            offset: p.offset,
+            stride: if t == Table::Raygen { 0 } else { p.stride },
+        },
+        None => NvTable {
+            buffer: None,
+            offset: 0,
+            stride: 0,
+        },
     };
     let call = match plan.command {
         Command::TraceRaysIndirect => Call::TraceRaysIndirect(TraceRaysIndirect {
@@ -311,7 +371,10 @@ pub fn realize(plan: &Plan, lim: &Limits) -> (World, Call) {
             miss: region(Table::Miss),
             hit: region(Table::Hit),
             callable: region(Table::Callable),
-            indirect_address: Address::InBuffer { buffer: INDIRECT.into(), offset: plan.indirect.offset + plan.indirect.misalign },
+            indirect_address: Address::InBuffer {
+                buffer: INDIRECT.into(),
+                offset: plan.indirect.offset + plan.indirect.misalign,
+            },
         }),
         Command::TraceRays => Call::TraceRays(TraceRays {
             raygen: region(Table::Raygen),
@@ -336,7 +399,11 @@ pub fn realize(plan: &Plan, lim: &Limits) -> (World, Call) {
         device: plan.device.clone(),
         buffers,
         pipeline: Some(Pipeline {
-            api: if nv { PipelineApi::Nv } else { PipelineApi::Khr },
+            api: if nv {
+                PipelineApi::Nv
+            } else {
+                PipelineApi::Khr
+            },
             flags: plan.flags,
             groups: plan.groups.clone(),
             max_recursion_depth: plan.max_recursion_depth,
@@ -374,7 +441,12 @@ pub fn device_state(profile: &DeviceProfile, command: Command) -> DeviceState {
         (&[], &["VK_NV_ray_tracing"])
     } else {
         (
-            &["rayTracingPipeline", "rayTracingPipelineTraceRaysIndirect", "bufferDeviceAddress", "accelerationStructure"],
+            &[
+                "rayTracingPipeline",
+                "rayTracingPipelineTraceRaysIndirect",
+                "bufferDeviceAddress",
+                "accelerationStructure",
+            ],
             &[
                 "VK_KHR_ray_tracing_pipeline",
                 "VK_KHR_acceleration_structure",
@@ -384,7 +456,15 @@ pub fn device_state(profile: &DeviceProfile, command: Command) -> DeviceState {
         )
     };
     DeviceState {
-        features: features.iter().filter(|f| profile.has_feature(f)).map(|f| f.to_string()).collect(),
-        extensions: extensions.iter().filter(|e| profile.has_extension(e)).map(|e| e.to_string()).collect(),
+        features: features
+            .iter()
+            .filter(|f| profile.has_feature(f))
+            .map(|f| f.to_string())
+            .collect(),
+        extensions: extensions
+            .iter()
+            .filter(|e| profile.has_extension(e))
+            .map(|e| e.to_string())
+            .collect(),
     }
 }

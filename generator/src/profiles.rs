@@ -7,7 +7,10 @@ use std::path::{Path, PathBuf};
 
 /// The repository root (the workspace that holds `profiles/` and `cases/`).
 pub fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("generator/ sits in the workspace").to_path_buf()
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("generator/ sits in the workspace")
+        .to_path_buf()
 }
 
 /// The file a profile name or path stands for.
@@ -16,7 +19,9 @@ pub fn resolve(name_or_path: &str) -> PathBuf {
     if looks_like_path {
         PathBuf::from(name_or_path)
     } else {
-        repo_root().join("profiles").join(format!("{name_or_path}.json"))
+        repo_root()
+            .join("profiles")
+            .join(format!("{name_or_path}.json"))
     }
 }
 
@@ -24,7 +29,9 @@ pub fn resolve(name_or_path: &str) -> PathBuf {
 pub fn short_name(name_or_path: &str) -> String {
     let p = Path::new(name_or_path);
     if name_or_path.contains('/') || name_or_path.ends_with(".json") {
-        p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| name_or_path.to_string())
+        p.file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| name_or_path.to_string())
     } else {
         name_or_path.to_string()
     }
@@ -35,7 +42,8 @@ pub fn load(name_or_path: &str) -> Result<DeviceProfile, GenError> {
     let path = resolve(name_or_path);
     let text = std::fs::read_to_string(&path)
         .map_err(|e| GenError::Profile(format!("{}: {e}", path.display())))?;
-    DeviceProfile::from_profiles_json(&short_name(name_or_path), &text).map_err(|e| GenError::Profile(e.to_string()))
+    DeviceProfile::from_profiles_json(&short_name(name_or_path), &text)
+        .map_err(|e| GenError::Profile(e.to_string()))
 }
 
 /// Every profile committed under `<repo>/profiles/`, by short name, sorted.

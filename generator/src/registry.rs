@@ -9,7 +9,8 @@ pub const REGISTRY_DIR: &str = vk_registry::source::DEFAULT_REGISTRY_DIR;
 
 /// Loads the rule table from a registry directory, a validusage.json or a man page.
 pub fn load_rules(path: &Path) -> Result<RuleSet, GenError> {
-    let set = vk_registry::source::load_vuids(path).map_err(|e| GenError::Registry(e.to_string()))?;
+    let set =
+        vk_registry::source::load_vuids(path).map_err(|e| GenError::Registry(e.to_string()))?;
     Ok(RuleSet::from_vuids(&set))
 }
 

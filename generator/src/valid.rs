@@ -2,12 +2,15 @@
 //! them into a plan whose every rule holds (no filtering): records each ray reaches hold a group of
 //! the matching kind or zero, strides and offsets come from the profile's alignments and limits.
 
-use crate::plan::{device_state, queue_families, round_up, Command, IndirectPlan, Limits, Plan, TablePlan};
-use model::flags::{PipelineCreate, QueueFlags};
-use model::world::{
-    CommandBufferState, GeneralStage, GeometryKind, HandleRef, Instance, Launch, RayTarget, ShaderGroup, TraceRay,
+use crate::plan::{
+    device_state, queue_families, round_up, Command, IndirectPlan, Limits, Plan, TablePlan,
 };
+use model::flags::{PipelineCreate, QueueFlags};
 use model::semantics::hit_record;
+use model::world::{
+    CommandBufferState, GeneralStage, GeometryKind, HandleRef, Instance, Launch, RayTarget,
+    ShaderGroup, TraceRay,
+};
 use model::{DeviceProfile, Table};
 use proptest::prelude::*;
 use std::collections::BTreeMap;
@@ -63,7 +66,10 @@ pub fn raw_strategy() -> impl Strategy<Value = Raw> {
         0..=2usize,
     );
     let scene = (
-        prop::collection::vec((prop::collection::vec(any::<bool>(), 1..=2), 0..=2u32), 0..=2),
+        prop::collection::vec(
+            (prop::collection::vec(any::<bool>(), 1..=2), 0..=2u32),
+            0..=2,
+        ),
         prop::collection::vec((any::<u8>(), 0..=2u32, 0..=1u32, 0..=1u32), 0..=3),
         prop::collection::vec(0..=1u32, 0..=2),
         0..=1u32,
@@ -123,13 +129,24 @@ pub struct GroupIndex {
 
 impl GroupIndex {
     pub fn of(groups: &[ShaderGroup]) -> GroupIndex {
-        let mut g = GroupIndex { miss: vec![], triangles: vec![], procedural: vec![], callable: vec![] };
+        let mut g = GroupIndex {
+            miss: vec![],
+            triangles: vec![],
+            procedural: vec![],
+            callable: vec![],
+        };
         for (i, sg) in groups.iter().enumerate() {
             let i = i as u32;
             match sg {
-                ShaderGroup::General { stage: GeneralStage::Miss } => g.miss.push(i),
-                ShaderGroup::General { stage: GeneralStage::Callable } => g.callable.push(i),
-                ShaderGroup::General { stage: GeneralStage::Raygen } => {}
+                ShaderGroup::General {
+                    stage: GeneralStage::Miss,
+                } => g.miss.push(i),
+                ShaderGroup::General {
+                    stage: GeneralStage::Callable,
+                } => g.callable.push(i),
+                ShaderGroup::General {
+                    stage: GeneralStage::Raygen,
+                } => {}
                 ShaderGroup::TrianglesHit { .. } => g.triangles.push(i),
                 ShaderGroup::ProceduralHit { .. } => g.procedural.push(i),
             }
@@ -169,18 +186,37 @@ pub fn limit_dims(lim: &Limits, raw: &[(u8, u32); 3]) -> [u32; 3] {
 }
 
 /// Resolves drawn indices into a valid plan.
-pub fn resolve(raw: &Raw, profile: &DeviceProfile, lim: &Limits, command: Command, dims: DimensionRange) -> Plan {
+pub fn resolve(
+    raw: &Raw,
+    profile: &DeviceProfile,
+    lim: &Limits,
+    command: Command,
+    dims: DimensionRange,
+) -> Plan {
     // Pipeline: raygen, miss, hit, callable groups.
-    let mut groups = vec![ShaderGroup::General { stage: GeneralStage::Raygen }];
-    groups.extend((0..raw.miss_groups).map(|_| ShaderGroup::General { stage: GeneralStage::Miss }));
+    let mut groups = vec![ShaderGroup::General {
+        stage: GeneralStage::Raygen,
+    }];
+    groups.extend((0..raw.miss_groups).map(|_| ShaderGroup::General {
+        stage: GeneralStage::Miss,
+    }));
     for &(procedural, closest_hit, any_hit) in &raw.hit_groups {
         groups.push(if procedural {
-            ShaderGroup::ProceduralHit { closest_hit, any_hit, intersection: true }
+            ShaderGroup::ProceduralHit {
+                closest_hit,
+                any_hit,
+                intersection: true,
+            }
         } else {
-            ShaderGroup::TrianglesHit { closest_hit, any_hit }
+            ShaderGroup::TrianglesHit {
+                closest_hit,
+                any_hit,
+            }
         });
     }
-    groups.extend((0..raw.callable_groups).map(|_| ShaderGroup::General { stage: GeneralStage::Callable }));
+    groups.extend((0..raw.callable_groups).map(|_| ShaderGroup::General {
+        stage: GeneralStage::Callable,
+    }));
     let gi = GroupIndex::of(&groups);
 
     // Scene and rays: targets are resolved from the instances that exist.
@@ -191,7 +227,11 @@ pub fn resolve(raw: &Raw, profile: &DeviceProfile, lim: &Limits, command: Comman
             // One bottom-level structure holds geometries of one type (triangles or AABBs), so the
             // first draw decides the kind of every geometry of the instance.
             geometries: {
-                let kind = if geoms.first() == Some(&true) { GeometryKind::Aabbs } else { GeometryKind::Triangles };
+                let kind = if geoms.first() == Some(&true) {
+                    GeometryKind::Aabbs
+                } else {
+                    GeometryKind::Triangles
+                };
                 vec![kind; geoms.len()]
             },
             sbt_record_offset: *off,
@@ -202,7 +242,10 @@ pub fn resolve(raw: &Raw, profile: &DeviceProfile, lim: &Limits, command: Comman
     let mut targets = vec![RayTarget::Nothing];
     for (i, inst) in instances.iter().enumerate() {
         for g in 0..inst.geometries.len() {
-            targets.push(RayTarget::Geometry { instance: i as u32, geometry: g as u32 });
+            targets.push(RayTarget::Geometry {
+                instance: i as u32,
+                geometry: g as u32,
+            });
         }
     }
     let rays: Vec<TraceRay> = raw
@@ -217,7 +260,11 @@ pub fn resolve(raw: &Raw, profile: &DeviceProfile, lim: &Limits, command: Comman
             ray_flags: 0,
         })
         .collect();
-    let callables: Vec<u32> = if gi.callable.is_empty() { vec![] } else { raw.callables.clone() };
+    let callables: Vec<u32> = if gi.callable.is_empty() {
+        vec![]
+    } else {
+        raw.callables.clone()
+    };
 
     // Which records the rays reach, and from which geometry kinds.
     let mut hit_reach: BTreeMap<u64, (bool, bool)> = BTreeMap::new();
@@ -240,12 +287,30 @@ pub fn resolve(raw: &Raw, profile: &DeviceProfile, lim: &Limits, command: Comman
     // NO_NULL_* flags are requested by the draw and kept only where the pipeline can be created with
     // them (the shaders they require exist) and where the records can avoid zero.
     let hit_groups_all: Vec<u32> = gi.triangles.iter().chain(&gi.procedural).copied().collect();
-    let all_hit = |f: &dyn Fn(&ShaderGroup) -> bool| hit_groups_all.iter().all(|&g| f(&groups[g as usize]));
+    let all_hit =
+        |f: &dyn Fn(&ShaderGroup) -> bool| hit_groups_all.iter().all(|&g| f(&groups[g as usize]));
     let no_null_miss = raw.no_null[0] && !gi.miss.is_empty();
     let no_null_any = raw.no_null[1]
-        && all_hit(&|g| matches!(g, ShaderGroup::TrianglesHit { any_hit: true, .. } | ShaderGroup::ProceduralHit { any_hit: true, .. }));
+        && all_hit(&|g| {
+            matches!(
+                g,
+                ShaderGroup::TrianglesHit { any_hit: true, .. }
+                    | ShaderGroup::ProceduralHit { any_hit: true, .. }
+            )
+        });
     let no_null_closest = raw.no_null[2]
-        && all_hit(&|g| matches!(g, ShaderGroup::TrianglesHit { closest_hit: true, .. } | ShaderGroup::ProceduralHit { closest_hit: true, .. }));
+        && all_hit(&|g| {
+            matches!(
+                g,
+                ShaderGroup::TrianglesHit {
+                    closest_hit: true,
+                    ..
+                } | ShaderGroup::ProceduralHit {
+                    closest_hit: true,
+                    ..
+                }
+            )
+        });
     let no_null_isect = raw.no_null[3];
 
     let mut sel = raw.record_sel.iter().copied().cycle();
@@ -267,10 +332,14 @@ pub fn resolve(raw: &Raw, profile: &DeviceProfile, lim: &Limits, command: Comman
             Some((true, true)) => vec![],
             Some((true, false)) => gi.triangles.iter().map(|&g| HandleRef::Group(g)).collect(),
             Some((false, true)) => gi.procedural.iter().map(|&g| HandleRef::Group(g)).collect(),
-            _ => hit_groups_all.iter().map(|&g| HandleRef::Group(g)).collect(),
+            _ => hit_groups_all
+                .iter()
+                .map(|&g| HandleRef::Group(g))
+                .collect(),
         };
         let reached = hit_reach.get(&idx);
-        let zero_forbidden = reached.is_some_and(|(_, aabb)| no_null_any || no_null_closest || (no_null_isect && *aabb));
+        let zero_forbidden = reached
+            .is_some_and(|(_, aabb)| no_null_any || no_null_closest || (no_null_isect && *aabb));
         if !zero_forbidden || cands.is_empty() {
             cands.push(HandleRef::Zero);
         }
@@ -294,7 +363,9 @@ pub fn resolve(raw: &Raw, profile: &DeviceProfile, lim: &Limits, command: Comman
         if let RayTarget::Geometry { instance, geometry } = r.target {
             let inst = &instances[instance as usize];
             let idx = hit_record(inst.sbt_record_offset, geometry, r.sbt_offset, r.sbt_stride);
-            if inst.geometries[geometry as usize] == GeometryKind::Aabbs && hit_records.get(idx as usize) == Some(&HandleRef::Zero) {
+            if inst.geometries[geometry as usize] == GeometryKind::Aabbs
+                && hit_records.get(idx as usize) == Some(&HandleRef::Zero)
+            {
                 miss_reach.push(r.miss_index as u64);
             }
         }
@@ -333,7 +404,11 @@ pub fn resolve(raw: &Raw, profile: &DeviceProfile, lim: &Limits, command: Comman
     }
 
     let mut flags = PipelineCreate::empty();
-    if no_null_miss && !miss_reach.iter().any(|&i| miss_records.get(i as usize) == Some(&HandleRef::Zero)) {
+    if no_null_miss
+        && !miss_reach
+            .iter()
+            .any(|&i| miss_records.get(i as usize) == Some(&HandleRef::Zero))
+    {
         flags.insert(PipelineCreate::RAY_TRACING_NO_NULL_MISS_SHADERS_BIT_KHR);
     }
     if no_null_any {
@@ -356,7 +431,12 @@ pub fn resolve(raw: &Raw, profile: &DeviceProfile, lim: &Limits, command: Comman
     }
 
     // Recursion: within the pipeline's maximum, which is within the device's.
-    let mut launch = Launch { instances, rays, callables, extra_recursion: raw.extra_recursion };
+    let mut launch = Launch {
+        instances,
+        rays,
+        callables,
+        extra_recursion: raw.extra_recursion,
+    };
     let max_dev = lim.max_recursion.min(u32::MAX as u64) as u32;
     if launch.recursion_depth() > max_dev {
         launch.extra_recursion = 0;
@@ -369,7 +449,12 @@ pub fn resolve(raw: &Raw, profile: &DeviceProfile, lim: &Limits, command: Comman
 
     // Tables: strides from the profile's choices, sizes exactly the records or larger.
     let strides = lim.stride_choices();
-    let records = [vec![HandleRef::Group(0)], miss_records, hit_records, callable_records];
+    let records = [
+        vec![HandleRef::Group(0)],
+        miss_records,
+        hit_records,
+        callable_records,
+    ];
     let tables: [TablePlan; 4] = std::array::from_fn(|i| {
         let stride = pick(&strides, raw.stride_sel[i]);
         let size_extra = match raw.size_sel[i] {
@@ -394,10 +479,16 @@ pub fn resolve(raw: &Raw, profile: &DeviceProfile, lim: &Limits, command: Comman
         DimensionRange::Limits => limit_dims(lim, &raw.dims),
     };
 
-    let families: Vec<QueueFlags> =
-        queue_families(profile).into_iter().filter(|q| q.contains(QueueFlags::COMPUTE_BIT)).collect();
+    let families: Vec<QueueFlags> = queue_families(profile)
+        .into_iter()
+        .filter(|q| q.contains(QueueFlags::COMPUTE_BIT))
+        .collect();
     let command_buffer = CommandBufferState {
-        pool_queue: if families.is_empty() { CommandBufferState::default().pool_queue } else { pick(&families, raw.queue_sel) },
+        pool_queue: if families.is_empty() {
+            CommandBufferState::default().pool_queue
+        } else {
+            pick(&families, raw.queue_sel)
+        },
         stack_size_set: raw.dynamic_stack,
         ..Default::default()
     };

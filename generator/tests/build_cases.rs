@@ -1,13 +1,16 @@
 //! Generated build cases judge as declared: valid plans give exactly the device's unavoidable VUIDs,
 //! each mutation gives its VUID plus declared co-violations; cases round-trip through YAML.
 
-use generator::build::{generate, mutate, plan_strategy, realise, unavoidable, use_rules, MUTATIONS};
+use generator::build::{
+    generate, mutate, plan_strategy, realise, unavoidable, use_rules, MUTATIONS,
+};
 use model::build::{BuildCase, BuildRuleSet};
 use proptest::prelude::*;
 use std::collections::BTreeSet;
 
 fn rules() -> BuildRuleSet {
-    let set = vk_registry::source::load_vuids(std::path::Path::new("/usr/share/vulkan/registry")).expect("installed registry");
+    let set = vk_registry::source::load_vuids(std::path::Path::new("/usr/share/vulkan/registry"))
+        .expect("installed registry");
     BuildRuleSet::from_vuids(&set)
 }
 
@@ -16,7 +19,12 @@ fn lavapipe() -> model::DeviceProfile {
 }
 
 fn verdict(rules: &BuildRuleSet, p: &model::DeviceProfile, c: &BuildCase) -> Vec<String> {
-    let v: BTreeSet<String> = rules.validate(p, &c.world, &c.call).violations.into_iter().map(|v| v.vuid).collect();
+    let v: BTreeSet<String> = rules
+        .validate(p, &c.world, &c.call)
+        .violations
+        .into_iter()
+        .map(|v| v.vuid)
+        .collect();
     v.into_iter().collect()
 }
 
@@ -28,18 +36,33 @@ fn generated_cases_judge_as_declared_and_cover_most_mutations() {
     let mut covered = BTreeSet::new();
     for seed in 0..6 {
         for c in generate(&p, seed, 6) {
-            assert_eq!(verdict(&r, &p, &c), c.expected_vuids(), "case {}:\n{}", c.name, c.to_yaml());
+            assert_eq!(
+                verdict(&r, &p, &c),
+                c.expected_vuids(),
+                "case {}:\n{}",
+                c.name,
+                c.to_yaml()
+            );
             if let model::Intent::Violates { vuid, .. } = &c.intent {
                 covered.insert(vuid.clone());
             }
             let back = BuildCase::from_yaml("mem", &c.to_yaml()).unwrap();
             assert_eq!(back.expected_vuids(), c.expected_vuids());
-            assert_eq!(verdict(&r, &p, &back), c.expected_vuids(), "round trip of {}", c.name);
+            assert_eq!(
+                verdict(&r, &p, &back),
+                c.expected_vuids(),
+                "round trip of {}",
+                c.name
+            );
         }
     }
     // lavapipe lacks accelerationStructureIndirectBuild: the valid cases violate exactly 03650.
     assert_eq!(unavoidable(&p).len(), 1);
-    assert!(covered.len() >= 30, "only {} VUIDs covered: {covered:?}", covered.len());
+    assert!(
+        covered.len() >= 30,
+        "only {} VUIDs covered: {covered:?}",
+        covered.len()
+    );
 }
 
 #[test]
@@ -50,7 +73,11 @@ fn every_mutation_fits_some_plan() {
     let missing: Vec<&str> = MUTATIONS
         .iter()
         .copied()
-        .filter(|t| !cases.iter().any(|c| c.expected_vuids().iter().any(|v| v.ends_with(t)) && c.name.ends_with(t)))
+        .filter(|t| {
+            !cases
+                .iter()
+                .any(|c| c.expected_vuids().iter().any(|v| v.ends_with(t)) && c.name.ends_with(t))
+        })
         .collect();
     // 03649 needs protectedMemory-free devices' protected command buffers; 03801 needs a count over
     // maxInstanceCount, which is fine; the rest must all appear.

@@ -8,14 +8,26 @@ use std::sync::OnceLock;
 
 pub fn rules() -> &'static RuleSet {
     static RULES: OnceLock<RuleSet> = OnceLock::new();
-    RULES.get_or_init(|| generator::registry::default_rules().expect("the installed registry loads"))
+    RULES
+        .get_or_init(|| generator::registry::default_rules().expect("the installed registry loads"))
 }
 
 /// Every committed profile (at least lavapipe).
 pub fn profiles() -> Vec<(String, DeviceProfile)> {
     let names = generator::profiles::available();
-    assert!(names.iter().any(|n| n == "lavapipe"), "profiles/lavapipe.json is committed: {names:?}");
-    names.into_iter().map(|n| (n.clone(), generator::profiles::load(&n).expect("committed profiles load"))).collect()
+    assert!(
+        names.iter().any(|n| n == "lavapipe"),
+        "profiles/lavapipe.json is committed: {names:?}"
+    );
+    names
+        .into_iter()
+        .map(|n| {
+            (
+                n.clone(),
+                generator::profiles::load(&n).expect("committed profiles load"),
+            )
+        })
+        .collect()
 }
 
 /// Cases per spec: ~200 in CI, thousands with RTCONF_SLOW=1.

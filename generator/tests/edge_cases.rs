@@ -11,11 +11,48 @@ use std::collections::BTreeSet;
 /// The edge cases and how they are made: (file stem, spec, seed, index).
 fn edge_specs() -> Vec<(&'static str, CaseSpec, u64, usize)> {
     vec![
-        ("trace-indirect-valid-at-limits", CaseSpec::valid(Command::TraceRaysIndirect).at_limits(), 1, 0),
-        ("indirect-address-plus-one", CaseSpec::violate(Command::TraceRaysIndirect, "VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634"), 1, 0),
-        ("indirect-command-one-byte-past-end", CaseSpec::violate(Command::TraceRaysIndirect, "VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03636"), 1, 0),
-        ("region-one-byte-past-end", CaseSpec::violate(Command::TraceRays, "VUID-VkStridedDeviceAddressRegionKHR-size-04631"), 1, 0),
-        ("indirect-width-limit-plus-one", CaseSpec::violate(Command::TraceRaysIndirect, "VUID-VkTraceRaysIndirectCommandKHR-width-03638"), 1, 0),
+        (
+            "trace-indirect-valid-at-limits",
+            CaseSpec::valid(Command::TraceRaysIndirect).at_limits(),
+            1,
+            0,
+        ),
+        (
+            "indirect-address-plus-one",
+            CaseSpec::violate(
+                Command::TraceRaysIndirect,
+                "VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634",
+            ),
+            1,
+            0,
+        ),
+        (
+            "indirect-command-one-byte-past-end",
+            CaseSpec::violate(
+                Command::TraceRaysIndirect,
+                "VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03636",
+            ),
+            1,
+            0,
+        ),
+        (
+            "region-one-byte-past-end",
+            CaseSpec::violate(
+                Command::TraceRays,
+                "VUID-VkStridedDeviceAddressRegionKHR-size-04631",
+            ),
+            1,
+            0,
+        ),
+        (
+            "indirect-width-limit-plus-one",
+            CaseSpec::violate(
+                Command::TraceRaysIndirect,
+                "VUID-VkTraceRaysIndirectCommandKHR-width-03638",
+            ),
+            1,
+            0,
+        ),
     ]
 }
 
@@ -25,17 +62,29 @@ fn dir(name: &str) -> std::path::PathBuf {
 
 #[test]
 fn edge_cases_are_the_committed_files() {
-    let (name, profile) = common::profiles().into_iter().find(|(n, _)| n == "lavapipe").unwrap();
+    let (name, profile) = common::profiles()
+        .into_iter()
+        .find(|(n, _)| n == "lavapipe")
+        .unwrap();
     let update = std::env::var("RTCONF_UPDATE_CASES").is_ok_and(|v| v == "1");
     for (stem, spec, seed, index) in edge_specs() {
-        let mut case = generate(&profile, &name, common::rules(), &spec, index + 1, seed).unwrap().remove(index);
+        let mut case = generate(&profile, &name, common::rules(), &spec, index + 1, seed)
+            .unwrap()
+            .remove(index);
         case.name = format!("edge-{stem}");
         let path = dir("edge").join(format!("{stem}.yaml"));
         if update {
             std::fs::write(&path, case.to_yaml()).unwrap();
         }
-        let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e} (RTCONF_UPDATE_CASES=1 writes it)", path.display()));
-        assert_eq!(text, case.to_yaml(), "{} drifted from the generator; RTCONF_UPDATE_CASES=1 rewrites it", path.display());
+        let text = std::fs::read_to_string(&path).unwrap_or_else(|e| {
+            panic!("{}: {e} (RTCONF_UPDATE_CASES=1 writes it)", path.display())
+        });
+        assert_eq!(
+            text,
+            case.to_yaml(),
+            "{} drifted from the generator; RTCONF_UPDATE_CASES=1 rewrites it",
+            path.display()
+        );
     }
 }
 
@@ -51,7 +100,11 @@ fn edge_and_regression_files_judge_as_declared() {
             let text = std::fs::read_to_string(&path).unwrap();
             let case = Case::from_yaml(&path.display().to_string(), &text).unwrap();
             let profile = generator::profiles::load(&case.profile).unwrap();
-            let got: BTreeSet<String> = common::judge(&profile, &case).vuids().into_iter().map(String::from).collect();
+            let got: BTreeSet<String> = common::judge(&profile, &case)
+                .vuids()
+                .into_iter()
+                .map(String::from)
+                .collect();
             let expected: BTreeSet<String> = case.expected_vuids().into_iter().collect();
             assert_eq!(got, expected, "{}", path.display());
             checked += 1;

@@ -22,7 +22,14 @@ fn one_vuid_invalid_cases_carry_their_vuid_and_nothing_undeclared() {
                 if mutations_for(&vuid).is_none() || MODEL_BUG_EXCLUDED.contains(&vuid.as_str()) {
                     continue;
                 }
-                let cases = match generate(&profile, &name, common::rules(), &CaseSpec::violate(command, &vuid), n, 11) {
+                let cases = match generate(
+                    &profile,
+                    &name,
+                    common::rules(),
+                    &CaseSpec::violate(command, &vuid),
+                    n,
+                    11,
+                ) {
                     Ok(c) => c,
                     Err(GenError::Unsupported(why)) => {
                         report.push(format!("{name} {vuid}: unsupported ({why})"));
@@ -42,13 +49,26 @@ fn one_vuid_invalid_cases_carry_their_vuid_and_nothing_undeclared() {
                         good += 1;
                         exact += (got == expected) as usize;
                     } else if example.is_none() {
-                        example = Some(format!("{}\nverdict: {:?}\n{}", case.name, v.violations, case.to_yaml()));
+                        example = Some(format!(
+                            "{}\nverdict: {:?}\n{}",
+                            case.name,
+                            v.violations,
+                            case.to_yaml()
+                        ));
                     }
                 }
                 let rate = good as f64 / cases.len() as f64;
-                report.push(format!("{name} {vuid}: {good}/{} ({:.1}%), exact {exact}", cases.len(), rate * 100.0));
+                report.push(format!(
+                    "{name} {vuid}: {good}/{} ({:.1}%), exact {exact}",
+                    cases.len(),
+                    rate * 100.0
+                ));
                 if rate < 0.95 {
-                    failures.push(format!("{name} {vuid}: {:.1}%\n{}", rate * 100.0, example.unwrap_or_default()));
+                    failures.push(format!(
+                        "{name} {vuid}: {:.1}%\n{}",
+                        rate * 100.0,
+                        example.unwrap_or_default()
+                    ));
                 }
             }
         }
@@ -73,24 +93,58 @@ fn executable_vuids_without_a_mutation_match_the_committed_list() {
         }
     }
     let expected: BTreeSet<String> = NO_MUTATION_YET.iter().map(|s| s.to_string()).collect();
-    assert_eq!(missing, expected, "executable VUIDs without a mutation changed");
+    assert_eq!(
+        missing, expected,
+        "executable VUIDs without a mutation changed"
+    );
 }
 
 #[test]
 fn invalid_case_names_use_the_short_vuid_and_seed() {
-    let (name, profile) = common::profiles().into_iter().find(|(n, _)| n == "lavapipe").unwrap();
+    let (name, profile) = common::profiles()
+        .into_iter()
+        .find(|(n, _)| n == "lavapipe")
+        .unwrap();
     let vuid = "VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634";
-    let cases = generate(&profile, &name, common::rules(), &CaseSpec::violate(Command::TraceRaysIndirect, vuid), 2, 5).unwrap();
-    assert_eq!(cases[1].name, "vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634-5-1");
-    assert_eq!(cases[0].intent, model::Intent::Violates { vuid: vuid.into(), also: vec![] });
+    let cases = generate(
+        &profile,
+        &name,
+        common::rules(),
+        &CaseSpec::violate(Command::TraceRaysIndirect, vuid),
+        2,
+        5,
+    )
+    .unwrap();
+    assert_eq!(
+        cases[1].name,
+        "vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634-5-1"
+    );
+    assert_eq!(
+        cases[0].intent,
+        model::Intent::Violates {
+            vuid: vuid.into(),
+            also: vec![]
+        }
+    );
 }
 
 #[test]
 fn boundary_values_come_first() {
     // Knob 0 is the boundary: the misaligned indirect address is exactly one byte past alignment.
-    let (name, profile) = common::profiles().into_iter().find(|(n, _)| n == "lavapipe").unwrap();
+    let (name, profile) = common::profiles()
+        .into_iter()
+        .find(|(n, _)| n == "lavapipe")
+        .unwrap();
     let vuid = "VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634";
-    let cases = generate(&profile, &name, common::rules(), &CaseSpec::violate(Command::TraceRaysIndirect, vuid), 100, 9).unwrap();
+    let cases = generate(
+        &profile,
+        &name,
+        common::rules(),
+        &CaseSpec::violate(Command::TraceRaysIndirect, vuid),
+        100,
+        9,
+    )
+    .unwrap();
     let one_off = cases
         .iter()
         .filter(|c| matches!(&c.call, model::Call::TraceRaysIndirect(x) if x.indirect_address.alignment_value() % 4 == 1))
@@ -100,8 +154,21 @@ fn boundary_values_come_first() {
 
 #[test]
 fn vuids_of_other_commands_are_refused() {
-    let (name, profile) = common::profiles().into_iter().find(|(n, _)| n == "lavapipe").unwrap();
-    let err = generate(&profile, &name, common::rules(), &CaseSpec::violate(Command::TraceRays, "VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634"), 1, 1)
-        .unwrap_err();
+    let (name, profile) = common::profiles()
+        .into_iter()
+        .find(|(n, _)| n == "lavapipe")
+        .unwrap();
+    let err = generate(
+        &profile,
+        &name,
+        common::rules(),
+        &CaseSpec::violate(
+            Command::TraceRays,
+            "VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634",
+        ),
+        1,
+        1,
+    )
+    .unwrap_err();
     assert!(matches!(err, GenError::NotForCommand { .. }), "{err}");
 }

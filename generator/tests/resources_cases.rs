@@ -9,13 +9,27 @@ use generator::{executable_vuids, generate, CaseSpec, Command};
 use std::collections::BTreeSet;
 
 fn dir() -> std::path::PathBuf {
-    generator::profiles::repo_root().join("cases").join("resources")
+    generator::profiles::repo_root()
+        .join("cases")
+        .join("resources")
 }
 
 fn write_cases() {
-    let (name, profile) = common::profiles().into_iter().find(|(n, _)| n == "lavapipe").unwrap();
+    let (name, profile) = common::profiles()
+        .into_iter()
+        .find(|(n, _)| n == "lavapipe")
+        .unwrap();
     std::fs::create_dir_all(dir()).unwrap();
-    let mut valid = generate(&profile, &name, common::rules(), &CaseSpec::valid(Command::TraceRaysIndirect), 1, 4).unwrap().remove(0);
+    let mut valid = generate(
+        &profile,
+        &name,
+        common::rules(),
+        &CaseSpec::valid(Command::TraceRaysIndirect),
+        1,
+        4,
+    )
+    .unwrap()
+    .remove(0);
     valid.world.resources = generator::resources::valid_state(&profile, 3, 0x1ff);
     valid.name = "trace-indirect-valid-resources".into();
     std::fs::write(dir().join(format!("{}.yaml", valid.name)), valid.to_yaml()).unwrap();
@@ -23,7 +37,14 @@ fn write_cases() {
         if mutation_for(&vuid).is_none() {
             continue;
         }
-        if let Ok(mut c) = generate(&profile, &name, common::rules(), &CaseSpec::violate(Command::TraceRaysIndirect, &vuid), 1, 4) {
+        if let Ok(mut c) = generate(
+            &profile,
+            &name,
+            common::rules(),
+            &CaseSpec::violate(Command::TraceRaysIndirect, &vuid),
+            1,
+            4,
+        ) {
             let c = c.remove(0);
             std::fs::write(dir().join(format!("{}.yaml", c.name)), c.to_yaml()).unwrap();
         }
@@ -43,16 +64,28 @@ fn resource_cases_judge_as_declared() {
         let text = std::fs::read_to_string(&path).unwrap();
         let case = model::Case::from_yaml(&path.display().to_string(), &text).unwrap();
         let profile = &profiles.iter().find(|(n, _)| *n == case.profile).unwrap().1;
-        let got: BTreeSet<String> = common::judge(profile, &case).vuids().into_iter().map(String::from).collect();
+        let got: BTreeSet<String> = common::judge(profile, &case)
+            .vuids()
+            .into_iter()
+            .map(String::from)
+            .collect();
         let expected: BTreeSet<String> = case.expected_vuids().into_iter().collect();
         match &case.intent {
             model::Intent::Valid => {
                 assert!(got.is_empty(), "{}: {got:?}", path.display());
-                assert!(!case.world.resources.is_empty(), "{}: a resource case has resources", path.display());
+                assert!(
+                    !case.world.resources.is_empty(),
+                    "{}: a resource case has resources",
+                    path.display()
+                );
                 valid += 1;
             }
             model::Intent::Violates { vuid, .. } => {
-                assert!(got.contains(vuid) && got.is_subset(&expected), "{}: {got:?} vs {expected:?}", path.display());
+                assert!(
+                    got.contains(vuid) && got.is_subset(&expected),
+                    "{}: {got:?} vs {expected:?}",
+                    path.display()
+                );
             }
         }
         n += 1;

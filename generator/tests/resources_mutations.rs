@@ -11,16 +11,29 @@ use proptest::strategy::{Strategy, ValueTree};
 use std::collections::BTreeSet;
 
 fn resource_vuids(rules: &RuleSet, command: Command) -> Vec<String> {
-    executable_vuids(rules, command).into_iter().filter(|v| mutation_for(v).is_some()).collect()
+    executable_vuids(rules, command)
+        .into_iter()
+        .filter(|v| mutation_for(v).is_some())
+        .collect()
 }
 
 #[test]
 fn every_executable_resource_rule_has_a_mutation() {
     for command in Command::ALL {
-        for row in common::rules().rows.iter().filter(|r| r.status == Status::Executable && r.scope == command.vk_name()) {
-            if matches!(row.predicate, Some(model::rules::predicate::Predicate::Resource(_)))
-            {
-                assert!(mutation_for(&row.vuid).is_some(), "{} has no mutation", row.vuid);
+        for row in common::rules()
+            .rows
+            .iter()
+            .filter(|r| r.status == Status::Executable && r.scope == command.vk_name())
+        {
+            if matches!(
+                row.predicate,
+                Some(model::rules::predicate::Predicate::Resource(_))
+            ) {
+                assert!(
+                    mutation_for(&row.vuid).is_some(),
+                    "{} has no mutation",
+                    row.vuid
+                );
             }
         }
     }
@@ -35,7 +48,14 @@ fn resource_invalid_cases_carry_their_vuid_and_nothing_undeclared() {
     for (name, profile) in common::profiles() {
         for command in Command::ALL {
             for vuid in resource_vuids(common::rules(), command) {
-                let cases = match generate(&profile, &name, common::rules(), &CaseSpec::violate(command, &vuid), n, 23) {
+                let cases = match generate(
+                    &profile,
+                    &name,
+                    common::rules(),
+                    &CaseSpec::violate(command, &vuid),
+                    n,
+                    23,
+                ) {
                     Ok(c) => c,
                     Err(GenError::Unsupported(why)) => {
                         report.push(format!("{name} {vuid}: unsupported ({why})"));
@@ -53,12 +73,21 @@ fn resource_invalid_cases_carry_their_vuid_and_nothing_undeclared() {
                     if got.contains(&vuid) && got.is_subset(&expected) {
                         good += 1;
                     } else if example.is_none() {
-                        example = Some(format!("{}\nverdict: {:?}\nexpected: {expected:?}\n{}", case.name, v.violations, case.to_yaml()));
+                        example = Some(format!(
+                            "{}\nverdict: {:?}\nexpected: {expected:?}\n{}",
+                            case.name,
+                            v.violations,
+                            case.to_yaml()
+                        ));
                     }
                 }
                 report.push(format!("{name} {vuid}: {good}/{}", cases.len()));
                 if good * 100 < cases.len() * 95 {
-                    failures.push(format!("{name} {vuid}: {good}/{}\n{}", cases.len(), example.unwrap_or_default()));
+                    failures.push(format!(
+                        "{name} {vuid}: {good}/{}\n{}",
+                        cases.len(),
+                        example.unwrap_or_default()
+                    ));
                 }
             }
         }
@@ -74,16 +103,34 @@ fn resource_invalid_cases_carry_their_vuid_and_nothing_undeclared() {
 fn vendor_mutations_fire_their_rule_in_the_model() {
     let rules = generator::registry::load_rules(std::path::Path::new(
         &std::env::var("RTCONF_RESOURCES_REGISTRY").unwrap_or_else(|_| {
-            let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/registry/1.4.309/usr/share/vulkan/registry");
-            if p.exists() { p.display().to_string() } else { generator::registry::REGISTRY_DIR.to_string() }
+            let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("../target/registry/1.4.309/usr/share/vulkan/registry");
+            if p.exists() {
+                p.display().to_string()
+            } else {
+                generator::registry::REGISTRY_DIR.to_string()
+            }
         }),
     ))
     .unwrap();
-    let (name, profile) = common::profiles().into_iter().find(|(n, _)| n == "lavapipe").unwrap();
-    let base = generate(&profile, &name, &rules, &CaseSpec::valid(Command::TraceRays), 8, 5).unwrap();
+    let (name, profile) = common::profiles()
+        .into_iter()
+        .find(|(n, _)| n == "lavapipe")
+        .unwrap();
+    let base = generate(
+        &profile,
+        &name,
+        &rules,
+        &CaseSpec::valid(Command::TraceRays),
+        8,
+        5,
+    )
+    .unwrap();
     let mut checked = 0;
     for vuid in executable_vuids(&rules, Command::TraceRays) {
-        let Some(m) = mutation_for(&vuid) else { continue };
+        let Some(m) = mutation_for(&vuid) else {
+            continue;
+        };
         if vendor(m).is_none() {
             continue;
         }
@@ -95,20 +142,36 @@ fn vendor_mutations_fire_their_rule_in_the_model() {
                 x.depth = x.depth.max(1);
             }
             let mut st = generator::resources::valid_state(&profile, k as u32, 0x1ff);
-            let tags = mutate(m, &mut st, &mut case.world.device, &mut case.world.command_buffer, &profile, k as u32).unwrap();
+            let tags = mutate(
+                m,
+                &mut st,
+                &mut case.world.device,
+                &mut case.world.command_buffer,
+                &profile,
+                k as u32,
+            )
+            .unwrap();
             case.world.resources = st;
             let row = rules.row(&vuid).unwrap();
             // Enable what the row's condition names, as a device with the extension would: all of them,
             // or, where the condition excludes one (`…+(A,B)+!(B)`), one of them at a time.
             let base = case.world.device.extensions.clone();
-            let names: Vec<String> =
-                row.condition.names().into_iter().filter(|n| !n.starts_with("VK_VERSION_")).map(String::from).collect();
+            let names: Vec<String> = row
+                .condition
+                .names()
+                .into_iter()
+                .filter(|n| !n.starts_with("VK_VERSION_"))
+                .map(String::from)
+                .collect();
             let mut candidates = vec![names.clone()];
             candidates.extend(names.iter().map(|n| vec![n.clone()]));
             for extra in candidates {
                 let mut exts = base.clone();
                 exts.extend(extra);
-                if row.condition.eval(&|n: &str| exts.contains(n) || n.starts_with("VK_VERSION_1_")) {
+                if row
+                    .condition
+                    .eval(&|n: &str| exts.contains(n) || n.starts_with("VK_VERSION_1_"))
+                {
                     case.world.device.extensions = exts;
                     break;
                 }
@@ -116,10 +179,27 @@ fn vendor_mutations_fire_their_rule_in_the_model() {
             let v = model::validate(&rules, &profile, &case.world, &case.call);
             let got: BTreeSet<String> = v.vuids().into_iter().map(String::from).collect();
             let allowed: BTreeSet<String> = std::iter::once(vuid.clone())
-                .chain(tags.iter().filter_map(|t| rules.rows.iter().find(|r| r.scope == "vkCmdTraceRaysKHR" && r.vuid.ends_with(&format!("-{t}"))).map(|r| r.vuid.clone())))
+                .chain(tags.iter().filter_map(|t| {
+                    rules
+                        .rows
+                        .iter()
+                        .find(|r| {
+                            r.scope == "vkCmdTraceRaysKHR" && r.vuid.ends_with(&format!("-{t}"))
+                        })
+                        .map(|r| r.vuid.clone())
+                }))
                 .collect();
-            assert!(got.contains(&vuid), "{vuid}: not fired: {:?}\n{}", v.violations, case.to_yaml());
-            assert!(got.is_subset(&allowed), "{vuid}: undeclared {:?}", got.difference(&allowed).collect::<Vec<_>>());
+            assert!(
+                got.contains(&vuid),
+                "{vuid}: not fired: {:?}\n{}",
+                v.violations,
+                case.to_yaml()
+            );
+            assert!(
+                got.is_subset(&allowed),
+                "{vuid}: undeclared {:?}",
+                got.difference(&allowed).collect::<Vec<_>>()
+            );
             checked += 1;
         }
     }
@@ -132,7 +212,14 @@ fn valid_cases_stay_valid_with_empty_or_generated_resource_states() {
     for (name, profile) in common::profiles() {
         let strategy = state_strategy(&profile);
         for command in Command::ALL {
-            let cases = match generate(&profile, &name, common::rules(), &CaseSpec::valid(command), 100, 31) {
+            let cases = match generate(
+                &profile,
+                &name,
+                common::rules(),
+                &CaseSpec::valid(command),
+                100,
+                31,
+            ) {
                 Ok(c) => c,
                 Err(GenError::Unsupported(_)) => continue,
                 Err(e) => panic!("{e}"),
@@ -142,7 +229,12 @@ fn valid_cases_stay_valid_with_empty_or_generated_resource_states() {
                 let mut case = case;
                 case.world.resources = strategy.new_tree(&mut runner).unwrap().current();
                 let v = common::judge(&profile, &case);
-                assert!(v.is_valid(), "{name}: {:?}\n{}", v.violations, case.to_yaml());
+                assert!(
+                    v.is_valid(),
+                    "{name}: {:?}\n{}",
+                    v.violations,
+                    case.to_yaml()
+                );
                 judged += 1;
             }
         }
@@ -156,5 +248,8 @@ fn the_tag_table_and_the_model_agree() {
         let vuid = format!("VUID-vkCmdTraceRaysKHR-None-{tag}");
         assert!(mutation_for(&vuid).is_some(), "{tag}");
     }
-    assert!(mutation_for("VUID-vkCmdTraceRaysKHR-None-08612").is_none(), "shader-object rules are not executable");
+    assert!(
+        mutation_for("VUID-vkCmdTraceRaysKHR-None-08612").is_none(),
+        "shader-object rules are not executable"
+    );
 }

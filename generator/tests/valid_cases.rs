@@ -11,7 +11,10 @@ fn valid_cases_have_empty_verdicts_on_every_profile() {
     let mut judged = 0;
     for (name, profile) in common::profiles() {
         for command in Command::ALL {
-            for spec in [CaseSpec::valid(command), CaseSpec::valid(command).at_limits()] {
+            for spec in [
+                CaseSpec::valid(command),
+                CaseSpec::valid(command).at_limits(),
+            ] {
                 let cases = match generate(&profile, &name, common::rules(), &spec, n, 7) {
                     Ok(c) => c,
                     Err(GenError::Unsupported(why)) => {
@@ -22,7 +25,13 @@ fn valid_cases_have_empty_verdicts_on_every_profile() {
                 };
                 for case in &cases {
                     let v = common::judge(&profile, case);
-                    assert!(v.is_valid(), "{name}: {} judged invalid: {:?}\n{}", case.name, v.violations, case.to_yaml());
+                    assert!(
+                        v.is_valid(),
+                        "{name}: {} judged invalid: {:?}\n{}",
+                        case.name,
+                        v.violations,
+                        case.to_yaml()
+                    );
                     judged += 1;
                 }
             }
@@ -33,17 +42,42 @@ fn valid_cases_have_empty_verdicts_on_every_profile() {
 
 #[test]
 fn nv_is_unsupported_without_the_extension() {
-    let (name, profile) = common::profiles().into_iter().find(|(n, _)| n == "lavapipe").unwrap();
+    let (name, profile) = common::profiles()
+        .into_iter()
+        .find(|(n, _)| n == "lavapipe")
+        .unwrap();
     if profile.has_extension("VK_NV_ray_tracing") {
-        return assert!(generate(&profile, &name, common::rules(), &CaseSpec::valid(Command::TraceRaysNv), 1, 1).is_ok());
+        return assert!(generate(
+            &profile,
+            &name,
+            common::rules(),
+            &CaseSpec::valid(Command::TraceRaysNv),
+            1,
+            1
+        )
+        .is_ok());
     }
-    let err = generate(&profile, &name, common::rules(), &CaseSpec::valid(Command::TraceRaysNv), 1, 1).unwrap_err();
-    assert!(err.to_string().starts_with("unsupported by profile"), "{err}");
+    let err = generate(
+        &profile,
+        &name,
+        common::rules(),
+        &CaseSpec::valid(Command::TraceRaysNv),
+        1,
+        1,
+    )
+    .unwrap_err();
+    assert!(
+        err.to_string().starts_with("unsupported by profile"),
+        "{err}"
+    );
 }
 
 #[test]
 fn generation_is_deterministic_and_names_carry_the_seed() {
-    let (name, profile) = common::profiles().into_iter().find(|(n, _)| n == "lavapipe").unwrap();
+    let (name, profile) = common::profiles()
+        .into_iter()
+        .find(|(n, _)| n == "lavapipe")
+        .unwrap();
     let spec = CaseSpec::valid(Command::TraceRaysIndirect);
     let a = generate(&profile, &name, common::rules(), &spec, 20, 42).unwrap();
     let b = generate(&profile, &name, common::rules(), &spec, 20, 42).unwrap();
@@ -58,15 +92,49 @@ fn generation_is_deterministic_and_names_carry_the_seed() {
 #[test]
 fn valid_cases_cover_the_interesting_shapes() {
     use model::world::{GeometryKind, HandleRef};
-    let (name, profile) = common::profiles().into_iter().find(|(n, _)| n == "lavapipe").unwrap();
-    let cases = generate(&profile, &name, common::rules(), &CaseSpec::valid(Command::TraceRaysIndirect), 300, 3).unwrap();
+    let (name, profile) = common::profiles()
+        .into_iter()
+        .find(|(n, _)| n == "lavapipe")
+        .unwrap();
+    let cases = generate(
+        &profile,
+        &name,
+        common::rules(),
+        &CaseSpec::valid(Command::TraceRaysIndirect),
+        300,
+        3,
+    )
+    .unwrap();
     let has = |f: &dyn Fn(&model::Case) -> bool| cases.iter().filter(|c| f(c)).count();
     let zero_dim = has(&|c| c.call.dimensions(&c.world).is_some_and(|d| d.contains(&0)));
-    let aabb = has(&|c| c.world.launch.instances.iter().any(|i| i.geometries.contains(&GeometryKind::Aabbs)));
-    let zero_handle = has(&|c| c.world.buffers.iter().any(|b| b.contents.iter().any(|x| matches!(x, model::world::Contents::ShaderRecords { handles, .. } if handles.contains(&HandleRef::Zero)))));
-    let unused_miss = has(&|c| c.call.region(model::Table::Miss).is_some_and(|r| r.size == 0));
-    let no_null = has(&|c| c.world.pipeline.as_ref().is_some_and(|p| !p.flags.names().is_empty()));
-    for (what, n) in [("zero dimension", zero_dim), ("AABB geometry", aabb), ("zero handle", zero_handle), ("unused miss", unused_miss), ("NO_NULL flags", no_null)] {
+    let aabb = has(&|c| {
+        c.world
+            .launch
+            .instances
+            .iter()
+            .any(|i| i.geometries.contains(&GeometryKind::Aabbs))
+    });
+    let zero_handle = has(&|c| {
+        c.world.buffers.iter().any(|b| b.contents.iter().any(|x| matches!(x, model::world::Contents::ShaderRecords { handles, .. } if handles.contains(&HandleRef::Zero))))
+    });
+    let unused_miss = has(&|c| {
+        c.call
+            .region(model::Table::Miss)
+            .is_some_and(|r| r.size == 0)
+    });
+    let no_null = has(&|c| {
+        c.world
+            .pipeline
+            .as_ref()
+            .is_some_and(|p| !p.flags.names().is_empty())
+    });
+    for (what, n) in [
+        ("zero dimension", zero_dim),
+        ("AABB geometry", aabb),
+        ("zero handle", zero_handle),
+        ("unused miss", unused_miss),
+        ("NO_NULL flags", no_null),
+    ] {
         assert!(n >= 10, "only {n} of 300 cases have a {what}");
     }
 }

@@ -9,7 +9,10 @@ use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
 
 fn lavapipe() -> (String, model::DeviceProfile) {
-    common::profiles().into_iter().find(|(n, _)| n == "lavapipe").unwrap()
+    common::profiles()
+        .into_iter()
+        .find(|(n, _)| n == "lavapipe")
+        .unwrap()
 }
 
 #[test]
@@ -18,17 +21,29 @@ fn yaml_round_trip_of_generated_cases_is_exact() {
     let specs = [
         CaseSpec::valid(Command::TraceRaysIndirect),
         CaseSpec::valid(Command::TraceRays).at_limits(),
-        CaseSpec::violate(Command::TraceRaysIndirect, "VUID-vkCmdTraceRaysIndirectKHR-pHitShaderBindingTable-04736"),
-        CaseSpec::violate(Command::TraceRays, "VUID-VkStridedDeviceAddressRegionKHR-size-04631"),
+        CaseSpec::violate(
+            Command::TraceRaysIndirect,
+            "VUID-vkCmdTraceRaysIndirectKHR-pHitShaderBindingTable-04736",
+        ),
+        CaseSpec::violate(
+            Command::TraceRays,
+            "VUID-VkStridedDeviceAddressRegionKHR-size-04631",
+        ),
     ];
-    let mut runner =
-        TestRunner::new_with_rng(Config { cases: 64, ..Config::default() }, TestRng::from_seed(RngAlgorithm::ChaCha, &[3; 32]));
+    let mut runner = TestRunner::new_with_rng(
+        Config {
+            cases: 64,
+            ..Config::default()
+        },
+        TestRng::from_seed(RngAlgorithm::ChaCha, &[3; 32]),
+    );
     for spec in specs {
         let strategy = case_strategy(&profile, &name, common::rules(), &spec).unwrap();
         runner
             .run(&strategy, |case| {
                 let yaml = case.to_yaml();
-                let back = Case::from_yaml("generated.yaml", &yaml).map_err(|e| TestCaseError::fail(e.to_string()))?;
+                let back = Case::from_yaml("generated.yaml", &yaml)
+                    .map_err(|e| TestCaseError::fail(e.to_string()))?;
                 prop_assert_eq!(&back, &case);
                 prop_assert_eq!(back.to_yaml(), yaml);
                 Ok(())
@@ -40,19 +55,37 @@ fn yaml_round_trip_of_generated_cases_is_exact() {
 #[test]
 fn malformed_case_yaml_reports_line_and_problem() {
     let (name, profile) = lavapipe();
-    let case = &generate(&profile, &name, common::rules(), &CaseSpec::valid(Command::TraceRaysIndirect), 1, 1).unwrap()[0];
+    let case = &generate(
+        &profile,
+        &name,
+        common::rules(),
+        &CaseSpec::valid(Command::TraceRaysIndirect),
+        1,
+        1,
+    )
+    .unwrap()[0];
     let yaml = case.to_yaml();
     // A misspelt field on a known line.
-    let line = yaml.lines().position(|l| l.trim_start().starts_with("max_recursion_depth")).unwrap() + 1;
+    let line = yaml
+        .lines()
+        .position(|l| l.trim_start().starts_with("max_recursion_depth"))
+        .unwrap()
+        + 1;
     let broken = yaml.replace("max_recursion_depth", "max_recursion_dept");
     let err = Case::from_yaml("broken.yaml", &broken).unwrap_err();
     assert_eq!(err.location.map(|(l, _)| l), Some(line), "{err}");
     assert!(err.problem.contains("max_recursion_dept"), "{err}");
-    assert!(err.to_string().starts_with(&format!("broken.yaml:{line}:")), "{err}");
+    assert!(
+        err.to_string().starts_with(&format!("broken.yaml:{line}:")),
+        "{err}"
+    );
     // An unknown usage flag names the flag.
     let broken = yaml.replacen("INDIRECT_BUFFER_BIT", "INDIRECT_BUFER_BIT", 1);
     let err = Case::from_yaml("flags.yaml", &broken).unwrap_err();
-    assert!(err.location.is_some() && err.problem.contains("INDIRECT_BUFER_BIT"), "{err}");
+    assert!(
+        err.location.is_some() && err.problem.contains("INDIRECT_BUFER_BIT"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -68,15 +101,44 @@ fn shrinking_finds_a_minimal_failing_case_and_writes_it() {
             c.world.launch.rays.len() >= 2
         })
         .expect("some case traces two rays");
-    let shrunk = shrink_failure(&profile, &name, common::rules(), &spec, 21, index, &dir, fails).unwrap().expect("it fails");
-    assert_eq!(shrunk.case.world.launch.rays.len(), 1, "{}", shrunk.case.to_yaml());
-    assert!(shrunk.case.world.launch.instances.is_empty(), "{}", shrunk.case.to_yaml());
+    let shrunk = shrink_failure(
+        &profile,
+        &name,
+        common::rules(),
+        &spec,
+        21,
+        index,
+        &dir,
+        fails,
+    )
+    .unwrap()
+    .expect("it fails");
+    assert_eq!(
+        shrunk.case.world.launch.rays.len(),
+        1,
+        "{}",
+        shrunk.case.to_yaml()
+    );
+    assert!(
+        shrunk.case.world.launch.instances.is_empty(),
+        "{}",
+        shrunk.case.to_yaml()
+    );
     let text = std::fs::read_to_string(&shrunk.path).unwrap();
     let back = Case::from_yaml(&shrunk.path.display().to_string(), &text).unwrap();
     assert_eq!(back, shrunk.case);
     assert_eq!(back.seed.as_deref(), Some(format!("21/{index}").as_str()));
-    assert!(common::judge(&profile, &back).is_valid(), "shrinking keeps validity by construction");
+    assert!(
+        common::judge(&profile, &back).is_valid(),
+        "shrinking keeps validity by construction"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
     // A case that does not fail is not written.
-    assert!(shrink_failure(&profile, &name, common::rules(), &spec, 21, 0, &dir, |_| false).unwrap().is_none());
+    assert!(
+        shrink_failure(&profile, &name, common::rules(), &spec, 21, 0, &dir, |_| {
+            false
+        })
+        .unwrap()
+        .is_none()
+    );
 }

@@ -10,23 +10,47 @@ use model::world::*;
 use std::time::{Duration, Instant};
 
 fn case(miss_stride: u64, width: u32) -> Case {
-    let at = |b: &str, o| Address::InBuffer { buffer: b.into(), offset: o };
-    let records = |offset, handles: Vec<HandleRef>| Contents::ShaderRecords { offset, stride: 32, handles };
-    let ray = |target, miss_index| TraceRay { target, sbt_offset: 0, sbt_stride: 0, miss_index, cull_mask: 0xff, ray_flags: 0 };
+    let at = |b: &str, o| Address::InBuffer {
+        buffer: b.into(),
+        offset: o,
+    };
+    let records = |offset, handles: Vec<HandleRef>| Contents::ShaderRecords {
+        offset,
+        stride: 32,
+        handles,
+    };
+    let ray = |target, miss_index| TraceRay {
+        target,
+        sbt_offset: 0,
+        sbt_stride: 0,
+        miss_index,
+        cull_mask: 0xff,
+        ray_flags: 0,
+    };
     let world = World {
         device: DeviceState {
-            extensions: ["VK_KHR_ray_tracing_pipeline", "VK_KHR_acceleration_structure", "VK_KHR_deferred_host_operations"]
-                .map(String::from)
-                .into(),
-            features: ["rayTracingPipeline", "rayTracingPipelineTraceRaysIndirect", "bufferDeviceAddress", "accelerationStructure"]
-                .map(String::from)
-                .into(),
+            extensions: [
+                "VK_KHR_ray_tracing_pipeline",
+                "VK_KHR_acceleration_structure",
+                "VK_KHR_deferred_host_operations",
+            ]
+            .map(String::from)
+            .into(),
+            features: [
+                "rayTracingPipeline",
+                "rayTracingPipelineTraceRaysIndirect",
+                "bufferDeviceAddress",
+                "accelerationStructure",
+            ]
+            .map(String::from)
+            .into(),
         },
         buffers: vec![
             Buffer {
                 name: "sbt".into(),
                 size: 256,
-                usage: BufferUsage::SHADER_BINDING_TABLE_BIT_KHR | BufferUsage::SHADER_DEVICE_ADDRESS_BIT,
+                usage: BufferUsage::SHADER_BINDING_TABLE_BIT_KHR
+                    | BufferUsage::SHADER_DEVICE_ADDRESS_BIT,
                 flags: Default::default(),
                 memory: MemoryBinding::Whole,
                 contents: vec![
@@ -41,17 +65,31 @@ fn case(miss_stride: u64, width: u32) -> Case {
                 usage: BufferUsage::INDIRECT_BUFFER_BIT | BufferUsage::SHADER_DEVICE_ADDRESS_BIT,
                 flags: Default::default(),
                 memory: MemoryBinding::Whole,
-                contents: vec![Contents::TraceRaysIndirectCommand { offset: 0, width, height: 2, depth: 1 }],
+                contents: vec![Contents::TraceRaysIndirectCommand {
+                    offset: 0,
+                    width,
+                    height: 2,
+                    depth: 1,
+                }],
             },
         ],
         pipeline: Some(Pipeline {
             api: PipelineApi::Khr,
             flags: Default::default(),
             groups: vec![
-                ShaderGroup::General { stage: GeneralStage::Raygen },
-                ShaderGroup::General { stage: GeneralStage::Miss },
-                ShaderGroup::General { stage: GeneralStage::Miss },
-                ShaderGroup::TrianglesHit { closest_hit: true, any_hit: false },
+                ShaderGroup::General {
+                    stage: GeneralStage::Raygen,
+                },
+                ShaderGroup::General {
+                    stage: GeneralStage::Miss,
+                },
+                ShaderGroup::General {
+                    stage: GeneralStage::Miss,
+                },
+                ShaderGroup::TrianglesHit {
+                    closest_hit: true,
+                    any_hit: false,
+                },
             ],
             max_recursion_depth: 1,
             dynamic_stack_size: false,
@@ -59,8 +97,22 @@ fn case(miss_stride: u64, width: u32) -> Case {
         }),
         command_buffer: CommandBufferState::default(),
         launch: Launch {
-            instances: vec![Instance { geometries: vec![GeometryKind::Triangles], sbt_record_offset: 0, mask: 0xff, cluster: false }],
-            rays: vec![ray(RayTarget::Geometry { instance: 0, geometry: 0 }, 0), ray(RayTarget::Nothing, 1)],
+            instances: vec![Instance {
+                geometries: vec![GeometryKind::Triangles],
+                sbt_record_offset: 0,
+                mask: 0xff,
+                cluster: false,
+            }],
+            rays: vec![
+                ray(
+                    RayTarget::Geometry {
+                        instance: 0,
+                        geometry: 0,
+                    },
+                    0,
+                ),
+                ray(RayTarget::Nothing, 1),
+            ],
             callables: vec![],
             extra_recursion: 0,
         },
@@ -74,13 +126,28 @@ fn case(miss_stride: u64, width: u32) -> Case {
         intent: if valid {
             Intent::Valid
         } else {
-            Intent::Violates { vuid: "VUID-vkCmdTraceRaysIndirectKHR-stride-03686".into(), also: vec![] }
+            Intent::Violates {
+                vuid: "VUID-vkCmdTraceRaysIndirectKHR-stride-03686".into(),
+                also: vec![],
+            }
         },
         world,
         call: Call::TraceRaysIndirect(TraceRaysIndirect {
-            raygen: StridedRegion { address: at("sbt", 0), stride: 32, size: 32 },
-            miss: StridedRegion { address: at("sbt", 64), stride: miss_stride, size: miss_stride * 2 },
-            hit: StridedRegion { address: at("sbt", 128), stride: 32, size: 32 },
+            raygen: StridedRegion {
+                address: at("sbt", 0),
+                stride: 32,
+                size: 32,
+            },
+            miss: StridedRegion {
+                address: at("sbt", 64),
+                stride: miss_stride,
+                size: miss_stride * 2,
+            },
+            hit: StridedRegion {
+                address: at("sbt", 128),
+                stride: 32,
+                size: 32,
+            },
             callable: StridedRegion::unused(),
             indirect_address: at("indirect", 0),
         }),

@@ -143,13 +143,28 @@ fn vk_type(t: AsType) -> vk::AccelerationStructureTypeKHR {
 }
 
 /// The Vulkan geometries of an info (None for geometry types the harness does not realise).
-fn vk_geometries(info: &BuildGeometryInfo, r: &Realised) -> Option<Vec<vk::AccelerationStructureGeometryKHR<'static>>> {
+fn vk_geometries(
+    info: &BuildGeometryInfo,
+    r: &Realised,
+) -> Option<Vec<vk::AccelerationStructureGeometryKHR<'static>>> {
     info.geometries
         .iter()
         .map(|g| {
-            let a = |x: &model::call::Address| vk::DeviceOrHostAddressConstKHR { device_address: r.address(x) };
+            let a = |x: &model::call::Address| vk::DeviceOrHostAddressConstKHR {
+                device_address: r.address(x),
+            };
             let (ty, data) = match &g.data {
-                GeometryData::Triangles { vertex_format, vertex_data, vertex_stride, max_vertex, index_type, index_data, transform_data, motion_vertex_data: None, opacity_micromap: None } => (
+                GeometryData::Triangles {
+                    vertex_format,
+                    vertex_data,
+                    vertex_stride,
+                    max_vertex,
+                    index_type,
+                    index_data,
+                    transform_data,
+                    motion_vertex_data: None,
+                    opacity_micromap: None,
+                } => (
                     vk::GeometryTypeKHR::TRIANGLES,
                     vk::AccelerationStructureGeometryDataKHR {
                         triangles: vk::AccelerationStructureGeometryTrianglesDataKHR::default()
@@ -165,10 +180,15 @@ fn vk_geometries(info: &BuildGeometryInfo, r: &Realised) -> Option<Vec<vk::Accel
                 GeometryData::Aabbs { data, stride } => (
                     vk::GeometryTypeKHR::AABBS,
                     vk::AccelerationStructureGeometryDataKHR {
-                        aabbs: vk::AccelerationStructureGeometryAabbsDataKHR::default().data(a(data)).stride(*stride),
+                        aabbs: vk::AccelerationStructureGeometryAabbsDataKHR::default()
+                            .data(a(data))
+                            .stride(*stride),
                     },
                 ),
-                GeometryData::Instances { array_of_pointers, data } => (
+                GeometryData::Instances {
+                    array_of_pointers,
+                    data,
+                } => (
                     vk::GeometryTypeKHR::INSTANCES,
                     vk::AccelerationStructureGeometryDataKHR {
                         instances: vk::AccelerationStructureGeometryInstancesDataKHR::default()
@@ -178,31 +198,52 @@ fn vk_geometries(info: &BuildGeometryInfo, r: &Realised) -> Option<Vec<vk::Accel
                 ),
                 _ => return None,
             };
-            Some(vk::AccelerationStructureGeometryKHR::default().geometry_type(ty).geometry(data).flags(vk::GeometryFlagsKHR::from_raw(g.flags.0)))
+            Some(
+                vk::AccelerationStructureGeometryKHR::default()
+                    .geometry_type(ty)
+                    .geometry(data)
+                    .flags(vk::GeometryFlagsKHR::from_raw(g.flags.0)),
+            )
         })
         .collect()
 }
 
-fn vk_info<'a>(info: &BuildGeometryInfo, geoms: &'a [vk::AccelerationStructureGeometryKHR<'static>], r: &Realised) -> vk::AccelerationStructureBuildGeometryInfoKHR<'a> {
+fn vk_info<'a>(
+    info: &BuildGeometryInfo,
+    geoms: &'a [vk::AccelerationStructureGeometryKHR<'static>],
+    r: &Realised,
+) -> vk::AccelerationStructureBuildGeometryInfoKHR<'a> {
     let mode = match info.mode {
         BuildMode::Build => vk::BuildAccelerationStructureModeKHR::BUILD,
         BuildMode::Update => vk::BuildAccelerationStructureModeKHR::UPDATE,
         BuildMode::Other(v) => vk::BuildAccelerationStructureModeKHR::from_raw(v as i32),
     };
-    let handle = |n: &Option<String>| n.as_ref().and_then(|n| r.structures.get(n)).map_or(vk::AccelerationStructureKHR::null(), |s| s.0);
+    let handle = |n: &Option<String>| {
+        n.as_ref()
+            .and_then(|n| r.structures.get(n))
+            .map_or(vk::AccelerationStructureKHR::null(), |s| s.0)
+    };
     vk::AccelerationStructureBuildGeometryInfoKHR::default()
         .ty(vk_type(info.ty))
-        .flags(vk::BuildAccelerationStructureFlagsKHR::from_raw(info.flags.0))
+        .flags(vk::BuildAccelerationStructureFlagsKHR::from_raw(
+            info.flags.0,
+        ))
         .mode(mode)
         .src_acceleration_structure(handle(&info.src))
         .dst_acceleration_structure(handle(&info.dst))
         .geometries(geoms)
-        .scratch_data(vk::DeviceOrHostAddressKHR { device_address: r.address(&info.scratch) })
+        .scratch_data(vk::DeviceOrHostAddressKHR {
+            device_address: r.address(&info.scratch),
+        })
 }
 
 /// A device for build cases: the case's extensions and features plus what the traced check needs
 /// (ray query, or a ray tracing pipeline where ray query is absent or the pipeline check is asked for).
-pub fn device_for(inst: &Arc<VkInstance>, case: &BuildCase, check: TraceCheck) -> Result<VkDevice, String> {
+pub fn device_for(
+    inst: &Arc<VkInstance>,
+    case: &BuildCase,
+    check: TraceCheck,
+) -> Result<VkDevice, String> {
     let mut ext = case.world.device.extensions.clone();
     let mut feat = case.world.device.features.clone();
     let available = inst.device_extensions();
@@ -223,25 +264,53 @@ pub fn device_for(inst: &Arc<VkInstance>, case: &BuildCase, check: TraceCheck) -
 }
 
 fn realise(dev: &VkDevice, case: &BuildCase) -> Result<Realised, String> {
-    let accel = dev.accel.as_ref().ok_or("unsupported: the case does not enable VK_KHR_acceleration_structure")?;
-    let mut r = Realised { buffers: BTreeMap::new(), structures: BTreeMap::new() };
+    let accel = dev
+        .accel
+        .as_ref()
+        .ok_or("unsupported: the case does not enable VK_KHR_acceleration_structure")?;
+    let mut r = Realised {
+        buffers: BTreeMap::new(),
+        structures: BTreeMap::new(),
+    };
     let made = (|| -> Result<(), String> {
         for b in &case.world.buffers {
             if b.is_sparse() || b.memory != model::world::MemoryBinding::Whole {
-                return Err(format!("unsupported: buffer `{}`: only wholly bound, non-sparse buffers are realised", b.name));
+                return Err(format!(
+                    "unsupported: buffer `{}`: only wholly bound, non-sparse buffers are realised",
+                    b.name
+                ));
             }
-            let usage = vk::BufferUsageFlags::from_raw(b.usage.0 as u32) | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-            let a = Allocation::new(dev, b.size, usage, vk::BufferCreateFlags::from_raw(b.flags.0 as u32), BUFFER_PLACEMENT_ALIGNMENT).map_err(realise_err)?;
+            let usage = vk::BufferUsageFlags::from_raw(b.usage.0 as u32)
+                | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+            let a = Allocation::new(
+                dev,
+                b.size,
+                usage,
+                vk::BufferCreateFlags::from_raw(b.flags.0 as u32),
+                BUFFER_PLACEMENT_ALIGNMENT,
+            )
+            .map_err(realise_err)?;
             r.buffers.insert(b.name.clone(), a);
         }
         for s in &case.world.structures {
-            let buf = r.buffers.get(&s.buffer).ok_or_else(|| format!("structure `{}`: no buffer `{}`", s.name, s.buffer))?;
-            let info = vk::AccelerationStructureCreateInfoKHR::default().buffer(buf.buffer).offset(s.offset).size(s.size).ty(vk_type(s.ty));
+            let buf = r
+                .buffers
+                .get(&s.buffer)
+                .ok_or_else(|| format!("structure `{}`: no buffer `{}`", s.name, s.buffer))?;
+            let info = vk::AccelerationStructureCreateInfoKHR::default()
+                .buffer(buf.buffer)
+                .offset(s.offset)
+                .size(s.size)
+                .ty(vk_type(s.ty));
             // SAFETY: the buffer lives as long as the structure.
-            let h = unsafe { accel.create_acceleration_structure(&info, None) }.map_err(fail("vkCreateAccelerationStructureKHR"))?;
+            let h = unsafe { accel.create_acceleration_structure(&info, None) }
+                .map_err(fail("vkCreateAccelerationStructureKHR"))?;
             // SAFETY: valid structure.
             let addr = unsafe {
-                accel.get_acceleration_structure_device_address(&vk::AccelerationStructureDeviceAddressInfoKHR::default().acceleration_structure(h))
+                accel.get_acceleration_structure_device_address(
+                    &vk::AccelerationStructureDeviceAddressInfoKHR::default()
+                        .acceleration_structure(h),
+                )
             };
             r.structures.insert(s.name.clone(), (h, addr));
         }
@@ -275,8 +344,19 @@ fn device_sizes(dev: &VkDevice, case: &BuildCase, r: &Realised) -> Option<Vec<Bu
                 return None;
             }
             // SAFETY: counts match the geometries.
-            unsafe { accel.get_acceleration_structure_build_sizes(vk::AccelerationStructureBuildTypeKHR::DEVICE, &vi, max, &mut s) };
-            Some(BuildSizes { structure: s.acceleration_structure_size, build_scratch: s.build_scratch_size, update_scratch: s.update_scratch_size })
+            unsafe {
+                accel.get_acceleration_structure_build_sizes(
+                    vk::AccelerationStructureBuildTypeKHR::DEVICE,
+                    &vi,
+                    max,
+                    &mut s,
+                )
+            };
+            Some(BuildSizes {
+                structure: s.acceleration_structure_size,
+                build_scratch: s.build_scratch_size,
+                update_scratch: s.update_scratch_size,
+            })
         })
         .collect()
 }
@@ -293,38 +373,64 @@ impl Commands {
         // SAFETY: valid create infos.
         unsafe {
             let pool = d
-                .create_command_pool(&vk::CommandPoolCreateInfo::default().queue_family_index(dev.queue_family).flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER), None)
+                .create_command_pool(
+                    &vk::CommandPoolCreateInfo::default()
+                        .queue_family_index(dev.queue_family)
+                        .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
+                    None,
+                )
                 .map_err(fail("vkCreateCommandPool"))?;
             let cb = d
-                .allocate_command_buffers(&vk::CommandBufferAllocateInfo::default().command_pool(pool).level(vk::CommandBufferLevel::PRIMARY).command_buffer_count(1))
+                .allocate_command_buffers(
+                    &vk::CommandBufferAllocateInfo::default()
+                        .command_pool(pool)
+                        .level(vk::CommandBufferLevel::PRIMARY)
+                        .command_buffer_count(1),
+                )
                 .map_err(fail("vkAllocateCommandBuffers"))?[0];
-            let fence = d.create_fence(&vk::FenceCreateInfo::default(), None).map_err(fail("vkCreateFence"))?;
+            let fence = d
+                .create_fence(&vk::FenceCreateInfo::default(), None)
+                .map_err(fail("vkCreateFence"))?;
             Ok(Commands { pool, cb, fence })
         }
     }
     fn begin(&self, dev: &VkDevice) -> Result<(), String> {
         // SAFETY: the command buffer is idle.
         unsafe {
-            dev.device.reset_command_buffer(self.cb, vk::CommandBufferResetFlags::empty()).map_err(fail("vkResetCommandBuffer"))?;
-            dev.device.begin_command_buffer(self.cb, &vk::CommandBufferBeginInfo::default()).map_err(fail("vkBeginCommandBuffer"))
+            dev.device
+                .reset_command_buffer(self.cb, vk::CommandBufferResetFlags::empty())
+                .map_err(fail("vkResetCommandBuffer"))?;
+            dev.device
+                .begin_command_buffer(self.cb, &vk::CommandBufferBeginInfo::default())
+                .map_err(fail("vkBeginCommandBuffer"))
         }
     }
     fn submit(&self, dev: &VkDevice) -> Result<(), String> {
         let d = &dev.device;
         // SAFETY: recorded command buffer, unsignalled fence.
         unsafe {
-            d.end_command_buffer(self.cb).map_err(fail("vkEndCommandBuffer"))?;
+            d.end_command_buffer(self.cb)
+                .map_err(fail("vkEndCommandBuffer"))?;
             let cbs = [self.cb];
-            d.queue_submit(dev.queue, &[vk::SubmitInfo::default().command_buffers(&cbs)], self.fence).map_err(fail("vkQueueSubmit"))?;
-            d.wait_for_fences(&[self.fence], true, 60_000_000_000).map_err(fail("vkWaitForFences"))?;
+            d.queue_submit(
+                dev.queue,
+                &[vk::SubmitInfo::default().command_buffers(&cbs)],
+                self.fence,
+            )
+            .map_err(fail("vkQueueSubmit"))?;
+            d.wait_for_fences(&[self.fence], true, 60_000_000_000)
+                .map_err(fail("vkWaitForFences"))?;
             d.reset_fences(&[self.fence]).map_err(fail("vkResetFences"))
         }
     }
     fn barrier(&self, dev: &VkDevice) {
         let b = vk::MemoryBarrier::default()
             .src_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR)
-            .dst_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR | vk::AccessFlags::SHADER_READ);
-        let mut dst = vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR | vk::PipelineStageFlags::COMPUTE_SHADER;
+            .dst_access_mask(
+                vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR | vk::AccessFlags::SHADER_READ,
+            );
+        let mut dst = vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR
+            | vk::PipelineStageFlags::COMPUTE_SHADER;
         if dev.has_feature("rayTracingPipeline") {
             dst |= vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR;
         }
@@ -351,7 +457,11 @@ impl Commands {
 }
 
 fn vuids(messages: &[crate::vulkan::LayerMessage]) -> Vec<String> {
-    let s: BTreeSet<String> = messages.iter().filter(|m| m.id.starts_with("VUID-")).map(|m| m.id.clone()).collect();
+    let s: BTreeSet<String> = messages
+        .iter()
+        .filter(|m| m.id.starts_with("VUID-"))
+        .map(|m| m.id.clone())
+        .collect();
     s.into_iter().collect()
 }
 
@@ -361,25 +471,67 @@ fn indirect_args<'a>(
     case: &'a BuildCase,
     r: &Realised,
     geoms: &'a [Vec<vk::AccelerationStructureGeometryKHR<'static>>],
-) -> (Vec<vk::AccelerationStructureBuildGeometryInfoKHR<'a>>, Vec<u64>, Vec<&'a [u32]>) {
-    let infos = case.call.infos.iter().zip(geoms).map(|(i, g)| vk_info(i, g, r)).collect();
-    let addrs = case.call.indirect_addresses.iter().map(|a| r.address(a)).collect();
-    let maxima = case.call.max_primitive_counts.iter().map(|v| v.as_slice()).collect();
+) -> (
+    Vec<vk::AccelerationStructureBuildGeometryInfoKHR<'a>>,
+    Vec<u64>,
+    Vec<&'a [u32]>,
+) {
+    let infos = case
+        .call
+        .infos
+        .iter()
+        .zip(geoms)
+        .map(|(i, g)| vk_info(i, g, r))
+        .collect();
+    let addrs = case
+        .call
+        .indirect_addresses
+        .iter()
+        .map(|a| r.address(a))
+        .collect();
+    let maxima = case
+        .call
+        .max_primitive_counts
+        .iter()
+        .map(|v| v.as_slice())
+        .collect();
     (infos, addrs, maxima)
 }
 
 /// Records the indirect call under the layer (dropped by the messenger, never submitted) and returns
 /// the layer's messages.
-fn record_indirect(inst: &VkInstance, dev: &VkDevice, cmds: &Commands, case: &BuildCase, r: &Realised) -> Result<Vec<LayerMessage>, String> {
-    let accel = dev.accel.as_ref().ok_or("unsupported: no VK_KHR_acceleration_structure")?;
-    let geoms: Vec<Vec<vk::AccelerationStructureGeometryKHR>> =
-        case.call.infos.iter().map(|i| vk_geometries(i, r)).collect::<Option<_>>().ok_or("unsupported: geometry type not realised")?;
+fn record_indirect(
+    inst: &VkInstance,
+    dev: &VkDevice,
+    cmds: &Commands,
+    case: &BuildCase,
+    r: &Realised,
+) -> Result<Vec<LayerMessage>, String> {
+    let accel = dev
+        .accel
+        .as_ref()
+        .ok_or("unsupported: no VK_KHR_acceleration_structure")?;
+    let geoms: Vec<Vec<vk::AccelerationStructureGeometryKHR>> = case
+        .call
+        .infos
+        .iter()
+        .map(|i| vk_geometries(i, r))
+        .collect::<Option<_>>()
+        .ok_or("unsupported: geometry type not realised")?;
     let (infos, addrs, maxima) = indirect_args(case, r, &geoms);
     cmds.begin(dev)?;
     inst.collector.clear();
     inst.collector.set_abort(true);
     // SAFETY: recording; with the messenger returning VK_TRUE the layer drops an invalid call.
-    unsafe { accel.cmd_build_acceleration_structures_indirect(cmds.cb, &infos, &addrs, &case.call.indirect_strides, &maxima) };
+    unsafe {
+        accel.cmd_build_acceleration_structures_indirect(
+            cmds.cb,
+            &infos,
+            &addrs,
+            &case.call.indirect_strides,
+            &maxima,
+        )
+    };
     inst.collector.set_abort(false);
     let msgs = inst.collector.take();
     // SAFETY: ending a recording command buffer, never submitted.
@@ -390,8 +542,21 @@ fn record_indirect(inst: &VkInstance, dev: &VkDevice, cmds: &Commands, case: &Bu
 }
 
 /// Runs one build case with the default options (see [`run_case_with`]).
-pub fn run_case(inst: &Arc<VkInstance>, profile: &DeviceProfile, rules: &BuildRuleSet, case: &BuildCase, unavoidable: &[String]) -> BuildObservation {
-    run_case_with(inst, profile, rules, case, unavoidable, BuildOptions::default())
+pub fn run_case(
+    inst: &Arc<VkInstance>,
+    profile: &DeviceProfile,
+    rules: &BuildRuleSet,
+    case: &BuildCase,
+    unavoidable: &[String],
+) -> BuildObservation {
+    run_case_with(
+        inst,
+        profile,
+        rules,
+        case,
+        unavoidable,
+        BuildOptions::default(),
+    )
 }
 
 /// Runs one build case: the indirect call under the layer, the model's verdict with the device's sizes,
@@ -405,10 +570,16 @@ pub fn run_case_with(
     unavoidable: &[String],
     options: BuildOptions,
 ) -> BuildObservation {
-    let mut obs = BuildObservation { case: case.name.clone(), status: "ran".into(), ..Default::default() };
+    let mut obs = BuildObservation {
+        case: case.name.clone(),
+        status: "ran".into(),
+        ..Default::default()
+    };
     // The harness records into a fresh primary command buffer of a compute-capable pool, outside any
     // render pass or video coding scope; other command buffer states are not realised yet.
-    if case.world.command_buffer != model::world::CommandBufferState::default() || case.world.between_suspended_render_passes {
+    if case.world.command_buffer != model::world::CommandBufferState::default()
+        || case.world.between_suspended_render_passes
+    {
         obs.status = "unsupported: command buffer states other than a plain recording primary are not realised for builds".into();
         return obs;
     }
@@ -443,7 +614,11 @@ pub fn run_case_with(
         out
     })();
     if let Err(e) = result {
-        obs.status = if e.starts_with("unsupported") { e } else { format!("failed: {e}") };
+        obs.status = if e.starts_with("unsupported") {
+            e
+        } else {
+            format!("failed: {e}")
+        };
     }
     obs
 }
@@ -463,10 +638,17 @@ pub fn expected_rays(prims: &[BuiltPrimitive], top: bool) -> Vec<ExpectedRay> {
         .iter()
         .filter_map(|p| {
             let (x, y) = match &p.shape {
-                Shape::Triangle(v) if p.active => ((v[0][0] + v[1][0] + v[2][0]) / 3.0, (v[0][1] + v[1][1] + v[2][1]) / 3.0),
+                Shape::Triangle(v) if p.active => (
+                    (v[0][0] + v[1][0] + v[2][0]) / 3.0,
+                    (v[0][1] + v[1][1] + v[2][1]) / 3.0,
+                ),
                 Shape::Triangle(v) => ((v[1][0] + v[2][0]) / 2.0, (v[1][1] + v[2][1]) / 2.0),
                 Shape::Aabb { min, max } => {
-                    let x = if min[0].is_nan() { max[0] - 0.5 } else { (min[0] + max[0]) / 2.0 };
+                    let x = if min[0].is_nan() {
+                        max[0] - 0.5
+                    } else {
+                        (min[0] + max[0]) / 2.0
+                    };
                     (x, (min[1] + max[1]) / 2.0)
                 }
                 Shape::Instance(rec) => (rec.transform[3], rec.transform[7] - 1.0 / 6.0),
@@ -474,8 +656,17 @@ pub fn expected_rays(prims: &[BuiltPrimitive], top: bool) -> Vec<ExpectedRay> {
             if !x.is_finite() || !y.is_finite() {
                 return None;
             }
-            let hit = p.active.then(|| if top { (p.primitive, 0, 0) } else { (0, p.geometry, p.primitive) });
-            Some(ExpectedRay { origin: [x, y, -1.0], hit })
+            let hit = p.active.then(|| {
+                if top {
+                    (p.primitive, 0, 0)
+                } else {
+                    (0, p.geometry, p.primitive)
+                }
+            });
+            Some(ExpectedRay {
+                origin: [x, y, -1.0],
+                hit,
+            })
         })
         .collect()
 }
@@ -517,7 +708,9 @@ void main() {
 
 fn compile_trace_shader() -> Result<Vec<u32>, String> {
     static SPIRV: std::sync::OnceLock<Result<Vec<u32>, String>> = std::sync::OnceLock::new();
-    SPIRV.get_or_init(|| compile_glsl("trace.comp", TRACE_COMP)).clone()
+    SPIRV
+        .get_or_init(|| compile_glsl("trace.comp", TRACE_COMP))
+        .clone()
 }
 
 /// Compiles one GLSL shader with glslangValidator (the stage from the file name's extension).
@@ -535,10 +728,16 @@ fn compile_glsl(file: &str, text: &str) -> Result<Vec<u32>, String> {
         .output()
         .map_err(|e| format!("unsupported: glslangValidator is not available ({e})"))?;
     if !out.status.success() {
-        return Err(format!("glslangValidator {file}: {}", String::from_utf8_lossy(&out.stdout)));
+        return Err(format!(
+            "glslangValidator {file}: {}",
+            String::from_utf8_lossy(&out.stdout)
+        ));
     }
     let bytes = std::fs::read(&spv).map_err(|e| e.to_string())?;
-    Ok(bytes.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
+    Ok(bytes
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect())
 }
 
 /// Builds one structure directly: returns (structure, its address, storage and scratch allocations).
@@ -549,21 +748,65 @@ fn build_direct(
     geoms: &[vk::AccelerationStructureGeometryKHR],
     ranges: &[vk::AccelerationStructureBuildRangeInfoKHR],
 ) -> Result<(vk::AccelerationStructureKHR, u64, Allocation, Allocation), String> {
-    let accel = dev.accel.as_ref().ok_or("no acceleration structure extension")?;
+    let accel = dev
+        .accel
+        .as_ref()
+        .ok_or("no acceleration structure extension")?;
     let counts: Vec<u32> = ranges.iter().map(|r| r.primitive_count).collect();
-    let info = vk::AccelerationStructureBuildGeometryInfoKHR::default().ty(ty).mode(vk::BuildAccelerationStructureModeKHR::BUILD).geometries(geoms);
+    let info = vk::AccelerationStructureBuildGeometryInfoKHR::default()
+        .ty(ty)
+        .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
+        .geometries(geoms);
     let mut sizes = vk::AccelerationStructureBuildSizesInfoKHR::default();
     // SAFETY: counts match.
-    unsafe { accel.get_acceleration_structure_build_sizes(vk::AccelerationStructureBuildTypeKHR::DEVICE, &info, &counts, &mut sizes) };
-    let storage = Allocation::new(dev, sizes.acceleration_structure_size.max(256), vk::BufferUsageFlags::ACCELERATION_STRUCTURE_STORAGE_KHR | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, vk::BufferCreateFlags::empty(), 256).map_err(realise_err)?;
-    let scratch = Allocation::new(dev, sizes.build_scratch_size.max(1), vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, vk::BufferCreateFlags::empty(), 256).map_err(realise_err)?;
+    unsafe {
+        accel.get_acceleration_structure_build_sizes(
+            vk::AccelerationStructureBuildTypeKHR::DEVICE,
+            &info,
+            &counts,
+            &mut sizes,
+        )
+    };
+    let storage = Allocation::new(
+        dev,
+        sizes.acceleration_structure_size.max(256),
+        vk::BufferUsageFlags::ACCELERATION_STRUCTURE_STORAGE_KHR
+            | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+        vk::BufferCreateFlags::empty(),
+        256,
+    )
+    .map_err(realise_err)?;
+    let scratch = Allocation::new(
+        dev,
+        sizes.build_scratch_size.max(1),
+        vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+        vk::BufferCreateFlags::empty(),
+        256,
+    )
+    .map_err(realise_err)?;
     // SAFETY: storage is large enough.
-    let s = unsafe { accel.create_acceleration_structure(&vk::AccelerationStructureCreateInfoKHR::default().buffer(storage.buffer).size(sizes.acceleration_structure_size).ty(ty), None) }
-        .map_err(fail("vkCreateAccelerationStructureKHR"))?;
+    let s = unsafe {
+        accel.create_acceleration_structure(
+            &vk::AccelerationStructureCreateInfoKHR::default()
+                .buffer(storage.buffer)
+                .size(sizes.acceleration_structure_size)
+                .ty(ty),
+            None,
+        )
+    }
+    .map_err(fail("vkCreateAccelerationStructureKHR"))?;
     // SAFETY: valid structure.
-    let addr = unsafe { accel.get_acceleration_structure_device_address(&vk::AccelerationStructureDeviceAddressInfoKHR::default().acceleration_structure(s)) };
+    let addr = unsafe {
+        accel.get_acceleration_structure_device_address(
+            &vk::AccelerationStructureDeviceAddressInfoKHR::default().acceleration_structure(s),
+        )
+    };
     cmds.begin(dev)?;
-    let info = info.dst_acceleration_structure(s).scratch_data(vk::DeviceOrHostAddressKHR { device_address: scratch.address });
+    let info = info
+        .dst_acceleration_structure(s)
+        .scratch_data(vk::DeviceOrHostAddressKHR {
+            device_address: scratch.address,
+        });
     // SAFETY: recording.
     unsafe { accel.cmd_build_acceleration_structures(cmds.cb, &[info], &[ranges]) };
     cmds.barrier(dev);
@@ -592,7 +835,9 @@ fn resolve_check(dev: &VkDevice, check: TraceCheck) -> Result<TraceCheck, String
         TraceCheck::Pipeline if pipeline => Ok(TraceCheck::Pipeline),
         TraceCheck::Auto if query => Ok(TraceCheck::RayQuery),
         TraceCheck::Auto if pipeline => Ok(TraceCheck::Pipeline),
-        _ => Err(format!("unsupported: the traced check ({check:?}) needs rayQuery or rayTracingPipeline")),
+        _ => Err(format!(
+            "unsupported: the traced check ({check:?}) needs rayQuery or rayTracingPipeline"
+        )),
     }
 }
 
@@ -614,7 +859,10 @@ fn direct_and_trace(
     if case.call.infos.len() != 1 {
         return Err("unsupported: the traced check handles one build info".into());
     }
-    let accel = dev.accel.as_ref().ok_or("no acceleration structure extension")?;
+    let accel = dev
+        .accel
+        .as_ref()
+        .ok_or("no acceleration structure extension")?;
     let info = &case.call.infos[0];
     let top = info.ty == AsType::TopLevel;
     let mem = world.memory();
@@ -622,64 +870,129 @@ fn direct_and_trace(
     let prims = model::build::build_primitives(&mem, info, &ranges).map_err(|e| e.to_string())?;
     drop(mem);
     let mut extra: Vec<Allocation> = Vec::new();
-    let result = (|| -> Result<(), String> {
-        // Top-level cases reference the BLAS: build it first (one triangle at the origin).
-        if top {
-            let tri: Vec<u8> = [-0.5f32, -0.5, 0.0, 0.5, -0.5, 0.0, 0.0, 0.5, 0.0].iter().flat_map(|f| f.to_le_bytes()).collect();
-            let (blas, _) = r.structures.get(generator_blas()).copied().ok_or("the top-level case has no `blas` structure")?;
-            let vb = Allocation::new(dev, 64, vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, vk::BufferCreateFlags::empty(), 256).map_err(realise_err)?;
-            vb.write(0, &tri);
-            let g = [vk::AccelerationStructureGeometryKHR::default().geometry_type(vk::GeometryTypeKHR::TRIANGLES).geometry(vk::AccelerationStructureGeometryDataKHR {
-                triangles: vk::AccelerationStructureGeometryTrianglesDataKHR::default()
-                    .vertex_format(vk::Format::R32G32B32_SFLOAT)
-                    .vertex_data(vk::DeviceOrHostAddressConstKHR { device_address: vb.address })
-                    .vertex_stride(12)
-                    .max_vertex(2)
-                    .index_type(vk::IndexType::NONE_KHR),
-            })];
-            let scratch = Allocation::new(dev, 1 << 16, vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, vk::BufferCreateFlags::empty(), 256).map_err(realise_err)?;
-            let bi = vk::AccelerationStructureBuildGeometryInfoKHR::default()
-                .ty(vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL)
-                .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
-                .geometries(&g)
-                .dst_acceleration_structure(blas)
-                .scratch_data(vk::DeviceOrHostAddressKHR { device_address: scratch.address });
-            cmds.begin(dev)?;
-            // SAFETY: recording.
-            unsafe { accel.cmd_build_acceleration_structures(cmds.cb, &[bi], &[&[vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(1)]]) };
-            cmds.barrier(dev);
-            cmds.submit(dev)?;
-            extra.push(vb);
-            extra.push(scratch);
-        }
-        let rays = expected_rays(&prims, top);
-        let boxes = box_table(info, &prims);
-        let (hits, direct) = build_and_trace(inst, dev, cmds, case, r, &ranges, BuildPath::Direct, check, &rays, &boxes)?;
-        obs.check = match check {
-            TraceCheck::Pipeline => "pipeline",
-            _ => "ray-query",
-        }
-        .into();
-        obs.direct_layer_vuids = direct;
-        obs.rays = rays.len();
-        obs.ray_hits = hits.clone();
-        for (k, (ray, got)) in rays.iter().zip(&hits).enumerate() {
-            if *got != ray.hit {
-                obs.ray_mismatches.push(format!("ray {k} at {:?}: expected {:?}, device {:?}", ray.origin, ray.hit, got));
+    let result =
+        (|| -> Result<(), String> {
+            // Top-level cases reference the BLAS: build it first (one triangle at the origin).
+            if top {
+                let tri: Vec<u8> = [-0.5f32, -0.5, 0.0, 0.5, -0.5, 0.0, 0.0, 0.5, 0.0]
+                    .iter()
+                    .flat_map(|f| f.to_le_bytes())
+                    .collect();
+                let (blas, _) = r
+                    .structures
+                    .get(generator_blas())
+                    .copied()
+                    .ok_or("the top-level case has no `blas` structure")?;
+                let vb = Allocation::new(
+                    dev,
+                    64,
+                    vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
+                        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                    vk::BufferCreateFlags::empty(),
+                    256,
+                )
+                .map_err(realise_err)?;
+                vb.write(0, &tri);
+                let g = [vk::AccelerationStructureGeometryKHR::default()
+                    .geometry_type(vk::GeometryTypeKHR::TRIANGLES)
+                    .geometry(vk::AccelerationStructureGeometryDataKHR {
+                        triangles: vk::AccelerationStructureGeometryTrianglesDataKHR::default()
+                            .vertex_format(vk::Format::R32G32B32_SFLOAT)
+                            .vertex_data(vk::DeviceOrHostAddressConstKHR {
+                                device_address: vb.address,
+                            })
+                            .vertex_stride(12)
+                            .max_vertex(2)
+                            .index_type(vk::IndexType::NONE_KHR),
+                    })];
+                let scratch = Allocation::new(
+                    dev,
+                    1 << 16,
+                    vk::BufferUsageFlags::STORAGE_BUFFER
+                        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                    vk::BufferCreateFlags::empty(),
+                    256,
+                )
+                .map_err(realise_err)?;
+                let bi = vk::AccelerationStructureBuildGeometryInfoKHR::default()
+                    .ty(vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL)
+                    .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
+                    .geometries(&g)
+                    .dst_acceleration_structure(blas)
+                    .scratch_data(vk::DeviceOrHostAddressKHR {
+                        device_address: scratch.address,
+                    });
+                cmds.begin(dev)?;
+                // SAFETY: recording.
+                unsafe {
+                    accel.cmd_build_acceleration_structures(
+                        cmds.cb,
+                        &[bi],
+                        &[&[vk::AccelerationStructureBuildRangeInfoKHR::default()
+                            .primitive_count(1)]],
+                    )
+                };
+                cmds.barrier(dev);
+                cmds.submit(dev)?;
+                extra.push(vb);
+                extra.push(scratch);
             }
-        }
-        if dev.has_feature("accelerationStructureIndirectBuild") {
-            let (ihits, ivuids) = build_and_trace(inst, dev, cmds, case, r, &ranges, BuildPath::Indirect, check, &rays, &boxes)?;
-            obs.indirect_ran = true;
-            obs.indirect_layer_vuids = ivuids;
-            for (k, (d, i)) in hits.iter().zip(&ihits).enumerate() {
-                if d != i {
-                    obs.indirect_vs_direct.push(format!("ray {k} at {:?}: direct build {d:?}, indirect build {i:?}", rays[k].origin));
+            let rays = expected_rays(&prims, top);
+            let boxes = box_table(info, &prims);
+            let (hits, direct) = build_and_trace(
+                inst,
+                dev,
+                cmds,
+                case,
+                r,
+                &ranges,
+                BuildPath::Direct,
+                check,
+                &rays,
+                &boxes,
+            )?;
+            obs.check = match check {
+                TraceCheck::Pipeline => "pipeline",
+                _ => "ray-query",
+            }
+            .into();
+            obs.direct_layer_vuids = direct;
+            obs.rays = rays.len();
+            obs.ray_hits = hits.clone();
+            for (k, (ray, got)) in rays.iter().zip(&hits).enumerate() {
+                if *got != ray.hit {
+                    obs.ray_mismatches.push(format!(
+                        "ray {k} at {:?}: expected {:?}, device {:?}",
+                        ray.origin, ray.hit, got
+                    ));
                 }
             }
-        }
-        Ok(())
-    })();
+            if dev.has_feature("accelerationStructureIndirectBuild") {
+                let (ihits, ivuids) = build_and_trace(
+                    inst,
+                    dev,
+                    cmds,
+                    case,
+                    r,
+                    &ranges,
+                    BuildPath::Indirect,
+                    check,
+                    &rays,
+                    &boxes,
+                )?;
+                obs.indirect_ran = true;
+                obs.indirect_layer_vuids = ivuids;
+                for (k, (d, i)) in hits.iter().zip(&ihits).enumerate() {
+                    if d != i {
+                        obs.indirect_vs_direct.push(format!(
+                            "ray {k} at {:?}: direct build {d:?}, indirect build {i:?}",
+                            rays[k].origin
+                        ));
+                    }
+                }
+            }
+            Ok(())
+        })();
     for a in extra {
         a.destroy(dev);
     }
@@ -701,7 +1014,10 @@ fn build_and_trace(
     rays: &[ExpectedRay],
     boxes: &[u8],
 ) -> Result<(Hits, Vec<String>), String> {
-    let accel = dev.accel.as_ref().ok_or("no acceleration structure extension")?;
+    let accel = dev
+        .accel
+        .as_ref()
+        .ok_or("no acceleration structure extension")?;
     let info = &case.call.infos[0];
     let top = info.ty == AsType::TopLevel;
     let mut extra: Vec<Allocation> = Vec::new();
@@ -715,7 +1031,12 @@ fn build_and_trace(
                 let vi = vk_info(info, &geoms, r);
                 let vranges: Vec<vk::AccelerationStructureBuildRangeInfoKHR> = ranges
                     .iter()
-                    .map(|x| vk::AccelerationStructureBuildRangeInfoKHR { primitive_count: x.primitive_count, primitive_offset: x.primitive_offset, first_vertex: x.first_vertex, transform_offset: x.transform_offset })
+                    .map(|x| vk::AccelerationStructureBuildRangeInfoKHR {
+                        primitive_count: x.primitive_count,
+                        primitive_offset: x.primitive_offset,
+                        first_vertex: x.first_vertex,
+                        transform_offset: x.transform_offset,
+                    })
                     .collect();
                 // SAFETY: recording a valid direct build.
                 unsafe { accel.cmd_build_acceleration_structures(cmds.cb, &[vi], &[&vranges]) };
@@ -724,43 +1045,95 @@ fn build_and_trace(
                 let all = [geoms.clone()];
                 let (infos, addrs, maxima) = indirect_args(case, r, &all);
                 // The range records are read by the build as indirect data.
-                let b = vk::MemoryBarrier::default().src_access_mask(vk::AccessFlags::HOST_WRITE).dst_access_mask(vk::AccessFlags::INDIRECT_COMMAND_READ);
+                let b = vk::MemoryBarrier::default()
+                    .src_access_mask(vk::AccessFlags::HOST_WRITE)
+                    .dst_access_mask(vk::AccessFlags::INDIRECT_COMMAND_READ);
                 // SAFETY: recording a valid indirect build on a device with accelerationStructureIndirectBuild.
                 unsafe {
-                    dev.device.cmd_pipeline_barrier(cmds.cb, vk::PipelineStageFlags::HOST, vk::PipelineStageFlags::DRAW_INDIRECT, vk::DependencyFlags::empty(), &[b], &[], &[]);
-                    accel.cmd_build_acceleration_structures_indirect(cmds.cb, &infos, &addrs, &case.call.indirect_strides, &maxima);
+                    dev.device.cmd_pipeline_barrier(
+                        cmds.cb,
+                        vk::PipelineStageFlags::HOST,
+                        vk::PipelineStageFlags::DRAW_INDIRECT,
+                        vk::DependencyFlags::empty(),
+                        &[b],
+                        &[],
+                        &[],
+                    );
+                    accel.cmd_build_acceleration_structures_indirect(
+                        cmds.cb,
+                        &infos,
+                        &addrs,
+                        &case.call.indirect_strides,
+                        &maxima,
+                    );
                 }
             }
         }
         cmds.barrier(dev);
         cmds.submit(dev)?;
         let layer = vuids(&inst.collector.take());
-        let (dst, dst_addr) = r.structures.get(info.dst.as_deref().unwrap_or("")).copied().ok_or("no dst")?;
+        let (dst, dst_addr) = r
+            .structures
+            .get(info.dst.as_deref().unwrap_or(""))
+            .copied()
+            .ok_or("no dst")?;
         let scene = if top {
             dst
         } else {
             let rec = vk::AccelerationStructureInstanceKHR {
-                transform: vk::TransformMatrixKHR { matrix: [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0] },
+                transform: vk::TransformMatrixKHR {
+                    matrix: [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+                },
                 instance_custom_index_and_mask: vk::Packed24_8::new(0, 0xff),
                 instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(0, 0),
-                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR { device_handle: dst_addr },
+                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR {
+                    device_handle: dst_addr,
+                },
             };
-            let ib = Allocation::new(dev, 64, vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS, vk::BufferCreateFlags::empty(), 256).map_err(realise_err)?;
+            let ib = Allocation::new(
+                dev,
+                64,
+                vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
+                    | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                vk::BufferCreateFlags::empty(),
+                256,
+            )
+            .map_err(realise_err)?;
             ib.write(0, crate::structs::as_bytes(&rec));
-            let g = [vk::AccelerationStructureGeometryKHR::default().geometry_type(vk::GeometryTypeKHR::INSTANCES).geometry(vk::AccelerationStructureGeometryDataKHR {
-                instances: vk::AccelerationStructureGeometryInstancesDataKHR::default().data(vk::DeviceOrHostAddressConstKHR { device_address: ib.address }),
-            })];
-            let (tlas, _, st, sc) = build_direct(dev, cmds, vk::AccelerationStructureTypeKHR::TOP_LEVEL, &g, &[vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(1)])?;
+            let g = [vk::AccelerationStructureGeometryKHR::default()
+                .geometry_type(vk::GeometryTypeKHR::INSTANCES)
+                .geometry(vk::AccelerationStructureGeometryDataKHR {
+                    instances: vk::AccelerationStructureGeometryInstancesDataKHR::default().data(
+                        vk::DeviceOrHostAddressConstKHR {
+                            device_address: ib.address,
+                        },
+                    ),
+                })];
+            let (tlas, _, st, sc) = build_direct(
+                dev,
+                cmds,
+                vk::AccelerationStructureTypeKHR::TOP_LEVEL,
+                &g,
+                &[vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(1)],
+            )?;
             extra.extend([ib, st, sc]);
             extra_as.push(tlas);
             tlas
         };
-        let procedural = info.geometries.iter().any(|g| matches!(g.data, GeometryData::Aabbs { .. }));
+        let procedural = info
+            .geometries
+            .iter()
+            .any(|g| matches!(g.data, GeometryData::Aabbs { .. }));
         let words = match check {
-            TraceCheck::Pipeline => trace_pipeline(dev, cmds, scene, rays, boxes, procedural, &mut extra)?,
+            TraceCheck::Pipeline => {
+                trace_pipeline(dev, cmds, scene, rays, boxes, procedural, &mut extra)?
+            }
             _ => trace(dev, cmds, scene, rays, boxes, &mut extra)?,
         };
-        let hits = words.iter().map(|h| (h[0] == 1).then_some((h[1], h[2], h[3]))).collect();
+        let hits = words
+            .iter()
+            .map(|h| (h[0] == 1).then_some((h[1], h[2], h[3])))
+            .collect();
         Ok((hits, layer))
     })();
     for s in extra_as {
@@ -798,21 +1171,59 @@ fn box_table(info: &BuildGeometryInfo, prims: &[BuiltPrimitive]) -> Vec<u8> {
 }
 
 /// Traces the rays with the ray query shader; one `[hit, instance, geometry, primitive]` per ray.
-fn trace(dev: &VkDevice, cmds: &Commands, scene: vk::AccelerationStructureKHR, rays: &[ExpectedRay], boxes: &[u8], keep: &mut Vec<Allocation>) -> Result<Vec<[u32; 4]>, String> {
+fn trace(
+    dev: &VkDevice,
+    cmds: &Commands,
+    scene: vk::AccelerationStructureKHR,
+    rays: &[ExpectedRay],
+    boxes: &[u8],
+    keep: &mut Vec<Allocation>,
+) -> Result<Vec<[u32; 4]>, String> {
     if rays.is_empty() {
         return Ok(vec![]);
     }
     let code = compile_trace_shader()?;
     let d = &dev.device;
     let sb = vk::BufferUsageFlags::STORAGE_BUFFER;
-    let origins: Vec<u8> = rays.iter().flat_map(|r| [r.origin[0], r.origin[1], r.origin[2], 0.0]).flat_map(|f: f32| f.to_le_bytes()).collect();
-    let rb = Allocation::new(dev, origins.len() as u64, sb, vk::BufferCreateFlags::empty(), 1).map_err(realise_err)?;
+    let origins: Vec<u8> = rays
+        .iter()
+        .flat_map(|r| [r.origin[0], r.origin[1], r.origin[2], 0.0])
+        .flat_map(|f: f32| f.to_le_bytes())
+        .collect();
+    let rb = Allocation::new(
+        dev,
+        origins.len() as u64,
+        sb,
+        vk::BufferCreateFlags::empty(),
+        1,
+    )
+    .map_err(realise_err)?;
     rb.write(0, &origins);
-    let hb = Allocation::new(dev, 16 * rays.len() as u64, sb, vk::BufferCreateFlags::empty(), 1).map_err(realise_err)?;
-    let bb = Allocation::new(dev, boxes.len() as u64, sb, vk::BufferCreateFlags::empty(), 1).map_err(realise_err)?;
+    let hb = Allocation::new(
+        dev,
+        16 * rays.len() as u64,
+        sb,
+        vk::BufferCreateFlags::empty(),
+        1,
+    )
+    .map_err(realise_err)?;
+    let bb = Allocation::new(
+        dev,
+        boxes.len() as u64,
+        sb,
+        vk::BufferCreateFlags::empty(),
+        1,
+    )
+    .map_err(realise_err)?;
     bb.write(0, boxes);
     let stage = vk::ShaderStageFlags::COMPUTE;
-    let bind = |b: u32, t: vk::DescriptorType| vk::DescriptorSetLayoutBinding::default().binding(b).descriptor_type(t).descriptor_count(1).stage_flags(stage);
+    let bind = |b: u32, t: vk::DescriptorType| {
+        vk::DescriptorSetLayoutBinding::default()
+            .binding(b)
+            .descriptor_type(t)
+            .descriptor_count(1)
+            .stage_flags(stage)
+    };
     let bindings = [
         bind(0, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR),
         bind(1, vk::DescriptorType::STORAGE_BUFFER),
@@ -821,31 +1232,94 @@ fn trace(dev: &VkDevice, cmds: &Commands, scene: vk::AccelerationStructureKHR, r
     ];
     // SAFETY: valid create infos; everything is destroyed below after the wait.
     let out = unsafe {
-        let dsl = d.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None).map_err(fail("vkCreateDescriptorSetLayout"))?;
+        let dsl = d
+            .create_descriptor_set_layout(
+                &vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings),
+                None,
+            )
+            .map_err(fail("vkCreateDescriptorSetLayout"))?;
         let sets = [dsl];
-        let pl = d.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&sets), None).map_err(fail("vkCreatePipelineLayout"))?;
-        let module = d.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None).map_err(fail("vkCreateShaderModule"))?;
-        let st = vk::PipelineShaderStageCreateInfo::default().stage(stage).module(module).name(c"main");
+        let pl = d
+            .create_pipeline_layout(
+                &vk::PipelineLayoutCreateInfo::default().set_layouts(&sets),
+                None,
+            )
+            .map_err(fail("vkCreatePipelineLayout"))?;
+        let module = d
+            .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None)
+            .map_err(fail("vkCreateShaderModule"))?;
+        let st = vk::PipelineShaderStageCreateInfo::default()
+            .stage(stage)
+            .module(module)
+            .name(c"main");
         let pipe = d
-            .create_compute_pipelines(vk::PipelineCache::null(), &[vk::ComputePipelineCreateInfo::default().stage(st).layout(pl)], None)
+            .create_compute_pipelines(
+                vk::PipelineCache::null(),
+                &[vk::ComputePipelineCreateInfo::default()
+                    .stage(st)
+                    .layout(pl)],
+                None,
+            )
             .map_err(|(_, r)| format!("vkCreateComputePipelines failed: {r:?}"))?[0];
         let sizes = [
-            vk::DescriptorPoolSize { ty: vk::DescriptorType::ACCELERATION_STRUCTURE_KHR, descriptor_count: 1 },
-            vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: 3 },
+            vk::DescriptorPoolSize {
+                ty: vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
+                descriptor_count: 1,
+            },
+            vk::DescriptorPoolSize {
+                ty: vk::DescriptorType::STORAGE_BUFFER,
+                descriptor_count: 3,
+            },
         ];
-        let pool = d.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None).map_err(fail("vkCreateDescriptorPool"))?;
-        let set = d.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&sets)).map_err(fail("vkAllocateDescriptorSets"))?[0];
+        let pool = d
+            .create_descriptor_pool(
+                &vk::DescriptorPoolCreateInfo::default()
+                    .max_sets(1)
+                    .pool_sizes(&sizes),
+                None,
+            )
+            .map_err(fail("vkCreateDescriptorPool"))?;
+        let set = d
+            .allocate_descriptor_sets(
+                &vk::DescriptorSetAllocateInfo::default()
+                    .descriptor_pool(pool)
+                    .set_layouts(&sets),
+            )
+            .map_err(fail("vkAllocateDescriptorSets"))?[0];
         let scenes = [scene];
-        let mut asw = vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&scenes);
-        let bi = |a: &Allocation| [vk::DescriptorBufferInfo { buffer: a.buffer, offset: 0, range: vk::WHOLE_SIZE }];
+        let mut asw = vk::WriteDescriptorSetAccelerationStructureKHR::default()
+            .acceleration_structures(&scenes);
+        let bi = |a: &Allocation| {
+            [vk::DescriptorBufferInfo {
+                buffer: a.buffer,
+                offset: 0,
+                range: vk::WHOLE_SIZE,
+            }]
+        };
         let (b1, b2, b3) = (bi(&rb), bi(&hb), bi(&bb));
-        let mut w0 = vk::WriteDescriptorSet::default().dst_set(set).dst_binding(0).descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR).push_next(&mut asw);
+        let mut w0 = vk::WriteDescriptorSet::default()
+            .dst_set(set)
+            .dst_binding(0)
+            .descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR)
+            .push_next(&mut asw);
         w0.descriptor_count = 1;
         let writes = [
             w0,
-            vk::WriteDescriptorSet::default().dst_set(set).dst_binding(1).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&b1),
-            vk::WriteDescriptorSet::default().dst_set(set).dst_binding(2).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&b2),
-            vk::WriteDescriptorSet::default().dst_set(set).dst_binding(3).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&b3),
+            vk::WriteDescriptorSet::default()
+                .dst_set(set)
+                .dst_binding(1)
+                .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                .buffer_info(&b1),
+            vk::WriteDescriptorSet::default()
+                .dst_set(set)
+                .dst_binding(2)
+                .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                .buffer_info(&b2),
+            vk::WriteDescriptorSet::default()
+                .dst_set(set)
+                .dst_binding(3)
+                .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                .buffer_info(&b3),
         ];
         d.update_descriptor_sets(&writes, &[]);
         let run = (|| -> Result<(), String> {
@@ -860,7 +1334,12 @@ fn trace(dev: &VkDevice, cmds: &Commands, scene: vk::AccelerationStructureKHR, r
         d.destroy_shader_module(module, None);
         d.destroy_pipeline_layout(pl, None);
         d.destroy_descriptor_set_layout(dsl, None);
-        run.map(|()| hb.read_u32s(4 * rays.len()).chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect::<Vec<_>>())
+        run.map(|()| {
+            hb.read_u32s(4 * rays.len())
+                .chunks_exact(4)
+                .map(|c| [c[0], c[1], c[2], c[3]])
+                .collect::<Vec<_>>()
+        })
     };
     keep.extend([rb, hb, bb]);
     out
@@ -948,23 +1427,61 @@ fn trace_pipeline(
     if rays.is_empty() {
         return Ok(vec![]);
     }
-    let rt = dev.rt.as_ref().ok_or("unsupported: the pipeline check needs VK_KHR_ray_tracing_pipeline")?;
+    let rt = dev
+        .rt
+        .as_ref()
+        .ok_or("unsupported: the pipeline check needs VK_KHR_ray_tracing_pipeline")?;
     let code = pipeline_shaders()?;
     let d = &dev.device;
     let sb = vk::BufferUsageFlags::STORAGE_BUFFER;
-    let origins: Vec<u8> = rays.iter().flat_map(|r| [r.origin[0], r.origin[1], r.origin[2], 0.0]).flat_map(|f: f32| f.to_le_bytes()).collect();
-    let rb = Allocation::new(dev, origins.len() as u64, sb, vk::BufferCreateFlags::empty(), 1).map_err(realise_err)?;
+    let origins: Vec<u8> = rays
+        .iter()
+        .flat_map(|r| [r.origin[0], r.origin[1], r.origin[2], 0.0])
+        .flat_map(|f: f32| f.to_le_bytes())
+        .collect();
+    let rb = Allocation::new(
+        dev,
+        origins.len() as u64,
+        sb,
+        vk::BufferCreateFlags::empty(),
+        1,
+    )
+    .map_err(realise_err)?;
     rb.write(0, &origins);
     keep.push(rb);
-    let hb = Allocation::new(dev, 16 * rays.len() as u64, sb, vk::BufferCreateFlags::empty(), 1).map_err(realise_err)?;
+    let hb = Allocation::new(
+        dev,
+        16 * rays.len() as u64,
+        sb,
+        vk::BufferCreateFlags::empty(),
+        1,
+    )
+    .map_err(realise_err)?;
     keep.push(hb);
-    let bb = Allocation::new(dev, boxes.len() as u64, sb, vk::BufferCreateFlags::empty(), 1).map_err(realise_err)?;
+    let bb = Allocation::new(
+        dev,
+        boxes.len() as u64,
+        sb,
+        vk::BufferCreateFlags::empty(),
+        1,
+    )
+    .map_err(realise_err)?;
     bb.write(0, boxes);
     keep.push(bb);
-    let (rb, hb, bb) = (&keep[keep.len() - 3], &keep[keep.len() - 2], &keep[keep.len() - 1]);
+    let (rb, hb, bb) = (
+        &keep[keep.len() - 3],
+        &keep[keep.len() - 2],
+        &keep[keep.len() - 1],
+    );
     let (rb_buf, hb_buf, bb_buf) = (rb.buffer, hb.buffer, bb.buffer);
     let stages = vk::ShaderStageFlags::RAYGEN_KHR | vk::ShaderStageFlags::INTERSECTION_KHR;
-    let bind = |b: u32, t: vk::DescriptorType| vk::DescriptorSetLayoutBinding::default().binding(b).descriptor_type(t).descriptor_count(1).stage_flags(stages);
+    let bind = |b: u32, t: vk::DescriptorType| {
+        vk::DescriptorSetLayoutBinding::default()
+            .binding(b)
+            .descriptor_type(t)
+            .descriptor_count(1)
+            .stage_flags(stages)
+    };
     let bindings = [
         bind(0, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR),
         bind(1, vk::DescriptorType::STORAGE_BUFFER),
@@ -977,18 +1494,42 @@ fn trace_pipeline(
     let region = align_up(record, l.base_alignment as u64);
     // SAFETY: valid create infos; everything made here is destroyed below after the wait.
     unsafe {
-        let dsl = d.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None).map_err(fail("vkCreateDescriptorSetLayout"))?;
+        let dsl = d
+            .create_descriptor_set_layout(
+                &vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings),
+                None,
+            )
+            .map_err(fail("vkCreateDescriptorSetLayout"))?;
         let sets = [dsl];
-        let pl = d.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&sets), None);
+        let pl = d.create_pipeline_layout(
+            &vk::PipelineLayoutCreateInfo::default().set_layouts(&sets),
+            None,
+        );
         let mut modules = Vec::new();
         let made = (|| -> Result<Vec<[u32; 4]>, String> {
             let pl = pl.map_err(fail("vkCreatePipelineLayout"))?;
-            let kinds = [vk::ShaderStageFlags::RAYGEN_KHR, vk::ShaderStageFlags::MISS_KHR, vk::ShaderStageFlags::CLOSEST_HIT_KHR, vk::ShaderStageFlags::INTERSECTION_KHR];
+            let kinds = [
+                vk::ShaderStageFlags::RAYGEN_KHR,
+                vk::ShaderStageFlags::MISS_KHR,
+                vk::ShaderStageFlags::CLOSEST_HIT_KHR,
+                vk::ShaderStageFlags::INTERSECTION_KHR,
+            ];
             for c in &code {
-                modules.push(d.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(c), None).map_err(fail("vkCreateShaderModule"))?);
+                modules.push(
+                    d.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(c), None)
+                        .map_err(fail("vkCreateShaderModule"))?,
+                );
             }
-            let st: Vec<vk::PipelineShaderStageCreateInfo> =
-                modules.iter().zip(kinds).map(|(m, k)| vk::PipelineShaderStageCreateInfo::default().stage(k).module(*m).name(c"main")).collect();
+            let st: Vec<vk::PipelineShaderStageCreateInfo> = modules
+                .iter()
+                .zip(kinds)
+                .map(|(m, k)| {
+                    vk::PipelineShaderStageCreateInfo::default()
+                        .stage(k)
+                        .module(*m)
+                        .name(c"main")
+                })
+                .collect();
             let unused = vk::SHADER_UNUSED_KHR;
             let general = |s: u32| {
                 vk::RayTracingShaderGroupCreateInfoKHR::default()
@@ -1014,17 +1555,29 @@ fn trace_pipeline(
                     .any_hit_shader(unused)
                     .intersection_shader(3),
             ];
-            let ci = vk::RayTracingPipelineCreateInfoKHR::default().stages(&st).groups(&groups).max_pipeline_ray_recursion_depth(1).layout(pl);
+            let ci = vk::RayTracingPipelineCreateInfoKHR::default()
+                .stages(&st)
+                .groups(&groups)
+                .max_pipeline_ray_recursion_depth(1)
+                .layout(pl);
             let pipe = rt
-                .create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), vk::PipelineCache::null(), &[ci], None)
+                .create_ray_tracing_pipelines(
+                    vk::DeferredOperationKHR::null(),
+                    vk::PipelineCache::null(),
+                    &[ci],
+                    None,
+                )
                 .map_err(|(_, r)| format!("vkCreateRayTracingPipelinesKHR failed: {r:?}"))?[0];
             let inner = (|| -> Result<Vec<[u32; 4]>, String> {
-                let handles = rt.get_ray_tracing_shader_group_handles(pipe, 0, 4, 4 * handle as usize).map_err(fail("vkGetRayTracingShaderGroupHandlesKHR"))?;
+                let handles = rt
+                    .get_ray_tracing_shader_group_handles(pipe, 0, 4, 4 * handle as usize)
+                    .map_err(fail("vkGetRayTracingShaderGroupHandlesKHR"))?;
                 let h = |g: usize| &handles[g * handle as usize..(g + 1) * handle as usize];
                 let sbt = Allocation::new(
                     dev,
                     3 * region,
-                    vk::BufferUsageFlags::SHADER_BINDING_TABLE_KHR | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                    vk::BufferUsageFlags::SHADER_BINDING_TABLE_KHR
+                        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
                     vk::BufferCreateFlags::empty(),
                     l.base_alignment.max(1) as u64,
                 )
@@ -1032,39 +1585,100 @@ fn trace_pipeline(
                 sbt.write(0, h(0));
                 sbt.write(region, h(1));
                 sbt.write(2 * region, h(if procedural { 3 } else { 2 }));
-                let at = |k: u64| vk::StridedDeviceAddressRegionKHR { device_address: sbt.address + k * region, stride: record, size: record };
-                let rgen = vk::StridedDeviceAddressRegionKHR { stride: record, ..at(0) };
+                let at = |k: u64| vk::StridedDeviceAddressRegionKHR {
+                    device_address: sbt.address + k * region,
+                    stride: record,
+                    size: record,
+                };
+                let rgen = vk::StridedDeviceAddressRegionKHR {
+                    stride: record,
+                    ..at(0)
+                };
                 let (miss, hit) = (at(1), at(2));
                 let call = vk::StridedDeviceAddressRegionKHR::default();
                 let sizes = [
-                    vk::DescriptorPoolSize { ty: vk::DescriptorType::ACCELERATION_STRUCTURE_KHR, descriptor_count: 1 },
-                    vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: 3 },
+                    vk::DescriptorPoolSize {
+                        ty: vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
+                        descriptor_count: 1,
+                    },
+                    vk::DescriptorPoolSize {
+                        ty: vk::DescriptorType::STORAGE_BUFFER,
+                        descriptor_count: 3,
+                    },
                 ];
-                let pool = d.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None).map_err(fail("vkCreateDescriptorPool"))?;
+                let pool = d
+                    .create_descriptor_pool(
+                        &vk::DescriptorPoolCreateInfo::default()
+                            .max_sets(1)
+                            .pool_sizes(&sizes),
+                        None,
+                    )
+                    .map_err(fail("vkCreateDescriptorPool"))?;
                 let run = (|| -> Result<(), String> {
-                    let set = d.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&sets)).map_err(fail("vkAllocateDescriptorSets"))?[0];
+                    let set = d
+                        .allocate_descriptor_sets(
+                            &vk::DescriptorSetAllocateInfo::default()
+                                .descriptor_pool(pool)
+                                .set_layouts(&sets),
+                        )
+                        .map_err(fail("vkAllocateDescriptorSets"))?[0];
                     let scenes = [scene];
-                    let mut asw = vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&scenes);
-                    let bi = |b: vk::Buffer| [vk::DescriptorBufferInfo { buffer: b, offset: 0, range: vk::WHOLE_SIZE }];
+                    let mut asw = vk::WriteDescriptorSetAccelerationStructureKHR::default()
+                        .acceleration_structures(&scenes);
+                    let bi = |b: vk::Buffer| {
+                        [vk::DescriptorBufferInfo {
+                            buffer: b,
+                            offset: 0,
+                            range: vk::WHOLE_SIZE,
+                        }]
+                    };
                     let (b1, b2, b3) = (bi(rb_buf), bi(hb_buf), bi(bb_buf));
-                    let mut w0 = vk::WriteDescriptorSet::default().dst_set(set).dst_binding(0).descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR).push_next(&mut asw);
+                    let mut w0 = vk::WriteDescriptorSet::default()
+                        .dst_set(set)
+                        .dst_binding(0)
+                        .descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR)
+                        .push_next(&mut asw);
                     w0.descriptor_count = 1;
                     let writes = [
                         w0,
-                        vk::WriteDescriptorSet::default().dst_set(set).dst_binding(1).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&b1),
-                        vk::WriteDescriptorSet::default().dst_set(set).dst_binding(2).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&b2),
-                        vk::WriteDescriptorSet::default().dst_set(set).dst_binding(3).descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(&b3),
+                        vk::WriteDescriptorSet::default()
+                            .dst_set(set)
+                            .dst_binding(1)
+                            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                            .buffer_info(&b1),
+                        vk::WriteDescriptorSet::default()
+                            .dst_set(set)
+                            .dst_binding(2)
+                            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                            .buffer_info(&b2),
+                        vk::WriteDescriptorSet::default()
+                            .dst_set(set)
+                            .dst_binding(3)
+                            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                            .buffer_info(&b3),
                     ];
                     d.update_descriptor_sets(&writes, &[]);
                     cmds.begin(dev)?;
                     d.cmd_bind_pipeline(cmds.cb, vk::PipelineBindPoint::RAY_TRACING_KHR, pipe);
-                    d.cmd_bind_descriptor_sets(cmds.cb, vk::PipelineBindPoint::RAY_TRACING_KHR, pl, 0, &[set], &[]);
+                    d.cmd_bind_descriptor_sets(
+                        cmds.cb,
+                        vk::PipelineBindPoint::RAY_TRACING_KHR,
+                        pl,
+                        0,
+                        &[set],
+                        &[],
+                    );
                     rt.cmd_trace_rays(cmds.cb, &rgen, &miss, &hit, &call, rays.len() as u32, 1, 1);
                     cmds.submit(dev)
                 })();
                 d.destroy_descriptor_pool(pool, None);
                 sbt.destroy(dev);
-                run.map(|()| hb.read_u32s(4 * rays.len()).chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect())
+                run.map(|()| {
+                    hb.read_u32s(4 * rays.len())
+                        .chunks_exact(4)
+                        .map(|c| [c[0], c[1], c[2], c[3]])
+                        .collect()
+                })
             })();
             d.destroy_pipeline(pipe, None);
             inner
@@ -1081,13 +1695,24 @@ fn trace_pipeline(
 }
 
 /// Named ways a driver's build may depart from the model: each rewrites the ranges the build reads.
-const DEVIATIONS: &[(&str, fn(&GeometryData, model::build::RangeInfo) -> model::build::RangeInfo)] = &[
+const DEVIATIONS: &[(
+    &str,
+    fn(&GeometryData, model::build::RangeInfo) -> model::build::RangeInfo,
+)] = &[
     ("indexed-first-vertex-ignored", |g, r| match g {
-        GeometryData::Triangles { index_type, .. } if *index_type != IndexType::None => model::build::RangeInfo { first_vertex: 0, ..r },
+        GeometryData::Triangles { index_type, .. } if *index_type != IndexType::None => {
+            model::build::RangeInfo {
+                first_vertex: 0,
+                ..r
+            }
+        }
         _ => r,
     }),
     ("first-vertex-applied-twice", |g, r| match g {
-        GeometryData::Triangles { .. } => model::build::RangeInfo { first_vertex: r.first_vertex.saturating_mul(2), ..r },
+        GeometryData::Triangles { .. } => model::build::RangeInfo {
+            first_vertex: r.first_vertex.saturating_mul(2),
+            ..r
+        },
         _ => r,
     }),
 ];
@@ -1118,13 +1743,18 @@ pub fn deviation(case: &BuildCase, obs: &BuildObservation) -> Option<String> {
     let fits: Vec<&str> = DEVIATIONS
         .iter()
         .filter_map(|(name, f)| {
-        let alt: Vec<model::build::RangeInfo> = info.geometries.iter().zip(&ranges).map(|(g, r)| f(&g.data, *r)).collect();
-        if alt == ranges {
-            return None;
-        }
-        let alt_prims = model::build::build_primitives(&padded_mem, info, &alt).ok()?;
-        let hits: Option<Hits> = rays.iter().map(|r| cast(&alt_prims, r.origin)).collect();
-        (hits? == obs.ray_hits).then_some(*name)
+            let alt: Vec<model::build::RangeInfo> = info
+                .geometries
+                .iter()
+                .zip(&ranges)
+                .map(|(g, r)| f(&g.data, *r))
+                .collect();
+            if alt == ranges {
+                return None;
+            }
+            let alt_prims = model::build::build_primitives(&padded_mem, info, &alt).ok()?;
+            let hits: Option<Hits> = rays.iter().map(|r| cast(&alt_prims, r.origin)).collect();
+            (hits? == obs.ray_hits).then_some(*name)
         })
         .collect();
     (!fits.is_empty()).then(|| fits.join("|"))
@@ -1135,7 +1765,9 @@ pub fn deviation(case: &BuildCase, obs: &BuildObservation) -> Option<String> {
 fn cast(prims: &[BuiltPrimitive], origin: [f32; 3]) -> Option<Option<(u32, u32, u32)>> {
     let mut best: Option<(f32, (u32, u32, u32))> = None;
     for p in prims.iter().filter(|p| p.active) {
-        let Shape::Triangle(v) = &p.shape else { return None };
+        let Shape::Triangle(v) = &p.shape else {
+            return None;
+        };
         let (ox, oy) = (origin[0] as f64, origin[1] as f64);
         let x = |i: usize| v[i][0] as f64;
         let y = |i: usize| v[i][1] as f64;
@@ -1143,7 +1775,8 @@ fn cast(prims: &[BuiltPrimitive], origin: [f32; 3]) -> Option<Option<(u32, u32, 
         if !area.is_finite() || area.abs() < 1e-9 {
             continue;
         }
-        let edge = |a: usize, b: usize| ((x(b) - x(a)) * (oy - y(a)) - (ox - x(a)) * (y(b) - y(a))) / area;
+        let edge =
+            |a: usize, b: usize| ((x(b) - x(a)) * (oy - y(a)) - (ox - x(a)) * (y(b) - y(a))) / area;
         let w = [edge(1, 2), edge(2, 0), edge(0, 1)];
         if w.iter().all(|c| *c > 1e-4) {
             let z = w[0] * v[0][2] as f64 + w[1] * v[1][2] as f64 + w[2] * v[2][2] as f64;

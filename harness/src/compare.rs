@@ -32,7 +32,10 @@ pub struct Triage {
 impl Triage {
     pub fn from_yaml(path: &str, text: &str) -> Result<Triage, String> {
         serde_yaml::from_str(text).map_err(|e| {
-            let loc = e.location().map(|l| format!(":{}:{}", l.line(), l.column())).unwrap_or_default();
+            let loc = e
+                .location()
+                .map(|l| format!(":{}:{}", l.line(), l.column()))
+                .unwrap_or_default();
             format!("{path}{loc}: {e}")
         })
     }
@@ -57,7 +60,9 @@ impl Triage {
         let mut all = Triage::default();
         for p in paths {
             match std::fs::read_to_string(&p) {
-                Ok(t) => all.entries.extend(Triage::from_yaml(&p.display().to_string(), &t)?.entries),
+                Ok(t) => all
+                    .entries
+                    .extend(Triage::from_yaml(&p.display().to_string(), &t)?.entries),
                 Err(_) if !must_exist => {}
                 Err(e) => return Err(format!("triage file {}: {e}", p.display())),
             }
@@ -123,16 +128,28 @@ pub fn undefined_case(case: &Case, reads: &[String]) -> CaseReport {
         layer: vec![],
         layer_other: vec![],
         output_matches: None,
-        detail: format!("not run: the valid case's launch has undefined reads: {}", reads.join("; ")),
+        detail: format!(
+            "not run: the valid case's launch has undefined reads: {}",
+            reads.join("; ")
+        ),
         millis: 0.0,
     }
 }
 
 /// Compares one case's observation with the model.
-pub fn compare(case: &Case, verdict: &Verdict, obs: &Observation, triage: &Triage, millis: f64) -> CaseReport {
+pub fn compare(
+    case: &Case,
+    verdict: &Verdict,
+    obs: &Observation,
+    triage: &Triage,
+    millis: f64,
+) -> CaseReport {
     let model: Vec<String> = verdict.vuids().into_iter().map(String::from).collect();
-    let (layer, layer_other): (Vec<String>, Vec<String>) =
-        obs.layer_vuids.iter().cloned().partition(|v| vuid_scope(v).is_some_and(modelled_scope));
+    let (layer, layer_other): (Vec<String>, Vec<String>) = obs
+        .layer_vuids
+        .iter()
+        .cloned()
+        .partition(|v| vuid_scope(v).is_some_and(modelled_scope));
     let target = match &case.intent {
         Intent::Valid => None,
         Intent::Violates { vuid, .. } => Some(vuid.clone()),
@@ -172,7 +189,11 @@ pub fn compare(case: &Case, verdict: &Verdict, obs: &Observation, triage: &Triag
     let m: BTreeSet<&String> = model.iter().collect();
     let l: BTreeSet<&String> = layer.iter().collect();
     for v in m.symmetric_difference(&l) {
-        let side = if m.contains(v) { "model only" } else { "layer only" };
+        let side = if m.contains(v) {
+            "model only"
+        } else {
+            "layer only"
+        };
         match triage.covers(v) {
             Some(t) => triaged.push(format!("{v} ({side}; triaged {}: {})", t.kind, t.reason)),
             None => problems.push(format!("{v}: {side}")),
@@ -180,10 +201,16 @@ pub fn compare(case: &Case, verdict: &Verdict, obs: &Observation, triage: &Triag
     }
     if case.intent == Intent::Valid {
         if !model.is_empty() {
-            problems.push(format!("the model judges this valid-by-construction case invalid: {}", model.join(", ")));
+            problems.push(format!(
+                "the model judges this valid-by-construction case invalid: {}",
+                model.join(", ")
+            ));
         }
         if obs.layer_vuids.iter().any(|v| !l.contains(v)) {
-            problems.push(format!("the layer reported {} on a valid case", report.layer_other.join(", ")));
+            problems.push(format!(
+                "the layer reported {} on a valid case",
+                report.layer_other.join(", ")
+            ));
         }
         if let Some(expected) = model::semantics::expected_launch(&case.world, &case.call) {
             match &obs.output {
@@ -197,7 +224,11 @@ pub fn compare(case: &Case, verdict: &Verdict, obs: &Observation, triage: &Triag
                                 "output word {i}: driver 0x{:08x}, model 0x{:08x}",
                                 words[i], expected.words[i]
                             ),
-                            None => format!("output has {} words, model expects {}", words.len(), expected.words.len()),
+                            None => format!(
+                                "output has {} words, model expects {}",
+                                words.len(),
+                                expected.words.len()
+                            ),
                         });
                     }
                 }
@@ -238,8 +269,11 @@ pub fn compare_build(
     let command = model::build::call::COMMAND;
     let expected = case.expected_vuids();
     let valid = expected.iter().all(|v| unavoidable.contains(v));
-    let (layer, layer_other): (Vec<String>, Vec<String>) =
-        obs.layer_vuids.iter().cloned().partition(|v| vuid_scope(v) == Some(command));
+    let (layer, layer_other): (Vec<String>, Vec<String>) = obs
+        .layer_vuids
+        .iter()
+        .cloned()
+        .partition(|v| vuid_scope(v) == Some(command));
     let target = match &case.intent {
         Intent::Violates { vuid, .. } if !valid => Some(vuid.clone()),
         _ => None,
@@ -263,7 +297,10 @@ pub fn compare_build(
         } else if let Some(r) = status.strip_prefix("timeout: ") {
             (Outcome::Timeout, r)
         } else {
-            (Outcome::Crash, status.strip_prefix("crash: ").unwrap_or(status))
+            (
+                Outcome::Crash,
+                status.strip_prefix("crash: ").unwrap_or(status),
+            )
         };
         report.outcome = outcome;
         report.detail = detail.to_string();
@@ -274,7 +311,11 @@ pub fn compare_build(
     let m: BTreeSet<&String> = model.iter().collect();
     let l: BTreeSet<&String> = layer.iter().collect();
     for v in m.symmetric_difference(&l) {
-        let side = if m.contains(v) { "model only" } else { "layer only" };
+        let side = if m.contains(v) {
+            "model only"
+        } else {
+            "layer only"
+        };
         match triage.covers(v) {
             Some(t) => triaged.push(format!("{v} ({side}; triaged {}: {})", t.kind, t.reason)),
             None => problems.push(format!("{v}: {side}")),
@@ -286,27 +327,51 @@ pub fn compare_build(
             problems.push(format!("the model judges this valid-by-construction case invalid with the device's sizes: {extra:?}"));
         }
         if !report.layer_other.is_empty() {
-            problems.push(format!("the layer reported {} on a valid case", report.layer_other.join(", ")));
+            problems.push(format!(
+                "the layer reported {} on a valid case",
+                report.layer_other.join(", ")
+            ));
         }
         if !obs.direct_layer_vuids.is_empty() {
-            problems.push(format!("the layer reported {} for the equivalent direct build", obs.direct_layer_vuids.join(", ")));
+            problems.push(format!(
+                "the layer reported {} for the equivalent direct build",
+                obs.direct_layer_vuids.join(", ")
+            ));
         }
         if !obs.indirect_layer_vuids.is_empty() {
-            problems.push(format!("the layer reported {} for the real indirect build", obs.indirect_layer_vuids.join(", ")));
+            problems.push(format!(
+                "the layer reported {} for the real indirect build",
+                obs.indirect_layer_vuids.join(", ")
+            ));
         }
         if extra.is_empty() {
             let ok = obs.ray_mismatches.is_empty() && obs.indirect_vs_direct.is_empty();
             report.output_matches = Some(ok);
             if !obs.ray_mismatches.is_empty() {
-                let key = format!("output:{command}:{}", crate::build::deviation(case, obs).unwrap_or_else(|| "rays".into()));
+                let key = format!(
+                    "output:{command}:{}",
+                    crate::build::deviation(case, obs).unwrap_or_else(|| "rays".into())
+                );
                 let first = obs.ray_mismatches[0].clone();
                 match triage.covers(&key) {
-                    Some(t) => triaged.push(format!("{key} ({} of {} rays, first {first}; triaged {}: {})", obs.ray_mismatches.len(), obs.rays, t.kind, t.reason)),
-                    None => problems.push(format!("{key}: {} of {} rays disagree with the model's primitives, first {first}", obs.ray_mismatches.len(), obs.rays)),
+                    Some(t) => triaged.push(format!(
+                        "{key} ({} of {} rays, first {first}; triaged {}: {})",
+                        obs.ray_mismatches.len(),
+                        obs.rays,
+                        t.kind,
+                        t.reason
+                    )),
+                    None => problems.push(format!(
+                        "{key}: {} of {} rays disagree with the model's primitives, first {first}",
+                        obs.ray_mismatches.len(),
+                        obs.rays
+                    )),
                 }
             }
             if let Some(first) = obs.indirect_vs_direct.first() {
-                problems.push(format!("the real indirect build traces differently from the direct build: {first}"));
+                problems.push(format!(
+                    "the real indirect build traces differently from the direct build: {first}"
+                ));
             }
         }
     } else if let Some(t) = &report.target {
@@ -336,7 +401,9 @@ pub fn vuid_scope(vuid: &str) -> Option<&str> {
 fn wildcard_match(pattern: &str, text: &str) -> bool {
     let mut parts = pattern.split('*');
     let first = parts.next().unwrap_or("");
-    let Some(mut rest) = text.strip_prefix(first) else { return false };
+    let Some(mut rest) = text.strip_prefix(first) else {
+        return false;
+    };
     let parts: Vec<&str> = parts.collect();
     for (i, part) in parts.iter().enumerate() {
         if i == parts.len() - 1 {
@@ -358,7 +425,10 @@ mod tests {
     fn triage_patterns_match_both_trace_commands_and_nothing_else() {
         let p = "VUID-vkCmdTraceRays*KHR-None-03429";
         assert!(wildcard_match(p, "VUID-vkCmdTraceRaysKHR-None-03429"));
-        assert!(wildcard_match(p, "VUID-vkCmdTraceRaysIndirectKHR-None-03429"));
+        assert!(wildcard_match(
+            p,
+            "VUID-vkCmdTraceRaysIndirectKHR-None-03429"
+        ));
         assert!(!wildcard_match(p, "VUID-vkCmdTraceRaysNV-None-03429"));
         assert!(!wildcard_match(p, "VUID-vkCmdTraceRaysKHR-None-034290"));
         assert!(wildcard_match("VUID-x", "VUID-x"));

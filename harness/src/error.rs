@@ -15,7 +15,10 @@ pub enum HarnessError {
     #[error("the driver `{0}` offers no Vulkan device; check the ICD json and `{SETUP_COMMAND}`")]
     NoDevice(String),
     #[error("{what} failed: {result:?}")]
-    Vulkan { what: String, result: ash::vk::Result },
+    Vulkan {
+        what: String,
+        result: ash::vk::Result,
+    },
     #[error("shader compilation: {0}")]
     Shader(String),
     #[error("{0}")]

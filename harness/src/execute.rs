@@ -29,7 +29,11 @@ pub struct Executor {
 impl Executor {
     /// Loads `driver` with the validation layer.
     pub fn new(driver: Driver) -> Result<Executor, HarnessError> {
-        Ok(Executor { inst: Arc::new(VkInstance::new(driver, true)?), devices: HashMap::new(), gpu_timeout: Duration::from_secs(20) })
+        Ok(Executor {
+            inst: Arc::new(VkInstance::new(driver, true)?),
+            devices: HashMap::new(),
+            gpu_timeout: Duration::from_secs(20),
+        })
     }
 
     pub fn driver(&self) -> &Driver {
@@ -43,7 +47,11 @@ impl Executor {
     fn device(&mut self, world: &World) -> Result<&mut DeviceCache, Observation> {
         let key = Self::device_key(world);
         if !self.devices.contains_key(&key) {
-            let made = match VkDevice::new(self.inst.clone(), &world.device.extensions, &world.device.features) {
+            let made = match VkDevice::new(
+                self.inst.clone(),
+                &world.device.extensions,
+                &world.device.features,
+            ) {
                 Ok(dev) => DeviceCache::new(dev).map_err(|e| match e {
                     RealiseError::Unsupported(s) => format!("unsupported: {s}"),
                     RealiseError::Failed(s) => s,
@@ -67,7 +75,9 @@ impl Executor {
 fn realise_failure(e: RealiseError) -> Observation {
     match e {
         RealiseError::Unsupported(s) => Observation::unsupported(s),
-        RealiseError::Failed(s) if s.starts_with("TIMEOUT") => Observation::with_status(Status::Timeout { seconds: 0.0 }),
+        RealiseError::Failed(s) if s.starts_with("TIMEOUT") => {
+            Observation::with_status(Status::Timeout { seconds: 0.0 })
+        }
         RealiseError::Failed(s) => Observation::crash(s),
     }
 }
@@ -102,8 +112,14 @@ pub fn execute(case: &Case, ctx: &mut Executor) -> Observation {
         // Nothing recorded is pending: valid cases waited, invalid ones were never submitted.
         // SAFETY: the command buffers are not in use by the GPU.
         unsafe {
-            let _ = cache.dev.device.reset_command_buffer(cache.primary, vk::CommandBufferResetFlags::empty());
-            let _ = cache.dev.device.reset_command_buffer(cache.secondary, vk::CommandBufferResetFlags::empty());
+            let _ = cache
+                .dev
+                .device
+                .reset_command_buffer(cache.primary, vk::CommandBufferResetFlags::empty());
+            let _ = cache
+                .dev
+                .device
+                .reset_command_buffer(cache.secondary, vk::CommandBufferResetFlags::empty());
         }
         for (_, a) in buffers {
             a.destroy(&cache.dev);
@@ -122,8 +138,15 @@ pub fn execute(case: &Case, ctx: &mut Executor) -> Observation {
     }
 }
 
-fn region(r: &StridedRegion, addr: &dyn Fn(&Address) -> Result<u64, RealiseError>) -> Result<vk::StridedDeviceAddressRegionKHR, RealiseError> {
-    Ok(vk::StridedDeviceAddressRegionKHR { device_address: addr(&r.address)?, stride: r.stride, size: r.size })
+fn region(
+    r: &StridedRegion,
+    addr: &dyn Fn(&Address) -> Result<u64, RealiseError>,
+) -> Result<vk::StridedDeviceAddressRegionKHR, RealiseError> {
+    Ok(vk::StridedDeviceAddressRegionKHR {
+        device_address: addr(&r.address)?,
+        stride: r.stride,
+        size: r.size,
+    })
 }
 
 fn run(
@@ -140,7 +163,8 @@ fn run(
     let nv_call = matches!(case.call, Call::TraceRaysNv(_));
     if nv_call && cache.dev.nv.is_none() {
         return Err(RealiseError::Unsupported(
-            "the case does not enable VK_NV_ray_tracing, so vkCmdTraceRaysNV cannot be called".into(),
+            "the case does not enable VK_NV_ray_tracing, so vkCmdTraceRaysNV cannot be called"
+                .into(),
         ));
     }
     if !nv_call && cache.dev.rt.is_none() {
@@ -154,28 +178,52 @@ fn run(
         ));
     }
     if !cbs.pool_queue.contains(QueueFlags::COMPUTE_BIT) {
-        return Err(RealiseError::Unsupported("a command pool for a queue family without compute is not realised yet".into()));
+        return Err(RealiseError::Unsupported(
+            "a command pool for a queue family without compute is not realised yet".into(),
+        ));
     }
     if cbs.level == CommandBufferLevel::Secondary && cbs.in_render_pass {
-        return Err(RealiseError::Unsupported("secondary command buffers inside a render pass are not realised yet".into()));
+        return Err(RealiseError::Unsupported(
+            "secondary command buffers inside a render pass are not realised yet".into(),
+        ));
     }
     let trace = !world.launch.rays.is_empty();
     let dims = case.call.dimensions(world);
-    let words = dims.map(|d| d.iter().map(|&x| x as usize).product::<usize>()).unwrap_or(0);
+    let words = dims
+        .map(|d| d.iter().map(|&x| x as usize).product::<usize>())
+        .unwrap_or(0);
     if valid && words > MAX_OUTPUT_WORDS {
-        return Err(RealiseError::Unsupported(format!("a launch of {words} IDs is larger than the harness reads back")));
+        return Err(RealiseError::Unsupported(format!(
+            "a launch of {words} IDs is larger than the harness reads back"
+        )));
     }
     let pipeline = world.pipeline.as_ref();
     // The scene and descriptor layout follow the pipeline's API (an NV pipeline reads an NV structure).
-    let api = pipeline.map_or(if nv_call { PipelineApi::Nv } else { PipelineApi::Khr }, |p| p.api);
+    let api = pipeline.map_or(
+        if nv_call {
+            PipelineApi::Nv
+        } else {
+            PipelineApi::Khr
+        },
+        |p| p.api,
+    );
     // issue 4 hook: the resource state, and the case's pipeline with its templated raygen, before the
     // shader binding tables are filled with that pipeline's handles.
     if !world.resources.is_empty() {
         let harness_set = cache.layouts(trace, api)?.set;
-        *res = Some(crate::resources::Realised::new(cache, world, trace, harness_set)?);
+        *res = Some(crate::resources::Realised::new(
+            cache,
+            world,
+            trace,
+            harness_set,
+        )?);
     }
     *buffers = cache.case_buffers(world, pipeline.map(|p| (p, trace)))?;
-    let tlas = if trace { Some(cache.scene(&world.launch.instances, api)?) } else { None };
+    let tlas = if trace {
+        Some(cache.scene(&world.launch.instances, api)?)
+    } else {
+        None
+    };
     let layouts = cache.layouts(trace, api)?;
     let (vk_pipeline, stack_size) = match pipeline {
         Some(p) => {
@@ -184,36 +232,65 @@ fn run(
         }
         None => (None, 0),
     };
-    let render_pass = if cbs.in_render_pass { Some(cache.empty_render_pass()?) } else { None };
+    let render_pass = if cbs.in_render_pass {
+        Some(cache.empty_render_pass()?)
+    } else {
+        None
+    };
     let launch = &world.launch;
-    cache.io_buffers(words.min(MAX_OUTPUT_WORDS), launch.rays.len(), launch.callables.len())?;
+    cache.io_buffers(
+        words.min(MAX_OUTPUT_WORDS),
+        launch.rays.len(),
+        launch.callables.len(),
+    )?;
     let (out, rays, calls) = (
         cache.output.as_ref().expect("made above"),
         cache.rays.as_ref().expect("made above"),
         cache.callables.as_ref().expect("made above"),
     );
     // Output pre-filled with NOT_RUN; rays header (count, capacity, extra recursion) and records; callables.
-    let fill: Vec<u8> = std::iter::repeat_n(model::semantics::NOT_RUN.to_ne_bytes(), words).flatten().collect();
+    let fill: Vec<u8> = std::iter::repeat_n(model::semantics::NOT_RUN.to_ne_bytes(), words)
+        .flatten()
+        .collect();
     out.write(0, &fill);
     let mut ray_bytes: Vec<u8> = Vec::with_capacity(16 + launch.rays.len() * RAY_RECORD_SIZE);
-    for v in [launch.rays.len() as u32, words.min(MAX_OUTPUT_WORDS) as u32, launch.extra_recursion, 0] {
+    for v in [
+        launch.rays.len() as u32,
+        words.min(MAX_OUTPUT_WORDS) as u32,
+        launch.extra_recursion,
+        0,
+    ] {
         ray_bytes.extend_from_slice(&v.to_ne_bytes());
     }
     for r in &launch.rays {
         let (x, y) = match r.target {
             RayTarget::Nothing => (-1000.0f32, -1000.0f32),
-            RayTarget::Geometry { instance, geometry } => (2.0 * geometry as f32, 4.0 * instance as f32),
+            RayTarget::Geometry { instance, geometry } => {
+                (2.0 * geometry as f32, 4.0 * instance as f32)
+            }
         };
         for f in [x, y, -1.0, 1.0, 0.0, 0.0, 1.0, 0.0] {
             ray_bytes.extend_from_slice(&f32::to_ne_bytes(f));
         }
-        for v in [r.sbt_offset, r.sbt_stride, r.miss_index, r.cull_mask, r.ray_flags, 0, 0, 0] {
+        for v in [
+            r.sbt_offset,
+            r.sbt_stride,
+            r.miss_index,
+            r.cull_mask,
+            r.ray_flags,
+            0,
+            0,
+            0,
+        ] {
             ray_bytes.extend_from_slice(&v.to_ne_bytes());
         }
     }
     rays.write(0, &ray_bytes);
     let mut call_bytes: Vec<u8> = Vec::with_capacity(16 + launch.callables.len() * 4);
-    for v in [launch.callables.len() as u32, 0, 0, 0].iter().chain(&launch.callables) {
+    for v in [launch.callables.len() as u32, 0, 0, 0]
+        .iter()
+        .chain(&launch.callables)
+    {
         call_bytes.extend_from_slice(&v.to_ne_bytes());
     }
     calls.write(0, &call_bytes);
@@ -225,20 +302,44 @@ fn run(
         d.reset_descriptor_pool(cache.descriptor_pool, vk::DescriptorPoolResetFlags::empty())
             .map_err(|r| RealiseError::Failed(format!("vkResetDescriptorPool: {r:?}")))?;
         let sl = [layouts.set];
-        d.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(cache.descriptor_pool).set_layouts(&sl))
-            .map_err(|r| RealiseError::Failed(format!("vkAllocateDescriptorSets: {r:?}")))?[0]
+        d.allocate_descriptor_sets(
+            &vk::DescriptorSetAllocateInfo::default()
+                .descriptor_pool(cache.descriptor_pool)
+                .set_layouts(&sl),
+        )
+        .map_err(|r| RealiseError::Failed(format!("vkAllocateDescriptorSets: {r:?}")))?[0]
     };
-    let out_info = [vk::DescriptorBufferInfo { buffer: out.buffer, offset: 0, range: vk::WHOLE_SIZE }];
-    let rays_info = [vk::DescriptorBufferInfo { buffer: rays.buffer, offset: 0, range: vk::WHOLE_SIZE }];
-    let calls_info = [vk::DescriptorBufferInfo { buffer: calls.buffer, offset: 0, range: vk::WHOLE_SIZE }];
-    fn storage(set: vk::DescriptorSet, binding: u32, info: &[vk::DescriptorBufferInfo]) -> vk::WriteDescriptorSet<'_> {
+    let out_info = [vk::DescriptorBufferInfo {
+        buffer: out.buffer,
+        offset: 0,
+        range: vk::WHOLE_SIZE,
+    }];
+    let rays_info = [vk::DescriptorBufferInfo {
+        buffer: rays.buffer,
+        offset: 0,
+        range: vk::WHOLE_SIZE,
+    }];
+    let calls_info = [vk::DescriptorBufferInfo {
+        buffer: calls.buffer,
+        offset: 0,
+        range: vk::WHOLE_SIZE,
+    }];
+    fn storage(
+        set: vk::DescriptorSet,
+        binding: u32,
+        info: &[vk::DescriptorBufferInfo],
+    ) -> vk::WriteDescriptorSet<'_> {
         vk::WriteDescriptorSet::default()
             .dst_set(set)
             .dst_binding(binding)
             .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
             .buffer_info(info)
     }
-    let mut writes = vec![storage(set, 1, &out_info), storage(set, 2, &rays_info), storage(set, 3, &calls_info)];
+    let mut writes = vec![
+        storage(set, 1, &out_info),
+        storage(set, 2, &rays_info),
+        storage(set, 3, &calls_info),
+    ];
     let tl_khr = [match tlas {
         Some(Tlas::Khr(t)) => t,
         _ => vk::AccelerationStructureKHR::null(),
@@ -247,8 +348,10 @@ fn run(
         Some(Tlas::Nv(t)) => t,
         _ => vk::AccelerationStructureNV::null(),
     }];
-    let mut as_khr = vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&tl_khr);
-    let mut as_nv = vk::WriteDescriptorSetAccelerationStructureNV::default().acceleration_structures(&tl_nv);
+    let mut as_khr =
+        vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&tl_khr);
+    let mut as_nv =
+        vk::WriteDescriptorSetAccelerationStructureNV::default().acceleration_structures(&tl_nv);
     match tlas {
         Some(Tlas::Khr(_)) => {
             let mut w = vk::WriteDescriptorSet::default()
@@ -281,7 +384,11 @@ fn run(
                 .iter()
                 .find(|(n, _)| n == buffer)
                 .map(|(_, a)| a.address + offset)
-                .ok_or_else(|| RealiseError::Unsupported(format!("the call names buffer `{buffer}`, which the world lacks"))),
+                .ok_or_else(|| {
+                    RealiseError::Unsupported(format!(
+                        "the call names buffer `{buffer}`, which the world lacks"
+                    ))
+                }),
         }
     };
     let buffer_named = |name: &Option<String>| -> Result<vk::Buffer, RealiseError> {
@@ -291,21 +398,31 @@ fn run(
                 .iter()
                 .find(|(b, _)| b == n)
                 .map(|(_, a)| a.buffer)
-                .ok_or_else(|| RealiseError::Unsupported(format!("the call names buffer `{n}`, which the world lacks"))),
+                .ok_or_else(|| {
+                    RealiseError::Unsupported(format!(
+                        "the call names buffer `{n}`, which the world lacks"
+                    ))
+                }),
         }
     };
     let secondary = cbs.level == CommandBufferLevel::Secondary;
-    let cb = if secondary { cache.secondary } else { cache.primary };
+    let cb = if secondary {
+        cache.secondary
+    } else {
+        cache.primary
+    };
     let d = &cache.dev.device;
     // SAFETY: recording into an idle command buffer with live objects.
     unsafe {
         if cbs.lifecycle != CommandBufferLifecycle::Initial {
             let inherit = vk::CommandBufferInheritanceInfo::default();
-            let mut begin = vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            let mut begin = vk::CommandBufferBeginInfo::default()
+                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
             if secondary {
                 begin = begin.inheritance_info(&inherit);
             }
-            d.begin_command_buffer(cb, &begin).map_err(|r| RealiseError::Failed(format!("vkBeginCommandBuffer: {r:?}")))?;
+            d.begin_command_buffer(cb, &begin)
+                .map_err(|r| RealiseError::Failed(format!("vkBeginCommandBuffer: {r:?}")))?;
             if trace {
                 // The scene was built by an earlier submission: a memory dependency from its build to the
                 // shaders' reads (submission order alone gives only an execution dependency). Recorded
@@ -340,7 +457,14 @@ fn run(
             // issue 4 hook: with a resource state the harness set is bound with the case pipeline's
             // realised layout, then the case's own binds and pushes follow.
             let harness_layout = res.as_ref().map_or(layouts.pipeline, |r| r.harness_layout);
-            d.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::RAY_TRACING_KHR, harness_layout, 0, &[set], &[]);
+            d.cmd_bind_descriptor_sets(
+                cb,
+                vk::PipelineBindPoint::RAY_TRACING_KHR,
+                harness_layout,
+                0,
+                &[set],
+                &[],
+            );
             if let Some(r) = res.as_ref() {
                 r.record_binds(d, cb);
             }
@@ -348,14 +472,21 @@ fn run(
                 let begin = vk::RenderPassBeginInfo::default()
                     .render_pass(rp)
                     .framebuffer(fb)
-                    .render_area(vk::Rect2D { offset: vk::Offset2D::default(), extent: vk::Extent2D { width: 1, height: 1 } });
+                    .render_area(vk::Rect2D {
+                        offset: vk::Offset2D::default(),
+                        extent: vk::Extent2D {
+                            width: 1,
+                            height: 1,
+                        },
+                    });
                 d.cmd_begin_render_pass(cb, &begin, vk::SubpassContents::INLINE);
             }
             if cbs.lifecycle == CommandBufferLifecycle::Executable {
                 if render_pass.is_some() {
                     d.cmd_end_render_pass(cb);
                 }
-                d.end_command_buffer(cb).map_err(|r| RealiseError::Failed(format!("vkEndCommandBuffer: {r:?}")))?;
+                d.end_command_buffer(cb)
+                    .map_err(|r| RealiseError::Failed(format!("vkEndCommandBuffer: {r:?}")))?;
             }
         }
     }
@@ -373,7 +504,12 @@ fn run(
         }
         _ => {
             let regions = case.call.regions().expect("KHR call");
-            let r = [region(regions[0], &addr)?, region(regions[1], &addr)?, region(regions[2], &addr)?, region(regions[3], &addr)?];
+            let r = [
+                region(regions[0], &addr)?,
+                region(regions[1], &addr)?,
+                region(regions[2], &addr)?,
+                region(regions[3], &addr)?,
+            ];
             let indirect = match &case.call {
                 Call::TraceRaysIndirect(c) => Some(addr(&c.indirect_address)?),
                 _ => None,
@@ -386,22 +522,38 @@ fn run(
     // SAFETY: for valid cases every parameter is valid; for invalid ones the layer drops the call.
     unsafe {
         match (&case.call, &resolved) {
-            (Call::TraceRays(c), Resolved::Khr([rg, ms, ht, cl], _)) => {
-                cache.dev.rt.as_ref().expect("checked above").cmd_trace_rays(cb, rg, ms, ht, cl, c.width, c.height, c.depth)
-            }
-            (Call::TraceRaysIndirect(_), Resolved::Khr([rg, ms, ht, cl], Some(a))) => {
-                cache.dev.rt.as_ref().expect("checked above").cmd_trace_rays_indirect(cb, rg, ms, ht, cl, *a)
-            }
-            (Call::TraceRaysNv(c), Resolved::Nv([rg, ms, ht, cl])) => cache.dev.nv.as_ref().expect("checked above").cmd_trace_rays(
-                cb, rg.0, rg.1, ms.0, ms.1, ms.2, ht.0, ht.1, ht.2, cl.0, cl.1, cl.2, c.width, c.height, c.depth,
-            ),
+            (Call::TraceRays(c), Resolved::Khr([rg, ms, ht, cl], _)) => cache
+                .dev
+                .rt
+                .as_ref()
+                .expect("checked above")
+                .cmd_trace_rays(cb, rg, ms, ht, cl, c.width, c.height, c.depth),
+            (Call::TraceRaysIndirect(_), Resolved::Khr([rg, ms, ht, cl], Some(a))) => cache
+                .dev
+                .rt
+                .as_ref()
+                .expect("checked above")
+                .cmd_trace_rays_indirect(cb, rg, ms, ht, cl, *a),
+            (Call::TraceRaysNv(c), Resolved::Nv([rg, ms, ht, cl])) => cache
+                .dev
+                .nv
+                .as_ref()
+                .expect("checked above")
+                .cmd_trace_rays(
+                    cb, rg.0, rg.1, ms.0, ms.1, ms.2, ht.0, ht.1, ht.2, cl.0, cl.1, cl.2, c.width,
+                    c.height, c.depth,
+                ),
             _ => {}
         }
     }
     collector.set_abort(false);
     let mut obs = Observation::with_status(Status::Ran);
     obs.set_messages(collector.take());
-    if !valid || cbs.lifecycle != CommandBufferLifecycle::Recording || secondary || render_pass.is_some() {
+    if !valid
+        || cbs.lifecycle != CommandBufferLifecycle::Recording
+        || secondary
+        || render_pass.is_some()
+    {
         return Ok(obs);
     }
     // SAFETY: ending and submitting a valid recording.
@@ -418,7 +570,8 @@ fn run(
             &[],
             &[],
         );
-        d.end_command_buffer(cb).map_err(|r| RealiseError::Failed(format!("vkEndCommandBuffer: {r:?}")))?;
+        d.end_command_buffer(cb)
+            .map_err(|r| RealiseError::Failed(format!("vkEndCommandBuffer: {r:?}")))?;
     }
     collector.clear();
     cache.submit_and_wait(timeout)?;

@@ -66,16 +66,26 @@ fn read_one(kind: MemberKind, bytes: &[u8], at: usize) -> PropertyValue {
         MemberKind::I32 => PropertyValue::SignedInt(read_u32(bytes, at) as i32 as i64),
         MemberKind::F32 => PropertyValue::Float(f32::from_bits(read_u32(bytes, at)) as f64),
         MemberKind::Bool => PropertyValue::Bool(read_u32(bytes, at) != 0),
-        MemberKind::U64 => PropertyValue::Int(u64::from_ne_bytes(bytes[at..at + 8].try_into().unwrap_or([0; 8]))),
+        MemberKind::U64 => PropertyValue::Int(u64::from_ne_bytes(
+            bytes[at..at + 8].try_into().unwrap_or([0; 8]),
+        )),
         MemberKind::U8 | MemberKind::Char => PropertyValue::Int(bytes[at] as u64),
-        MemberKind::Conformance => {
-            PropertyValue::Text(format!("{}.{}.{}.{}", bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]))
-        }
+        MemberKind::Conformance => PropertyValue::Text(format!(
+            "{}.{}.{}.{}",
+            bytes[at],
+            bytes[at + 1],
+            bytes[at + 2],
+            bytes[at + 3]
+        )),
     }
 }
 
 /// Every member's value read from a structure's bytes; `char` arrays become text, other arrays arrays.
-pub fn read_members(members: &[Member], header: usize, bytes: &[u8]) -> Vec<(&'static str, PropertyValue)> {
+pub fn read_members(
+    members: &[Member],
+    header: usize,
+    bytes: &[u8],
+) -> Vec<(&'static str, PropertyValue)> {
     let (offs, size) = offsets(members, header);
     if bytes.len() < size {
         return Vec::new();
@@ -92,7 +102,11 @@ pub fn read_members(members: &[Member], header: usize, bytes: &[u8]) -> Vec<(&'s
                 read_one(m.kind, bytes, at)
             } else {
                 let step = m.kind.size_align().0;
-                PropertyValue::Array((0..m.count).map(|i| read_one(m.kind, bytes, at + i * step)).collect())
+                PropertyValue::Array(
+                    (0..m.count)
+                        .map(|i| read_one(m.kind, bytes, at + i * step))
+                        .collect(),
+                )
             };
             (m.name, value)
         })
@@ -116,7 +130,11 @@ pub fn set_bool(members: &[Member], header: usize, bytes: &mut [u8], name: &str)
     if bytes.len() < size {
         return false;
     }
-    match members.iter().zip(offs).find(|(m, _)| m.name == name && m.kind == MemberKind::Bool) {
+    match members
+        .iter()
+        .zip(offs)
+        .find(|(m, _)| m.name == name && m.kind == MemberKind::Bool)
+    {
         Some((_, at)) => {
             bytes[at..at + 4].copy_from_slice(&1u32.to_ne_bytes());
             true

@@ -33,21 +33,33 @@ pub struct Observation {
 
 impl Observation {
     pub fn with_status(status: Status) -> Observation {
-        Observation { status, layer_vuids: Vec::new(), layer_messages: Vec::new(), output: None }
+        Observation {
+            status,
+            layer_vuids: Vec::new(),
+            layer_messages: Vec::new(),
+            output: None,
+        }
     }
 
     pub fn unsupported(reason: impl Into<String>) -> Observation {
-        Observation::with_status(Status::Unsupported { reason: reason.into() })
+        Observation::with_status(Status::Unsupported {
+            reason: reason.into(),
+        })
     }
 
     pub fn crash(message: impl Into<String>) -> Observation {
-        Observation::with_status(Status::Crash { message: message.into() })
+        Observation::with_status(Status::Crash {
+            message: message.into(),
+        })
     }
 
     /// Keeps the messages and derives the sorted unique VUIDs of the errors among them.
     pub fn set_messages(&mut self, messages: Vec<LayerMessage>) {
-        let mut ids: Vec<String> =
-            messages.iter().filter(|m| m.severity == "error" && !m.id.is_empty()).map(|m| m.id.clone()).collect();
+        let mut ids: Vec<String> = messages
+            .iter()
+            .filter(|m| m.severity == "error" && !m.id.is_empty())
+            .map(|m| m.id.clone())
+            .collect();
         ids.sort();
         ids.dedup();
         self.layer_vuids = ids;

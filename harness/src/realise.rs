@@ -7,7 +7,10 @@ use crate::shaders::{self, ShaderKind};
 use crate::vulkan::VkDevice;
 use ash::vk;
 use model::call::BUFFER_PLACEMENT_ALIGNMENT;
-use model::world::{Contents, GeneralStage, GeometryKind, HandleRef, Instance, Pipeline, PipelineApi, ShaderGroup, World};
+use model::world::{
+    Contents, GeneralStage, GeometryKind, HandleRef, Instance, Pipeline, PipelineApi, ShaderGroup,
+    World,
+};
 use std::collections::HashMap;
 
 /// Why a case could not be realised.
@@ -70,8 +73,11 @@ fn host_memory_type(dev: &VkDevice, bits: u32) -> Option<(u32, bool)> {
 }
 
 fn allocate(dev: &VkDevice, size: u64, memory_type: u32) -> Result<vk::DeviceMemory, RealiseError> {
-    let mut flags_info = vk::MemoryAllocateFlagsInfo::default().flags(vk::MemoryAllocateFlags::DEVICE_ADDRESS);
-    let mut ai = vk::MemoryAllocateInfo::default().allocation_size(size).memory_type_index(memory_type);
+    let mut flags_info =
+        vk::MemoryAllocateFlagsInfo::default().flags(vk::MemoryAllocateFlags::DEVICE_ADDRESS);
+    let mut ai = vk::MemoryAllocateInfo::default()
+        .allocation_size(size)
+        .memory_type_index(memory_type);
     if dev.has_feature("bufferDeviceAddress") {
         ai = ai.push_next(&mut flags_info);
     }
@@ -84,7 +90,10 @@ fn address_of(dev: &VkDevice, b: vk::Buffer) -> u64 {
     if dev.has_feature("bufferDeviceAddress") {
         // SAFETY: b is bound completely to memory allocated with DEVICE_ADDRESS, or sparse
         // (VUID-VkBufferDeviceAddressInfo-buffer-02600 exempts sparse buffers).
-        unsafe { dev.device.get_buffer_device_address(&vk::BufferDeviceAddressInfo::default().buffer(b)) }
+        unsafe {
+            dev.device
+                .get_buffer_device_address(&vk::BufferDeviceAddressInfo::default().buffer(b))
+        }
     } else {
         0
     }
@@ -101,15 +110,21 @@ impl Allocation {
         align: u64,
     ) -> Result<Allocation, RealiseError> {
         let d = &dev.device;
-        let info = vk::BufferCreateInfo::default().size(size.max(1)).usage(usage).flags(flags);
+        let info = vk::BufferCreateInfo::default()
+            .size(size.max(1))
+            .usage(usage)
+            .flags(flags);
         // SAFETY: valid create info.
-        let mut buffer = unsafe { d.create_buffer(&info, None) }.map_err(vkfail("vkCreateBuffer"))?;
+        let mut buffer =
+            unsafe { d.create_buffer(&info, None) }.map_err(vkfail("vkCreateBuffer"))?;
         // SAFETY: buffer is valid.
         let req = unsafe { d.get_buffer_memory_requirements(buffer) };
         let Some((mt, coherent)) = host_memory_type(dev, req.memory_type_bits) else {
             // SAFETY: destroying what we created.
             unsafe { d.destroy_buffer(buffer, None) };
-            return Err(RealiseError::Unsupported("no host-visible memory type for a buffer".into()));
+            return Err(RealiseError::Unsupported(
+                "no host-visible memory type for a buffer".into(),
+            ));
         };
         let bda = dev.has_feature("bufferDeviceAddress");
         let alloc_size = req.size + if align > 1 { align } else { 0 };
@@ -131,7 +146,9 @@ impl Allocation {
         // SAFETY: fresh buffer, fresh memory large enough.
         if let Err(r) = unsafe { d.bind_buffer_memory(buffer, memory, 0) } {
             cleanup(buffer);
-            return Err(RealiseError::Failed(format!("vkBindBufferMemory failed: {r:?}")));
+            return Err(RealiseError::Failed(format!(
+                "vkBindBufferMemory failed: {r:?}"
+            )));
         }
         let mut address = address_of(dev, buffer);
         let mut offset = 0;
@@ -152,13 +169,17 @@ impl Allocation {
                 Err(r) => {
                     // SAFETY: freeing what we allocated.
                     unsafe { d.free_memory(memory, None) };
-                    return Err(RealiseError::Failed(format!("vkCreateBuffer failed: {r:?}")));
+                    return Err(RealiseError::Failed(format!(
+                        "vkCreateBuffer failed: {r:?}"
+                    )));
                 }
             };
             // SAFETY: offset + size fits the allocation.
             if let Err(r) = unsafe { d.bind_buffer_memory(buffer, memory, delta) } {
                 cleanup(buffer);
-                return Err(RealiseError::Failed(format!("vkBindBufferMemory failed: {r:?}")));
+                return Err(RealiseError::Failed(format!(
+                    "vkBindBufferMemory failed: {r:?}"
+                )));
             }
             offset = delta;
             address = address_of(dev, buffer);
@@ -170,20 +191,26 @@ impl Allocation {
             }
         }
         // SAFETY: host-visible memory, whole range.
-        let ptr = match unsafe { d.map_memory(memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()) } {
-            Ok(p) => p as *mut u8,
-            Err(r) => {
-                cleanup(buffer);
-                return Err(RealiseError::Failed(format!("vkMapMemory failed: {r:?}")));
-            }
-        };
+        let ptr =
+            match unsafe { d.map_memory(memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()) } {
+                Ok(p) => p as *mut u8,
+                Err(r) => {
+                    cleanup(buffer);
+                    return Err(RealiseError::Failed(format!("vkMapMemory failed: {r:?}")));
+                }
+            };
         // SAFETY: mapped range covers offset..offset+size.
         let ptr = unsafe { ptr.add(offset as usize) };
         let a = Allocation {
             buffer,
             address,
             size,
-            pieces: vec![Piece { memory, at: 0, len: size, ptr }],
+            pieces: vec![Piece {
+                memory,
+                at: 0,
+                len: size,
+                ptr,
+            }],
             non_coherent: (!coherent).then(|| d.clone()),
         };
         a.write(0, &vec![0u8; size as usize]);
@@ -201,10 +228,19 @@ impl Allocation {
         plan: SparsePlan,
     ) -> Result<Allocation, RealiseError> {
         let d = &dev.device;
-        let info = vk::BufferCreateInfo::default().size(size.max(1)).usage(usage).flags(flags);
+        let info = vk::BufferCreateInfo::default()
+            .size(size.max(1))
+            .usage(usage)
+            .flags(flags);
         // SAFETY: valid create info (the caller checked sparseBinding is enabled).
         let buffer = unsafe { d.create_buffer(&info, None) }.map_err(vkfail("vkCreateBuffer"))?;
-        let mut a = Allocation { buffer, address: 0, size, pieces: Vec::new(), non_coherent: None };
+        let mut a = Allocation {
+            buffer,
+            address: 0,
+            size,
+            pieces: Vec::new(),
+            non_coherent: None,
+        };
         match a.bind_sparse(dev, fence, plan) {
             Ok(()) => Ok(a),
             Err(e) => {
@@ -214,7 +250,12 @@ impl Allocation {
         }
     }
 
-    fn bind_sparse(&mut self, dev: &VkDevice, fence: vk::Fence, plan: SparsePlan) -> Result<(), RealiseError> {
+    fn bind_sparse(
+        &mut self,
+        dev: &VkDevice,
+        fence: vk::Fence,
+        plan: SparsePlan,
+    ) -> Result<(), RealiseError> {
         let d = &dev.device;
         // SAFETY: valid buffer.
         let req = unsafe { d.get_buffer_memory_requirements(self.buffer) };
@@ -244,7 +285,9 @@ impl Allocation {
             for &(at, len) in &ranges {
                 let memory = allocate(dev, len, mt)?;
                 // SAFETY: host-visible memory, whole range.
-                let ptr = match unsafe { d.map_memory(memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()) } {
+                let ptr = match unsafe {
+                    d.map_memory(memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty())
+                } {
                     Ok(p) => p as *mut u8,
                     Err(r) => {
                         // SAFETY: freeing what we allocated.
@@ -252,25 +295,41 @@ impl Allocation {
                         return Err(RealiseError::Failed(format!("vkMapMemory failed: {r:?}")));
                     }
                 };
-                self.pieces.push(Piece { memory, at, len, ptr });
+                self.pieces.push(Piece {
+                    memory,
+                    at,
+                    len,
+                    ptr,
+                });
             }
             let binds: Vec<vk::SparseMemoryBind> = self
                 .pieces
                 .iter()
-                .map(|p| vk::SparseMemoryBind { resource_offset: p.at, size: p.len, memory: p.memory, memory_offset: 0, flags: Default::default() })
+                .map(|p| vk::SparseMemoryBind {
+                    resource_offset: p.at,
+                    size: p.len,
+                    memory: p.memory,
+                    memory_offset: 0,
+                    flags: Default::default(),
+                })
                 .collect();
-            let buffer_binds = [vk::SparseBufferMemoryBindInfo::default().buffer(self.buffer).binds(&binds)];
+            let buffer_binds = [vk::SparseBufferMemoryBindInfo::default()
+                .buffer(self.buffer)
+                .binds(&binds)];
             let bind = [vk::BindSparseInfo::default().buffer_binds(&buffer_binds)];
             // SAFETY: the queue's family has SPARSE_BINDING (checked by the caller); the fence is unsignalled.
             unsafe {
-                d.queue_bind_sparse(dev.queue, &bind, fence).map_err(vkfail("vkQueueBindSparse"))?;
-                d.wait_for_fences(&[fence], true, 10_000_000_000).map_err(vkfail("vkWaitForFences (sparse binding)"))?;
+                d.queue_bind_sparse(dev.queue, &bind, fence)
+                    .map_err(vkfail("vkQueueBindSparse"))?;
+                d.wait_for_fences(&[fence], true, 10_000_000_000)
+                    .map_err(vkfail("vkWaitForFences (sparse binding)"))?;
                 d.reset_fences(&[fence]).map_err(vkfail("vkResetFences"))?;
             }
             self.write(0, &vec![0u8; self.size as usize]);
         }
         self.address = address_of(dev, self.buffer);
-        if dev.has_feature("bufferDeviceAddress") && self.address % BUFFER_PLACEMENT_ALIGNMENT != 0 {
+        if dev.has_feature("bufferDeviceAddress") && self.address % BUFFER_PLACEMENT_ALIGNMENT != 0
+        {
             return Err(RealiseError::Unsupported(format!(
                 "the driver placed a sparse buffer at {:#x}, not a multiple of {BUFFER_PLACEMENT_ALIGNMENT}",
                 self.address
@@ -294,7 +353,11 @@ impl Allocation {
             }
             // SAFETY: lo..hi lies inside this piece's mapped range.
             unsafe {
-                std::ptr::copy_nonoverlapping(bytes.as_ptr().add((lo - offset) as usize), p.ptr.add((lo - p.at) as usize), (hi - lo) as usize)
+                std::ptr::copy_nonoverlapping(
+                    bytes.as_ptr().add((lo - offset) as usize),
+                    p.ptr.add((lo - p.at) as usize),
+                    (hi - lo) as usize,
+                )
             };
         }
         self.sync(true);
@@ -305,23 +368,47 @@ impl Allocation {
         let n = count.min((self.size / 4) as usize);
         let mut bytes = vec![0u8; n * 4];
         for p in &self.pieces {
-            let (lo, hi) = (p.at.min(bytes.len() as u64), (p.at + p.len).min(bytes.len() as u64));
+            let (lo, hi) = (
+                p.at.min(bytes.len() as u64),
+                (p.at + p.len).min(bytes.len() as u64),
+            );
             if lo < hi {
                 // SAFETY: lo..hi lies inside this piece's mapped range.
-                unsafe { std::ptr::copy_nonoverlapping(p.ptr, bytes.as_mut_ptr().add(lo as usize), (hi - lo) as usize) };
+                unsafe {
+                    std::ptr::copy_nonoverlapping(
+                        p.ptr,
+                        bytes.as_mut_ptr().add(lo as usize),
+                        (hi - lo) as usize,
+                    )
+                };
             }
         }
-        bytes.chunks_exact(4).map(|c| u32::from_ne_bytes([c[0], c[1], c[2], c[3]])).collect()
+        bytes
+            .chunks_exact(4)
+            .map(|c| u32::from_ne_bytes([c[0], c[1], c[2], c[3]]))
+            .collect()
     }
 
     /// Flushes host writes (`to_device`) or invalidates host caches before reading, on non-coherent memory.
     fn sync(&self, to_device: bool) {
         let Some(d) = &self.non_coherent else { return };
-        let ranges: Vec<vk::MappedMemoryRange> =
-            self.pieces.iter().map(|p| vk::MappedMemoryRange::default().memory(p.memory).offset(0).size(vk::WHOLE_SIZE)).collect();
+        let ranges: Vec<vk::MappedMemoryRange> = self
+            .pieces
+            .iter()
+            .map(|p| {
+                vk::MappedMemoryRange::default()
+                    .memory(p.memory)
+                    .offset(0)
+                    .size(vk::WHOLE_SIZE)
+            })
+            .collect();
         // SAFETY: every memory object is mapped whole; WHOLE_SIZE from offset 0 needs no atom alignment.
         unsafe {
-            let _ = if to_device { d.flush_mapped_memory_ranges(&ranges) } else { d.invalidate_mapped_memory_ranges(&ranges) };
+            let _ = if to_device {
+                d.flush_mapped_memory_ranges(&ranges)
+            } else {
+                d.invalidate_mapped_memory_ranges(&ranges)
+            };
         }
     }
 
@@ -382,10 +469,13 @@ fn default_stack_size(
     depth: u32,
 ) -> u32 {
     let unused = vk::SHADER_UNUSED_KHR;
-    let (mut raygen, mut miss, mut callable, mut closest, mut any, mut isect) = (0u64, 0u64, 0u64, 0u64, 0u64, 0u64);
+    let (mut raygen, mut miss, mut callable, mut closest, mut any, mut isect) =
+        (0u64, 0u64, 0u64, 0u64, 0u64, 0u64);
     for (g, (ty, [gen, ch, ah, is])) in groups.iter().enumerate() {
         // SAFETY: valid pipeline and group; only shaders the group has are queried.
-        let size = |which| unsafe { rt.get_ray_tracing_shader_group_stack_size(pipeline, g as u32, which) };
+        let size = |which| unsafe {
+            rt.get_ray_tracing_shader_group_stack_size(pipeline, g as u32, which)
+        };
         if *ty == vk::RayTracingShaderGroupTypeKHR::GENERAL && *gen != unused {
             // Which general stage this is does not matter for the maximum of its own kind; count it in all
             // three general kinds conservatively.
@@ -464,10 +554,17 @@ impl DeviceCache {
                 )
                 .map(|v| v[0])
             };
-            let primary = alloc(vk::CommandBufferLevel::PRIMARY).map_err(vkfail("vkAllocateCommandBuffers"))?;
-            let secondary = alloc(vk::CommandBufferLevel::SECONDARY).map_err(vkfail("vkAllocateCommandBuffers"))?;
-            let fence = d.create_fence(&vk::FenceCreateInfo::default(), None).map_err(vkfail("vkCreateFence"))?;
-            let mut sizes = vec![vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: 6 }];
+            let primary = alloc(vk::CommandBufferLevel::PRIMARY)
+                .map_err(vkfail("vkAllocateCommandBuffers"))?;
+            let secondary = alloc(vk::CommandBufferLevel::SECONDARY)
+                .map_err(vkfail("vkAllocateCommandBuffers"))?;
+            let fence = d
+                .create_fence(&vk::FenceCreateInfo::default(), None)
+                .map_err(vkfail("vkCreateFence"))?;
+            let mut sizes = vec![vk::DescriptorPoolSize {
+                ty: vk::DescriptorType::STORAGE_BUFFER,
+                descriptor_count: 6,
+            }];
             if dev.accel.is_some() {
                 sizes.push(vk::DescriptorPoolSize {
                     ty: vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
@@ -475,10 +572,18 @@ impl DeviceCache {
                 });
             }
             if dev.nv.is_some() {
-                sizes.push(vk::DescriptorPoolSize { ty: vk::DescriptorType::ACCELERATION_STRUCTURE_NV, descriptor_count: 2 });
+                sizes.push(vk::DescriptorPoolSize {
+                    ty: vk::DescriptorType::ACCELERATION_STRUCTURE_NV,
+                    descriptor_count: 2,
+                });
             }
             let descriptor_pool = d
-                .create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(2).pool_sizes(&sizes), None)
+                .create_descriptor_pool(
+                    &vk::DescriptorPoolCreateInfo::default()
+                        .max_sets(2)
+                        .pool_sizes(&sizes),
+                    None,
+                )
                 .map_err(vkfail("vkCreateDescriptorPool"))?;
             Ok(DeviceCache {
                 modules: HashMap::new(),
@@ -501,14 +606,22 @@ impl DeviceCache {
         }
     }
 
-    fn module(&mut self, kind: ShaderKind, api: PipelineApi) -> Result<vk::ShaderModule, RealiseError> {
+    fn module(
+        &mut self,
+        kind: ShaderKind,
+        api: PipelineApi,
+    ) -> Result<vk::ShaderModule, RealiseError> {
         if let Some(m) = self.modules.get(&(kind, api == PipelineApi::Nv)) {
             return Ok(*m);
         }
         let code = shaders::spirv(kind, api)?;
         // SAFETY: valid SPIR-V words.
-        let m = unsafe { self.dev.device.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None) }
-            .map_err(vkfail("vkCreateShaderModule"))?;
+        let m = unsafe {
+            self.dev
+                .device
+                .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None)
+        }
+        .map_err(vkfail("vkCreateShaderModule"))?;
         self.modules.insert((kind, api == PipelineApi::Nv), m);
         Ok(m)
     }
@@ -521,7 +634,11 @@ impl DeviceCache {
             return Ok(*l);
         }
         let raygen = vk::ShaderStageFlags::RAYGEN_KHR;
-        let traced = if trace { raygen | vk::ShaderStageFlags::CLOSEST_HIT_KHR } else { raygen };
+        let traced = if trace {
+            raygen | vk::ShaderStageFlags::CLOSEST_HIT_KHR
+        } else {
+            raygen
+        };
         let storage = |binding: u32, stages| {
             vk::DescriptorSetLayoutBinding::default()
                 .binding(binding)
@@ -535,31 +652,52 @@ impl DeviceCache {
                 PipelineApi::Khr => vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
                 PipelineApi::Nv => vk::DescriptorType::ACCELERATION_STRUCTURE_NV,
             };
-            bindings.push(vk::DescriptorSetLayoutBinding::default().binding(0).descriptor_type(ty).descriptor_count(1).stage_flags(traced));
+            bindings.push(
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(0)
+                    .descriptor_type(ty)
+                    .descriptor_count(1)
+                    .stage_flags(traced),
+            );
         }
         let d = &self.dev.device;
         // SAFETY: valid create infos.
         let set = unsafe {
-            d.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings), None)
+            d.create_descriptor_set_layout(
+                &vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings),
+                None,
+            )
         }
         .map_err(vkfail("vkCreateDescriptorSetLayout"))?;
         let sets = [set];
         // SAFETY: as above.
-        let pipeline =
-            unsafe { d.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&sets), None) }
-                .map_err(vkfail("vkCreatePipelineLayout"))?;
+        let pipeline = unsafe {
+            d.create_pipeline_layout(
+                &vk::PipelineLayoutCreateInfo::default().set_layouts(&sets),
+                None,
+            )
+        }
+        .map_err(vkfail("vkCreatePipelineLayout"))?;
         let l = Layouts { set, pipeline };
         self.layouts.insert((trace, api == PipelineApi::Nv), l);
         Ok(l)
     }
 
     /// The pipeline for a description (cached); `foreign` makes a second, distinct pipeline of it.
-    pub fn pipeline(&mut self, p: &Pipeline, trace: bool, foreign: bool) -> Result<&RealPipeline, RealiseError> {
+    pub fn pipeline(
+        &mut self,
+        p: &Pipeline,
+        trace: bool,
+        foreign: bool,
+    ) -> Result<&RealPipeline, RealiseError> {
         // issue 4 hook: a case with a resource state runs its own pipeline (see `resource_pipeline`).
         if !foreign && self.resource_pipeline.is_some() {
             return Ok(self.resource_pipeline.as_ref().expect("checked"));
         }
-        let key = format!("{}|{trace}|{foreign}", serde_json::to_string(p).unwrap_or_default());
+        let key = format!(
+            "{}|{trace}|{foreign}",
+            serde_json::to_string(p).unwrap_or_default()
+        );
         if !self.pipelines.contains_key(&key) {
             let made = self.create_pipeline(p, trace).map_err(|e| match e {
                 RealiseError::Unsupported(s) => format!("unsupported: {s}"),
@@ -604,15 +742,26 @@ impl DeviceCache {
             }
             _ => {}
         }
-        let raygen = if trace { ShaderKind::RaygenTrace } else { ShaderKind::RaygenPlain };
-        let closest = if trace { ShaderKind::ClosestHitTrace } else { ShaderKind::ClosestHitPlain };
+        let raygen = if trace {
+            ShaderKind::RaygenTrace
+        } else {
+            ShaderKind::RaygenPlain
+        };
+        let closest = if trace {
+            ShaderKind::ClosestHitTrace
+        } else {
+            ShaderKind::ClosestHitPlain
+        };
         // (group index, stage flag, module) per stage, and per group (type, [general, closest, any, intersection]).
         let mut stage_list: Vec<(u32, vk::ShaderStageFlags, vk::ShaderModule)> = Vec::new();
         let mut groups: Vec<(vk::RayTracingShaderGroupTypeKHR, [u32; 4])> = Vec::new();
         let unused = vk::SHADER_UNUSED_KHR;
         for (g, group) in p.groups.iter().enumerate() {
             let g = g as u32;
-            let mut add = |this: &mut Self, kind: ShaderKind, stage: vk::ShaderStageFlags| -> Result<u32, RealiseError> {
+            let mut add = |this: &mut Self,
+                           kind: ShaderKind,
+                           stage: vk::ShaderStageFlags|
+             -> Result<u32, RealiseError> {
                 let m = match raygen_module {
                     Some(m) if kind == raygen => m,
                     _ => this.module(kind, api)?,
@@ -625,15 +774,36 @@ impl DeviceCache {
                     let (kind, flag) = match stage {
                         GeneralStage::Raygen => (raygen, vk::ShaderStageFlags::RAYGEN_KHR),
                         GeneralStage::Miss => (ShaderKind::Miss, vk::ShaderStageFlags::MISS_KHR),
-                        GeneralStage::Callable => (ShaderKind::Callable, vk::ShaderStageFlags::CALLABLE_KHR),
+                        GeneralStage::Callable => {
+                            (ShaderKind::Callable, vk::ShaderStageFlags::CALLABLE_KHR)
+                        }
                     };
                     let s = add(self, kind, flag)?;
-                    (vk::RayTracingShaderGroupTypeKHR::GENERAL, [s, unused, unused, unused])
+                    (
+                        vk::RayTracingShaderGroupTypeKHR::GENERAL,
+                        [s, unused, unused, unused],
+                    )
                 }
-                ShaderGroup::TrianglesHit { closest_hit, any_hit } | ShaderGroup::ProceduralHit { closest_hit, any_hit, .. } => {
+                ShaderGroup::TrianglesHit {
+                    closest_hit,
+                    any_hit,
+                }
+                | ShaderGroup::ProceduralHit {
+                    closest_hit,
+                    any_hit,
+                    ..
+                } => {
                     let procedural = matches!(group, ShaderGroup::ProceduralHit { .. });
-                    let ch = if *closest_hit { add(self, closest, vk::ShaderStageFlags::CLOSEST_HIT_KHR)? } else { unused };
-                    let ah = if *any_hit { add(self, ShaderKind::AnyHit, vk::ShaderStageFlags::ANY_HIT_KHR)? } else { unused };
+                    let ch = if *closest_hit {
+                        add(self, closest, vk::ShaderStageFlags::CLOSEST_HIT_KHR)?
+                    } else {
+                        unused
+                    };
+                    let ah = if *any_hit {
+                        add(self, ShaderKind::AnyHit, vk::ShaderStageFlags::ANY_HIT_KHR)?
+                    } else {
+                        unused
+                    };
                     let is = match group {
                         ShaderGroup::ProceduralHit { intersection: true, .. } => {
                             add(self, ShaderKind::Intersection, vk::ShaderStageFlags::INTERSECTION_KHR)?
@@ -656,12 +826,18 @@ impl DeviceCache {
             groups.push(info);
         }
         let group_values: Vec<u32> = stage_list.iter().map(|(g, _, _)| *g).collect();
-        let entry = [vk::SpecializationMapEntry { constant_id: 0, offset: 0, size: 4 }];
+        let entry = [vk::SpecializationMapEntry {
+            constant_id: 0,
+            offset: 0,
+            size: 4,
+        }];
         let specs: Vec<vk::SpecializationInfo> = group_values
             .iter()
             .map(|v| {
                 let bytes: &[u8] = crate::structs::as_bytes(v);
-                vk::SpecializationInfo::default().map_entries(&entry).data(bytes)
+                vk::SpecializationInfo::default()
+                    .map_entries(&entry)
+                    .data(bytes)
             })
             .collect();
         let main = c"main";
@@ -669,7 +845,11 @@ impl DeviceCache {
             .iter()
             .zip(&specs)
             .map(|((_, flag, m), spec)| {
-                vk::PipelineShaderStageCreateInfo::default().stage(*flag).module(*m).name(main).specialization_info(spec)
+                vk::PipelineShaderStageCreateInfo::default()
+                    .stage(*flag)
+                    .module(*m)
+                    .name(main)
+                    .specialization_info(spec)
             })
             .collect();
         let flags = vk::PipelineCreateFlags::from_raw(p.flags.0 as u32);
@@ -690,25 +870,42 @@ impl DeviceCache {
                 .collect();
             // The KHR-only flags (NO_NULL_*, SKIP_*, LIBRARY) are not NV pipeline flags.
             let info = vk::RayTracingPipelineCreateInfoNV::default()
-                .flags(flags & (vk::PipelineCreateFlags::DISABLE_OPTIMIZATION | vk::PipelineCreateFlags::DEFER_COMPILE_NV))
+                .flags(
+                    flags
+                        & (vk::PipelineCreateFlags::DISABLE_OPTIMIZATION
+                            | vk::PipelineCreateFlags::DEFER_COMPILE_NV),
+                )
                 .stages(&stages)
                 .groups(&nv_groups)
                 .max_recursion_depth(p.max_recursion_depth)
                 .layout(layout);
             let nv = self.dev.nv.as_ref().expect("checked above");
             // SAFETY: every pointer in `info` outlives the call.
-            let pipeline = unsafe { nv.create_ray_tracing_pipelines(vk::PipelineCache::null(), &[info], None) }
-                .map_err(|(_, r)| RealiseError::Failed(format!("vkCreateRayTracingPipelinesNV failed: {r:?}")))?[0];
+            let pipeline = unsafe {
+                nv.create_ray_tracing_pipelines(vk::PipelineCache::null(), &[info], None)
+            }
+            .map_err(|(_, r)| {
+                RealiseError::Failed(format!("vkCreateRayTracingPipelinesNV failed: {r:?}"))
+            })?[0];
             let mut handles = vec![0u8; hs * n];
             if n > 0 {
                 // SAFETY: valid pipeline, group range inside it, data sized for the groups.
-                if let Err(r) = unsafe { nv.get_ray_tracing_shader_group_handles(pipeline, 0, n as u32, &mut handles) } {
+                if let Err(r) = unsafe {
+                    nv.get_ray_tracing_shader_group_handles(pipeline, 0, n as u32, &mut handles)
+                } {
                     // SAFETY: destroying what we created.
                     unsafe { self.dev.device.destroy_pipeline(pipeline, None) };
-                    return Err(RealiseError::Failed(format!("vkGetRayTracingShaderGroupHandlesNV failed: {r:?}")));
+                    return Err(RealiseError::Failed(format!(
+                        "vkGetRayTracingShaderGroupHandlesNV failed: {r:?}"
+                    )));
                 }
             }
-            return Ok(RealPipeline { pipeline, handles, group_count: n, default_stack_size: 0 });
+            return Ok(RealPipeline {
+                pipeline,
+                handles,
+                group_count: n,
+                default_stack_size: 0,
+            });
         }
         let khr_groups: Vec<vk::RayTracingShaderGroupCreateInfoKHR> = groups
             .iter()
@@ -742,9 +939,16 @@ impl DeviceCache {
         let rt = self.dev.rt.as_ref().expect("checked above");
         // SAFETY: every pointer in `info` outlives the call.
         let pipeline = unsafe {
-            rt.create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), vk::PipelineCache::null(), &[info], None)
+            rt.create_ray_tracing_pipelines(
+                vk::DeferredOperationKHR::null(),
+                vk::PipelineCache::null(),
+                &[info],
+                None,
+            )
         }
-        .map_err(|(_, r)| RealiseError::Failed(format!("vkCreateRayTracingPipelinesKHR failed: {r:?}")))?[0];
+        .map_err(|(_, r)| {
+            RealiseError::Failed(format!("vkCreateRayTracingPipelinesKHR failed: {r:?}"))
+        })?[0];
         let library = flags.contains(vk::PipelineCreateFlags::LIBRARY_KHR);
         let handles = if library || n == 0 {
             vec![0u8; hs * n]
@@ -753,13 +957,29 @@ impl DeviceCache {
             unsafe { rt.get_ray_tracing_shader_group_handles(pipeline, 0, n as u32, hs * n) }
                 .map_err(vkfail("vkGetRayTracingShaderGroupHandlesKHR"))?
         };
-        let default_stack_size = if library { 0 } else { default_stack_size(rt, pipeline, &groups, p.max_recursion_depth) };
-        Ok(RealPipeline { pipeline, handles, group_count: n, default_stack_size })
+        let default_stack_size = if library {
+            0
+        } else {
+            default_stack_size(rt, pipeline, &groups, p.max_recursion_depth)
+        };
+        Ok(RealPipeline {
+            pipeline,
+            handles,
+            group_count: n,
+            default_stack_size,
+        })
     }
 
     /// The scene for a list of instances (cached).
-    pub fn scene(&mut self, instances: &[Instance], api: PipelineApi) -> Result<Tlas, RealiseError> {
-        let key = format!("{api:?}|{}", serde_json::to_string(instances).unwrap_or_default());
+    pub fn scene(
+        &mut self,
+        instances: &[Instance],
+        api: PipelineApi,
+    ) -> Result<Tlas, RealiseError> {
+        let key = format!(
+            "{api:?}|{}",
+            serde_json::to_string(instances).unwrap_or_default()
+        );
         if !self.scenes.contains_key(&key) {
             let built = self.build_scene(instances, api).map_err(|e| match e {
                 RealiseError::Unsupported(s) => format!("unsupported: {s}"),
@@ -776,10 +996,17 @@ impl DeviceCache {
         }
     }
 
-    fn build_scene(&mut self, instances: &[Instance], api: PipelineApi) -> Result<Scene, RealiseError> {
+    fn build_scene(
+        &mut self,
+        instances: &[Instance],
+        api: PipelineApi,
+    ) -> Result<Scene, RealiseError> {
         // A bottom-level structure holds geometries of one type; a case that mixes them cannot be built
         // validly, so it is not realised rather than handed to the driver.
-        if let Some(i) = instances.iter().position(|inst| inst.geometries.windows(2).any(|w| w[0] != w[1])) {
+        if let Some(i) = instances
+            .iter()
+            .position(|inst| inst.geometries.windows(2).any(|w| w[0] != w[1]))
+        {
             return Err(RealiseError::Unsupported(format!(
                 "instance {i} mixes triangle and AABB geometries; one acceleration structure holds one type"
             )));
@@ -793,7 +1020,9 @@ impl DeviceCache {
         };
         if api == PipelineApi::Nv {
             let Some(nv) = self.dev.nv.clone() else {
-                return Err(RealiseError::Unsupported("the case traces rays but does not enable VK_NV_ray_tracing".into()));
+                return Err(RealiseError::Unsupported(
+                    "the case traces rays but does not enable VK_NV_ray_tracing".into(),
+                ));
             };
             return match self.build_nv_scene_into(&nv, instances, &mut scene) {
                 Ok(()) => Ok(scene),
@@ -808,7 +1037,9 @@ impl DeviceCache {
                 "the case traces rays but does not enable VK_KHR_acceleration_structure".into(),
             ));
         };
-        if !self.dev.has_feature("accelerationStructure") || !self.dev.has_feature("bufferDeviceAddress") {
+        if !self.dev.has_feature("accelerationStructure")
+            || !self.dev.has_feature("bufferDeviceAddress")
+        {
             return Err(RealiseError::Unsupported(
                 "the case traces rays but does not enable accelerationStructure and bufferDeviceAddress".into(),
             ));
@@ -832,9 +1063,10 @@ impl DeviceCache {
         let dev = &self.dev;
         let input_usage = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
             | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-        let storage_usage =
-            vk::BufferUsageFlags::ACCELERATION_STRUCTURE_STORAGE_KHR | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-        let scratch_usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+        let storage_usage = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_STORAGE_KHR
+            | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+        let scratch_usage =
+            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
         let scratch_align = (dev.limits.scratch_alignment as u64).max(256);
         let none = vk::BufferCreateFlags::empty();
         // Geometry input: triangles (3 vertices) and boxes per geometry, all in one buffer.
@@ -850,11 +1082,23 @@ impl DeviceCache {
                 per.push(input.len() as u64);
                 let floats: Vec<f32> = match kind {
                     GeometryKind::Triangles => {
-                        vec![cx - 0.5, cy - 0.5, 0.0, cx + 0.5, cy - 0.5, 0.0, cx, cy + 0.5, 0.0]
+                        vec![
+                            cx - 0.5,
+                            cy - 0.5,
+                            0.0,
+                            cx + 0.5,
+                            cy - 0.5,
+                            0.0,
+                            cx,
+                            cy + 0.5,
+                            0.0,
+                        ]
                     }
                     GeometryKind::Aabbs => vec![cx - 0.5, cy - 0.5, -0.5, cx + 0.5, cy + 0.5, 0.5],
                 };
-                floats.iter().for_each(|f| input.extend_from_slice(&f.to_ne_bytes()));
+                floats
+                    .iter()
+                    .for_each(|f| input.extend_from_slice(&f.to_ne_bytes()));
             }
             offsets.push(per);
         }
@@ -864,8 +1108,12 @@ impl DeviceCache {
         scene.buffers.push(inputs);
 
         let mut blas_addresses = Vec::new();
-        let mut builds: Vec<(Vec<vk::AccelerationStructureGeometryKHR>, Vec<vk::AccelerationStructureBuildRangeInfoKHR>, vk::AccelerationStructureKHR, u64)> =
-            Vec::new();
+        let mut builds: Vec<(
+            Vec<vk::AccelerationStructureGeometryKHR>,
+            Vec<vk::AccelerationStructureBuildRangeInfoKHR>,
+            vk::AccelerationStructureKHR,
+            u64,
+        )> = Vec::new();
         for (i, inst) in instances.iter().enumerate() {
             if inst.geometries.is_empty() {
                 // An instance without geometry is made inactive (reference 0, semantics.md §4): it keeps its
@@ -897,8 +1145,13 @@ impl DeviceCache {
                     GeometryKind::Triangles => vk::GeometryTypeKHR::TRIANGLES,
                     GeometryKind::Aabbs => vk::GeometryTypeKHR::AABBS,
                 };
-                geoms.push(vk::AccelerationStructureGeometryKHR::default().geometry_type(ty).geometry(data));
-                ranges.push(vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(1));
+                geoms.push(
+                    vk::AccelerationStructureGeometryKHR::default()
+                        .geometry_type(ty)
+                        .geometry(data),
+                );
+                ranges
+                    .push(vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(1));
             }
             let counts: Vec<u32> = ranges.iter().map(|r| r.primitive_count).collect();
             let info = vk::AccelerationStructureBuildGeometryInfoKHR::default()
@@ -915,8 +1168,20 @@ impl DeviceCache {
                     &mut sizes,
                 )
             };
-            let storage = Allocation::new(dev, sizes.acceleration_structure_size, storage_usage, none, 256)?;
-            let scratch = Allocation::new(dev, sizes.build_scratch_size.max(1), scratch_usage, none, scratch_align)?;
+            let storage = Allocation::new(
+                dev,
+                sizes.acceleration_structure_size,
+                storage_usage,
+                none,
+                256,
+            )?;
+            let scratch = Allocation::new(
+                dev,
+                sizes.build_scratch_size.max(1),
+                scratch_usage,
+                none,
+                scratch_align,
+            )?;
             // SAFETY: storage buffer is large enough.
             let blas = unsafe {
                 accel.create_acceleration_structure(
@@ -932,7 +1197,8 @@ impl DeviceCache {
             // SAFETY: valid structure.
             let addr = unsafe {
                 accel.get_acceleration_structure_device_address(
-                    &vk::AccelerationStructureDeviceAddressInfoKHR::default().acceleration_structure(blas),
+                    &vk::AccelerationStructureDeviceAddressInfoKHR::default()
+                        .acceleration_structure(blas),
                 )
             };
             blas_addresses.push(addr);
@@ -945,23 +1211,39 @@ impl DeviceCache {
             .iter()
             .zip(&blas_addresses)
             .map(|(inst, addr)| vk::AccelerationStructureInstanceKHR {
-                transform: vk::TransformMatrixKHR { matrix: [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0] },
+                transform: vk::TransformMatrixKHR {
+                    matrix: [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+                },
                 instance_custom_index_and_mask: vk::Packed24_8::new(0, inst.mask),
                 instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(
                     inst.sbt_record_offset & 0xFF_FFFF,
                     0,
                 ),
-                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR { device_handle: *addr },
+                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR {
+                    device_handle: *addr,
+                },
             })
             .collect();
-        let record_bytes: Vec<u8> = records.iter().flat_map(|r| crate::structs::as_bytes(r).to_vec()).collect();
-        let inst_buf = Allocation::new(dev, record_bytes.len().max(64) as u64, input_usage, none, 256)?;
+        let record_bytes: Vec<u8> = records
+            .iter()
+            .flat_map(|r| crate::structs::as_bytes(r).to_vec())
+            .collect();
+        let inst_buf = Allocation::new(
+            dev,
+            record_bytes.len().max(64) as u64,
+            input_usage,
+            none,
+            256,
+        )?;
         inst_buf.write(0, &record_bytes);
         let tlas_geom = [vk::AccelerationStructureGeometryKHR::default()
             .geometry_type(vk::GeometryTypeKHR::INSTANCES)
             .geometry(vk::AccelerationStructureGeometryDataKHR {
-                instances: vk::AccelerationStructureGeometryInstancesDataKHR::default()
-                    .data(vk::DeviceOrHostAddressConstKHR { device_address: inst_buf.address }),
+                instances: vk::AccelerationStructureGeometryInstancesDataKHR::default().data(
+                    vk::DeviceOrHostAddressConstKHR {
+                        device_address: inst_buf.address,
+                    },
+                ),
             })];
         scene.buffers.push(inst_buf);
         let tlas_count = [instances.len() as u32];
@@ -979,8 +1261,20 @@ impl DeviceCache {
                 &mut sizes,
             )
         };
-        let storage = Allocation::new(dev, sizes.acceleration_structure_size, storage_usage, none, 256)?;
-        let scratch = Allocation::new(dev, sizes.build_scratch_size.max(1), scratch_usage, none, scratch_align)?;
+        let storage = Allocation::new(
+            dev,
+            sizes.acceleration_structure_size,
+            storage_usage,
+            none,
+            256,
+        )?;
+        let scratch = Allocation::new(
+            dev,
+            sizes.build_scratch_size.max(1),
+            scratch_usage,
+            none,
+            scratch_align,
+        )?;
         // SAFETY: storage is large enough.
         let tlas = unsafe {
             accel.create_acceleration_structure(
@@ -1003,16 +1297,23 @@ impl DeviceCache {
         let cb = self.primary;
         // SAFETY: the command buffer is idle (every case waits or resets before returning).
         unsafe {
-            d.reset_command_buffer(cb, vk::CommandBufferResetFlags::empty()).map_err(vkfail("vkResetCommandBuffer"))?;
-            d.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT))
-                .map_err(vkfail("vkBeginCommandBuffer"))?;
+            d.reset_command_buffer(cb, vk::CommandBufferResetFlags::empty())
+                .map_err(vkfail("vkResetCommandBuffer"))?;
+            d.begin_command_buffer(
+                cb,
+                &vk::CommandBufferBeginInfo::default()
+                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+            )
+            .map_err(vkfail("vkBeginCommandBuffer"))?;
             for (geoms, ranges, blas, scratch) in &builds {
                 let info = vk::AccelerationStructureBuildGeometryInfoKHR::default()
                     .ty(vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL)
                     .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
                     .geometries(geoms)
                     .dst_acceleration_structure(*blas)
-                    .scratch_data(vk::DeviceOrHostAddressKHR { device_address: *scratch });
+                    .scratch_data(vk::DeviceOrHostAddressKHR {
+                        device_address: *scratch,
+                    });
                 accel.cmd_build_acceleration_structures(cb, &[info], &[ranges.as_slice()]);
             }
             let barrier = vk::MemoryBarrier::default()
@@ -1021,18 +1322,23 @@ impl DeviceCache {
             d.cmd_pipeline_barrier(
                 cb,
                 vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR,
-                vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR | vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
+                vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR
+                    | vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
                 vk::DependencyFlags::empty(),
                 &[barrier],
                 &[],
                 &[],
             );
-            let info = tlas_info
-                .dst_acceleration_structure(tlas)
-                .scratch_data(vk::DeviceOrHostAddressKHR { device_address: tlas_scratch });
-            let range = [vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(instances.len() as u32)];
+            let info = tlas_info.dst_acceleration_structure(tlas).scratch_data(
+                vk::DeviceOrHostAddressKHR {
+                    device_address: tlas_scratch,
+                },
+            );
+            let range = [vk::AccelerationStructureBuildRangeInfoKHR::default()
+                .primitive_count(instances.len() as u32)];
             accel.cmd_build_acceleration_structures(cb, &[info], &[&range]);
-            d.end_command_buffer(cb).map_err(vkfail("vkEndCommandBuffer"))?;
+            d.end_command_buffer(cb)
+                .map_err(vkfail("vkEndCommandBuffer"))?;
         }
         self.submit_and_wait(std::time::Duration::from_secs(60))
     }
@@ -1062,10 +1368,22 @@ impl DeviceCache {
                 }
                 per.push(input.len() as u64);
                 let floats: Vec<f32> = match kind {
-                    GeometryKind::Triangles => vec![cx - 0.5, cy - 0.5, 0.0, cx + 0.5, cy - 0.5, 0.0, cx, cy + 0.5, 0.0],
+                    GeometryKind::Triangles => vec![
+                        cx - 0.5,
+                        cy - 0.5,
+                        0.0,
+                        cx + 0.5,
+                        cy - 0.5,
+                        0.0,
+                        cx,
+                        cy + 0.5,
+                        0.0,
+                    ],
                     GeometryKind::Aabbs => vec![cx - 0.5, cy - 0.5, -0.5, cx + 0.5, cy + 0.5, 0.5],
                 };
-                floats.iter().for_each(|f| input.extend_from_slice(&f.to_ne_bytes()));
+                floats
+                    .iter()
+                    .for_each(|f| input.extend_from_slice(&f.to_ne_bytes()));
             }
             offsets.push(per);
         }
@@ -1075,16 +1393,25 @@ impl DeviceCache {
         scene.buffers.push(inputs);
 
         // Creates a structure for `info`, binds it to fresh memory and makes a scratch buffer for its build.
-        let make = |info: vk::AccelerationStructureInfoNV, scene: &mut Scene| -> Result<(vk::AccelerationStructureNV, vk::Buffer), RealiseError> {
+        let make = |info: vk::AccelerationStructureInfoNV,
+                    scene: &mut Scene|
+         -> Result<(vk::AccelerationStructureNV, vk::Buffer), RealiseError> {
             // SAFETY: valid description whose geometry pointers outlive the call.
-            let s = unsafe { nv.create_acceleration_structure(&vk::AccelerationStructureCreateInfoNV::default().info(info), None) }
-                .map_err(vkfail("vkCreateAccelerationStructureNV"))?;
+            let s = unsafe {
+                nv.create_acceleration_structure(
+                    &vk::AccelerationStructureCreateInfoNV::default().info(info),
+                    None,
+                )
+            }
+            .map_err(vkfail("vkCreateAccelerationStructureNV"))?;
             scene.nv_structures.push(s);
             let req = |ty| {
                 // SAFETY: valid structure.
                 unsafe {
                     nv.get_acceleration_structure_memory_requirements(
-                        &vk::AccelerationStructureMemoryRequirementsInfoNV::default().ty(ty).acceleration_structure(s),
+                        &vk::AccelerationStructureMemoryRequirementsInfoNV::default()
+                            .ty(ty)
+                            .acceleration_structure(s),
                     )
                 }
                 .memory_requirements
@@ -1092,24 +1419,46 @@ impl DeviceCache {
             let object = req(vk::AccelerationStructureMemoryRequirementsTypeNV::OBJECT);
             let scratch = req(vk::AccelerationStructureMemoryRequirementsTypeNV::BUILD_SCRATCH);
             let mt = dev
-                .memory_type(object.memory_type_bits, vk::MemoryPropertyFlags::DEVICE_LOCAL)
-                .or_else(|| dev.memory_type(object.memory_type_bits, vk::MemoryPropertyFlags::empty()))
-                .ok_or_else(|| RealiseError::Unsupported("no memory type for an NV acceleration structure".into()))?;
-            let ai = vk::MemoryAllocateInfo::default().allocation_size(object.size.max(1)).memory_type_index(mt);
+                .memory_type(
+                    object.memory_type_bits,
+                    vk::MemoryPropertyFlags::DEVICE_LOCAL,
+                )
+                .or_else(|| {
+                    dev.memory_type(object.memory_type_bits, vk::MemoryPropertyFlags::empty())
+                })
+                .ok_or_else(|| {
+                    RealiseError::Unsupported(
+                        "no memory type for an NV acceleration structure".into(),
+                    )
+                })?;
+            let ai = vk::MemoryAllocateInfo::default()
+                .allocation_size(object.size.max(1))
+                .memory_type_index(mt);
             // SAFETY: valid allocate info.
-            let memory = unsafe { dev.device.allocate_memory(&ai, None) }.map_err(vkfail("vkAllocateMemory"))?;
+            let memory = unsafe { dev.device.allocate_memory(&ai, None) }
+                .map_err(vkfail("vkAllocateMemory"))?;
             scene.nv_memory.push(memory);
-            let bind = [vk::BindAccelerationStructureMemoryInfoNV::default().acceleration_structure(s).memory(memory)];
+            let bind = [vk::BindAccelerationStructureMemoryInfoNV::default()
+                .acceleration_structure(s)
+                .memory(memory)];
             // SAFETY: fresh memory of the required type and size.
-            unsafe { nv.bind_acceleration_structure_memory(&bind) }.map_err(vkfail("vkBindAccelerationStructureMemoryNV"))?;
-            let scratch_buf = Allocation::new(dev, scratch.size.max(1), usage, none, scratch.alignment.max(256))?;
+            unsafe { nv.bind_acceleration_structure_memory(&bind) }
+                .map_err(vkfail("vkBindAccelerationStructureMemoryNV"))?;
+            let scratch_buf = Allocation::new(
+                dev,
+                scratch.size.max(1),
+                usage,
+                none,
+                scratch.alignment.max(256),
+            )?;
             let b = scratch_buf.buffer;
             scene.buffers.push(scratch_buf);
             Ok((s, b))
         };
 
         let mut handles = Vec::new();
-        let mut blas_builds: Vec<(Vec<vk::GeometryNV>, vk::AccelerationStructureNV, vk::Buffer)> = Vec::new();
+        let mut blas_builds: Vec<(Vec<vk::GeometryNV>, vk::AccelerationStructureNV, vk::Buffer)> =
+            Vec::new();
         for (i, inst) in instances.iter().enumerate() {
             if inst.geometries.is_empty() {
                 handles.push(0u64);
@@ -1134,17 +1483,24 @@ impl DeviceCache {
                             vk::GeometryTypeNV::TRIANGLES
                         }
                         GeometryKind::Aabbs => {
-                            data.aabbs = vk::GeometryAABBNV::default().aabb_data(input_buffer).num_aab_bs(1).stride(24).offset(at);
+                            data.aabbs = vk::GeometryAABBNV::default()
+                                .aabb_data(input_buffer)
+                                .num_aab_bs(1)
+                                .stride(24)
+                                .offset(at);
                             vk::GeometryTypeNV::AABBS
                         }
                     };
                     vk::GeometryNV::default().geometry_type(ty).geometry(data)
                 })
                 .collect();
-            let info = vk::AccelerationStructureInfoNV::default().ty(vk::AccelerationStructureTypeNV::BOTTOM_LEVEL).geometries(&geoms);
+            let info = vk::AccelerationStructureInfoNV::default()
+                .ty(vk::AccelerationStructureTypeNV::BOTTOM_LEVEL)
+                .geometries(&geoms);
             let (blas, scratch) = make(info, scene)?;
             // SAFETY: the structure is bound to memory.
-            let handle = unsafe { nv.get_acceleration_structure_handle(blas) }.map_err(vkfail("vkGetAccelerationStructureHandleNV"))?;
+            let handle = unsafe { nv.get_acceleration_structure_handle(blas) }
+                .map_err(vkfail("vkGetAccelerationStructureHandleNV"))?;
             handles.push(handle);
             blas_builds.push((geoms, blas, scratch));
         }
@@ -1152,13 +1508,23 @@ impl DeviceCache {
             .iter()
             .zip(&handles)
             .map(|(inst, handle)| vk::AccelerationStructureInstanceNV {
-                transform: vk::TransformMatrixKHR { matrix: [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0] },
+                transform: vk::TransformMatrixKHR {
+                    matrix: [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+                },
                 instance_custom_index_and_mask: vk::Packed24_8::new(0, inst.mask),
-                instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(inst.sbt_record_offset & 0xFF_FFFF, 0),
-                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR { device_handle: *handle },
+                instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(
+                    inst.sbt_record_offset & 0xFF_FFFF,
+                    0,
+                ),
+                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR {
+                    device_handle: *handle,
+                },
             })
             .collect();
-        let record_bytes: Vec<u8> = records.iter().flat_map(|r| crate::structs::as_bytes(r).to_vec()).collect();
+        let record_bytes: Vec<u8> = records
+            .iter()
+            .flat_map(|r| crate::structs::as_bytes(r).to_vec())
+            .collect();
         let inst_buf = Allocation::new(dev, record_bytes.len().max(64) as u64, usage, none, 256)?;
         inst_buf.write(0, &record_bytes);
         let inst_buffer = inst_buf.buffer;
@@ -1173,12 +1539,29 @@ impl DeviceCache {
         let cb = self.primary;
         // SAFETY: the command buffer is idle; every structure is bound to memory.
         unsafe {
-            d.reset_command_buffer(cb, vk::CommandBufferResetFlags::empty()).map_err(vkfail("vkResetCommandBuffer"))?;
-            d.begin_command_buffer(cb, &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT))
-                .map_err(vkfail("vkBeginCommandBuffer"))?;
+            d.reset_command_buffer(cb, vk::CommandBufferResetFlags::empty())
+                .map_err(vkfail("vkResetCommandBuffer"))?;
+            d.begin_command_buffer(
+                cb,
+                &vk::CommandBufferBeginInfo::default()
+                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+            )
+            .map_err(vkfail("vkBeginCommandBuffer"))?;
             for (geoms, blas, scratch) in &blas_builds {
-                let info = vk::AccelerationStructureInfoNV::default().ty(vk::AccelerationStructureTypeNV::BOTTOM_LEVEL).geometries(geoms);
-                nv.cmd_build_acceleration_structure(cb, &info, vk::Buffer::null(), 0, false, *blas, vk::AccelerationStructureNV::null(), *scratch, 0);
+                let info = vk::AccelerationStructureInfoNV::default()
+                    .ty(vk::AccelerationStructureTypeNV::BOTTOM_LEVEL)
+                    .geometries(geoms);
+                nv.cmd_build_acceleration_structure(
+                    cb,
+                    &info,
+                    vk::Buffer::null(),
+                    0,
+                    false,
+                    *blas,
+                    vk::AccelerationStructureNV::null(),
+                    *scratch,
+                    0,
+                );
             }
             let barrier = vk::MemoryBarrier::default()
                 .src_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_NV)
@@ -1186,14 +1569,26 @@ impl DeviceCache {
             d.cmd_pipeline_barrier(
                 cb,
                 vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_NV,
-                vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_NV | vk::PipelineStageFlags::RAY_TRACING_SHADER_NV,
+                vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_NV
+                    | vk::PipelineStageFlags::RAY_TRACING_SHADER_NV,
                 vk::DependencyFlags::empty(),
                 &[barrier],
                 &[],
                 &[],
             );
-            nv.cmd_build_acceleration_structure(cb, &tlas_info, inst_buffer, 0, false, tlas, vk::AccelerationStructureNV::null(), tlas_scratch, 0);
-            d.end_command_buffer(cb).map_err(vkfail("vkEndCommandBuffer"))?;
+            nv.cmd_build_acceleration_structure(
+                cb,
+                &tlas_info,
+                inst_buffer,
+                0,
+                false,
+                tlas,
+                vk::AccelerationStructureNV::null(),
+                tlas_scratch,
+                0,
+            );
+            d.end_command_buffer(cb)
+                .map_err(vkfail("vkEndCommandBuffer"))?;
         }
         self.submit_and_wait(std::time::Duration::from_secs(60))
     }
@@ -1202,7 +1597,9 @@ impl DeviceCache {
     /// finish marks the cache [`lost`](Self::lost): nothing is recorded or submitted on it again.
     pub fn submit_and_wait(&mut self, timeout: std::time::Duration) -> Result<(), RealiseError> {
         if self.lost {
-            return Err(RealiseError::Failed("the device was lost by an earlier case (ERROR_DEVICE_LOST)".into()));
+            return Err(RealiseError::Failed(
+                "the device was lost by an earlier case (ERROR_DEVICE_LOST)".into(),
+            ));
         }
         let d = &self.dev.device;
         let cbs = [self.primary];
@@ -1213,19 +1610,28 @@ impl DeviceCache {
                 self.lost |= r == vk::Result::ERROR_DEVICE_LOST;
                 return Err(RealiseError::Failed(format!("vkQueueSubmit failed: {r:?}")));
             }
-            let waited = d.wait_for_fences(&[self.fence], true, timeout.as_nanos().min(u64::MAX as u128) as u64);
+            let waited = d.wait_for_fences(
+                &[self.fence],
+                true,
+                timeout.as_nanos().min(u64::MAX as u128) as u64,
+            );
             match waited {
                 Ok(()) => {}
                 Err(vk::Result::TIMEOUT) => {
                     self.lost = true;
-                    return Err(RealiseError::Failed(format!("TIMEOUT: the GPU did not finish within {timeout:?}")));
+                    return Err(RealiseError::Failed(format!(
+                        "TIMEOUT: the GPU did not finish within {timeout:?}"
+                    )));
                 }
                 Err(r) => {
                     self.lost |= r == vk::Result::ERROR_DEVICE_LOST;
-                    return Err(RealiseError::Failed(format!("vkWaitForFences failed: {r:?}")));
+                    return Err(RealiseError::Failed(format!(
+                        "vkWaitForFences failed: {r:?}"
+                    )));
                 }
             }
-            d.reset_fences(&[self.fence]).map_err(vkfail("vkResetFences"))?;
+            d.reset_fences(&[self.fence])
+                .map_err(vkfail("vkResetFences"))?;
         }
         Ok(())
     }
@@ -1254,28 +1660,51 @@ impl DeviceCache {
 
     /// Buffers at least `words` output words, `rays` ray records and `callables` callable indices large
     /// (grown when needed).
-    pub fn io_buffers(&mut self, words: usize, rays: usize, callables: usize) -> Result<(), RealiseError> {
+    pub fn io_buffers(
+        &mut self,
+        words: usize,
+        rays: usize,
+        callables: usize,
+    ) -> Result<(), RealiseError> {
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let want_out = (words.max(1) * 4) as u64;
         if self.output.as_ref().is_none_or(|a| a.size < want_out) {
             if let Some(a) = self.output.take() {
                 a.destroy(&self.dev);
             }
-            self.output = Some(Allocation::new(&self.dev, want_out.max(4096), usage, vk::BufferCreateFlags::empty(), 1)?);
+            self.output = Some(Allocation::new(
+                &self.dev,
+                want_out.max(4096),
+                usage,
+                vk::BufferCreateFlags::empty(),
+                1,
+            )?);
         }
         let want_rays = (16 + rays.max(1) * RAY_RECORD_SIZE) as u64;
         if self.rays.as_ref().is_none_or(|a| a.size < want_rays) {
             if let Some(a) = self.rays.take() {
                 a.destroy(&self.dev);
             }
-            self.rays = Some(Allocation::new(&self.dev, want_rays.max(4096), usage, vk::BufferCreateFlags::empty(), 1)?);
+            self.rays = Some(Allocation::new(
+                &self.dev,
+                want_rays.max(4096),
+                usage,
+                vk::BufferCreateFlags::empty(),
+                1,
+            )?);
         }
         let want_calls = (16 + callables.max(1) * 4) as u64;
         if self.callables.as_ref().is_none_or(|a| a.size < want_calls) {
             if let Some(a) = self.callables.take() {
                 a.destroy(&self.dev);
             }
-            self.callables = Some(Allocation::new(&self.dev, want_calls.max(256), usage, vk::BufferCreateFlags::empty(), 1)?);
+            self.callables = Some(Allocation::new(
+                &self.dev,
+                want_calls.max(256),
+                usage,
+                vk::BufferCreateFlags::empty(),
+                1,
+            )?);
         }
         Ok(())
     }
@@ -1286,15 +1715,24 @@ impl DeviceCache {
             return Ok(rp);
         }
         let d = &self.dev.device;
-        let subpass = [vk::SubpassDescription::default().pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)];
+        let subpass =
+            [vk::SubpassDescription::default()
+                .pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)];
         // SAFETY: valid create infos.
         unsafe {
             let rp = d
-                .create_render_pass(&vk::RenderPassCreateInfo::default().subpasses(&subpass), None)
+                .create_render_pass(
+                    &vk::RenderPassCreateInfo::default().subpasses(&subpass),
+                    None,
+                )
                 .map_err(vkfail("vkCreateRenderPass"))?;
             let fb = d
                 .create_framebuffer(
-                    &vk::FramebufferCreateInfo::default().render_pass(rp).width(1).height(1).layers(1),
+                    &vk::FramebufferCreateInfo::default()
+                        .render_pass(rp)
+                        .width(1)
+                        .height(1)
+                        .layers(1),
                     None,
                 )
                 .map_err(vkfail("vkCreateFramebuffer"))?;
@@ -1304,7 +1742,11 @@ impl DeviceCache {
     }
 
     /// Creates the case's buffers with their contents; returns them by name.
-    pub fn case_buffers(&mut self, world: &World, pipeline: Option<(&Pipeline, bool)>) -> Result<Vec<(String, Allocation)>, RealiseError> {
+    pub fn case_buffers(
+        &mut self,
+        world: &World,
+        pipeline: Option<(&Pipeline, bool)>,
+    ) -> Result<Vec<(String, Allocation)>, RealiseError> {
         let mut out: Vec<(String, Allocation)> = Vec::new();
         let r = self.case_buffers_into(world, pipeline, &mut out);
         if let Err(e) = r {
@@ -1337,13 +1779,18 @@ impl DeviceCache {
         let foreign: Vec<u8> = match (pipeline, needs_foreign) {
             (Some((p, trace)), true) => self.pipeline(p, trace, true)?.handles.clone(),
             (None, true) => {
-                return Err(RealiseError::Unsupported("foreign handles need a pipeline description to copy".into()))
+                return Err(RealiseError::Unsupported(
+                    "foreign handles need a pipeline description to copy".into(),
+                ))
             }
             _ => Vec::new(),
         };
         // KHR calls name buffers by device address; vkCmdTraceRaysNV names them by handle and needs none.
         let wants_address = pipeline.is_none_or(|(p, _)| p.api == PipelineApi::Khr);
-        if !self.dev.has_feature("bufferDeviceAddress") && wants_address && !world.buffers.is_empty() {
+        if !self.dev.has_feature("bufferDeviceAddress")
+            && wants_address
+            && !world.buffers.is_empty()
+        {
             return Err(RealiseError::Unsupported(
                 "the case does not enable bufferDeviceAddress, so the harness cannot give its buffers addresses".into(),
             ));
@@ -1352,7 +1799,10 @@ impl DeviceCache {
             let usage = vk::BufferUsageFlags::from_raw(b.usage.0 as u32);
             let flags = vk::BufferCreateFlags::from_raw(b.flags.0 as u32);
             if b.size == 0 {
-                return Err(RealiseError::Unsupported(format!("buffer `{}` has size 0, which cannot be created", b.name)));
+                return Err(RealiseError::Unsupported(format!(
+                    "buffer `{}` has size 0, which cannot be created",
+                    b.name
+                )));
             }
             let a = if b.is_sparse() {
                 let plan = match b.memory {
@@ -1386,19 +1836,30 @@ impl DeviceCache {
             };
             for c in &b.contents {
                 match c {
-                    Contents::ShaderRecords { offset, stride, handles } => {
+                    Contents::ShaderRecords {
+                        offset,
+                        stride,
+                        handles,
+                    } => {
                         for (i, h) in handles.iter().enumerate() {
                             let bytes: Vec<u8> = match h {
                                 HandleRef::Zero => vec![0; hs],
-                                HandleRef::Group(n) => own.get(*n as usize * hs..(*n as usize + 1) * hs).map_or(vec![0; hs], |s| s.to_vec()),
-                                HandleRef::Foreign(n) => {
-                                    foreign.get(*n as usize * hs..(*n as usize + 1) * hs).map_or(vec![0; hs], |s| s.to_vec())
-                                }
+                                HandleRef::Group(n) => own
+                                    .get(*n as usize * hs..(*n as usize + 1) * hs)
+                                    .map_or(vec![0; hs], |s| s.to_vec()),
+                                HandleRef::Foreign(n) => foreign
+                                    .get(*n as usize * hs..(*n as usize + 1) * hs)
+                                    .map_or(vec![0; hs], |s| s.to_vec()),
                             };
                             a.write(offset + i as u64 * stride, &bytes);
                         }
                     }
-                    Contents::TraceRaysIndirectCommand { offset, width, height, depth } => {
+                    Contents::TraceRaysIndirectCommand {
+                        offset,
+                        width,
+                        height,
+                        depth,
+                    } => {
                         let mut bytes = Vec::with_capacity(12);
                         for v in [width, height, depth] {
                             bytes.extend_from_slice(&v.to_ne_bytes());
@@ -1419,9 +1880,21 @@ impl DeviceCache {
     fn check_sparse(&self, b: &model::world::Buffer) -> Result<(), RealiseError> {
         use model::flags::BufferCreate;
         let needs = [
-            (BufferCreate::SPARSE_BINDING_BIT, "sparseBinding", "VUID-VkBufferCreateInfo-flags-00915"),
-            (BufferCreate::SPARSE_RESIDENCY_BIT, "sparseResidencyBuffer", "VUID-VkBufferCreateInfo-flags-00916"),
-            (BufferCreate::SPARSE_ALIASED_BIT, "sparseResidencyAliased", "VUID-VkBufferCreateInfo-flags-00917"),
+            (
+                BufferCreate::SPARSE_BINDING_BIT,
+                "sparseBinding",
+                "VUID-VkBufferCreateInfo-flags-00915",
+            ),
+            (
+                BufferCreate::SPARSE_RESIDENCY_BIT,
+                "sparseResidencyBuffer",
+                "VUID-VkBufferCreateInfo-flags-00916",
+            ),
+            (
+                BufferCreate::SPARSE_ALIASED_BIT,
+                "sparseResidencyAliased",
+                "VUID-VkBufferCreateInfo-flags-00917",
+            ),
         ];
         for (flag, feature, vuid) in needs {
             if b.flags.contains(flag) && !self.dev.has_feature(feature) {

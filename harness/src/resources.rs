@@ -55,35 +55,63 @@ pub fn unsupported(world: &World) -> Option<String> {
     if st.is_empty() {
         return None;
     }
-    if st.descriptor_source == DescriptorSource::Buffers || st.pipeline_descriptor_buffer || st.descriptor_memory_not_resident {
+    if st.descriptor_source == DescriptorSource::Buffers
+        || st.pipeline_descriptor_buffer
+        || st.descriptor_memory_not_resident
+    {
         return Some("descriptor buffers (VK_EXT_descriptor_buffer) are not realised: the captured lavapipe lacks the extension".into());
     }
     if !st.tensors.is_empty() || !st.tensor_views.is_empty() {
-        return Some("tensors (VK_ARM_tensors) are not realised: no reachable driver has the extension".into());
+        return Some(
+            "tensors (VK_ARM_tensors) are not realised: no reachable driver has the extension"
+                .into(),
+        );
     }
-    if st.tile != TileState::default() || st.images.iter().any(|i| i.tile_memory.is_some()) || st.buffers.iter().any(|b| b.tile_memory.is_some()) {
+    if st.tile != TileState::default()
+        || st.images.iter().any(|i| i.tile_memory.is_some())
+        || st.buffers.iter().any(|b| b.tile_memory.is_some())
+    {
         return Some("tile shading and tile memory (VK_QCOM_tile_shading / _tile_memory_heap) are not realised: no reachable driver has them".into());
     }
-    if st.images.iter().any(|i| i.sparse_residency) || st.buffers.iter().any(|b| b.sparse_residency) {
+    if st.images.iter().any(|i| i.sparse_residency) || st.buffers.iter().any(|b| b.sparse_residency)
+    {
         return Some("sparse-resident images and descriptor buffers are not realised for resource states yet".into());
     }
     if st.images.iter().any(|i| i.corner_sampled) {
         return Some("corner-sampled images (VK_NV_corner_sampled_image) are not realised: lavapipe lacks the extension".into());
     }
-    if st.samplers.iter().any(|s| s.filters(Filter::CubicExt) || s.image_processing || s.ycbcr_conversion || s.reduction == Reduction::WeightedAverageRangeclampQcom || s.cubic_weights != CubicWeights::CatmullRom)
-        || st.image_views.iter().any(|v| v.ycbcr_conversion)
+    if st.samplers.iter().any(|s| {
+        s.filters(Filter::CubicExt)
+            || s.image_processing
+            || s.ycbcr_conversion
+            || s.reduction == Reduction::WeightedAverageRangeclampQcom
+            || s.cubic_weights != CubicWeights::CatmullRom
+    }) || st.image_views.iter().any(|v| v.ycbcr_conversion)
     {
         return Some("cubic filtering, QCOM image processing and YCbCr conversion samplers/views are not realised: lavapipe lacks those extensions".into());
     }
-    if st.stages.iter().any(|s| s.stage != Stage::Raygen && (!s.accesses.is_empty() || s.push_constants.is_some())) {
+    if st
+        .stages
+        .iter()
+        .any(|s| s.stage != Stage::Raygen && (!s.accesses.is_empty() || s.push_constants.is_some()))
+    {
         return Some("resource accesses outside the raygen stage are not realised yet (the harness templates only the raygen shader)".into());
     }
-    if st.stages.iter().any(|s| s.robustness != StageRobustness::default()) {
-        return Some("per-stage pipeline robustness (VK_EXT_pipeline_robustness) is not realised yet".into());
+    if st
+        .stages
+        .iter()
+        .any(|s| s.robustness != StageRobustness::default())
+    {
+        return Some(
+            "per-stage pipeline robustness (VK_EXT_pipeline_robustness) is not realised yet".into(),
+        );
     }
     for a in st.stages.iter().flat_map(|s| &s.accesses) {
         if a.op.is_qcom_processing() || matches!(a.op, Op::SampleWeightQcom | Op::Tensor) {
-            return Some(format!("{:?} accesses are vendor instructions no reachable driver has", a.op));
+            return Some(format!(
+                "{:?} accesses are vendor instructions no reachable driver has",
+                a.op
+            ));
         }
         if a.implicit_lod || a.lod_bias {
             return Some(
@@ -102,8 +130,14 @@ pub fn unsupported(world: &World) -> Option<String> {
              uncaught C++ exception) validating such a trace call on lavapipe, so the harness does not record it"
         ));
     }
-    if world.pipeline.as_ref().is_some_and(|p| p.api == PipelineApi::Nv) {
-        return Some("resource states with VK_NV_ray_tracing pipelines are not realised yet".into());
+    if world
+        .pipeline
+        .as_ref()
+        .is_some_and(|p| p.api == PipelineApi::Nv)
+    {
+        return Some(
+            "resource states with VK_NV_ray_tracing pipelines are not realised yet".into(),
+        );
     }
     None
 }
@@ -228,11 +262,22 @@ fn view_format(st: &ResourceState, a: &Access) -> Option<String> {
         Descriptor::TexelBuffer { view } => st.buffer_view(view).map(|v| v.format.clone()),
         _ => None,
     };
-    if let Some(f) = st.bound(a.set).and_then(|b| st.descriptor_set(&b.descriptor_set)).and_then(of) {
+    if let Some(f) = st
+        .bound(a.set)
+        .and_then(|b| st.descriptor_set(&b.descriptor_set))
+        .and_then(of)
+    {
         return Some(f);
     }
-    let layout = st.pipeline_layout.as_deref().and_then(|p| st.pipeline_layout_named(p)).and_then(|p| p.sets.get(a.set as usize))?;
-    st.descriptor_sets.iter().filter(|s| &s.layout == layout).find_map(of)
+    let layout = st
+        .pipeline_layout
+        .as_deref()
+        .and_then(|p| st.pipeline_layout_named(p))
+        .and_then(|p| p.sets.get(a.set as usize))?;
+    st.descriptor_sets
+        .iter()
+        .filter(|s| &s.layout == layout)
+        .find_map(of)
 }
 
 /// The raygen GLSL for a state: `base` (the harness's raygen source) with the raygen stage's accesses
@@ -253,8 +298,16 @@ pub fn raygen_glsl(st: &ResourceState, base: &str) -> Result<(String, Vec<Narrow
         if a.element >= count {
             return Err(format!("access {i} indexes element {} of a binding of {count}: GLSL refuses a constant index out of bounds", a.element));
         }
-        let arr = if count > 1 { format!("[{count}]") } else { String::new() };
-        let idx = if count > 1 { format!("[{}]", a.element) } else { String::new() };
+        let arr = if count > 1 {
+            format!("[{count}]")
+        } else {
+            String::new()
+        };
+        let idx = if count > 1 {
+            format!("[{}]", a.element)
+        } else {
+            String::new()
+        };
         let name = format!("r{i}");
         let lay = |extra: &str| format!("layout(set = {set}, binding = {}{extra})", a.binding);
         match a.op {
@@ -268,10 +321,19 @@ pub fn raygen_glsl(st: &ResourceState, base: &str) -> Result<(String, Vec<Narrow
                     Some(DescriptorType::StorageBuffer) => true,
                     Some(DescriptorType::UniformBuffer) => false,
                     None => a.op == Op::Store,
-                    Some(t) => return Err(format!("access {i} loads or stores through a {t:?} binding")),
+                    Some(t) => {
+                        return Err(format!(
+                            "access {i} loads or stores through a {t:?} binding"
+                        ))
+                    }
                 };
                 if storage {
-                    writeln!(decls, "{} buffer B{i} {{ uint w[]; }} {name}{arr};", lay(", std430")).unwrap();
+                    writeln!(
+                        decls,
+                        "{} buffer B{i} {{ uint w[]; }} {name}{arr};",
+                        lay(", std430")
+                    )
+                    .unwrap();
                     for k in words {
                         if a.op == Op::Store {
                             writeln!(body, "    {name}{idx}.w[{k}] = acc;").unwrap();
@@ -284,7 +346,12 @@ pub fn raygen_glsl(st: &ResourceState, base: &str) -> Result<(String, Vec<Narrow
                         return Err(format!("access {i} stores to a uniform buffer"));
                     }
                     let n = end.div_ceil(16).max(1);
-                    writeln!(decls, "{} uniform U{i} {{ uvec4 v[{n}]; }} {name}{arr};", lay(", std140")).unwrap();
+                    writeln!(
+                        decls,
+                        "{} uniform U{i} {{ uvec4 v[{n}]; }} {name}{arr};",
+                        lay(", std140")
+                    )
+                    .unwrap();
                     for k in words {
                         writeln!(body, "    acc += {name}{idx}.v[{}][{}];", k / 4, k % 4).unwrap();
                     }
@@ -293,7 +360,9 @@ pub fn raygen_glsl(st: &ResourceState, base: &str) -> Result<(String, Vec<Narrow
             }
             _ => {}
         }
-        let Some(t) = a.image else { return Err(format!("access {i} ({:?}) names no OpTypeImage", a.op)) };
+        let Some(t) = a.image else {
+            return Err(format!("access {i} ({:?}) names no OpTypeImage", a.op));
+        };
         let p = prefix(t.sampled_type);
         let base_ty = match t.sampled_type {
             Numeric::Float => "float",
@@ -312,20 +381,38 @@ pub fn raygen_glsl(st: &ResourceState, base: &str) -> Result<(String, Vec<Narrow
                     (Some(DescriptorType::SampledImage), _) => false,
                     (Some(DescriptorType::UniformTexelBuffer), _) if t.dim == Dim::Buffer => true,
                     (None, Some(_)) => false,
-                    (Some(other), _) => return Err(format!("access {i} samples or fetches through a {other:?} binding")),
+                    (Some(other), _) => {
+                        return Err(format!(
+                            "access {i} samples or fetches through a {other:?} binding"
+                        ))
+                    }
                 };
                 let sampler_expr = if combined {
-                    writeln!(decls, "{} uniform {p}sampler{ds}{shadow} {name}{arr};", lay("")).unwrap();
+                    writeln!(
+                        decls,
+                        "{} uniform {p}sampler{ds}{shadow} {name}{arr};",
+                        lay("")
+                    )
+                    .unwrap();
                     format!("{name}{idx}")
                 } else {
                     writeln!(decls, "{} uniform {p}texture{ds} {name}{arr};", lay("")).unwrap();
                     match a.sampler_at {
                         Some([s, b]) => {
-                            writeln!(decls, "layout(set = {}, binding = {b}) uniform sampler{shadow} {name}s;", s + 1).unwrap();
+                            writeln!(
+                                decls,
+                                "layout(set = {}, binding = {b}) uniform sampler{shadow} {name}s;",
+                                s + 1
+                            )
+                            .unwrap();
                             format!("{p}sampler{ds}{shadow}({name}{idx}, {name}s)")
                         }
                         None if a.op == Op::Fetch => format!("{name}{idx}"),
-                        None => return Err(format!("access {i} samples a sampled image with no sampler")),
+                        None => {
+                            return Err(format!(
+                                "access {i} samples a sampled image with no sampler"
+                            ))
+                        }
                     }
                 };
                 let e = if a.op == Op::Fetch {
@@ -335,7 +422,10 @@ pub fn raygen_glsl(st: &ResourceState, base: &str) -> Result<(String, Vec<Narrow
                     if t.dim == Dim::Buffer {
                         format!("texelFetch({sampler_expr}, 0).x")
                     } else if a.offset {
-                        format!("texelFetchOffset({sampler_expr}, {icoord}, 0, {}).x", vec_of("int", coord_len(t.dim), "0"))
+                        format!(
+                            "texelFetchOffset({sampler_expr}, {icoord}, 0, {}).x",
+                            vec_of("int", coord_len(t.dim), "0")
+                        )
                     } else {
                         format!("texelFetch({sampler_expr}, {icoord}, 0).x")
                     }
@@ -343,16 +433,31 @@ pub fn raygen_glsl(st: &ResourceState, base: &str) -> Result<(String, Vec<Narrow
                     if t.dim == Dim::Buffer {
                         return Err(format!("access {i} samples a buffer"));
                     }
-                    let c = if a.dref || a.proj { vec_of("float", n + a.dref as usize + a.proj as usize, "0.5") } else { fcoord.clone() };
-                    let f = if a.proj { "textureProjLod" } else { "textureLod" };
+                    let c = if a.dref || a.proj {
+                        vec_of("float", n + a.dref as usize + a.proj as usize, "0.5")
+                    } else {
+                        fcoord.clone()
+                    };
+                    let f = if a.proj {
+                        "textureProjLod"
+                    } else {
+                        "textureLod"
+                    };
                     let comp = if a.dref { "" } else { ".x" };
                     if a.offset {
-                        format!("{f}Offset({sampler_expr}, {c}, 0.0, {}){comp}", vec_of("int", coord_len(t.dim), "0"))
+                        format!(
+                            "{f}Offset({sampler_expr}, {c}, 0.0, {}){comp}",
+                            vec_of("int", coord_len(t.dim), "0")
+                        )
                     } else {
                         format!("{f}({sampler_expr}, {c}, 0.0){comp}")
                     }
                 };
-                let e = if a.dref { format!("floatBitsToUint({e})") } else { to_uint(t.sampled_type, &e) };
+                let e = if a.dref {
+                    format!("floatBitsToUint({e})")
+                } else {
+                    to_uint(t.sampled_type, &e)
+                };
                 writeln!(body, "    acc += {e};").unwrap();
             }
             Op::Read | Op::Write | Op::Atomic => {
@@ -361,7 +466,12 @@ pub fn raygen_glsl(st: &ResourceState, base: &str) -> Result<(String, Vec<Narrow
                     Some(DescriptorType::StorageImage) if !buffer => {}
                     Some(DescriptorType::StorageTexelBuffer) if buffer => {}
                     None => {}
-                    Some(other) => return Err(format!("access {i} ({:?}) goes through a {other:?} binding", a.op)),
+                    Some(other) => {
+                        return Err(format!(
+                            "access {i} ({:?}) goes through a {other:?} binding",
+                            a.op
+                        ))
+                    }
                 }
                 let fmt = if a.op == Op::Atomic {
                     if t.format_unknown {
@@ -375,8 +485,12 @@ pub fn raygen_glsl(st: &ResourceState, base: &str) -> Result<(String, Vec<Narrow
                 } else if t.format_unknown {
                     None
                 } else {
-                    let f = view_format(st, a).ok_or_else(|| format!("access {i}: no view format to declare the image with"))?;
-                    Some(glsl_format(&f).ok_or_else(|| format!("access {i}: format {f} has no GLSL image format qualifier"))?)
+                    let f = view_format(st, a).ok_or_else(|| {
+                        format!("access {i}: no view format to declare the image with")
+                    })?;
+                    Some(glsl_format(&f).ok_or_else(|| {
+                        format!("access {i}: format {f} has no GLSL image format qualifier")
+                    })?)
                 };
                 let q = match (a.op, fmt) {
                     (Op::Write, None) => "writeonly ",
@@ -388,9 +502,18 @@ pub fn raygen_glsl(st: &ResourceState, base: &str) -> Result<(String, Vec<Narrow
                     None => lay(""),
                 };
                 writeln!(decls, "{l} uniform {q}{p}image{ds} {name}{arr};").unwrap();
-                let c = if buffer { "0".to_string() } else { icoord.clone() };
+                let c = if buffer {
+                    "0".to_string()
+                } else {
+                    icoord.clone()
+                };
                 match a.op {
-                    Op::Read => writeln!(body, "    acc += {};", to_uint(t.sampled_type, &format!("imageLoad({name}{idx}, {c}).x"))).unwrap(),
+                    Op::Read => writeln!(
+                        body,
+                        "    acc += {};",
+                        to_uint(t.sampled_type, &format!("imageLoad({name}{idx}, {c}).x"))
+                    )
+                    .unwrap(),
                     Op::Atomic => {
                         let e = match t.sampled_type {
                             Numeric::Float => format!("imageAtomicExchange({name}{idx}, {c}, 1.0)"),
@@ -404,14 +527,40 @@ pub fn raygen_glsl(st: &ResourceState, base: &str) -> Result<(String, Vec<Narrow
                         if !(1..=4).contains(&k) {
                             return Err(format!("access {i} writes a texel of {k} components"));
                         }
-                        writeln!(body, "    imageStore({name}{idx}, {c}, {});", vec_of(base_ty, 4, "0")).unwrap();
+                        writeln!(
+                            body,
+                            "    imageStore({name}{idx}, {c}, {});",
+                            vec_of(base_ty, 4, "0")
+                        )
+                        .unwrap();
                         if k < 4 {
                             // GLSL's imageStore always writes four components: the module is patched
                             // after compilation (see `patch_narrow_writes`) so this OpImageWrite's texel
                             // is a constant of `k` components, which this variable makes sure exists.
-                            writeln!(body, "    {} n{i} = {};", vec_of(base_ty, k as usize, "0").split('(').next().unwrap_or("float"), vec_of(base_ty, k as usize, narrow_value(base_ty))).unwrap();
-                            writeln!(body, "    acc += {};", to_uint(t.sampled_type, &format!("n{i}{}", if k > 1 { ".x" } else { "" }))).unwrap();
-                            narrow.push(NarrowWrite { variable: name.clone(), component: t.sampled_type, components: k });
+                            writeln!(
+                                body,
+                                "    {} n{i} = {};",
+                                vec_of(base_ty, k as usize, "0")
+                                    .split('(')
+                                    .next()
+                                    .unwrap_or("float"),
+                                vec_of(base_ty, k as usize, narrow_value(base_ty))
+                            )
+                            .unwrap();
+                            writeln!(
+                                body,
+                                "    acc += {};",
+                                to_uint(
+                                    t.sampled_type,
+                                    &format!("n{i}{}", if k > 1 { ".x" } else { "" })
+                                )
+                            )
+                            .unwrap();
+                            narrow.push(NarrowWrite {
+                                variable: name.clone(),
+                                component: t.sampled_type,
+                                components: k,
+                            });
                         }
                     }
                 }
@@ -421,10 +570,16 @@ pub fn raygen_glsl(st: &ResourceState, base: &str) -> Result<(String, Vec<Narrow
     }
     if let Some([off, size]) = stage.and_then(|s| s.push_constants) {
         if off % 4 != 0 || size == 0 {
-            return Err(format!("push constant bytes [{off}, +{size}) are not whole words"));
+            return Err(format!(
+                "push constant bytes [{off}, +{size}) are not whole words"
+            ));
         }
         let n = size.div_ceil(4);
-        writeln!(decls, "layout(push_constant) uniform PC {{ layout(offset = {off}) uint w[{n}]; }} pc;").unwrap();
+        writeln!(
+            decls,
+            "layout(push_constant) uniform PC {{ layout(offset = {off}) uint w[{n}]; }} pc;"
+        )
+        .unwrap();
         for k in 0..n {
             writeln!(body, "    acc += pc.w[{k}];").unwrap();
         }
@@ -433,9 +588,22 @@ pub fn raygen_glsl(st: &ResourceState, base: &str) -> Result<(String, Vec<Narrow
     // static use without changing the output.
     body.push_str("    if (acc == 0x9E3779B9u && rays.pad1 == 0x5EEDu) { outp.words[0] = acc; }\n");
     let main = "void main() {\n";
-    let at = base.find(main).ok_or("the raygen source has no `void main() {`")?;
-    let version = base.find("#version 460\n").ok_or("the raygen source has no #version line")? + "#version 460\n".len();
-    Ok((format!("{}{exts}{}{decls}{main}{body}{}", &base[..version], &base[version..at], &base[at + main.len()..]), narrow))
+    let at = base
+        .find(main)
+        .ok_or("the raygen source has no `void main() {`")?;
+    let version = base
+        .find("#version 460\n")
+        .ok_or("the raygen source has no #version line")?
+        + "#version 460\n".len();
+    Ok((
+        format!(
+            "{}{exts}{}{decls}{main}{body}{}",
+            &base[..version],
+            &base[version..at],
+            &base[at + main.len()..]
+        ),
+        narrow,
+    ))
 }
 
 /// An `OpImageWrite` through the variable named `variable` whose texel must have `components` (< 4)
@@ -474,7 +642,11 @@ pub fn patch_narrow_writes(words: &mut [u32], narrow: &[NarrowWrite]) -> Result<
         i += count;
     }
     fn string_at(words: &[u32], from: usize, to: usize) -> String {
-        let bytes: Vec<u8> = words[from..to].iter().flat_map(|w| w.to_le_bytes()).take_while(|b| *b != 0).collect();
+        let bytes: Vec<u8> = words[from..to]
+            .iter()
+            .flat_map(|w| w.to_le_bytes())
+            .take_while(|b| *b != 0)
+            .collect();
         String::from_utf8_lossy(&bytes).into_owned()
     }
     for n in narrow {
@@ -498,7 +670,9 @@ pub fn patch_narrow_writes(words: &mut [u32], narrow: &[NarrowWrite]) -> Result<
         } else {
             insts
                 .iter()
-                .find(|&&(at, op, _)| op == 23 && words[at + 2] == scalar && words[at + 3] == n.components)
+                .find(|&&(at, op, _)| {
+                    op == 23 && words[at + 2] == scalar && words[at + 3] == n.components
+                })
                 .map(|&(at, ..)| words[at + 1])
                 .ok_or("no vector type")?
         };
@@ -513,7 +687,11 @@ pub fn patch_narrow_writes(words: &mut [u32], narrow: &[NarrowWrite]) -> Result<
                 via.push(words[at + 2]);
             }
         }
-        let loads: Vec<u32> = insts.iter().filter(|&&(at, op, _)| op == 61 && via.contains(&words[at + 3])).map(|&(at, ..)| words[at + 2]).collect();
+        let loads: Vec<u32> = insts
+            .iter()
+            .filter(|&&(at, op, _)| op == 61 && via.contains(&words[at + 3]))
+            .map(|&(at, ..)| words[at + 2])
+            .collect();
         let mut patched = 0;
         for &(at, op, _) in &insts {
             if op == 99 && loads.contains(&words[at + 1]) {
@@ -535,11 +713,13 @@ pub fn compile_raygen(glsl: &str, trace: bool) -> Result<Vec<u32>, RealiseError>
     (glsl, trace).hash(&mut h);
     let key = format!("{:016x}", h.finish());
     let dir = std::env::temp_dir().join("rtconf-resource-shaders");
-    std::fs::create_dir_all(&dir).map_err(|e| RealiseError::Failed(format!("{}: {e}", dir.display())))?;
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| RealiseError::Failed(format!("{}: {e}", dir.display())))?;
     let spv = dir.join(format!("{key}.spv"));
     if !spv.exists() {
         let src = dir.join(format!("{key}-{}.rgen", std::process::id()));
-        std::fs::write(&src, glsl).map_err(|e| RealiseError::Failed(format!("{}: {e}", src.display())))?;
+        std::fs::write(&src, glsl)
+            .map_err(|e| RealiseError::Failed(format!("{}: {e}", src.display())))?;
         let tmp = dir.join(format!("{key}-{}.spv", std::process::id()));
         let mut cmd = std::process::Command::new("glslangValidator");
         cmd.args(["--target-env", "vulkan1.2", "-V"]);
@@ -547,7 +727,9 @@ pub fn compile_raygen(glsl: &str, trace: bool) -> Result<Vec<u32>, RealiseError>
             cmd.arg("-DTRACE");
         }
         let out = cmd.arg(&src).arg("-o").arg(&tmp).output().map_err(|e| {
-            RealiseError::Failed(format!("glslangValidator is not available ({e}); install it with `{SETUP_COMMAND}`"))
+            RealiseError::Failed(format!(
+                "glslangValidator is not available ({e}); install it with `{SETUP_COMMAND}`"
+            ))
         })?;
         let _ = std::fs::remove_file(&src);
         if !out.status.success() {
@@ -556,10 +738,15 @@ pub fn compile_raygen(glsl: &str, trace: bool) -> Result<Vec<u32>, RealiseError>
                 String::from_utf8_lossy(&out.stdout)
             )));
         }
-        std::fs::rename(&tmp, &spv).map_err(|e| RealiseError::Failed(format!("{}: {e}", spv.display())))?;
+        std::fs::rename(&tmp, &spv)
+            .map_err(|e| RealiseError::Failed(format!("{}: {e}", spv.display())))?;
     }
-    let bytes = std::fs::read(&spv).map_err(|e| RealiseError::Failed(format!("{}: {e}", spv.display())))?;
-    Ok(bytes.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
+    let bytes =
+        std::fs::read(&spv).map_err(|e| RealiseError::Failed(format!("{}: {e}", spv.display())))?;
+    Ok(bytes
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect())
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -575,20 +762,34 @@ fn descriptor_type(t: DescriptorType) -> Result<vk::DescriptorType, RealiseError
         DescriptorType::StorageTexelBuffer => vk::DescriptorType::STORAGE_TEXEL_BUFFER,
         DescriptorType::UniformBuffer => vk::DescriptorType::UNIFORM_BUFFER,
         DescriptorType::StorageBuffer => vk::DescriptorType::STORAGE_BUFFER,
-        other => return unsup(format!("{other:?} descriptors are not realised (vendor or input attachment)")),
+        other => {
+            return unsup(format!(
+                "{other:?} descriptors are not realised (vendor or input attachment)"
+            ))
+        }
     })
 }
 
 /// `VK_FORMAT_…` name to `vk::Format`, through ash's names of the core and extension ranges.
 fn vk_format(name: &str) -> Result<vk::Format, RealiseError> {
     let n = name.strip_prefix("VK_FORMAT_").unwrap_or(name);
-    let ranges = [(0, 185), (1_000_054_000, 1_000_054_008), (1_000_066_000, 1_000_066_014), (1_000_156_000, 1_000_156_034), (1_000_330_000, 1_000_330_004), (1_000_340_000, 1_000_340_002), (1_000_470_000, 1_000_470_002)];
+    let ranges = [
+        (0, 185),
+        (1_000_054_000, 1_000_054_008),
+        (1_000_066_000, 1_000_066_014),
+        (1_000_156_000, 1_000_156_034),
+        (1_000_330_000, 1_000_330_004),
+        (1_000_340_000, 1_000_340_002),
+        (1_000_470_000, 1_000_470_002),
+    ];
     ranges
         .iter()
         .flat_map(|&(a, b)| a..b)
         .map(vk::Format::from_raw)
         .find(|f| format!("{f:?}") == n)
-        .ok_or_else(|| RealiseError::Unsupported(format!("format {name} is unknown to the harness")))
+        .ok_or_else(|| {
+            RealiseError::Unsupported(format!("format {name} is unknown to the harness"))
+        })
 }
 
 fn vk_layout(l: ImageLayout) -> Result<vk::ImageLayout, RealiseError> {
@@ -597,9 +798,13 @@ fn vk_layout(l: ImageLayout) -> Result<vk::ImageLayout, RealiseError> {
         ImageLayout::General => vk::ImageLayout::GENERAL,
         ImageLayout::ShaderReadOnlyOptimal => vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
         ImageLayout::ReadOnlyOptimal => vk::ImageLayout::READ_ONLY_OPTIMAL,
-        ImageLayout::DepthStencilReadOnlyOptimal => vk::ImageLayout::DEPTH_STENCIL_READ_ONLY_OPTIMAL,
+        ImageLayout::DepthStencilReadOnlyOptimal => {
+            vk::ImageLayout::DEPTH_STENCIL_READ_ONLY_OPTIMAL
+        }
         ImageLayout::TransferDstOptimal => vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-        ImageLayout::AttachmentFeedbackLoopOptimal => return unsup("the attachment feedback loop layout is not realised"),
+        ImageLayout::AttachmentFeedbackLoopOptimal => {
+            return unsup("the attachment feedback loop layout is not realised")
+        }
     })
 }
 
@@ -623,7 +828,10 @@ fn address(m: AddressMode) -> vk::SamplerAddressMode {
 
 fn aspect_of(format: &str) -> vk::ImageAspectFlags {
     let n = format.strip_prefix("VK_FORMAT_").unwrap_or(format);
-    match (n.starts_with('D') || n.contains("_D"), n.contains('S') && (n.starts_with('S') || n.contains("S8"))) {
+    match (
+        n.starts_with('D') || n.contains("_D"),
+        n.contains('S') && (n.starts_with('S') || n.contains("S8")),
+    ) {
         (true, true) => vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL,
         (true, false) => vk::ImageAspectFlags::DEPTH,
         (false, true) if n.starts_with("S8") => vk::ImageAspectFlags::STENCIL,
@@ -639,9 +847,14 @@ fn renew_command_buffers(cache: &mut DeviceCache) -> Result<(), RealiseError> {
     // SAFETY: the old command buffers are not pending (earlier cases waited or never submitted).
     unsafe {
         let alloc = |level| {
-            d.allocate_command_buffers(&vk::CommandBufferAllocateInfo::default().command_pool(cache.command_pool).level(level).command_buffer_count(1))
-                .map(|v| v[0])
-                .map_err(vkfail("vkAllocateCommandBuffers"))
+            d.allocate_command_buffers(
+                &vk::CommandBufferAllocateInfo::default()
+                    .command_pool(cache.command_pool)
+                    .level(level)
+                    .command_buffer_count(1),
+            )
+            .map(|v| v[0])
+            .map_err(vkfail("vkAllocateCommandBuffers"))
         };
         let primary = alloc(vk::CommandBufferLevel::PRIMARY)?;
         let secondary = match alloc(vk::CommandBufferLevel::SECONDARY) {
@@ -670,7 +883,15 @@ pub struct Realised {
     pool: vk::DescriptorPool,
     sets: HashMap<String, vk::DescriptorSet>,
     samplers: HashMap<String, vk::Sampler>,
-    images: Vec<(String, vk::Image, vk::DeviceMemory, vk::ImageLayout, vk::ImageAspectFlags, u32, u32)>,
+    images: Vec<(
+        String,
+        vk::Image,
+        vk::DeviceMemory,
+        vk::ImageLayout,
+        vk::ImageAspectFlags,
+        u32,
+        u32,
+    )>,
     views: HashMap<String, vk::ImageView>,
     buffers: HashMap<String, Allocation>,
     buffer_views: HashMap<String, vk::BufferView>,
@@ -723,7 +944,13 @@ impl Realised {
         }
     }
 
-    fn build(&mut self, cache: &mut DeviceCache, world: &World, trace: bool, harness_set: vk::DescriptorSetLayout) -> Result<(), RealiseError> {
+    fn build(
+        &mut self,
+        cache: &mut DeviceCache,
+        world: &World,
+        trace: bool,
+        harness_set: vk::DescriptorSetLayout,
+    ) -> Result<(), RealiseError> {
         if let Some(why) = unsupported(world) {
             return unsup(why);
         }
@@ -747,7 +974,10 @@ impl Realised {
                     );
                 }
                 let h = d
-                    .create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&bs), None)
+                    .create_descriptor_set_layout(
+                        &vk::DescriptorSetLayoutCreateInfo::default().bindings(&bs),
+                        None,
+                    )
                     .map_err(vkfail("vkCreateDescriptorSetLayout"))?;
                 self.set_layouts.insert(l.name.clone(), h);
             }
@@ -755,34 +985,61 @@ impl Realised {
             for p in &st.pipeline_layouts {
                 let mut sl = vec![harness_set];
                 for s in &p.sets {
-                    sl.push(*self.set_layouts.get(s).ok_or_else(|| RealiseError::Unsupported(format!("pipeline layout `{}` names set layout `{s}`, which the state lacks", p.name)))?);
+                    sl.push(*self.set_layouts.get(s).ok_or_else(|| {
+                        RealiseError::Unsupported(format!(
+                            "pipeline layout `{}` names set layout `{s}`, which the state lacks",
+                            p.name
+                        ))
+                    })?);
                 }
-                let ranges: Vec<vk::PushConstantRange> =
-                    p.push_ranges.iter().map(|r| vk::PushConstantRange { stage_flags: rt_stages(), offset: r.offset, size: r.size }).collect();
+                let ranges: Vec<vk::PushConstantRange> = p
+                    .push_ranges
+                    .iter()
+                    .map(|r| vk::PushConstantRange {
+                        stage_flags: rt_stages(),
+                        offset: r.offset,
+                        size: r.size,
+                    })
+                    .collect();
                 let h = d
-                    .create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&sl).push_constant_ranges(&ranges), None)
+                    .create_pipeline_layout(
+                        &vk::PipelineLayoutCreateInfo::default()
+                            .set_layouts(&sl)
+                            .push_constant_ranges(&ranges),
+                        None,
+                    )
                     .map_err(vkfail("vkCreatePipelineLayout"))?;
                 self.pipeline_layouts.insert(p.name.clone(), h);
             }
             match st.pipeline_layout.as_deref() {
                 Some(n) => {
-                    self.harness_layout =
-                        *self.pipeline_layouts.get(n).ok_or_else(|| RealiseError::Unsupported(format!("the pipeline's layout `{n}` is not in the state")))?;
+                    self.harness_layout = *self.pipeline_layouts.get(n).ok_or_else(|| {
+                        RealiseError::Unsupported(format!(
+                            "the pipeline's layout `{n}` is not in the state"
+                        ))
+                    })?;
                 }
                 None => {
-                    if !st.used_sets().is_empty() || st.stages.iter().any(|s| s.push_constants.is_some()) {
+                    if !st.used_sets().is_empty()
+                        || st.stages.iter().any(|s| s.push_constants.is_some())
+                    {
                         return unsup("the state's shaders use sets or push constants but the pipeline names no layout");
                     }
                     let sl = [harness_set];
                     self.harness_layout = d
-                        .create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&sl), None)
+                        .create_pipeline_layout(
+                            &vk::PipelineLayoutCreateInfo::default().set_layouts(&sl),
+                            None,
+                        )
                         .map_err(vkfail("vkCreatePipelineLayout"))?;
                     self.own_harness_layout = true;
                 }
             }
             // Samplers.
             for s in &st.samplers {
-                let mut red = vk::SamplerReductionModeCreateInfo::default().reduction_mode(match s.reduction {
+                let mut red = vk::SamplerReductionModeCreateInfo::default().reduction_mode(match s
+                    .reduction
+                {
                     Reduction::Min => vk::SamplerReductionMode::MIN,
                     Reduction::Max => vk::SamplerReductionMode::MAX,
                     _ => vk::SamplerReductionMode::WEIGHTED_AVERAGE,
@@ -801,20 +1058,34 @@ impl Realised {
                     .compare_op(vk::CompareOp::LESS_OR_EQUAL)
                     .unnormalized_coordinates(s.unnormalized_coordinates)
                     .min_lod(0.0)
-                    .max_lod(if s.unnormalized_coordinates { 0.0 } else { vk::LOD_CLAMP_NONE });
+                    .max_lod(if s.unnormalized_coordinates {
+                        0.0
+                    } else {
+                        vk::LOD_CLAMP_NONE
+                    });
                 if s.reduction != Reduction::WeightedAverage {
                     info = info.push_next(&mut red);
                 }
-                let h = d.create_sampler(&info, None).map_err(vkfail("vkCreateSampler"))?;
+                let h = d
+                    .create_sampler(&info, None)
+                    .map_err(vkfail("vkCreateSampler"))?;
                 self.samplers.insert(s.name.clone(), h);
             }
             // Usage of images and buffers from the descriptors written with them.
             let mut image_usage: HashMap<&str, vk::ImageUsageFlags> = HashMap::new();
             for set in &st.descriptor_sets {
-                let Some(l) = st.set_layout(&set.layout) else { continue };
+                let Some(l) = st.set_layout(&set.layout) else {
+                    continue;
+                };
                 for w in &set.writes {
-                    let (Some(b), Descriptor::Image { view, .. }) = (l.binding(w.binding), &w.descriptor) else { continue };
-                    let Some(v) = st.image_view(view) else { continue };
+                    let (Some(b), Descriptor::Image { view, .. }) =
+                        (l.binding(w.binding), &w.descriptor)
+                    else {
+                        continue;
+                    };
+                    let Some(v) = st.image_view(view) else {
+                        continue;
+                    };
                     let u = match b.ty {
                         DescriptorType::StorageImage => vk::ImageUsageFlags::STORAGE,
                         _ => vk::ImageUsageFlags::SAMPLED,
@@ -824,20 +1095,66 @@ impl Realised {
             }
             // Images: their type, layers and levels follow the views made of them.
             for img in &st.images {
-                let views: Vec<&ImageView> = st.image_views.iter().filter(|v| v.image == img.name).collect();
+                let views: Vec<&ImageView> = st
+                    .image_views
+                    .iter()
+                    .filter(|v| v.image == img.name)
+                    .collect();
                 let vt = views.first().map_or(ViewType::TwoD, |v| v.view_type);
-                let levels = views.iter().map(|v| v.level_count).max().unwrap_or(1).max(1);
-                let mut layers = views.iter().map(|v| v.layer_count).max().unwrap_or(1).max(1);
+                let levels = views
+                    .iter()
+                    .map(|v| v.level_count)
+                    .max()
+                    .unwrap_or(1)
+                    .max(1);
+                let mut layers = views
+                    .iter()
+                    .map(|v| v.layer_count)
+                    .max()
+                    .unwrap_or(1)
+                    .max(1);
                 let [w, h, dd] = img.extent;
                 let (ty, extent, mut flags) = match vt {
-                    ViewType::OneD | ViewType::OneDArray => (vk::ImageType::TYPE_1D, vk::Extent3D { width: w.max(1), height: 1, depth: 1 }, vk::ImageCreateFlags::empty()),
-                    ViewType::ThreeD => (vk::ImageType::TYPE_3D, vk::Extent3D { width: w.max(1), height: h.max(1), depth: dd.max(2) }, vk::ImageCreateFlags::empty()),
+                    ViewType::OneD | ViewType::OneDArray => (
+                        vk::ImageType::TYPE_1D,
+                        vk::Extent3D {
+                            width: w.max(1),
+                            height: 1,
+                            depth: 1,
+                        },
+                        vk::ImageCreateFlags::empty(),
+                    ),
+                    ViewType::ThreeD => (
+                        vk::ImageType::TYPE_3D,
+                        vk::Extent3D {
+                            width: w.max(1),
+                            height: h.max(1),
+                            depth: dd.max(2),
+                        },
+                        vk::ImageCreateFlags::empty(),
+                    ),
                     ViewType::Cube | ViewType::CubeArray => {
                         layers = layers.max(6).div_ceil(6) * 6;
                         let s = w.max(h).max(1);
-                        (vk::ImageType::TYPE_2D, vk::Extent3D { width: s, height: s, depth: 1 }, vk::ImageCreateFlags::CUBE_COMPATIBLE)
+                        (
+                            vk::ImageType::TYPE_2D,
+                            vk::Extent3D {
+                                width: s,
+                                height: s,
+                                depth: 1,
+                            },
+                            vk::ImageCreateFlags::CUBE_COMPATIBLE,
+                        )
                     }
-                    _ => (vk::ImageType::TYPE_2D, vk::Extent3D { width: w.max(1), height: h.max(1), depth: 1 }, vk::ImageCreateFlags::empty()),
+                    _ => (
+                        vk::ImageType::TYPE_2D,
+                        vk::Extent3D {
+                            width: w.max(1),
+                            height: h.max(1),
+                            depth: 1,
+                        },
+                        vk::ImageCreateFlags::empty(),
+                    ),
                 };
                 if ty == vk::ImageType::TYPE_3D {
                     layers = 1;
@@ -845,7 +1162,10 @@ impl Realised {
                 if views.iter().any(|v| v.format != img.format) {
                     flags |= vk::ImageCreateFlags::MUTABLE_FORMAT;
                 }
-                let usage = image_usage.get(img.name.as_str()).copied().unwrap_or(vk::ImageUsageFlags::SAMPLED);
+                let usage = image_usage
+                    .get(img.name.as_str())
+                    .copied()
+                    .unwrap_or(vk::ImageUsageFlags::SAMPLED);
                 let info = vk::ImageCreateInfo::default()
                     .flags(flags)
                     .image_type(ty)
@@ -860,32 +1180,55 @@ impl Realised {
                     })
                     .usage(usage)
                     .initial_layout(vk::ImageLayout::UNDEFINED);
-                let image = d.create_image(&info, None).map_err(vkfail("vkCreateImage"))?;
+                let image = d
+                    .create_image(&info, None)
+                    .map_err(vkfail("vkCreateImage"))?;
                 let req = d.get_image_memory_requirements(image);
-                let Some(mt) = dev.memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::empty()) else {
+                let Some(mt) =
+                    dev.memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::empty())
+                else {
                     d.destroy_image(image, None);
                     return unsup("no memory type for an image");
                 };
-                let memory = match d.allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(mt), None) {
+                let memory = match d.allocate_memory(
+                    &vk::MemoryAllocateInfo::default()
+                        .allocation_size(req.size)
+                        .memory_type_index(mt),
+                    None,
+                ) {
                     Ok(m) => m,
                     Err(e) => {
                         d.destroy_image(image, None);
-                        return Err(RealiseError::Failed(format!("vkAllocateMemory for an image failed: {e:?}")));
+                        return Err(RealiseError::Failed(format!(
+                            "vkAllocateMemory for an image failed: {e:?}"
+                        )));
                     }
                 };
                 let layout = vk_layout(img.layout)?;
-                self.images.push((img.name.clone(), image, memory, layout, aspect_of(&img.format), levels, layers));
-                d.bind_image_memory(image, memory, 0).map_err(vkfail("vkBindImageMemory"))?;
+                self.images.push((
+                    img.name.clone(),
+                    image,
+                    memory,
+                    layout,
+                    aspect_of(&img.format),
+                    levels,
+                    layers,
+                ));
+                d.bind_image_memory(image, memory, 0)
+                    .map_err(vkfail("vkBindImageMemory"))?;
             }
             for v in &st.image_views {
-                let Some(&(_, image, _, _, _, _, _)) = self.images.iter().find(|i| i.0 == v.image) else {
+                let Some(&(_, image, _, _, _, _, _)) = self.images.iter().find(|i| i.0 == v.image)
+                else {
                     return unsup(format!("view `{}` of image `{}`, which the state lacks (destroyed images are not realised)", v.name, v.image));
                 };
                 let aspect = match v.aspect {
                     Aspect::Color => vk::ImageAspectFlags::COLOR,
                     Aspect::Depth => vk::ImageAspectFlags::DEPTH,
                     Aspect::Stencil => vk::ImageAspectFlags::STENCIL,
-                    Aspect::DepthStencil => vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL,
+                    Aspect::DepthStencil => {
+                        vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL
+                    }
                 };
                 let vt = match v.view_type {
                     ViewType::OneD => vk::ImageViewType::TYPE_1D,
@@ -913,7 +1256,9 @@ impl Realised {
                         base_array_layer: 0,
                         layer_count: layers,
                     });
-                let h = d.create_image_view(&info, None).map_err(vkfail("vkCreateImageView"))?;
+                let h = d
+                    .create_image_view(&info, None)
+                    .map_err(vkfail("vkCreateImageView"))?;
                 self.views.insert(v.name.clone(), h);
             }
             // Buffers and buffer views.
@@ -921,36 +1266,67 @@ impl Realised {
                 | vk::BufferUsageFlags::STORAGE_BUFFER
                 | vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER
                 | vk::BufferUsageFlags::STORAGE_TEXEL_BUFFER
-                | if dev.has_feature("bufferDeviceAddress") { vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS } else { vk::BufferUsageFlags::empty() };
+                | if dev.has_feature("bufferDeviceAddress") {
+                    vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS
+                } else {
+                    vk::BufferUsageFlags::empty()
+                };
             for b in &st.buffers {
-                let a = Allocation::new(dev, b.size.max(4), usage, vk::BufferCreateFlags::empty(), 1)?;
+                let a =
+                    Allocation::new(dev, b.size.max(4), usage, vk::BufferCreateFlags::empty(), 1)?;
                 self.buffers.insert(b.name.clone(), a);
             }
             for v in &st.buffer_views {
                 let Some(b) = self.buffers.get(&v.buffer) else {
-                    return unsup(format!("buffer view `{}` of buffer `{}`, which the state lacks", v.name, v.buffer));
+                    return unsup(format!(
+                        "buffer view `{}` of buffer `{}`, which the state lacks",
+                        v.name, v.buffer
+                    ));
                 };
-                let info = vk::BufferViewCreateInfo::default().buffer(b.buffer).format(vk_format(&v.format)?).offset(0).range(vk::WHOLE_SIZE);
-                let h = d.create_buffer_view(&info, None).map_err(vkfail("vkCreateBufferView"))?;
+                let info = vk::BufferViewCreateInfo::default()
+                    .buffer(b.buffer)
+                    .format(vk_format(&v.format)?)
+                    .offset(0)
+                    .range(vk::WHOLE_SIZE);
+                let h = d
+                    .create_buffer_view(&info, None)
+                    .map_err(vkfail("vkCreateBufferView"))?;
                 self.buffer_views.insert(v.name.clone(), h);
             }
             // Descriptor pool and sets.
             let mut counts: HashMap<vk::DescriptorType, u32> = HashMap::new();
             for s in &st.descriptor_sets {
                 let Some(l) = st.set_layout(&s.layout) else {
-                    return unsup(format!("descriptor set `{}` has layout `{}`, which the state lacks", s.name, s.layout));
+                    return unsup(format!(
+                        "descriptor set `{}` has layout `{}`, which the state lacks",
+                        s.name, s.layout
+                    ));
                 };
                 for b in &l.bindings {
                     *counts.entry(descriptor_type(b.ty)?).or_default() += b.count;
                 }
             }
             if !st.descriptor_sets.is_empty() {
-                let sizes: Vec<vk::DescriptorPoolSize> =
-                    counts.iter().map(|(t, n)| vk::DescriptorPoolSize { ty: *t, descriptor_count: (*n).max(1) }).collect();
-                let sizes = if sizes.is_empty() { vec![vk::DescriptorPoolSize { ty: vk::DescriptorType::SAMPLER, descriptor_count: 1 }] } else { sizes };
+                let sizes: Vec<vk::DescriptorPoolSize> = counts
+                    .iter()
+                    .map(|(t, n)| vk::DescriptorPoolSize {
+                        ty: *t,
+                        descriptor_count: (*n).max(1),
+                    })
+                    .collect();
+                let sizes = if sizes.is_empty() {
+                    vec![vk::DescriptorPoolSize {
+                        ty: vk::DescriptorType::SAMPLER,
+                        descriptor_count: 1,
+                    }]
+                } else {
+                    sizes
+                };
                 self.pool = d
                     .create_descriptor_pool(
-                        &vk::DescriptorPoolCreateInfo::default().max_sets(st.descriptor_sets.len() as u32).pool_sizes(&sizes),
+                        &vk::DescriptorPoolCreateInfo::default()
+                            .max_sets(st.descriptor_sets.len() as u32)
+                            .pool_sizes(&sizes),
                         None,
                     )
                     .map_err(vkfail("vkCreateDescriptorPool"))?;
@@ -958,7 +1334,11 @@ impl Realised {
             for s in &st.descriptor_sets {
                 let l = [self.set_layouts[&s.layout]];
                 let h = d
-                    .allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(self.pool).set_layouts(&l))
+                    .allocate_descriptor_sets(
+                        &vk::DescriptorSetAllocateInfo::default()
+                            .descriptor_pool(self.pool)
+                            .set_layouts(&l),
+                    )
                     .map_err(vkfail("vkAllocateDescriptorSets"))?[0];
                 self.sets.insert(s.name.clone(), h);
             }
@@ -968,46 +1348,102 @@ impl Realised {
                 let l = st.set_layout(&s.layout).expect("checked above");
                 for w in &s.writes {
                     let Some(b) = l.binding(w.binding) else {
-                        return unsup(format!("set `{}` writes binding {}, which its layout lacks", s.name, w.binding));
+                        return unsup(format!(
+                            "set `{}` writes binding {}, which its layout lacks",
+                            s.name, w.binding
+                        ));
                     };
                     if w.element >= b.count {
-                        return unsup(format!("set `{}` writes element {} of binding {} (count {})", s.name, w.element, w.binding, b.count));
+                        return unsup(format!(
+                            "set `{}` writes element {} of binding {} (count {})",
+                            s.name, w.element, w.binding, b.count
+                        ));
                     }
                     let ty = descriptor_type(b.ty)?;
-                    let base = vk::WriteDescriptorSet::default().dst_set(self.sets[&s.name]).dst_binding(w.binding).dst_array_element(w.element).descriptor_type(ty);
-                    let wrong = || RealiseError::Unsupported(format!("set `{}` binding {} ({:?}) is written with {:?}, which a write of that type cannot carry", s.name, w.binding, b.ty, w.descriptor));
+                    let base = vk::WriteDescriptorSet::default()
+                        .dst_set(self.sets[&s.name])
+                        .dst_binding(w.binding)
+                        .dst_array_element(w.element)
+                        .descriptor_type(ty);
+                    let wrong = || {
+                        RealiseError::Unsupported(format!("set `{}` binding {} ({:?}) is written with {:?}, which a write of that type cannot carry", s.name, w.binding, b.ty, w.descriptor))
+                    };
                     match (&w.descriptor, b.ty) {
-                        (Descriptor::Image { view, sampler, layout }, DescriptorType::CombinedImageSampler | DescriptorType::SampledImage | DescriptorType::StorageImage) => {
+                        (
+                            Descriptor::Image {
+                                view,
+                                sampler,
+                                layout,
+                            },
+                            DescriptorType::CombinedImageSampler
+                            | DescriptorType::SampledImage
+                            | DescriptorType::StorageImage,
+                        ) => {
                             let v = *self.views.get(view).ok_or_else(|| RealiseError::Unsupported(format!("descriptor names view `{view}`, which the state lacks (destroyed views are not realised)")))?;
                             let smp = match (b.ty, sampler) {
                                 (DescriptorType::CombinedImageSampler, Some(n)) => *self.samplers.get(n).ok_or_else(|| RealiseError::Unsupported(format!("descriptor names sampler `{n}`, which the state lacks")))?,
                                 (DescriptorType::CombinedImageSampler, None) => return unsup("a combined image sampler written without a sampler (immutable samplers are not modelled)"),
                                 _ => vk::Sampler::null(),
                             };
-                            let info = [vk::DescriptorImageInfo { sampler: smp, image_view: v, image_layout: vk_layout(*layout)? }];
+                            let info = [vk::DescriptorImageInfo {
+                                sampler: smp,
+                                image_view: v,
+                                image_layout: vk_layout(*layout)?,
+                            }];
                             d.update_descriptor_sets(&[base.image_info(&info)], &[]);
                         }
                         (Descriptor::Sampler { sampler }, DescriptorType::Sampler) => {
-                            let smp = *self.samplers.get(sampler).ok_or_else(|| RealiseError::Unsupported(format!("descriptor names sampler `{sampler}`, which the state lacks")))?;
-                            let info = [vk::DescriptorImageInfo { sampler: smp, ..Default::default() }];
+                            let smp = *self.samplers.get(sampler).ok_or_else(|| {
+                                RealiseError::Unsupported(format!(
+                                    "descriptor names sampler `{sampler}`, which the state lacks"
+                                ))
+                            })?;
+                            let info = [vk::DescriptorImageInfo {
+                                sampler: smp,
+                                ..Default::default()
+                            }];
                             d.update_descriptor_sets(&[base.image_info(&info)], &[]);
                         }
-                        (Descriptor::TexelBuffer { view }, DescriptorType::UniformTexelBuffer | DescriptorType::StorageTexelBuffer) => {
-                            let v = [*self.buffer_views.get(view).ok_or_else(|| RealiseError::Unsupported(format!("descriptor names buffer view `{view}`, which the state lacks")))?];
+                        (
+                            Descriptor::TexelBuffer { view },
+                            DescriptorType::UniformTexelBuffer | DescriptorType::StorageTexelBuffer,
+                        ) => {
+                            let v = [*self.buffer_views.get(view).ok_or_else(|| {
+                                RealiseError::Unsupported(format!(
+                                    "descriptor names buffer view `{view}`, which the state lacks"
+                                ))
+                            })?];
                             d.update_descriptor_sets(&[base.texel_buffer_view(&v)], &[]);
                         }
-                        (Descriptor::Buffer { buffer, offset, range }, DescriptorType::UniformBuffer | DescriptorType::StorageBuffer) => {
+                        (
+                            Descriptor::Buffer {
+                                buffer,
+                                offset,
+                                range,
+                            },
+                            DescriptorType::UniformBuffer | DescriptorType::StorageBuffer,
+                        ) => {
                             let buf = match self.buffers.get(buffer) {
                                 Some(a) => a.buffer,
                                 None => {
                                     // A buffer the state does not hold: destroyed after the write.
-                                    let a = Allocation::new(dev, 256, usage, vk::BufferCreateFlags::empty(), 1)?;
+                                    let a = Allocation::new(
+                                        dev,
+                                        256,
+                                        usage,
+                                        vk::BufferCreateFlags::empty(),
+                                        1,
+                                    )?;
                                     let h = a.buffer;
                                     doomed.push(a);
                                     h
                                 }
                             };
-                            let info = [vk::DescriptorBufferInfo { buffer: buf, offset: *offset, range: range.unwrap_or(vk::WHOLE_SIZE) }];
+                            let info = [vk::DescriptorBufferInfo {
+                                buffer: buf,
+                                offset: *offset,
+                                range: range.unwrap_or(vk::WHOLE_SIZE),
+                            }];
                             d.update_descriptor_sets(&[base.buffer_info(&info)], &[]);
                         }
                         _ => return Err(wrong()),
@@ -1019,23 +1455,46 @@ impl Realised {
             }
             // Binds and pushes, recorded by `record_binds`.
             for b in &st.bound_sets {
-                let layout = *self.pipeline_layouts.get(&b.layout).ok_or_else(|| RealiseError::Unsupported(format!("a set is bound with layout `{}`, which the state lacks", b.layout)))?;
-                let set = *self.sets.get(&b.descriptor_set).ok_or_else(|| RealiseError::Unsupported(format!("descriptor set `{}` is bound but the state lacks it", b.descriptor_set)))?;
+                let layout = *self.pipeline_layouts.get(&b.layout).ok_or_else(|| {
+                    RealiseError::Unsupported(format!(
+                        "a set is bound with layout `{}`, which the state lacks",
+                        b.layout
+                    ))
+                })?;
+                let set = *self.sets.get(&b.descriptor_set).ok_or_else(|| {
+                    RealiseError::Unsupported(format!(
+                        "descriptor set `{}` is bound but the state lacks it",
+                        b.descriptor_set
+                    ))
+                })?;
                 self.binds.push((layout, b.set + 1, set));
             }
             for p in &st.pushes {
-                let layout = *self.pipeline_layouts.get(&p.layout).ok_or_else(|| RealiseError::Unsupported(format!("constants are pushed with layout `{}`, which the state lacks", p.layout)))?;
+                let layout = *self.pipeline_layouts.get(&p.layout).ok_or_else(|| {
+                    RealiseError::Unsupported(format!(
+                        "constants are pushed with layout `{}`, which the state lacks",
+                        p.layout
+                    ))
+                })?;
                 self.pushes.push((layout, p.offset, p.size));
             }
         }
         // The pipeline with the templated raygen.
         let mut code = compile_raygen(&glsl, trace)?;
-        patch_narrow_writes(&mut code, &narrow).map_err(|e| RealiseError::Failed(format!("patching the raygen's narrow writes: {e}")))?;
+        patch_narrow_writes(&mut code, &narrow).map_err(|e| {
+            RealiseError::Failed(format!("patching the raygen's narrow writes: {e}"))
+        })?;
         // SAFETY: valid SPIR-V words.
-        self.raygen = unsafe { cache.dev.device.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None) }
-            .map_err(vkfail("vkCreateShaderModule"))?;
+        self.raygen = unsafe {
+            cache
+                .dev
+                .device
+                .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None)
+        }
+        .map_err(vkfail("vkCreateShaderModule"))?;
         if let Some(p) = world.pipeline.as_ref() {
-            let rp = cache.create_pipeline_with(p, trace, self.harness_layout, Some(self.raygen))?;
+            let rp =
+                cache.create_pipeline_with(p, trace, self.harness_layout, Some(self.raygen))?;
             cache.resource_pipeline = Some(rp);
         }
         Ok(())
@@ -1060,7 +1519,13 @@ impl Realised {
                     .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
                     .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
                     .image(image)
-                    .subresource_range(vk::ImageSubresourceRange { aspect_mask: aspect, base_mip_level: 0, level_count: levels, base_array_layer: 0, layer_count: layers })
+                    .subresource_range(vk::ImageSubresourceRange {
+                        aspect_mask: aspect,
+                        base_mip_level: 0,
+                        level_count: levels,
+                        base_array_layer: 0,
+                        layer_count: layers,
+                    })
             })
             .collect();
         if !barriers.is_empty() {
@@ -1083,7 +1548,14 @@ impl Realised {
     /// `cb` is recording on `d`.
     pub unsafe fn record_binds(&self, d: &ash::Device, cb: vk::CommandBuffer) {
         for &(layout, set, ds) in &self.binds {
-            d.cmd_bind_descriptor_sets(cb, vk::PipelineBindPoint::RAY_TRACING_KHR, layout, set, &[ds], &[]);
+            d.cmd_bind_descriptor_sets(
+                cb,
+                vk::PipelineBindPoint::RAY_TRACING_KHR,
+                layout,
+                set,
+                &[ds],
+                &[],
+            );
         }
         for &(layout, offset, size) in &self.pushes {
             let zeros = vec![0u8; size as usize];
@@ -1145,11 +1617,20 @@ mod tests {
         assert_eq!(glsl_format("VK_FORMAT_R16G16_SNORM"), Some("rg16_snorm"));
         assert_eq!(glsl_format("VK_FORMAT_B8G8R8A8_UNORM"), None);
         // Every qualifier's numeric class is the format's.
-        for f in ["R32G32B32A32_SFLOAT", "R8G8B8A8_UINT", "R16_SINT", "R8_SNORM"] {
+        for f in [
+            "R32G32B32A32_SFLOAT",
+            "R8G8B8A8_UINT",
+            "R16_SINT",
+            "R8_SNORM",
+        ] {
             let q = glsl_format(f).unwrap();
             let n = formats::info(f).unwrap().numeric;
             assert_eq!(q.ends_with("ui"), n == Numeric::Uint, "{f}");
-            assert_eq!(q.ends_with('i') && !q.ends_with("ui"), n == Numeric::Int, "{f}");
+            assert_eq!(
+                q.ends_with('i') && !q.ends_with("ui"),
+                n == Numeric::Int,
+                "{f}"
+            );
         }
     }
 }

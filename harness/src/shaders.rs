@@ -62,40 +62,76 @@ impl ShaderKind {
 
     fn source(self) -> (&'static str, &'static str, &'static [&'static str]) {
         match self {
-            ShaderKind::RaygenTrace => ("raygen.rgen", include_str!("../shaders/raygen.rgen"), &["-DTRACE"]),
+            ShaderKind::RaygenTrace => (
+                "raygen.rgen",
+                include_str!("../shaders/raygen.rgen"),
+                &["-DTRACE"],
+            ),
             ShaderKind::RaygenPlain => ("raygen.rgen", include_str!("../shaders/raygen.rgen"), &[]),
             ShaderKind::Miss => ("miss.rmiss", include_str!("../shaders/miss.rmiss"), &[]),
-            ShaderKind::ClosestHitTrace => ("closest_hit.rchit", include_str!("../shaders/closest_hit.rchit"), &["-DTRACE"]),
-            ShaderKind::ClosestHitPlain => ("closest_hit.rchit", include_str!("../shaders/closest_hit.rchit"), &[]),
-            ShaderKind::AnyHit => ("any_hit.rahit", include_str!("../shaders/any_hit.rahit"), &[]),
-            ShaderKind::Intersection => ("intersection.rint", include_str!("../shaders/intersection.rint"), &[]),
-            ShaderKind::Callable => ("callable.rcall", include_str!("../shaders/callable.rcall"), &[]),
+            ShaderKind::ClosestHitTrace => (
+                "closest_hit.rchit",
+                include_str!("../shaders/closest_hit.rchit"),
+                &["-DTRACE"],
+            ),
+            ShaderKind::ClosestHitPlain => (
+                "closest_hit.rchit",
+                include_str!("../shaders/closest_hit.rchit"),
+                &[],
+            ),
+            ShaderKind::AnyHit => (
+                "any_hit.rahit",
+                include_str!("../shaders/any_hit.rahit"),
+                &[],
+            ),
+            ShaderKind::Intersection => (
+                "intersection.rint",
+                include_str!("../shaders/intersection.rint"),
+                &[],
+            ),
+            ShaderKind::Callable => (
+                "callable.rcall",
+                include_str!("../shaders/callable.rcall"),
+                &[],
+            ),
         }
     }
 }
 
 /// The payload tags the shaders write must be the model's.
-const _: () = assert!(model::semantics::MISS_TAG == 0x0001_0000 && model::semantics::HIT_TAG == 0x0002_0000);
+const _: () =
+    assert!(model::semantics::MISS_TAG == 0x0001_0000 && model::semantics::HIT_TAG == 0x0002_0000);
 const _: () = assert!(model::semantics::UNTOUCHED == 0xFFFF_FFFE);
 
 /// The SPIR-V words of a shader kind for a pipeline API.
 pub fn spirv(kind: ShaderKind, api: ShaderApi) -> Result<Vec<u32>, HarnessError> {
     let name = kind.variant_name(api);
-    let bytes = match PRECOMPILED.iter().find(|(n, _)| *n == name).and_then(|(_, b)| *b) {
+    let bytes = match PRECOMPILED
+        .iter()
+        .find(|(n, _)| *n == name)
+        .and_then(|(_, b)| *b)
+    {
         Some(b) => b.to_vec(),
         None => compile_now(kind, api)?,
     };
     if bytes.len() % 4 != 0 || bytes.len() < 20 {
-        return Err(HarnessError::Shader(format!("{name}: not SPIR-V ({} bytes)", bytes.len())));
+        return Err(HarnessError::Shader(format!(
+            "{name}: not SPIR-V ({} bytes)",
+            bytes.len()
+        )));
     }
-    Ok(bytes.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
+    Ok(bytes
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect())
 }
 
 fn compile_now(kind: ShaderKind, api: ShaderApi) -> Result<Vec<u8>, HarnessError> {
     let (file, text, args) = kind.source();
     let nv: &[&str] = if api == ShaderApi::Nv { &["-DNV"] } else { &[] };
     let dir = std::env::temp_dir().join(format!("rtconf-shaders-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).map_err(|e| HarnessError::Io(format!("{}: {e}", dir.display())))?;
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| HarnessError::Io(format!("{}: {e}", dir.display())))?;
     let src = dir.join(file);
     let spv = dir.join(format!("{}.spv", kind.variant_name(api)));
     std::fs::write(&src, text).map_err(|e| HarnessError::Io(format!("{}: {e}", src.display())))?;
@@ -108,7 +144,9 @@ fn compile_now(kind: ShaderKind, api: ShaderApi) -> Result<Vec<u8>, HarnessError
         .arg(&spv)
         .output()
         .map_err(|e| {
-            HarnessError::Shader(format!("glslangValidator is not available ({e}); install it with `{SETUP_COMMAND}`"))
+            HarnessError::Shader(format!(
+                "glslangValidator is not available ({e}); install it with `{SETUP_COMMAND}`"
+            ))
         })?;
     if !out.status.success() {
         return Err(HarnessError::Shader(format!(
@@ -144,10 +182,20 @@ mod tests {
         for k in ShaderKind::ALL {
             for api in [ShaderApi::Khr, ShaderApi::Nv] {
                 let words = spirv(k, api).unwrap();
-                assert_eq!(words[0], 0x0723_0203, "{k:?} {api:?} starts with the SPIR-V magic number");
+                assert_eq!(
+                    words[0], 0x0723_0203,
+                    "{k:?} {api:?} starts with the SPIR-V magic number"
+                );
                 let caps = capabilities(&words);
-                let want = if api == ShaderApi::Nv { RAY_TRACING_NV } else { RAY_TRACING_KHR };
-                assert!(caps.contains(&want), "{k:?} {api:?} declares capability {want}: {caps:?}");
+                let want = if api == ShaderApi::Nv {
+                    RAY_TRACING_NV
+                } else {
+                    RAY_TRACING_KHR
+                };
+                assert!(
+                    caps.contains(&want),
+                    "{k:?} {api:?} declares capability {want}: {caps:?}"
+                );
             }
         }
     }

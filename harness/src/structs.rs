@@ -177,10 +177,16 @@ impl RawChain {
     pub fn link(&mut self) -> *mut std::ffi::c_void {
         let n = self.parts.len();
         for i in 0..n {
-            let next = if i + 1 < n { self.parts[i + 1].1.as_mut_ptr() as u64 } else { 0 };
+            let next = if i + 1 < n {
+                self.parts[i + 1].1.as_mut_ptr() as u64
+            } else {
+                0
+            };
             self.parts[i].1[1] = next;
         }
-        self.parts.first_mut().map_or(std::ptr::null_mut(), |p| p.1.as_mut_ptr() as *mut std::ffi::c_void)
+        self.parts.first_mut().map_or(std::ptr::null_mut(), |p| {
+            p.1.as_mut_ptr() as *mut std::ffi::c_void
+        })
     }
 }
 
@@ -205,15 +211,51 @@ mod tests {
     #[test]
     fn computed_layouts_match_ash() {
         let checks: &[(&[Member], usize, usize)] = &[
-            (t::PHYSICAL_DEVICE_FEATURES, 0, size_of::<vk::PhysicalDeviceFeatures>()),
-            (t::PHYSICAL_DEVICE_LIMITS, 0, size_of::<vk::PhysicalDeviceLimits>()),
-            (t::PHYSICAL_DEVICE_SPARSE_PROPERTIES, 0, size_of::<vk::PhysicalDeviceSparseProperties>()),
-            (t::PHYSICAL_DEVICE_VULKAN11_FEATURES, 16, size_of::<vk::PhysicalDeviceVulkan11Features>()),
-            (t::PHYSICAL_DEVICE_VULKAN12_FEATURES, 16, size_of::<vk::PhysicalDeviceVulkan12Features>()),
-            (t::PHYSICAL_DEVICE_VULKAN13_FEATURES, 16, size_of::<vk::PhysicalDeviceVulkan13Features>()),
-            (t::PHYSICAL_DEVICE_VULKAN11_PROPERTIES, 16, size_of::<vk::PhysicalDeviceVulkan11Properties>()),
-            (t::PHYSICAL_DEVICE_VULKAN12_PROPERTIES, 16, size_of::<vk::PhysicalDeviceVulkan12Properties>()),
-            (t::PHYSICAL_DEVICE_VULKAN13_PROPERTIES, 16, size_of::<vk::PhysicalDeviceVulkan13Properties>()),
+            (
+                t::PHYSICAL_DEVICE_FEATURES,
+                0,
+                size_of::<vk::PhysicalDeviceFeatures>(),
+            ),
+            (
+                t::PHYSICAL_DEVICE_LIMITS,
+                0,
+                size_of::<vk::PhysicalDeviceLimits>(),
+            ),
+            (
+                t::PHYSICAL_DEVICE_SPARSE_PROPERTIES,
+                0,
+                size_of::<vk::PhysicalDeviceSparseProperties>(),
+            ),
+            (
+                t::PHYSICAL_DEVICE_VULKAN11_FEATURES,
+                16,
+                size_of::<vk::PhysicalDeviceVulkan11Features>(),
+            ),
+            (
+                t::PHYSICAL_DEVICE_VULKAN12_FEATURES,
+                16,
+                size_of::<vk::PhysicalDeviceVulkan12Features>(),
+            ),
+            (
+                t::PHYSICAL_DEVICE_VULKAN13_FEATURES,
+                16,
+                size_of::<vk::PhysicalDeviceVulkan13Features>(),
+            ),
+            (
+                t::PHYSICAL_DEVICE_VULKAN11_PROPERTIES,
+                16,
+                size_of::<vk::PhysicalDeviceVulkan11Properties>(),
+            ),
+            (
+                t::PHYSICAL_DEVICE_VULKAN12_PROPERTIES,
+                16,
+                size_of::<vk::PhysicalDeviceVulkan12Properties>(),
+            ),
+            (
+                t::PHYSICAL_DEVICE_VULKAN13_PROPERTIES,
+                16,
+                size_of::<vk::PhysicalDeviceVulkan13Properties>(),
+            ),
             (
                 t::PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_PROPERTIES_KHR,
                 16,
@@ -224,12 +266,19 @@ mod tests {
                 16,
                 size_of::<vk::PhysicalDeviceAccelerationStructurePropertiesKHR>(),
             ),
-            (t::PHYSICAL_DEVICE_RAY_TRACING_PROPERTIES_NV, 16, size_of::<vk::PhysicalDeviceRayTracingPropertiesNV>()),
+            (
+                t::PHYSICAL_DEVICE_RAY_TRACING_PROPERTIES_NV,
+                16,
+                size_of::<vk::PhysicalDeviceRayTracingPropertiesNV>(),
+            ),
         ];
         for (i, (members, header, ash_size)) in checks.iter().enumerate() {
             assert_eq!(offsets(members, *header).1, *ash_size, "structure #{i}");
         }
         let rt = offsets(t::PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_FEATURES_KHR, 16).1;
-        assert_eq!(rt, size_of::<vk::PhysicalDeviceRayTracingPipelineFeaturesKHR>());
+        assert_eq!(
+            rt,
+            size_of::<vk::PhysicalDeviceRayTracingPipelineFeaturesKHR>()
+        );
     }
 }

@@ -41,7 +41,9 @@ impl Driver {
         match self {
             Driver::Lavapipe => "lavapipe".into(),
             Driver::Nvidia => "nvidia".into(),
-            Driver::Icd(p) => p.file_stem().map_or("icd".into(), |s| s.to_string_lossy().into_owned()),
+            Driver::Icd(p) => p
+                .file_stem()
+                .map_or("icd".into(), |s| s.to_string_lossy().into_owned()),
         }
     }
 
@@ -75,7 +77,10 @@ pub struct Collector {
 
 impl Collector {
     pub fn clear(&self) {
-        self.messages.lock().unwrap_or_else(|e| e.into_inner()).clear();
+        self.messages
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clear();
     }
     pub fn take(&self) -> Vec<LayerMessage> {
         std::mem::take(&mut *self.messages.lock().unwrap_or_else(|e| e.into_inner()))
@@ -116,11 +121,15 @@ unsafe extern "system" fn messenger_callback(
     } else {
         "verbose"
     };
-    collector.messages.lock().unwrap_or_else(|e| e.into_inner()).push(LayerMessage {
-        severity: severity.into(),
-        id,
-        text: message,
-    });
+    collector
+        .messages
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .push(LayerMessage {
+            severity: severity.into(),
+            id,
+            text: message,
+        });
     if collector.abort.load(Ordering::SeqCst) {
         vk::TRUE
     } else {
@@ -153,13 +162,16 @@ impl VkInstance {
         }
         std::env::set_var("VK_DRIVER_FILES", &icd);
         // SAFETY: loading the system loader library; failure is reported, not unwound.
-        let entry = unsafe { ash::Entry::load() }.map_err(|e| HarnessError::LoaderMissing(e.to_string()))?;
+        let entry = unsafe { ash::Entry::load() }
+            .map_err(|e| HarnessError::LoaderMissing(e.to_string()))?;
         let layer = CString::new(VALIDATION_LAYER).expect("no NUL in a constant");
         if validation {
             // SAFETY: plain query.
             let layers = unsafe { entry.enumerate_instance_layer_properties() }
                 .map_err(HarnessError::vk("vkEnumerateInstanceLayerProperties"))?;
-            let found = layers.iter().any(|l| l.layer_name_as_c_str().is_ok_and(|n| n == layer.as_c_str()));
+            let found = layers
+                .iter()
+                .any(|l| l.layer_name_as_c_str().is_ok_and(|n| n == layer.as_c_str()));
             if !found {
                 return Err(HarnessError::LayerMissing(VALIDATION_LAYER.into()));
             }
@@ -168,20 +180,30 @@ impl VkInstance {
         let app = vk::ApplicationInfo::default()
             .application_name(&app_name)
             .api_version(vk::API_VERSION_1_3);
-        let layer_ptrs = if validation { vec![layer.as_ptr()] } else { vec![] };
-        let ext_ptrs = if validation { vec![ash::ext::debug_utils::NAME.as_ptr()] } else { vec![] };
+        let layer_ptrs = if validation {
+            vec![layer.as_ptr()]
+        } else {
+            vec![]
+        };
+        let ext_ptrs = if validation {
+            vec![ash::ext::debug_utils::NAME.as_ptr()]
+        } else {
+            vec![]
+        };
         let info = vk::InstanceCreateInfo::default()
             .application_info(&app)
             .enabled_layer_names(&layer_ptrs)
             .enabled_extension_names(&ext_ptrs);
         // SAFETY: valid create info whose pointers outlive the call.
-        let instance = unsafe { entry.create_instance(&info, None) }.map_err(HarnessError::vk("vkCreateInstance"))?;
+        let instance = unsafe { entry.create_instance(&info, None) }
+            .map_err(HarnessError::vk("vkCreateInstance"))?;
         let collector = Arc::new(Collector::default());
         let debug = if validation {
             let du = ash::ext::debug_utils::Instance::new(&entry, &instance);
             let info = vk::DebugUtilsMessengerCreateInfoEXT::default()
                 .message_severity(
-                    vk::DebugUtilsMessageSeverityFlagsEXT::ERROR | vk::DebugUtilsMessageSeverityFlagsEXT::WARNING,
+                    vk::DebugUtilsMessageSeverityFlagsEXT::ERROR
+                        | vk::DebugUtilsMessageSeverityFlagsEXT::WARNING,
                 )
                 .message_type(
                     vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
@@ -211,17 +233,32 @@ impl VkInstance {
         };
         // SAFETY: plain query.
         let api_version = unsafe { instance.get_physical_device_properties(physical) }.api_version;
-        Ok(VkInstance { driver, entry, instance, debug, collector, physical, api_version })
+        Ok(VkInstance {
+            driver,
+            entry,
+            instance,
+            debug,
+            collector,
+            physical,
+            api_version,
+        })
     }
 
     /// The device extensions the physical device exposes.
     pub fn device_extensions(&self) -> BTreeSet<String> {
         // SAFETY: plain query.
-        unsafe { self.instance.enumerate_device_extension_properties(self.physical) }
-            .unwrap_or_default()
-            .iter()
-            .filter_map(|e| e.extension_name_as_c_str().ok().map(|n| n.to_string_lossy().into_owned()))
-            .collect()
+        unsafe {
+            self.instance
+                .enumerate_device_extension_properties(self.physical)
+        }
+        .unwrap_or_default()
+        .iter()
+        .filter_map(|e| {
+            e.extension_name_as_c_str()
+                .ok()
+                .map(|n| n.to_string_lossy().into_owned())
+        })
+        .collect()
     }
 
     /// Every feature the device reports, keyed `Struct::member`, querying each structure it supports.
@@ -237,9 +274,16 @@ impl VkInstance {
         let mut f2 = vk::PhysicalDeviceFeatures2::default();
         f2.p_next = head;
         // SAFETY: the chain holds structures with correct sTypes and sizes; it lives across the call.
-        unsafe { self.instance.get_physical_device_features2(self.physical, &mut f2) };
+        unsafe {
+            self.instance
+                .get_physical_device_features2(self.physical, &mut f2)
+        };
         let mut out = BTreeMap::new();
-        for (n, v) in layout::read_bools(vk_tables::PHYSICAL_DEVICE_FEATURES, 0, structs::as_bytes(&f2.features)) {
+        for (n, v) in layout::read_bools(
+            vk_tables::PHYSICAL_DEVICE_FEATURES,
+            0,
+            structs::as_bytes(&f2.features),
+        ) {
             out.insert(format!("VkPhysicalDeviceFeatures::{n}"), v);
         }
         for (info, bytes) in chain.parts() {
@@ -285,9 +329,15 @@ fn feature_chain(
             Some((s, m)) => (Some(s), m),
             None => (None, name.as_str()),
         };
-        let in_core = vk_tables::PHYSICAL_DEVICE_FEATURES.iter().any(|m| m.name == member);
+        let in_core = vk_tables::PHYSICAL_DEVICE_FEATURES
+            .iter()
+            .any(|m| m.name == member);
         if in_core && want_struct.is_none_or(|s| s == "VkPhysicalDeviceFeatures") {
-            if !supported.get(&format!("VkPhysicalDeviceFeatures::{member}")).copied().unwrap_or(false) {
+            if !supported
+                .get(&format!("VkPhysicalDeviceFeatures::{member}"))
+                .copied()
+                .unwrap_or(false)
+            {
                 missing.push(name.clone());
                 continue;
             }
@@ -303,23 +353,35 @@ fn feature_chain(
         }
         let candidates: Vec<&'static structs::StructInfo> = FEATURE_STRUCTS
             .iter()
-            .filter(|s| want_struct.is_none_or(|w| w == s.name) && s.members.iter().any(|m| m.name == member))
+            .filter(|s| {
+                want_struct.is_none_or(|w| w == s.name)
+                    && s.members.iter().any(|m| m.name == member)
+            })
             .collect();
         if candidates.is_empty() {
-            return Err(DeviceError::Unsupported(format!("unknown device feature `{name}`")));
+            return Err(DeviceError::Unsupported(format!(
+                "unknown device feature `{name}`"
+            )));
         }
-        let usable = candidates
-            .iter()
-            .find(|s| s.usable(inst.api_version, |e| extensions.contains(e)) && supported.contains_key(&format!("{}::{member}", s.name)));
+        let usable = candidates.iter().find(|s| {
+            s.usable(inst.api_version, |e| extensions.contains(e))
+                && supported.contains_key(&format!("{}::{member}", s.name))
+        });
         let Some(s) = usable else {
-            let needs: Vec<String> =
-                candidates.iter().map(|s| s.extension.map_or_else(|| s.name.to_string(), String::from)).collect();
+            let needs: Vec<String> = candidates
+                .iter()
+                .map(|s| s.extension.map_or_else(|| s.name.to_string(), String::from))
+                .collect();
             return Err(DeviceError::Unsupported(format!(
                 "feature `{name}` needs one of [{}] enabled on a device that has it",
                 needs.join(", ")
             )));
         };
-        if !supported.get(&format!("{}::{member}", s.name)).copied().unwrap_or(false) {
+        if !supported
+            .get(&format!("{}::{member}", s.name))
+            .copied()
+            .unwrap_or(false)
+        {
             missing.push(name.clone());
             continue;
         }
@@ -374,22 +436,40 @@ impl VkDevice {
         features: &BTreeSet<String>,
     ) -> Result<VkDevice, DeviceError> {
         let available = inst.device_extensions();
-        let missing: Vec<&String> = extensions.iter().filter(|e| !available.contains(*e)).collect();
+        let missing: Vec<&String> = extensions
+            .iter()
+            .filter(|e| !available.contains(*e))
+            .collect();
         if !missing.is_empty() {
             let names: Vec<&str> = missing.iter().map(|s| s.as_str()).collect();
-            return Err(DeviceError::Unsupported(format!("the device lacks extension(s): {}", names.join(", "))));
+            return Err(DeviceError::Unsupported(format!(
+                "the device lacks extension(s): {}",
+                names.join(", ")
+            )));
         }
         let supported = inst.device_features();
         let (core, mut chain) = feature_chain(&inst, extensions, features, &supported)?;
         // SAFETY: plain query.
-        let families = unsafe { inst.instance.get_physical_device_queue_family_properties(inst.physical) };
-        let Some(family) = families.iter().position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE)) else {
-            return Err(DeviceError::Unsupported("no queue family with VK_QUEUE_COMPUTE_BIT".into()));
+        let families = unsafe {
+            inst.instance
+                .get_physical_device_queue_family_properties(inst.physical)
+        };
+        let Some(family) = families
+            .iter()
+            .position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE))
+        else {
+            return Err(DeviceError::Unsupported(
+                "no queue family with VK_QUEUE_COMPUTE_BIT".into(),
+            ));
         };
         let priorities = [1.0f32];
-        let queue_info =
-            [vk::DeviceQueueCreateInfo::default().queue_family_index(family as u32).queue_priorities(&priorities)];
-        let ext_c: Vec<CString> = extensions.iter().filter_map(|e| CString::new(e.as_str()).ok()).collect();
+        let queue_info = [vk::DeviceQueueCreateInfo::default()
+            .queue_family_index(family as u32)
+            .queue_priorities(&priorities)];
+        let ext_c: Vec<CString> = extensions
+            .iter()
+            .filter_map(|e| CString::new(e.as_str()).ok())
+            .collect();
         let ext_ptrs: Vec<*const std::ffi::c_char> = ext_c.iter().map(|c| c.as_ptr()).collect();
         let head = chain.link();
         let mut info = vk::DeviceCreateInfo::default()
@@ -398,8 +478,13 @@ impl VkDevice {
             .enabled_features(&core);
         info.p_next = head;
         // SAFETY: every pointer in `info` outlives the call.
-        let device = unsafe { inst.instance.create_device(inst.physical, &info, None) }
-            .map_err(|r| DeviceError::Failed(HarnessError::Vulkan { what: "vkCreateDevice".into(), result: r }))?;
+        let device =
+            unsafe { inst.instance.create_device(inst.physical, &info, None) }.map_err(|r| {
+                DeviceError::Failed(HarnessError::Vulkan {
+                    what: "vkCreateDevice".into(),
+                    result: r,
+                })
+            })?;
         // SAFETY: queue 0 of the family we created.
         let queue = unsafe { device.get_device_queue(family as u32, 0) };
         let rt = extensions
@@ -412,7 +497,10 @@ impl VkDevice {
             .contains("VK_KHR_acceleration_structure")
             .then(|| ash::khr::acceleration_structure::Device::new(&inst.instance, &device));
         // SAFETY: plain queries.
-        let memory = unsafe { inst.instance.get_physical_device_memory_properties(inst.physical) };
+        let memory = unsafe {
+            inst.instance
+                .get_physical_device_memory_properties(inst.physical)
+        };
         let mut rtp = vk::PhysicalDeviceRayTracingPipelinePropertiesKHR::default();
         let mut asp = vk::PhysicalDeviceAccelerationStructurePropertiesKHR::default();
         let mut nvp = vk::PhysicalDeviceRayTracingPropertiesNV::default();
@@ -427,18 +515,38 @@ impl VkDevice {
             p2 = p2.push_next(&mut asp);
         }
         // SAFETY: chain of structures the device supports.
-        unsafe { inst.instance.get_physical_device_properties2(inst.physical, &mut p2) };
+        unsafe {
+            inst.instance
+                .get_physical_device_properties2(inst.physical, &mut p2)
+        };
         // A case with only VK_NV_ray_tracing lays its tables out with the NV properties.
         let nv_only = rtp.shader_group_handle_size == 0;
         let limits = RtLimits {
-            handle_size: if nv_only { nvp.shader_group_handle_size } else { rtp.shader_group_handle_size },
-            handle_alignment: if nv_only { nvp.shader_group_handle_size } else { rtp.shader_group_handle_alignment },
-            base_alignment: if nv_only { nvp.shader_group_base_alignment } else { rtp.shader_group_base_alignment },
+            handle_size: if nv_only {
+                nvp.shader_group_handle_size
+            } else {
+                rtp.shader_group_handle_size
+            },
+            handle_alignment: if nv_only {
+                nvp.shader_group_handle_size
+            } else {
+                rtp.shader_group_handle_alignment
+            },
+            base_alignment: if nv_only {
+                nvp.shader_group_base_alignment
+            } else {
+                rtp.shader_group_base_alignment
+            },
             scratch_alignment: asp.min_acceleration_structure_scratch_offset_alignment,
             nv_handle_size: nvp.shader_group_handle_size,
         };
-        let sparse_binding = supported.get("VkPhysicalDeviceFeatures::sparseBinding").copied().unwrap_or(false)
-            && families[family].queue_flags.contains(vk::QueueFlags::SPARSE_BINDING);
+        let sparse_binding = supported
+            .get("VkPhysicalDeviceFeatures::sparseBinding")
+            .copied()
+            .unwrap_or(false)
+            && families[family]
+                .queue_flags
+                .contains(vk::QueueFlags::SPARSE_BINDING);
         Ok(VkDevice {
             inst,
             device,
@@ -458,13 +566,18 @@ impl VkDevice {
 
     /// Whether the device was created with feature `name` (member name or `Struct::member`).
     pub fn has_feature(&self, name: &str) -> bool {
-        self.features.iter().any(|f| f == name || f.rsplit("::").next() == Some(name))
+        self.features
+            .iter()
+            .any(|f| f == name || f.rsplit("::").next() == Some(name))
     }
 
     /// A memory type index allowed by `bits` with all of `flags`.
     pub fn memory_type(&self, bits: u32, flags: vk::MemoryPropertyFlags) -> Option<u32> {
         (0..self.memory.memory_type_count).find(|&i| {
-            bits & (1 << i) != 0 && self.memory.memory_types[i as usize].property_flags.contains(flags)
+            bits & (1 << i) != 0
+                && self.memory.memory_types[i as usize]
+                    .property_flags
+                    .contains(flags)
         })
     }
 }

@@ -6,12 +6,12 @@
 
 use crate::build::{BuildObservation, BuildOptions};
 use crate::execute::{execute, Executor};
-use crate::vulkan::VkInstance;
-use model::build::{BuildCase, BuildRuleSet};
-use model::DeviceProfile;
 use crate::observe::{CaseResult, Observation, Status};
 use crate::vulkan::Driver;
+use crate::vulkan::VkInstance;
+use model::build::{BuildCase, BuildRuleSet};
 use model::case::Case;
+use model::DeviceProfile;
 use std::collections::VecDeque;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::PathBuf;
@@ -75,25 +75,51 @@ struct BuildContext {
 }
 
 fn build_context(driver: &Driver, req: &BuildRequest) -> Result<BuildContext, String> {
-    let text = std::fs::read_to_string(&req.profile_path).map_err(|e| format!("profile {}: {e}", req.profile_path.display()))?;
-    let profile = DeviceProfile::from_profiles_json(&req.profile_name, &text).map_err(|e| e.to_string())?;
+    let text = std::fs::read_to_string(&req.profile_path)
+        .map_err(|e| format!("profile {}: {e}", req.profile_path.display()))?;
+    let profile =
+        DeviceProfile::from_profiles_json(&req.profile_name, &text).map_err(|e| e.to_string())?;
     let set = vk_registry::source::load_union(&req.sources).map_err(|e| e.to_string())?;
     let rules = BuildRuleSet::from_vuids(&set);
     let inst = Arc::new(VkInstance::new(driver.clone(), true).map_err(|e| e.to_string())?);
-    Ok(BuildContext { key: (req.profile_path.clone(), req.sources.clone()), inst, profile, rules })
+    Ok(BuildContext {
+        key: (req.profile_path.clone(), req.sources.clone()),
+        inst,
+        profile,
+        rules,
+    })
 }
 
-fn run_build_request(driver: &Driver, ctx: &mut Option<BuildContext>, req: &BuildRequest) -> BuildObservation {
-    if ctx.as_ref().map_or(true, |c| c.key != (req.profile_path.clone(), req.sources.clone())) {
+fn run_build_request(
+    driver: &Driver,
+    ctx: &mut Option<BuildContext>,
+    req: &BuildRequest,
+) -> BuildObservation {
+    if ctx.as_ref().map_or(true, |c| {
+        c.key != (req.profile_path.clone(), req.sources.clone())
+    }) {
         *ctx = None;
         match build_context(driver, req) {
             Ok(c) => *ctx = Some(c),
-            Err(e) => return BuildObservation { case: req.build.name.clone(), status: format!("crash: {e}"), ..Default::default() },
+            Err(e) => {
+                return BuildObservation {
+                    case: req.build.name.clone(),
+                    status: format!("crash: {e}"),
+                    ..Default::default()
+                }
+            }
         }
     }
     let c = ctx.as_ref().expect("made above");
     let unavoidable = generator::build::unavoidable(&c.profile);
-    crate::build::run_case_with(&c.inst, &c.profile, &c.rules, &req.build, &unavoidable, req.options)
+    crate::build::run_case_with(
+        &c.inst,
+        &c.profile,
+        &c.rules,
+        &req.build,
+        &unavoidable,
+        req.options,
+    )
 }
 
 /// The worker loop: one JSON request per stdin line, one [`CaseResult`] per stdout line. Returns the exit code.
@@ -110,46 +136,88 @@ pub fn worker_main() -> i32 {
         }
         let started = Instant::now();
         // Trace requests are parsed once, as before; only a line naming a build case is looked into.
-        let value: Option<serde_json::Value> = if line.contains("\"build\"") { serde_json::from_str(&line).ok() } else { None };
+        let value: Option<serde_json::Value> = if line.contains("\"build\"") {
+            serde_json::from_str(&line).ok()
+        } else {
+            None
+        };
         if let Some(v) = value.as_ref().filter(|v| v.get("build").is_some()) {
             let result = match serde_json::from_value::<BuildRequest>(v.clone()) {
                 Ok(req) => {
                     inject_fault(&req.build.name);
                     let observation = run_build_request(&driver, &mut builds, &req);
-                    BuildResult { index: req.index, name: req.build.name.clone(), observation, millis: started.elapsed().as_secs_f64() * 1000.0 }
+                    BuildResult {
+                        index: req.index,
+                        name: req.build.name.clone(),
+                        observation,
+                        millis: started.elapsed().as_secs_f64() * 1000.0,
+                    }
                 }
                 Err(e) => {
-                    let index = v.get("index").and_then(|i| i.as_u64()).map_or(usize::MAX, |i| i as usize);
-                    let observation = BuildObservation { status: format!("crash: worker could not read its build request: {e}"), ..Default::default() };
-                    BuildResult { index, name: String::new(), observation, millis: 0.0 }
+                    let index = v
+                        .get("index")
+                        .and_then(|i| i.as_u64())
+                        .map_or(usize::MAX, |i| i as usize);
+                    let observation = BuildObservation {
+                        status: format!("crash: worker could not read its build request: {e}"),
+                        ..Default::default()
+                    };
+                    BuildResult {
+                        index,
+                        name: String::new(),
+                        observation,
+                        millis: 0.0,
+                    }
                 }
             };
-            let Ok(text) = serde_json::to_string(&result) else { return 3 };
-            if writeln!(stdout, "{text}").and_then(|_| stdout.flush()).is_err() {
+            let Ok(text) = serde_json::to_string(&result) else {
+                return 3;
+            };
+            if writeln!(stdout, "{text}")
+                .and_then(|_| stdout.flush())
+                .is_err()
+            {
                 return 4;
             }
             continue;
         }
         let (index, name, observation) = match serde_json::from_str::<WorkerRequest>(&line) {
-            Err(e) => (usize::MAX, String::new(), Observation::crash(format!("worker could not read its request: {e}"))),
+            Err(e) => (
+                usize::MAX,
+                String::new(),
+                Observation::crash(format!("worker could not read its request: {e}")),
+            ),
             Ok(req) => {
                 inject_fault(&req.case.name);
-                let ctx = executor.get_or_insert_with(|| Executor::new(driver.clone()).map_err(|e| e.to_string()));
+                let ctx = executor.get_or_insert_with(|| {
+                    Executor::new(driver.clone()).map_err(|e| e.to_string())
+                });
                 let obs = match ctx {
                     Ok(ctx) => execute(&req.case, ctx),
                     Err(e) => Observation::crash(e.clone()),
                 };
                 // A lost device stays lost: start the next case on a fresh instance and device rather
                 // than let every later case of this worker hang or fail for it.
-                if matches!(&obs.status, Status::Crash { message } if message.contains("DEVICE_LOST")) {
+                if matches!(&obs.status, Status::Crash { message } if message.contains("DEVICE_LOST"))
+                {
                     executor = None;
                 }
                 (req.index, req.case.name, obs)
             }
         };
-        let result = CaseResult { index, name, observation, millis: started.elapsed().as_secs_f64() * 1000.0 };
-        let Ok(text) = serde_json::to_string(&result) else { return 3 };
-        if writeln!(stdout, "{text}").and_then(|_| stdout.flush()).is_err() {
+        let result = CaseResult {
+            index,
+            name,
+            observation,
+            millis: started.elapsed().as_secs_f64() * 1000.0,
+        };
+        let Ok(text) = serde_json::to_string(&result) else {
+            return 3;
+        };
+        if writeln!(stdout, "{text}")
+            .and_then(|_| stdout.flush())
+            .is_err()
+        {
             return 4;
         }
     }
@@ -185,7 +253,11 @@ pub struct WorkerCommand {
 impl WorkerCommand {
     /// `current_exe() worker`, the `rtconf worker` subcommand.
     pub fn current_exe() -> std::io::Result<WorkerCommand> {
-        Ok(WorkerCommand { program: std::env::current_exe()?, args: vec!["worker".into()], env: Vec::new() })
+        Ok(WorkerCommand {
+            program: std::env::current_exe()?,
+            args: vec!["worker".into()],
+            env: Vec::new(),
+        })
     }
 }
 
@@ -205,9 +277,18 @@ impl Worker {
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()?;
-        let stdin = child.stdin.take().ok_or_else(|| std::io::Error::other("worker has no stdin"))?;
-        let stdout = child.stdout.take().ok_or_else(|| std::io::Error::other("worker has no stdout"))?;
-        let mut err = child.stderr.take().ok_or_else(|| std::io::Error::other("worker has no stderr"))?;
+        let stdin = child
+            .stdin
+            .take()
+            .ok_or_else(|| std::io::Error::other("worker has no stdin"))?;
+        let stdout = child
+            .stdout
+            .take()
+            .ok_or_else(|| std::io::Error::other("worker has no stdout"))?;
+        let mut err = child
+            .stderr
+            .take()
+            .ok_or_else(|| std::io::Error::other("worker has no stderr"))?;
         let (tx, lines) = mpsc::channel();
         std::thread::spawn(move || {
             for line in BufReader::new(stdout).lines() {
@@ -233,7 +314,12 @@ impl Worker {
                 }
             }
         });
-        Ok(Worker { child, stdin, lines, stderr })
+        Ok(Worker {
+            child,
+            stdin,
+            lines,
+            stderr,
+        })
     }
 
     fn stderr_tail(&self) -> String {
@@ -265,10 +351,18 @@ impl PoolJob for Case {
         &self.name
     }
     fn request(&self, index: usize) -> serde_json::Result<String> {
-        serde_json::to_string(&WorkerRequest { index, case: self.clone() })
+        serde_json::to_string(&WorkerRequest {
+            index,
+            case: self.clone(),
+        })
     }
     fn lost(&self, index: usize, status: Status, millis: f64) -> CaseResult {
-        CaseResult { index, name: self.name.clone(), observation: Observation::with_status(status), millis }
+        CaseResult {
+            index,
+            name: self.name.clone(),
+            observation: Observation::with_status(status),
+            millis,
+        }
     }
     fn result_index(r: &CaseResult) -> usize {
         r.index
@@ -281,7 +375,10 @@ impl PoolJob for BuildRequest {
         &self.build.name
     }
     fn request(&self, index: usize) -> serde_json::Result<String> {
-        serde_json::to_string(&BuildRequest { index, ..self.clone() })
+        serde_json::to_string(&BuildRequest {
+            index,
+            ..self.clone()
+        })
     }
     fn lost(&self, index: usize, status: Status, millis: f64) -> BuildResult {
         let status = match status {
@@ -290,7 +387,16 @@ impl PoolJob for BuildRequest {
             Status::Crash { message } => format!("crash: {message}"),
             Status::Timeout { seconds } => format!("timeout: after {seconds:.1} s"),
         };
-        BuildResult { index, name: self.build.name.clone(), observation: BuildObservation { case: self.build.name.clone(), status, ..Default::default() }, millis }
+        BuildResult {
+            index,
+            name: self.build.name.clone(),
+            observation: BuildObservation {
+                case: self.build.name.clone(),
+                status,
+                ..Default::default()
+            },
+            millis,
+        }
     }
     fn result_index(r: &BuildResult) -> usize {
         r.index
@@ -303,31 +409,60 @@ enum Outcome<R> {
     Lost(R),
 }
 
-fn run_one<J: PoolJob>(w: &mut Worker, index: usize, job: &J, timeout: Duration) -> Outcome<J::Result> {
+fn run_one<J: PoolJob>(
+    w: &mut Worker,
+    index: usize,
+    job: &J,
+    timeout: Duration,
+) -> Outcome<J::Result> {
     let started = Instant::now();
-    let lost = |status: Status| Outcome::Lost(job.lost(index, status, started.elapsed().as_secs_f64() * 1000.0));
-    let Ok(text) = job.request(index) else {
-        return lost(Status::Crash { message: "the case could not be serialised".into() });
+    let lost = |status: Status| {
+        Outcome::Lost(job.lost(index, status, started.elapsed().as_secs_f64() * 1000.0))
     };
-    if writeln!(w.stdin, "{text}").and_then(|_| w.stdin.flush()).is_err() {
-        return lost(Status::Crash { message: format!("the worker exited before taking the case; stderr: {}", w.stderr_tail()) });
+    let Ok(text) = job.request(index) else {
+        return lost(Status::Crash {
+            message: "the case could not be serialised".into(),
+        });
+    };
+    if writeln!(w.stdin, "{text}")
+        .and_then(|_| w.stdin.flush())
+        .is_err()
+    {
+        return lost(Status::Crash {
+            message: format!(
+                "the worker exited before taking the case; stderr: {}",
+                w.stderr_tail()
+            ),
+        });
     }
     loop {
         let left = timeout.saturating_sub(started.elapsed());
         match w.lines.recv_timeout(left) {
             // Other output (a test harness's own text) is not a result; a result may follow it on a line.
             Ok(line) => {
-                let Some(start) = line.find('{') else { continue };
+                let Some(start) = line.find('{') else {
+                    continue;
+                };
                 return match serde_json::from_str::<J::Result>(&line[start..]) {
                     Ok(r) if J::result_index(&r) == index => Outcome::Done(r),
                     Ok(_) | Err(_) => continue,
                 };
             }
-            Err(RecvTimeoutError::Timeout) => return lost(Status::Timeout { seconds: timeout.as_secs_f64() }),
+            Err(RecvTimeoutError::Timeout) => {
+                return lost(Status::Timeout {
+                    seconds: timeout.as_secs_f64(),
+                })
+            }
             Err(RecvTimeoutError::Disconnected) => {
-                let code = w.child.wait().map(|s| s.to_string()).unwrap_or_else(|e| e.to_string());
+                let code = w
+                    .child
+                    .wait()
+                    .map(|s| s.to_string())
+                    .unwrap_or_else(|e| e.to_string());
                 std::thread::sleep(Duration::from_millis(20));
-                return lost(Status::Crash { message: format!("the worker died ({code}); stderr: {}", w.stderr_tail()) });
+                return lost(Status::Crash {
+                    message: format!("the worker died ({code}); stderr: {}", w.stderr_tail()),
+                });
             }
         }
     }
@@ -335,29 +470,56 @@ fn run_one<J: PoolJob>(w: &mut Worker, index: usize, job: &J, timeout: Duration)
 
 /// Runs `cases` on `jobs` worker processes (`current_exe() worker`), `timeout` per case; a worker that crashes
 /// or hangs is replaced and its case reported `crash` or `timeout`. Results arrive in completion order.
-pub fn run_in_workers(cases: &[Case], jobs: usize, timeout: Duration, on_result: impl FnMut(CaseResult)) {
+pub fn run_in_workers(
+    cases: &[Case],
+    jobs: usize,
+    timeout: Duration,
+    on_result: impl FnMut(CaseResult),
+) {
     run_pool(cases, jobs, timeout, on_result)
 }
 
 /// [`run_in_workers`] for build cases.
-pub fn run_builds_in_workers(requests: &[BuildRequest], jobs: usize, timeout: Duration, on_result: impl FnMut(BuildResult)) {
+pub fn run_builds_in_workers(
+    requests: &[BuildRequest],
+    jobs: usize,
+    timeout: Duration,
+    on_result: impl FnMut(BuildResult),
+) {
     run_pool(requests, jobs, timeout, on_result)
 }
 
-fn run_pool<J: PoolJob>(items: &[J], jobs: usize, timeout: Duration, on_result: impl FnMut(J::Result)) {
+fn run_pool<J: PoolJob>(
+    items: &[J],
+    jobs: usize,
+    timeout: Duration,
+    on_result: impl FnMut(J::Result),
+) {
     match WorkerCommand::current_exe() {
         Ok(cmd) => run_pool_with(&cmd, items, jobs, timeout, on_result),
         Err(e) => {
             let mut on_result = on_result;
             for (index, item) in items.iter().enumerate() {
-                on_result(item.lost(index, Status::Crash { message: format!("cannot find the rtconf executable to start workers: {e}") }, 0.0));
+                on_result(item.lost(
+                    index,
+                    Status::Crash {
+                        message: format!("cannot find the rtconf executable to start workers: {e}"),
+                    },
+                    0.0,
+                ));
             }
         }
     }
 }
 
 /// [`run_in_workers`] with an explicit worker command.
-pub fn run_in_workers_with(cmd: &WorkerCommand, cases: &[Case], jobs: usize, timeout: Duration, on_result: impl FnMut(CaseResult)) {
+pub fn run_in_workers_with(
+    cmd: &WorkerCommand,
+    cases: &[Case],
+    jobs: usize,
+    timeout: Duration,
+    on_result: impl FnMut(CaseResult),
+) {
     run_pool_with(cmd, cases, jobs, timeout, on_result)
 }
 
@@ -378,13 +540,21 @@ pub fn run_pool_with<J: PoolJob>(
             s.spawn(move || {
                 let mut worker: Option<Worker> = None;
                 loop {
-                    let Some(index) = queue.lock().unwrap_or_else(|e| e.into_inner()).pop_front() else { break };
+                    let Some(index) = queue.lock().unwrap_or_else(|e| e.into_inner()).pop_front()
+                    else {
+                        break;
+                    };
                     let item = &items[index];
                     if worker.is_none() {
                         match Worker::spawn(cmd) {
                             Ok(w) => worker = Some(w),
                             Err(e) => {
-                                let status = Status::Crash { message: format!("cannot start worker {}: {e}", cmd.program.display()) };
+                                let status = Status::Crash {
+                                    message: format!(
+                                        "cannot start worker {}: {e}",
+                                        cmd.program.display()
+                                    ),
+                                };
                                 let _ = tx.send(item.lost(index, status, 0.0));
                                 continue;
                             }

@@ -13,19 +13,34 @@ use model::flags::BufferCreate;
 use model::world::MemoryBinding;
 
 fn executor() -> Executor {
-    Executor::new(Driver::Lavapipe).expect("lavapipe and the validation layer are installed by scripts/setup.sh")
+    Executor::new(Driver::Lavapipe)
+        .expect("lavapipe and the validation layer are installed by scripts/setup.sh")
 }
 
 /// Runs `case` and checks the status, the layer's VUIDs and, for valid cases, the words against the model.
 fn check(ctx: &mut Executor, case: &Case, expect_vuids: &[&str]) {
     let obs = execute(case, ctx);
     assert_eq!(obs.status, Status::Ran, "{}: {:?}", case.name, obs);
-    assert_eq!(obs.layer_vuids, expect_vuids, "{}: {:#?}", case.name, obs.layer_messages);
+    assert_eq!(
+        obs.layer_vuids, expect_vuids,
+        "{}: {:#?}",
+        case.name, obs.layer_messages
+    );
     if matches!(case.intent, Intent::Valid) {
-        let expected = model::semantics::expected_launch(&case.world, &case.call).expect("dimensions are known");
-        assert_eq!(obs.output.as_deref(), Some(expected.words.as_slice()), "{}", case.name);
+        let expected = model::semantics::expected_launch(&case.world, &case.call)
+            .expect("dimensions are known");
+        assert_eq!(
+            obs.output.as_deref(),
+            Some(expected.words.as_slice()),
+            "{}",
+            case.name
+        );
     } else {
-        assert_eq!(obs.output, None, "{}: invalid cases are never submitted", case.name);
+        assert_eq!(
+            obs.output, None,
+            "{}: invalid cases are never submitted",
+            case.name
+        );
     }
 }
 
@@ -38,38 +53,67 @@ fn valid_indirect_launch_writes_what_the_model_expects() {
     let obs = execute(&case, &mut ctx);
     let h = model::semantics::HIT_TAG;
     let m = model::semantics::MISS_TAG;
-    assert_eq!(obs.output.unwrap(), vec![h | 3, m | 1, m | 2, h | 3, m | 1, m | 2, h | 3, m | 1]);
+    assert_eq!(
+        obs.output.unwrap(),
+        vec![h | 3, m | 1, m | 2, h | 3, m | 1, m | 2, h | 3, m | 1]
+    );
 }
 
 #[test]
 fn miss_stride_not_a_multiple_of_the_handle_alignment_is_reported() {
     let mut ctx = executor();
     let mut case = valid_case();
-    let Call::TraceRaysIndirect(c) = &mut case.call else { unreachable!() };
+    let Call::TraceRaysIndirect(c) = &mut case.call else {
+        unreachable!()
+    };
     c.miss.stride = 40;
     c.miss.size = 80;
-    case.intent = Intent::Violates { vuid: "VUID-vkCmdTraceRaysIndirectKHR-stride-03686".into(), also: vec![] };
-    check(&mut ctx, &case, &["VUID-vkCmdTraceRaysIndirectKHR-stride-03686"]);
+    case.intent = Intent::Violates {
+        vuid: "VUID-vkCmdTraceRaysIndirectKHR-stride-03686".into(),
+        also: vec![],
+    };
+    check(
+        &mut ctx,
+        &case,
+        &["VUID-vkCmdTraceRaysIndirectKHR-stride-03686"],
+    );
 }
 
 #[test]
 fn indirect_address_not_a_multiple_of_four_is_reported() {
     let mut ctx = executor();
     let mut case = valid_case();
-    let Call::TraceRaysIndirect(c) = &mut case.call else { unreachable!() };
+    let Call::TraceRaysIndirect(c) = &mut case.call else {
+        unreachable!()
+    };
     c.indirect_address = at("indirect", 2);
-    case.intent = Intent::Violates { vuid: "VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634".into(), also: vec![] };
-    check(&mut ctx, &case, &["VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634"]);
+    case.intent = Intent::Violates {
+        vuid: "VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634".into(),
+        also: vec![],
+    };
+    check(
+        &mut ctx,
+        &case,
+        &["VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634"],
+    );
 }
 
 #[test]
 fn a_missing_feature_is_unsupported_with_its_name() {
     let mut ctx = executor();
     let mut case = valid_case();
-    case.world.device.features.insert("sparseResidencyAliased".into());
-    case.world.device.extensions.insert("VK_NV_ray_tracing".into());
+    case.world
+        .device
+        .features
+        .insert("sparseResidencyAliased".into());
+    case.world
+        .device
+        .extensions
+        .insert("VK_NV_ray_tracing".into());
     let obs = execute(&case, &mut ctx);
-    let Status::Unsupported { reason } = &obs.status else { panic!("{obs:?}") };
+    let Status::Unsupported { reason } = &obs.status else {
+        panic!("{obs:?}")
+    };
     assert!(reason.contains("VK_NV_ray_tracing"), "{reason}");
 }
 
@@ -77,7 +121,9 @@ fn a_missing_feature_is_unsupported_with_its_name() {
 fn both_violations_in_one_call_are_both_reported() {
     let mut ctx = executor();
     let mut case = valid_case();
-    let Call::TraceRaysIndirect(c) = &mut case.call else { unreachable!() };
+    let Call::TraceRaysIndirect(c) = &mut case.call else {
+        unreachable!()
+    };
     c.miss.stride = 40;
     c.miss.size = 80;
     c.indirect_address = at("indirect", 2);
@@ -101,13 +147,21 @@ fn callables_and_extra_recursion_run_silently_and_as_the_model_expects() {
     assert!(depth <= case.world.pipeline.as_ref().unwrap().max_recursion_depth);
     let obs = execute(&case, &mut ctx);
     assert_eq!(obs.status, Status::Ran, "{obs:?}");
-    assert!(obs.layer_messages.is_empty(), "no layer message at all: {:#?}", obs.layer_messages);
-    let expected = model::semantics::expected_launch(&case.world, &case.call).expect("direct dimensions");
+    assert!(
+        obs.layer_messages.is_empty(),
+        "no layer message at all: {:#?}",
+        obs.layer_messages
+    );
+    let expected =
+        model::semantics::expected_launch(&case.world, &case.call).expect("direct dimensions");
     assert_eq!(obs.output.as_deref(), Some(expected.words.as_slice()));
     // The nested traces use their own payload: the outer word is still the first closest-hit's.
     let h = model::semantics::HIT_TAG;
     let m = model::semantics::MISS_TAG;
-    assert_eq!(obs.output.unwrap(), vec![h | 3, m | 1, m | 2, h | 3, m | 1, m | 2]);
+    assert_eq!(
+        obs.output.unwrap(),
+        vec![h | 3, m | 1, m | 2, h | 3, m | 1, m | 2]
+    );
 }
 
 #[test]
@@ -126,8 +180,13 @@ fn a_non_sparse_unbound_buffer_is_unsupported_naming_02600() {
     let mut case = valid_case();
     case.world.buffers[1].memory = MemoryBinding::Unbound;
     let obs = execute(&case, &mut ctx);
-    let Status::Unsupported { reason } = &obs.status else { panic!("{obs:?}") };
-    assert!(reason.contains("VUID-VkBufferDeviceAddressInfo-buffer-02600"), "{reason}");
+    let Status::Unsupported { reason } = &obs.status else {
+        panic!("{obs:?}")
+    };
+    assert!(
+        reason.contains("VUID-VkBufferDeviceAddressInfo-buffer-02600"),
+        "{reason}"
+    );
 }
 
 fn sparse(case: &mut Case, buffer: usize, memory: MemoryBinding) {
@@ -169,8 +228,13 @@ fn a_sparse_buffer_without_the_feature_enabled_is_unsupported_naming_00915() {
     sparse(&mut case, 0, MemoryBinding::Whole);
     case.world.device.features.remove("sparseBinding");
     let obs = execute(&case, &mut ctx);
-    let Status::Unsupported { reason } = &obs.status else { panic!("{obs:?}") };
-    assert!(reason.contains("VUID-VkBufferCreateInfo-flags-00915"), "{reason}");
+    let Status::Unsupported { reason } = &obs.status else {
+        panic!("{obs:?}")
+    };
+    assert!(
+        reason.contains("VUID-VkBufferCreateInfo-flags-00915"),
+        "{reason}"
+    );
 }
 
 #[test]
@@ -180,8 +244,17 @@ fn an_unbound_sparse_buffer_of_an_invalid_case_is_recorded_not_submitted() {
     // The indirect command lives in an unbound sparse buffer: the layer cannot see that, so the case is
     // declared invalid only by intent here; what matters is that it is realised and never submitted.
     sparse(&mut case, 1, MemoryBinding::Unbound);
-    let Call::TraceRaysIndirect(c) = &mut case.call else { unreachable!() };
+    let Call::TraceRaysIndirect(c) = &mut case.call else {
+        unreachable!()
+    };
     c.indirect_address = at("indirect", 2);
-    case.intent = Intent::Violates { vuid: "VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634".into(), also: vec![] };
-    check(&mut ctx, &case, &["VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634"]);
+    case.intent = Intent::Violates {
+        vuid: "VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634".into(),
+        also: vec![],
+    };
+    check(
+        &mut ctx,
+        &case,
+        &["VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634"],
+    );
 }

@@ -9,18 +9,23 @@ use model::case::{Case, Intent};
 use std::path::PathBuf;
 
 fn executor() -> Executor {
-    Executor::new(Driver::Lavapipe).expect("lavapipe and the validation layer are installed by scripts/setup.sh")
+    Executor::new(Driver::Lavapipe)
+        .expect("lavapipe and the validation layer are installed by scripts/setup.sh")
 }
 
 fn case(name: &str) -> Case {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../cases/resources").join(format!("{name}.yaml"));
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../cases/resources")
+        .join(format!("{name}.yaml"));
     let text = std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
     Case::from_yaml(&p.display().to_string(), &text).expect("a case file")
 }
 
 /// The rule's tag (`None-02691` → `02691`) as either trace command reports it.
 fn reported(vuids: &[String], tag: &str) -> bool {
-    vuids.iter().any(|v| v.starts_with("VUID-vkCmdTraceRays") && v.ends_with(tag))
+    vuids
+        .iter()
+        .any(|v| v.starts_with("VUID-vkCmdTraceRays") && v.ends_with(tag))
 }
 
 #[test]
@@ -31,7 +36,8 @@ fn valid_resource_case_runs_silently_and_writes_the_models_words() {
     let obs = execute(&c, &mut ctx);
     assert_eq!(obs.status, Status::Ran, "{obs:?}");
     assert!(obs.layer_vuids.is_empty(), "{:#?}", obs.layer_messages);
-    let expected = model::semantics::expected_launch(&c.world, &c.call).expect("dimensions are known");
+    let expected =
+        model::semantics::expected_launch(&c.world, &c.call).expect("dimensions are known");
     assert_eq!(obs.output.as_deref(), Some(expected.words.as_slice()));
 }
 
@@ -57,8 +63,15 @@ fn realised_invalid_cases_draw_their_rule_from_the_layer() {
         assert!(matches!(c.intent, Intent::Violates { .. }));
         let obs = execute(&c, &mut ctx);
         assert_eq!(obs.status, Status::Ran, "{name}: {obs:?}");
-        assert!(reported(&obs.layer_vuids, tag), "{name}: the layer reported {:?}", obs.layer_vuids);
-        assert_eq!(obs.output, None, "{name}: invalid cases are never submitted");
+        assert!(
+            reported(&obs.layer_vuids, tag),
+            "{name}: the layer reported {:?}",
+            obs.layer_vuids
+        );
+        assert_eq!(
+            obs.output, None,
+            "{name}: invalid cases are never submitted"
+        );
     }
 }
 
@@ -69,11 +82,23 @@ fn narrow_texel_writes_reach_the_layer_as_narrow() {
     // draw 04115 — which shows the harness's patched OpImageWrite carries 3 components.
     let mut ctx = executor();
     let mut c = case("vkCmdTraceRaysIndirectKHR-None-04115-4-0");
-    let narrow = c.world.resources.stages[0].accesses.iter_mut().find(|a| a.texel_components.is_some_and(|k| k < 4)).expect("a narrow write");
-    narrow.image.as_mut().expect("an image access").format_unknown = true;
+    let narrow = c.world.resources.stages[0]
+        .accesses
+        .iter_mut()
+        .find(|a| a.texel_components.is_some_and(|k| k < 4))
+        .expect("a narrow write");
+    narrow
+        .image
+        .as_mut()
+        .expect("an image access")
+        .format_unknown = true;
     let obs = execute(&c, &mut ctx);
     assert_eq!(obs.status, Status::Ran, "{obs:?}");
-    assert!(reported(&obs.layer_vuids, "-04115"), "{:?}", obs.layer_vuids);
+    assert!(
+        reported(&obs.layer_vuids, "-04115"),
+        "{:?}",
+        obs.layer_vuids
+    );
 }
 
 #[test]
@@ -81,20 +106,34 @@ fn push_constants_unset_after_a_case_that_pushed() {
     // The command buffer is reused across cases: a push recorded by an earlier case must not count.
     let mut ctx = executor();
     let mut pushed = case("trace-indirect-valid-resources");
-    pushed.world.resources.pushes = vec![model::resources::Push { layout: "pl".into(), offset: 0, size: 16 }];
+    pushed.world.resources.pushes = vec![model::resources::Push {
+        layout: "pl".into(),
+        offset: 0,
+        size: 16,
+    }];
     pushed.world.resources.stages[0].push_constants = Some([0, 16]);
     let obs = execute(&pushed, &mut ctx);
     assert_eq!(obs.status, Status::Ran, "{obs:?}");
     assert!(obs.layer_vuids.is_empty(), "{:#?}", obs.layer_messages);
-    let obs = execute(&case("vkCmdTraceRaysIndirectKHR-maintenance4-06425-4-0"), &mut ctx);
-    assert!(reported(&obs.layer_vuids, "-06425"), "{:?}", obs.layer_vuids);
+    let obs = execute(
+        &case("vkCmdTraceRaysIndirectKHR-maintenance4-06425-4-0"),
+        &mut ctx,
+    );
+    assert!(
+        reported(&obs.layer_vuids, "-06425"),
+        "{:?}",
+        obs.layer_vuids
+    );
 }
 
 #[test]
 fn families_not_realised_are_unsupported_with_a_reason() {
     let mut ctx = executor();
     for (name, why) in [
-        ("vkCmdTraceRaysIndirectKHR-None-08117-4-0", "descriptor buffers"),
+        (
+            "vkCmdTraceRaysIndirectKHR-None-08117-4-0",
+            "descriptor buffers",
+        ),
         ("vkCmdTraceRaysIndirectKHR-None-06550-4-0", "YCbCr"),
     ] {
         let obs = execute(&case(name), &mut ctx);
@@ -112,15 +151,37 @@ fn generated_valid_resource_states_run_silently() {
     let profile = generator::profiles::load("lavapipe").expect("profiles/lavapipe.json");
     let mut ctx = executor();
     let base = case("trace-indirect-valid-resources");
-    let expected = model::semantics::expected_launch(&base.world, &base.call).expect("dimensions are known");
+    let expected =
+        model::semantics::expected_launch(&base.world, &base.call).expect("dimensions are known");
     let mut ran = 0;
-    for (choice, bits) in [(0, 0x1ff), (1, 0x1ff), (2, 0x0ff), (3, 0x17f), (5, 0x041), (6, 0x103), (7, 0x1ff), (11, 0x0a5)] {
+    for (choice, bits) in [
+        (0, 0x1ff),
+        (1, 0x1ff),
+        (2, 0x0ff),
+        (3, 0x17f),
+        (5, 0x041),
+        (6, 0x103),
+        (7, 0x1ff),
+        (11, 0x0a5),
+    ] {
         let mut c = base.clone();
         c.world.resources = generator::resources::valid_state(&profile, choice, bits);
         let obs = execute(&c, &mut ctx);
-        assert_eq!(obs.status, Status::Ran, "choice {choice} bits {bits:#x}: {obs:?}");
-        assert!(obs.layer_vuids.is_empty(), "choice {choice} bits {bits:#x}: {:#?}", obs.layer_messages);
-        assert_eq!(obs.output.as_deref(), Some(expected.words.as_slice()), "choice {choice} bits {bits:#x}");
+        assert_eq!(
+            obs.status,
+            Status::Ran,
+            "choice {choice} bits {bits:#x}: {obs:?}"
+        );
+        assert!(
+            obs.layer_vuids.is_empty(),
+            "choice {choice} bits {bits:#x}: {:#?}",
+            obs.layer_messages
+        );
+        assert_eq!(
+            obs.output.as_deref(),
+            Some(expected.words.as_slice()),
+            "choice {choice} bits {bits:#x}"
+        );
         ran += 1;
     }
     assert_eq!(ran, 8);

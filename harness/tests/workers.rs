@@ -22,7 +22,9 @@ fn crashes_and_hangs_cost_one_case_each() {
     let me = std::env::current_exe().unwrap();
     let cmd = WorkerCommand {
         program: me,
-        args: ["worker_entry", "--exact", "--nocapture", "--test-threads=1"].map(String::from).into(),
+        args: ["worker_entry", "--exact", "--nocapture", "--test-threads=1"]
+            .map(String::from)
+            .into(),
         env: vec![
             (WORKER_ENV.into(), "1".into()),
             (harness::worker::FAULTS_ENV.into(), "1".into()),
@@ -34,17 +36,45 @@ fn crashes_and_hangs_cost_one_case_each() {
     abort.name = "fault-abort".into();
     let mut hang = valid.clone();
     hang.name = "fault-hang".into();
-    let cases = vec![valid.clone(), abort, valid.clone(), hang, common::bad_miss_stride_case(), valid.clone()];
+    let cases = vec![
+        valid.clone(),
+        abort,
+        valid.clone(),
+        hang,
+        common::bad_miss_stride_case(),
+        valid.clone(),
+    ];
     let mut results = Vec::new();
     run_in_workers_with(&cmd, &cases, 2, Duration::from_secs(8), |r| results.push(r));
     results.sort_by_key(|r| r.index);
-    assert_eq!(results.iter().map(|r| r.index).collect::<Vec<_>>(), vec![0, 1, 2, 3, 4, 5]);
-    let expected = model::semantics::expected_launch(&valid.world, &valid.call).unwrap().words;
+    assert_eq!(
+        results.iter().map(|r| r.index).collect::<Vec<_>>(),
+        vec![0, 1, 2, 3, 4, 5]
+    );
+    let expected = model::semantics::expected_launch(&valid.world, &valid.call)
+        .unwrap()
+        .words;
     for i in [0, 2, 5] {
-        assert_eq!(results[i].observation.status, Status::Ran, "{:?}", results[i]);
+        assert_eq!(
+            results[i].observation.status,
+            Status::Ran,
+            "{:?}",
+            results[i]
+        );
         assert_eq!(results[i].observation.output.as_ref(), Some(&expected));
     }
-    assert!(matches!(&results[1].observation.status, Status::Crash { message } if message.contains("died")), "{:?}", results[1]);
-    assert!(matches!(results[3].observation.status, Status::Timeout { .. }), "{:?}", results[3]);
-    assert_eq!(results[4].observation.layer_vuids, vec!["VUID-vkCmdTraceRaysIndirectKHR-stride-03686".to_string()]);
+    assert!(
+        matches!(&results[1].observation.status, Status::Crash { message } if message.contains("died")),
+        "{:?}",
+        results[1]
+    );
+    assert!(
+        matches!(results[3].observation.status, Status::Timeout { .. }),
+        "{:?}",
+        results[3]
+    );
+    assert_eq!(
+        results[4].observation.layer_vuids,
+        vec!["VUID-vkCmdTraceRaysIndirectKHR-stride-03686".to_string()]
+    );
 }

@@ -26,14 +26,28 @@ fn main() {
     let set = vk_registry::source::load_vuids(Path::new(vk_registry::source::DEFAULT_REGISTRY_DIR))
         .expect("the installed registry (bash scripts/setup.sh)");
     let rules = RuleSet::from_vuids(&set);
-    let profile_text = std::fs::read_to_string(root.join("profiles/lavapipe.json")).expect("profiles/lavapipe.json");
-    let profile = DeviceProfile::from_profiles_json("lavapipe", &profile_text).expect("a valid profile");
+    let profile_text = std::fs::read_to_string(root.join("profiles/lavapipe.json"))
+        .expect("profiles/lavapipe.json");
+    let profile =
+        DeviceProfile::from_profiles_json("lavapipe", &profile_text).expect("a valid profile");
     let case_path = root.join("cases/hand/trace-indirect-basic.yaml");
-    let case = Case::from_yaml("basic", &std::fs::read_to_string(&case_path).expect("the basic case")).expect("parses");
-    assert!(model::validate(&rules, &profile, &case.world, &case.call).is_valid(), "the basic case is valid");
+    let case = Case::from_yaml(
+        "basic",
+        &std::fs::read_to_string(&case_path).expect("the basic case"),
+    )
+    .expect("parses");
+    assert!(
+        model::validate(&rules, &profile, &case.world, &case.call).is_valid(),
+        "the basic case is valid"
+    );
 
     let full = rate(50_000, || {
-        black_box(model::validate(black_box(&rules), &profile, black_box(&case.world), black_box(&case.call)));
+        black_box(model::validate(
+            black_box(&rules),
+            &profile,
+            black_box(&case.world),
+            black_box(&case.call),
+        ));
     });
     let judge = rules.prepare(&profile, &case.world, case.call.command());
     let prepared = rate(200_000, || {

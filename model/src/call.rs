@@ -53,12 +53,18 @@ pub struct StridedRegion {
 
 impl StridedRegion {
     pub fn unused() -> StridedRegion {
-        StridedRegion { address: Address::NULL, stride: 0, size: 0 }
+        StridedRegion {
+            address: Address::NULL,
+            stride: 0,
+            size: 0,
+        }
     }
 }
 
 /// One of the four shader binding tables.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
 #[serde(rename_all = "kebab-case")]
 pub enum Table {
     Raygen,
@@ -208,7 +214,10 @@ impl Call {
             if khr {
                 let stem = t.khr_param().to_ascii_lowercase();
                 if let Some(member) = p.strip_prefix(&stem) {
-                    let member = member.trim_start_matches("->").trim_start_matches("::").trim_start_matches('.');
+                    let member = member
+                        .trim_start_matches("->")
+                        .trim_start_matches("::")
+                        .trim_start_matches('.');
                     return match member {
                         "deviceaddress" => Some(Param::TableAddress(t)),
                         "stride" => Some(Param::TableStride(t)),
@@ -228,7 +237,9 @@ impl Call {
             }
         }
         match p.as_str() {
-            "indirectdeviceaddress" if command == "vkCmdTraceRaysIndirectKHR" => Some(Param::IndirectAddress),
+            "indirectdeviceaddress" if command == "vkCmdTraceRaysIndirectKHR" => {
+                Some(Param::IndirectAddress)
+            }
             "width" if command != "vkCmdTraceRaysIndirectKHR" => Some(Param::Dimension(0)),
             "height" if command != "vkCmdTraceRaysIndirectKHR" => Some(Param::Dimension(1)),
             "depth" if command != "vkCmdTraceRaysIndirectKHR" => Some(Param::Dimension(2)),
@@ -239,16 +250,28 @@ impl Call {
     /// The numeric value of a parameter (addresses as their alignment-relevant part).
     pub fn value(&self, p: Param) -> u64 {
         match (self, p) {
-            (Call::TraceRaysNv(_), Param::TableAddress(t)) => self.nv_table(t).map_or(0, |n| n.offset),
-            (Call::TraceRaysNv(_), Param::TableStride(t)) => self.nv_table(t).map_or(0, |n| n.stride),
+            (Call::TraceRaysNv(_), Param::TableAddress(t)) => {
+                self.nv_table(t).map_or(0, |n| n.offset)
+            }
+            (Call::TraceRaysNv(_), Param::TableStride(t)) => {
+                self.nv_table(t).map_or(0, |n| n.stride)
+            }
             (Call::TraceRaysNv(_), Param::TableSize(_)) => 0,
-            (_, Param::TableAddress(t)) => self.region(t).map_or(0, |r| r.address.alignment_value()),
+            (_, Param::TableAddress(t)) => {
+                self.region(t).map_or(0, |r| r.address.alignment_value())
+            }
             (_, Param::TableStride(t)) => self.region(t).map_or(0, |r| r.stride),
             (_, Param::TableSize(t)) => self.region(t).map_or(0, |r| r.size),
-            (Call::TraceRaysIndirect(c), Param::IndirectAddress) => c.indirect_address.alignment_value(),
+            (Call::TraceRaysIndirect(c), Param::IndirectAddress) => {
+                c.indirect_address.alignment_value()
+            }
             (_, Param::IndirectAddress) => 0,
-            (Call::TraceRays(c), Param::Dimension(i)) => [c.width, c.height, c.depth][i as usize] as u64,
-            (Call::TraceRaysNv(c), Param::Dimension(i)) => [c.width, c.height, c.depth][i as usize] as u64,
+            (Call::TraceRays(c), Param::Dimension(i)) => {
+                [c.width, c.height, c.depth][i as usize] as u64
+            }
+            (Call::TraceRaysNv(c), Param::Dimension(i)) => {
+                [c.width, c.height, c.depth][i as usize] as u64
+            }
             (Call::TraceRaysIndirect(_), Param::Dimension(_)) => 0,
         }
     }

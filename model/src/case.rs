@@ -57,7 +57,9 @@ impl Intent {
         match self {
             Intent::Valid => vec![],
             Intent::Violates { vuid, also } => {
-                let mut v: Vec<String> = std::iter::once(vuid.clone()).chain(also.iter().cloned()).collect();
+                let mut v: Vec<String> = std::iter::once(vuid.clone())
+                    .chain(also.iter().cloned())
+                    .collect();
                 v.sort();
                 v.dedup();
                 v

@@ -156,13 +156,21 @@ mod tests {
         let yaml = serde_yaml::to_string(&u).unwrap();
         let back: BufferUsage = serde_yaml::from_str(&yaml).unwrap();
         assert_eq!(back, u);
-        assert_eq!(BufferUsage::from_name("VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT"), Some(BufferUsage::INDIRECT_BUFFER_BIT));
+        assert_eq!(
+            BufferUsage::from_name("VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT"),
+            Some(BufferUsage::INDIRECT_BUFFER_BIT)
+        );
     }
 
     #[test]
     fn unknown_flag_names_are_rejected_with_the_known_list() {
-        let err = serde_yaml::from_str::<BufferUsage>("[NOT_A_FLAG]").unwrap_err().to_string();
-        assert!(err.contains("unknown BufferUsage flag `NOT_A_FLAG`"), "{err}");
+        let err = serde_yaml::from_str::<BufferUsage>("[NOT_A_FLAG]")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("unknown BufferUsage flag `NOT_A_FLAG`"),
+            "{err}"
+        );
         assert!(err.contains("INDIRECT_BUFFER_BIT"), "{err}");
     }
 }

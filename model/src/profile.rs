@@ -41,7 +41,9 @@ impl PropertyValue {
                     PropertyValue::Float(n.as_f64()?)
                 }
             }
-            Value::Array(a) => PropertyValue::Array(a.iter().filter_map(PropertyValue::from_json).collect()),
+            Value::Array(a) => {
+                PropertyValue::Array(a.iter().filter_map(PropertyValue::from_json).collect())
+            }
             Value::String(s) => PropertyValue::Text(s.clone()),
             _ => return None,
         })
@@ -97,8 +99,10 @@ pub struct ProfileError {
 }
 
 /// Nested property structs inside `VkPhysicalDeviceProperties`, flattened under their own type name.
-const NESTED_PROPERTY_STRUCTS: &[(&str, &str)] =
-    &[("limits", "VkPhysicalDeviceLimits"), ("sparseProperties", "VkPhysicalDeviceSparseProperties")];
+const NESTED_PROPERTY_STRUCTS: &[(&str, &str)] = &[
+    ("limits", "VkPhysicalDeviceLimits"),
+    ("sparseProperties", "VkPhysicalDeviceSparseProperties"),
+];
 
 impl DeviceProfile {
     /// Whether the device reports the feature, looked up as `Struct::member` or by member name alone.
@@ -107,7 +111,9 @@ impl DeviceProfile {
             return *v;
         }
         let member = name.rsplit("::").next().unwrap_or(name);
-        self.features.iter().any(|(k, v)| *v && k.rsplit("::").next() == Some(member))
+        self.features
+            .iter()
+            .any(|(k, v)| *v && k.rsplit("::").next() == Some(member))
     }
 
     /// A property looked up by `Struct::member` or by member name alone (first match in key order).
@@ -116,7 +122,10 @@ impl DeviceProfile {
             return Some(v);
         }
         let member = name.rsplit("::").next().unwrap_or(name);
-        self.properties.iter().find(|(k, _)| k.rsplit("::").next() == Some(member)).map(|(_, v)| v)
+        self.properties
+            .iter()
+            .find(|(k, _)| k.rsplit("::").next() == Some(member))
+            .map(|(_, v)| v)
     }
 
     /// An unsigned limit; `name[i]` picks an array element.
@@ -137,7 +146,10 @@ impl DeviceProfile {
 
     /// `(major, minor)` of the API version.
     pub fn api_major_minor(&self) -> (u32, u32) {
-        let mut it = self.api_version.split('.').map(|p| p.parse::<u32>().unwrap_or(0));
+        let mut it = self
+            .api_version
+            .split('.')
+            .map(|p| p.parse::<u32>().unwrap_or(0));
         (it.next().unwrap_or(1), it.next().unwrap_or(0))
     }
 
@@ -148,15 +160,29 @@ impl DeviceProfile {
             location: format!("{name}:{}:{}", e.line(), e.column()),
             problem: format!("not valid JSON: {e}"),
         })?;
-        let caps = root.get("capabilities").and_then(Value::as_object).ok_or_else(|| ProfileError {
-            location: format!("{name}: $.capabilities"),
-            problem: "missing the `capabilities` object of the Vulkan Profiles schema".into(),
-        })?;
-        let mut p = DeviceProfile { name: name.to_string(), ..Default::default() };
+        let caps = root
+            .get("capabilities")
+            .and_then(Value::as_object)
+            .ok_or_else(|| ProfileError {
+                location: format!("{name}: $.capabilities"),
+                problem: "missing the `capabilities` object of the Vulkan Profiles schema".into(),
+            })?;
+        let mut p = DeviceProfile {
+            name: name.to_string(),
+            ..Default::default()
+        };
         if let Some(profiles) = root.get("profiles").and_then(Value::as_object) {
             if let Some((_, first)) = profiles.iter().next() {
-                p.api_version = first.get("api-version").and_then(Value::as_str).unwrap_or("").to_string();
-                p.description = first.get("description").and_then(Value::as_str).unwrap_or("").to_string();
+                p.api_version = first
+                    .get("api-version")
+                    .and_then(Value::as_str)
+                    .unwrap_or("")
+                    .to_string();
+                p.description = first
+                    .get("description")
+                    .and_then(Value::as_str)
+                    .unwrap_or("")
+                    .to_string();
             }
         }
         for (_, block) in caps {
@@ -180,12 +206,20 @@ impl DeviceProfile {
             if let Some(formats) = block.get("formats").and_then(Value::as_object) {
                 for (fmt, v) in formats {
                     let mut ff = FormatFeatures::default();
-                    for key in ["VkFormatProperties", "VkFormatProperties3", "VkFormatProperties3KHR"] {
+                    for key in [
+                        "VkFormatProperties",
+                        "VkFormatProperties3",
+                        "VkFormatProperties3KHR",
+                    ] {
                         if let Some(fp) = v.get(key) {
                             let names = |k: &str| -> Vec<String> {
                                 fp.get(k)
                                     .and_then(Value::as_array)
-                                    .map(|a| a.iter().filter_map(|s| s.as_str().map(String::from)).collect())
+                                    .map(|a| {
+                                        a.iter()
+                                            .filter_map(|s| s.as_str().map(String::from))
+                                            .collect()
+                                    })
                                     .unwrap_or_default()
                             };
                             ff.linear_tiling.extend(names("linearTilingFeatures"));
@@ -196,19 +230,28 @@ impl DeviceProfile {
                     p.formats.insert(fmt.clone(), ff);
                 }
             }
-            if let Some(q) = block.get("queueFamiliesProperties").and_then(Value::as_array) {
+            if let Some(q) = block
+                .get("queueFamiliesProperties")
+                .and_then(Value::as_array)
+            {
                 for fam in q {
                     let flags = fam
                         .pointer("/VkQueueFamilyProperties/queueFlags")
                         .and_then(Value::as_array)
-                        .map(|a| a.iter().filter_map(|s| s.as_str().map(String::from)).collect())
+                        .map(|a| {
+                            a.iter()
+                                .filter_map(|s| s.as_str().map(String::from))
+                                .collect()
+                        })
                         .unwrap_or_default();
                     p.queue_families.push(flags);
                 }
             }
         }
         if p.api_version.is_empty() {
-            if let Some(PropertyValue::Text(v)) = p.properties.get("VkPhysicalDeviceProperties::apiVersion") {
+            if let Some(PropertyValue::Text(v)) =
+                p.properties.get("VkPhysicalDeviceProperties::apiVersion")
+            {
                 p.api_version = v.clone();
             }
         }
@@ -219,25 +262,44 @@ impl DeviceProfile {
     pub fn to_profiles_json(&self) -> String {
         let mut features: BTreeMap<&str, Map<String, Value>> = BTreeMap::new();
         for (k, v) in &self.features {
-            let (st, m) = k.split_once("::").unwrap_or(("VkPhysicalDeviceFeatures", k));
-            features.entry(st).or_default().insert(m.to_string(), Value::Bool(*v));
+            let (st, m) = k
+                .split_once("::")
+                .unwrap_or(("VkPhysicalDeviceFeatures", k));
+            features
+                .entry(st)
+                .or_default()
+                .insert(m.to_string(), Value::Bool(*v));
         }
         let mut props: BTreeMap<String, Map<String, Value>> = BTreeMap::new();
         for (k, v) in &self.properties {
-            let (st, m) = k.split_once("::").unwrap_or(("VkPhysicalDeviceProperties", k));
+            let (st, m) = k
+                .split_once("::")
+                .unwrap_or(("VkPhysicalDeviceProperties", k));
             if let Some((field, _)) = NESTED_PROPERTY_STRUCTS.iter().find(|(_, ty)| *ty == st) {
-                let outer = props.entry("VkPhysicalDeviceProperties".into()).or_default();
-                let inner = outer.entry(field.to_string()).or_insert_with(|| Value::Object(Map::new()));
-                inner.as_object_mut().expect("nested property struct is an object").insert(m.to_string(), v.to_json());
+                let outer = props
+                    .entry("VkPhysicalDeviceProperties".into())
+                    .or_default();
+                let inner = outer
+                    .entry(field.to_string())
+                    .or_insert_with(|| Value::Object(Map::new()));
+                inner
+                    .as_object_mut()
+                    .expect("nested property struct is an object")
+                    .insert(m.to_string(), v.to_json());
             } else {
-                props.entry(st.to_string()).or_default().insert(m.to_string(), v.to_json());
+                props
+                    .entry(st.to_string())
+                    .or_default()
+                    .insert(m.to_string(), v.to_json());
             }
         }
         let formats: Map<String, Value> = self
             .formats
             .iter()
             .map(|(f, ff)| {
-                let list = |s: &BTreeSet<String>| Value::Array(s.iter().cloned().map(Value::String).collect());
+                let list = |s: &BTreeSet<String>| {
+                    Value::Array(s.iter().cloned().map(Value::String).collect())
+                };
                 (
                     f.clone(),
                     serde_json::json!({"VkFormatProperties": {
@@ -247,13 +309,20 @@ impl DeviceProfile {
                 )
             })
             .collect();
-        let extensions: Map<String, Value> = self.extensions.iter().map(|e| (e.clone(), Value::from(1))).collect();
+        let extensions: Map<String, Value> = self
+            .extensions
+            .iter()
+            .map(|e| (e.clone(), Value::from(1)))
+            .collect();
         let queues: Vec<Value> = self
             .queue_families
             .iter()
             .map(|f| serde_json::json!({"VkQueueFamilyProperties": {"queueFlags": f}}))
             .collect();
-        let profile_key = format!("VP_RTCONF_{}", self.name.to_uppercase().replace(['-', ' ', '.'], "_"));
+        let profile_key = format!(
+            "VP_RTCONF_{}",
+            self.name.to_uppercase().replace(['-', ' ', '.'], "_")
+        );
         let doc = serde_json::json!({
             "$schema": "https://schema.khronos.org/vulkan/profiles-0.8-latest.json#",
             "capabilities": {
@@ -280,7 +349,9 @@ impl DeviceProfile {
 }
 
 fn flatten_properties(st: &str, members: &Value, out: &mut BTreeMap<String, PropertyValue>) {
-    let Some(obj) = members.as_object() else { return };
+    let Some(obj) = members.as_object() else {
+        return;
+    };
     for (m, v) in obj {
         if let Some((_, ty)) = NESTED_PROPERTY_STRUCTS.iter().find(|(f, _)| f == m) {
             flatten_properties(ty, v, out);
@@ -309,9 +380,15 @@ mod tests {
     #[test]
     fn limits_resolve_by_struct_member_by_member_and_by_index() {
         let p = DeviceProfile::from_profiles_json("x", SMALL).unwrap();
-        assert_eq!(p.limit("VkPhysicalDeviceRayTracingPipelinePropertiesKHR::shaderGroupBaseAlignment"), Some(64));
+        assert_eq!(
+            p.limit("VkPhysicalDeviceRayTracingPipelinePropertiesKHR::shaderGroupBaseAlignment"),
+            Some(64)
+        );
         assert_eq!(p.limit("shaderGroupBaseAlignment"), Some(64));
-        assert_eq!(p.limit("VkPhysicalDeviceLimits::maxComputeWorkGroupCount[2]"), Some(65535));
+        assert_eq!(
+            p.limit("VkPhysicalDeviceLimits::maxComputeWorkGroupCount[2]"),
+            Some(65535)
+        );
         assert!(p.has_feature("rayTracingPipeline"));
         assert!(!p.has_feature("rayTracingPipelineTraceRaysIndirect"));
         assert_eq!(p.api_major_minor(), (1, 3));
@@ -326,7 +403,8 @@ mod tests {
 
     #[test]
     fn bad_json_reports_line_and_column() {
-        let err = DeviceProfile::from_profiles_json("p.json", "{\n  \"capabilities\": [").unwrap_err();
+        let err =
+            DeviceProfile::from_profiles_json("p.json", "{\n  \"capabilities\": [").unwrap_err();
         assert!(err.location.starts_with("p.json:2:"), "{err}");
     }
 }

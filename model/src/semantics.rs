@@ -14,7 +14,6 @@ pub const MISS_TAG: u32 = 0x0001_0000;
 /// High half of the output word written by a closest-hit shader of group `g`: `HIT_TAG | g`.
 pub const HIT_TAG: u32 = 0x0002_0000;
 
-
 /// The expected output of a valid launch: one word per launch ID, x fastest.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ExpectedLaunch {
@@ -29,7 +28,9 @@ pub fn miss_record(miss_index: u32) -> u64 {
 
 /// The hit record a ray reaches on geometry `geometry` of an instance with `instance_offset`.
 pub fn hit_record(instance_offset: u32, geometry: u32, sbt_offset: u32, sbt_stride: u32) -> u64 {
-    (instance_offset & 0xFF_FFFF) as u64 + geometry as u64 * (sbt_stride & 0xF) as u64 + (sbt_offset & 0xF) as u64
+    (instance_offset & 0xFF_FFFF) as u64
+        + geometry as u64 * (sbt_stride & 0xF) as u64
+        + (sbt_offset & 0xF) as u64
 }
 
 /// The handle a table's record holds: (buffer, offset) resolved through the call's region or NV table.
@@ -59,23 +60,46 @@ fn word_for_ray(world: &World, call: &Call, ray_index: usize) -> u32 {
         }
     };
     let miss = |world: &World| -> u32 {
-        match group_of(record_handle(world, call, Table::Miss, miss_record(ray.miss_index))) {
+        match group_of(record_handle(
+            world,
+            call,
+            Table::Miss,
+            miss_record(ray.miss_index),
+        )) {
             Some(g) => MISS_TAG | g,
             None => UNTOUCHED,
         }
     };
-    let RayTarget::Geometry { instance, geometry } = ray.target else { return miss(world) };
-    let Some(inst) = world.launch.instances.get(instance as usize) else { return miss(world) };
+    let RayTarget::Geometry { instance, geometry } = ray.target else {
+        return miss(world);
+    };
+    let Some(inst) = world.launch.instances.get(instance as usize) else {
+        return miss(world);
+    };
     if inst.mask as u32 & ray.cull_mask & 0xFF == 0 {
         return miss(world);
     }
-    let Some(kind) = inst.geometries.get(geometry as usize) else { return miss(world) };
-    let idx = hit_record(inst.sbt_record_offset, geometry, ray.sbt_offset, ray.sbt_stride);
+    let Some(kind) = inst.geometries.get(geometry as usize) else {
+        return miss(world);
+    };
+    let idx = hit_record(
+        inst.sbt_record_offset,
+        geometry,
+        ray.sbt_offset,
+        ray.sbt_stride,
+    );
     let group = group_of(record_handle(world, call, Table::Hit, idx));
     let shader_group = group.and_then(|g| pipeline?.groups.get(g as usize).copied());
     match (kind, shader_group) {
         // A procedural primitive is only hit when an intersection shader reports it.
-        (GeometryKind::Aabbs, Some(ShaderGroup::ProceduralHit { intersection: true, closest_hit, .. })) => {
+        (
+            GeometryKind::Aabbs,
+            Some(ShaderGroup::ProceduralHit {
+                intersection: true,
+                closest_hit,
+                ..
+            }),
+        ) => {
             if closest_hit {
                 HIT_TAG | group.unwrap_or(0)
             } else {
@@ -83,9 +107,12 @@ fn word_for_ray(world: &World, call: &Call, ray_index: usize) -> u32 {
             }
         }
         (GeometryKind::Aabbs, _) => miss(world),
-        (GeometryKind::Triangles, Some(ShaderGroup::TrianglesHit { closest_hit: true, .. })) => {
-            HIT_TAG | group.unwrap_or(0)
-        }
+        (
+            GeometryKind::Triangles,
+            Some(ShaderGroup::TrianglesHit {
+                closest_hit: true, ..
+            }),
+        ) => HIT_TAG | group.unwrap_or(0),
         (GeometryKind::Triangles, _) => UNTOUCHED,
     }
 }
@@ -95,8 +122,13 @@ fn word_for_ray(world: &World, call: &Call, ray_index: usize) -> u32 {
 fn reports_aabb(world: &World, group: Option<HandleRef>) -> bool {
     match group {
         Some(HandleRef::Group(g)) => matches!(
-            world.bound_pipeline().and_then(|p| p.groups.get(g as usize)),
-            Some(ShaderGroup::ProceduralHit { intersection: true, .. })
+            world
+                .bound_pipeline()
+                .and_then(|p| p.groups.get(g as usize)),
+            Some(ShaderGroup::ProceduralHit {
+                intersection: true,
+                ..
+            })
         ),
         _ => false,
     }
@@ -123,16 +155,28 @@ pub fn records_read(world: &World, call: &Call) -> Vec<(Table, u64)> {
         };
         match hit {
             Some((inst, kind, geometry)) => {
-                let idx = hit_record(inst.sbt_record_offset, geometry, ray.sbt_offset, ray.sbt_stride);
+                let idx = hit_record(
+                    inst.sbt_record_offset,
+                    geometry,
+                    ray.sbt_offset,
+                    ray.sbt_stride,
+                );
                 out.push((Table::Hit, idx));
-                if kind == GeometryKind::Aabbs && !reports_aabb(world, record_handle(world, call, Table::Hit, idx)) {
+                if kind == GeometryKind::Aabbs
+                    && !reports_aabb(world, record_handle(world, call, Table::Hit, idx))
+                {
                     out.push((Table::Miss, miss_record(ray.miss_index)));
                 }
             }
             None => out.push((Table::Miss, miss_record(ray.miss_index))),
         }
     }
-    out.extend(launch.callables.iter().map(|&c| (Table::Callable, c as u64)));
+    out.extend(
+        launch
+            .callables
+            .iter()
+            .map(|&c| (Table::Callable, c as u64)),
+    );
     out.sort();
     out.dedup();
     out
@@ -146,7 +190,9 @@ pub fn undefined_reads(handle_size: u64, world: &World, call: &Call) -> Vec<Stri
     for (table, index) in records_read(world, call) {
         match call {
             Call::TraceRaysNv(_) => {
-                let Some(t) = call.nv_table(table) else { continue };
+                let Some(t) = call.nv_table(table) else {
+                    continue;
+                };
                 let stride = if table == Table::Raygen { 0 } else { t.stride };
                 let end = t.offset + stride * index + handle_size;
                 match t.buffer.as_deref().and_then(|b| world.buffer(b)) {
@@ -159,9 +205,13 @@ pub fn undefined_reads(handle_size: u64, world: &World, call: &Call) -> Vec<Stri
                 }
             }
             _ => {
-                let Some(r) = call.region(table) else { continue };
+                let Some(r) = call.region(table) else {
+                    continue;
+                };
                 if r.address.is_null() {
-                    out.push(format!("{table:?} record {index} is read but the region's address is null"));
+                    out.push(format!(
+                        "{table:?} record {index} is read but the region's address is null"
+                    ));
                 } else if r.stride * index + handle_size > r.size {
                     out.push(format!(
                         "{table:?} record {index} ends at byte {} of the region, past its size {}",
@@ -181,7 +231,16 @@ pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
     let n = dims.iter().map(|&d| d as usize).product::<usize>();
     let rays = world.launch.rays.len();
     let words = (0..n)
-        .map(|id| if rays == 0 { UNTOUCHED } else { word_for_ray(world, call, id % rays) })
+        .map(|id| {
+            if rays == 0 {
+                UNTOUCHED
+            } else {
+                word_for_ray(world, call, id % rays)
+            }
+        })
         .collect();
-    Some(ExpectedLaunch { dimensions: dims, words })
+    Some(ExpectedLaunch {
+        dimensions: dims,
+        words,
+    })
 }

@@ -59,7 +59,8 @@ pub struct Buffer {
 
 impl Buffer {
     pub fn is_sparse(&self) -> bool {
-        self.flags.intersects(BufferCreate::SPARSE_BINDING_BIT | BufferCreate::SPARSE_RESIDENCY_BIT)
+        self.flags
+            .intersects(BufferCreate::SPARSE_BINDING_BIT | BufferCreate::SPARSE_RESIDENCY_BIT)
     }
 }
 
@@ -80,9 +81,18 @@ pub enum HandleRef {
 #[serde(rename_all = "kebab-case", deny_unknown_fields)]
 pub enum Contents {
     /// Shader group handles, record `i` at `offset + i * stride`.
-    ShaderRecords { offset: u64, stride: u64, handles: Vec<HandleRef> },
+    ShaderRecords {
+        offset: u64,
+        stride: u64,
+        handles: Vec<HandleRef>,
+    },
     /// A `VkTraceRaysIndirectCommandKHR` at `offset`.
-    TraceRaysIndirectCommand { offset: u64, width: u32, height: u32, depth: u32 },
+    TraceRaysIndirectCommand {
+        offset: u64,
+        width: u32,
+        height: u32,
+        depth: u32,
+    },
 }
 
 /// The stage of a general shader group.
@@ -98,7 +108,9 @@ pub enum GeneralStage {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields)]
 pub enum ShaderGroup {
-    General { stage: GeneralStage },
+    General {
+        stage: GeneralStage,
+    },
     TrianglesHit {
         #[serde(default)]
         closest_hit: bool,
@@ -190,7 +202,9 @@ impl Default for CommandBufferState {
         CommandBufferState {
             level: CommandBufferLevel::Primary,
             lifecycle: CommandBufferLifecycle::Recording,
-            pool_queue: QueueFlags::GRAPHICS_BIT | QueueFlags::COMPUTE_BIT | QueueFlags::TRANSFER_BIT,
+            pool_queue: QueueFlags::GRAPHICS_BIT
+                | QueueFlags::COMPUTE_BIT
+                | QueueFlags::TRANSFER_BIT,
             protected: false,
             in_render_pass: false,
             in_video_coding: false,
@@ -291,7 +305,10 @@ pub struct World {
     #[serde(default)]
     pub launch: Launch,
     /// issue 4: descriptors, views, samplers, push constants and the shaders' resource use.
-    #[serde(default, skip_serializing_if = "crate::resources::ResourceState::is_empty")]
+    #[serde(
+        default,
+        skip_serializing_if = "crate::resources::ResourceState::is_empty"
+    )]
     pub resources: crate::resources::ResourceState,
 }
 
@@ -303,7 +320,9 @@ impl World {
     /// The pipeline bound at the ray tracing bind point, if any. A command buffer in the initial state
     /// has recorded nothing since it was allocated or reset, so nothing is bound in it.
     pub fn bound_pipeline(&self) -> Option<&Pipeline> {
-        if self.command_buffer.pipeline_bound && self.command_buffer.lifecycle != CommandBufferLifecycle::Initial {
+        if self.command_buffer.pipeline_bound
+            && self.command_buffer.lifecycle != CommandBufferLifecycle::Initial
+        {
             self.pipeline.as_ref()
         } else {
             None
@@ -315,7 +334,12 @@ impl World {
         let b = self.buffer(buffer)?;
         let mut found = None;
         for c in &b.contents {
-            if let Contents::ShaderRecords { offset: base, stride, handles } = c {
+            if let Contents::ShaderRecords {
+                offset: base,
+                stride,
+                handles,
+            } = c
+            {
                 if offset >= *base && *stride > 0 && (offset - base) % stride == 0 {
                     if let Some(h) = handles.get(((offset - base) / stride) as usize) {
                         found = Some(*h);
@@ -330,12 +354,19 @@ impl World {
 
     /// The `VkTraceRaysIndirectCommandKHR` stored at `offset` of `buffer`, if a write put one there.
     pub fn indirect_command_at(&self, buffer: &str, offset: u64) -> Option<[u32; 3]> {
-        self.buffer(buffer)?.contents.iter().rev().find_map(|c| match c {
-            Contents::TraceRaysIndirectCommand { offset: o, width, height, depth } if *o == offset => {
-                Some([*width, *height, *depth])
-            }
-            _ => None,
-        })
+        self.buffer(buffer)?
+            .contents
+            .iter()
+            .rev()
+            .find_map(|c| match c {
+                Contents::TraceRaysIndirectCommand {
+                    offset: o,
+                    width,
+                    height,
+                    depth,
+                } if *o == offset => Some([*width, *height, *depth]),
+                _ => None,
+            })
     }
 }
 

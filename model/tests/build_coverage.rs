@@ -23,7 +23,9 @@ fn sources() -> Vec<PathBuf> {
 }
 
 fn check(paths: &[&Path]) -> (usize, usize) {
-    let set = vk_registry::source::load_union(&paths.iter().map(|p| p.to_path_buf()).collect::<Vec<_>>()).unwrap();
+    let set =
+        vk_registry::source::load_union(&paths.iter().map(|p| p.to_path_buf()).collect::<Vec<_>>())
+            .unwrap();
     let rules = RuleSet::from_vuids(&set);
     let rows = rules.coverage(Some(COMMAND));
     let want = set.records.iter().filter(|r| r.scope == COMMAND).count();
@@ -31,18 +33,32 @@ fn check(paths: &[&Path]) -> (usize, usize) {
     for r in &rows {
         assert_ne!(r.status, Status::Pending, "{} is pending", r.vuid);
         if r.status == Status::NotExecutable {
-            assert!(r.reason.as_ref().is_some_and(|s| s.len() > 40), "{} has no written reason", r.vuid);
+            assert!(
+                r.reason.as_ref().is_some_and(|s| s.len() > 40),
+                "{} has no written reason",
+                r.vuid
+            );
         }
     }
-    let exec = rows.iter().filter(|r| r.status == Status::Executable).count();
-    assert!(exec * 10 >= rows.len() * 9, "{exec}/{} executable in {paths:?}", rows.len());
+    let exec = rows
+        .iter()
+        .filter(|r| r.status == Status::Executable)
+        .count();
+    assert!(
+        exec * 10 >= rows.len() * 9,
+        "{exec}/{} executable in {paths:?}",
+        rows.len()
+    );
     (exec, rows.len())
 }
 
 #[test]
 fn every_source_alone_and_the_union_are_at_least_ninety_percent_executable() {
     let srcs = sources();
-    assert!(!srcs.is_empty(), "no registry source found; run scripts/setup.sh");
+    assert!(
+        !srcs.is_empty(),
+        "no registry source found; run scripts/setup.sh"
+    );
     for s in &srcs {
         let (e, n) = check(&[s.as_path()]);
         eprintln!("{}: {e}/{n} executable", s.display());

@@ -9,19 +9,28 @@ use model::DeviceProfile;
 use std::path::{Path, PathBuf};
 
 fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .to_path_buf()
 }
 
 /// The sources at hand: the installed registry always; 1.4.309 and the seeds' man pages when present.
 fn sources() -> Vec<(String, Vec<PathBuf>)> {
-    let mut v = vec![("installed".to_string(), vec![PathBuf::from(vk_registry::source::DEFAULT_REGISTRY_DIR)])];
+    let mut v = vec![(
+        "installed".to_string(),
+        vec![PathBuf::from(vk_registry::source::DEFAULT_REGISTRY_DIR)],
+    )];
     let r = root().join("target/registry/1.4.309/usr/share/vulkan/registry");
     if r.exists() {
         v.push(("1.4.309".into(), vec![r]));
     }
     let seeds = Path::new("/work/shared/seeds");
-    let s: Vec<PathBuf> =
-        ["000_1d54d370f31e08f5.txt", "003_da8701ff075bfd7b.txt"].iter().map(|f| seeds.join(f)).filter(|p| p.exists()).collect();
+    let s: Vec<PathBuf> = ["000_1d54d370f31e08f5.txt", "003_da8701ff075bfd7b.txt"]
+        .iter()
+        .map(|f| seeds.join(f))
+        .filter(|p| p.exists())
+        .collect();
     if !s.is_empty() {
         v.push(("seeds".into(), s));
     }
@@ -37,20 +46,36 @@ fn no_trace_row_is_pending_for_lack_of_a_resource_model() {
         for cmd in TRACE_COMMANDS {
             let rows: Vec<_> = rules.rows.iter().filter(|r| r.scope == *cmd).collect();
             let count = |s: Status| rows.iter().filter(|r| r.status == s).count();
-            println!("{name} {cmd}: {} executable, {} not executable, {} pending", count(Status::Executable), count(Status::NotExecutable), count(Status::Pending));
+            println!(
+                "{name} {cmd}: {} executable, {} not executable, {} pending",
+                count(Status::Executable),
+                count(Status::NotExecutable),
+                count(Status::Pending)
+            );
             for r in &rows {
-                assert_ne!(r.reason.as_deref(), Some(reasons::RESOURCE_PENDING), "{name}: {} is still pending", r.vuid);
+                assert_ne!(
+                    r.reason.as_deref(),
+                    Some(reasons::RESOURCE_PENDING),
+                    "{name}: {} is still pending",
+                    r.vuid
+                );
                 if r.status == Status::Pending {
                     println!("  pending (not a resource rule): {}", r.vuid);
                 }
             }
         }
-        for rec in set.records.iter().filter(|r| TRACE_COMMANDS.contains(&r.scope.as_str())) {
+        for rec in set
+            .records
+            .iter()
+            .filter(|r| TRACE_COMMANDS.contains(&r.scope.as_str()))
+        {
             if let Some(e) = rule_for(rec) {
                 resource_rows += 1;
                 let row = rules.row(&rec.id).unwrap();
                 match e {
-                    Entry::Executable { .. } => assert_eq!(row.status, Status::Executable, "{}", rec.id),
+                    Entry::Executable { .. } => {
+                        assert_eq!(row.status, Status::Executable, "{}", rec.id)
+                    }
                     Entry::NotExecutable(why) => {
                         assert_eq!(row.status, Status::NotExecutable, "{}", rec.id);
                         assert!(why.len() > 40, "{}: a reason a reader can weigh", rec.id);
@@ -58,7 +83,10 @@ fn no_trace_row_is_pending_for_lack_of_a_resource_model() {
                 }
             }
         }
-        assert!(resource_rows >= 100, "{name}: only {resource_rows} resource rows");
+        assert!(
+            resource_rows >= 100,
+            "{name}: only {resource_rows} resource rows"
+        );
     }
 }
 
@@ -71,15 +99,24 @@ fn vendor_notes_name_extensions_no_captured_profile_has() {
             DeviceProfile::from_profiles_json(n, &std::fs::read_to_string(p).unwrap()).unwrap()
         })
         .collect();
-    let set = vk_registry::source::load_vuids(Path::new(vk_registry::source::DEFAULT_REGISTRY_DIR)).unwrap();
+    let set = vk_registry::source::load_vuids(Path::new(vk_registry::source::DEFAULT_REGISTRY_DIR))
+        .unwrap();
     let mut noted = 0;
     for rec in &set.records {
-        if let Some(Entry::Executable { note: Some(note), .. }) = rule_for(rec) {
+        if let Some(Entry::Executable {
+            note: Some(note), ..
+        }) = rule_for(rec)
+        {
             let exts = model::resources::rules::vendor_extensions(&note);
             assert!(!exts.is_empty(), "{}: {note}", rec.id);
             for p in &profiles {
                 for e in &exts {
-                    assert!(!p.has_extension(e), "{}: {} has {e}, so the rule is exercisable there", rec.id, p.name);
+                    assert!(
+                        !p.has_extension(e),
+                        "{}: {} has {e}, so the rule is exercisable there",
+                        rec.id,
+                        p.name
+                    );
                 }
             }
             noted += 1;

@@ -14,13 +14,19 @@ fn lavapipe() -> DeviceProfile {
 #[test]
 fn formats_are_read_from_their_names() {
     let i = formats::info("VK_FORMAT_R8G8B8A8_UNORM").unwrap();
-    assert_eq!((i.numeric, i.components, i.width, i.depth), (Numeric::Float, 4, 8, false));
+    assert_eq!(
+        (i.numeric, i.components, i.width, i.depth),
+        (Numeric::Float, 4, 8, false)
+    );
     let i = formats::info("VK_FORMAT_R64_UINT").unwrap();
     assert_eq!((i.numeric, i.components, i.width), (Numeric::Uint, 1, 64));
     let i = formats::info("VK_FORMAT_X8_D24_UNORM_PACK32").unwrap();
     assert_eq!((i.components, i.depth), (1, true));
     assert_eq!(formats::info("VK_FORMAT_A8_UNORM").unwrap().components, 1);
-    assert_eq!(formats::info("VK_FORMAT_R32G32_SINT").unwrap().numeric, Numeric::Int);
+    assert_eq!(
+        formats::info("VK_FORMAT_R32G32_SINT").unwrap().numeric,
+        Numeric::Int
+    );
     assert!(formats::info("VK_FORMAT_BC1_RGB_UNORM_BLOCK").is_none());
 }
 
@@ -32,17 +38,32 @@ fn format_features_come_from_the_profile_with_derived_bits() {
     // lavapipe supports shaderStorageImageReadWithoutFormat, and R32_UINT storage images.
     assert!(f.contains("STORAGE_READ_WITHOUT_FORMAT_BIT"));
     let f = formats::features(&p, "VK_FORMAT_R32G32B32_SFLOAT", Usage::Optimal).unwrap();
-    assert!(!f.contains("STORAGE_READ_WITHOUT_FORMAT_BIT"), "no storage, so no storage without format");
-    assert!(formats::features(&p, "VK_FORMAT_D32_SFLOAT", Usage::Optimal).is_none(), "unreported: unknown");
+    assert!(
+        !f.contains("STORAGE_READ_WITHOUT_FORMAT_BIT"),
+        "no storage, so no storage without format"
+    );
+    assert!(
+        formats::features(&p, "VK_FORMAT_D32_SFLOAT", Usage::Optimal).is_none(),
+        "unreported: unknown"
+    );
 }
 
 #[test]
 fn a_resource_state_round_trips_through_yaml_and_empty_states_are_not_written() {
     let st = ResourceState {
-        samplers: vec![Sampler { name: "s".into(), mag_filter: Filter::Linear, ..Default::default() }],
+        samplers: vec![Sampler {
+            name: "s".into(),
+            mag_filter: Filter::Linear,
+            ..Default::default()
+        }],
         stages: vec![StageUse {
             stage: Stage::Raygen,
-            accesses: vec![Access { binding: 1, op: Op::Write, texel_components: Some(2), ..Default::default() }],
+            accesses: vec![Access {
+                binding: 1,
+                op: Op::Write,
+                texel_components: Some(2),
+                ..Default::default()
+            }],
             push_constants: Some([0, 8]),
             robustness: Default::default(),
         }],
@@ -51,24 +72,52 @@ fn a_resource_state_round_trips_through_yaml_and_empty_states_are_not_written() 
     let text = serde_yaml::to_string(&st).unwrap();
     assert_eq!(serde_yaml::from_str::<ResourceState>(&text).unwrap(), st);
     assert!(ResourceState::default().is_empty());
-    let case = std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases/hand/trace-indirect-basic.yaml")).unwrap();
+    let case = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../cases/hand/trace-indirect-basic.yaml"),
+    )
+    .unwrap();
     let case = model::Case::from_yaml("basic", &case).unwrap();
     assert!(case.world.resources.is_empty());
-    assert!(!case.to_yaml().contains("resources"), "an empty resource state is not written");
+    assert!(
+        !case.to_yaml().contains("resources"),
+        "an empty resource state is not written"
+    );
 }
 
 #[test]
 fn compatibility_compares_set_layout_definitions_not_names() {
-    let b = |t| LayoutBinding { binding: 0, ty: t, count: 1 };
+    let b = |t| LayoutBinding {
+        binding: 0,
+        ty: t,
+        count: 1,
+    };
     let st = ResourceState {
         set_layouts: vec![
-            SetLayout { name: "a".into(), bindings: vec![b(DescriptorType::UniformBuffer)] },
-            SetLayout { name: "a2".into(), bindings: vec![b(DescriptorType::UniformBuffer)] },
-            SetLayout { name: "c".into(), bindings: vec![b(DescriptorType::StorageBuffer)] },
+            SetLayout {
+                name: "a".into(),
+                bindings: vec![b(DescriptorType::UniformBuffer)],
+            },
+            SetLayout {
+                name: "a2".into(),
+                bindings: vec![b(DescriptorType::UniformBuffer)],
+            },
+            SetLayout {
+                name: "c".into(),
+                bindings: vec![b(DescriptorType::StorageBuffer)],
+            },
         ],
         pipeline_layouts: vec![
-            PipelineLayout { name: "p".into(), sets: vec!["a".into(), "c".into()], push_ranges: vec![] },
-            PipelineLayout { name: "q".into(), sets: vec!["a2".into(), "a".into()], push_ranges: vec![] },
+            PipelineLayout {
+                name: "p".into(),
+                sets: vec!["a".into(), "c".into()],
+                push_ranges: vec![],
+            },
+            PipelineLayout {
+                name: "q".into(),
+                sets: vec!["a2".into(), "a".into()],
+                push_ranges: vec![],
+            },
         ],
         ..Default::default()
     };
@@ -88,15 +137,36 @@ fn view_types_match_dims_as_the_spirv_table_says() {
 #[test]
 fn wording_variants_become_parameters() {
     use vk_registry::vuid::VuidSet;
-    let set: VuidSet = vk_registry::source::load_vuids(std::path::Path::new(vk_registry::source::DEFAULT_REGISTRY_DIR)).unwrap();
+    let set: VuidSet = vk_registry::source::load_vuids(std::path::Path::new(
+        vk_registry::source::DEFAULT_REGISTRY_DIR,
+    ))
+    .unwrap();
     let rule = |id: &str| match rules::rule_for(set.records.iter().find(|r| r.id == id).unwrap()) {
         Some(Entry::Executable { rule, .. }) => rule,
         other => panic!("{id}: {other:?}"),
     };
     // 1.3.239 leaves the VK_EXT_filter_cubic exemption of 02693 to the registry condition; the
     // wording that states it in the text sets the parameter.
-    let text = &set.records.iter().find(|r| r.id == "VUID-vkCmdTraceRaysKHR-None-02693").unwrap().text;
-    assert_eq!(rule("VUID-vkCmdTraceRaysKHR-None-02693"), ResourceRule::CubicViewType { unless_filter_cubic: text.contains("not enabled") });
-    assert_eq!(rule("VUID-vkCmdTraceRaysKHR-None-02699"), ResourceRule::DescriptorsValid { unless_descriptor_buffer: false });
-    assert!(matches!(rule("VUID-vkCmdTraceRaysNV-magFilter-04553"), ResourceRule::LinearFilterFeature { mipmap: false, .. }));
+    let text = &set
+        .records
+        .iter()
+        .find(|r| r.id == "VUID-vkCmdTraceRaysKHR-None-02693")
+        .unwrap()
+        .text;
+    assert_eq!(
+        rule("VUID-vkCmdTraceRaysKHR-None-02693"),
+        ResourceRule::CubicViewType {
+            unless_filter_cubic: text.contains("not enabled")
+        }
+    );
+    assert_eq!(
+        rule("VUID-vkCmdTraceRaysKHR-None-02699"),
+        ResourceRule::DescriptorsValid {
+            unless_descriptor_buffer: false
+        }
+    );
+    assert!(matches!(
+        rule("VUID-vkCmdTraceRaysNV-magFilter-04553"),
+        ResourceRule::LinearFilterFeature { mipmap: false, .. }
+    ));
 }

@@ -23,12 +23,29 @@ impl Lavapipe {
     fn new() -> Lavapipe {
         std::env::set_var("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json");
         let rules = installed_rules();
-        let triage = Triage::load(&repo().join("triage"), &[], rules.version.as_deref(), "lavapipe").expect("triage files parse");
-        let executor = Executor::new(Driver::Lavapipe).expect("lavapipe and the validation layer: run `bash scripts/setup.sh`");
-        Lavapipe { rules, profile: profile("lavapipe"), triage, executor }
+        let triage = Triage::load(
+            &repo().join("triage"),
+            &[],
+            rules.version.as_deref(),
+            "lavapipe",
+        )
+        .expect("triage files parse");
+        let executor = Executor::new(Driver::Lavapipe)
+            .expect("lavapipe and the validation layer: run `bash scripts/setup.sh`");
+        Lavapipe {
+            rules,
+            profile: profile("lavapipe"),
+            triage,
+            executor,
+        }
     }
 
-    fn generate(&self, spec: &CaseSpec, count: usize, seed: u64) -> Result<Vec<model::Case>, generator::GenError> {
+    fn generate(
+        &self,
+        spec: &CaseSpec,
+        count: usize,
+        seed: u64,
+    ) -> Result<Vec<model::Case>, generator::GenError> {
         generator::generate(&self.profile, "lavapipe", &self.rules, spec, count, seed)
     }
 
@@ -51,7 +68,10 @@ fn the_layer_agrees_with_the_model_on_every_executable_vuid_or_the_triage_says_w
         .rules
         .rows
         .iter()
-        .filter(|r| r.status == model::rules::Status::Executable && model::rules::applies_to(&r.scope, COMMAND))
+        .filter(|r| {
+            r.status == model::rules::Status::Executable
+                && model::rules::applies_to(&r.scope, COMMAND)
+        })
         .map(|r| r.vuid.clone())
         .collect();
     let mut outcomes: BTreeMap<String, Vec<Outcome>> = BTreeMap::new();
@@ -61,7 +81,10 @@ fn the_layer_agrees_with_the_model_on_every_executable_vuid_or_the_triage_says_w
         let cases = match lvp.generate(&spec, 3, 11) {
             Ok(c) => c,
             Err(generator::GenError::Unsupported(why)) => {
-                outcomes.entry(vuid.clone()).or_default().push(Outcome::Unsupported);
+                outcomes
+                    .entry(vuid.clone())
+                    .or_default()
+                    .push(Outcome::Unsupported);
                 eprintln!("{vuid}: not expressible on lavapipe: {why}");
                 continue;
             }
@@ -74,18 +97,36 @@ fn the_layer_agrees_with_the_model_on_every_executable_vuid_or_the_triage_says_w
             outcomes.entry(vuid.clone()).or_default().push(r.outcome);
         }
     }
-    assert!(failures.is_empty(), "disagreements not in the triage file:\n{}", failures.join("\n"));
-    let agreed = outcomes.values().filter(|o| o.contains(&Outcome::Pass)).count();
-    let exercised = outcomes.values().filter(|o| o.iter().any(|x| *x != Outcome::Unsupported)).count();
+    assert!(
+        failures.is_empty(),
+        "disagreements not in the triage file:\n{}",
+        failures.join("\n")
+    );
+    let agreed = outcomes
+        .values()
+        .filter(|o| o.contains(&Outcome::Pass))
+        .count();
+    let exercised = outcomes
+        .values()
+        .filter(|o| o.iter().any(|x| *x != Outcome::Unsupported))
+        .count();
     // Most rules the layer checks agree outright; the rest are written down in triage/.
-    assert!(exercised >= 35, "only {exercised} VUIDs exercised: {outcomes:?}");
-    assert!(agreed >= 15, "only {agreed} VUIDs agreed outright: {outcomes:?}");
+    assert!(
+        exercised >= 35,
+        "only {exercised} VUIDs exercised: {outcomes:?}"
+    );
+    assert!(
+        agreed >= 15,
+        "only {agreed} VUIDs agreed outright: {outcomes:?}"
+    );
 }
 
 #[test]
 fn valid_launches_write_what_the_model_expects_and_the_layer_stays_silent() {
     let mut lvp = Lavapipe::new();
-    let cases = lvp.generate(&CaseSpec::valid(Command::TraceRaysIndirect), 40, 3).expect("valid cases");
+    let cases = lvp
+        .generate(&CaseSpec::valid(Command::TraceRaysIndirect), 40, 3)
+        .expect("valid cases");
     let reports = lvp.run(&cases);
     let bad: Vec<String> = reports
         .iter()
@@ -93,6 +134,12 @@ fn valid_launches_write_what_the_model_expects_and_the_layer_stays_silent() {
         .map(|r| format!("{}: {:?} {}", r.case, r.outcome, r.detail))
         .collect();
     assert!(bad.is_empty(), "{}", bad.join("\n"));
-    let read_back = reports.iter().filter(|r| r.output_matches == Some(true)).count();
-    assert!(read_back >= 30, "only {read_back} of 40 valid cases compared their output");
+    let read_back = reports
+        .iter()
+        .filter(|r| r.output_matches == Some(true))
+        .count();
+    assert!(
+        read_back >= 30,
+        "only {read_back} of 40 valid cases compared their output"
+    );
 }

@@ -10,33 +10,67 @@ use std::collections::BTreeMap;
 fn every_modelled_vuid_of_the_installed_registry_has_exactly_one_row() {
     let set = installed_vuids();
     let rules = installed_rules();
-    let expected: Vec<&str> = set.records.iter().filter(|r| modelled_scope(&r.scope)).map(|r| r.id.as_str()).collect();
+    let expected: Vec<&str> = set
+        .records
+        .iter()
+        .filter(|r| modelled_scope(&r.scope))
+        .map(|r| r.id.as_str())
+        .collect();
     let rows: Vec<&str> = rules.rows.iter().map(|r| r.vuid.as_str()).collect();
     assert_eq!(rows, expected);
     // A trace-command row executes through its predicate; the build command's rows execute through
     // `model::build::BuildRuleSet`, which compiles the same registry records.
     for r in &rules.rows {
         let build = model::rules::BUILD_COMMANDS.contains(&r.scope.as_str());
-        assert!(build || (r.status == Status::Executable) == r.predicate.is_some(), "{}", r.vuid);
+        assert!(
+            build || (r.status == Status::Executable) == r.predicate.is_some(),
+            "{}",
+            r.vuid
+        );
     }
-    assert!(rules.rows.iter().filter(|r| r.status != Status::Executable).all(|r| r.reason.is_some()));
+    assert!(rules
+        .rows
+        .iter()
+        .filter(|r| r.status != Status::Executable)
+        .all(|r| r.reason.is_some()));
 }
 
 #[test]
 fn the_seeds_man_pages_and_the_registry_together_leave_no_vuid_without_a_row() {
-    let mut paths = vec![std::path::PathBuf::from(vk_registry::source::DEFAULT_REGISTRY_DIR)];
-    let mut seed_files: Vec<_> = std::fs::read_dir(seeds()).expect("../shared/seeds").filter_map(|e| e.ok()).map(|e| e.path()).collect();
+    let mut paths = vec![std::path::PathBuf::from(
+        vk_registry::source::DEFAULT_REGISTRY_DIR,
+    )];
+    let mut seed_files: Vec<_> = std::fs::read_dir(seeds())
+        .expect("../shared/seeds")
+        .filter_map(|e| e.ok())
+        .map(|e| e.path())
+        .collect();
     seed_files.retain(|p| p.extension().is_some_and(|e| e == "txt"));
     seed_files.sort();
     paths.extend(seed_files);
     let set = vk_registry::source::load_union(&paths).expect("registry and seeds load");
     let rules = model::RuleSet::from_vuids(&set);
-    let modelled = set.records.iter().filter(|r| modelled_scope(&r.scope)).count();
+    let modelled = set
+        .records
+        .iter()
+        .filter(|r| modelled_scope(&r.scope))
+        .count();
     assert_eq!(rules.rows.len(), modelled);
     // The three commands have about 360 VUIDs across versions (shared/seeds/README.md).
-    let commands = ["vkCmdTraceRaysIndirectKHR", "vkCmdTraceRaysNV", "vkCmdBuildAccelerationStructuresIndirectKHR"];
-    let of_three = rules.rows.iter().filter(|r| commands.contains(&r.scope.as_str())).count();
-    assert!((340..=380).contains(&of_three), "{of_three} rows for the three commands");
+    let commands = [
+        "vkCmdTraceRaysIndirectKHR",
+        "vkCmdTraceRaysNV",
+        "vkCmdBuildAccelerationStructuresIndirectKHR",
+    ];
+    let of_three = rules
+        .rows
+        .iter()
+        .filter(|r| commands.contains(&r.scope.as_str()))
+        .count();
+    assert!(
+        (340..=380).contains(&of_three),
+        "{of_three} rows for the three commands"
+    );
 }
 
 /// The template compiler's share of the trace commands' own rules (the resource-access rules shared
@@ -46,17 +80,35 @@ fn the_seeds_man_pages_and_the_registry_together_leave_no_vuid_without_a_row() {
 fn the_template_compiler_produces_at_least_forty_percent_of_the_trace_commands_rules() {
     let rules = installed_rules();
     let trace = |r: &&model::rules::Row| {
-        model::rules::TRACE_COMMANDS.contains(&r.scope.as_str()) || model::rules::TRACE_STRUCTURES.contains(&r.scope.as_str())
+        model::rules::TRACE_COMMANDS.contains(&r.scope.as_str())
+            || model::rules::TRACE_STRUCTURES.contains(&r.scope.as_str())
     };
     let executable: Vec<_> = rules
         .rows
         .iter()
         .filter(trace)
-        .filter(|r| r.status == Status::Executable && !matches!(r.predicate, Some(model::rules::predicate::Predicate::Resource(_))))
+        .filter(|r| {
+            r.status == Status::Executable
+                && !matches!(
+                    r.predicate,
+                    Some(model::rules::predicate::Predicate::Resource(_))
+                )
+        })
         .collect();
-    let template = executable.iter().filter(|r| r.source == Some(Source::Template)).count();
-    assert!(executable.len() >= 100, "{} executable trace-command rows", executable.len());
-    assert!(template * 100 >= executable.len() * 40, "{template} of {} executable rows compiled", executable.len());
+    let template = executable
+        .iter()
+        .filter(|r| r.source == Some(Source::Template))
+        .count();
+    assert!(
+        executable.len() >= 100,
+        "{} executable trace-command rows",
+        executable.len()
+    );
+    assert!(
+        template * 100 >= executable.len() * 40,
+        "{template} of {} executable rows compiled",
+        executable.len()
+    );
 }
 
 #[test]

@@ -11,9 +11,14 @@ fn generated_valid_cases_are_valid_and_read_only_inside_their_tables() {
     let mut checked = 0;
     for name in profile_names() {
         let p = profile(&name);
-        let handle = p.limit("shaderGroupHandleSize").expect("profiles report shaderGroupHandleSize");
+        let handle = p
+            .limit("shaderGroupHandleSize")
+            .expect("profiles report shaderGroupHandleSize");
         for command in Command::ALL {
-            for spec in [CaseSpec::valid(command), CaseSpec::valid(command).at_limits()] {
+            for spec in [
+                CaseSpec::valid(command),
+                CaseSpec::valid(command).at_limits(),
+            ] {
                 let cases = match generator::generate(&p, &name, &rules, &spec, 150, 7) {
                     Ok(c) => c,
                     // A command the profile lacks (NV on lavapipe) is refused, never faked.
@@ -22,9 +27,20 @@ fn generated_valid_cases_are_valid_and_read_only_inside_their_tables() {
                 };
                 for c in &cases {
                     let verdict = model::validate(&rules, &p, &c.world, &c.call);
-                    assert!(verdict.is_valid(), "{name}: {} judged {:?}\n{}", c.name, verdict.vuids(), c.to_yaml());
+                    assert!(
+                        verdict.is_valid(),
+                        "{name}: {} judged {:?}\n{}",
+                        c.name,
+                        verdict.vuids(),
+                        c.to_yaml()
+                    );
                     let ub = model::semantics::undefined_reads(handle, &c.world, &c.call);
-                    assert!(ub.is_empty(), "{name}: {} reads {ub:?}\n{}", c.name, c.to_yaml());
+                    assert!(
+                        ub.is_empty(),
+                        "{name}: {} reads {ub:?}\n{}",
+                        c.name,
+                        c.to_yaml()
+                    );
                     checked += 1;
                 }
             }

@@ -50,6 +50,9 @@ fn main() {
         assert!(!s.records.is_empty());
         s
     });
-    println!("vk.xml: vk-registry {a:.1} ms, vk-parse {b:.1} ms, ratio {:.3}", a / b);
+    println!(
+        "vk.xml: vk-registry {a:.1} ms, vk-parse {b:.1} ms, ratio {:.3}",
+        a / b
+    );
     println!("validusage.json: {c:.1} ms");
 }

@@ -10,7 +10,11 @@ pub enum Location {
     /// A JSON path such as `$.validation.vkCmdDraw.core[3].vuid`.
     JsonPath(String),
     /// A JSON path together with the line and column where the value starts.
-    JsonPathAt { path: String, line: usize, column: usize },
+    JsonPathAt {
+        path: String,
+        line: usize,
+        column: usize,
+    },
 }
 
 impl fmt::Display for Location {
@@ -61,7 +65,12 @@ impl RegistryError {
     }
 
     /// A parse error at a known line and column.
-    pub fn at_line_col(origin: &str, line: usize, column: usize, message: impl Into<String>) -> Self {
+    pub fn at_line_col(
+        origin: &str,
+        line: usize,
+        column: usize,
+        message: impl Into<String>,
+    ) -> Self {
         RegistryError::Parse {
             origin: origin.to_string(),
             location: Location::LineCol { line, column },
@@ -80,7 +89,9 @@ impl RegistryError {
     /// Replace the origin of a parse error (used when a string parser is called for a file).
     pub fn with_origin(self, path: &str) -> Self {
         match self {
-            RegistryError::Parse { location, message, .. } => RegistryError::Parse {
+            RegistryError::Parse {
+                location, message, ..
+            } => RegistryError::Parse {
                 origin: path.to_string(),
                 location,
                 message,
@@ -108,7 +119,10 @@ pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
     }
     let before = &text.as_bytes()[..offset];
     let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
-    let line_start = before.iter().rposition(|&b| b == b'\n').map_or(0, |p| p + 1);
+    let line_start = before
+        .iter()
+        .rposition(|&b| b == b'\n')
+        .map_or(0, |p| p + 1);
     let column = text[line_start..offset].chars().count() + 1;
     (line, column)
 }

@@ -4,7 +4,9 @@
 //! defines and the page's C prototype.
 
 use crate::error::{read_to_string, RegistryError};
-use crate::vuid::{normalize_markdown, normalize_plain, split_vuid, Condition, VuidRecord, VuidSet};
+use crate::vuid::{
+    normalize_markdown, normalize_plain, split_vuid, Condition, VuidRecord, VuidSet,
+};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -52,7 +54,12 @@ pub fn load(path: &Path) -> Result<(ManPage, VuidSet), RegistryError> {
 /// Parse a man page; `origin` names it in errors and in the set.
 pub fn parse(text: &str, origin: &str) -> Result<(ManPage, VuidSet), RegistryError> {
     let format = detect_format(text).ok_or_else(|| {
-        RegistryError::at_line_col(origin, 1, 1, "not a recognised man page format (no VUID anchors or entries)")
+        RegistryError::at_line_col(
+            origin,
+            1,
+            1,
+            "not a recognised man page format (no VUID anchors or entries)",
+        )
     })?;
     let entries = match format {
         ManPageFormat::HtmlMarkdown => entries_html_md(text, origin)?,
@@ -66,15 +73,26 @@ pub fn parse(text: &str, origin: &str) -> Result<(ManPage, VuidSet), RegistryErr
             _ => normalize_markdown(&body),
         };
         if norm.is_empty() {
-            return Err(RegistryError::at_offset(origin, text, off, format!("{id} has no text (truncated page?)")));
+            return Err(RegistryError::at_offset(
+                origin,
+                text,
+                off,
+                format!("{id} has no text (truncated page?)"),
+            ));
         }
-        let rec = VuidRecord::new(&id, Condition::Always, norm)
-            .ok_or_else(|| RegistryError::at_offset(origin, text, off, format!("`{id}` is not a VUID")))?;
+        let rec = VuidRecord::new(&id, Condition::Always, norm).ok_or_else(|| {
+            RegistryError::at_offset(origin, text, off, format!("`{id}` is not a VUID"))
+        })?;
         records.push(rec);
     }
-    let command = page_name(text, format).or_else(|| records.first().map(|r| r.scope.clone())).unwrap_or_default();
+    let command = page_name(text, format)
+        .or_else(|| records.first().map(|r| r.scope.clone()))
+        .unwrap_or_default();
     let prototype = prototype(text, &command, origin)?;
-    Ok((ManPage { command, prototype }, VuidSet::new(origin, None, records)))
+    Ok((
+        ManPage { command, prototype },
+        VuidSet::new(origin, None, records),
+    ))
 }
 
 fn is_vuid_token(s: &str) -> bool {
@@ -111,15 +129,26 @@ fn prototype(text: &str, name: &str, origin: &str) -> Result<String, RegistryErr
         let line_start = text[..at].rfind('\n').map_or(0, |i| i + 1);
         let before = text[line_start..at].trim();
         // a return type must precede the name on its line (skips prose mentions)
-        if before.is_empty() || !before.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'*' || b == b' ') {
+        if before.is_empty()
+            || !before
+                .bytes()
+                .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'*' || b == b' ')
+        {
             continue;
         }
         let rest = &text[at..];
         let end = rest.find(");");
         let fence = rest.find("```");
         return match end {
-            Some(e) if fence.unwrap_or(usize::MAX) > e => Ok(collapse_proto(&text[line_start..at + e + 2])),
-            _ => Err(RegistryError::at_offset(origin, text, at, format!("prototype of {name} is not closed by `);` (truncated page?)"))),
+            Some(e) if fence.unwrap_or(usize::MAX) > e => {
+                Ok(collapse_proto(&text[line_start..at + e + 2]))
+            }
+            _ => Err(RegistryError::at_offset(
+                origin,
+                text,
+                at,
+                format!("prototype of {name} is not closed by `);` (truncated page?)"),
+            )),
         };
     }
     let typedef = format!("typedef struct {name} {{");
@@ -127,7 +156,12 @@ fn prototype(text: &str, name: &str, origin: &str) -> Result<String, RegistryErr
         let close = format!("}} {name};");
         return match text[at..].find(&close) {
             Some(e) => Ok(collapse_proto(&text[at..at + e + close.len()])),
-            None => Err(RegistryError::at_offset(origin, text, at, format!("definition of {name} is not closed (truncated page?)"))),
+            None => Err(RegistryError::at_offset(
+                origin,
+                text,
+                at,
+                format!("definition of {name} is not closed (truncated page?)"),
+            )),
         };
     }
     Ok(String::new())
@@ -157,7 +191,12 @@ fn indent(l: &str) -> usize {
 
 /// The body of an entry: the rest of its first line plus the following lines that are indented
 /// (or blank), stopping at the first non-blank line with less indentation than `min_indent`.
-fn body_from(lines: &[(usize, &str)], first_rest: &str, next: usize, min_indent: usize) -> (String, usize) {
+fn body_from(
+    lines: &[(usize, &str)],
+    first_rest: &str,
+    next: usize,
+    min_indent: usize,
+) -> (String, usize) {
     let mut body = String::from(first_rest);
     let mut k = next;
     while k < lines.len() {
@@ -182,7 +221,12 @@ fn entries_html_md(text: &str, origin: &str) -> Result<Vec<Entry>, RegistryError
         let t = &l[ind..];
         if let Some(rest) = t.strip_prefix("- [](#VUID-") {
             let close = rest.find(')').ok_or_else(|| {
-                RegistryError::at_offset(origin, text, off + ind, "VUID anchor is not closed by `)` (truncated page?)")
+                RegistryError::at_offset(
+                    origin,
+                    text,
+                    off + ind,
+                    "VUID anchor is not closed by `)` (truncated page?)",
+                )
             })?;
             let id = format!("VUID-{}", &rest[..close]);
             let mut after = &rest[close + 1..];
@@ -216,16 +260,30 @@ fn entries_pandoc(text: &str, origin: &str) -> Result<Vec<Entry>, RegistryError>
         let start = off + ind + 2;
         let rest = &text[start..];
         let end = rest.find("</a>").ok_or_else(|| {
-            RegistryError::at_offset(origin, text, start, "anchor `<a` is not closed by `</a>` (truncated page?)")
+            RegistryError::at_offset(
+                origin,
+                text,
+                start,
+                "anchor `<a` is not closed by `</a>` (truncated page?)",
+            )
         })?;
         let tag = &rest[..end];
-        let Some(idp) = tag.find("id=\"VUID-").map(|p| p + 4).or_else(|| tag.find("id='VUID-").map(|p| p + 4)) else {
+        let Some(idp) = tag
+            .find("id=\"VUID-")
+            .map(|p| p + 4)
+            .or_else(|| tag.find("id='VUID-").map(|p| p + 4))
+        else {
             i += 1;
             continue;
         };
         let q = tag.as_bytes()[idp - 1];
         let id_end = tag[idp..].find(q as char).ok_or_else(|| {
-            RegistryError::at_offset(origin, text, start + idp, "unterminated id attribute (truncated page?)")
+            RegistryError::at_offset(
+                origin,
+                text,
+                start + idp,
+                "unterminated id attribute (truncated page?)",
+            )
         })?;
         let id = tag[idp..idp + id_end].to_string();
         let after_abs = start + end + 4;

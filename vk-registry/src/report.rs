@@ -6,8 +6,13 @@ use crate::vuid::{VuidRecord, VuidSet};
 use crate::xml::Registry;
 use std::fmt::Write;
 
-fn selected<'a>(set: &'a VuidSet, command: Option<&'a str>) -> impl Iterator<Item = &'a VuidRecord> + 'a {
-    set.records.iter().filter(move |r| command.unwrap_or(&r.scope) == r.scope)
+fn selected<'a>(
+    set: &'a VuidSet,
+    command: Option<&'a str>,
+) -> impl Iterator<Item = &'a VuidRecord> + 'a {
+    set.records
+        .iter()
+        .filter(move |r| command.unwrap_or(&r.scope) == r.scope)
 }
 
 /// One VUID id per line, sorted; with `command`, only the VUIDs whose scope is that command.
@@ -74,10 +79,21 @@ pub fn diff(a: &VuidSet, b: &VuidSet, command: Option<&str>) -> String {
         }
     }
     let mut out = String::new();
-    let ver = |s: &VuidSet| s.version.clone().map(|v| format!(" ({v})")).unwrap_or_default();
+    let ver = |s: &VuidSet| {
+        s.version
+            .clone()
+            .map(|v| format!(" ({v})"))
+            .unwrap_or_default()
+    };
     let _ = writeln!(out, "--- {}{}", a.origin, ver(a));
     let _ = writeln!(out, "+++ {}{}", b.origin, ver(b));
-    let _ = writeln!(out, "added: {}, removed: {}, changed: {}", added.len(), removed.len(), changed.len());
+    let _ = writeln!(
+        out,
+        "added: {}, removed: {}, changed: {}",
+        added.len(),
+        removed.len(),
+        changed.len()
+    );
     if !added.is_empty() {
         let _ = writeln!(out, "\nadded:");
         for r in &added {
@@ -110,5 +126,8 @@ pub fn diff(a: &VuidSet, b: &VuidSet, command: Option<&str>) -> String {
 /// A readable description of a command, a type (structure, union, handle, enum, bitmask...)
 /// or an enum value.
 pub fn show(reg: &Registry, name: &str) -> Result<String, RegistryError> {
-    reg.describe(name).ok_or_else(|| RegistryError::UnknownName { name: name.to_string() })
+    reg.describe(name)
+        .ok_or_else(|| RegistryError::UnknownName {
+            name: name.to_string(),
+        })
 }

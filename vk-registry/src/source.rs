@@ -16,13 +16,16 @@ pub fn load_vuids(path: &Path) -> Result<VuidSet, RegistryError> {
     if meta.is_dir() {
         let file = path.join("validusage.json");
         if !file.exists() {
-            return Err(RegistryError::NotFound { path: file.display().to_string() });
+            return Err(RegistryError::NotFound {
+                path: file.display().to_string(),
+            });
         }
         return validusage::load(&file);
     }
     let text = read_to_string(path)?;
     let origin = path.display().to_string();
-    let is_json = path.extension().is_some_and(|e| e == "json") || text.trim_start().starts_with('{');
+    let is_json =
+        path.extension().is_some_and(|e| e == "json") || text.trim_start().starts_with('{');
     if is_json {
         validusage::parse(&text, &origin)
     } else {
@@ -42,7 +45,11 @@ pub fn load_union(paths: &[PathBuf]) -> Result<VuidSet, RegistryError> {
 
 /// The union of already loaded sets (first wins).
 pub fn union(sets: Vec<VuidSet>) -> VuidSet {
-    let origin = sets.iter().map(|s| s.origin.as_str()).collect::<Vec<_>>().join(" + ");
+    let origin = sets
+        .iter()
+        .map(|s| s.origin.as_str())
+        .collect::<Vec<_>>()
+        .join(" + ");
     let version = sets.iter().find_map(|s| s.version.clone());
     let records = sets.into_iter().flat_map(|s| s.records).collect();
     VuidSet::new(origin, version, records)

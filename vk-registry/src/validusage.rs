@@ -51,7 +51,10 @@ pub fn parse(text: &str, origin: &str) -> Result<VuidSet, RegistryError> {
         Ok(d) => d,
         Err(e) => return Err(locate_json_error(text, origin, e)),
     };
-    let version = doc.version_info.and_then(|v| v.api_version).map(|v| v.into_owned());
+    let version = doc
+        .version_info
+        .and_then(|v| v.api_version)
+        .map(|v| v.into_owned());
     let mut cond_cache: HashMap<&str, Condition> = HashMap::new();
     let mut records = Vec::with_capacity(32 * 1024);
     // Sort the outer keys so that errors (and duplicate resolution) are deterministic.
@@ -66,7 +69,12 @@ pub fn parse(text: &str, origin: &str) -> Result<VuidSet, RegistryError> {
                 Some(c) => c.clone(),
                 None => {
                     let c = Condition::parse(key).map_err(|(off, msg)| {
-                        json_path_error(text, origin, &format!("$.validation.{}", scope.0), &format!("bad condition key `{key}` at offset {off}: {msg}"))
+                        json_path_error(
+                            text,
+                            origin,
+                            &format!("$.validation.{}", scope.0),
+                            &format!("bad condition key `{key}` at offset {off}: {msg}"),
+                        )
                     })?;
                     cond_cache.insert(key, c.clone());
                     c
@@ -84,14 +92,15 @@ pub fn parse(text: &str, origin: &str) -> Result<VuidSet, RegistryError> {
                     })?,
                     None => cond.clone(),
                 };
-                let rec = VuidRecord::new(&e.vuid, cond, normalize_html(&e.text)).ok_or_else(|| {
-                    json_path_error(
-                        text,
-                        origin,
-                        &format!("$.validation.{}.{}[{i}].vuid", scope.0, key),
-                        &format!("`{}` is not a VUID", e.vuid),
-                    )
-                })?;
+                let rec =
+                    VuidRecord::new(&e.vuid, cond, normalize_html(&e.text)).ok_or_else(|| {
+                        json_path_error(
+                            text,
+                            origin,
+                            &format!("$.validation.{}.{}[{i}].vuid", scope.0, key),
+                            &format!("`{}` is not a VUID", e.vuid),
+                        )
+                    })?;
                 records.push(rec);
             }
         }
@@ -121,7 +130,11 @@ fn locate_json_error(text: &str, origin: &str, e: serde_json::Error) -> Registry
                 .unwrap_or_else(|| ("$".to_string(), e.to_string()));
             RegistryError::Parse {
                 origin: origin.to_string(),
-                location: Location::JsonPathAt { path: path.0, line, column },
+                location: Location::JsonPathAt {
+                    path: path.0,
+                    line,
+                    column,
+                },
                 message: path.1,
             }
         }
@@ -158,7 +171,12 @@ fn find_shape_error(v: &serde_json::Value) -> Option<(String, String)> {
     };
     if let Some(vi) = root.get("version info") {
         match vi.as_object() {
-            None => return Some(("$.\"version info\"".into(), format!("expected an object, found {}", kind(vi)))),
+            None => {
+                return Some((
+                    "$.\"version info\"".into(),
+                    format!("expected an object, found {}", kind(vi)),
+                ))
+            }
             Some(o) => {
                 if let Some(av) = o.get("api version") {
                     if !av.is_string() {
@@ -176,7 +194,12 @@ fn find_shape_error(v: &serde_json::Value) -> Option<(String, String)> {
         Some(v) => v,
     };
     let val = match val.as_object() {
-        None => return Some(("$.validation".into(), format!("expected an object, found {}", kind(val)))),
+        None => {
+            return Some((
+                "$.validation".into(),
+                format!("expected an object, found {}", kind(val)),
+            ))
+        }
         Some(o) => o,
     };
     for (scope, conds) in val {
@@ -201,14 +224,20 @@ fn find_shape_error(v: &serde_json::Value) -> Option<(String, String)> {
                     match o.get(key) {
                         None => return Some((p, format!("missing key `{key}`"))),
                         Some(s) if !s.is_string() => {
-                            return Some((format!("{p}.{key}"), format!("expected a string, found {}", kind(s))))
+                            return Some((
+                                format!("{p}.{key}"),
+                                format!("expected a string, found {}", kind(s)),
+                            ))
                         }
                         _ => {}
                     }
                 }
                 if let Some(c) = o.get("condition") {
                     if !c.is_string() {
-                        return Some((format!("{p}.condition"), format!("expected a string, found {}", kind(c))));
+                        return Some((
+                            format!("{p}.condition"),
+                            format!("expected a string, found {}", kind(c)),
+                        ));
                     }
                 }
             }

@@ -79,11 +79,17 @@ impl Condition {
         if t.is_empty() || t == "core" {
             return Ok(Condition::Always);
         }
-        let mut p = CondParser { s: s.as_bytes(), pos: 0 };
+        let mut p = CondParser {
+            s: s.as_bytes(),
+            pos: 0,
+        };
         let c = p.or()?;
         p.skip_ws();
         if p.pos < p.s.len() {
-            return Err((p.pos, format!("unexpected `{}` in condition", p.s[p.pos] as char)));
+            return Err((
+                p.pos,
+                format!("unexpected `{}` in condition", p.s[p.pos] as char),
+            ));
         }
         Ok(c)
     }
@@ -161,7 +167,11 @@ impl CondParser<'_> {
             self.pos += 1;
             items.push(self.and()?);
         }
-        Ok(if items.len() == 1 { items.pop().unwrap() } else { Condition::Any(flatten(items, true)) })
+        Ok(if items.len() == 1 {
+            items.pop().unwrap()
+        } else {
+            Condition::Any(flatten(items, true))
+        })
     }
     fn and(&mut self) -> Result<Condition, (usize, String)> {
         let mut items = vec![self.unary()?];
@@ -169,7 +179,11 @@ impl CondParser<'_> {
             self.pos += 1;
             items.push(self.unary()?);
         }
-        Ok(if items.len() == 1 { items.pop().unwrap() } else { Condition::All(flatten(items, false)) })
+        Ok(if items.len() == 1 {
+            items.pop().unwrap()
+        } else {
+            Condition::All(flatten(items, false))
+        })
     }
     fn unary(&mut self) -> Result<Condition, (usize, String)> {
         match self.peek() {
@@ -190,7 +204,8 @@ impl CondParser<'_> {
             Some(c) if c.is_ascii_alphanumeric() || c == b'_' => {
                 let start = self.pos;
                 while self.pos < self.s.len()
-                    && (self.s[self.pos].is_ascii_alphanumeric() || matches!(self.s[self.pos], b'_' | b':' | b'.'))
+                    && (self.s[self.pos].is_ascii_alphanumeric()
+                        || matches!(self.s[self.pos], b'_' | b':' | b'.'))
                 {
                     self.pos += 1;
                 }
@@ -249,13 +264,23 @@ pub fn split_vuid(id: &str) -> Option<VuidParts<'_>> {
     if scope.is_empty() || rest.is_empty() {
         return None;
     }
-    let valid = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-' || b == b':');
+    let valid = |s: &str| {
+        !s.is_empty()
+            && s.bytes()
+                .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-' || b == b':')
+    };
     if !valid(scope) || !valid(rest) {
         return None;
     }
     Some(match rest.rsplit_once('-') {
-        Some((field, tag)) if !field.is_empty() && !tag.is_empty() => VuidParts { scope, field, tag },
-        _ => VuidParts { scope, field: "None", tag: rest },
+        Some((field, tag)) if !field.is_empty() && !tag.is_empty() => {
+            VuidParts { scope, field, tag }
+        }
+        _ => VuidParts {
+            scope,
+            field: "None",
+            tag: rest,
+        },
     })
 }
 
@@ -290,16 +315,27 @@ pub struct VuidSet {
 
 impl VuidSet {
     /// Sort by id and drop later duplicates (the first occurrence wins).
-    pub fn new(origin: impl Into<String>, version: Option<String>, mut records: Vec<VuidRecord>) -> VuidSet {
+    pub fn new(
+        origin: impl Into<String>,
+        version: Option<String>,
+        mut records: Vec<VuidRecord>,
+    ) -> VuidSet {
         // stable sort keeps the first occurrence of equal ids first
         records.sort_by(|a, b| a.id.cmp(&b.id));
         records.dedup_by(|later, first| later.id == first.id);
-        VuidSet { origin: origin.into(), version, records }
+        VuidSet {
+            origin: origin.into(),
+            version,
+            records,
+        }
     }
 
     /// The record with this id.
     pub fn get(&self, id: &str) -> Option<&VuidRecord> {
-        self.records.binary_search_by(|r| r.id.as_str().cmp(id)).ok().map(|i| &self.records[i])
+        self.records
+            .binary_search_by(|r| r.id.as_str().cmp(id))
+            .ok()
+            .map(|i| &self.records[i])
     }
 
     /// The records whose scope is `scope` (a command's or structure's own VUIDs).
@@ -368,7 +404,10 @@ impl Out {
 /// Normalise an HTML fragment (validusage.json texts): tags removed, `<code>` kept as
 /// backticks, entities decoded, whitespace collapsed, trimmed.
 pub fn normalize_html(s: &str) -> String {
-    let mut out = Out { s: String::with_capacity(s.len()), space: false };
+    let mut out = Out {
+        s: String::with_capacity(s.len()),
+        space: false,
+    };
     run(s, Mode::Html, &mut out);
     out.s
 }
@@ -376,14 +415,20 @@ pub fn normalize_html(s: &str) -> String {
 /// Normalise a Markdown fragment (man pages): like [`normalize_html`] for inline HTML, plus
 /// links reduced to their text, `**strong**` markers and backslash escapes removed.
 pub fn normalize_markdown(s: &str) -> String {
-    let mut out = Out { s: String::with_capacity(s.len()), space: false };
+    let mut out = Out {
+        s: String::with_capacity(s.len()),
+        space: false,
+    };
     run(s, Mode::Markdown, &mut out);
     out.s
 }
 
 /// Normalise plain text: whitespace collapsed and trimmed.
 pub fn normalize_plain(s: &str) -> String {
-    let mut out = Out { s: String::with_capacity(s.len()), space: false };
+    let mut out = Out {
+        s: String::with_capacity(s.len()),
+        space: false,
+    };
     out.push_str(s);
     out.s
 }
@@ -429,7 +474,12 @@ fn run(s: &str, mode: Mode, out: &mut Out) {
                 out.push('`');
                 i += 1;
             }
-            b'\\' if mode == Mode::Markdown && !in_code && i + 1 < b.len() && b[i + 1].is_ascii_punctuation() => {
+            b'\\'
+                if mode == Mode::Markdown
+                    && !in_code
+                    && i + 1 < b.len()
+                    && b[i + 1].is_ascii_punctuation() =>
+            {
                 out.push(b[i + 1] as char);
                 i += 2;
             }
@@ -605,7 +655,10 @@ mod tests {
     #[test]
     fn split_ids() {
         let p = split_vuid("VUID-vkCmdTraceRaysIndirectKHR-stride-03686").unwrap();
-        assert_eq!((p.scope, p.field, p.tag), ("vkCmdTraceRaysIndirectKHR", "stride", "03686"));
+        assert_eq!(
+            (p.scope, p.field, p.tag),
+            ("vkCmdTraceRaysIndirectKHR", "stride", "03686")
+        );
         let p = split_vuid("VUID-vkCmdTraceRaysIndirectKHR-renderpass").unwrap();
         assert_eq!((p.field, p.tag), ("None", "renderpass"));
         assert!(split_vuid("VUID-x").is_none());
@@ -617,7 +670,10 @@ mod tests {
         let html = "The <a href=\"#features-x\"><code>x</code></a> feature <strong class=\"purple\">must</strong> be &gt; the view&#8217;s <a href=\"#VkSampler\">VkSampler</a>";
         let md = "The [`x`](#features-x) feature **must** be \\> the view’s [VkSampler](https://e.org/VkSampler.html)";
         assert_eq!(normalize_html(html), normalize_markdown(md));
-        assert_eq!(normalize_html(html), "The `x` feature must be > the view’s VkSampler");
+        assert_eq!(
+            normalize_html(html),
+            "The `x` feature must be > the view’s VkSampler"
+        );
         assert_eq!(normalize_markdown("a\\_b  \n  `p`\\[i\\]"), "a_b `p`[i]");
         assert_eq!(normalize_plain("  a \n b "), "a b");
     }

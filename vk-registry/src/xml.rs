@@ -317,7 +317,11 @@ impl Registry {
     /// The enumerant record of any enum value or extension constant.
     pub fn enum_entry(&self, name: &str) -> Option<&EnumValue> {
         let &(g, v) = self.index.values.get(name)?;
-        Some(if g == usize::MAX { &self.ext_constants[v] } else { &self.enum_groups[g].values[v] })
+        Some(if g == usize::MAX {
+            &self.ext_constants[v]
+        } else {
+            &self.enum_groups[g].values[v]
+        })
     }
 
     /// The numeric value of an enumerant (aliases resolved).
@@ -348,7 +352,12 @@ impl Registry {
             _ => typename.to_string(),
         };
         let g = self.enum_group(&group_name)?;
-        Some(g.values.iter().filter_map(|v| v.value.map(|x| (v.name.clone(), x))).collect())
+        Some(
+            g.values
+                .iter()
+                .filter_map(|v| v.value.map(|x| (v.name.clone(), x)))
+                .collect(),
+        )
     }
 
     pub fn feature(&self, name: &str) -> Option<&Feature> {
@@ -356,7 +365,10 @@ impl Registry {
     }
 
     pub fn extension(&self, name: &str) -> Option<&Extension> {
-        self.index.extensions.get(name).map(|&i| &self.extensions[i])
+        self.index
+            .extensions
+            .get(name)
+            .map(|&i| &self.extensions[i])
     }
 
     /// Readable text about a command, a type or an enum value (used by `report::show`).
@@ -393,7 +405,11 @@ impl Registry {
         }
         if let Some(t) = self.type_def(name) {
             let _ = writeln!(o, "{:?} {}", t.category, t.name).map(|_| ());
-            let o2 = o.replacen(&format!("{:?}", t.category), &format!("{:?}", t.category).to_lowercase(), 1);
+            let o2 = o.replacen(
+                &format!("{:?}", t.category),
+                &format!("{:?}", t.category).to_lowercase(),
+                1,
+            );
             o = o2;
             if let Some(a) = &t.alias {
                 let _ = writeln!(o, "  alias of {a}");
@@ -416,7 +432,15 @@ impl Registry {
             for m in &t.members {
                 let _ = writeln!(o, "  member {}{}", m.decl, member_attrs(m));
             }
-            if let Some(bits) = t.bitvalues.as_deref().or(if t.category == TypeCategory::Enum { Some(&t.name) } else { None }) {
+            if let Some(bits) = t
+                .bitvalues
+                .as_deref()
+                .or(if t.category == TypeCategory::Enum {
+                    Some(&t.name)
+                } else {
+                    None
+                })
+            {
                 if let Some(g) = self.enum_group(bits) {
                     let _ = writeln!(o, "  values ({}):", g.name);
                     for v in &g.values {
@@ -428,7 +452,10 @@ impl Registry {
             return Some(o);
         }
         if let Some(v) = self.enum_entry(name) {
-            let group = self.enum_group_of(name).map(|g| g.name.as_str()).unwrap_or("(extension constant)");
+            let group = self
+                .enum_group_of(name)
+                .map(|g| g.name.as_str())
+                .unwrap_or("(extension constant)");
             let _ = writeln!(o, "enum {} = {}", v.name, fmt_value(v));
             let _ = writeln!(o, "  group: {group}");
             if let Some(a) = &v.alias {
@@ -467,8 +494,16 @@ impl Registry {
         }
     }
 
-    fn build_index(&mut self, values: FastMap<String, (usize, usize)>, groups: FastMap<String, usize>) {
-        let mut ix = Index { values, groups, ..Index::default() };
+    fn build_index(
+        &mut self,
+        values: FastMap<String, (usize, usize)>,
+        groups: FastMap<String, usize>,
+    ) {
+        let mut ix = Index {
+            values,
+            groups,
+            ..Index::default()
+        };
         for (i, t) in self.types.iter().enumerate() {
             ix.types.entry(t.name.clone()).or_insert(i);
         }
@@ -487,17 +522,32 @@ impl Registry {
 
 fn fmt_value(v: &EnumValue) -> String {
     match (v.value, &v.raw) {
-        (Some(x), _) if v.bitpos.is_some() || (x > 0xffff && x < 0x1_0000_0000 && x.count_ones() == 1) => format!("{x:#x}"),
+        (Some(x), _)
+            if v.bitpos.is_some() || (x > 0xffff && x < 0x1_0000_0000 && x.count_ones() == 1) =>
+        {
+            format!("{x:#x}")
+        }
         (Some(x), _) => x.to_string(),
         (None, Some(r)) => r.clone(),
-        (None, None) => v.alias.clone().map(|a| format!("alias {a}")).unwrap_or_else(|| "?".into()),
+        (None, None) => v
+            .alias
+            .clone()
+            .map(|a| format!("alias {a}"))
+            .unwrap_or_else(|| "?".into()),
     }
 }
 
 fn member_attrs(m: &Member) -> String {
     let mut s = Vec::new();
     if !m.optional.is_empty() {
-        s.push(format!("optional={}", m.optional.iter().map(|b| b.to_string()).collect::<Vec<_>>().join(",")));
+        s.push(format!(
+            "optional={}",
+            m.optional
+                .iter()
+                .map(|b| b.to_string())
+                .collect::<Vec<_>>()
+                .join(",")
+        ));
     }
     for (k, v) in [
         ("len", &m.len),
@@ -550,16 +600,26 @@ struct PendingValue {
 }
 
 fn is_vulkan_api(api: Option<&str>) -> bool {
-    api.unwrap_or("vulkan").split(',').any(|x| x.trim() == "vulkan")
+    api.unwrap_or("vulkan")
+        .split(',')
+        .any(|x| x.trim() == "vulkan")
 }
 
 fn split_list(s: &str) -> Vec<String> {
-    s.split(',').map(|x| x.trim()).filter(|x| !x.is_empty()).map(String::from).collect()
+    s.split(',')
+        .map(|x| x.trim())
+        .filter(|x| !x.is_empty())
+        .map(String::from)
+        .collect()
 }
 
 /// Parse an integer literal as used in vk.xml (`0x10`, `-1`, `(~0U)`, `(~0ULL)`, `1000U`).
 pub fn parse_int_literal(s: &str) -> Option<i64> {
-    let t = s.trim().trim_start_matches('(').trim_end_matches(')').trim();
+    let t = s
+        .trim()
+        .trim_start_matches('(')
+        .trim_end_matches(')')
+        .trim();
     let (neg_bits, body) = match t.strip_prefix('~') {
         Some(b) => (true, b),
         None => (false, t),
@@ -612,7 +672,10 @@ impl<'a> Parser<'a> {
     }
 
     fn xml_err(&self, e: quick_xml::Error) -> RegistryError {
-        self.err_at(self.r.error_position() as usize, format!("malformed XML: {e}"))
+        self.err_at(
+            self.r.error_position() as usize,
+            format!("malformed XML: {e}"),
+        )
     }
 
     fn next(&mut self) -> Result<Option<Ev<'a>>, RegistryError> {
@@ -623,7 +686,9 @@ impl<'a> Parser<'a> {
                 Event::Empty(e) => Ev::Open(e, true),
                 Event::End(_) => Ev::Close,
                 Event::Text(t) => Ev::Text(t),
-                Event::CData(t) => Ev::Text(quick_xml::events::BytesText::from_escaped(String::from_utf8_lossy(&t).into_owned())),
+                Event::CData(t) => Ev::Text(quick_xml::events::BytesText::from_escaped(
+                    String::from_utf8_lossy(&t).into_owned(),
+                )),
                 Event::Comment(_) | Event::Decl(_) | Event::PI(_) | Event::DocType(_) => continue,
                 Event::Eof => return Ok(None),
             }));
@@ -642,7 +707,9 @@ impl<'a> Parser<'a> {
         if !empty {
             let name = e.name();
             self.r.read_to_end(name).map_err(|err| match err {
-                quick_xml::Error::Syntax(_) | quick_xml::Error::IllFormed(_) if self.r.buffer_position() as usize >= self.src.len() => {
+                quick_xml::Error::Syntax(_) | quick_xml::Error::IllFormed(_)
+                    if self.r.buffer_position() as usize >= self.src.len() =>
+                {
                     self.err_here(format!(
                         "unexpected end of file inside <{}>",
                         String::from_utf8_lossy(name.as_ref())
@@ -654,7 +721,10 @@ impl<'a> Parser<'a> {
         Ok(())
     }
 
-    fn unescape<'t>(&self, t: &'t quick_xml::events::BytesText<'a>) -> Result<Cow<'t, str>, RegistryError> {
+    fn unescape<'t>(
+        &self,
+        t: &'t quick_xml::events::BytesText<'a>,
+    ) -> Result<Cow<'t, str>, RegistryError> {
         t.unescape().map_err(|e| self.xml_err(e))
     }
 
@@ -667,26 +737,40 @@ impl<'a> Parser<'a> {
     fn unexpected(&self, e: &BytesStart, ctx: &str) -> RegistryError {
         self.err_at(
             self.start_pos(),
-            format!("unexpected element <{}> inside <{ctx}>", String::from_utf8_lossy(e.name().as_ref())),
+            format!(
+                "unexpected element <{}> inside <{ctx}>",
+                String::from_utf8_lossy(e.name().as_ref())
+            ),
         )
     }
 
-    fn attrs<'e>(&self, e: &'e BytesStart<'a>) -> Result<Vec<(&'static str, Cow<'e, str>)>, RegistryError> {
+    fn attrs<'e>(
+        &self,
+        e: &'e BytesStart<'a>,
+    ) -> Result<Vec<(&'static str, Cow<'e, str>)>, RegistryError> {
         // keys are interned against a fixed list to keep matching cheap
         let mut out = Vec::new();
         for a in e.attributes().with_checks(false) {
-            let a = a.map_err(|err| self.err_at(self.start_pos(), format!("malformed attribute: {err}")))?;
+            let a = a.map_err(|err| {
+                self.err_at(self.start_pos(), format!("malformed attribute: {err}"))
+            })?;
             let key = intern(a.key.as_ref());
             if key.is_empty() {
                 continue;
             }
             let val: Cow<'e, str> = match a.value {
                 Cow::Borrowed(bytes) => {
-                    let raw = std::str::from_utf8(bytes).map_err(|_| self.err_at(self.start_pos(), "attribute is not UTF-8"))?;
+                    let raw = std::str::from_utf8(bytes)
+                        .map_err(|_| self.err_at(self.start_pos(), "attribute is not UTF-8"))?;
                     if raw.contains('&') {
                         Cow::Owned(
                             quick_xml::escape::unescape(raw)
-                                .map_err(|err| self.err_at(self.start_pos(), format!("bad escape in attribute: {err}")))?
+                                .map_err(|err| {
+                                    self.err_at(
+                                        self.start_pos(),
+                                        format!("bad escape in attribute: {err}"),
+                                    )
+                                })?
                                 .into_owned(),
                         )
                     } else {
@@ -694,10 +778,16 @@ impl<'a> Parser<'a> {
                     }
                 }
                 Cow::Owned(bytes) => {
-                    let raw = String::from_utf8(bytes).map_err(|_| self.err_at(self.start_pos(), "attribute is not UTF-8"))?;
+                    let raw = String::from_utf8(bytes)
+                        .map_err(|_| self.err_at(self.start_pos(), "attribute is not UTF-8"))?;
                     Cow::Owned(
                         quick_xml::escape::unescape(&raw)
-                            .map_err(|err| self.err_at(self.start_pos(), format!("bad escape in attribute: {err}")))?
+                            .map_err(|err| {
+                                self.err_at(
+                                    self.start_pos(),
+                                    format!("bad escape in attribute: {err}"),
+                                )
+                            })?
                             .into_owned(),
                     )
                 }
@@ -747,15 +837,20 @@ impl<'a> Parser<'a> {
                     b"commands" => self.container(&e, empty, "commands")?,
                     b"feature" => self.feature(&e, empty)?,
                     b"extensions" => self.container(&e, empty, "extensions")?,
-                    b"comment" | b"platforms" | b"tags" | b"formats" | b"spirvextensions" | b"spirvcapabilities"
-                    | b"sync" | b"videocodecs" => self.skip(&e, empty)?,
+                    b"comment" | b"platforms" | b"tags" | b"formats" | b"spirvextensions"
+                    | b"spirvcapabilities" | b"sync" | b"videocodecs" => self.skip(&e, empty)?,
                     _ => return Err(self.unexpected(&e, "registry")),
                 },
             }
         }
     }
 
-    fn container(&mut self, _e: &BytesStart<'a>, empty: bool, ctx: &'static str) -> Result<(), RegistryError> {
+    fn container(
+        &mut self,
+        _e: &BytesStart<'a>,
+        empty: bool,
+        ctx: &'static str,
+    ) -> Result<(), RegistryError> {
         if empty {
             return Ok(());
         }
@@ -807,7 +902,9 @@ impl<'a> Parser<'a> {
                         "define" => TypeCategory::Define,
                         "include" => TypeCategory::Include,
                         "funcpointer" => TypeCategory::FuncPointer,
-                        other => return Err(self.err_at(pos, format!("unknown type category `{other}`"))),
+                        other => {
+                            return Err(self.err_at(pos, format!("unknown type category `{other}`")))
+                        }
                     }
                 }
                 "alias" => t.alias = Some(v.into_owned()),
@@ -877,7 +974,12 @@ impl<'a> Parser<'a> {
     }
 
     /// The text content of a simple element such as `<name>`.
-    fn text_of(&mut self, e: &BytesStart<'a>, empty: bool, ctx: &str) -> Result<String, RegistryError> {
+    fn text_of(
+        &mut self,
+        e: &BytesStart<'a>,
+        empty: bool,
+        ctx: &str,
+    ) -> Result<String, RegistryError> {
         let _ = e;
         let mut s = String::new();
         if empty {
@@ -893,7 +995,12 @@ impl<'a> Parser<'a> {
     }
 
     /// A `<member>`, `<param>` or `<proto>`.
-    fn member(&mut self, e: &BytesStart<'a>, empty: bool, ctx: &'static str) -> Result<Member, RegistryError> {
+    fn member(
+        &mut self,
+        e: &BytesStart<'a>,
+        empty: bool,
+        ctx: &'static str,
+    ) -> Result<Member, RegistryError> {
         let pos = self.start_pos();
         let mut m = Member::default();
         for (k, v) in self.attrs(e)? {
@@ -1027,7 +1134,11 @@ impl<'a> Parser<'a> {
                                             let s = self.text_of(&p, pempty, "param")?;
                                             c.implicit_externsync.push(collapse(&s));
                                         }
-                                        Ev::Open(p, _) => return Err(self.unexpected(&p, "implicitexternsyncparams")),
+                                        Ev::Open(p, _) => {
+                                            return Err(
+                                                self.unexpected(&p, "implicitexternsyncparams")
+                                            )
+                                        }
                                     }
                                 }
                             }
@@ -1049,7 +1160,12 @@ impl<'a> Parser<'a> {
 
     fn enums(&mut self, e: &BytesStart<'a>, empty: bool) -> Result<(), RegistryError> {
         let pos = self.start_pos();
-        let mut g = EnumGroup { name: String::new(), kind: EnumKind::Constants, bitwidth: None, values: Vec::new() };
+        let mut g = EnumGroup {
+            name: String::new(),
+            kind: EnumKind::Constants,
+            bitwidth: None,
+            values: Vec::new(),
+        };
         for (k, v) in self.attrs(e)? {
             match k {
                 "name" => g.name = v.into_owned(),
@@ -1058,7 +1174,9 @@ impl<'a> Parser<'a> {
                         "enum" => EnumKind::Enum,
                         "bitmask" => EnumKind::Bitmask,
                         "constants" => EnumKind::Constants,
-                        other => return Err(self.err_at(pos, format!("unknown enums type `{other}`"))),
+                        other => {
+                            return Err(self.err_at(pos, format!("unknown enums type `{other}`")))
+                        }
                     }
                 }
                 "bitwidth" => g.bitwidth = v.parse().ok(),
@@ -1083,7 +1201,9 @@ impl<'a> Parser<'a> {
                                 continue;
                             }
                             let Some(v) = v else {
-                                return Err(self.err_at(vpos, "<enum> without value, bitpos or alias"));
+                                return Err(
+                                    self.err_at(vpos, "<enum> without value, bitpos or alias")
+                                );
                             };
                             if !self.values.contains_key(&v.name) {
                                 self.values.insert(v.name.clone(), (gi, g.values.len()));
@@ -1122,7 +1242,8 @@ impl<'a> Parser<'a> {
             protect: None,
             deprecated: None,
         };
-        let (mut extends, mut offset, mut extnumber, mut neg, mut api, mut has) = (None, None, None, false, None, false);
+        let (mut extends, mut offset, mut extnumber, mut neg, mut api, mut has) =
+            (None, None, None, false, None, false);
         for (k, val) in self.attrs(e)? {
             match k {
                 "name" => v.name = val.into_owned(),
@@ -1140,7 +1261,9 @@ impl<'a> Parser<'a> {
                 }
                 "bitpos" => {
                     has = true;
-                    let b: u32 = val.parse().map_err(|_| self.err_at(pos, format!("bad bitpos `{val}`")))?;
+                    let b: u32 = val
+                        .parse()
+                        .map_err(|_| self.err_at(pos, format!("bad bitpos `{val}`")))?;
                     if b > 63 {
                         return Err(self.err_at(pos, format!("bitpos {b} out of range")));
                     }
@@ -1153,10 +1276,16 @@ impl<'a> Parser<'a> {
                 }
                 "offset" => {
                     has = true;
-                    offset = Some(val.parse::<i64>().map_err(|_| self.err_at(pos, format!("bad offset `{val}`")))?)
+                    offset = Some(
+                        val.parse::<i64>()
+                            .map_err(|_| self.err_at(pos, format!("bad offset `{val}`")))?,
+                    )
                 }
                 "extnumber" => {
-                    extnumber = Some(val.parse::<i64>().map_err(|_| self.err_at(pos, format!("bad extnumber `{val}`")))?)
+                    extnumber = Some(
+                        val.parse::<i64>()
+                            .map_err(|_| self.err_at(pos, format!("bad extnumber `{val}`")))?,
+                    )
                 }
                 "dir" => neg = val == "-",
                 "extends" => extends = Some(val.into_owned()),
@@ -1173,7 +1302,9 @@ impl<'a> Parser<'a> {
         if let Some(off) = offset {
             let n = match extnumber.or(ext_number.map(i64::from)) {
                 Some(n) => n,
-                None => return Err(self.err_at(pos, format!("{}: offset without extnumber", v.name))),
+                None => {
+                    return Err(self.err_at(pos, format!("{}: offset without extnumber", v.name)))
+                }
             };
             let x = 1_000_000_000 + (n - 1) * 1000 + off;
             v.value = Some(if neg { -x } else { x });
@@ -1187,7 +1318,14 @@ impl<'a> Parser<'a> {
 
     fn feature(&mut self, e: &BytesStart<'a>, empty: bool) -> Result<(), RegistryError> {
         let pos = self.start_pos();
-        let mut f = Feature { name: String::new(), number: String::new(), api: Vec::new(), depends: None, require: Vec::new(), remove: Vec::new() };
+        let mut f = Feature {
+            name: String::new(),
+            number: String::new(),
+            api: Vec::new(),
+            depends: None,
+            require: Vec::new(),
+            remove: Vec::new(),
+        };
         for (k, v) in self.attrs(e)? {
             match k {
                 "name" => f.name = v.into_owned(),
@@ -1231,7 +1369,8 @@ impl<'a> Parser<'a> {
     }
 
     fn condition(&self, s: &str, pos: usize) -> Result<Condition, RegistryError> {
-        Condition::parse(s).map_err(|(off, msg)| self.err_at(pos, format!("bad depends `{s}` (at {off}): {msg}")))
+        Condition::parse(s)
+            .map_err(|(off, msg)| self.err_at(pos, format!("bad depends `{s}` (at {off}): {msg}")))
     }
 
     /// A `<require>`/`<remove>` block. Enum values it adds are queued when `apply` is set.
@@ -1270,7 +1409,11 @@ impl<'a> Parser<'a> {
                         let cpos = self.start_pos();
                         match c.name().as_ref() {
                             b"type" | b"command" => {
-                                let name = self.attrs(&c)?.into_iter().find(|(k, _)| *k == "name").map(|(_, v)| v.into_owned());
+                                let name = self
+                                    .attrs(&c)?
+                                    .into_iter()
+                                    .find(|(k, _)| *k == "name")
+                                    .map(|(_, v)| v.into_owned());
                                 let is_type = c.name().as_ref() == b"type";
                                 self.skip(&c, cempty)?;
                                 let Some(name) = name else {
@@ -1293,21 +1436,39 @@ impl<'a> Parser<'a> {
                                     None => self
                                         .attrs(&c)
                                         .ok()
-                                        .and_then(|a| a.into_iter().find(|(k, _)| *k == "name").map(|(_, v)| v.into_owned()))
+                                        .and_then(|a| {
+                                            a.into_iter()
+                                                .find(|(k, _)| *k == "name")
+                                                .map(|(_, v)| v.into_owned())
+                                        })
                                         .unwrap_or_default(),
                                 };
                                 r.enums.push(name);
                                 if let (true, true, Some(mut v)) = (apply, keep, v) {
                                     v.added_by = Some(owner.to_string());
                                     let target = extends.unwrap_or_default();
-                                    self.pending_ext.push((target, PendingValue { value: v, offset_pos: cpos }));
+                                    self.pending_ext.push((
+                                        target,
+                                        PendingValue {
+                                            value: v,
+                                            offset_pos: cpos,
+                                        },
+                                    ));
                                 }
                             }
                             b"feature" => {
                                 let a = self.attrs(&c)?;
                                 self.skip(&c, cempty)?;
-                                let get = |k: &str| a.iter().find(|(kk, _)| *kk == k).map(|(_, v)| v.to_string()).unwrap_or_default();
-                                r.features.push(FeatureRef { name: get("name"), structure: get("struct") });
+                                let get = |k: &str| {
+                                    a.iter()
+                                        .find(|(kk, _)| *kk == k)
+                                        .map(|(_, v)| v.to_string())
+                                        .unwrap_or_default()
+                                };
+                                r.features.push(FeatureRef {
+                                    name: get("name"),
+                                    structure: get("struct"),
+                                });
                             }
                             b"comment" => self.skip(&c, cempty)?,
                             _ => return Err(self.unexpected(&c, "require")),
@@ -1343,7 +1504,11 @@ impl<'a> Parser<'a> {
         for (k, v) in self.attrs(e)? {
             match k {
                 "name" => x.name = v.into_owned(),
-                "number" => x.number = v.parse().map_err(|_| self.err_at(pos, format!("bad extension number `{v}`")))?,
+                "number" => {
+                    x.number = v
+                        .parse()
+                        .map_err(|_| self.err_at(pos, format!("bad extension number `{v}`")))?
+                }
                 "type" => x.ext_type = Some(v.into_owned()),
                 "supported" => x.supported = split_list(&v),
                 "depends" => x.depends = Some(self.condition(&v, pos)?),
@@ -1378,12 +1543,16 @@ impl<'a> Parser<'a> {
                     Ev::Text(_) => {}
                     Ev::Open(c, cempty) => match c.name().as_ref() {
                         b"require" => {
-                            if let Some(r) = self.require(&c, cempty, &name, Some(x.number), apply)? {
+                            if let Some(r) =
+                                self.require(&c, cempty, &name, Some(x.number), apply)?
+                            {
                                 x.require.push(r);
                             }
                         }
                         b"remove" => {
-                            if let Some(r) = self.require(&c, cempty, &name, Some(x.number), false)? {
+                            if let Some(r) =
+                                self.require(&c, cempty, &name, Some(x.number), false)?
+                            {
                                 x.remove.push(r);
                             }
                         }
@@ -1409,17 +1578,24 @@ impl<'a> Parser<'a> {
                 continue;
             }
             let Some(&gi) = self.groups.get(&target) else {
-                return Err(self.err_at(pv.offset_pos, format!("{} extends unknown enum {}", pv.value.name, target)));
+                return Err(self.err_at(
+                    pv.offset_pos,
+                    format!("{} extends unknown enum {}", pv.value.name, target),
+                ));
             };
             let g = &mut self.reg.enum_groups[gi];
-            self.values.insert(pv.value.name.clone(), (gi, g.values.len()));
+            self.values
+                .insert(pv.value.name.clone(), (gi, g.values.len()));
             g.values.push(pv.value);
         }
         Ok(())
     }
 
     fn resolve_aliases(&mut self) {
-        let lookup = |reg: &Registry, values: &FastMap<String, (usize, usize)>, name: &str| -> Option<(usize, usize)> {
+        let lookup = |reg: &Registry,
+                      values: &FastMap<String, (usize, usize)>,
+                      name: &str|
+         -> Option<(usize, usize)> {
             let _ = reg;
             values.get(name).copied()
         };
@@ -1440,7 +1616,9 @@ impl<'a> Parser<'a> {
             let mut found = None;
             for _ in 0..8 {
                 let Some(a) = cur else { break };
-                let Some(l) = lookup(&self.reg, &self.values, &a) else { break };
+                let Some(l) = lookup(&self.reg, &self.values, &a) else {
+                    break;
+                };
                 let t = get(&self.reg, l);
                 if t.value.is_some() || t.raw.is_some() {
                     found = Some((t.value, t.raw.clone(), t.bitpos));
@@ -1453,7 +1631,11 @@ impl<'a> Parser<'a> {
             }
         }
         for (_, (g, v), (value, raw, bitpos)) in fixes {
-            let ev = if g == usize::MAX { &mut self.reg.ext_constants[v] } else { &mut self.reg.enum_groups[g].values[v] };
+            let ev = if g == usize::MAX {
+                &mut self.reg.ext_constants[v]
+            } else {
+                &mut self.reg.enum_groups[g].values[v]
+            };
             ev.value = value;
             if ev.raw.is_none() {
                 ev.raw = raw;
@@ -1486,13 +1668,62 @@ fn intern(k: &[u8]) -> &'static str {
         };
     }
     keys!(
-        "name", "category", "alias", "api", "parent", "objtypeenum", "requires", "bitvalues", "structextends",
-        "returnedonly", "allowduplicate", "deprecated", "optional", "len", "altlen", "values", "noautovalidity",
-        "limittype", "selector", "selection", "externsync", "objecttype", "stride", "validstructs", "successcodes",
-        "errorcodes", "queues", "renderpass", "videocoding", "cmdbufferlevel", "tasks", "type", "bitwidth", "value",
-        "bitpos", "offset", "extnumber", "dir", "extends", "protect", "number", "depends", "comment", "extension",
-        "feature", "supported", "promotedto", "deprecatedby", "obsoletedby", "platform", "provisional", "specialuse",
-        "ratified", "author", "contact", "struct"
+        "name",
+        "category",
+        "alias",
+        "api",
+        "parent",
+        "objtypeenum",
+        "requires",
+        "bitvalues",
+        "structextends",
+        "returnedonly",
+        "allowduplicate",
+        "deprecated",
+        "optional",
+        "len",
+        "altlen",
+        "values",
+        "noautovalidity",
+        "limittype",
+        "selector",
+        "selection",
+        "externsync",
+        "objecttype",
+        "stride",
+        "validstructs",
+        "successcodes",
+        "errorcodes",
+        "queues",
+        "renderpass",
+        "videocoding",
+        "cmdbufferlevel",
+        "tasks",
+        "type",
+        "bitwidth",
+        "value",
+        "bitpos",
+        "offset",
+        "extnumber",
+        "dir",
+        "extends",
+        "protect",
+        "number",
+        "depends",
+        "comment",
+        "extension",
+        "feature",
+        "supported",
+        "promotedto",
+        "deprecatedby",
+        "obsoletedby",
+        "platform",
+        "provisional",
+        "specialuse",
+        "ratified",
+        "author",
+        "contact",
+        "struct"
     )
 }
 

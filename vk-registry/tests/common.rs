@@ -44,9 +44,17 @@ pub fn registry_1_4_309() -> PathBuf {
             .arg(&dest)
             .status()
             .expect("running scripts/fetch-registry.sh");
-        assert!(status.success(), "scripts/fetch-registry.sh could not fetch the 1.4.309 registry into {}", dest.display());
+        assert!(
+            status.success(),
+            "scripts/fetch-registry.sh could not fetch the 1.4.309 registry into {}",
+            dest.display()
+        );
     }
-    assert!(reg.join("validusage.json").exists() && reg.join("vk.xml").exists(), "1.4.309 registry missing in {}", reg.display());
+    assert!(
+        reg.join("validusage.json").exists() && reg.join("vk.xml").exists(),
+        "1.4.309 registry missing in {}",
+        reg.display()
+    );
     reg
 }
 

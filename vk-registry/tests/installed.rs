@@ -17,22 +17,48 @@ fn installed() -> &'static Registry {
 
 fn installed_vuids() -> &'static VuidSet {
     static S: OnceLock<VuidSet> = OnceLock::new();
-    S.get_or_init(|| load_vuids(&common::installed_dir()).expect("installed validusage.json parses"))
+    S.get_or_init(|| {
+        load_vuids(&common::installed_dir()).expect("installed validusage.json parses")
+    })
 }
 
 #[test]
 fn extension_enum_values_in_installed_registry() {
     let r = installed();
-    assert_eq!(r.enum_value("VK_BUFFER_USAGE_SHADER_BINDING_TABLE_BIT_KHR"), Some(0x400));
-    assert_eq!(r.enum_value("VK_STRUCTURE_TYPE_RAY_TRACING_PIPELINE_CREATE_INFO_KHR"), Some(1_000_150_015));
-    assert_eq!(r.enum_value("VK_STRUCTURE_TYPE_RAY_TRACING_PIPELINE_CREATE_INFO_NV"), Some(1_000_165_000));
-    assert_eq!(r.enum_value("VK_ERROR_OUT_OF_POOL_MEMORY"), Some(-1_000_069_000));
-    assert_eq!(r.enum_value("VK_ERROR_OUT_OF_POOL_MEMORY_KHR"), Some(-1_000_069_000));
-    assert_eq!(r.enum_value("VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR"), Some(1_000_165_000));
+    assert_eq!(
+        r.enum_value("VK_BUFFER_USAGE_SHADER_BINDING_TABLE_BIT_KHR"),
+        Some(0x400)
+    );
+    assert_eq!(
+        r.enum_value("VK_STRUCTURE_TYPE_RAY_TRACING_PIPELINE_CREATE_INFO_KHR"),
+        Some(1_000_150_015)
+    );
+    assert_eq!(
+        r.enum_value("VK_STRUCTURE_TYPE_RAY_TRACING_PIPELINE_CREATE_INFO_NV"),
+        Some(1_000_165_000)
+    );
+    assert_eq!(
+        r.enum_value("VK_ERROR_OUT_OF_POOL_MEMORY"),
+        Some(-1_000_069_000)
+    );
+    assert_eq!(
+        r.enum_value("VK_ERROR_OUT_OF_POOL_MEMORY_KHR"),
+        Some(-1_000_069_000)
+    );
+    assert_eq!(
+        r.enum_value("VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR"),
+        Some(1_000_165_000)
+    );
     assert_eq!(r.enum_value("VK_SHADER_UNUSED_KHR"), Some(0xFFFF_FFFF));
-    assert_eq!(r.enum_value("VK_KHR_RAY_TRACING_PIPELINE_SPEC_VERSION"), Some(1));
+    assert_eq!(
+        r.enum_value("VK_KHR_RAY_TRACING_PIPELINE_SPEC_VERSION"),
+        Some(1)
+    );
     let bits = r.bitmask_bits("VkBufferUsageFlags").unwrap();
-    assert!(bits.contains(&("VK_BUFFER_USAGE_SHADER_BINDING_TABLE_BIT_KHR".to_string(), 0x400)));
+    assert!(bits.contains(&(
+        "VK_BUFFER_USAGE_SHADER_BINDING_TABLE_BIT_KHR".to_string(),
+        0x400
+    )));
     assert!(r.command("vkCmdTraceRaysIndirectKHR").is_some());
     assert!(r.type_def("VkCommandBuffer").unwrap().dispatchable == Some(true));
 }
@@ -62,9 +88,18 @@ fn per_command_vuid_counts_equal_the_json() {
         *got.entry(r.scope.clone()).or_default() += 1;
     }
     assert_eq!(got, expected);
-    for cmd in ["vkCmdTraceRaysIndirectKHR", "vkCmdTraceRaysNV", "vkCmdBuildAccelerationStructuresIndirectKHR"] {
+    for cmd in [
+        "vkCmdTraceRaysIndirectKHR",
+        "vkCmdTraceRaysNV",
+        "vkCmdBuildAccelerationStructuresIndirectKHR",
+    ] {
         assert!(got[cmd] > 20, "{cmd}");
-        assert_eq!(vk_registry::report::vuids_plain(set, Some(cmd)).lines().count(), expected[cmd]);
+        assert_eq!(
+            vk_registry::report::vuids_plain(set, Some(cmd))
+                .lines()
+                .count(),
+            expected[cmd]
+        );
     }
 }
 
@@ -74,17 +109,30 @@ fn registry_1_4_309_newer_schema() {
     let set = load_vuids(&dir).unwrap();
     assert_eq!(set.version.as_deref(), Some("1.4.309"));
     assert!(set.len() > 20_000, "{}", set.len());
-    let r = set.get("VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634").unwrap();
+    let r = set
+        .get("VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634")
+        .unwrap();
     assert_eq!(r.text, "`indirectDeviceAddress` must be a multiple of `4`");
     let reg = Registry::load(dir.join("vk.xml")).unwrap();
-    assert_eq!(reg.enum_value("VK_BUFFER_USAGE_SHADER_BINDING_TABLE_BIT_KHR"), Some(0x400));
+    assert_eq!(
+        reg.enum_value("VK_BUFFER_USAGE_SHADER_BINDING_TABLE_BIT_KHR"),
+        Some(0x400)
+    );
     assert!(reg.feature("VK_VERSION_1_4").is_some());
-    assert!(reg.features.iter().all(|f| f.api.iter().any(|a| a == "vulkan")));
+    assert!(reg
+        .features
+        .iter()
+        .all(|f| f.api.iter().any(|a| a == "vulkan")));
     // texts of a VUID compare across versions
-    let old = installed_vuids().get("VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634").unwrap();
+    let old = installed_vuids()
+        .get("VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634")
+        .unwrap();
     assert_eq!(old.text, r.text);
     let d = vk_registry::report::diff(installed_vuids(), &set, Some("vkCmdTraceRaysIndirectKHR"));
-    assert!(d.contains("\nadded:\n+ VUID-vkCmdTraceRaysIndirectKHR-"), "{d}");
+    assert!(
+        d.contains("\nadded:\n+ VUID-vkCmdTraceRaysIndirectKHR-"),
+        "{d}"
+    );
 }
 
 #[test]
@@ -93,22 +141,45 @@ fn seeds_yield_expected_counts() {
     let newest = load_vuids(&common::registry_1_4_309()).unwrap();
     for (file, command, count) in [
         ("000_1d54d370f31e08f5.txt", "vkCmdTraceRaysIndirectKHR", 117),
-        ("002_12e97309a51e20bc.txt", "vkCmdBuildAccelerationStructuresIndirectKHR", 92),
+        (
+            "002_12e97309a51e20bc.txt",
+            "vkCmdBuildAccelerationStructuresIndirectKHR",
+            92,
+        ),
         ("003_da8701ff075bfd7b.txt", "vkCmdTraceRaysNV", 103),
-        ("004_f017a595566d4eea.txt", "vkCmdBuildAccelerationStructuresIndirectKHR", 80),
+        (
+            "004_f017a595566d4eea.txt",
+            "vkCmdBuildAccelerationStructuresIndirectKHR",
+            80,
+        ),
     ] {
         let path = dir.join(file);
         assert!(path.exists(), "seed {} missing", path.display());
         let (page, set) = manpage::load(&path).unwrap();
         assert_eq!(set.len(), count, "{file}");
         assert_eq!(page.command, command, "{file}");
-        assert!(page.prototype.starts_with(&format!("void {command}(VkCommandBuffer commandBuffer,")), "{file}: {}", page.prototype);
-        assert!(set.records.iter().all(|r| r.scope == command && !r.text.is_empty()), "{file}");
+        assert!(
+            page.prototype
+                .starts_with(&format!("void {command}(VkCommandBuffer commandBuffer,")),
+            "{file}: {}",
+            page.prototype
+        );
+        assert!(
+            set.records
+                .iter()
+                .all(|r| r.scope == command && !r.text.is_empty()),
+            "{file}"
+        );
         assert_eq!(load_vuids(&path).unwrap(), set);
         if file.starts_with("004") {
             // same spec generation as 1.4.309: every text matches the json's
             for r in &set.records {
-                assert_eq!(Some(&r.text), newest.get(&r.id).map(|n| &n.text), "{}", r.id);
+                assert_eq!(
+                    Some(&r.text),
+                    newest.get(&r.id).map(|n| &n.text),
+                    "{}",
+                    r.id
+                );
             }
         }
     }
@@ -137,15 +208,27 @@ struct TypeSnapshot<'a> {
 fn vuids_of(scope: &str) -> Vec<VuidSummary> {
     installed_vuids()
         .for_scope(scope)
-        .map(|r| VuidSummary { id: r.id.clone(), field: r.field.clone(), implicit: r.implicit, condition: r.condition.to_string() })
+        .map(|r| VuidSummary {
+            id: r.id.clone(),
+            field: r.field.clone(),
+            implicit: r.implicit,
+            condition: r.condition.to_string(),
+        })
         .collect()
 }
 
 #[test]
 fn snapshot_ray_tracing_commands() {
-    for name in ["vkCmdTraceRaysIndirectKHR", "vkCmdTraceRaysNV", "vkCmdBuildAccelerationStructuresIndirectKHR"] {
+    for name in [
+        "vkCmdTraceRaysIndirectKHR",
+        "vkCmdTraceRaysNV",
+        "vkCmdBuildAccelerationStructuresIndirectKHR",
+    ] {
         let command = installed().command(name).unwrap();
-        let snap = CommandSnapshot { command, vuids: vuids_of(name) };
+        let snap = CommandSnapshot {
+            command,
+            vuids: vuids_of(name),
+        };
         assert!(!snap.vuids.is_empty());
         insta::assert_yaml_snapshot!(name, snap);
     }
@@ -153,9 +236,15 @@ fn snapshot_ray_tracing_commands() {
 
 #[test]
 fn snapshot_ray_tracing_structures() {
-    for name in ["VkStridedDeviceAddressRegionKHR", "VkTraceRaysIndirectCommandKHR"] {
+    for name in [
+        "VkStridedDeviceAddressRegionKHR",
+        "VkTraceRaysIndirectCommandKHR",
+    ] {
         let structure = installed().structure(name).unwrap();
-        let snap = TypeSnapshot { structure, vuids: vuids_of(name) };
+        let snap = TypeSnapshot {
+            structure,
+            vuids: vuids_of(name),
+        };
         assert!(!structure.members.is_empty());
         insta::assert_yaml_snapshot!(name, snap);
     }

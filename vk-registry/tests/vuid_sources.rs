@@ -6,7 +6,9 @@ mod common;
 use std::path::PathBuf;
 use vk_registry::error::Location;
 use vk_registry::manpage::{self, ManPageFormat};
-use vk_registry::{load_union, load_vuids, report, validusage, Condition, RegistryError, ScopeKind, VuidSet};
+use vk_registry::{
+    load_union, load_vuids, report, validusage, Condition, RegistryError, ScopeKind, VuidSet,
+};
 
 fn old_schema() -> VuidSet {
     load_vuids(&common::fixture("validusage_1_3.json")).unwrap()
@@ -31,18 +33,55 @@ fn old_schema_with_condition_keys() {
         ]
     );
     let r = s.get("VUID-vkCmdToyDispatch-pRegion-00002").unwrap();
-    assert_eq!(r.condition.to_string(), "VK_KHR_toy_dispatch+!(VK_VERSION_1_3,VK_KHR_toy_extra)");
+    assert_eq!(
+        r.condition.to_string(),
+        "VK_KHR_toy_dispatch+!(VK_VERSION_1_3,VK_KHR_toy_extra)"
+    );
     assert!(r.condition.eval(&|n| n == "VK_KHR_toy_dispatch"));
-    assert!(!r.condition.eval(&|n| n == "VK_KHR_toy_dispatch" || n == "VK_VERSION_1_3"));
-    assert_eq!((r.scope.as_str(), r.scope_kind, r.field.as_str(), r.tag.as_str(), r.implicit), ("vkCmdToyDispatch", ScopeKind::Command, "pRegion", "00002", false));
-    assert_eq!(r.text, "If the `toyFeature` feature is not enabled, `pRegion` must not be `NULL`");
+    assert!(!r
+        .condition
+        .eval(&|n| n == "VK_KHR_toy_dispatch" || n == "VK_VERSION_1_3"));
+    assert_eq!(
+        (
+            r.scope.as_str(),
+            r.scope_kind,
+            r.field.as_str(),
+            r.tag.as_str(),
+            r.implicit
+        ),
+        (
+            "vkCmdToyDispatch",
+            ScopeKind::Command,
+            "pRegion",
+            "00002",
+            false
+        )
+    );
+    assert_eq!(
+        r.text,
+        "If the `toyFeature` feature is not enabled, `pRegion` must not be `NULL`"
+    );
     let rp = s.get("VUID-vkCmdToyDispatch-renderpass").unwrap();
-    assert_eq!((rp.field.as_str(), rp.tag.as_str(), rp.implicit, &rp.condition), ("None", "renderpass", true, &Condition::Always));
+    assert_eq!(
+        (
+            rp.field.as_str(),
+            rp.tag.as_str(),
+            rp.implicit,
+            &rp.condition
+        ),
+        ("None", "renderpass", true, &Condition::Always)
+    );
     let st = s.get("VUID-vkCmdToyDispatch-stride-00001").unwrap();
-    assert_eq!(st.text, "`pRegion->stride` must be a multiple of the toy’s `toyAlign`");
+    assert_eq!(
+        st.text,
+        "`pRegion->stride` must be a multiple of the toy’s `toyAlign`"
+    );
     assert_eq!(st.condition, Condition::Ext("VK_KHR_toy_dispatch".into()));
     let sr = s.get("VUID-VkToyRegion-stride-00003").unwrap();
-    assert_eq!((sr.scope_kind, sr.text.as_str()), (ScopeKind::Structure, "`stride` must be less than `2`32"));
+    assert_eq!(
+        (sr.scope_kind, sr.text.as_str()),
+        (ScopeKind::Structure, "`stride` must be less than `2`32")
+    );
 }
 
 #[test]
@@ -51,7 +90,10 @@ fn new_schema_with_core_and_pages() {
     assert_eq!(s.version.as_deref(), Some("1.4.999"));
     assert_eq!(s.len(), 4);
     assert!(s.records.iter().all(|r| r.condition == Condition::Always));
-    assert_eq!(s.get("VUID-vkCmdToyDispatch-pRegion-00004").unwrap().text, "`pRegion` must be aligned");
+    assert_eq!(
+        s.get("VUID-vkCmdToyDispatch-pRegion-00004").unwrap().text,
+        "`pRegion` must be aligned"
+    );
 }
 
 #[test]
@@ -84,35 +126,66 @@ fn man_page_formats_agree() {
             "{file}"
         );
         assert!(set.records.iter().all(|r| r.condition == Condition::Always));
-        texts.push(set.records.iter().map(|r| r.text.clone()).collect::<Vec<_>>());
+        texts.push(
+            set.records
+                .iter()
+                .map(|r| r.text.clone())
+                .collect::<Vec<_>>(),
+        );
         if format != ManPageFormat::PlainText {
             for r in &set.records {
                 if r.id != "VUID-vkCmdToyDispatch-pRegion-00002" {
-                    assert_eq!(Some(&r.text), json.get(&r.id).map(|j| &j.text), "{file} {}", r.id);
+                    assert_eq!(
+                        Some(&r.text),
+                        json.get(&r.id).map(|j| &j.text),
+                        "{file} {}",
+                        r.id
+                    );
                 }
             }
         }
     }
-    assert_eq!(texts[0], texts[1], "the two Markdown formats normalise identically");
-    assert_eq!(texts[2][0], "commandBuffer must be a valid VkToyBuffer handle");
+    assert_eq!(
+        texts[0], texts[1],
+        "the two Markdown formats normalise identically"
+    );
+    assert_eq!(
+        texts[2][0],
+        "commandBuffer must be a valid VkToyBuffer handle"
+    );
 }
 
 #[test]
 fn truncated_man_pages_give_located_errors() {
     let text = common::fixture_text("toy_pandoc.md");
     // cut inside an anchor
-    let cut = text.find("id=\"VUID-vkCmdToyDispatch-pRegion-00002\"").unwrap() + 10;
+    let cut = text
+        .find("id=\"VUID-vkCmdToyDispatch-pRegion-00002\"")
+        .unwrap()
+        + 10;
     let e = manpage::parse(&text[..cut], "toy_pandoc.md").unwrap_err();
-    let line = text[..cut].lines().position(|l| l.contains("href=\"#VUID-vkCmdToyDispatch-pRegion-00002\"")).unwrap() + 1;
-    assert_eq!(e.location(), Some(&Location::LineCol { line, column: 3 }), "{e}");
+    let line = text[..cut]
+        .lines()
+        .position(|l| l.contains("href=\"#VUID-vkCmdToyDispatch-pRegion-00002\""))
+        .unwrap()
+        + 1;
+    assert_eq!(
+        e.location(),
+        Some(&Location::LineCol { line, column: 3 }),
+        "{e}"
+    );
     assert!(e.to_string().contains("truncated"), "{e}");
     // cut inside the prototype
     let cut = text.find("pRegion,").unwrap();
     let e = manpage::parse(&text[..cut], "toy_pandoc.md").unwrap_err();
-    assert!(e.to_string().contains("no VUID") || e.to_string().contains("prototype"), "{e}");
+    assert!(
+        e.to_string().contains("no VUID") || e.to_string().contains("prototype"),
+        "{e}"
+    );
     // cut right after a VUID line (no text)
     let html = common::fixture_text("toy_html.md");
-    let cut = html.find("VUID-vkCmdToyDispatch-renderpass  \n").unwrap() + "VUID-vkCmdToyDispatch-renderpass  \n".len();
+    let cut = html.find("VUID-vkCmdToyDispatch-renderpass  \n").unwrap()
+        + "VUID-vkCmdToyDispatch-renderpass  \n".len();
     let e = manpage::parse(&html[..cut], "toy_html.md").unwrap_err();
     assert!(e.to_string().contains("has no text"), "{e}");
     assert!(matches!(e.location(), Some(Location::LineCol { .. })));
@@ -147,22 +220,46 @@ fn garbled_json_gives_line_column_or_json_path() {
     // syntax error in the middle
     let bad = text.replacen("\"text\":", "\"text\" ", 1);
     let e = validusage::parse(&bad, "v.json").unwrap_err();
-    assert!(matches!(e.location(), Some(Location::LineCol { line: 13, column: 19 })), "{e}");
+    assert!(
+        matches!(
+            e.location(),
+            Some(Location::LineCol {
+                line: 13,
+                column: 19
+            })
+        ),
+        "{e}"
+    );
     // wrong shape: a number where a text belongs
-    let bad = text.replacen("\"text\": \"This command", "\"text\": 7, \"x\": \"This command", 1);
+    let bad = text.replacen(
+        "\"text\": \"This command",
+        "\"text\": 7, \"x\": \"This command",
+        1,
+    );
     let e = validusage::parse(&bad, "v.json").unwrap_err();
     match e.location() {
-        Some(Location::JsonPathAt { path, .. }) => assert_eq!(path, "$.validation.vkCmdToyDispatch.core[1].text", "{e}"),
+        Some(Location::JsonPathAt { path, .. }) => {
+            assert_eq!(path, "$.validation.vkCmdToyDispatch.core[1].text", "{e}")
+        }
         other => panic!("expected a JSON path, got {other:?}"),
     }
     // not a VUID
     let bad = text.replacen("VUID-VkToyRegion-stride-00003", "NOT-A-VUID", 1);
     let e = validusage::parse(&bad, "v.json").unwrap_err();
-    assert_eq!(e.location(), Some(&Location::JsonPath("$.validation.VkToyRegion.core[0].vuid".into())), "{e}");
+    assert_eq!(
+        e.location(),
+        Some(&Location::JsonPath(
+            "$.validation.VkToyRegion.core[0].vuid".into()
+        )),
+        "{e}"
+    );
     // bad condition key
     let bad = text.replacen("\"(VK_KHR_toy_dispatch)\"", "\"(VK_KHR_toy_dispatch\"", 1);
     let e = validusage::parse(&bad, "v.json").unwrap_err();
-    assert!(e.to_string().contains("$.validation.vkCmdToyDispatch"), "{e}");
+    assert!(
+        e.to_string().contains("$.validation.vkCmdToyDispatch"),
+        "{e}"
+    );
     // missing validation
     let e = validusage::parse("{\"version info\": {}}", "v.json").unwrap_err();
     assert!(e.to_string().contains("validation"), "{e}");
@@ -176,30 +273,57 @@ fn garbled_json_gives_line_column_or_json_path() {
 #[test]
 fn load_vuids_accepts_dirs_json_and_man_pages() {
     let dir = tempfile::tempdir().unwrap();
-    std::fs::copy(common::fixture("validusage_1_4.json"), dir.path().join("validusage.json")).unwrap();
+    std::fs::copy(
+        common::fixture("validusage_1_4.json"),
+        dir.path().join("validusage.json"),
+    )
+    .unwrap();
     assert_eq!(load_vuids(dir.path()).unwrap().len(), 4);
-    assert_eq!(load_vuids(&common::fixture("toy_plain.txt")).unwrap().len(), 4);
+    assert_eq!(
+        load_vuids(&common::fixture("toy_plain.txt")).unwrap().len(),
+        4
+    );
     let empty = tempfile::tempdir().unwrap();
     let e = load_vuids(empty.path()).unwrap_err();
-    assert!(matches!(e, RegistryError::NotFound { .. }) && e.to_string().contains("validusage.json: file not found"), "{e}");
+    assert!(
+        matches!(e, RegistryError::NotFound { .. })
+            && e.to_string().contains("validusage.json: file not found"),
+        "{e}"
+    );
     let e = load_vuids(&PathBuf::from("/nonexistent/page.md")).unwrap_err();
     assert_eq!(e.to_string(), "/nonexistent/page.md: file not found");
     // errors name the path
     let bad = dir.path().join("bad.json");
     std::fs::write(&bad, "{\"validation\": [").unwrap();
     let e = load_vuids(&bad).unwrap_err();
-    assert!(e.to_string().starts_with(&format!("{}:1:", bad.display())), "{e}");
+    assert!(
+        e.to_string().starts_with(&format!("{}:1:", bad.display())),
+        "{e}"
+    );
 }
 
 #[test]
 fn union_first_source_wins() {
-    let paths = vec![common::fixture("validusage_1_4.json"), common::fixture("validusage_1_3.json"), common::fixture("toy_html.md")];
+    let paths = vec![
+        common::fixture("validusage_1_4.json"),
+        common::fixture("validusage_1_3.json"),
+        common::fixture("toy_html.md"),
+    ];
     let u = load_union(&paths).unwrap();
     assert_eq!(u.len(), 6);
     assert_eq!(u.version.as_deref(), Some("1.4.999"));
-    assert!(u.get("VUID-vkCmdToyDispatch-stride-00001").unwrap().text.ends_with("limit"), "1.4 record kept");
+    assert!(
+        u.get("VUID-vkCmdToyDispatch-stride-00001")
+            .unwrap()
+            .text
+            .ends_with("limit"),
+        "1.4 record kept"
+    );
     assert_eq!(
-        u.get("VUID-vkCmdToyDispatch-pRegion-00002").unwrap().condition.to_string(),
+        u.get("VUID-vkCmdToyDispatch-pRegion-00002")
+            .unwrap()
+            .condition
+            .to_string(),
         "VK_KHR_toy_dispatch+!(VK_VERSION_1_3,VK_KHR_toy_extra)"
     );
     let ids = u.ids();
@@ -218,7 +342,8 @@ fn reports() {
         "VUID-vkCmdToyDispatch-commandBuffer-parameter\nVUID-vkCmdToyDispatch-pRegion-00002\nVUID-vkCmdToyDispatch-renderpass\nVUID-vkCmdToyDispatch-stride-00001\n"
     );
     assert_eq!(report::vuids_plain(&a, None).lines().count(), 5);
-    let j: serde_json::Value = serde_json::from_str(&report::vuids_json(&a, Some("VkToyRegion"))).unwrap();
+    let j: serde_json::Value =
+        serde_json::from_str(&report::vuids_json(&a, Some("VkToyRegion"))).unwrap();
     assert_eq!(
         j,
         serde_json::json!([{

@@ -14,26 +14,52 @@ fn mini() -> Registry {
 #[test]
 fn extension_enum_values_are_computed() {
     let r = mini();
-    assert_eq!(r.enum_value("VK_STRUCTURE_TYPE_TOY_CREATE_INFO"), Some(1_000_150_015));
-    assert_eq!(r.enum_value("VK_STRUCTURE_TYPE_TOY_CREATE_INFO_KHR"), Some(1_000_150_015));
+    assert_eq!(
+        r.enum_value("VK_STRUCTURE_TYPE_TOY_CREATE_INFO"),
+        Some(1_000_150_015)
+    );
+    assert_eq!(
+        r.enum_value("VK_STRUCTURE_TYPE_TOY_CREATE_INFO_KHR"),
+        Some(1_000_150_015)
+    );
     assert_eq!(r.enum_value("VK_ERROR_TOY_LOST_EXT"), Some(-1_000_150_003));
     assert_eq!(r.enum_value("VK_ERROR_TOY_POOL"), Some(-1_000_069_000));
-    assert_eq!(r.enum_value("VK_STRUCTURE_TYPE_TOY_OTHER"), Some(1_000_299_016));
-    assert_eq!(r.enum_value("VK_STRUCTURE_TYPE_TOY_OLD"), Some(1_000_011_000));
+    assert_eq!(
+        r.enum_value("VK_STRUCTURE_TYPE_TOY_OTHER"),
+        Some(1_000_299_016)
+    );
+    assert_eq!(
+        r.enum_value("VK_STRUCTURE_TYPE_TOY_OLD"),
+        Some(1_000_011_000)
+    );
     assert_eq!(r.enum_value("VK_TOY_USAGE_TABLE_BIT_KHR"), Some(0x400));
     assert_eq!(r.enum_value("VK_TOY_USAGE_CORE11_BIT"), Some(0x10));
     assert_eq!(r.enum_value("VK_KHR_TOY_DISPATCH_SPEC_VERSION"), Some(2));
     assert_eq!(r.enum_value("VK_TOY_ALL"), Some(0xFFFF_FFFF));
     assert_eq!(r.enum_value("VK_TOY_ALL_KHR"), Some(0xFFFF_FFFF));
     assert_eq!(r.enum_value("VK_TOY_FLOAT"), None);
-    assert_eq!(r.enum_entry("VK_TOY_FLOAT").and_then(|v| v.raw.clone()).as_deref(), Some("1000.0F"));
-    assert_eq!(r.enum_entry("VK_STRUCTURE_TYPE_TOY_CREATE_INFO").unwrap().added_by.as_deref(), Some("VK_KHR_toy_dispatch"));
+    assert_eq!(
+        r.enum_entry("VK_TOY_FLOAT")
+            .and_then(|v| v.raw.clone())
+            .as_deref(),
+        Some("1000.0F")
+    );
+    assert_eq!(
+        r.enum_entry("VK_STRUCTURE_TYPE_TOY_CREATE_INFO")
+            .unwrap()
+            .added_by
+            .as_deref(),
+        Some("VK_KHR_toy_dispatch")
+    );
     // vulkansc-only, disabled-extension values are not applied
     assert_eq!(r.enum_value("VK_ERROR_SC_ONLY"), None);
     assert_eq!(r.enum_value("VK_STRUCTURE_TYPE_TOY_SC"), None);
     assert_eq!(r.enum_value("VK_STRUCTURE_TYPE_TOY_DISABLED"), None);
     assert_eq!(r.enum_value("VK_TOY_USAGE_SC_BIT"), None);
-    assert_eq!(r.enum_group("VkToyUsageFlagBits").unwrap().kind, EnumKind::Bitmask);
+    assert_eq!(
+        r.enum_group("VkToyUsageFlagBits").unwrap().kind,
+        EnumKind::Bitmask
+    );
 }
 
 #[test]
@@ -61,28 +87,56 @@ fn structures_members_and_handles() {
     let s = r.structure("VkToyCreateInfo").unwrap();
     assert_eq!(s.structextends, vec!["VkOtherInfo", "VkThirdInfo"]);
     let names: Vec<_> = s.members.iter().map(|m| m.name.as_str()).collect();
-    assert_eq!(names, ["sType", "pNext", "regionCount", "pRegions", "sel"], "vulkansc member dropped");
+    assert_eq!(
+        names,
+        ["sType", "pNext", "regionCount", "pRegions", "sel"],
+        "vulkansc member dropped"
+    );
     let p = &s.members[3];
-    assert_eq!((p.decl.as_str(), p.is_const, p.pointer_depth), ("const VkToyRegion* pRegions", true, 1));
+    assert_eq!(
+        (p.decl.as_str(), p.is_const, p.pointer_depth),
+        ("const VkToyRegion* pRegions", true, 1)
+    );
     assert_eq!(p.len.as_deref(), Some("regionCount"));
     assert!(p.noautovalidity);
-    assert_eq!(s.members[0].values.as_deref(), Some("VK_STRUCTURE_TYPE_TOY_CREATE_INFO"));
+    assert_eq!(
+        s.members[0].values.as_deref(),
+        Some("VK_STRUCTURE_TYPE_TOY_CREATE_INFO")
+    );
     assert_eq!(s.members[4].selector.as_deref(), Some("regionCount"));
-    assert_eq!(r.structure("VkToyCreateInfoKHR").unwrap().name, "VkToyCreateInfo");
-    assert!(r.structure("VkScOnlyInfo").is_none(), "vulkansc-only type dropped");
+    assert_eq!(
+        r.structure("VkToyCreateInfoKHR").unwrap().name,
+        "VkToyCreateInfo"
+    );
+    assert!(
+        r.structure("VkScOnlyInfo").is_none(),
+        "vulkansc-only type dropped"
+    );
 
     let region = r.structure("VkToyRegion").unwrap();
     assert_eq!(region.members[0].optional, vec![true]);
     assert_eq!(region.members[0].limittype.as_deref(), Some("noauto"));
     assert_eq!(region.members[2].array, vec!["VK_TOY_MAX", "2"]);
     assert_eq!(region.members[3].bitfield, Some(8));
-    assert_eq!(region.members[1].decl, "VkDeviceSize stride", "comments are not part of the declaration");
+    assert_eq!(
+        region.members[1].decl, "VkDeviceSize stride",
+        "comments are not part of the declaration"
+    );
 
     let dev = r.type_def("VkDevice").unwrap();
-    assert_eq!((dev.category, dev.dispatchable), (TypeCategory::Handle, Some(true)));
+    assert_eq!(
+        (dev.category, dev.dispatchable),
+        (TypeCategory::Handle, Some(true))
+    );
     let w = r.type_def("VkWidget").unwrap();
-    assert_eq!((w.dispatchable, w.parent.clone()), (Some(false), vec!["VkDevice".to_string()]));
-    assert_eq!(r.type_def("VkToyUsageFlags").unwrap().bitvalues.as_deref(), Some("VkToyUsageFlagBits"));
+    assert_eq!(
+        (w.dispatchable, w.parent.clone()),
+        (Some(false), vec!["VkDevice".to_string()])
+    );
+    assert_eq!(
+        r.type_def("VkToyUsageFlags").unwrap().bitvalues.as_deref(),
+        Some("VkToyUsageFlagBits")
+    );
 }
 
 #[test]
@@ -100,19 +154,37 @@ fn commands_with_attributes() {
     let w = r.command("vkCreateWidget").unwrap();
     assert_eq!(w.return_type, "VkResult");
     assert_eq!(w.successcodes, ["VK_SUCCESS"]);
-    assert_eq!(w.errorcodes, ["VK_ERROR_OUT_OF_HOST_MEMORY", "VK_ERROR_TOY_LOST_EXT"]);
+    assert_eq!(
+        w.errorcodes,
+        ["VK_ERROR_OUT_OF_HOST_MEMORY", "VK_ERROR_TOY_LOST_EXT"]
+    );
     assert_eq!(w.implicit_externsync, ["the widget pool of pCreateInfo"]);
-    assert_eq!(r.command("vkCreateWidgetKHR").unwrap().alias.as_deref(), Some("vkCreateWidget"));
-    assert_eq!(r.command_resolved("vkCreateWidgetKHR").unwrap().name, "vkCreateWidget");
+    assert_eq!(
+        r.command("vkCreateWidgetKHR").unwrap().alias.as_deref(),
+        Some("vkCreateWidget")
+    );
+    assert_eq!(
+        r.command_resolved("vkCreateWidgetKHR").unwrap().name,
+        "vkCreateWidget"
+    );
 }
 
 #[test]
 fn features_and_extensions() {
     let r = mini();
-    assert_eq!(r.features.iter().map(|f| f.name.as_str()).collect::<Vec<_>>(), ["VK_VERSION_1_0", "VK_VERSION_1_1"]);
+    assert_eq!(
+        r.features
+            .iter()
+            .map(|f| f.name.as_str())
+            .collect::<Vec<_>>(),
+        ["VK_VERSION_1_0", "VK_VERSION_1_1"]
+    );
     let f11 = r.feature("VK_VERSION_1_1").unwrap();
     assert_eq!(f11.depends, Some(Condition::Ext("VK_VERSION_1_0".into())));
-    assert_eq!(f11.require[0].features[0].structure, "VkPhysicalDeviceToyFeatures");
+    assert_eq!(
+        f11.require[0].features[0].structure,
+        "VkPhysicalDeviceToyFeatures"
+    );
     let x = r.extension("VK_KHR_toy_dispatch").unwrap();
     assert_eq!(x.number, 151);
     assert_eq!(x.ext_type.as_deref(), Some("device"));
@@ -122,10 +194,19 @@ fn features_and_extensions() {
     assert!(d.eval(&|n| n == "VK_VERSION_1_1" || n == "VK_KHR_b"));
     assert!(!d.eval(&|n| n == "VK_KHR_b"));
     assert_eq!(x.require.len(), 2, "vulkansc require block dropped");
-    assert_eq!(x.require[1].depends, Some(Condition::Ext("VK_KHR_c".into())));
+    assert_eq!(
+        x.require[1].depends,
+        Some(Condition::Ext("VK_KHR_c".into()))
+    );
     let old = r.extension("VK_EXT_toy_old").unwrap();
-    assert_eq!(old.depends.as_ref().unwrap().to_string(), "VK_KHR_a+VK_KHR_b");
-    assert_eq!(old.require[0].depends, Some(Condition::Ext("VK_KHR_c".into())));
+    assert_eq!(
+        old.depends.as_ref().unwrap().to_string(),
+        "VK_KHR_a+VK_KHR_b"
+    );
+    assert_eq!(
+        old.require[0].depends,
+        Some(Condition::Ext("VK_KHR_c".into()))
+    );
     assert!(!r.extension("VK_NV_toy_disabled").unwrap().is_vulkan());
 }
 
@@ -153,9 +234,14 @@ fn unknown_element_is_a_located_error() {
     let (line, col) = line_col(&e);
     let expected_line = text.lines().position(|l| l.contains("<gadget/>")).unwrap() + 1;
     assert_eq!((line, col), (expected_line, 13), "{e}");
-    assert!(e.to_string().contains("unexpected element <gadget> inside <type>"), "{e}");
+    assert!(
+        e.to_string()
+            .contains("unexpected element <gadget> inside <type>"),
+        "{e}"
+    );
 
-    let text = common::fixture_text("mini_vk.xml").replace("<commands comment=\"commands\">", "<widgets>");
+    let text =
+        common::fixture_text("mini_vk.xml").replace("<commands comment=\"commands\">", "<widgets>");
     let e = Registry::parse(&text).unwrap_err();
     assert!(e.to_string().contains("<widgets>"), "{e}");
 }
@@ -164,9 +250,14 @@ fn unknown_element_is_a_located_error() {
 fn bad_values_are_located_errors() {
     let text = common::fixture_text("mini_vk.xml").replace("bitpos=\"10\"", "bitpos=\"ten\"");
     let e = Registry::parse(&text).unwrap_err();
-    let line = text.lines().position(|l| l.contains("bitpos=\"ten\"")).unwrap() + 1;
+    let line = text
+        .lines()
+        .position(|l| l.contains("bitpos=\"ten\""))
+        .unwrap()
+        + 1;
     assert_eq!(line_col(&e).0, line, "{e}");
-    let text = common::fixture_text("mini_vk.xml").replace("depends=\"VK_KHR_c\"", "depends=\"(VK_KHR_c\"");
+    let text = common::fixture_text("mini_vk.xml")
+        .replace("depends=\"VK_KHR_c\"", "depends=\"(VK_KHR_c\"");
     let e = Registry::parse(&text).unwrap_err();
     assert!(e.to_string().contains("bad depends"), "{e}");
 }
@@ -177,7 +268,13 @@ fn truncated_xml_gives_located_errors_and_never_panics() {
     let total_lines = text.lines().count();
     // every cut point on a char boundary in steps, plus a few chosen ones
     let mut cuts: Vec<usize> = (1..text.len()).step_by(37).collect();
-    for marker in ["<types", "<member optional", "</command>", "<extension name=\"VK_EXT", "</registry>"] {
+    for marker in [
+        "<types",
+        "<member optional",
+        "</command>",
+        "<extension name=\"VK_EXT",
+        "</registry>",
+    ] {
         cuts.push(text.find(marker).unwrap() + 3);
     }
     for cut in cuts {
@@ -186,7 +283,10 @@ fn truncated_xml_gives_located_errors_and_never_panics() {
         }
         let e = Registry::parse(&text[..cut]).expect_err(&format!("cut at {cut} must fail"));
         let (line, col) = line_col(&e);
-        assert!(line >= 1 && line <= total_lines + 1 && col >= 1, "cut {cut}: {e}");
+        assert!(
+            line >= 1 && line <= total_lines + 1 && col >= 1,
+            "cut {cut}: {e}"
+        );
     }
     let e = Registry::parse("").unwrap_err();
     assert!(e.to_string().contains("no <registry>"), "{e}");
@@ -209,6 +309,9 @@ fn show_describes_entries() {
     let s = vk_registry::report::show(&r, "VkToyUsageFlags").unwrap();
     assert!(s.contains("VK_TOY_USAGE_TABLE_BIT_KHR = 0x400"), "{s}");
     let s = vk_registry::report::show(&r, "VK_ERROR_TOY_LOST_EXT").unwrap();
-    assert!(s.contains("= -1000150003") && s.contains("group: VkResult"), "{s}");
+    assert!(
+        s.contains("= -1000150003") && s.contains("group: VkResult"),
+        "{s}"
+    );
     assert!(vk_registry::report::show(&r, "vkNothing").is_err());
 }

@@ -6,8 +6,9 @@
 use model::build::call::{BuildFlags, GeometryFlags};
 use model::build::world::{identity, InstanceRecord, InstanceReference, LastBuild, LastGeometry};
 use model::build::{
-    AccelerationStructure, AsType, BuildBuffer, BuildCase, BuildContents, BuildGeometryInfo, BuildIndirect, BuildMode, BuildRuleSet,
-    BuildSizes, BuildWorld, Geometry, GeometryData, IndexType, RangeInfo, VertexFormat,
+    AccelerationStructure, AsType, BuildBuffer, BuildCase, BuildContents, BuildGeometryInfo,
+    BuildIndirect, BuildMode, BuildRuleSet, BuildSizes, BuildWorld, Geometry, GeometryData,
+    IndexType, RangeInfo, VertexFormat,
 };
 use model::call::Address;
 use model::flags::{BufferUsage, QueueFlags};
@@ -16,7 +17,8 @@ use model::{DeviceProfile, Intent};
 use proptest::prelude::*;
 
 /// The VUID of the command's feature rule.
-pub const FEATURE_VUID: &str = "VUID-vkCmdBuildAccelerationStructuresIndirectKHR-accelerationStructureIndirectBuild-03650";
+pub const FEATURE_VUID: &str =
+    "VUID-vkCmdBuildAccelerationStructuresIndirectKHR-accelerationStructureIndirectBuild-03650";
 
 /// The full VUID of a tag of the command.
 pub fn vuid(tail: &str) -> String {
@@ -26,9 +28,15 @@ pub fn vuid(tail: &str) -> String {
 /// Geometry kind of a plan (one kind per build: one structure holds one type).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kind {
-    Triangles { index: IndexType, transform: bool, format: VertexFormat },
+    Triangles {
+        index: IndexType,
+        transform: bool,
+        format: VertexFormat,
+    },
     Aabbs,
-    Instances { pointers: bool },
+    Instances {
+        pointers: bool,
+    },
 }
 
 /// One geometry's range.
@@ -58,7 +66,11 @@ pub struct BuildPlan {
 
 /// Sizes assumed when a case is made without a device: generous upper bounds for the small builds the
 /// plans make; the harness replaces them with what the device reports and judges again.
-pub const ASSUMED: BuildSizes = BuildSizes { structure: 1 << 16, build_scratch: 1 << 16, update_scratch: 1 << 16 };
+pub const ASSUMED: BuildSizes = BuildSizes {
+    structure: 1 << 16,
+    build_scratch: 1 << 16,
+    update_scratch: 1 << 16,
+};
 
 fn boundary_first(max: u32) -> BoxedStrategy<u32> {
     prop_oneof![3 => Just(0u32), 2 => Just(max), 5 => 0..=max].boxed()
@@ -73,27 +85,51 @@ pub fn plan_strategy() -> impl Strategy<Value = BuildPlan> {
         Just(Kind::Aabbs),
         any::<bool>().prop_map(|pointers| Kind::Instances { pointers }),
     ];
-    let geometry = (boundary_first(4), boundary_first(2), boundary_first(3), boundary_first(2), boundary_first(2), proptest::option::weighted(0.3, 0u32..4))
-        .prop_map(|(count, slack, offset_units, first_vertex, transform_units, inactive)| GeometryPlan {
-            count,
-            slack,
-            offset_units,
-            first_vertex,
-            transform_units,
-            inactive: inactive.filter(|i| *i < count),
-        });
-    (kind, proptest::collection::vec(geometry, 1..=3), boundary_first(4), boundary_first(3)).prop_map(|(kind, mut geometries, stride_extra, address_units)| {
-        if matches!(kind, Kind::Instances { .. }) {
-            geometries.truncate(1); // a top-level build has exactly one instance geometry
-        }
-        BuildPlan { kind, geometries, stride_extra, address_units }
-    })
+    let geometry = (
+        boundary_first(4),
+        boundary_first(2),
+        boundary_first(3),
+        boundary_first(2),
+        boundary_first(2),
+        proptest::option::weighted(0.3, 0u32..4),
+    )
+        .prop_map(
+            |(count, slack, offset_units, first_vertex, transform_units, inactive)| GeometryPlan {
+                count,
+                slack,
+                offset_units,
+                first_vertex,
+                transform_units,
+                inactive: inactive.filter(|i| *i < count),
+            },
+        );
+    (
+        kind,
+        proptest::collection::vec(geometry, 1..=3),
+        boundary_first(4),
+        boundary_first(3),
+    )
+        .prop_map(|(kind, mut geometries, stride_extra, address_units)| {
+            if matches!(kind, Kind::Instances { .. }) {
+                geometries.truncate(1); // a top-level build has exactly one instance geometry
+            }
+            BuildPlan {
+                kind,
+                geometries,
+                stride_extra,
+                address_units,
+            }
+        })
 }
 
 /// Byte alignment of primitiveOffset for a kind.
 fn offset_alignment(kind: Kind) -> u32 {
     match kind {
-        Kind::Triangles { index: IndexType::None, format, .. } => format.component_size() as u32,
+        Kind::Triangles {
+            index: IndexType::None,
+            format,
+            ..
+        } => format.component_size() as u32,
         Kind::Triangles { index, .. } => index.size() as u32,
         Kind::Aabbs => 8,
         Kind::Instances { pointers: true } => 8,
@@ -102,7 +138,10 @@ fn offset_alignment(kind: Kind) -> u32 {
 }
 
 fn addr(buffer: &str, offset: u64) -> Address {
-    Address::InBuffer { buffer: buffer.into(), offset }
+    Address::InBuffer {
+        buffer: buffer.into(),
+        offset,
+    }
 }
 
 fn align_up(v: u64, a: u64) -> u64 {
@@ -119,7 +158,8 @@ pub const BLAS: &str = "blas";
 
 /// Realises a plan as a case valid on `profile` (apart from the unavoidable co-violations).
 pub fn realise(plan: &BuildPlan, profile: &DeviceProfile, name: &str) -> BuildCase {
-    let input_usage = BufferUsage::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR | BufferUsage::SHADER_DEVICE_ADDRESS_BIT;
+    let input_usage = BufferUsage::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR
+        | BufferUsage::SHADER_DEVICE_ADDRESS_BIT;
     let mut input: Vec<BuildContents> = Vec::new();
     let mut cursor: u64 = 0;
     let mut geometries = Vec::new();
@@ -130,23 +170,48 @@ pub fn realise(plan: &BuildPlan, profile: &DeviceProfile, name: &str) -> BuildCa
         let g32 = g as u32;
         let primitive_offset = gp.offset_units * align as u32;
         max_counts.push(gp.count + gp.slack);
-        let mut range = RangeInfo { primitive_count: gp.count, primitive_offset, first_vertex: 0, transform_offset: 0 };
+        let mut range = RangeInfo {
+            primitive_count: gp.count,
+            primitive_offset,
+            first_vertex: 0,
+            transform_offset: 0,
+        };
         let data = match plan.kind {
-            Kind::Triangles { index, transform, format } => {
+            Kind::Triangles {
+                index,
+                transform,
+                format,
+            } => {
                 range.first_vertex = gp.first_vertex;
                 let stride = align_up(format.size(), 4) + 4; // a gap between vertices
-                // Vertices: first_vertex unused ones, then 3 per primitive (max slack included).
+                                                             // Vertices: first_vertex unused ones, then 3 per primitive (max slack included).
                 let n_prims = gp.count + gp.slack;
                 let mut verts: Vec<[f32; 3]> = vec![[0.0; 3]; gp.first_vertex as usize];
                 for p in 0..n_prims {
                     let (cx, cy) = cell(g32, p);
-                    let x0 = if gp.inactive == Some(p) { f32::NAN } else { cx - 0.5 };
-                    verts.extend([[x0, cy - 0.5, 0.0], [cx + 0.5, cy - 0.5, 0.0], [cx, cy + 0.5, 0.0]]);
+                    let x0 = if gp.inactive == Some(p) {
+                        f32::NAN
+                    } else {
+                        cx - 0.5
+                    };
+                    verts.extend([
+                        [x0, cy - 0.5, 0.0],
+                        [cx + 0.5, cy - 0.5, 0.0],
+                        [cx, cy + 0.5, 0.0],
+                    ]);
                 }
                 // The transform moves the geometry by (0, 0, 0) plus a zero translation check value.
                 let vbase = align_up(cursor, 16);
-                let vstart = if index == IndexType::None { vbase } else { vbase };
-                let voff = if index == IndexType::None { primitive_offset as u64 } else { 0 };
+                let vstart = if index == IndexType::None {
+                    vbase
+                } else {
+                    vbase
+                };
+                let voff = if index == IndexType::None {
+                    primitive_offset as u64
+                } else {
+                    0
+                };
                 let mut floats_at = vstart + voff;
                 for v in &verts {
                     let comps: Vec<f32> = v[..format.components()].to_vec();
@@ -155,9 +220,15 @@ pub fn realise(plan: &BuildPlan, profile: &DeviceProfile, name: &str) -> BuildCa
                         vals.push(1.0);
                     }
                     input.push(if format.component_size() == 2 {
-                        BuildContents::Halves { offset: floats_at, values: vals }
+                        BuildContents::Halves {
+                            offset: floats_at,
+                            values: vals,
+                        }
                     } else {
-                        BuildContents::Floats { offset: floats_at, values: vals }
+                        BuildContents::Floats {
+                            offset: floats_at,
+                            values: vals,
+                        }
                     });
                     floats_at += stride;
                 }
@@ -167,12 +238,23 @@ pub fn realise(plan: &BuildPlan, profile: &DeviceProfile, name: &str) -> BuildCa
                 if index != IndexType::None {
                     let ibase = align_up(cursor, 16);
                     index_data = addr("input", ibase);
-                    let idx: Vec<u32> = (0..n_prims).flat_map(|p| [3 * p + 1, 3 * p + 2, 3 * p]).collect();
+                    let idx: Vec<u32> = (0..n_prims)
+                        .flat_map(|p| [3 * p + 1, 3 * p + 2, 3 * p])
+                        .collect();
                     let at = ibase + primitive_offset as u64;
                     input.push(match index {
-                        IndexType::Uint16 => BuildContents::U16s { offset: at, values: idx.iter().map(|v| *v as u16).collect() },
-                        IndexType::Uint8 => BuildContents::U8s { offset: at, values: idx.iter().map(|v| *v as u8).collect() },
-                        _ => BuildContents::U32s { offset: at, values: idx.clone() },
+                        IndexType::Uint16 => BuildContents::U16s {
+                            offset: at,
+                            values: idx.iter().map(|v| *v as u16).collect(),
+                        },
+                        IndexType::Uint8 => BuildContents::U8s {
+                            offset: at,
+                            values: idx.iter().map(|v| *v as u8).collect(),
+                        },
+                        _ => BuildContents::U32s {
+                            offset: at,
+                            values: idx.clone(),
+                        },
                     });
                     cursor = at + idx.len() as u64 * index.size();
                 }
@@ -184,7 +266,10 @@ pub fn realise(plan: &BuildPlan, profile: &DeviceProfile, name: &str) -> BuildCa
                     // A translation by (0, 0, 0.25): the built triangles sit at z = 0.25.
                     let mut m = identity();
                     m[11] = 0.25;
-                    input.push(BuildContents::Floats { offset: tbase + range.transform_offset as u64, values: m.to_vec() });
+                    input.push(BuildContents::Floats {
+                        offset: tbase + range.transform_offset as u64,
+                        values: m.to_vec(),
+                    });
                     cursor = tbase + range.transform_offset as u64 + 48;
                 }
                 GeometryData::Triangles {
@@ -204,14 +289,21 @@ pub fn realise(plan: &BuildPlan, profile: &DeviceProfile, name: &str) -> BuildCa
                 let stride = 32u64;
                 for p in 0..gp.count + gp.slack {
                     let (cx, cy) = cell(g32, p);
-                    let minx = if gp.inactive == Some(p) { f32::NAN } else { cx - 0.5 };
+                    let minx = if gp.inactive == Some(p) {
+                        f32::NAN
+                    } else {
+                        cx - 0.5
+                    };
                     input.push(BuildContents::Floats {
                         offset: base + primitive_offset as u64 + p as u64 * stride,
                         values: vec![minx, cy - 0.5, -0.5, cx + 0.5, cy + 0.5, 0.5],
                     });
                 }
                 cursor = base + primitive_offset as u64 + (gp.count + gp.slack) as u64 * stride;
-                GeometryData::Aabbs { data: addr("input", base), stride }
+                GeometryData::Aabbs {
+                    data: addr("input", base),
+                    stride,
+                }
             }
             Kind::Instances { pointers } => {
                 let recs_base = align_up(cursor, 64);
@@ -228,34 +320,69 @@ pub fn realise(plan: &BuildPlan, profile: &DeviceProfile, name: &str) -> BuildCa
                             mask: 0xff,
                             sbt_offset: 0,
                             flags: 0,
-                            reference: if gp.inactive == Some(k) { InstanceReference::Null } else { InstanceReference::Structure(BLAS.into()) },
+                            reference: if gp.inactive == Some(k) {
+                                InstanceReference::Null
+                            } else {
+                                InstanceReference::Structure(BLAS.into())
+                            },
                         }
                     })
                     .collect();
                 if pointers {
                     // Records packed, in reverse order; the pointer array names them.
-                    input.push(BuildContents::Instances { offset: recs_base, instances: instances.iter().rev().cloned().collect() });
+                    input.push(BuildContents::Instances {
+                        offset: recs_base,
+                        instances: instances.iter().rev().cloned().collect(),
+                    });
                     let pbase = align_up(recs_base + 64 * n as u64, 16);
-                    let targets = (0..n).map(|k| addr("input", recs_base + 64 * (n - 1 - k) as u64)).collect();
-                    input.push(BuildContents::Pointers { offset: pbase + primitive_offset as u64, targets });
+                    let targets = (0..n)
+                        .map(|k| addr("input", recs_base + 64 * (n - 1 - k) as u64))
+                        .collect();
+                    input.push(BuildContents::Pointers {
+                        offset: pbase + primitive_offset as u64,
+                        targets,
+                    });
                     cursor = pbase + primitive_offset as u64 + 8 * n as u64;
-                    GeometryData::Instances { array_of_pointers: true, data: addr("input", pbase) }
+                    GeometryData::Instances {
+                        array_of_pointers: true,
+                        data: addr("input", pbase),
+                    }
                 } else {
-                    input.push(BuildContents::Instances { offset: recs_base + primitive_offset as u64, instances });
+                    input.push(BuildContents::Instances {
+                        offset: recs_base + primitive_offset as u64,
+                        instances,
+                    });
                     cursor = recs_base + primitive_offset as u64 + 64 * n as u64;
-                    GeometryData::Instances { array_of_pointers: false, data: addr("input", recs_base) }
+                    GeometryData::Instances {
+                        array_of_pointers: false,
+                        data: addr("input", recs_base),
+                    }
                 }
             }
         };
-        geometries.push(Geometry { flags: GeometryFlags(1), data });
+        geometries.push(Geometry {
+            flags: GeometryFlags(1),
+            data,
+        });
         ranges.push(range);
     }
     let stride = 16 + 4 * plan.stride_extra;
     let ind_off = 4 * plan.address_units as u64;
     let ind_size = ind_off + stride as u64 * ranges.len() as u64 + 16;
     let top = matches!(plan.kind, Kind::Instances { .. });
-    let ty = if top { AsType::TopLevel } else { AsType::BottomLevel };
-    let mut structures = vec![AccelerationStructure { name: "dst".into(), ty, buffer: "storage".into(), offset: 0, size: ASSUMED.structure, last_build: None }];
+    let ty = if top {
+        AsType::TopLevel
+    } else {
+        AsType::BottomLevel
+    };
+    let mut structures = vec![AccelerationStructure {
+        name: "dst".into(),
+        ty,
+        buffer: "storage".into(),
+        offset: 0,
+        size: ASSUMED.structure,
+        last_build: None,
+    }];
     if top {
         structures.push(AccelerationStructure {
             name: BLAS.into(),
@@ -263,7 +390,11 @@ pub fn realise(plan: &BuildPlan, profile: &DeviceProfile, name: &str) -> BuildCa
             buffer: "storage".into(),
             offset: ASSUMED.structure,
             size: ASSUMED.structure,
-            last_build: Some(LastBuild { ty: AsType::BottomLevel, flags: BuildFlags::default(), geometries: vec![] }),
+            last_build: Some(LastBuild {
+                ty: AsType::BottomLevel,
+                flags: BuildFlags::default(),
+                geometries: vec![],
+            }),
         });
     }
     let scratch_align = profile
@@ -271,19 +402,31 @@ pub fn realise(plan: &BuildPlan, profile: &DeviceProfile, name: &str) -> BuildCa
         .unwrap_or(256)
         .max(256);
     let buffers = vec![
-        BuildBuffer { name: "input".into(), size: align_up(cursor.max(16), 16) + 64, usage: input_usage, flags: Default::default(), memory: Default::default(), contents: input },
+        BuildBuffer {
+            name: "input".into(),
+            size: align_up(cursor.max(16), 16) + 64,
+            usage: input_usage,
+            flags: Default::default(),
+            memory: Default::default(),
+            contents: input,
+        },
         BuildBuffer {
             name: "indirect".into(),
             size: ind_size,
             usage: BufferUsage::INDIRECT_BUFFER_BIT | BufferUsage::SHADER_DEVICE_ADDRESS_BIT,
             flags: Default::default(),
             memory: Default::default(),
-            contents: vec![BuildContents::Ranges { offset: ind_off, stride: stride as u64, ranges }],
+            contents: vec![BuildContents::Ranges {
+                offset: ind_off,
+                stride: stride as u64,
+                ranges,
+            }],
         },
         BuildBuffer {
             name: "storage".into(),
             size: ASSUMED.structure * if top { 2 } else { 1 },
-            usage: BufferUsage::ACCELERATION_STRUCTURE_STORAGE_BIT_KHR | BufferUsage::SHADER_DEVICE_ADDRESS_BIT,
+            usage: BufferUsage::ACCELERATION_STRUCTURE_STORAGE_BIT_KHR
+                | BufferUsage::SHADER_DEVICE_ADDRESS_BIT,
             flags: Default::default(),
             memory: Default::default(),
             contents: vec![],
@@ -298,17 +441,27 @@ pub fn realise(plan: &BuildPlan, profile: &DeviceProfile, name: &str) -> BuildCa
         },
     ];
     let mut features: std::collections::BTreeSet<String> =
-        ["accelerationStructure", "bufferDeviceAddress"].iter().map(|s| s.to_string()).collect();
+        ["accelerationStructure", "bufferDeviceAddress"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
     if profile.has_feature("accelerationStructureIndirectBuild") {
         features.insert("accelerationStructureIndirectBuild".into());
     }
-    let extensions = ["VK_KHR_acceleration_structure", "VK_KHR_deferred_host_operations", "VK_KHR_buffer_device_address"]
-        .iter()
-        .filter(|e| profile.has_extension(e) || profile.api_major_minor() >= (1, 2))
-        .map(|s| s.to_string())
-        .collect();
+    let extensions = [
+        "VK_KHR_acceleration_structure",
+        "VK_KHR_deferred_host_operations",
+        "VK_KHR_buffer_device_address",
+    ]
+    .iter()
+    .filter(|e| profile.has_extension(e) || profile.api_major_minor() >= (1, 2))
+    .map(|s| s.to_string())
+    .collect();
     let world = BuildWorld {
-        device: DeviceState { extensions, features },
+        device: DeviceState {
+            extensions,
+            features,
+        },
         buffers,
         structures,
         command_buffer: CommandBufferState::default(),
@@ -334,9 +487,19 @@ pub fn realise(plan: &BuildPlan, profile: &DeviceProfile, name: &str) -> BuildCa
     let unavoidable = unavoidable(profile);
     let intent = match unavoidable.split_first() {
         None => Intent::Valid,
-        Some((v, rest)) => Intent::Violates { vuid: v.clone(), also: rest.to_vec() },
+        Some((v, rest)) => Intent::Violates {
+            vuid: v.clone(),
+            also: rest.to_vec(),
+        },
     };
-    BuildCase { name: name.into(), profile: profile.name.clone(), seed: None, intent, world, call }
+    BuildCase {
+        name: name.into(),
+        profile: profile.name.clone(),
+        seed: None,
+        intent,
+        world,
+        call,
+    }
 }
 
 /// The VUIDs every build case violates on `profile` (the feature when the device lacks it).
@@ -375,7 +538,10 @@ fn shift_contents(b: &mut BuildBuffer, from: u64, delta: u64) {
 }
 
 fn buffer_mut<'a>(w: &'a mut BuildWorld, name: &str) -> &'a mut BuildBuffer {
-    w.buffers.iter_mut().find(|b| b.name == name).expect("generated buffer")
+    w.buffers
+        .iter_mut()
+        .find(|b| b.name == name)
+        .expect("generated buffer")
 }
 
 fn bump(a: &mut Address, delta: u64) {
@@ -393,11 +559,15 @@ pub fn mutate(case: &BuildCase, tail: &str, profile: &DeviceProfile) -> Option<B
     let first_geom = call.infos[0].geometries[0].data.clone();
     match tag {
         "03650" => {
-            w.device.features.remove("accelerationStructureIndirectBuild");
+            w.device
+                .features
+                .remove("accelerationStructureIndirectBuild");
         }
         "03648" => {
             // The records move with the address, so what is read stays the same.
-            let Address::InBuffer { offset, .. } = &call.indirect_addresses[0] else { return None };
+            let Address::InBuffer { offset, .. } = &call.indirect_addresses[0] else {
+                return None;
+            };
             let from = *offset;
             shift_contents(buffer_mut(w, "indirect"), from, 2);
             bump(&mut call.indirect_addresses[0], 2);
@@ -412,7 +582,9 @@ pub fn mutate(case: &BuildCase, tail: &str, profile: &DeviceProfile) -> Option<B
             }
             b.size += 2 * call.infos[0].geometries.len() as u64;
         }
-        "03647" => buffer_mut(w, "indirect").usage.remove(BufferUsage::INDIRECT_BUFFER_BIT),
+        "03647" => buffer_mut(w, "indirect")
+            .usage
+            .remove(BufferUsage::INDIRECT_BUFFER_BIT),
         "03645" => buffer_mut(w, "indirect").memory = model::world::MemoryBinding::Scattered,
         "03646" => {
             // Stride 32 leaves room to cut the buffer below n * stride while every record stays inside.
@@ -429,9 +601,17 @@ pub fn mutate(case: &BuildCase, tail: &str, profile: &DeviceProfile) -> Option<B
         }
         "03651" => {
             let b = buffer_mut(w, "indirect");
-            let BuildContents::Ranges { ranges, .. } = &mut b.contents[0] else { return None };
+            let BuildContents::Ranges { ranges, .. } = &mut b.contents[0] else {
+                return None;
+            };
             ranges[0].primitive_offset += 1;
-            if matches!(first_geom, GeometryData::Triangles { index_type: IndexType::None, .. }) {
+            if matches!(
+                first_geom,
+                GeometryData::Triangles {
+                    index_type: IndexType::None,
+                    ..
+                }
+            ) {
                 // non-indexed offsets need only the component size; 1 byte breaks that too
             }
         }
@@ -451,10 +631,13 @@ pub fn mutate(case: &BuildCase, tail: &str, profile: &DeviceProfile) -> Option<B
             if !matches!(first_geom, GeometryData::Instances { .. }) {
                 return None;
             }
-            let m = profile.limit("VkPhysicalDeviceAccelerationStructurePropertiesKHR::maxInstanceCount")?;
+            let m = profile
+                .limit("VkPhysicalDeviceAccelerationStructurePropertiesKHR::maxInstanceCount")?;
             call.max_primitive_counts[0][0] = u32::try_from(m + 1).ok()?;
         }
-        "03674" => buffer_mut(w, "scratch").usage.remove(BufferUsage::STORAGE_BUFFER_BIT),
+        "03674" => buffer_mut(w, "scratch")
+            .usage
+            .remove(BufferUsage::STORAGE_BUFFER_BIT),
         "03710" => {
             let m = profile.limit("VkPhysicalDeviceAccelerationStructurePropertiesKHR::minAccelerationStructureScratchOffsetAlignment")?;
             if m < 2 {
@@ -470,11 +653,19 @@ pub fn mutate(case: &BuildCase, tail: &str, profile: &DeviceProfile) -> Option<B
         // Far below what any device asks (the harness judges again with the device's sizes).
         "03652" => w.structures[0].size = 16,
         "03699" | "03700" => {
-            let want = if tag == "03699" { AsType::TopLevel } else { AsType::BottomLevel };
+            let want = if tag == "03699" {
+                AsType::TopLevel
+            } else {
+                AsType::BottomLevel
+            };
             if call.infos[0].ty != want {
                 return None;
             }
-            w.structures[0].ty = if want == AsType::TopLevel { AsType::BottomLevel } else { AsType::TopLevel };
+            w.structures[0].ty = if want == AsType::TopLevel {
+                AsType::BottomLevel
+            } else {
+                AsType::TopLevel
+            };
         }
         "03707" => buffer_mut(w, "storage").memory = model::world::MemoryBinding::Unbound,
         "03800" => call.infos[0].dst = None,
@@ -486,22 +677,47 @@ pub fn mutate(case: &BuildCase, tail: &str, profile: &DeviceProfile) -> Option<B
         "03667" => {
             // Update in place from a structure last built without ALLOW_UPDATE, with the same shape.
             let info = &call.infos[0];
-            let geometries = info.geometries.iter().map(|g| last_geometry(&g.data)).collect();
-            w.structures[0].last_build = Some(LastBuild { ty: info.ty, flags: info.flags, geometries });
+            let geometries = info
+                .geometries
+                .iter()
+                .map(|g| last_geometry(&g.data))
+                .collect();
+            w.structures[0].last_build = Some(LastBuild {
+                ty: info.ty,
+                flags: info.flags,
+                geometries,
+            });
             call.infos[0].mode = BuildMode::Update;
             call.infos[0].src = Some("dst".into());
             return finish_update(c, case, profile, tail);
         }
-        "03673" => buffer_mut(w, "input").usage.remove(BufferUsage::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR),
-        "03711" | "03712" | "03714" | "03715" | "03716" | "03810" | "03804" | "03811" | "03813" | "03806" | "03808" => {
+        "03673" => buffer_mut(w, "input")
+            .usage
+            .remove(BufferUsage::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR),
+        "03711" | "03712" | "03714" | "03715" | "03716" | "03810" | "03804" | "03811" | "03813"
+        | "03806" | "03808" => {
             let g = &mut call.infos[0].geometries[0].data;
             match (tag, g) {
-                ("03711", GeometryData::Triangles { vertex_format: VertexFormat::R32g32b32Sfloat | VertexFormat::R32g32Sfloat, vertex_data, .. }) => {
+                (
+                    "03711",
+                    GeometryData::Triangles {
+                        vertex_format: VertexFormat::R32g32b32Sfloat | VertexFormat::R32g32Sfloat,
+                        vertex_data,
+                        ..
+                    },
+                ) => {
                     let from = vertex_data.alignment_value();
                     bump(vertex_data, 2);
                     shift_from(w, from, 2, &mut call.infos[0]);
                 }
-                ("03712", GeometryData::Triangles { index_type: IndexType::Uint16 | IndexType::Uint32, index_data, .. }) => {
+                (
+                    "03712",
+                    GeometryData::Triangles {
+                        index_type: IndexType::Uint16 | IndexType::Uint32,
+                        index_data,
+                        ..
+                    },
+                ) => {
                     let from = index_data.alignment_value();
                     bump(index_data, 1);
                     shift_from(w, from, 1, &mut call.infos[0]);
@@ -511,30 +727,57 @@ pub fn mutate(case: &BuildCase, tail: &str, profile: &DeviceProfile) -> Option<B
                     bump(data, 4);
                     shift_from(w, from, 4, &mut call.infos[0]);
                 }
-                ("03715", GeometryData::Instances { array_of_pointers: false, data }) => {
+                (
+                    "03715",
+                    GeometryData::Instances {
+                        array_of_pointers: false,
+                        data,
+                    },
+                ) => {
                     let from = data.alignment_value();
                     bump(data, 8);
                     shift_from(w, from, 8, &mut call.infos[0]);
                 }
-                ("03716", GeometryData::Instances { array_of_pointers: true, data }) => {
+                (
+                    "03716",
+                    GeometryData::Instances {
+                        array_of_pointers: true,
+                        data,
+                    },
+                ) => {
                     let from = data.alignment_value();
                     bump(data, 4);
                     shift_from(w, from, 4, &mut call.infos[0]);
                 }
-                ("03810", GeometryData::Triangles { transform_data, .. }) if !transform_data.is_null() => {
+                ("03810", GeometryData::Triangles { transform_data, .. })
+                    if !transform_data.is_null() =>
+                {
                     let from = transform_data.alignment_value();
                     bump(transform_data, 8);
                     shift_from(w, from, 8, &mut call.infos[0]);
                 }
-                ("03804", GeometryData::Triangles { vertex_data, .. }) => *vertex_data = Address::Raw(0x4_0000_0000_0000),
-                ("03806", GeometryData::Triangles { index_type: IndexType::Uint16 | IndexType::Uint32, index_data, .. }) => {
-                    *index_data = Address::Raw(0x4_0000_0000_0000)
+                ("03804", GeometryData::Triangles { vertex_data, .. }) => {
+                    *vertex_data = Address::Raw(0x4_0000_0000_0000)
                 }
-                ("03808", GeometryData::Triangles { transform_data, .. }) if !transform_data.is_null() => {
+                (
+                    "03806",
+                    GeometryData::Triangles {
+                        index_type: IndexType::Uint16 | IndexType::Uint32,
+                        index_data,
+                        ..
+                    },
+                ) => *index_data = Address::Raw(0x4_0000_0000_0000),
+                ("03808", GeometryData::Triangles { transform_data, .. })
+                    if !transform_data.is_null() =>
+                {
                     *transform_data = Address::Raw(0x4_0000_0000_0000)
                 }
-                ("03811", GeometryData::Aabbs { data, .. }) => *data = Address::Raw(0x4_0000_0000_0000),
-                ("03813", GeometryData::Instances { data, .. }) => *data = Address::Raw(0x4_0000_0000_0000),
+                ("03811", GeometryData::Aabbs { data, .. }) => {
+                    *data = Address::Raw(0x4_0000_0000_0000)
+                }
+                ("03813", GeometryData::Instances { data, .. }) => {
+                    *data = Address::Raw(0x4_0000_0000_0000)
+                }
                 _ => return None,
             }
             // shift_from moved the bumped target a second time (it lies past `from`): undo that once.
@@ -550,7 +793,10 @@ pub fn mutate(case: &BuildCase, tail: &str, profile: &DeviceProfile) -> Option<B
                     ("03711", GeometryData::Triangles { vertex_data, .. }) => vertex_data,
                     ("03712", GeometryData::Triangles { index_data, .. }) => index_data,
                     ("03810", GeometryData::Triangles { transform_data, .. }) => transform_data,
-                    (_, GeometryData::Aabbs { data, .. } | GeometryData::Instances { data, .. }) => data,
+                    (
+                        _,
+                        GeometryData::Aabbs { data, .. } | GeometryData::Instances { data, .. },
+                    ) => data,
                     _ => return None,
                 };
                 if let Address::InBuffer { offset, .. } = target {
@@ -563,7 +809,11 @@ pub fn mutate(case: &BuildCase, tail: &str, profile: &DeviceProfile) -> Option<B
                 return None;
             }
             let b = buffer_mut(w, "input");
-            let target = if tag == "06707" { InstanceReference::Raw(0xdead_0000) } else { InstanceReference::Structure("dst".into()) };
+            let target = if tag == "06707" {
+                InstanceReference::Raw(0xdead_0000)
+            } else {
+                InstanceReference::Structure("dst".into())
+            };
             let mut done = false;
             for ct in &mut b.contents {
                 if let BuildContents::Instances { instances, .. } = ct {
@@ -598,9 +848,18 @@ pub fn mutate(case: &BuildCase, tail: &str, profile: &DeviceProfile) -> Option<B
 /// The last-build record a geometry would leave (the shape only; ranges filled by the caller).
 fn last_geometry(d: &GeometryData) -> LastGeometry {
     let (vertex_format, max_vertex, index_type, has_transform) = match d {
-        GeometryData::Triangles { vertex_format, max_vertex, index_type, transform_data, .. } => {
-            (Some(*vertex_format), *max_vertex, Some(*index_type), !transform_data.is_null())
-        }
+        GeometryData::Triangles {
+            vertex_format,
+            max_vertex,
+            index_type,
+            transform_data,
+            ..
+        } => (
+            Some(*vertex_format),
+            *max_vertex,
+            Some(*index_type),
+            !transform_data.is_null(),
+        ),
         _ => (None, 0, None, false),
     };
     LastGeometry {
@@ -618,7 +877,12 @@ fn last_geometry(d: &GeometryData) -> LastGeometry {
 }
 
 /// Completes an update-mode mutation: the last build's ranges, indices and activity are the current ones.
-fn finish_update(mut c: BuildCase, base: &BuildCase, profile: &DeviceProfile, tail: &str) -> Option<BuildCase> {
+fn finish_update(
+    mut c: BuildCase,
+    base: &BuildCase,
+    profile: &DeviceProfile,
+    tail: &str,
+) -> Option<BuildCase> {
     let mem = c.world.memory();
     let ranges = model::build::indirect_ranges(&mem, &c.call, 0).ok()?;
     let prims = model::build::build_primitives(&mem, &c.call.infos[0], &ranges).ok()?;
@@ -628,7 +892,11 @@ fn finish_update(mut c: BuildCase, base: &BuildCase, profile: &DeviceProfile, ta
         lg.flags = g.flags;
         lg.range = *r;
         lg.indices = model::build::semantics::range_indices(&mem, &g.data, r, "").ok()?;
-        lg.active = prims.iter().filter(|p| p.geometry == j as u32).map(|p| p.active).collect();
+        lg.active = prims
+            .iter()
+            .filter(|p| p.geometry == j as u32)
+            .map(|p| p.active)
+            .collect();
         geoms.push(lg);
     }
     drop(mem);
@@ -654,7 +922,12 @@ fn shift_from(w: &mut BuildWorld, from: u64, delta: u64, info: &mut BuildGeometr
     }
     for g in &mut info.geometries {
         let addrs: Vec<&mut Address> = match &mut g.data {
-            GeometryData::Triangles { vertex_data, index_data, transform_data, .. } => vec![vertex_data, index_data, transform_data],
+            GeometryData::Triangles {
+                vertex_data,
+                index_data,
+                transform_data,
+                ..
+            } => vec![vertex_data, index_data, transform_data],
             GeometryData::Aabbs { data, .. } | GeometryData::Instances { data, .. } => vec![data],
             _ => vec![],
         };
@@ -685,18 +958,34 @@ fn siblings(tag: &str) -> &'static [&'static str] {
 
 /// Judges the mutated case; keeps it only when the model's verdict is the target plus the unavoidable
 /// and sibling VUIDs, which become its declared `also`.
-fn settle(mut c: BuildCase, _base: &BuildCase, profile: &DeviceProfile, tail: &str) -> Option<BuildCase> {
+fn settle(
+    mut c: BuildCase,
+    _base: &BuildCase,
+    profile: &DeviceProfile,
+    tail: &str,
+) -> Option<BuildCase> {
     let rules = rules_for_settle();
     let target = vuid(tail);
-    let got: std::collections::BTreeSet<String> =
-        rules.validate(profile, &c.world, &c.call).violations.into_iter().map(|v| v.vuid).collect();
+    let got: std::collections::BTreeSet<String> = rules
+        .validate(profile, &c.world, &c.call)
+        .violations
+        .into_iter()
+        .map(|v| v.vuid)
+        .collect();
     if !got.contains(&target) {
         return None;
     }
     let tag = tail.rsplit('-').next().unwrap_or(tail);
-    let allowed: Vec<String> = unavoidable(profile).into_iter().chain(siblings(tag).iter().map(|s| s.to_string())).collect();
+    let allowed: Vec<String> = unavoidable(profile)
+        .into_iter()
+        .chain(siblings(tag).iter().map(|s| s.to_string()))
+        .collect();
     let also: Vec<String> = got.iter().filter(|v| **v != target).cloned().collect();
-    if also.iter().any(|v| !allowed.iter().any(|a| v == a || v.ends_with(&format!("-{a}")))) {
+    if also.iter().any(|v| {
+        !allowed
+            .iter()
+            .any(|a| v == a || v.ends_with(&format!("-{a}")))
+    }) {
         return None;
     }
     c.intent = Intent::Violates { vuid: target, also };
@@ -716,9 +1005,11 @@ fn rules_for_settle() -> BuildRuleSet {
     RULES.with(|r| {
         r.borrow_mut()
             .get_or_insert_with(|| {
-                vk_registry::source::load_vuids(std::path::Path::new(vk_registry::source::DEFAULT_REGISTRY_DIR))
-                    .map(|set| BuildRuleSet::from_vuids(&set))
-                    .unwrap_or_default()
+                vk_registry::source::load_vuids(std::path::Path::new(
+                    vk_registry::source::DEFAULT_REGISTRY_DIR,
+                ))
+                .map(|set| BuildRuleSet::from_vuids(&set))
+                .unwrap_or_default()
             })
             .clone()
     })
@@ -726,14 +1017,48 @@ fn rules_for_settle() -> BuildRuleSet {
 
 /// The tails (`pInfos-03710`) the generator has a mutation for.
 pub const MUTATIONS: &[&str] = &[
-    "accelerationStructureIndirectBuild-03650", "pIndirectDeviceAddresses-03648", "pIndirectStrides-03787",
-    "pIndirectDeviceAddresses-03647", "pIndirectDeviceAddresses-03645", "pIndirectDeviceAddresses-03646",
-    "pIndirectDeviceAddresses-03651", "ppMaxPrimitiveCounts-03653", "pInfos-03801", "pInfos-03674", "pInfos-03710",
-    "pInfos-03671", "pInfos-12258", "pInfos-03802", "pInfos-03652", "pInfos-03699", "pInfos-03700", "pInfos-03707",
-    "dstAccelerationStructure-03800", "mode-04628", "pInfos-04630", "pInfos-03667", "geometry-03673", "pInfos-03711",
-    "pInfos-03712", "pInfos-03714", "pInfos-03715", "pInfos-03716", "pInfos-03810", "pInfos-03804", "pInfos-03806",
-    "pInfos-03808", "pInfos-03811", "pInfos-03813", "pInfos-06707", "pInfos-12281", "commandBuffer-recording",
-    "commandBuffer-cmdpool", "renderpass", "videocoding", "commandBuffer-03649", "infoCount-arraylength",
+    "accelerationStructureIndirectBuild-03650",
+    "pIndirectDeviceAddresses-03648",
+    "pIndirectStrides-03787",
+    "pIndirectDeviceAddresses-03647",
+    "pIndirectDeviceAddresses-03645",
+    "pIndirectDeviceAddresses-03646",
+    "pIndirectDeviceAddresses-03651",
+    "ppMaxPrimitiveCounts-03653",
+    "pInfos-03801",
+    "pInfos-03674",
+    "pInfos-03710",
+    "pInfos-03671",
+    "pInfos-12258",
+    "pInfos-03802",
+    "pInfos-03652",
+    "pInfos-03699",
+    "pInfos-03700",
+    "pInfos-03707",
+    "dstAccelerationStructure-03800",
+    "mode-04628",
+    "pInfos-04630",
+    "pInfos-03667",
+    "geometry-03673",
+    "pInfos-03711",
+    "pInfos-03712",
+    "pInfos-03714",
+    "pInfos-03715",
+    "pInfos-03716",
+    "pInfos-03810",
+    "pInfos-03804",
+    "pInfos-03806",
+    "pInfos-03808",
+    "pInfos-03811",
+    "pInfos-03813",
+    "pInfos-06707",
+    "pInfos-12281",
+    "commandBuffer-recording",
+    "commandBuffer-cmdpool",
+    "renderpass",
+    "videocoding",
+    "commandBuffer-03649",
+    "infoCount-arraylength",
 ];
 
 /// Deterministic cases: for each plan drawn from `seed`, the valid case and every mutation that fits.
@@ -742,11 +1067,16 @@ pub fn generate(profile: &DeviceProfile, seed: u64, plans: usize) -> Vec<BuildCa
     use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
     let mut bytes = [0u8; 32];
     bytes[..8].copy_from_slice(&seed.to_le_bytes());
-    let mut runner = TestRunner::new_with_rng(Config::default(), TestRng::from_seed(RngAlgorithm::ChaCha, &bytes));
+    let mut runner = TestRunner::new_with_rng(
+        Config::default(),
+        TestRng::from_seed(RngAlgorithm::ChaCha, &bytes),
+    );
     let strat = plan_strategy();
     let mut out = Vec::new();
     for k in 0..plans {
-        let Ok(tree) = strat.new_tree(&mut runner) else { continue };
+        let Ok(tree) = strat.new_tree(&mut runner) else {
+            continue;
+        };
         let plan = tree.current();
         let mut base = realise(&plan, profile, &format!("build-{seed}-{k}-valid"));
         base.seed = Some(format!("{seed}/{k}"));
@@ -771,8 +1101,14 @@ fn plan_at(seed: u64, index: usize, attempt: u32) -> Option<BuildPlan> {
     bytes[8..16].copy_from_slice(&(index as u64).to_le_bytes());
     bytes[16..20].copy_from_slice(&attempt.to_le_bytes());
     bytes[20] = 0xb1; // distinct from `generate`'s streams
-    let mut runner = TestRunner::new_with_rng(Config::default(), TestRng::from_seed(RngAlgorithm::ChaCha, &bytes));
-    plan_strategy().new_tree(&mut runner).ok().map(|t| t.current())
+    let mut runner = TestRunner::new_with_rng(
+        Config::default(),
+        TestRng::from_seed(RngAlgorithm::ChaCha, &bytes),
+    );
+    plan_strategy()
+        .new_tree(&mut runner)
+        .ok()
+        .map(|t| t.current())
 }
 
 /// The mutation tail of a full VUID of the command, if the generator has one.
@@ -783,7 +1119,12 @@ pub fn mutation_for(vuid_name: &str) -> Option<&'static str> {
 /// Cases `range` of one spec: valid cases (`target` None) or cases violating `target` (a full VUID with
 /// a mutation). Case `k` is the first of up to 64 plans drawn for `(seed, k)` that the mutation fits;
 /// an index no plan fits gives no case. Names are `build-<seed>-<k>-valid` / `build-<seed>-<k>-<tail>`.
-pub fn generate_range(profile: &DeviceProfile, target: Option<&str>, seed: u64, range: std::ops::Range<usize>) -> Vec<BuildCase> {
+pub fn generate_range(
+    profile: &DeviceProfile,
+    target: Option<&str>,
+    seed: u64,
+    range: std::ops::Range<usize>,
+) -> Vec<BuildCase> {
     let tail = match target {
         None => None,
         Some(v) => match mutation_for(v) {
@@ -794,7 +1135,9 @@ pub fn generate_range(profile: &DeviceProfile, target: Option<&str>, seed: u64, 
     let mut out = Vec::new();
     for k in range {
         for attempt in 0..64u32 {
-            let Some(plan) = plan_at(seed, k, attempt) else { continue };
+            let Some(plan) = plan_at(seed, k, attempt) else {
+                continue;
+            };
             let mut base = realise(&plan, profile, &format!("build-{seed}-{k}-valid"));
             base.seed = Some(format!("{seed}/{k}/{attempt}"));
             let case = match tail {

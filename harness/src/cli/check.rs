@@ -57,22 +57,52 @@ pub fn run(a: CheckArgs) -> Result<i32, String> {
         let verdict = model::validate(&rules, &profile, &case.world, &case.call);
         let vuids: Vec<String> = verdict.vuids().into_iter().map(String::from).collect();
         let expected = case.expected_vuids();
-        results.push(CheckResult { case: shown, agrees: vuids == expected, vuids, expected, violations: verdict.violations });
+        results.push(CheckResult {
+            case: shown,
+            agrees: vuids == expected,
+            vuids,
+            expected,
+            violations: verdict.violations,
+        });
     }
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&results).map_err(|e| e.to_string())?);
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&results).map_err(|e| e.to_string())?
+        );
     } else {
         for r in &results {
             let mark = if r.agrees { "ok  " } else { "DIFF" };
-            println!("{mark} {}: {}", r.case, if r.vuids.is_empty() { "valid".to_string() } else { r.vuids.join(", ") });
+            println!(
+                "{mark} {}: {}",
+                r.case,
+                if r.vuids.is_empty() {
+                    "valid".to_string()
+                } else {
+                    r.vuids.join(", ")
+                }
+            );
             for v in &r.violations {
                 println!("       {} at {}: {}", v.vuid, v.context, v.problem);
             }
             if !r.agrees {
-                println!("       the case expects: {}", if r.expected.is_empty() { "valid".into() } else { r.expected.join(", ") });
+                println!(
+                    "       the case expects: {}",
+                    if r.expected.is_empty() {
+                        "valid".into()
+                    } else {
+                        r.expected.join(", ")
+                    }
+                );
             }
         }
     }
     let disagreements = results.iter().filter(|r| !r.agrees).count();
-    Ok(if errors > 0 { 2 } else if disagreements > 0 { 1 } else { 0 })
+    Ok(if errors > 0 {
+        2
+    } else if disagreements > 0 {
+        1
+    } else {
+        0
+    })
 }

@@ -18,13 +18,19 @@ pub struct CoverageArgs {
 }
 
 /// Coverage rows and the VUIDs of the sources that have no row (which must be none).
-pub fn compute(set: &vk_registry::vuid::VuidSet, command: Option<&str>) -> (Vec<CoverageRow>, Vec<String>) {
+pub fn compute(
+    set: &vk_registry::vuid::VuidSet,
+    command: Option<&str>,
+) -> (Vec<CoverageRow>, Vec<String>) {
     let rules = RuleSet::from_vuids(set);
     let rows = rules.coverage(command);
     let missing = set
         .records
         .iter()
-        .filter(|r| modelled_scope(&r.scope) && command.is_none_or(|c| model::rules::applies_to(&r.scope, c)))
+        .filter(|r| {
+            modelled_scope(&r.scope)
+                && command.is_none_or(|c| model::rules::applies_to(&r.scope, c))
+        })
         .filter(|r| rules.row(&r.id).is_none())
         .map(|r| r.id.clone())
         .collect();
@@ -35,12 +41,18 @@ pub fn run(a: CoverageArgs) -> Result<i32, String> {
     let set = super::load_sources(&a.from)?;
     let (rows, missing) = compute(&set, a.command.as_deref());
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&rows).map_err(|e| e.to_string())?);
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&rows).map_err(|e| e.to_string())?
+        );
     } else {
         print_table(&rows);
     }
     if !missing.is_empty() {
-        eprintln!("rtconf: {} VUIDs of the sources have no row in the rule table:", missing.len());
+        eprintln!(
+            "rtconf: {} VUIDs of the sources have no row in the rule table:",
+            missing.len()
+        );
         for m in &missing {
             eprintln!("  {m}");
         }
@@ -72,16 +84,31 @@ fn print_table(rows: &[CoverageRow]) {
             Some(model::rules::Source::Hand) => "hand",
             None => "-",
         };
-        println!("{:<78} {:<15} {:<8} {}", r.vuid, status, source, r.reason.as_deref().unwrap_or(""));
+        println!(
+            "{:<78} {:<15} {:<8} {}",
+            r.vuid,
+            status,
+            source,
+            r.reason.as_deref().unwrap_or("")
+        );
     }
     println!();
-    println!("{:<46} {:>9} {:>6} {:>9} {:>8} {:>6}", "scope", "template", "hand", "not-exec", "pending", "total");
+    println!(
+        "{:<46} {:>9} {:>6} {:>9} {:>8} {:>6}",
+        "scope", "template", "hand", "not-exec", "pending", "total"
+    );
     let mut all = [0usize; 5];
     for (scope, t) in &totals {
-        println!("{:<46} {:>9} {:>6} {:>9} {:>8} {:>6}", scope, t[0], t[1], t[2], t[3], t[4]);
+        println!(
+            "{:<46} {:>9} {:>6} {:>9} {:>8} {:>6}",
+            scope, t[0], t[1], t[2], t[3], t[4]
+        );
         for i in 0..5 {
             all[i] += t[i];
         }
     }
-    println!("{:<46} {:>9} {:>6} {:>9} {:>8} {:>6}", "all", all[0], all[1], all[2], all[3], all[4]);
+    println!(
+        "{:<46} {:>9} {:>6} {:>9} {:>8} {:>6}",
+        "all", all[0], all[1], all[2], all[3], all[4]
+    );
 }

@@ -29,7 +29,8 @@ pub struct GenArgs {
 }
 
 pub fn run(a: GenArgs) -> Result<i32, String> {
-    let command = generator::Command::from_vk_name(&a.command).ok_or_else(|| format!("unknown command `{}`", a.command))?;
+    let command = generator::Command::from_vk_name(&a.command)
+        .ok_or_else(|| format!("unknown command `{}`", a.command))?;
     let spec = match (a.valid, a.vuid) {
         (_, Some(v)) => CaseSpec::violate(command, &v),
         (true, None) => CaseSpec::valid(command),
@@ -38,7 +39,8 @@ pub fn run(a: GenArgs) -> Result<i32, String> {
     let set = super::load_sources(&a.from)?;
     let rules = model::RuleSet::from_vuids(&set);
     let profile = super::profile_for(&a.profile)?;
-    let cases = generator::generate(&profile, &a.profile, &rules, &spec, a.count, a.seed).map_err(|e| e.to_string())?;
+    let cases = generator::generate(&profile, &a.profile, &rules, &spec, a.count, a.seed)
+        .map_err(|e| e.to_string())?;
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
     for c in &cases {
         let p = a.out.join(format!("{}.yaml", c.name));

@@ -13,7 +13,11 @@ use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
 #[derive(Parser)]
-#[command(name = "rtconf", version, about = "Conformance suite for Vulkan ray tracing: model, generator, harness")]
+#[command(
+    name = "rtconf",
+    version,
+    about = "Conformance suite for Vulkan ray tracing: model, generator, harness"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -54,7 +58,11 @@ pub fn sources_or_default(from: &[PathBuf]) -> Vec<PathBuf> {
 pub fn load_sources(from: &[PathBuf]) -> Result<vk_registry::vuid::VuidSet, String> {
     let paths = sources_or_default(from);
     vk_registry::source::load_union(&paths).map_err(|e| {
-        let hint = if from.is_empty() { "\n(the registry comes with libvulkan-dev: run `bash scripts/setup.sh`)" } else { "" };
+        let hint = if from.is_empty() {
+            "\n(the registry comes with libvulkan-dev: run `bash scripts/setup.sh`)"
+        } else {
+            ""
+        };
         format!("{e}{hint}")
     })
 }
@@ -100,7 +108,11 @@ pub fn profile_for(name: &str) -> Result<model::DeviceProfile, String> {
     } else {
         profiles_dir().join(format!("{name}.json"))
     };
-    let text = std::fs::read_to_string(&path)
-        .map_err(|e| format!("profile `{name}`: cannot read {}: {e} (capture one with `rtconf probe`)", path.display()))?;
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        format!(
+            "profile `{name}`: cannot read {}: {e} (capture one with `rtconf probe`)",
+            path.display()
+        )
+    })?;
     model::DeviceProfile::from_profiles_json(name, &text).map_err(|e| e.to_string())
 }

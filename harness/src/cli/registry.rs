@@ -45,7 +45,11 @@ fn print(s: &str) -> Result<i32, String> {
 
 pub fn run(c: RegistryCommand) -> Result<i32, String> {
     match c {
-        RegistryCommand::Vuids { from, command, json } => {
+        RegistryCommand::Vuids {
+            from,
+            command,
+            json,
+        } => {
             let set = super::load_sources(&from)?;
             let text = if json {
                 vk_registry::report::vuids_json(&set, command.as_deref())
@@ -60,9 +64,15 @@ pub fn run(c: RegistryCommand) -> Result<i32, String> {
             print(&vk_registry::report::diff(&sa, &sb, command.as_deref()))
         }
         RegistryCommand::Show { name, from } => {
-            let dir = from.unwrap_or_else(|| PathBuf::from(vk_registry::source::DEFAULT_REGISTRY_DIR));
-            let xml = if dir.is_dir() { dir.join("vk.xml") } else { dir };
-            let reg = vk_registry::xml::Registry::load(Path::new(&xml)).map_err(|e| e.to_string())?;
+            let dir =
+                from.unwrap_or_else(|| PathBuf::from(vk_registry::source::DEFAULT_REGISTRY_DIR));
+            let xml = if dir.is_dir() {
+                dir.join("vk.xml")
+            } else {
+                dir
+            };
+            let reg =
+                vk_registry::xml::Registry::load(Path::new(&xml)).map_err(|e| e.to_string())?;
             let text = vk_registry::report::show(&reg, &name).map_err(|e| e.to_string())?;
             print(&text)
         }

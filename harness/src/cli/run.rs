@@ -201,7 +201,11 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
 
     let specs = plan_specs(&a, &rules, &profile);
     let build_rules = model::build::BuildRuleSet::from_vuids(&set);
-    let build_specs = if a.command.iter().any(|c| c == BUILD_COMMAND) { build_specs(&a, &build_rules) } else { vec![] };
+    let build_specs = if a.command.iter().any(|c| c == BUILD_COMMAND) {
+        build_specs(&a, &build_rules)
+    } else {
+        vec![]
+    };
     let total = (specs.len() + build_specs.len()) * a.count;
     let bar = if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
         let b = indicatif::ProgressBar::new(total as u64);
@@ -306,8 +310,17 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
         run_chunk(&mut chunk, &mut results)?;
     }
     if a.command.iter().any(|c| c == BUILD_COMMAND) {
-        run_builds(&a, &set, &profile, &profile_name, &triage, &done, &bar, &mut results)
-            .map_err(|e| format!("{}: {e}", results_path.display()))?;
+        run_builds(
+            &a,
+            &set,
+            &profile,
+            &profile_name,
+            &triage,
+            &done,
+            &bar,
+            &mut results,
+        )
+        .map_err(|e| format!("{}: {e}", results_path.display()))?;
     }
     bar.finish_and_clear();
     let mut summary = summarise(&results_path, &a.driver, &profile_name, set.version.clone())?;
@@ -324,7 +337,10 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
     }
     print_summary(&summary, &a.out);
     if !not_expressible.is_empty() {
-        println!("{} specs are not expressible on profile {profile_name}:", not_expressible.len());
+        println!(
+            "{} specs are not expressible on profile {profile_name}:",
+            not_expressible.len()
+        );
         for e in &not_expressible {
             println!("  {e}");
         }
@@ -398,7 +414,10 @@ fn run_builds(
     generator::build::use_rules(rules.clone());
     let unavoidable = generator::build::unavoidable(profile);
     let sources = super::sources_or_default(&a.from);
-    let sources: Vec<PathBuf> = sources.iter().map(|p| std::fs::canonicalize(p).unwrap_or_else(|_| p.clone())).collect();
+    let sources: Vec<PathBuf> = sources
+        .iter()
+        .map(|p| std::fs::canonicalize(p).unwrap_or_else(|_| p.clone()))
+        .collect();
     let ppath = profile_path(profile_name);
     let ppath = std::fs::canonicalize(&ppath).unwrap_or(ppath);
     let mut write_error = None;
@@ -414,9 +433,19 @@ fn run_builds(
             let verdict = rules.validate(profile, &world, &case.call);
             let model: BTreeSet<String> = verdict.violations.into_iter().map(|v| v.vuid).collect();
             let model: Vec<String> = model.into_iter().collect();
-            let report = compare_build(case, &model, &res.observation, &unavoidable, triage, res.millis);
+            let report = compare_build(
+                case,
+                &model,
+                &res.observation,
+                &unavoidable,
+                triage,
+                res.millis,
+            );
             if report.outcome != Outcome::Pass && report.outcome != Outcome::Unsupported {
-                let _ = std::fs::write(a.out.join("failures").join(format!("{}.yaml", case.name)), case.to_yaml());
+                let _ = std::fs::write(
+                    a.out.join("failures").join(format!("{}.yaml", case.name)),
+                    case.to_yaml(),
+                );
             }
             let line = serde_json::to_string(&report).unwrap_or_default();
             if let Err(e) = writeln!(results, "{line}").and_then(|_| results.flush()) {

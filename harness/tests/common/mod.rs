@@ -7,24 +7,41 @@ use model::world::*;
 
 pub fn device() -> DeviceState {
     DeviceState {
-        extensions: ["VK_KHR_ray_tracing_pipeline", "VK_KHR_acceleration_structure", "VK_KHR_deferred_host_operations"]
-            .map(String::from)
-            .into(),
-        features: ["rayTracingPipeline", "rayTracingPipelineTraceRaysIndirect", "bufferDeviceAddress", "accelerationStructure"]
-            .map(String::from)
-            .into(),
+        extensions: [
+            "VK_KHR_ray_tracing_pipeline",
+            "VK_KHR_acceleration_structure",
+            "VK_KHR_deferred_host_operations",
+        ]
+        .map(String::from)
+        .into(),
+        features: [
+            "rayTracingPipeline",
+            "rayTracingPipelineTraceRaysIndirect",
+            "bufferDeviceAddress",
+            "accelerationStructure",
+        ]
+        .map(String::from)
+        .into(),
     }
 }
 
 pub fn at(buffer: &str, offset: u64) -> Address {
-    Address::InBuffer { buffer: buffer.into(), offset }
+    Address::InBuffer {
+        buffer: buffer.into(),
+        offset,
+    }
 }
 
 /// Raygen + two miss groups + one triangle hit group; records laid out at shaderGroupBaseAlignment (32);
 /// three rays (hit the triangle, miss with index 0, miss with index 1); an indirect 4x2x1 launch.
 pub fn valid_case() -> Case {
-    let sbt_usage = BufferUsage::SHADER_BINDING_TABLE_BIT_KHR | BufferUsage::SHADER_DEVICE_ADDRESS_BIT;
-    let records = |offset, handles: Vec<HandleRef>| Contents::ShaderRecords { offset, stride: 32, handles };
+    let sbt_usage =
+        BufferUsage::SHADER_BINDING_TABLE_BIT_KHR | BufferUsage::SHADER_DEVICE_ADDRESS_BIT;
+    let records = |offset, handles: Vec<HandleRef>| Contents::ShaderRecords {
+        offset,
+        stride: 32,
+        handles,
+    };
     let world = World {
         device: device(),
         buffers: vec![
@@ -46,17 +63,31 @@ pub fn valid_case() -> Case {
                 usage: BufferUsage::INDIRECT_BUFFER_BIT | BufferUsage::SHADER_DEVICE_ADDRESS_BIT,
                 flags: Default::default(),
                 memory: MemoryBinding::Whole,
-                contents: vec![Contents::TraceRaysIndirectCommand { offset: 0, width: 4, height: 2, depth: 1 }],
+                contents: vec![Contents::TraceRaysIndirectCommand {
+                    offset: 0,
+                    width: 4,
+                    height: 2,
+                    depth: 1,
+                }],
             },
         ],
         pipeline: Some(Pipeline {
             api: PipelineApi::Khr,
             flags: Default::default(),
             groups: vec![
-                ShaderGroup::General { stage: GeneralStage::Raygen },
-                ShaderGroup::General { stage: GeneralStage::Miss },
-                ShaderGroup::General { stage: GeneralStage::Miss },
-                ShaderGroup::TrianglesHit { closest_hit: true, any_hit: false },
+                ShaderGroup::General {
+                    stage: GeneralStage::Raygen,
+                },
+                ShaderGroup::General {
+                    stage: GeneralStage::Miss,
+                },
+                ShaderGroup::General {
+                    stage: GeneralStage::Miss,
+                },
+                ShaderGroup::TrianglesHit {
+                    closest_hit: true,
+                    any_hit: false,
+                },
             ],
             max_recursion_depth: 1,
             dynamic_stack_size: false,
@@ -64,9 +95,20 @@ pub fn valid_case() -> Case {
         }),
         command_buffer: CommandBufferState::default(),
         launch: Launch {
-            instances: vec![Instance { geometries: vec![GeometryKind::Triangles], sbt_record_offset: 0, mask: 0xff, cluster: false }],
+            instances: vec![Instance {
+                geometries: vec![GeometryKind::Triangles],
+                sbt_record_offset: 0,
+                mask: 0xff,
+                cluster: false,
+            }],
             rays: vec![
-                ray(RayTarget::Geometry { instance: 0, geometry: 0 }, 0),
+                ray(
+                    RayTarget::Geometry {
+                        instance: 0,
+                        geometry: 0,
+                    },
+                    0,
+                ),
                 ray(RayTarget::Nothing, 0),
                 ray(RayTarget::Nothing, 1),
             ],
@@ -76,17 +118,43 @@ pub fn valid_case() -> Case {
         resources: Default::default(), // issue 4
     };
     let call = Call::TraceRaysIndirect(TraceRaysIndirect {
-        raygen: StridedRegion { address: at("sbt", 0), stride: 32, size: 32 },
-        miss: StridedRegion { address: at("sbt", 64), stride: 32, size: 64 },
-        hit: StridedRegion { address: at("sbt", 128), stride: 32, size: 32 },
+        raygen: StridedRegion {
+            address: at("sbt", 0),
+            stride: 32,
+            size: 32,
+        },
+        miss: StridedRegion {
+            address: at("sbt", 64),
+            stride: 32,
+            size: 64,
+        },
+        hit: StridedRegion {
+            address: at("sbt", 128),
+            stride: 32,
+            size: 32,
+        },
         callable: StridedRegion::unused(),
         indirect_address: at("indirect", 0),
     });
-    Case { name: "hand-made-valid".into(), profile: "lavapipe".into(), seed: None, intent: Intent::Valid, world, call }
+    Case {
+        name: "hand-made-valid".into(),
+        profile: "lavapipe".into(),
+        seed: None,
+        intent: Intent::Valid,
+        world,
+        call,
+    }
 }
 
 pub fn ray(target: RayTarget, miss_index: u32) -> TraceRay {
-    TraceRay { target, sbt_offset: 0, sbt_stride: 0, miss_index, cull_mask: 0xff, ray_flags: 0 }
+    TraceRay {
+        target,
+        sbt_offset: 0,
+        sbt_stride: 0,
+        miss_index,
+        cull_mask: 0xff,
+        ray_flags: 0,
+    }
 }
 
 /// The valid case with its miss stride broken (40 is not a multiple of shaderGroupHandleAlignment 16).
@@ -98,7 +166,10 @@ pub fn bad_miss_stride_case() -> Case {
         c.miss.stride = 40;
         c.miss.size = 80;
     }
-    case.intent = Intent::Violates { vuid: "VUID-vkCmdTraceRaysIndirectKHR-stride-03686".into(), also: vec![] };
+    case.intent = Intent::Violates {
+        vuid: "VUID-vkCmdTraceRaysIndirectKHR-stride-03686".into(),
+        also: vec![],
+    };
     case
 }
 
@@ -116,17 +187,27 @@ pub fn recursive_callable_case() -> Case {
         handles: vec![HandleRef::Group(4), HandleRef::Group(5)],
     });
     let p = w.pipeline.as_mut().expect("the valid case has a pipeline");
-    p.groups.push(ShaderGroup::General { stage: GeneralStage::Callable });
-    p.groups.push(ShaderGroup::General { stage: GeneralStage::Callable });
+    p.groups.push(ShaderGroup::General {
+        stage: GeneralStage::Callable,
+    });
+    p.groups.push(ShaderGroup::General {
+        stage: GeneralStage::Callable,
+    });
     p.max_recursion_depth = 3;
     w.launch.callables = vec![1, 0];
     w.launch.extra_recursion = 2;
-    let Call::TraceRaysIndirect(c) = &case.call else { unreachable!() };
+    let Call::TraceRaysIndirect(c) = &case.call else {
+        unreachable!()
+    };
     case.call = Call::TraceRays(model::call::TraceRays {
         raygen: c.raygen.clone(),
         miss: c.miss.clone(),
         hit: c.hit.clone(),
-        callable: StridedRegion { address: at("sbt", 192), stride: 32, size: 64 },
+        callable: StridedRegion {
+            address: at("sbt", 192),
+            stride: 32,
+            size: 64,
+        },
         width: 3,
         height: 2,
         depth: 1,

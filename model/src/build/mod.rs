@@ -9,10 +9,16 @@ pub mod rules;
 pub mod semantics;
 pub mod world;
 
-pub use call::{BuildGeometryInfo, BuildIndirect, BuildMode, Geometry, GeometryData, IndexType, VertexFormat};
+pub use call::{
+    BuildGeometryInfo, BuildIndirect, BuildMode, Geometry, GeometryData, IndexType, VertexFormat,
+};
 pub use rules::{BuildRuleSet, Compiled};
-pub use semantics::{build_primitives, direct_build, indirect_build, indirect_ranges, BuiltPrimitive, Shape};
-pub use world::{AccelerationStructure, AsType, BuildBuffer, BuildContents, BuildSizes, BuildWorld, RangeInfo};
+pub use semantics::{
+    build_primitives, direct_build, indirect_build, indirect_ranges, BuiltPrimitive, Shape,
+};
+pub use world::{
+    AccelerationStructure, AsType, BuildBuffer, BuildContents, BuildSizes, BuildWorld, RangeInfo,
+};
 
 use crate::case::{CaseError, Intent};
 

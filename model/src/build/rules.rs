@@ -3,9 +3,15 @@
 //! by tag) or carries a written reason. Rules about device-side contents (range records, instance
 //! records, pointer arrays) are evaluated on the memory image of the world.
 
-use super::call::{BuildGeometryInfo, BuildIndirect, BuildMode, GeometryData, GeometryType, IndexType, COMMAND};
-use super::semantics::{build_primitives, indirect_ranges, instance_address, range_indices, read_instance};
-use super::world::{offset, AsType, BuildBuffer, BuildWorld, InstanceRecord, InstanceReference, Memory, RangeInfo};
+use super::call::{
+    BuildGeometryInfo, BuildIndirect, BuildMode, GeometryData, GeometryType, IndexType, COMMAND,
+};
+use super::semantics::{
+    build_primitives, indirect_ranges, instance_address, range_indices, read_instance,
+};
+use super::world::{
+    offset, AsType, BuildBuffer, BuildWorld, InstanceRecord, InstanceReference, Memory, RangeInfo,
+};
 use crate::call::Address;
 use crate::flags::{BufferUsage, QueueFlags};
 use crate::profile::DeviceProfile;
@@ -107,7 +113,10 @@ pub enum BuildPredicate {
     DstSizeEnough,
     /// The scratch range of the mode's size lies in one buffer; `skip_zero`: the rule only applies when
     /// the size is not zero.
-    ScratchInOneBuffer { mode: BuildMode, skip_zero: bool },
+    ScratchInOneBuffer {
+        mode: BuildMode,
+        skip_zero: bool,
+    },
     /// The scratch buffer has STORAGE_BUFFER usage (for one mode with a non-zero size, or always).
     ScratchUsage(Option<BuildMode>),
     DstTypeMatches(AsType),
@@ -136,12 +145,16 @@ pub const POINTER_REASON: &str = "the case format passes every array the command
      parameter validation reports before any rule";
 
 fn clean(s: &str) -> String {
-    s.replace("pname:", "").replace("sname:", "").replace("ename:", "").replace('`', "")
+    s.replace("pname:", "")
+        .replace("sname:", "")
+        .replace("ename:", "")
+        .replace('`', "")
 }
 
 /// Text shapes shared with the trace commands' template compiler (implicit rules, features, multiples).
 fn template(text: &str) -> Option<BuildPredicate> {
-    static SHAPES: OnceLock<Vec<(Regex, fn(&regex::Captures) -> Option<BuildPredicate>)>> = OnceLock::new();
+    static SHAPES: OnceLock<Vec<(Regex, fn(&regex::Captures) -> Option<BuildPredicate>)>> =
+        OnceLock::new();
     let shapes = SHAPES.get_or_init(|| {
         let v: Vec<(&str, fn(&regex::Captures) -> Option<BuildPredicate>)> = vec![
             (r"^The (?:VkPhysicalDevice[A-Za-z]+::)?(?P<f>[A-Za-z0-9]+) feature must be enabled$", |m| {
@@ -171,7 +184,9 @@ fn template(text: &str) -> Option<BuildPredicate> {
     });
     let t = clean(text);
     let t = t.trim().trim_end_matches('.');
-    shapes.iter().find_map(|(re, f)| re.captures(t).and_then(|m| f(&m)))
+    shapes
+        .iter()
+        .find_map(|(re, f)| re.captures(t).and_then(|m| f(&m)))
 }
 
 /// The hand-written rule of a tag.
@@ -221,10 +236,22 @@ fn by_tag(tag: &str) -> Option<BuildPredicate> {
         "03647" => P::IndirectUsage,
         "03651" => P::RangeRecordsValid,
         "03652" => P::DstSizeEnough,
-        "03671" => P::ScratchInOneBuffer { mode: BuildMode::Build, skip_zero: false },
-        "03672" => P::ScratchInOneBuffer { mode: BuildMode::Update, skip_zero: false },
-        "12258" => P::ScratchInOneBuffer { mode: BuildMode::Build, skip_zero: true },
-        "12259" => P::ScratchInOneBuffer { mode: BuildMode::Update, skip_zero: true },
+        "03671" => P::ScratchInOneBuffer {
+            mode: BuildMode::Build,
+            skip_zero: false,
+        },
+        "03672" => P::ScratchInOneBuffer {
+            mode: BuildMode::Update,
+            skip_zero: false,
+        },
+        "12258" => P::ScratchInOneBuffer {
+            mode: BuildMode::Build,
+            skip_zero: true,
+        },
+        "12259" => P::ScratchInOneBuffer {
+            mode: BuildMode::Update,
+            skip_zero: true,
+        },
         "03674" => P::ScratchUsage(None),
         "12260" => P::ScratchUsage(Some(BuildMode::Update)),
         "12261" => P::ScratchUsage(Some(BuildMode::Build)),
@@ -316,7 +343,11 @@ impl BuildRuleSet {
             .iter()
             .filter(|r| r.scope == COMMAND)
             .filter_map(|r| match compile(r) {
-                Compiled::Rule(p, _) => Some(BuildRow { vuid: r.id.clone(), condition: r.condition.clone(), predicate: p }),
+                Compiled::Rule(p, _) => Some(BuildRow {
+                    vuid: r.id.clone(),
+                    condition: r.condition.clone(),
+                    predicate: p,
+                }),
                 _ => None,
             })
             .collect();
@@ -324,7 +355,12 @@ impl BuildRuleSet {
     }
 
     /// The verdict on one call in one world on one device.
-    pub fn validate(&self, profile: &DeviceProfile, world: &BuildWorld, call: &BuildIndirect) -> Verdict {
+    pub fn validate(
+        &self,
+        profile: &DeviceProfile,
+        world: &BuildWorld,
+        call: &BuildIndirect,
+    ) -> Verdict {
         let (major, minor) = profile.api_major_minor();
         let enabled = |name: &str| -> bool {
             if let Some(v) = name.strip_prefix("VK_VERSION_") {
@@ -334,13 +370,22 @@ impl BuildRuleSet {
             world.device.extension(name)
         };
         let mem = world.memory();
-        let cx = Cx { profile, world, call, mem };
+        let cx = Cx {
+            profile,
+            world,
+            call,
+            mem,
+        };
         let mut violations = Vec::new();
         for row in self.rows.iter().filter(|r| r.condition.eval(&enabled)) {
             let mut out = Vec::new();
             check(&row.predicate, &cx, &mut out);
             for (context, problem) in out {
-                violations.push(Violation { vuid: row.vuid.clone(), context, problem });
+                violations.push(Violation {
+                    vuid: row.vuid.clone(),
+                    context,
+                    problem,
+                });
             }
         }
         violations.sort();
@@ -365,27 +410,54 @@ fn push(out: &mut Out, ctx: impl Into<String>, problem: impl Into<String>) {
 /// The addresses of a field in info `i`, with their context path, where the rule's condition holds.
 fn field_addresses(info: &BuildGeometryInfo, i: usize, field: Field) -> Vec<(String, &Address)> {
     if field == Field::Scratch {
-        return vec![(format!("pInfos[{i}].scratchData.deviceAddress"), &info.scratch)];
+        return vec![(
+            format!("pInfos[{i}].scratchData.deviceAddress"),
+            &info.scratch,
+        )];
     }
     let mut v = Vec::new();
     for (j, g) in info.geometries.iter().enumerate() {
         let base = format!("pInfos[{i}].pGeometries[{j}].geometry");
         match (&g.data, field) {
-            (GeometryData::Triangles { vertex_data, .. }, Field::Vertex) => v.push((format!("{base}.triangles.vertexData"), vertex_data)),
-            (GeometryData::Triangles { index_type, index_data, .. }, Field::Index) if *index_type != IndexType::None => {
+            (GeometryData::Triangles { vertex_data, .. }, Field::Vertex) => {
+                v.push((format!("{base}.triangles.vertexData"), vertex_data))
+            }
+            (
+                GeometryData::Triangles {
+                    index_type,
+                    index_data,
+                    ..
+                },
+                Field::Index,
+            ) if *index_type != IndexType::None => {
                 v.push((format!("{base}.triangles.indexData"), index_data))
             }
             (GeometryData::Triangles { transform_data, .. }, Field::Transform) => {
                 v.push((format!("{base}.triangles.transformData"), transform_data))
             }
-            (GeometryData::Triangles { motion_vertex_data: Some(a), .. }, Field::MotionVertex) => {
-                v.push((format!("{base}.triangles.pNext(motion).vertexData"), a))
+            (
+                GeometryData::Triangles {
+                    motion_vertex_data: Some(a),
+                    ..
+                },
+                Field::MotionVertex,
+            ) => v.push((format!("{base}.triangles.pNext(motion).vertexData"), a)),
+            (
+                GeometryData::Triangles {
+                    opacity_micromap: Some(m),
+                    ..
+                },
+                Field::MicromapIndex,
+            ) => v.push((
+                format!("{base}.triangles.pNext(micromap).indexBuffer"),
+                &m.index_buffer,
+            )),
+            (GeometryData::Aabbs { data, .. }, Field::Aabbs) => {
+                v.push((format!("{base}.aabbs.data"), data))
             }
-            (GeometryData::Triangles { opacity_micromap: Some(m), .. }, Field::MicromapIndex) => {
-                v.push((format!("{base}.triangles.pNext(micromap).indexBuffer"), &m.index_buffer))
+            (GeometryData::Instances { data, .. }, Field::Instances) => {
+                v.push((format!("{base}.instances.data"), data))
             }
-            (GeometryData::Aabbs { data, .. }, Field::Aabbs) => v.push((format!("{base}.aabbs.data"), data)),
-            (GeometryData::Instances { data, .. }, Field::Instances) => v.push((format!("{base}.instances.data"), data)),
             (GeometryData::SpheresNv { index_data, .. }, Field::SphereIndex(false))
             | (GeometryData::LinearSweptSpheresNv { index_data, .. }, Field::SphereIndex(true)) => {
                 v.push((format!("{base}.spheres.indexData"), index_data))
@@ -407,9 +479,19 @@ fn field_addresses(info: &BuildGeometryInfo, i: usize, field: Field) -> Vec<(Str
 /// The index type that conditions a field's validity rule (micromap / sphere index fields).
 fn field_index_type(info: &BuildGeometryInfo, j: usize, field: Field) -> Option<IndexType> {
     match (&info.geometries.get(j)?.data, field) {
-        (GeometryData::Triangles { opacity_micromap: Some(m), .. }, Field::MicromapIndex) => Some(m.index_type),
-        (GeometryData::SpheresNv { index_type, .. }, Field::SphereIndex(false)) => Some(*index_type),
-        (GeometryData::LinearSweptSpheresNv { index_type, .. }, Field::SphereIndex(true)) => Some(*index_type),
+        (
+            GeometryData::Triangles {
+                opacity_micromap: Some(m),
+                ..
+            },
+            Field::MicromapIndex,
+        ) => Some(m.index_type),
+        (GeometryData::SpheresNv { index_type, .. }, Field::SphereIndex(false)) => {
+            Some(*index_type)
+        }
+        (GeometryData::LinearSweptSpheresNv { index_type, .. }, Field::SphereIndex(true)) => {
+            Some(*index_type)
+        }
         _ => None,
     }
 }
@@ -425,8 +507,13 @@ fn invalid_address(world: &BuildWorld, a: &Address) -> Option<String> {
         Address::Raw(v) => Some(format!("{v:#x} lies in no buffer of the world")),
         Address::InBuffer { buffer, offset } => match world.buffer(buffer) {
             None => Some(format!("no buffer `{buffer}` in the world")),
-            Some(b) if *offset >= b.size => Some(format!("offset {offset} is past the end of `{buffer}` ({} bytes)", b.size)),
-            Some(b) if b.memory == MemoryBinding::Unbound => Some(format!("`{buffer}` is not bound to memory, so it has no address")),
+            Some(b) if *offset >= b.size => Some(format!(
+                "offset {offset} is past the end of `{buffer}` ({} bytes)",
+                b.size
+            )),
+            Some(b) if b.memory == MemoryBinding::Unbound => Some(format!(
+                "`{buffer}` is not bound to memory, so it has no address"
+            )),
             _ => None,
         },
     }
@@ -475,7 +562,11 @@ fn instances_of(cx: &Cx, i: usize) -> Vec<(String, InstanceRecord)> {
     let mut v = Vec::new();
     let Some(rs) = ranges(cx, i) else { return v };
     for (j, (g, r)) in cx.call.infos[i].geometries.iter().zip(&rs).enumerate() {
-        if let GeometryData::Instances { array_of_pointers, data } = &g.data {
+        if let GeometryData::Instances {
+            array_of_pointers,
+            data,
+        } = &g.data
+        {
             for k in 0..r.primitive_count.min(1 << 16) {
                 let ctx = format!("pInfos[{i}].pGeometries[{j}] instance {k}");
                 if let Ok(a) = instance_address(&cx.mem, data, *array_of_pointers, r, k, &ctx) {
@@ -507,7 +598,11 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
     match p {
         P::FeatureEnabled(f) => {
             if !w.device.feature(f) {
-                push(out, "world.device.features", format!("`{f}` is not enabled"));
+                push(
+                    out,
+                    "world.device.features",
+                    format!("`{f}` is not enabled"),
+                );
             }
         }
         P::NotProtected => {
@@ -517,12 +612,20 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
         }
         P::PoolSupports(q) => {
             if !cb.pool_queue.intersects(*q) {
-                push(out, "commandBuffer", format!("its pool's queue family lacks {}", q.names().join(" or ")));
+                push(
+                    out,
+                    "commandBuffer",
+                    format!("its pool's queue family lacks {}", q.names().join(" or ")),
+                );
             }
         }
         P::Recording => {
             if cb.lifecycle != CommandBufferLifecycle::Recording {
-                push(out, "commandBuffer", format!("is in the {:?} state", cb.lifecycle));
+                push(
+                    out,
+                    "commandBuffer",
+                    format!("is in the {:?} state", cb.lifecycle),
+                );
             }
         }
         P::OutsideRenderPass => {
@@ -537,20 +640,32 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
         }
         P::NotBetweenSuspendedRenderPasses => {
             if w.between_suspended_render_passes {
-                push(out, "commandBuffer", "is between suspended render pass instances");
+                push(
+                    out,
+                    "commandBuffer",
+                    "is between suspended render pass instances",
+                );
             }
         }
         P::IndirectAddressMultipleOf(m) => {
             for (i, a) in call.indirect_addresses.iter().enumerate() {
                 if a.alignment_value() % m != 0 {
-                    push(out, format!("pIndirectDeviceAddresses[{i}]"), format!("offset {} is not a multiple of {m}", a.alignment_value()));
+                    push(
+                        out,
+                        format!("pIndirectDeviceAddresses[{i}]"),
+                        format!("offset {} is not a multiple of {m}", a.alignment_value()),
+                    );
                 }
             }
         }
         P::IndirectStrideMultipleOf(m) => {
             for (i, s) in call.indirect_strides.iter().enumerate() {
                 if *s as u64 % m != 0 {
-                    push(out, format!("pIndirectStrides[{i}]"), format!("{s} is not a multiple of {m}"));
+                    push(
+                        out,
+                        format!("pIndirectStrides[{i}]"),
+                        format!("{s} is not a multiple of {m}"),
+                    );
                 }
             }
         }
@@ -562,17 +677,27 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
         P::ModeValid => {
             for (i, info) in call.infos.iter().enumerate() {
                 if let BuildMode::Other(v) = info.mode {
-                    push(out, format!("pInfos[{i}].mode"), format!("{v} is not a VkBuildAccelerationStructureModeKHR value"));
+                    push(
+                        out,
+                        format!("pInfos[{i}].mode"),
+                        format!("{v} is not a VkBuildAccelerationStructureModeKHR value"),
+                    );
                 }
             }
         }
         P::DstValid => {
             for (i, info) in call.infos.iter().enumerate() {
                 match &info.dst {
-                    None => push(out, format!("pInfos[{i}].dstAccelerationStructure"), "is VK_NULL_HANDLE"),
-                    Some(n) if w.structure(n).is_none() => {
-                        push(out, format!("pInfos[{i}].dstAccelerationStructure"), format!("`{n}` is not a structure of the world"))
-                    }
+                    None => push(
+                        out,
+                        format!("pInfos[{i}].dstAccelerationStructure"),
+                        "is VK_NULL_HANDLE",
+                    ),
+                    Some(n) if w.structure(n).is_none() => push(
+                        out,
+                        format!("pInfos[{i}].dstAccelerationStructure"),
+                        format!("`{n}` is not a structure of the world"),
+                    ),
                     _ => {}
                 }
             }
@@ -581,7 +706,11 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
             for (i, info) in call.infos.iter().enumerate() {
                 if let Some(n) = &info.src {
                     if w.structure(n).is_none() {
-                        push(out, format!("pInfos[{i}].srcAccelerationStructure"), format!("`{n}` is not a structure of the world"));
+                        push(
+                            out,
+                            format!("pInfos[{i}].srcAccelerationStructure"),
+                            format!("`{n}` is not a structure of the world"),
+                        );
                     }
                 }
             }
@@ -589,7 +718,11 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
         P::SrcNotNullIfUpdate => {
             for (i, info) in call.infos.iter().enumerate() {
                 if is_update(info) && info.src.is_none() {
-                    push(out, format!("pInfos[{i}].srcAccelerationStructure"), "is VK_NULL_HANDLE in update mode");
+                    push(
+                        out,
+                        format!("pInfos[{i}].srcAccelerationStructure"),
+                        "is VK_NULL_HANDLE in update mode",
+                    );
                 }
             }
         }
@@ -597,7 +730,11 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
             for (i, a) in call.infos.iter().enumerate() {
                 for (j, b) in call.infos.iter().enumerate().skip(i + 1) {
                     if a.dst.is_some() && a.dst == b.dst {
-                        push(out, format!("pInfos[{j}].dstAccelerationStructure"), format!("is also the destination of pInfos[{i}]"));
+                        push(
+                            out,
+                            format!("pInfos[{j}].dstAccelerationStructure"),
+                            format!("is also the destination of pInfos[{i}]"),
+                        );
                     }
                 }
             }
@@ -606,7 +743,11 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
             for (i, a) in call.infos.iter().enumerate() {
                 for (j, b) in call.infos.iter().enumerate() {
                     if i != j && a.src.is_some() && a.src == b.dst {
-                        push(out, format!("pInfos[{i}].srcAccelerationStructure"), format!("is the destination of pInfos[{j}]"));
+                        push(
+                            out,
+                            format!("pInfos[{i}].srcAccelerationStructure"),
+                            format!("is the destination of pInfos[{j}]"),
+                        );
                     }
                 }
             }
@@ -617,7 +758,11 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
                 for j in (0..call.infos.len()).filter(|j| *j != i) {
                     for (ctx, n) in referenced_structures(cx, j) {
                         if &n == dst {
-                            push(out, ctx, format!("references `{dst}`, the destination of pInfos[{i}]"));
+                            push(
+                                out,
+                                ctx,
+                                format!("references `{dst}`, the destination of pInfos[{i}]"),
+                            );
                         }
                     }
                 }
@@ -627,10 +772,18 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
         P::Keep(k) => check_keep(*k, cx, out),
         P::InputUsage => {
             for (i, info) in call.infos.iter().enumerate() {
-                for f in [Field::Vertex, Field::Index, Field::Transform, Field::Aabbs, Field::Instances] {
+                for f in [
+                    Field::Vertex,
+                    Field::Index,
+                    Field::Transform,
+                    Field::Aabbs,
+                    Field::Instances,
+                ] {
                     for (ctx, a) in field_addresses(info, i, f) {
                         if let Some(b) = buffer_of(w, a) {
-                            if !b.usage.contains(BufferUsage::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR) {
+                            if !b.usage.contains(
+                                BufferUsage::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR,
+                            ) {
                                 push(out, ctx, format!("buffer `{}` lacks ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR", b.name));
                             }
                         }
@@ -642,7 +795,11 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
             for (i, a) in call.indirect_addresses.iter().enumerate() {
                 if let Some(b) = buffer_of(w, a) {
                     if not_contiguous(b) {
-                        push(out, format!("pIndirectDeviceAddresses[{i}]"), format!("buffer `{}` is not bound to one memory object", b.name));
+                        push(
+                            out,
+                            format!("pIndirectDeviceAddresses[{i}]"),
+                            format!("buffer `{}` is not bound to one memory object", b.name),
+                        );
                     }
                 }
             }
@@ -658,7 +815,14 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
                 match a.buffer() {
                     Some((name, off)) => match w.buffer(name) {
                         Some(b) if off.saturating_add(len) <= b.size => {}
-                        Some(b) => push(out, ctx, format!("[{off}, {off}+{len}) passes the end of `{}` ({} bytes)", b.name, b.size)),
+                        Some(b) => push(
+                            out,
+                            ctx,
+                            format!(
+                                "[{off}, {off}+{len}) passes the end of `{}` ({} bytes)",
+                                b.name, b.size
+                            ),
+                        ),
                         None => push(out, ctx, format!("no buffer `{name}` in the world")),
                     },
                     None => push(out, ctx, "the address lies in no buffer of the world"),
@@ -669,7 +833,11 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
             for (i, a) in call.indirect_addresses.iter().enumerate() {
                 if let Some(b) = buffer_of(w, a) {
                     if !b.usage.contains(BufferUsage::INDIRECT_BUFFER_BIT) {
-                        push(out, format!("pIndirectDeviceAddresses[{i}]"), format!("buffer `{}` lacks INDIRECT_BUFFER_BIT", b.name));
+                        push(
+                            out,
+                            format!("pIndirectDeviceAddresses[{i}]"),
+                            format!("buffer `{}` lacks INDIRECT_BUFFER_BIT", b.name),
+                        );
                     }
                 }
             }
@@ -677,9 +845,21 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
         P::RangeRecordsValid => check_range_records(cx, out),
         P::DstSizeEnough => {
             for (i, info) in call.infos.iter().enumerate() {
-                let (Some(s), Some(need)) = (info.dst.as_ref().and_then(|d| w.structure(d)), w.sizes.get(i)) else { continue };
+                let (Some(s), Some(need)) = (
+                    info.dst.as_ref().and_then(|d| w.structure(d)),
+                    w.sizes.get(i),
+                ) else {
+                    continue;
+                };
                 if s.size < need.structure {
-                    push(out, format!("pInfos[{i}].dstAccelerationStructure"), format!("`{}` has size {} < {} required", s.name, s.size, need.structure));
+                    push(
+                        out,
+                        format!("pInfos[{i}].dstAccelerationStructure"),
+                        format!(
+                            "`{}` has size {} < {} required",
+                            s.name, s.size, need.structure
+                        ),
+                    );
                 }
             }
         }
@@ -688,14 +868,27 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
                 if info.mode != *mode {
                     continue;
                 }
-                let Some(n) = scratch_size(cx, i) else { continue };
+                let Some(n) = scratch_size(cx, i) else {
+                    continue;
+                };
                 if n == 0 && *skip_zero {
                     continue;
                 }
                 let ctx = format!("pInfos[{i}].scratchData.deviceAddress");
-                match info.scratch.buffer().and_then(|(b, o)| Some((w.buffer(b)?, o))) {
+                match info
+                    .scratch
+                    .buffer()
+                    .and_then(|(b, o)| Some((w.buffer(b)?, o)))
+                {
                     Some((b, o)) if o.saturating_add(n) <= b.size => {}
-                    Some((b, o)) => push(out, ctx, format!("[{o}, {o}+{n}) passes the end of `{}` ({} bytes)", b.name, b.size)),
+                    Some((b, o)) => push(
+                        out,
+                        ctx,
+                        format!(
+                            "[{o}, {o}+{n}) passes the end of `{}` ({} bytes)",
+                            b.name, b.size
+                        ),
+                    ),
                     None if n == 0 => {}
                     None => push(out, ctx, "lies in no buffer of the world"),
                 }
@@ -710,7 +903,11 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
                 }
                 if let Some(b) = buffer_of(w, &info.scratch) {
                     if !b.usage.contains(BufferUsage::STORAGE_BUFFER_BIT) {
-                        push(out, format!("pInfos[{i}].scratchData.deviceAddress"), format!("buffer `{}` lacks STORAGE_BUFFER_BIT", b.name));
+                        push(
+                            out,
+                            format!("pInfos[{i}].scratchData.deviceAddress"),
+                            format!("buffer `{}` lacks STORAGE_BUFFER_BIT", b.name),
+                        );
                     }
                 } else if mode.is_some() {
                     if let Some(why) = invalid_address(w, &info.scratch) {
@@ -726,7 +923,11 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
                 }
                 if let Some(s) = info.dst.as_ref().and_then(|d| w.structure(d)) {
                     if s.ty != *t && s.ty != AsType::Generic {
-                        push(out, format!("pInfos[{i}].dstAccelerationStructure"), format!("`{}` was created as {:?}", s.name, s.ty));
+                        push(
+                            out,
+                            format!("pInfos[{i}].dstAccelerationStructure"),
+                            format!("`{}` was created as {:?}", s.name, s.ty),
+                        );
                     }
                 }
             }
@@ -738,9 +939,16 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
                     _ if is_update(info) => (info.src.as_ref(), "srcAccelerationStructure"),
                     _ => continue,
                 };
-                if let Some(b) = name.and_then(|n| w.structure(n)).and_then(|s| w.buffer(&s.buffer)) {
+                if let Some(b) = name
+                    .and_then(|n| w.structure(n))
+                    .and_then(|s| w.buffer(&s.buffer))
+                {
                     if b.memory == MemoryBinding::Unbound {
-                        push(out, format!("pInfos[{i}].{what}"), format!("its buffer `{}` is not bound to memory", b.name));
+                        push(
+                            out,
+                            format!("pInfos[{i}].{what}"),
+                            format!("its buffer `{}` is not bound to memory", b.name),
+                        );
                     }
                 }
             }
@@ -750,7 +958,14 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
                 for (ctx, n) in referenced_structures(cx, i) {
                     if let Some(b) = w.structure(&n).and_then(|s| w.buffer(&s.buffer)) {
                         if b.memory == MemoryBinding::Unbound {
-                            push(out, ctx, format!("references `{n}` whose buffer `{}` is not bound to memory", b.name));
+                            push(
+                                out,
+                                ctx,
+                                format!(
+                                    "references `{n}` whose buffer `{}` is not bound to memory",
+                                    b.name
+                                ),
+                            );
                         }
                     }
                 }
@@ -770,12 +985,29 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
                 for (j, g) in info.geometries.iter().enumerate() {
                     let a = match (&g.data, field) {
                         (GeometryData::Aabbs { data, .. }, Field::Aabbs) => data,
-                        (GeometryData::Instances { data, array_of_pointers }, Field::Instances) if (*m == 8) == *array_of_pointers => data,
-                        (GeometryData::Triangles { transform_data, .. }, Field::Transform) if !transform_data.is_null() => transform_data,
+                        (
+                            GeometryData::Instances {
+                                data,
+                                array_of_pointers,
+                            },
+                            Field::Instances,
+                        ) if (*m == 8) == *array_of_pointers => data,
+                        (GeometryData::Triangles { transform_data, .. }, Field::Transform)
+                            if !transform_data.is_null() =>
+                        {
+                            transform_data
+                        }
                         _ => continue,
                     };
                     if a.alignment_value() % m != 0 {
-                        push(out, format!("pInfos[{i}].pGeometries[{j}]"), format!("address offset {} is not aligned to {m}", a.alignment_value()));
+                        push(
+                            out,
+                            format!("pInfos[{i}].pGeometries[{j}]"),
+                            format!(
+                                "address offset {} is not aligned to {m}",
+                                a.alignment_value()
+                            ),
+                        );
                     }
                 }
             }
@@ -783,7 +1015,14 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
         P::VertexComponentAligned | P::IndexAligned => {
             for (i, info) in call.infos.iter().enumerate() {
                 for (j, g) in info.geometries.iter().enumerate() {
-                    if let GeometryData::Triangles { vertex_format, vertex_data, index_type, index_data, .. } = &g.data {
+                    if let GeometryData::Triangles {
+                        vertex_format,
+                        vertex_data,
+                        index_type,
+                        index_data,
+                        ..
+                    } = &g.data
+                    {
                         let (a, m, what) = if matches!(p, P::VertexComponentAligned) {
                             (vertex_data, vertex_format.component_size(), "vertexData")
                         } else if *index_type != IndexType::None {
@@ -792,7 +1031,11 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
                             continue;
                         };
                         if a.alignment_value() % m != 0 {
-                            push(out, format!("pInfos[{i}].pGeometries[{j}].geometry.triangles.{what}"), format!("offset {} is not aligned to {m}", a.alignment_value()));
+                            push(
+                                out,
+                                format!("pInfos[{i}].pGeometries[{j}].geometry.triangles.{what}"),
+                                format!("offset {} is not aligned to {m}", a.alignment_value()),
+                            );
                         }
                     }
                 }
@@ -802,12 +1045,23 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
             for (i, info) in call.infos.iter().enumerate() {
                 let Some(rs) = ranges(cx, i) else { continue };
                 for (j, (g, r)) in info.geometries.iter().zip(&rs).enumerate() {
-                    if let GeometryData::Instances { array_of_pointers: true, data } = &g.data {
+                    if let GeometryData::Instances {
+                        array_of_pointers: true,
+                        data,
+                    } = &g.data
+                    {
                         for k in 0..r.primitive_count.min(1 << 16) {
                             let ctx = format!("pInfos[{i}].pGeometries[{j}] pointer {k}");
                             if let Ok(a) = instance_address(&cx.mem, data, true, r, k, &ctx) {
                                 if a.alignment_value() % m != 0 {
-                                    push(out, ctx, format!("points at offset {} which is not aligned to {m}", a.alignment_value()));
+                                    push(
+                                        out,
+                                        ctx,
+                                        format!(
+                                            "points at offset {} which is not aligned to {m}",
+                                            a.alignment_value()
+                                        ),
+                                    );
                                 }
                             }
                         }
@@ -816,13 +1070,27 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
             }
         }
         P::MaxInstanceCount => {
-            let Some(m) = cx.profile.limit("VkPhysicalDeviceAccelerationStructurePropertiesKHR::maxInstanceCount") else { return };
+            let Some(m) = cx
+                .profile
+                .limit("VkPhysicalDeviceAccelerationStructurePropertiesKHR::maxInstanceCount")
+            else {
+                return;
+            };
             for (i, info) in call.infos.iter().enumerate() {
                 for (j, g) in info.geometries.iter().enumerate() {
                     if g.data.geometry_type() == GeometryType::Instances {
-                        let c = call.max_primitive_counts.get(i).and_then(|v| v.get(j)).copied().unwrap_or(0) as u64;
+                        let c = call
+                            .max_primitive_counts
+                            .get(i)
+                            .and_then(|v| v.get(j))
+                            .copied()
+                            .unwrap_or(0) as u64;
                         if c > m {
-                            push(out, format!("ppMaxPrimitiveCounts[{i}][{j}]"), format!("{c} is greater than maxInstanceCount ({m})"));
+                            push(
+                                out,
+                                format!("ppMaxPrimitiveCounts[{i}][{j}]"),
+                                format!("{c} is greater than maxInstanceCount ({m})"),
+                            );
                         }
                     }
                 }
@@ -852,7 +1120,11 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
                 for (n, (ctx, a)) in field_addresses(info, i, *field).into_iter().enumerate() {
                     let j = geometry_of(info, i, *field, n);
                     if field_index_type(info, j, *field) == Some(IndexType::None) && !a.is_null() {
-                        push(out, ctx, "is not 0 although the index type is VK_INDEX_TYPE_NONE_KHR");
+                        push(
+                            out,
+                            ctx,
+                            "is not 0 although the index type is VK_INDEX_TYPE_NONE_KHR",
+                        );
                     }
                 }
             }
@@ -862,7 +1134,11 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
                 for (ctx, a) in field_addresses(info, i, *field) {
                     if let Some(b) = buffer_of(w, a) {
                         if not_contiguous(b) {
-                            push(out, ctx, format!("buffer `{}` is not bound to one memory object", b.name));
+                            push(
+                                out,
+                                ctx,
+                                format!("buffer `{}` is not bound to one memory object", b.name),
+                            );
                         }
                     }
                 }
@@ -873,10 +1149,23 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
                 for (ctx, rec) in instances_of(cx, i) {
                     match &rec.reference {
                         InstanceReference::Null => {}
-                        InstanceReference::Raw(v) => push(out, ctx, format!("accelerationStructureReference {v:#x} is no structure's address")),
+                        InstanceReference::Raw(v) => push(
+                            out,
+                            ctx,
+                            format!(
+                                "accelerationStructureReference {v:#x} is no structure's address"
+                            ),
+                        ),
                         InstanceReference::Structure(n) => match w.structure(n) {
-                            None => push(out, ctx, format!("references `{n}`, not a structure of the world")),
-                            Some(s) if matches!(p, P::InstanceReferenceBottomLevel) && s.ty == AsType::TopLevel => {
+                            None => push(
+                                out,
+                                ctx,
+                                format!("references `{n}`, not a structure of the world"),
+                            ),
+                            Some(s)
+                                if matches!(p, P::InstanceReferenceBottomLevel)
+                                    && s.ty == AsType::TopLevel =>
+                            {
                                 push(out, ctx, format!("references `{n}`, a top-level structure"))
                             }
                             _ => {}
@@ -895,7 +1184,11 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
                         let allowed = w
                             .structure(n)
                             .and_then(|s| s.last_build.as_ref())
-                            .is_some_and(|b| b.flags.has(super::call::BuildFlags::ALLOW_DISABLE_OPACITY_MICROMAPS_EXT));
+                            .is_some_and(|b| {
+                                b.flags.has(
+                                    super::call::BuildFlags::ALLOW_DISABLE_OPACITY_MICROMAPS_EXT,
+                                )
+                            });
                         if !allowed {
                             push(out, ctx, format!("sets DISABLE_OPACITY_MICROMAPS but `{n}` was not built with ALLOW_DISABLE_OPACITY_MICROMAPS"));
                         }
@@ -907,9 +1200,21 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
             for i in 0..call.infos.len() {
                 let Some(rs) = ranges(cx, i) else { continue };
                 for (j, r) in rs.iter().enumerate() {
-                    let m = call.max_primitive_counts.get(i).and_then(|v| v.get(j)).copied().unwrap_or(0);
+                    let m = call
+                        .max_primitive_counts
+                        .get(i)
+                        .and_then(|v| v.get(j))
+                        .copied()
+                        .unwrap_or(0);
                     if r.primitive_count > m {
-                        push(out, format!("ppMaxPrimitiveCounts[{i}][{j}]"), format!("{m} is less than the primitiveCount {} in memory", r.primitive_count));
+                        push(
+                            out,
+                            format!("ppMaxPrimitiveCounts[{i}][{j}]"),
+                            format!(
+                                "{m} is less than the primitiveCount {} in memory",
+                                r.primitive_count
+                            ),
+                        );
                     }
                 }
             }
@@ -921,7 +1226,10 @@ fn check(p: &BuildPredicate, cx: &Cx, out: &mut Out) {
 fn geometry_of(info: &BuildGeometryInfo, i: usize, field: Field, n: usize) -> usize {
     let mut seen = 0;
     for j in 0..info.geometries.len() {
-        let one = BuildGeometryInfo { geometries: vec![info.geometries[j].clone()], ..info.clone() };
+        let one = BuildGeometryInfo {
+            geometries: vec![info.geometries[j].clone()],
+            ..info.clone()
+        };
         let k = field_addresses(&one, i, field).len();
         if n < seen + k {
             return j;
@@ -937,26 +1245,48 @@ fn check_overlap(kind: Overlap, cx: &Cx, out: &mut Out) {
         for (j, b) in infos.iter().enumerate() {
             let other = i != j;
             let (x, y, what) = match kind {
-                Overlap::DstSrcUpdateOther if other && is_update(b) => {
-                    (structure_span(cx, a.dst.as_ref()), structure_span(cx, b.src.as_ref()), "the source of update pInfos")
-                }
-                Overlap::DstDstOther if other && i < j => {
-                    (structure_span(cx, a.dst.as_ref()), structure_span(cx, b.dst.as_ref()), "the destination of pInfos")
-                }
-                Overlap::DstScratchAny => (structure_span(cx, a.dst.as_ref()), scratch_span(cx, j), "the scratch of pInfos"),
-                Overlap::ScratchScratchOther if other && i < j => (scratch_span(cx, i), scratch_span(cx, j), "the scratch of pInfos"),
-                Overlap::ScratchSrcUpdateAny if is_update(b) => {
-                    (scratch_span(cx, i), structure_span(cx, b.src.as_ref()), "the source of update pInfos")
-                }
-                Overlap::SrcDstUpdateSame if i == j && is_update(a) && a.src != a.dst => {
-                    (structure_span(cx, a.src.as_ref()), structure_span(cx, a.dst.as_ref()), "its own destination, pInfos")
-                }
+                Overlap::DstSrcUpdateOther if other && is_update(b) => (
+                    structure_span(cx, a.dst.as_ref()),
+                    structure_span(cx, b.src.as_ref()),
+                    "the source of update pInfos",
+                ),
+                Overlap::DstDstOther if other && i < j => (
+                    structure_span(cx, a.dst.as_ref()),
+                    structure_span(cx, b.dst.as_ref()),
+                    "the destination of pInfos",
+                ),
+                Overlap::DstScratchAny => (
+                    structure_span(cx, a.dst.as_ref()),
+                    scratch_span(cx, j),
+                    "the scratch of pInfos",
+                ),
+                Overlap::ScratchScratchOther if other && i < j => (
+                    scratch_span(cx, i),
+                    scratch_span(cx, j),
+                    "the scratch of pInfos",
+                ),
+                Overlap::ScratchSrcUpdateAny if is_update(b) => (
+                    scratch_span(cx, i),
+                    structure_span(cx, b.src.as_ref()),
+                    "the source of update pInfos",
+                ),
+                Overlap::SrcDstUpdateSame if i == j && is_update(a) && a.src != a.dst => (
+                    structure_span(cx, a.src.as_ref()),
+                    structure_span(cx, a.dst.as_ref()),
+                    "its own destination, pInfos",
+                ),
                 Overlap::DstInstancedOther if other => {
-                    let Some(x) = structure_span(cx, a.dst.as_ref()) else { continue };
+                    let Some(x) = structure_span(cx, a.dst.as_ref()) else {
+                        continue;
+                    };
                     for (ctx, n) in referenced_structures(cx, j) {
                         if let Some(y) = cx.world.backing(&n) {
                             if overlaps(x, y) && a.dst.as_deref() != Some(n.as_str()) {
-                                push(out, format!("pInfos[{i}].dstAccelerationStructure"), format!("overlaps `{n}`, referenced by {ctx}"));
+                                push(
+                                    out,
+                                    format!("pInfos[{i}].dstAccelerationStructure"),
+                                    format!("overlaps `{n}`, referenced by {ctx}"),
+                                );
                             }
                         }
                     }
@@ -967,11 +1297,22 @@ fn check_overlap(kind: Overlap, cx: &Cx, out: &mut Out) {
             if let (Some(x), Some(y)) = (x, y) {
                 if overlaps(x, y) {
                     let ctx = match kind {
-                        Overlap::ScratchScratchOther | Overlap::ScratchSrcUpdateAny => format!("pInfos[{i}].scratchData"),
-                        Overlap::SrcDstUpdateSame => format!("pInfos[{i}].srcAccelerationStructure"),
+                        Overlap::ScratchScratchOther | Overlap::ScratchSrcUpdateAny => {
+                            format!("pInfos[{i}].scratchData")
+                        }
+                        Overlap::SrcDstUpdateSame => {
+                            format!("pInfos[{i}].srcAccelerationStructure")
+                        }
                         _ => format!("pInfos[{i}].dstAccelerationStructure"),
                     };
-                    push(out, ctx, format!("[{}+{}, +{}) overlaps {what}[{j}] [{}+{}, +{})", x.0, x.1, x.2, y.0, y.1, y.2));
+                    push(
+                        out,
+                        ctx,
+                        format!(
+                            "[{}+{}, +{}) overlaps {what}[{j}] [{}+{}, +{})",
+                            x.0, x.1, x.2, y.0, y.1, y.2
+                        ),
+                    );
                 }
             }
         }
@@ -984,7 +1325,9 @@ fn check_keep(k: Keep, cx: &Cx, out: &mut Out) {
         if !is_update(info) {
             continue;
         }
-        let Some(src) = info.src.as_ref().and_then(|n| cx.world.structure(n)) else { continue };
+        let Some(src) = info.src.as_ref().and_then(|n| cx.world.structure(n)) else {
+            continue;
+        };
         let ctx = format!("pInfos[{i}]");
         let Some(last) = &src.last_build else {
             if k == Keep::AllowUpdateBuilt {
@@ -995,49 +1338,94 @@ fn check_keep(k: Keep, cx: &Cx, out: &mut Out) {
         match k {
             Keep::AllowUpdateBuilt => {
                 if !last.flags.has(BuildFlags::ALLOW_UPDATE) {
-                    push(out, ctx, format!("`{}` was not built with ALLOW_UPDATE", src.name));
+                    push(
+                        out,
+                        ctx,
+                        format!("`{}` was not built with ALLOW_UPDATE", src.name),
+                    );
                 }
                 continue;
             }
             Keep::GeometryCount => {
                 if last.geometries.len() != info.geometries.len() {
-                    push(out, format!("{ctx}.geometryCount"), format!("{} differs from the last build's {}", info.geometries.len(), last.geometries.len()));
+                    push(
+                        out,
+                        format!("{ctx}.geometryCount"),
+                        format!(
+                            "{} differs from the last build's {}",
+                            info.geometries.len(),
+                            last.geometries.len()
+                        ),
+                    );
                 }
                 continue;
             }
             Keep::StructureType => {
                 if last.ty != info.ty {
-                    push(out, format!("{ctx}.type"), format!("{:?} differs from the last build's {:?}", info.ty, last.ty));
+                    push(
+                        out,
+                        format!("{ctx}.type"),
+                        format!("{:?} differs from the last build's {:?}", info.ty, last.ty),
+                    );
                 }
                 continue;
             }
             Keep::Flags => {
                 if last.flags != info.flags {
-                    push(out, format!("{ctx}.flags"), format!("{:#x} differs from the last build's {:#x}", info.flags.0, last.flags.0));
+                    push(
+                        out,
+                        format!("{ctx}.flags"),
+                        format!(
+                            "{:#x} differs from the last build's {:#x}",
+                            info.flags.0, last.flags.0
+                        ),
+                    );
                 }
                 continue;
             }
             _ => {}
         }
         let rs = ranges(cx, i);
-        let now_prims = rs.as_ref().and_then(|r| build_primitives(&cx.mem, info, r).ok());
+        let now_prims = rs
+            .as_ref()
+            .and_then(|r| build_primitives(&cx.mem, info, r).ok());
         for (j, (g, l)) in info.geometries.iter().zip(&last.geometries).enumerate() {
             let gctx = format!("{ctx}.pGeometries[{j}]");
             let range = rs.as_ref().and_then(|r| r.get(j));
             let tri = match &g.data {
-                GeometryData::Triangles { vertex_format, max_vertex, index_type, transform_data, .. } => {
-                    Some((*vertex_format, *max_vertex, *index_type, !transform_data.is_null()))
-                }
+                GeometryData::Triangles {
+                    vertex_format,
+                    max_vertex,
+                    index_type,
+                    transform_data,
+                    ..
+                } => Some((
+                    *vertex_format,
+                    *max_vertex,
+                    *index_type,
+                    !transform_data.is_null(),
+                )),
                 _ => None,
             };
             let bad: Option<String> = match k {
-                Keep::GeometryType => (g.data.geometry_type() != l.geometry_type).then(|| "geometryType changed".into()),
+                Keep::GeometryType => (g.data.geometry_type() != l.geometry_type)
+                    .then(|| "geometryType changed".into()),
                 Keep::GeometryFlags => (g.flags != l.flags).then(|| "flags changed".into()),
-                Keep::VertexFormat => tri.filter(|t| Some(t.0) != l.vertex_format).map(|_| "vertexFormat changed".into()),
-                Keep::MaxVertex => tri.filter(|t| t.1 != l.max_vertex).map(|_| "maxVertex changed".into()),
-                Keep::IndexType => tri.filter(|t| Some(t.2) != l.index_type).map(|_| "indexType changed".into()),
-                Keep::TransformNull => tri.filter(|t| !l.has_transform && t.3).map(|_| "transformData was NULL and is not".into()),
-                Keep::TransformNotNull => tri.filter(|t| l.has_transform && !t.3).map(|_| "transformData was not NULL and is".into()),
+                Keep::VertexFormat => tri
+                    .filter(|t| Some(t.0) != l.vertex_format)
+                    .map(|_| "vertexFormat changed".into()),
+                Keep::MaxVertex => tri
+                    .filter(|t| t.1 != l.max_vertex)
+                    .map(|_| "maxVertex changed".into()),
+                Keep::IndexType => tri
+                    .filter(|t| Some(t.2) != l.index_type)
+                    .map(|_| "indexType changed".into()),
+                Keep::TransformNull => tri
+                    .filter(|t| !l.has_transform && t.3)
+                    .map(|_| "transformData was NULL and is not".into()),
+                Keep::TransformNotNull => tri
+                    .filter(|t| l.has_transform && !t.3)
+                    .map(|_| "transformData was not NULL and is".into()),
                 Keep::IndexValues => match (tri, range) {
                     (Some(t), Some(r)) if t.2 != IndexType::None => {
                         let now = range_indices(&cx.mem, &g.data, r, &gctx).unwrap_or_default();
@@ -1047,16 +1435,30 @@ fn check_keep(k: Keep, cx: &Cx, out: &mut Out) {
                 },
                 Keep::PrimitiveCount => range
                     .filter(|r| r.primitive_count != l.range.primitive_count)
-                    .map(|r| format!("primitiveCount {} differs from the last build's {}", r.primitive_count, l.range.primitive_count)),
+                    .map(|r| {
+                        format!(
+                            "primitiveCount {} differs from the last build's {}",
+                            r.primitive_count, l.range.primitive_count
+                        )
+                    }),
                 Keep::FirstVertex => match (tri, range) {
-                    (Some(t), Some(r)) if t.2 != IndexType::None && r.first_vertex != l.range.first_vertex => {
-                        Some(format!("firstVertex {} differs from the last build's {}", r.first_vertex, l.range.first_vertex))
+                    (Some(t), Some(r))
+                        if t.2 != IndexType::None && r.first_vertex != l.range.first_vertex =>
+                    {
+                        Some(format!(
+                            "firstVertex {} differs from the last build's {}",
+                            r.first_vertex, l.range.first_vertex
+                        ))
                     }
                     _ => None,
                 },
                 Keep::InactiveStayInactive | Keep::ActiveStayActive => {
                     let Some(prims) = &now_prims else { continue };
-                    let now: Vec<bool> = prims.iter().filter(|p| p.geometry == j as u32).map(|p| p.active).collect();
+                    let now: Vec<bool> = prims
+                        .iter()
+                        .filter(|p| p.geometry == j as u32)
+                        .map(|p| p.active)
+                        .collect();
                     let flip = now.iter().zip(&l.active).position(|(n, was)| {
                         if k == Keep::InactiveStayInactive {
                             *n && !*was
@@ -1064,7 +1466,21 @@ fn check_keep(k: Keep, cx: &Cx, out: &mut Out) {
                             !*n && *was
                         }
                     });
-                    flip.map(|p| format!("primitive {p} was {} and is now {}", if k == Keep::InactiveStayInactive { "inactive" } else { "active" }, if k == Keep::InactiveStayInactive { "active" } else { "inactive" }))
+                    flip.map(|p| {
+                        format!(
+                            "primitive {p} was {} and is now {}",
+                            if k == Keep::InactiveStayInactive {
+                                "inactive"
+                            } else {
+                                "active"
+                            },
+                            if k == Keep::InactiveStayInactive {
+                                "active"
+                            } else {
+                                "inactive"
+                            }
+                        )
+                    })
                 }
                 Keep::Dense(m) => match (&g.data, &l.dense) {
                     (GeometryData::DenseTrianglesAmdx(d), Some(ld)) => {
@@ -1076,11 +1492,15 @@ fn check_keep(k: Keep, cx: &Cx, out: &mut Out) {
                             4 => x.format as u64,
                             _ => x.data_size,
                         };
-                        (f(d) != f(ld)).then(|| "dense geometry member differs from the last build".into())
+                        (f(d) != f(ld))
+                            .then(|| "dense geometry member differs from the last build".into())
                     }
                     _ => None,
                 },
-                Keep::AllowUpdateBuilt | Keep::GeometryCount | Keep::Flags | Keep::StructureType => None,
+                Keep::AllowUpdateBuilt
+                | Keep::GeometryCount
+                | Keep::Flags
+                | Keep::StructureType => None,
             };
             if let Some(problem) = bad {
                 push(out, gctx, problem);
@@ -1095,26 +1515,48 @@ fn check_range_records(cx: &Cx, out: &mut Out) {
     for (i, info) in cx.call.infos.iter().enumerate() {
         for (j, g) in info.geometries.iter().enumerate() {
             let ctx = format!("range record {j} of pInfos[{i}]");
-            let Some(a) = cx.call.range_address(i, j) else { continue };
+            let Some(a) = cx.call.range_address(i, j) else {
+                continue;
+            };
             let Some(bytes) = cx.mem.read(&a, RangeInfo::SIZE) else {
                 push(out, ctx, "lies outside every buffer of the world");
                 continue;
             };
             let r = RangeInfo::from_bytes(bytes);
             let (what, m) = match &g.data {
-                GeometryData::Triangles { index_type: IndexType::None, vertex_format, .. } => ("primitiveOffset", vertex_format.component_size()),
-                GeometryData::Triangles { index_type, .. } => ("primitiveOffset", index_type.size()),
+                GeometryData::Triangles {
+                    index_type: IndexType::None,
+                    vertex_format,
+                    ..
+                } => ("primitiveOffset", vertex_format.component_size()),
+                GeometryData::Triangles { index_type, .. } => {
+                    ("primitiveOffset", index_type.size())
+                }
                 GeometryData::Aabbs { .. } => ("primitiveOffset", 8),
-                GeometryData::Instances { array_of_pointers: true, .. } => ("primitiveOffset", 8),
+                GeometryData::Instances {
+                    array_of_pointers: true,
+                    ..
+                } => ("primitiveOffset", 8),
                 GeometryData::Instances { .. } => ("primitiveOffset", 16),
                 _ => continue,
             };
             if r.primitive_offset as u64 % m != 0 {
-                push(out, ctx.clone(), format!("{what} {} is not a multiple of {m}", r.primitive_offset));
+                push(
+                    out,
+                    ctx.clone(),
+                    format!("{what} {} is not a multiple of {m}", r.primitive_offset),
+                );
             }
             if let GeometryData::Triangles { transform_data, .. } = &g.data {
                 if !transform_data.is_null() && r.transform_offset % 16 != 0 {
-                    push(out, ctx, format!("transformOffset {} is not a multiple of 16", r.transform_offset));
+                    push(
+                        out,
+                        ctx,
+                        format!(
+                            "transformOffset {} is not a multiple of 16",
+                            r.transform_offset
+                        ),
+                    );
                 }
             }
         }

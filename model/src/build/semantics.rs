@@ -16,7 +16,10 @@ use crate::call::Address;
 pub enum Shape {
     /// Three positions in the structure's space (transform applied).
     Triangle([[f32; 3]; 3]),
-    Aabb { min: [f32; 3], max: [f32; 3] },
+    Aabb {
+        min: [f32; 3],
+        max: [f32; 3],
+    },
     Instance(InstanceRecord),
 }
 
@@ -40,24 +43,45 @@ pub struct ReadError {
 }
 
 fn err(context: String, problem: &str) -> ReadError {
-    ReadError { context, problem: problem.into() }
+    ReadError {
+        context,
+        problem: problem.into(),
+    }
 }
 
 /// The range records of info `i` of an indirect call, read from memory.
-pub fn indirect_ranges(mem: &Memory, call: &BuildIndirect, i: usize) -> Result<Vec<RangeInfo>, ReadError> {
+pub fn indirect_ranges(
+    mem: &Memory,
+    call: &BuildIndirect,
+    i: usize,
+) -> Result<Vec<RangeInfo>, ReadError> {
     let n = call.infos.get(i).map_or(0, |g| g.geometries.len());
     (0..n)
         .map(|j| {
-            let a = call.range_address(i, j).ok_or_else(|| err(format!("pIndirectDeviceAddresses[{i}]"), "missing"))?;
+            let a = call
+                .range_address(i, j)
+                .ok_or_else(|| err(format!("pIndirectDeviceAddresses[{i}]"), "missing"))?;
             mem.read(&a, RangeInfo::SIZE)
                 .map(RangeInfo::from_bytes)
-                .ok_or_else(|| err(format!("range record {j} of pInfos[{i}]"), "lies outside every buffer of the world"))
+                .ok_or_else(|| {
+                    err(
+                        format!("range record {j} of pInfos[{i}]"),
+                        "lies outside every buffer of the world",
+                    )
+                })
         })
         .collect()
 }
 
-fn read_vertex(mem: &Memory, fmt: VertexFormat, a: &Address, ctx: &str) -> Result<[f32; 3], ReadError> {
-    let bytes = mem.read(a, fmt.size()).ok_or_else(|| err(ctx.into(), "vertex lies outside every buffer"))?;
+fn read_vertex(
+    mem: &Memory,
+    fmt: VertexFormat,
+    a: &Address,
+    ctx: &str,
+) -> Result<[f32; 3], ReadError> {
+    let bytes = mem
+        .read(a, fmt.size())
+        .ok_or_else(|| err(ctx.into(), "vertex lies outside every buffer"))?;
     let mut v = [0.0f32; 3];
     for (c, out) in v.iter_mut().enumerate().take(fmt.components()) {
         *out = match fmt.component_size() {
@@ -69,7 +93,9 @@ fn read_vertex(mem: &Memory, fmt: VertexFormat, a: &Address, ctx: &str) -> Resul
 }
 
 fn read_index(mem: &Memory, ty: IndexType, a: &Address, ctx: &str) -> Result<u32, ReadError> {
-    let b = mem.read(a, ty.size()).ok_or_else(|| err(ctx.into(), "index lies outside every buffer"))?;
+    let b = mem
+        .read(a, ty.size())
+        .ok_or_else(|| err(ctx.into(), "index lies outside every buffer"))?;
     Ok(match ty {
         IndexType::Uint8 => b[0] as u32,
         IndexType::Uint16 => u16::from_le_bytes([b[0], b[1]]) as u32,
@@ -86,7 +112,9 @@ pub fn transform_point(m: &[f32; 12], p: [f32; 3]) -> [f32; 3] {
 
 /// Reads one instance record.
 pub fn read_instance(mem: &Memory, a: &Address, ctx: &str) -> Result<InstanceRecord, ReadError> {
-    let b = mem.read(a, 64).ok_or_else(|| err(ctx.into(), "instance record lies outside every buffer"))?;
+    let b = mem
+        .read(a, 64)
+        .ok_or_else(|| err(ctx.into(), "instance record lies outside every buffer"))?;
     let w = |i: usize| u32::from_le_bytes(b[i..i + 4].try_into().expect("4 bytes"));
     let mut transform = [0.0f32; 12];
     for (k, t) in transform.iter_mut().enumerate() {
@@ -116,15 +144,28 @@ pub fn instance_address(
     let base = offset(data, range.primitive_offset as u64);
     if array_of_pointers {
         let p = offset(&base, 8 * k as u64);
-        mem.pointer_at(&p).ok_or_else(|| err(ctx.into(), "instance pointer lies outside every buffer"))
+        mem.pointer_at(&p)
+            .ok_or_else(|| err(ctx.into(), "instance pointer lies outside every buffer"))
     } else {
         Ok(offset(&base, 64 * k as u64))
     }
 }
 
 /// The index values a triangle range reads (empty when not indexed).
-pub fn range_indices(mem: &Memory, data: &GeometryData, range: &RangeInfo, ctx: &str) -> Result<Vec<u32>, ReadError> {
-    let GeometryData::Triangles { index_type, index_data, .. } = data else { return Ok(vec![]) };
+pub fn range_indices(
+    mem: &Memory,
+    data: &GeometryData,
+    range: &RangeInfo,
+    ctx: &str,
+) -> Result<Vec<u32>, ReadError> {
+    let GeometryData::Triangles {
+        index_type,
+        index_data,
+        ..
+    } = data
+    else {
+        return Ok(vec![]);
+    };
     if *index_type == IndexType::None {
         return Ok(vec![]);
     }
@@ -135,19 +176,32 @@ pub fn range_indices(mem: &Memory, data: &GeometryData, range: &RangeInfo, ctx: 
 }
 
 /// The primitives one build info builds from its ranges (one per geometry, in geometry order).
-pub fn build_primitives(mem: &Memory, info: &BuildGeometryInfo, ranges: &[RangeInfo]) -> Result<Vec<BuiltPrimitive>, ReadError> {
+pub fn build_primitives(
+    mem: &Memory,
+    info: &BuildGeometryInfo,
+    ranges: &[RangeInfo],
+) -> Result<Vec<BuiltPrimitive>, ReadError> {
     let mut out = Vec::new();
     for (g, (geom, range)) in info.geometries.iter().zip(ranges).enumerate() {
         let ctx = format!("pGeometries[{g}]");
         match &geom.data {
-            GeometryData::Triangles { vertex_format, vertex_data, vertex_stride, index_type, transform_data, .. } => {
+            GeometryData::Triangles {
+                vertex_format,
+                vertex_data,
+                vertex_stride,
+                index_type,
+                transform_data,
+                ..
+            } => {
                 let transform = if transform_data.is_null() {
                     None
                 } else {
                     let a = offset(transform_data, range.transform_offset as u64);
                     let mut m = [0.0f32; 12];
                     for (k, v) in m.iter_mut().enumerate() {
-                        *v = mem.f32_at(&offset(&a, 4 * k as u64)).ok_or_else(|| err(ctx.clone(), "transform lies outside every buffer"))?;
+                        *v = mem.f32_at(&offset(&a, 4 * k as u64)).ok_or_else(|| {
+                            err(ctx.clone(), "transform lies outside every buffer")
+                        })?;
                     }
                     Some(m)
                 };
@@ -158,7 +212,10 @@ pub fn build_primitives(mem: &Memory, info: &BuildGeometryInfo, ranges: &[RangeI
                     for (k, v) in tri.iter_mut().enumerate() {
                         let a = if *index_type == IndexType::None {
                             let n = range.first_vertex as u64 + 3 * p as u64 + k as u64;
-                            offset(vertex_data, range.primitive_offset as u64 + n * vertex_stride)
+                            offset(
+                                vertex_data,
+                                range.primitive_offset as u64 + n * vertex_stride,
+                            )
                         } else {
                             let n = indices[3 * p as usize + k] as u64 + range.first_vertex as u64;
                             offset(vertex_data, n * vertex_stride)
@@ -167,7 +224,12 @@ pub fn build_primitives(mem: &Memory, info: &BuildGeometryInfo, ranges: &[RangeI
                         active &= !raw[0].is_nan();
                         *v = transform.as_ref().map_or(raw, |m| transform_point(m, raw));
                     }
-                    out.push(BuiltPrimitive { geometry: g as u32, primitive: p, active, shape: Shape::Triangle(tri) });
+                    out.push(BuiltPrimitive {
+                        geometry: g as u32,
+                        primitive: p,
+                        active,
+                        shape: Shape::Triangle(tri),
+                    });
                 }
             }
             GeometryData::Aabbs { data, stride } => {
@@ -175,22 +237,35 @@ pub fn build_primitives(mem: &Memory, info: &BuildGeometryInfo, ranges: &[RangeI
                     let a = offset(data, range.primitive_offset as u64 + p as u64 * stride);
                     let mut f = [0.0f32; 6];
                     for (k, v) in f.iter_mut().enumerate() {
-                        *v = mem.f32_at(&offset(&a, 4 * k as u64)).ok_or_else(|| err(ctx.clone(), "AABB lies outside every buffer"))?;
+                        *v = mem
+                            .f32_at(&offset(&a, 4 * k as u64))
+                            .ok_or_else(|| err(ctx.clone(), "AABB lies outside every buffer"))?;
                     }
                     out.push(BuiltPrimitive {
                         geometry: g as u32,
                         primitive: p,
                         active: !f[0].is_nan(),
-                        shape: Shape::Aabb { min: [f[0], f[1], f[2]], max: [f[3], f[4], f[5]] },
+                        shape: Shape::Aabb {
+                            min: [f[0], f[1], f[2]],
+                            max: [f[3], f[4], f[5]],
+                        },
                     });
                 }
             }
-            GeometryData::Instances { array_of_pointers, data } => {
+            GeometryData::Instances {
+                array_of_pointers,
+                data,
+            } => {
                 for p in 0..range.primitive_count {
                     let a = instance_address(mem, data, *array_of_pointers, range, p, &ctx)?;
                     let rec = read_instance(mem, &a, &ctx)?;
                     let active = rec.reference != super::world::InstanceReference::Null;
-                    out.push(BuiltPrimitive { geometry: g as u32, primitive: p, active, shape: Shape::Instance(rec) });
+                    out.push(BuiltPrimitive {
+                        geometry: g as u32,
+                        primitive: p,
+                        active,
+                        shape: Shape::Instance(rec),
+                    });
                 }
             }
             _ => return Err(err(ctx, "the model gives no meaning to this geometry type")),
@@ -200,7 +275,10 @@ pub fn build_primitives(mem: &Memory, info: &BuildGeometryInfo, ranges: &[RangeI
 }
 
 /// The primitives each info of an indirect call builds, read through its range records.
-pub fn indirect_build(world: &BuildWorld, call: &BuildIndirect) -> Result<Vec<Vec<BuiltPrimitive>>, ReadError> {
+pub fn indirect_build(
+    world: &BuildWorld,
+    call: &BuildIndirect,
+) -> Result<Vec<Vec<BuiltPrimitive>>, ReadError> {
     let mem = world.memory();
     (0..call.infos.len())
         .map(|i| {
@@ -211,7 +289,15 @@ pub fn indirect_build(world: &BuildWorld, call: &BuildIndirect) -> Result<Vec<Ve
 }
 
 /// The primitives a direct build (`vkCmdBuildAccelerationStructuresKHR`) with these ranges builds.
-pub fn direct_build(world: &BuildWorld, infos: &[BuildGeometryInfo], ranges: &[Vec<RangeInfo>]) -> Result<Vec<Vec<BuiltPrimitive>>, ReadError> {
+pub fn direct_build(
+    world: &BuildWorld,
+    infos: &[BuildGeometryInfo],
+    ranges: &[Vec<RangeInfo>],
+) -> Result<Vec<Vec<BuiltPrimitive>>, ReadError> {
     let mem = world.memory();
-    infos.iter().zip(ranges).map(|(info, r)| build_primitives(&mem, info, r)).collect()
+    infos
+        .iter()
+        .zip(ranges)
+        .map(|(info, r)| build_primitives(&mem, info, r))
+        .collect()
 }

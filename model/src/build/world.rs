@@ -38,14 +38,27 @@ impl RangeInfo {
     pub const SIZE: u64 = 16;
     pub fn to_bytes(self) -> [u8; 16] {
         let mut b = [0u8; 16];
-        for (i, v) in [self.primitive_count, self.primitive_offset, self.first_vertex, self.transform_offset].iter().enumerate() {
+        for (i, v) in [
+            self.primitive_count,
+            self.primitive_offset,
+            self.first_vertex,
+            self.transform_offset,
+        ]
+        .iter()
+        .enumerate()
+        {
             b[i * 4..i * 4 + 4].copy_from_slice(&v.to_le_bytes());
         }
         b
     }
     pub fn from_bytes(b: &[u8]) -> RangeInfo {
         let w = |i: usize| u32::from_le_bytes([b[i * 4], b[i * 4 + 1], b[i * 4 + 2], b[i * 4 + 3]]);
-        RangeInfo { primitive_count: w(0), primitive_offset: w(1), first_vertex: w(2), transform_offset: w(3) }
+        RangeInfo {
+            primitive_count: w(0),
+            primitive_offset: w(1),
+            first_vertex: w(2),
+            transform_offset: w(3),
+        }
     }
 }
 
@@ -95,7 +108,11 @@ pub const INSTANCE_DISABLE_OPACITY_MICROMAPS: u8 = 0x20;
 #[serde(rename_all = "kebab-case", deny_unknown_fields)]
 pub enum BuildContents {
     /// Range records, record `j` at `offset + j * stride`.
-    Ranges { offset: u64, stride: u64, ranges: Vec<RangeInfo> },
+    Ranges {
+        offset: u64,
+        stride: u64,
+        ranges: Vec<RangeInfo>,
+    },
     /// 32-bit floats, tightly packed (vertices, AABBs, transforms); NaN is written as a quiet NaN.
     Floats { offset: u64, values: Vec<f32> },
     /// 16-bit floats (as IEEE half bit patterns computed from the values).
@@ -107,7 +124,10 @@ pub enum BuildContents {
     /// 8-bit unsigned integers (indices).
     U8s { offset: u64, values: Vec<u8> },
     /// Instance records, tightly packed (64 bytes each).
-    Instances { offset: u64, instances: Vec<InstanceRecord> },
+    Instances {
+        offset: u64,
+        instances: Vec<InstanceRecord>,
+    },
     /// Device addresses (8 bytes each), tightly packed: the array of an arrayOfPointers instance geometry.
     Pointers { offset: u64, targets: Vec<Address> },
 }
@@ -129,7 +149,8 @@ pub struct BuildBuffer {
 
 impl BuildBuffer {
     pub fn is_sparse(&self) -> bool {
-        self.flags.intersects(BufferCreate::SPARSE_BINDING_BIT | BufferCreate::SPARSE_RESIDENCY_BIT)
+        self.flags
+            .intersects(BufferCreate::SPARSE_BINDING_BIT | BufferCreate::SPARSE_RESIDENCY_BIT)
     }
 }
 
@@ -236,10 +257,18 @@ const STRUCTURE_BASE: u64 = 1 << 60;
 
 impl AddressResolver for SyntheticAddresses<'_> {
     fn buffer(&self, name: &str) -> Option<u64> {
-        self.0.buffers.iter().position(|b| b.name == name).map(|k| (k as u64 + 1) * BUFFER_SPACING)
+        self.0
+            .buffers
+            .iter()
+            .position(|b| b.name == name)
+            .map(|k| (k as u64 + 1) * BUFFER_SPACING)
     }
     fn structure(&self, name: &str) -> Option<u64> {
-        self.0.structures.iter().position(|s| s.name == name).map(|s| STRUCTURE_BASE + (s as u64) * BUFFER_SPACING)
+        self.0
+            .structures
+            .iter()
+            .position(|s| s.name == name)
+            .map(|s| STRUCTURE_BASE + (s as u64) * BUFFER_SPACING)
     }
 }
 
@@ -249,7 +278,10 @@ impl SyntheticAddresses<'_> {
         if v != 0 && v < STRUCTURE_BASE {
             let k = (v / BUFFER_SPACING) as usize;
             if k >= 1 && k <= self.0.buffers.len() {
-                return Address::InBuffer { buffer: self.0.buffers[k - 1].name.clone(), offset: v % BUFFER_SPACING };
+                return Address::InBuffer {
+                    buffer: self.0.buffers[k - 1].name.clone(),
+                    offset: v % BUFFER_SPACING,
+                };
             }
         }
         Address::Raw(v)
@@ -260,7 +292,11 @@ impl SyntheticAddresses<'_> {
             return InstanceReference::Null;
         }
         if v >= STRUCTURE_BASE && (v - STRUCTURE_BASE) % BUFFER_SPACING == 0 {
-            if let Some(s) = self.0.structures.get(((v - STRUCTURE_BASE) / BUFFER_SPACING) as usize) {
+            if let Some(s) = self
+                .0
+                .structures
+                .get(((v - STRUCTURE_BASE) / BUFFER_SPACING) as usize)
+            {
                 return InstanceReference::Structure(s.name.clone());
             }
         }
@@ -337,7 +373,11 @@ impl BuildWorld {
         };
         for c in &b.contents {
             match c {
-                BuildContents::Ranges { offset, stride, ranges } => {
+                BuildContents::Ranges {
+                    offset,
+                    stride,
+                    ranges,
+                } => {
                     for (j, r) in ranges.iter().enumerate() {
                         put(offset + j as u64 * stride, &r.to_bytes());
                     }
@@ -347,15 +387,26 @@ impl BuildWorld {
                     put(*offset, &d);
                 }
                 BuildContents::Halves { offset, values } => {
-                    let d: Vec<u8> = values.iter().flat_map(|v| f32_to_half(*v).to_le_bytes()).collect();
+                    let d: Vec<u8> = values
+                        .iter()
+                        .flat_map(|v| f32_to_half(*v).to_le_bytes())
+                        .collect();
                     put(*offset, &d);
                 }
-                BuildContents::U32s { offset, values } => {
-                    put(*offset, &values.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>())
-                }
-                BuildContents::U16s { offset, values } => {
-                    put(*offset, &values.iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>())
-                }
+                BuildContents::U32s { offset, values } => put(
+                    *offset,
+                    &values
+                        .iter()
+                        .flat_map(|v| v.to_le_bytes())
+                        .collect::<Vec<u8>>(),
+                ),
+                BuildContents::U16s { offset, values } => put(
+                    *offset,
+                    &values
+                        .iter()
+                        .flat_map(|v| v.to_le_bytes())
+                        .collect::<Vec<u8>>(),
+                ),
                 BuildContents::U8s { offset, values } => put(*offset, values),
                 BuildContents::Instances { offset, instances } => {
                     for (k, inst) in instances.iter().enumerate() {
@@ -363,7 +414,10 @@ impl BuildWorld {
                     }
                 }
                 BuildContents::Pointers { offset, targets } => {
-                    let d: Vec<u8> = targets.iter().flat_map(|a| resolve.address(a).to_le_bytes()).collect();
+                    let d: Vec<u8> = targets
+                        .iter()
+                        .flat_map(|a| resolve.address(a).to_le_bytes())
+                        .collect();
                     put(*offset, &d);
                 }
             }
@@ -374,8 +428,15 @@ impl BuildWorld {
     /// The model's memory image of every buffer, with synthetic addresses.
     pub fn memory(&self) -> Memory<'_> {
         let r = SyntheticAddresses(self);
-        let images = self.buffers.iter().map(|b| self.image(&b.name, &r).unwrap_or_default()).collect();
-        Memory { world: self, images }
+        let images = self
+            .buffers
+            .iter()
+            .map(|b| self.image(&b.name, &r).unwrap_or_default())
+            .collect();
+        Memory {
+            world: self,
+            images,
+        }
     }
 
     /// The buffer range `[offset, offset + size)` that backs a structure.
@@ -424,10 +485,12 @@ impl Memory<'_> {
     }
 
     pub fn u32_at(&self, a: &Address) -> Option<u32> {
-        self.read(a, 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        self.read(a, 4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
     }
     pub fn u64_at(&self, a: &Address) -> Option<u64> {
-        self.read(a, 8).map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")))
+        self.read(a, 8)
+            .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")))
     }
     pub fn f32_at(&self, a: &Address) -> Option<f32> {
         self.u32_at(a).map(f32::from_bits)
@@ -435,7 +498,8 @@ impl Memory<'_> {
 
     /// The symbolic form of an 8-byte pointer read from memory.
     pub fn pointer_at(&self, a: &Address) -> Option<Address> {
-        self.u64_at(a).map(|v| SyntheticAddresses(self.world).decode(v))
+        self.u64_at(a)
+            .map(|v| SyntheticAddresses(self.world).decode(v))
     }
 
     pub fn decode_structure(&self, v: u64) -> InstanceReference {
@@ -447,11 +511,13 @@ impl Memory<'_> {
 pub fn offset(a: &Address, delta: u64) -> Address {
     match a {
         Address::Raw(v) => Address::Raw(v.wrapping_add(delta)),
-        Address::InBuffer { buffer, offset } => Address::InBuffer { buffer: buffer.clone(), offset: offset + delta },
+        Address::InBuffer { buffer, offset } => Address::InBuffer {
+            buffer: buffer.clone(),
+            offset: offset + delta,
+        },
     }
 }
 
 fn is_default<T: Default + PartialEq>(v: &T) -> bool {
     *v == T::default()
 }
-

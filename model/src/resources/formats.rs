@@ -29,7 +29,18 @@ pub fn info(format: &str) -> Option<FormatInfo> {
     let name = format.strip_prefix("VK_FORMAT_").unwrap_or(format);
     let parts: Vec<&str> = name.split('_').collect();
     let numeric_at = parts.iter().position(|p| {
-        matches!(*p, "UNORM" | "SNORM" | "USCALED" | "SSCALED" | "UINT" | "SINT" | "UFLOAT" | "SFLOAT" | "SRGB")
+        matches!(
+            *p,
+            "UNORM"
+                | "SNORM"
+                | "USCALED"
+                | "SSCALED"
+                | "UINT"
+                | "SINT"
+                | "UFLOAT"
+                | "SFLOAT"
+                | "SRGB"
+        )
     })?;
     let numeric = match parts[numeric_at] {
         "UINT" => Numeric::Uint,
@@ -60,7 +71,12 @@ pub fn info(format: &str) -> Option<FormatInfo> {
             }
         }
     }
-    (components > 0).then_some(FormatInfo { numeric, components, width, depth })
+    (components > 0).then_some(FormatInfo {
+        numeric,
+        components,
+        width,
+        depth,
+    })
 }
 
 /// Where the features of a format are looked up.
@@ -83,7 +99,10 @@ pub fn features(profile: &DeviceProfile, format: &str, usage: Usage) -> Option<B
     let mut set: BTreeSet<String> = raw
         .iter()
         .map(|n| {
-            let n = n.strip_prefix("VK_FORMAT_FEATURE_2_").or_else(|| n.strip_prefix("VK_FORMAT_FEATURE_")).unwrap_or(n);
+            let n = n
+                .strip_prefix("VK_FORMAT_FEATURE_2_")
+                .or_else(|| n.strip_prefix("VK_FORMAT_FEATURE_"))
+                .unwrap_or(n);
             n.to_string()
         })
         .collect();

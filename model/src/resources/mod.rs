@@ -18,7 +18,9 @@ pub mod rules;
 pub use rules::{rule_for, Entry, ResourceRule};
 
 /// A shader stage of a ray tracing pipeline.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
 #[serde(rename_all = "kebab-case")]
 pub enum Stage {
     Raygen,
@@ -370,8 +372,12 @@ pub enum Descriptor {
         #[serde(default)]
         layout: ImageLayout,
     },
-    Sampler { sampler: String },
-    TexelBuffer { view: String },
+    Sampler {
+        sampler: String,
+    },
+    TexelBuffer {
+        view: String,
+    },
     /// `range: None` is `VK_WHOLE_SIZE`.
     Buffer {
         buffer: String,
@@ -380,7 +386,9 @@ pub enum Descriptor {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         range: Option<u64>,
     },
-    Tensor { view: String },
+    Tensor {
+        view: String,
+    },
 }
 
 /// One written array element of a descriptor set.
@@ -405,7 +413,11 @@ pub struct DescriptorSet {
 
 impl DescriptorSet {
     pub fn written(&self, binding: u32, element: u32) -> Option<&Descriptor> {
-        self.writes.iter().rev().find(|w| w.binding == binding && w.element == element).map(|w| &w.descriptor)
+        self.writes
+            .iter()
+            .rev()
+            .find(|w| w.binding == binding && w.element == element)
+            .map(|w| &w.descriptor)
     }
 }
 
@@ -464,12 +476,19 @@ impl Op {
     pub fn is_qcom_processing(self) -> bool {
         matches!(
             self,
-            Op::WeightedSampleQcom | Op::BoxFilterQcom | Op::BlockMatchSsdQcom | Op::BlockMatchSadQcom | Op::BlockMatchWindowQcom
+            Op::WeightedSampleQcom
+                | Op::BoxFilterQcom
+                | Op::BlockMatchSsdQcom
+                | Op::BlockMatchSadQcom
+                | Op::BlockMatchWindowQcom
         )
     }
     /// Whether the access samples through a sampler (filtering rules apply).
     pub fn samples(self) -> bool {
-        matches!(self, Op::Sample | Op::WeightedSampleQcom | Op::BoxFilterQcom)
+        matches!(
+            self,
+            Op::Sample | Op::WeightedSampleQcom | Op::BoxFilterQcom
+        )
     }
 }
 
@@ -488,7 +507,13 @@ pub struct ImageType {
 
 impl Default for ImageType {
     fn default() -> Self {
-        ImageType { dim: Dim::TwoD, arrayed: false, sampled_type: Numeric::Float, width: 32, format_unknown: false }
+        ImageType {
+            dim: Dim::TwoD,
+            arrayed: false,
+            sampled_type: Numeric::Float,
+            width: 32,
+            format_unknown: false,
+        }
     }
 }
 
@@ -667,15 +692,18 @@ impl ResourceState {
     /// sets 0 through `n` (compared by definition, not by name) and identical push constant ranges
     /// (the specification's "Pipeline Layout Compatibility").
     pub fn compatible_for_set(&self, a: &str, b: &str, n: u32) -> bool {
-        let (Some(a), Some(b)) = (self.pipeline_layout_named(a), self.pipeline_layout_named(b)) else { return false };
+        let (Some(a), Some(b)) = (self.pipeline_layout_named(a), self.pipeline_layout_named(b))
+        else {
+            return false;
+        };
         a.push_ranges == b.push_ranges
             && (0..=n as usize).all(|i| match (a.sets.get(i), b.sets.get(i)) {
-            (Some(x), Some(y)) => match (self.set_layout(x), self.set_layout(y)) {
-                (Some(x), Some(y)) => x.bindings == y.bindings,
+                (Some(x), Some(y)) => match (self.set_layout(x), self.set_layout(y)) {
+                    (Some(x), Some(y)) => x.bindings == y.bindings,
+                    _ => false,
+                },
                 _ => false,
-            },
-            _ => false,
-        })
+            })
     }
 
     /// Whether two pipeline layouts are compatible for push constants: identical push constant ranges.
@@ -691,7 +719,11 @@ impl ResourceState {
         let mut v: Vec<u32> = self
             .stages
             .iter()
-            .flat_map(|s| s.accesses.iter().flat_map(|a| std::iter::once(a.set).chain(a.sampler_at.map(|x| x[0]))))
+            .flat_map(|s| {
+                s.accesses
+                    .iter()
+                    .flat_map(|a| std::iter::once(a.set).chain(a.sampler_at.map(|x| x[0])))
+            })
             .collect();
         v.sort();
         v.dedup();
@@ -721,11 +753,29 @@ mod tests {
 
     #[test]
     fn compatibility_for_a_set_needs_the_same_push_constant_ranges() {
-        let sl = SetLayout { name: "s".into(), bindings: vec![LayoutBinding { binding: 0, ty: DescriptorType::UniformBuffer, count: 1 }] };
-        let pl = |name: &str, size| PipelineLayout { name: name.into(), sets: vec!["s".into()], push_ranges: vec![PushRange { offset: 0, size }] };
-        let rs = ResourceState { set_layouts: vec![sl], pipeline_layouts: vec![pl("a", 16), pl("b", 16), pl("c", 32)], ..Default::default() };
+        let sl = SetLayout {
+            name: "s".into(),
+            bindings: vec![LayoutBinding {
+                binding: 0,
+                ty: DescriptorType::UniformBuffer,
+                count: 1,
+            }],
+        };
+        let pl = |name: &str, size| PipelineLayout {
+            name: name.into(),
+            sets: vec!["s".into()],
+            push_ranges: vec![PushRange { offset: 0, size }],
+        };
+        let rs = ResourceState {
+            set_layouts: vec![sl],
+            pipeline_layouts: vec![pl("a", 16), pl("b", 16), pl("c", 32)],
+            ..Default::default()
+        };
         assert!(rs.compatible_for_set("a", "b", 0));
         assert!(!rs.compatible_for_set("a", "c", 0));
-        assert!(!rs.compatible_for_set("a", "b", 1), "set 1 is in neither layout");
+        assert!(
+            !rs.compatible_for_set("a", "b", 1),
+            "set 1 is in neither layout"
+        );
     }
 }

@@ -16,13 +16,22 @@ use predicate::{NullHitKind, Predicate};
 use vk_registry::vuid::{Condition, VuidRecord, VuidSet};
 
 /// The commands this model judges, and the structures whose VUIDs apply to their parameters.
-pub const TRACE_COMMANDS: &[&str] = &["vkCmdTraceRaysIndirectKHR", "vkCmdTraceRaysNV", "vkCmdTraceRaysKHR"];
-pub const TRACE_STRUCTURES: &[&str] = &["VkStridedDeviceAddressRegionKHR", "VkTraceRaysIndirectCommandKHR"];
+pub const TRACE_COMMANDS: &[&str] = &[
+    "vkCmdTraceRaysIndirectKHR",
+    "vkCmdTraceRaysNV",
+    "vkCmdTraceRaysKHR",
+];
+pub const TRACE_STRUCTURES: &[&str] = &[
+    "VkStridedDeviceAddressRegionKHR",
+    "VkTraceRaysIndirectCommandKHR",
+];
 pub const BUILD_COMMANDS: &[&str] = &["vkCmdBuildAccelerationStructuresIndirectKHR"];
 
 /// Whether a VUID scope is one the table has rows for.
 pub fn modelled_scope(scope: &str) -> bool {
-    TRACE_COMMANDS.contains(&scope) || TRACE_STRUCTURES.contains(&scope) || BUILD_COMMANDS.contains(&scope)
+    TRACE_COMMANDS.contains(&scope)
+        || TRACE_STRUCTURES.contains(&scope)
+        || BUILD_COMMANDS.contains(&scope)
 }
 
 /// The status of a row.
@@ -182,8 +191,16 @@ pub struct RuleSet {
 impl RuleSet {
     /// One row per VUID of the modelled scopes in the set, in VUID order.
     pub fn from_vuids(set: &VuidSet) -> RuleSet {
-        let rows = set.records.iter().filter(|r| modelled_scope(&r.scope)).map(Row::for_record).collect();
-        RuleSet { version: set.version.clone(), rows }
+        let rows = set
+            .records
+            .iter()
+            .filter(|r| modelled_scope(&r.scope))
+            .map(Row::for_record)
+            .collect();
+        RuleSet {
+            version: set.version.clone(),
+            rows,
+        }
     }
 
     pub fn row(&self, vuid: &str) -> Option<&Row> {
@@ -192,12 +209,21 @@ impl RuleSet {
 
     /// The coverage table, optionally for one command (its structures' rows included for the KHR calls).
     pub fn coverage(&self, command: Option<&str>) -> Vec<CoverageRow> {
-        self.rows.iter().filter(|r| command.is_none_or(|c| applies_to(&r.scope, c))).map(Row::coverage).collect()
+        self.rows
+            .iter()
+            .filter(|r| command.is_none_or(|c| applies_to(&r.scope, c)))
+            .map(Row::coverage)
+            .collect()
     }
 
     /// Prepares the rows that apply to `command` on a device: the profile's API version and the world's
     /// enabled extensions decide each row's registry condition once, not per call.
-    pub fn prepare<'a>(&'a self, profile: &'a DeviceProfile, world: &World, command: &str) -> Judge<'a> {
+    pub fn prepare<'a>(
+        &'a self,
+        profile: &'a DeviceProfile,
+        world: &World,
+        command: &str,
+    ) -> Judge<'a> {
         let (major, minor) = profile.api_major_minor();
         let enabled = |name: &str| -> bool {
             if let Some(v) = name.strip_prefix("VK_VERSION_") {
@@ -210,7 +236,11 @@ impl RuleSet {
         let active = self
             .rows
             .iter()
-            .filter(|r| r.status == Status::Executable && applies_to(&r.scope, command) && r.condition.eval(&enabled))
+            .filter(|r| {
+                r.status == Status::Executable
+                    && applies_to(&r.scope, command)
+                    && r.condition.eval(&enabled)
+            })
             .filter_map(|r| Some((r, r.predicate.as_ref()?.for_device(profile)?)))
             .collect();
         Judge { profile, active }
@@ -220,7 +250,8 @@ impl RuleSet {
 /// Whether rows of `scope` are judged for a call of `command`.
 pub fn applies_to(scope: &str, command: &str) -> bool {
     scope == command
-        || (scope == "VkStridedDeviceAddressRegionKHR" && matches!(command, "vkCmdTraceRaysIndirectKHR" | "vkCmdTraceRaysKHR"))
+        || (scope == "VkStridedDeviceAddressRegionKHR"
+            && matches!(command, "vkCmdTraceRaysIndirectKHR" | "vkCmdTraceRaysKHR"))
         || (scope == "VkTraceRaysIndirectCommandKHR" && command == "vkCmdTraceRaysIndirectKHR")
 }
 
@@ -252,13 +283,21 @@ impl Context<'_> {
 impl Judge<'_> {
     /// The verdict on one call: every violated row with its context, sorted.
     pub fn judge(&self, world: &World, call: &Call) -> Verdict {
-        let cx = Context { profile: self.profile, world, call };
+        let cx = Context {
+            profile: self.profile,
+            world,
+            call,
+        };
         let mut failures = Vec::new();
         let mut violations = Vec::new();
         for (row, p) in &self.active {
             p.check(&cx, &mut failures);
             for f in failures.drain(..) {
-                violations.push(Violation { vuid: row.vuid.clone(), context: f.context, problem: f.problem });
+                violations.push(Violation {
+                    vuid: row.vuid.clone(),
+                    context: f.context,
+                    problem: f.problem,
+                });
             }
         }
         violations.sort();
@@ -278,5 +317,7 @@ impl Judge<'_> {
 
 /// Judges one call in one world on one device.
 pub fn validate(rules: &RuleSet, profile: &DeviceProfile, world: &World, call: &Call) -> Verdict {
-    rules.prepare(profile, world, call.command()).judge(world, call)
+    rules
+        .prepare(profile, world, call.command())
+        .judge(world, call)
 }

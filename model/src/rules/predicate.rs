@@ -5,7 +5,9 @@ use super::Context;
 use crate::call::{Call, Param, Table};
 use crate::flags::{BufferUsage, PipelineCreate, QueueFlags};
 use crate::semantics::{hit_record, record_handle};
-use crate::world::{CommandBufferLifecycle, GeometryKind, HandleRef, MemoryBinding, RayTarget, ShaderGroup};
+use crate::world::{
+    CommandBufferLifecycle, GeometryKind, HandleRef, MemoryBinding, RayTarget, ShaderGroup,
+};
 
 /// A number a rule compares against.
 #[derive(Debug, Clone, PartialEq)]
@@ -94,7 +96,9 @@ impl Operand {
         match self {
             Operand::Const(v) => Some(*v),
             Operand::Limit(name) => cx.profile.limit(name),
-            Operand::Product(ops) => ops.iter().try_fold(1u64, |a, o| Some(a.saturating_mul(o.value(cx)?))),
+            Operand::Product(ops) => ops
+                .iter()
+                .try_fold(1u64, |a, o| Some(a.saturating_mul(o.value(cx)?))),
             Operand::SizeOfBufferOf(p) => cx.call.buffer_of(cx.world, *p).map(|b| b.size),
             Operand::Param(p) => Some(cx.call.value(*p)),
         }
@@ -103,16 +107,28 @@ impl Operand {
     fn describe(&self, cx: &Context) -> String {
         match self {
             Operand::Const(v) => v.to_string(),
-            Operand::Limit(name) => format!("{name} ({})", cx.profile.limit(name).map_or("?".into(), |v| v.to_string())),
-            Operand::Product(ops) => ops.iter().map(|o| o.describe(cx)).collect::<Vec<_>>().join(" × "),
-            Operand::SizeOfBufferOf(p) => format!("the size of the buffer of {}", cx.call.param_path(*p)),
+            Operand::Limit(name) => format!(
+                "{name} ({})",
+                cx.profile.limit(name).map_or("?".into(), |v| v.to_string())
+            ),
+            Operand::Product(ops) => ops
+                .iter()
+                .map(|o| o.describe(cx))
+                .collect::<Vec<_>>()
+                .join(" × "),
+            Operand::SizeOfBufferOf(p) => {
+                format!("the size of the buffer of {}", cx.call.param_path(*p))
+            }
             Operand::Param(p) => cx.call.param_path(*p),
         }
     }
 }
 
 fn fail(context: impl Into<String>, problem: impl Into<String>) -> Option<Failure> {
-    Some(Failure { context: context.into(), problem: problem.into() })
+    Some(Failure {
+        context: context.into(),
+        problem: problem.into(),
+    })
 }
 
 impl Operand {
@@ -120,9 +136,11 @@ impl Operand {
     fn resolved(&self, profile: &crate::profile::DeviceProfile) -> Option<Operand> {
         Some(match self {
             Operand::Limit(name) => Operand::Const(profile.limit(name)?),
-            Operand::Product(ops) => {
-                Operand::Product(ops.iter().map(|o| o.resolved(profile)).collect::<Option<Vec<_>>>()?)
-            }
+            Operand::Product(ops) => Operand::Product(
+                ops.iter()
+                    .map(|o| o.resolved(profile))
+                    .collect::<Option<Vec<_>>>()?,
+            ),
             other => other.clone(),
         })
     }
@@ -137,11 +155,18 @@ impl Predicate {
             Predicate::AtMost(p, o) => Predicate::AtMost(*p, o.resolved(profile)?),
             Predicate::LessThan(p, o) => Predicate::LessThan(*p, o.resolved(profile)?),
             Predicate::Equal(p, o) => Predicate::Equal(*p, o.resolved(profile)?),
-            Predicate::RangeInOneBuffer(p, o) => Predicate::RangeInOneBuffer(*p, o.resolved(profile)?),
-            Predicate::LaunchDimensionAtMost(i, o) => Predicate::LaunchDimensionAtMost(*i, o.resolved(profile)?),
-            Predicate::LaunchInvocationsAtMost(o) => Predicate::LaunchInvocationsAtMost(o.resolved(profile)?),
+            Predicate::RangeInOneBuffer(p, o) => {
+                Predicate::RangeInOneBuffer(*p, o.resolved(profile)?)
+            }
+            Predicate::LaunchDimensionAtMost(i, o) => {
+                Predicate::LaunchDimensionAtMost(*i, o.resolved(profile)?)
+            }
+            Predicate::LaunchInvocationsAtMost(o) => {
+                Predicate::LaunchInvocationsAtMost(o.resolved(profile)?)
+            }
             Predicate::NoProtectedResourceFromUnprotected
-                if profile.has_feature("protectedNoFault") || profile.limit("protectedNoFault") == Some(1) =>
+                if profile.has_feature("protectedNoFault")
+                    || profile.limit("protectedNoFault") == Some(1) =>
             {
                 return None
             }
@@ -177,7 +202,10 @@ impl Predicate {
                 let v = call.value(*p);
                 if let Some(m) = op.value(cx) {
                     if m != 0 && v % m != 0 {
-                        push(fail(call.param_path(*p), format!("{v} is not a multiple of {}", op.describe(cx))));
+                        push(fail(
+                            call.param_path(*p),
+                            format!("{v} is not a multiple of {}", op.describe(cx)),
+                        ));
                     }
                 }
             }
@@ -197,25 +225,46 @@ impl Predicate {
                     _ => (v == m, "not equal to"),
                 };
                 if !ok {
-                    push(fail(call.param_path(*p), format!("{v} is {rel} {}", op.describe(cx))));
+                    push(fail(
+                        call.param_path(*p),
+                        format!("{v} is {rel} {}", op.describe(cx)),
+                    ));
                 }
             }
             Predicate::NonZeroIfPipelineFlag(p, flag) => {
                 if let Some(pl) = world.bound_pipeline() {
-                    let zero = call.address(*p).map_or(call.value(*p) == 0, |a| a.is_null());
+                    let zero = call
+                        .address(*p)
+                        .map_or(call.value(*p) == 0, |a| a.is_null());
                     if pl.flags.contains(*flag) && zero {
-                        push(fail(call.param_path(*p), format!("is zero but the pipeline has {}", flag.names().join("|"))));
+                        push(fail(
+                            call.param_path(*p),
+                            format!("is zero but the pipeline has {}", flag.names().join("|")),
+                        ));
                     }
                 }
             }
             Predicate::FeatureEnabled(f) => {
                 if !world.device.feature(f) {
-                    push(fail("world.device.features", format!("`{f}` is not enabled")));
+                    push(fail(
+                        "world.device.features",
+                        format!("`{f}` is not enabled"),
+                    ));
                 }
             }
             Predicate::FeatureEnabledIfPipelineFlag(flag, f) => {
-                if world.bound_pipeline().is_some_and(|pl| pl.flags.contains(*flag)) && !world.device.feature(f) {
-                    push(fail("world.device.features", format!("`{f}` is not enabled but the pipeline has {}", flag.names().join("|"))));
+                if world
+                    .bound_pipeline()
+                    .is_some_and(|pl| pl.flags.contains(*flag))
+                    && !world.device.feature(f)
+                {
+                    push(fail(
+                        "world.device.features",
+                        format!(
+                            "`{f}` is not enabled but the pipeline has {}",
+                            flag.names().join("|")
+                        ),
+                    ));
                 }
             }
             Predicate::BufferUsage(p, usage) => {
@@ -229,16 +278,20 @@ impl Predicate {
                         call.param_path(*p),
                         format!("buffer `{}` lacks {}", b.name, usage.names().join("|")),
                     )),
-                    None if call.address(*p).is_some_and(|a| !a.is_null()) => {
-                        push(fail(call.param_path(*p), "the address lies in no buffer of the world"))
-                    }
+                    None if call.address(*p).is_some_and(|a| !a.is_null()) => push(fail(
+                        call.param_path(*p),
+                        "the address lies in no buffer of the world",
+                    )),
                     _ => {}
                 }
             }
             Predicate::BoundContiguously(p) => {
                 if let Some(b) = call.buffer_of(world, *p) {
                     if !b.is_sparse() && b.memory != MemoryBinding::Whole {
-                        push(fail(call.param_path(*p), format!("buffer `{}` is not bound to one memory object", b.name)));
+                        push(fail(
+                            call.param_path(*p),
+                            format!("buffer `{}` is not bound to one memory object", b.name),
+                        ));
                     }
                 }
             }
@@ -248,43 +301,81 @@ impl Predicate {
                 match addr.buffer() {
                     Some((name, off)) => match world.buffer(name) {
                         Some(b) if off.saturating_add(len) <= b.size => {}
-                        Some(b) => push(fail(call.param_path(*p), format!("[{off}, {off}+{len}) passes the end of `{}` ({} bytes)", b.name, b.size))),
-                        None => push(fail(call.param_path(*p), format!("no buffer `{name}` in the world"))),
+                        Some(b) => push(fail(
+                            call.param_path(*p),
+                            format!(
+                                "[{off}, {off}+{len}) passes the end of `{}` ({} bytes)",
+                                b.name, b.size
+                            ),
+                        )),
+                        None => push(fail(
+                            call.param_path(*p),
+                            format!("no buffer `{name}` in the world"),
+                        )),
                     },
-                    None => push(fail(call.param_path(*p), "the address lies in no buffer of the world")),
+                    None => push(fail(
+                        call.param_path(*p),
+                        "the address lies in no buffer of the world",
+                    )),
                 }
             }
             Predicate::RegionInOneBuffer | Predicate::RegionStrideWithinBuffer => {
-                let Some(regions) = call.regions() else { return };
+                let Some(regions) = call.regions() else {
+                    return;
+                };
                 for (t, r) in Table::ALL.iter().zip(regions) {
                     if r.size == 0 {
                         continue;
                     }
                     let ctx = t.khr_param();
                     let Some((name, off)) = r.address.buffer() else {
-                        push(fail(format!("{ctx}->deviceAddress"), "a region of non-zero size lies in no buffer of the world"));
+                        push(fail(
+                            format!("{ctx}->deviceAddress"),
+                            "a region of non-zero size lies in no buffer of the world",
+                        ));
                         continue;
                     };
                     let Some(b) = world.buffer(name) else {
-                        push(fail(format!("{ctx}->deviceAddress"), format!("no buffer `{name}` in the world")));
+                        push(fail(
+                            format!("{ctx}->deviceAddress"),
+                            format!("no buffer `{name}` in the world"),
+                        ));
                         continue;
                     };
                     if matches!(self, Predicate::RegionInOneBuffer) {
                         if off.saturating_add(r.size) > b.size {
-                            push(fail(format!("{ctx}->size"), format!("[{off}, {off}+{}) passes the end of `{}` ({} bytes)", r.size, b.name, b.size)));
+                            push(fail(
+                                format!("{ctx}->size"),
+                                format!(
+                                    "[{off}, {off}+{}) passes the end of `{}` ({} bytes)",
+                                    r.size, b.name, b.size
+                                ),
+                            ));
                         }
                     } else if r.stride > b.size {
-                        push(fail(format!("{ctx}->stride"), format!("{} is greater than the size of `{}` ({})", r.stride, b.name, b.size)));
+                        push(fail(
+                            format!("{ctx}->stride"),
+                            format!(
+                                "{} is greater than the size of `{}` ({})",
+                                r.stride, b.name, b.size
+                            ),
+                        ));
                     }
                 }
             }
             Predicate::ValidBufferHandle(t) => {
                 if let Some(Some(name)) = call.nv_table(*t).map(|n| n.buffer.as_ref()) {
                     if world.buffer(name).is_none() {
-                        push(fail(format!("{}TableBuffer", t.nv_stem()), format!("`{name}` is not a buffer of the world")));
+                        push(fail(
+                            format!("{}TableBuffer", t.nv_stem()),
+                            format!("`{name}` is not a buffer of the world"),
+                        ));
                     }
                 } else if *t == Table::Raygen && call.nv_table(*t).is_some() {
-                    push(fail("raygenShaderBindingTableBuffer", "VK_NULL_HANDLE is not a valid buffer"));
+                    push(fail(
+                        "raygenShaderBindingTableBuffer",
+                        "VK_NULL_HANDLE is not a valid buffer",
+                    ));
                 }
             }
             Predicate::LaunchDimensionAtMost(i, op) => {
@@ -292,7 +383,10 @@ impl Predicate {
                     let v = d[*i as usize] as u64;
                     if v > m {
                         let field = ["width", "height", "depth"][*i as usize];
-                        push(fail(format!("indirect command.{field}"), format!("{v} is greater than {}", op.describe(cx))));
+                        push(fail(
+                            format!("indirect command.{field}"),
+                            format!("{v} is greater than {}", op.describe(cx)),
+                        ));
                     }
                 }
             }
@@ -300,7 +394,13 @@ impl Predicate {
                 if let (Some(d), Some(m)) = (call.dimensions(world), op.value(cx)) {
                     let v = d.iter().map(|&x| x as u64).product::<u64>();
                     if v > m {
-                        push(fail("indirect command", format!("width × height × depth = {v} is greater than {}", op.describe(cx))));
+                        push(fail(
+                            "indirect command",
+                            format!(
+                                "width × height × depth = {v} is greater than {}",
+                                op.describe(cx)
+                            ),
+                        ));
                     }
                 }
             }
@@ -311,12 +411,18 @@ impl Predicate {
             }
             Predicate::Recording => {
                 if world.command_buffer.lifecycle != CommandBufferLifecycle::Recording {
-                    push(fail("commandBuffer", format!("is in the {:?} state", world.command_buffer.lifecycle)));
+                    push(fail(
+                        "commandBuffer",
+                        format!("is in the {:?} state", world.command_buffer.lifecycle),
+                    ));
                 }
             }
             Predicate::PoolSupports(q) => {
                 if !world.command_buffer.pool_queue.intersects(*q) {
-                    push(fail("commandBuffer", format!("its pool's queue family lacks {}", q.names().join(" or "))));
+                    push(fail(
+                        "commandBuffer",
+                        format!("its pool's queue family lacks {}", q.names().join(" or ")),
+                    ));
                 }
             }
             Predicate::OutsideRenderPass => {
@@ -337,7 +443,10 @@ impl Predicate {
             Predicate::HandlesFromBoundPipeline => {
                 for (table, index) in reached_records(cx) {
                     if let Some(HandleRef::Foreign(g)) = record_handle(world, call, table, index) {
-                        push(fail(format!("{table:?} record {index}"), format!("holds group {g} of another pipeline")));
+                        push(fail(
+                            format!("{table:?} record {index}"),
+                            format!("holds group {g} of another pipeline"),
+                        ));
                     }
                 }
             }
@@ -345,70 +454,127 @@ impl Predicate {
                 if let Some(pl) = world.bound_pipeline() {
                     let depth = world.launch.recursion_depth();
                     if depth > pl.max_recursion_depth && launches_anything(cx) {
-                        push(fail("world.launch", format!("shader calls reach depth {depth}, the pipeline allows {}", pl.max_recursion_depth)));
+                        push(fail(
+                            "world.launch",
+                            format!(
+                                "shader calls reach depth {depth}, the pipeline allows {}",
+                                pl.max_recursion_depth
+                            ),
+                        ));
                     }
                 }
             }
             Predicate::NoNullMissReached => {
-                let Some(pl) = world.bound_pipeline() else { return };
-                if !pl.flags.contains(PipelineCreate::RAY_TRACING_NO_NULL_MISS_SHADERS_BIT_KHR) {
+                let Some(pl) = world.bound_pipeline() else {
+                    return;
+                };
+                if !pl
+                    .flags
+                    .contains(PipelineCreate::RAY_TRACING_NO_NULL_MISS_SHADERS_BIT_KHR)
+                {
                     return;
                 }
                 for (table, index) in reached_records(cx) {
-                    if table == Table::Miss && record_handle(world, call, table, index) == Some(HandleRef::Zero) {
-                        push(fail(format!("miss record {index}"), "is a zero group but the pipeline has NO_NULL_MISS_SHADERS"));
+                    if table == Table::Miss
+                        && record_handle(world, call, table, index) == Some(HandleRef::Zero)
+                    {
+                        push(fail(
+                            format!("miss record {index}"),
+                            "is a zero group but the pipeline has NO_NULL_MISS_SHADERS",
+                        ));
                     }
                 }
             }
             Predicate::NoNullHitReached(kind) => {
-                let Some(pl) = world.bound_pipeline() else { return };
+                let Some(pl) = world.bound_pipeline() else {
+                    return;
+                };
                 let flag = match kind {
-                    NullHitKind::AnyHit => PipelineCreate::RAY_TRACING_NO_NULL_ANY_HIT_SHADERS_BIT_KHR,
-                    NullHitKind::ClosestHit => PipelineCreate::RAY_TRACING_NO_NULL_CLOSEST_HIT_SHADERS_BIT_KHR,
-                    NullHitKind::Intersection => PipelineCreate::RAY_TRACING_NO_NULL_INTERSECTION_SHADERS_BIT_KHR,
+                    NullHitKind::AnyHit => {
+                        PipelineCreate::RAY_TRACING_NO_NULL_ANY_HIT_SHADERS_BIT_KHR
+                    }
+                    NullHitKind::ClosestHit => {
+                        PipelineCreate::RAY_TRACING_NO_NULL_CLOSEST_HIT_SHADERS_BIT_KHR
+                    }
+                    NullHitKind::Intersection => {
+                        PipelineCreate::RAY_TRACING_NO_NULL_INTERSECTION_SHADERS_BIT_KHR
+                    }
                 };
                 if !pl.flags.contains(flag) {
                     return;
                 }
                 for (index, geometry) in reached_hit_records(cx) {
-                    let relevant = *kind != NullHitKind::Intersection || geometry == GeometryKind::Aabbs;
-                    if relevant && record_handle(world, call, Table::Hit, index) == Some(HandleRef::Zero) {
-                        push(fail(format!("hit record {index}"), format!("is a zero group but the pipeline has {}", flag.names().join(""))));
+                    let relevant =
+                        *kind != NullHitKind::Intersection || geometry == GeometryKind::Aabbs;
+                    if relevant
+                        && record_handle(world, call, Table::Hit, index) == Some(HandleRef::Zero)
+                    {
+                        push(fail(
+                            format!("hit record {index}"),
+                            format!(
+                                "is a zero group but the pipeline has {}",
+                                flag.names().join("")
+                            ),
+                        ));
                     }
                 }
             }
             Predicate::HitGroupTypeMatchesGeometry(kind) => {
-                let Some(pl) = world.bound_pipeline() else { return };
+                let Some(pl) = world.bound_pipeline() else {
+                    return;
+                };
                 for (index, geometry) in reached_hit_records(cx) {
                     if geometry != *kind {
                         continue;
                     }
-                    if let Some(HandleRef::Group(g)) = record_handle(world, call, Table::Hit, index) {
+                    if let Some(HandleRef::Group(g)) = record_handle(world, call, Table::Hit, index)
+                    {
                         let ok = match (pl.groups.get(g as usize), kind) {
-                            (Some(ShaderGroup::TrianglesHit { .. }), GeometryKind::Triangles) => true,
+                            (Some(ShaderGroup::TrianglesHit { .. }), GeometryKind::Triangles) => {
+                                true
+                            }
                             (Some(ShaderGroup::ProceduralHit { .. }), GeometryKind::Aabbs) => true,
                             _ => false,
                         };
                         if !ok {
-                            push(fail(format!("hit record {index}"), format!("group {g} is not a {kind:?} hit group")));
+                            push(fail(
+                                format!("hit record {index}"),
+                                format!("group {g} is not a {kind:?} hit group"),
+                            ));
                         }
                     }
                 }
             }
             Predicate::ClusterStructuresAllowed => {
-                let Some(pl) = world.bound_pipeline() else { return };
-                if !pl.allow_cluster_acceleration_structures && world.launch.instances.iter().any(|i| i.cluster) {
+                let Some(pl) = world.bound_pipeline() else {
+                    return;
+                };
+                if !pl.allow_cluster_acceleration_structures
+                    && world.launch.instances.iter().any(|i| i.cluster)
+                {
                     push(fail("world.launch.instances", "the scene holds a cluster acceleration structure but the pipeline does not allow them"));
                 }
             }
             Predicate::DynamicStackSizeSet => {
-                if world.bound_pipeline().is_some_and(|p| p.dynamic_stack_size) && !world.command_buffer.stack_size_set {
-                    push(fail("commandBuffer", "the pipeline's stack size is dynamic and was never set"));
+                if world.bound_pipeline().is_some_and(|p| p.dynamic_stack_size)
+                    && !world.command_buffer.stack_size_set
+                {
+                    push(fail(
+                        "commandBuffer",
+                        "the pipeline's stack size is dynamic and was never set",
+                    ));
                 }
             }
             Predicate::NoStaticStateSet => {
-                if world.bound_pipeline().is_some_and(|p| !p.dynamic_stack_size) && world.command_buffer.stack_size_set {
-                    push(fail("commandBuffer", "the stack size was set but the pipeline's is static"));
+                if world
+                    .bound_pipeline()
+                    .is_some_and(|p| !p.dynamic_stack_size)
+                    && world.command_buffer.stack_size_set
+                {
+                    push(fail(
+                        "commandBuffer",
+                        "the stack size was set but the pipeline's is static",
+                    ));
                 }
             }
             Predicate::NoProtectedResourceFromUnprotected => {
@@ -419,7 +585,10 @@ impl Predicate {
                 for p in cx.used_buffer_params() {
                     if let Some(b) = call.buffer_of(world, p) {
                         if b.flags.contains(crate::flags::BufferCreate::PROTECTED_BIT) {
-                            push(fail(call.param_path(p), format!("buffer `{}` is protected", b.name)));
+                            push(fail(
+                                call.param_path(p),
+                                format!("buffer `{}` is protected", b.name),
+                            ));
                         }
                     }
                 }
@@ -430,7 +599,9 @@ impl Predicate {
 
 /// Whether the launch runs any invocation (dimensions known and none zero).
 fn launches_anything(cx: &Context) -> bool {
-    cx.call.dimensions(cx.world).is_none_or(|d| d.iter().all(|&x| x > 0))
+    cx.call
+        .dimensions(cx.world)
+        .is_none_or(|d| d.iter().all(|&x| x > 0))
 }
 
 /// The (table, record index) pairs the launch reads (see [`crate::semantics::records_read`]).
@@ -440,13 +611,23 @@ pub fn reached_records(cx: &Context) -> Vec<(Table, u64)> {
 
 /// The hit record a ray reaches and the geometry kind it comes from, or None if it misses.
 fn hit_target(cx: &Context, ray: &crate::world::TraceRay) -> Option<(u64, GeometryKind)> {
-    let RayTarget::Geometry { instance, geometry } = ray.target else { return None };
+    let RayTarget::Geometry { instance, geometry } = ray.target else {
+        return None;
+    };
     let inst = cx.world.launch.instances.get(instance as usize)?;
     if inst.mask as u32 & ray.cull_mask & 0xFF == 0 {
         return None;
     }
     let kind = *inst.geometries.get(geometry as usize)?;
-    Some((hit_record(inst.sbt_record_offset, geometry, ray.sbt_offset, ray.sbt_stride), kind))
+    Some((
+        hit_record(
+            inst.sbt_record_offset,
+            geometry,
+            ray.sbt_offset,
+            ray.sbt_stride,
+        ),
+        kind,
+    ))
 }
 
 /// The hit records the launch reaches, with the kind of geometry each is reached from.
@@ -454,7 +635,13 @@ fn reached_hit_records(cx: &Context) -> Vec<(u64, GeometryKind)> {
     if !launches_anything(cx) {
         return vec![];
     }
-    let mut v: Vec<(u64, GeometryKind)> = cx.world.launch.rays.iter().filter_map(|r| hit_target(cx, r)).collect();
+    let mut v: Vec<(u64, GeometryKind)> = cx
+        .world
+        .launch
+        .rays
+        .iter()
+        .filter_map(|r| hit_target(cx, r))
+        .collect();
     v.sort_by_key(|(i, k)| (*i, *k as u8));
     v.dedup();
     v

@@ -11,24 +11,42 @@ use std::sync::OnceLock;
 
 /// Strips the markup residue some registry versions leave (`pname:`, `sname:`) and backticks.
 fn clean(s: &str) -> String {
-    s.replace("pname:", "").replace("sname:", "").replace("ename:", "").replace("flink:", "").replace('`', "")
+    s.replace("pname:", "")
+        .replace("sname:", "")
+        .replace("ename:", "")
+        .replace("flink:", "")
+        .replace('`', "")
 }
 
 /// A limit operand: `Struct::member`, `Struct::member[i]`, a number, or a product with `{times}`/`×`.
 fn operand(text: &str) -> Option<Operand> {
     let t = clean(text);
     let t = t.trim().trim_end_matches('.');
-    let parts: Vec<&str> = t.split(|c| c == '×').flat_map(|p| p.split("{times}")).map(str::trim).collect();
+    let parts: Vec<&str> = t
+        .split(|c| c == '×')
+        .flat_map(|p| p.split("{times}"))
+        .map(str::trim)
+        .collect();
     if parts.len() > 1 {
-        return parts.into_iter().map(operand).collect::<Option<Vec<_>>>().map(Operand::Product);
+        return parts
+            .into_iter()
+            .map(operand)
+            .collect::<Option<Vec<_>>>()
+            .map(Operand::Product);
     }
     if let Ok(n) = t.parse::<u64>() {
         return Some(Operand::Const(n));
     }
     static LIMIT: OnceLock<Regex> = OnceLock::new();
-    let re = LIMIT.get_or_init(|| Regex::new(r"^(Vk[A-Za-z0-9]+)::([a-zA-Z0-9]+)(\[\d\])?$").unwrap());
+    let re =
+        LIMIT.get_or_init(|| Regex::new(r"^(Vk[A-Za-z0-9]+)::([a-zA-Z0-9]+)(\[\d\])?$").unwrap());
     let c = re.captures(t)?;
-    Some(Operand::Limit(format!("{}::{}{}", &c[1], &c[2], c.get(3).map_or("", |m| m.as_str()))))
+    Some(Operand::Limit(format!(
+        "{}::{}{}",
+        &c[1],
+        &c[2],
+        c.get(3).map_or("", |m| m.as_str())
+    )))
 }
 
 fn param(command: &str, text: &str) -> Option<Param> {
@@ -49,14 +67,21 @@ fn nv_buffer_param(command: &str, text: &str) -> Option<Param> {
         return None;
     }
     let t = clean(text);
-    Table::ALL.into_iter().find(|tb| t == format!("{}TableBuffer", tb.nv_stem())).map(Param::TableAddress)
+    Table::ALL
+        .into_iter()
+        .find(|tb| t == format!("{}TableBuffer", tb.nv_stem()))
+        .map(Param::TableAddress)
 }
 
-type Shape = (&'static str, fn(&str, &regex::Captures) -> Option<Predicate>);
+type Shape = (
+    &'static str,
+    fn(&str, &regex::Captures) -> Option<Predicate>,
+);
 
 /// Every text shape the compiler knows, in the order they are tried.
 fn shapes() -> &'static [(Regex, fn(&str, &regex::Captures) -> Option<Predicate>)] {
-    static SHAPES: OnceLock<Vec<(Regex, fn(&str, &regex::Captures) -> Option<Predicate>)>> = OnceLock::new();
+    static SHAPES: OnceLock<Vec<(Regex, fn(&str, &regex::Captures) -> Option<Predicate>)>> =
+        OnceLock::new();
     SHAPES.get_or_init(|| {
         let table: Vec<Shape> = vec![
             (r"^(?P<p>\S+) must be a multiple of (?P<v>.+)$", |c, m| {
@@ -152,9 +177,13 @@ fn indirect_command_shape(text: &str) -> Option<Predicate> {
     static DIM: OnceLock<Regex> = OnceLock::new();
     static PRODUCT: OnceLock<Regex> = OnceLock::new();
     let t = clean(text);
-    let dim = DIM.get_or_init(|| Regex::new(r"^(width|height|depth) must be less than or equal to (.+)$").unwrap());
+    let dim = DIM.get_or_init(|| {
+        Regex::new(r"^(width|height|depth) must be less than or equal to (.+)$").unwrap()
+    });
     if let Some(c) = dim.captures(&t) {
-        let i = ["width", "height", "depth"].iter().position(|d| *d == &c[1])? as u8;
+        let i = ["width", "height", "depth"]
+            .iter()
+            .position(|d| *d == &c[1])? as u8;
         return Some(Predicate::LaunchDimensionAtMost(i, operand(&c[2])?));
     }
     let product = PRODUCT.get_or_init(|| {
@@ -210,7 +239,10 @@ mod tests {
         check(
             "vkCmdTraceRaysIndirectKHR",
             "`indirectDeviceAddress` must be a multiple of `4`",
-            Some(Predicate::MultipleOf(Param::IndirectAddress, Operand::Const(4))),
+            Some(Predicate::MultipleOf(
+                Param::IndirectAddress,
+                Operand::Const(4),
+            )),
         );
     }
 
@@ -219,7 +251,10 @@ mod tests {
         check(
             "vkCmdTraceRaysNV",
             "`hitShaderBindingOffset` must be less than the size of `hitShaderBindingTableBuffer`",
-            Some(Predicate::LessThan(Param::TableAddress(Table::Hit), Operand::SizeOfBufferOf(Param::TableAddress(Table::Hit)))),
+            Some(Predicate::LessThan(
+                Param::TableAddress(Table::Hit),
+                Operand::SizeOfBufferOf(Param::TableAddress(Table::Hit)),
+            )),
         );
         check(
             "vkCmdTraceRaysNV",
@@ -238,14 +273,20 @@ mod tests {
         check(
             "vkCmdTraceRaysIndirectKHR",
             "The pname:rayTracingPipelineTraceRaysIndirect feature must be enabled",
-            Some(Predicate::FeatureEnabled("rayTracingPipelineTraceRaysIndirect".into())),
+            Some(Predicate::FeatureEnabled(
+                "rayTracingPipelineTraceRaysIndirect".into(),
+            )),
         );
         check(
             "vkCmdTraceRaysIndirectKHR",
             "The `VkCommandPool` that `commandBuffer` was allocated from must support compute operations",
             Some(Predicate::PoolSupports(QueueFlags::COMPUTE_BIT)),
         );
-        check("vkCmdTraceRaysKHR", "This command must only be called outside of a render pass instance", Some(Predicate::OutsideRenderPass));
+        check(
+            "vkCmdTraceRaysKHR",
+            "This command must only be called outside of a render pass instance",
+            Some(Predicate::OutsideRenderPass),
+        );
     }
 
     #[test]
@@ -265,7 +306,15 @@ mod tests {
 
     #[test]
     fn unknown_shapes_and_unknown_paths_do_not_compile() {
-        check("vkCmdTraceRaysIndirectKHR", "Any shader invocation executed by this command must terminate", None);
-        check("vkCmdTraceRaysIndirectKHR", "`notAParameter` must be a multiple of `4`", None);
+        check(
+            "vkCmdTraceRaysIndirectKHR",
+            "Any shader invocation executed by this command must terminate",
+            None,
+        );
+        check(
+            "vkCmdTraceRaysIndirectKHR",
+            "`notAParameter` must be a multiple of `4`",
+            None,
+        );
     }
 }
