@@ -1063,10 +1063,6 @@ impl DeviceCache {
         let dev = &self.dev;
         let input_usage = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
             | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-        let storage_usage = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_STORAGE_KHR
-            | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-        let scratch_usage =
-            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
         let scratch_align = (dev.limits.scratch_alignment as u64).max(256);
         let none = vk::BufferCreateFlags::empty();
         // Geometry input: triangles (3 vertices) and boxes per geometry, all in one buffer.
@@ -1154,45 +1150,14 @@ impl DeviceCache {
                     .push(vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(1));
             }
             let counts: Vec<u32> = ranges.iter().map(|r| r.primitive_count).collect();
-            let info = vk::AccelerationStructureBuildGeometryInfoKHR::default()
-                .ty(vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL)
-                .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
-                .geometries(&geoms);
-            let mut sizes = vk::AccelerationStructureBuildSizesInfoKHR::default();
-            // SAFETY: geometry descriptions are valid; counts match.
-            unsafe {
-                accel.get_acceleration_structure_build_sizes(
-                    vk::AccelerationStructureBuildTypeKHR::DEVICE,
-                    &info,
-                    &counts,
-                    &mut sizes,
-                )
-            };
-            let storage = Allocation::new(
+            let (blas, storage, scratch) = sized_structure(
                 dev,
-                sizes.acceleration_structure_size,
-                storage_usage,
-                none,
-                256,
-            )?;
-            let scratch = Allocation::new(
-                dev,
-                sizes.build_scratch_size.max(1),
-                scratch_usage,
-                none,
+                accel,
+                vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL,
+                &geoms,
+                &counts,
                 scratch_align,
             )?;
-            // SAFETY: storage buffer is large enough.
-            let blas = unsafe {
-                accel.create_acceleration_structure(
-                    &vk::AccelerationStructureCreateInfoKHR::default()
-                        .buffer(storage.buffer)
-                        .size(sizes.acceleration_structure_size)
-                        .ty(vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL),
-                    None,
-                )
-            }
-            .map_err(vkfail("vkCreateAccelerationStructureKHR"))?;
             scene.structures.push(blas);
             // SAFETY: valid structure.
             let addr = unsafe {
@@ -1247,45 +1212,14 @@ impl DeviceCache {
             })];
         scene.buffers.push(inst_buf);
         let tlas_count = [instances.len() as u32];
-        let tlas_info = vk::AccelerationStructureBuildGeometryInfoKHR::default()
-            .ty(vk::AccelerationStructureTypeKHR::TOP_LEVEL)
-            .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
-            .geometries(&tlas_geom);
-        let mut sizes = vk::AccelerationStructureBuildSizesInfoKHR::default();
-        // SAFETY: valid description.
-        unsafe {
-            accel.get_acceleration_structure_build_sizes(
-                vk::AccelerationStructureBuildTypeKHR::DEVICE,
-                &tlas_info,
-                &tlas_count,
-                &mut sizes,
-            )
-        };
-        let storage = Allocation::new(
+        let (tlas, storage, scratch) = sized_structure(
             dev,
-            sizes.acceleration_structure_size,
-            storage_usage,
-            none,
-            256,
-        )?;
-        let scratch = Allocation::new(
-            dev,
-            sizes.build_scratch_size.max(1),
-            scratch_usage,
-            none,
+            accel,
+            vk::AccelerationStructureTypeKHR::TOP_LEVEL,
+            &tlas_geom,
+            &tlas_count,
             scratch_align,
         )?;
-        // SAFETY: storage is large enough.
-        let tlas = unsafe {
-            accel.create_acceleration_structure(
-                &vk::AccelerationStructureCreateInfoKHR::default()
-                    .buffer(storage.buffer)
-                    .size(sizes.acceleration_structure_size)
-                    .ty(vk::AccelerationStructureTypeKHR::TOP_LEVEL),
-                None,
-            )
-        }
-        .map_err(vkfail("vkCreateAccelerationStructureKHR"))?;
         scene.structures.push(tlas);
         scene.tlas = Tlas::Khr(tlas);
         let tlas_scratch = scratch.address;
@@ -1329,11 +1263,14 @@ impl DeviceCache {
                 &[],
                 &[],
             );
-            let info = tlas_info.dst_acceleration_structure(tlas).scratch_data(
-                vk::DeviceOrHostAddressKHR {
+            let info = vk::AccelerationStructureBuildGeometryInfoKHR::default()
+                .ty(vk::AccelerationStructureTypeKHR::TOP_LEVEL)
+                .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
+                .geometries(&tlas_geom)
+                .dst_acceleration_structure(tlas)
+                .scratch_data(vk::DeviceOrHostAddressKHR {
                     device_address: tlas_scratch,
-                },
-            );
+                });
             let range = [vk::AccelerationStructureBuildRangeInfoKHR::default()
                 .primitive_count(instances.len() as u32)];
             accel.cmd_build_acceleration_structures(cb, &[info], &[&range]);
@@ -1973,4 +1910,61 @@ impl Drop for DeviceCache {
             a.destroy(&self.dev);
         }
     }
+}
+
+/// An acceleration structure of `ty` sized for `geometries` with `counts` primitives: its storage buffer,
+/// its scratch buffer (aligned to `scratch_align`) and the created, not yet built, structure.
+fn sized_structure(
+    dev: &VkDevice,
+    accel: &ash::khr::acceleration_structure::Device,
+    ty: vk::AccelerationStructureTypeKHR,
+    geometries: &[vk::AccelerationStructureGeometryKHR],
+    counts: &[u32],
+    scratch_align: u64,
+) -> Result<(vk::AccelerationStructureKHR, Allocation, Allocation), RealiseError> {
+    let info = vk::AccelerationStructureBuildGeometryInfoKHR::default()
+        .ty(ty)
+        .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
+        .geometries(geometries);
+    let mut sizes = vk::AccelerationStructureBuildSizesInfoKHR::default();
+    // SAFETY: the geometry descriptions are valid and `counts` has one entry per geometry.
+    unsafe {
+        accel.get_acceleration_structure_build_sizes(
+            vk::AccelerationStructureBuildTypeKHR::DEVICE,
+            &info,
+            counts,
+            &mut sizes,
+        )
+    };
+    let storage_usage = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_STORAGE_KHR
+        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+    let scratch_usage =
+        vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+    let none = vk::BufferCreateFlags::empty();
+    let storage = Allocation::new(
+        dev,
+        sizes.acceleration_structure_size,
+        storage_usage,
+        none,
+        256,
+    )?;
+    let scratch = Allocation::new(
+        dev,
+        sizes.build_scratch_size.max(1),
+        scratch_usage,
+        none,
+        scratch_align,
+    )?;
+    // SAFETY: the storage buffer holds `acceleration_structure_size` bytes.
+    let structure = unsafe {
+        accel.create_acceleration_structure(
+            &vk::AccelerationStructureCreateInfoKHR::default()
+                .buffer(storage.buffer)
+                .size(sizes.acceleration_structure_size)
+                .ty(ty),
+            None,
+        )
+    }
+    .map_err(vkfail("vkCreateAccelerationStructureKHR"))?;
+    Ok((structure, storage, scratch))
 }
