@@ -790,21 +790,13 @@ pub fn mutate(
                 },
                 Op::Sample,
             );
+            // Ray tracing stages have no implicit derivatives: implicit-LOD sampling (and a LOD bias, an
+            // operand only implicit-LOD instructions take) is not valid SPIR-V there, so the variants are
+            // the explicit-LOD forms that still break the rule: `OpImageSampleProjExplicitLod` (Proj in
+            // the name) and an explicit-LOD sample with a constant offset (the view type varies by knob).
             match m.tag {
-                "02703" | "08610" => {
-                    if knob % 2 == 0 {
-                        a.proj = true
-                    } else {
-                        a.implicit_lod = true
-                    }
-                }
-                "02704" | "08611" => {
-                    if knob % 2 == 0 {
-                        a.lod_bias = true
-                    } else {
-                        a.offset = true
-                    }
-                }
+                "02703" | "08610" => a.proj = true,
+                "02704" | "08611" => a.offset = true,
                 "09635" => {
                     st.image_views
                         .iter_mut()
@@ -1389,6 +1381,78 @@ pub fn satisfy(
     }
 }
 
+/// The ray tracing stages a launch executes, by the model's semantics: the raygen, the miss, closest-hit
+/// and intersection shaders of the records its rays reach ([`model::semantics::records_read`]) and the
+/// callables it executes. Any-hit shaders are left out: whether one runs depends on opacity, which the
+/// world does not describe. Sorted, without repeats.
+pub fn launch_stages(world: &model::world::World, call: &model::call::Call) -> Vec<Stage> {
+    use model::call::Table;
+    use model::semantics::{record_handle, records_read};
+    use model::world::{GeneralStage, HandleRef, ShaderGroup};
+    let mut out = vec![];
+    let records = records_read(world, call);
+    if !records.is_empty() {
+        out.push(Stage::Raygen);
+    }
+    for (table, index) in records {
+        let group = match record_handle(world, call, table, index) {
+            Some(HandleRef::Group(g)) => world
+                .pipeline
+                .as_ref()
+                .and_then(|p| p.groups.get(g as usize)),
+            _ => None,
+        };
+        match (table, group) {
+            (
+                Table::Miss,
+                Some(ShaderGroup::General {
+                    stage: GeneralStage::Miss,
+                }),
+            ) => out.push(Stage::Miss),
+            (
+                Table::Callable,
+                Some(ShaderGroup::General {
+                    stage: GeneralStage::Callable,
+                }),
+            ) => out.push(Stage::Callable),
+            (
+                Table::Hit,
+                Some(ShaderGroup::TrianglesHit {
+                    closest_hit: true, ..
+                }),
+            ) => out.push(Stage::ClosestHit),
+            (
+                Table::Hit,
+                Some(ShaderGroup::ProceduralHit {
+                    intersection: true,
+                    closest_hit,
+                    ..
+                }),
+            ) => {
+                // An AABB ray reaches this record only when it targets an AABB geometry, which the
+                // intersection shader reports (semantics.md §3).
+                out.push(Stage::Intersection);
+                if *closest_hit {
+                    out.push(Stage::ClosestHit);
+                }
+            }
+            _ => {}
+        }
+    }
+    out.sort();
+    out.dedup();
+    out
+}
+
+/// Moves the state's declared accesses and push constant reads (all in the first stage, as
+/// [`valid_state`] and [`mutate`] place them) into `stage`.
+pub fn move_to_stage(st: &mut ResourceState, stage: Stage) {
+    if st.stages.is_empty() || stage == Stage::Raygen {
+        return;
+    }
+    st.stages[0].stage = stage;
+}
+
 /// The `generator::mutation` hook: a valid plan realised, a valid resource state added, the rule broken.
 pub fn apply(
     m: ResourceMutation,
@@ -1415,6 +1479,12 @@ pub fn apply(
         input.knob,
     )
     .map_err(GenError::Unsupported)?;
+    // The accesses go into one of the stages the launch executes (the raygen always runs), so every
+    // stage's shader is exercised across cases and a valid case's accesses really run.
+    let stages = launch_stages(&world, &call);
+    if !stages.is_empty() {
+        move_to_stage(&mut st, stages[input.pick as usize % stages.len()]);
+    }
     world.resources = st;
     let scope = input.command.vk_name();
     // The targeted row's registry condition (a resource rule's extension) holds on the case's device.
