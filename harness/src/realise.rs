@@ -716,17 +716,18 @@ impl DeviceCache {
 
     fn create_pipeline(&mut self, p: &Pipeline, trace: bool) -> Result<RealPipeline, RealiseError> {
         let layout = self.layouts(trace, p.api)?.pipeline;
-        self.create_pipeline_with(p, trace, layout, None)
+        self.create_pipeline_with(p, trace, layout, &[])
     }
 
-    /// issue 4 hook: the pipeline for a description with `layout` and, when given, `raygen` as the module
-    /// of every raygen stage (used by `crate::resources` for cases with a resource state). Not cached.
+    /// issue 4 hook: the pipeline for a description with `layout` and, for each shader kind `modules`
+    /// names, that module in every stage of that kind (used by `crate::resources` for cases with a
+    /// resource state: its templated raygen, closest-hit, miss, ... modules). Not cached.
     pub fn create_pipeline_with(
         &mut self,
         p: &Pipeline,
         trace: bool,
         layout: vk::PipelineLayout,
-        raygen_module: Option<vk::ShaderModule>,
+        modules: &[(ShaderKind, vk::ShaderModule)],
     ) -> Result<RealPipeline, RealiseError> {
         let api = p.api;
         match api {
@@ -762,9 +763,10 @@ impl DeviceCache {
                            kind: ShaderKind,
                            stage: vk::ShaderStageFlags|
              -> Result<u32, RealiseError> {
-                let m = match raygen_module {
-                    Some(m) if kind == raygen => m,
-                    _ => this.module(kind, api)?,
+                // issue 4 hook: a templated module of this kind replaces the harness's.
+                let m = match modules.iter().find(|(k, _)| *k == kind) {
+                    Some(&(_, m)) => m,
+                    None => this.module(kind, api)?,
                 };
                 stage_list.push((g, stage, m));
                 Ok(stage_list.len() as u32 - 1)

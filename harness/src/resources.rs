@@ -1,6 +1,6 @@
 //! Realises a case's resource state (issue 4) on a device: descriptor set layouts, pipeline layouts,
 //! descriptor sets with their written descriptors, samplers, images and views, buffers and buffer views,
-//! the binds and pushes recorded before the trace, and a raygen shader that performs exactly the declared
+//! the binds and pushes recorded before the trace, and stage shaders that perform exactly the declared
 //! accesses — so the validation layer's draw-time checks see the state the model judged.
 //!
 //! **Set numbering.** The harness's own set (scene, output, rays, callables) stays at set 0, where every
@@ -10,20 +10,29 @@
 //! compatible for set `n`, and the harness set, bound first with the pipeline's layout, is never disturbed
 //! by the case's binds (its definition is the same in every layout).
 //!
-//! **Shaders.** The raygen of the case's pipeline is `shaders/raygen.rgen` with the accesses of the
-//! state's raygen stage injected at the start of `main`: one GLSL declaration per access (aliases of one
-//! binding are allowed), the access itself in straight-line code, and its result folded into a value
-//! that is written out only under a condition that never holds at run time (so every access is static
-//! use and none changes the output words). Texel operands narrower than four components, which GLSL's
-//! `imageStore` cannot express, are patched into the compiled module (`OpImageWrite` with a narrow
-//! constant texel, see [`patch_narrow_writes`]). Sources are compiled with glslangValidator at first use into a cache keyed by their hash.
+//! **Shaders.** Each stage that declares accesses (and the raygen always) is the harness's own shader of
+//! that stage (`shaders/raygen.rgen`, `closest_hit.rchit`, `miss.rmiss`, `any_hit.rahit`,
+//! `intersection.rint`, `callable.rcall`) with the stage's accesses injected at the start of `main`: one
+//! GLSL declaration per access (aliases of one binding are allowed), the access itself in straight-line
+//! code, and its result folded into a value that is consumed only under a condition that never holds at
+//! run time (so every access is static use and none changes the output words; the stage's own code runs
+//! after it). The templated module replaces the harness's in every stage of that kind in the pipeline
+//! (`DeviceCache::create_pipeline_with`). Accesses in a stage the pipeline has no shader of are
+//! unsupported (nothing bound would use them statically); a stage the pipeline has but the launch does
+//! not reach still uses them statically, which is what these rules ask. Texel operands narrower than
+//! four components, which GLSL's `imageStore` cannot express, are patched into the compiled module
+//! (`OpImageWrite` with a narrow constant texel, see [`patch_narrow_writes`]). Sources are compiled with
+//! glslangValidator at first use into a cache keyed by their hash, with `-DNV` for VK_NV_ray_tracing
+//! pipelines (the same GLSL in GL_NV_ray_tracing names, as build.rs compiles the harness's shaders).
 //!
 //! What is not realised is reported unsupported by [`unsupported`] with the reason (vendor objects,
 //! descriptor buffers, sparse and tile memory, implicit-LOD sampling, which ray tracing stages cannot do,
-//! 64-bit images, accesses outside the raygen stage, descriptors of the wrong kind).
+//! 64-bit images, accesses in a stage the pipeline lacks, sets statically used but never bound,
+//! descriptors of the wrong kind).
 
 use crate::error::SETUP_COMMAND;
 use crate::realise::{Allocation, DeviceCache, RealiseError};
+use crate::shaders::ShaderKind;
 use ash::vk;
 use model::resources::*;
 use model::world::{PipelineApi, World};
@@ -90,12 +99,20 @@ pub fn unsupported(world: &World) -> Option<String> {
     {
         return Some("cubic filtering, QCOM image processing and YCbCr conversion samplers/views are not realised: lavapipe lacks those extensions".into());
     }
-    if st
-        .stages
-        .iter()
-        .any(|s| s.stage != Stage::Raygen && (!s.accesses.is_empty() || s.push_constants.is_some()))
-    {
-        return Some("resource accesses outside the raygen stage are not realised yet (the harness templates only the raygen shader)".into());
+    if let Some(p) = world.pipeline.as_ref() {
+        for s in st
+            .stages
+            .iter()
+            .filter(|s| !s.accesses.is_empty() || s.push_constants.is_some())
+        {
+            if !pipeline_has(p, s.stage) {
+                return Some(format!(
+                    "the state declares accesses in the {:?} stage but the pipeline has no such shader, so nothing \
+                     bound uses them statically (the model reads them as performed; the harness cannot place them)",
+                    s.stage
+                ));
+            }
+        }
     }
     if st
         .stages
@@ -129,15 +146,6 @@ pub fn unsupported(world: &World) -> Option<String> {
             "set {n} is statically used but never bound: VK_LAYER_KHRONOS_validation 1.3.239 crashes (SIGSEGV, or an \
              uncaught C++ exception) validating such a trace call on lavapipe, so the harness does not record it"
         ));
-    }
-    if world
-        .pipeline
-        .as_ref()
-        .is_some_and(|p| p.api == PipelineApi::Nv)
-    {
-        return Some(
-            "resource states with VK_NV_ray_tracing pipelines are not realised yet".into(),
-        );
     }
     None
 }
@@ -280,9 +288,86 @@ fn view_format(st: &ResourceState, a: &Access) -> Option<String> {
         .find_map(of)
 }
 
+/// Whether a pipeline has a shader of `stage` (in any group): only then can a stage's declared accesses
+/// be statically used by a bound shader.
+pub fn pipeline_has(p: &model::world::Pipeline, stage: Stage) -> bool {
+    use model::world::{GeneralStage, ShaderGroup};
+    p.groups.iter().any(|g| match (g, stage) {
+        (ShaderGroup::General { stage: s }, _) => matches!(
+            (s, stage),
+            (GeneralStage::Raygen, Stage::Raygen)
+                | (GeneralStage::Miss, Stage::Miss)
+                | (GeneralStage::Callable, Stage::Callable)
+        ),
+        (ShaderGroup::TrianglesHit { closest_hit, .. }, Stage::ClosestHit)
+        | (ShaderGroup::ProceduralHit { closest_hit, .. }, Stage::ClosestHit) => *closest_hit,
+        (ShaderGroup::TrianglesHit { any_hit, .. }, Stage::AnyHit)
+        | (ShaderGroup::ProceduralHit { any_hit, .. }, Stage::AnyHit) => *any_hit,
+        (ShaderGroup::ProceduralHit { intersection, .. }, Stage::Intersection) => *intersection,
+        _ => false,
+    })
+}
+
+/// The harness shader a stage's accesses are injected into (`trace`: the launch traces rays, so the
+/// raygen and closest-hit are the variants with the scene binding).
+pub fn shader_kind(stage: Stage, trace: bool) -> ShaderKind {
+    match (stage, trace) {
+        (Stage::Raygen, true) => ShaderKind::RaygenTrace,
+        (Stage::Raygen, false) => ShaderKind::RaygenPlain,
+        (Stage::ClosestHit, true) => ShaderKind::ClosestHitTrace,
+        (Stage::ClosestHit, false) => ShaderKind::ClosestHitPlain,
+        (Stage::Miss, _) => ShaderKind::Miss,
+        (Stage::AnyHit, _) => ShaderKind::AnyHit,
+        (Stage::Intersection, _) => ShaderKind::Intersection,
+        (Stage::Callable, _) => ShaderKind::Callable,
+    }
+}
+
+/// The harness's GLSL source of a stage and the file extension glslangValidator infers the stage from.
+pub fn stage_source(stage: Stage) -> (&'static str, &'static str) {
+    match stage {
+        Stage::Raygen => (include_str!("../shaders/raygen.rgen"), "rgen"),
+        Stage::ClosestHit => (include_str!("../shaders/closest_hit.rchit"), "rchit"),
+        Stage::Miss => (include_str!("../shaders/miss.rmiss"), "rmiss"),
+        Stage::AnyHit => (include_str!("../shaders/any_hit.rahit"), "rahit"),
+        Stage::Intersection => (include_str!("../shaders/intersection.rint"), "rint"),
+        Stage::Callable => (include_str!("../shaders/callable.rcall"), "rcall"),
+    }
+}
+
+/// The statement that consumes the accumulated value `acc` of a stage's accesses under a condition that
+/// never holds at run time, so every access is used without changing what the stage writes: the
+/// raygen's rays header word is 0 (the harness writes it), a payload's depth is at least 1, the
+/// callable data is 0 when the raygen calls, and no ray has a negative `tMin`.
+fn sink(stage: Stage) -> &'static str {
+    match stage {
+        Stage::Raygen => {
+            "    if (acc == 0x9E3779B9u && rays.pad1 == 0x5EEDu) { outp.words[0] = acc; }\n"
+        }
+        Stage::ClosestHit | Stage::Miss | Stage::AnyHit => {
+            "    if (acc == 0x9E3779B9u && payload.depth == 0x5EEDu) { payload.word = acc; }\n"
+        }
+        Stage::Callable => "    if (acc == 0x9E3779B9u && data == 0x5EEDu) { data = acc; }\n",
+        Stage::Intersection => {
+            "    if (acc == 0x9E3779B9u && gl_RayTminEXT < -1.0) { reportIntersectionEXT(gl_RayTminEXT, 0u); }\n"
+        }
+    }
+}
+
 /// The raygen GLSL for a state: `base` (the harness's raygen source) with the raygen stage's accesses
 /// and push constant reads injected. Errors name what GLSL cannot express.
 pub fn raygen_glsl(st: &ResourceState, base: &str) -> Result<(String, Vec<NarrowWrite>), String> {
+    stage_glsl(st, Stage::Raygen, base)
+}
+
+/// The GLSL of one stage for a state: `base` (the harness's source of that stage, [`stage_source`])
+/// with the stage's accesses and push constant reads injected at the start of `main` (so the stage's
+/// own code, which writes the payload, runs after them). Errors name what GLSL cannot express.
+pub fn stage_glsl(
+    st: &ResourceState,
+    which: Stage,
+    base: &str,
+) -> Result<(String, Vec<NarrowWrite>), String> {
     let mut narrow = Vec::new();
     let exts = String::from(
         "#extension GL_EXT_shader_image_load_formatted : require\n\
@@ -290,7 +375,7 @@ pub fn raygen_glsl(st: &ResourceState, base: &str) -> Result<(String, Vec<Narrow
     );
     let mut decls = String::new();
     let mut body = String::from("    uint acc = 0u;\n");
-    let stage = st.stages.iter().find(|s| s.stage == Stage::Raygen);
+    let stage = st.stages.iter().find(|s| s.stage == which);
     let accesses: &[Access] = stage.map_or(&[], |s| &s.accesses);
     for (i, a) in accesses.iter().enumerate() {
         let set = a.set + 1;
@@ -584,16 +669,15 @@ pub fn raygen_glsl(st: &ResourceState, base: &str) -> Result<(String, Vec<Narrow
             writeln!(body, "    acc += pc.w[{k}];").unwrap();
         }
     }
-    // Never true at run time (the harness writes 0 to the rays header's last word): the accesses stay
-    // static use without changing the output.
-    body.push_str("    if (acc == 0x9E3779B9u && rays.pad1 == 0x5EEDu) { outp.words[0] = acc; }\n");
+    // Never true at run time: the accesses stay static use without changing the output.
+    body.push_str(sink(which));
     let main = "void main() {\n";
     let at = base
         .find(main)
-        .ok_or("the raygen source has no `void main() {`")?;
+        .ok_or("the stage's source has no `void main() {`")?;
     let version = base
         .find("#version 460\n")
-        .ok_or("the raygen source has no #version line")?
+        .ok_or("the stage's source has no #version line")?
         + "#version 460\n".len();
     Ok((
         format!(
@@ -706,18 +790,32 @@ pub fn patch_narrow_writes(words: &mut [u32], narrow: &[NarrowWrite]) -> Result<
     Ok(())
 }
 
-/// Compiles raygen GLSL (with `-DTRACE` when `trace`) to SPIR-V words, cached on disk by content hash.
+/// Compiles raygen GLSL (with `-DTRACE` when `trace`) for a KHR pipeline; see [`compile_stage`].
 pub fn compile_raygen(glsl: &str, trace: bool) -> Result<Vec<u32>, RealiseError> {
+    compile_stage(glsl, Stage::Raygen, trace, PipelineApi::Khr)
+}
+
+/// Compiles a stage's GLSL to SPIR-V words (with `-DTRACE` when `trace`, and `-DNV` for
+/// VK_NV_ray_tracing pipelines, as build.rs compiles the harness's own shaders), cached on disk by
+/// content hash.
+pub fn compile_stage(
+    glsl: &str,
+    stage: Stage,
+    trace: bool,
+    api: PipelineApi,
+) -> Result<Vec<u32>, RealiseError> {
     use std::hash::{Hash, Hasher};
+    let (_, ext) = stage_source(stage);
+    let nv = api == PipelineApi::Nv;
     let mut h = std::collections::hash_map::DefaultHasher::new();
-    (glsl, trace).hash(&mut h);
+    (glsl, trace, ext, nv).hash(&mut h);
     let key = format!("{:016x}", h.finish());
     let dir = std::env::temp_dir().join("rtconf-resource-shaders");
     std::fs::create_dir_all(&dir)
         .map_err(|e| RealiseError::Failed(format!("{}: {e}", dir.display())))?;
     let spv = dir.join(format!("{key}.spv"));
     if !spv.exists() {
-        let src = dir.join(format!("{key}-{}.rgen", std::process::id()));
+        let src = dir.join(format!("{key}-{}.{ext}", std::process::id()));
         std::fs::write(&src, glsl)
             .map_err(|e| RealiseError::Failed(format!("{}: {e}", src.display())))?;
         let tmp = dir.join(format!("{key}-{}.spv", std::process::id()));
@@ -725,6 +823,9 @@ pub fn compile_raygen(glsl: &str, trace: bool) -> Result<Vec<u32>, RealiseError>
         cmd.args(["--target-env", "vulkan1.2", "-V"]);
         if trace {
             cmd.arg("-DTRACE");
+        }
+        if nv {
+            cmd.arg("-DNV");
         }
         let out = cmd.arg(&src).arg("-o").arg(&tmp).output().map_err(|e| {
             RealiseError::Failed(format!(
@@ -734,7 +835,7 @@ pub fn compile_raygen(glsl: &str, trace: bool) -> Result<Vec<u32>, RealiseError>
         let _ = std::fs::remove_file(&src);
         if !out.status.success() {
             return Err(RealiseError::Failed(format!(
-                "glslangValidator failed on the resource raygen: {}\n{glsl}",
+                "glslangValidator failed on the resource {stage:?} shader: {}\n{glsl}",
                 String::from_utf8_lossy(&out.stdout)
             )));
         }
@@ -895,7 +996,9 @@ pub struct Realised {
     views: HashMap<String, vk::ImageView>,
     buffers: HashMap<String, Allocation>,
     buffer_views: HashMap<String, vk::BufferView>,
-    raygen: vk::ShaderModule,
+    /// The templated module of each stage kind the pipeline gets (the raygen always; other stages when
+    /// the state declares accesses or push constant reads in them).
+    modules: Vec<(ShaderKind, vk::ShaderModule)>,
     binds: Vec<(vk::PipelineLayout, u32, vk::DescriptorSet)>,
     pushes: Vec<(vk::PipelineLayout, u32, u32)>,
 }
@@ -914,7 +1017,7 @@ impl Realised {
             views: HashMap::new(),
             buffers: HashMap::new(),
             buffer_views: HashMap::new(),
-            raygen: vk::ShaderModule::null(),
+            modules: Vec::new(),
             binds: Vec::new(),
             pushes: Vec::new(),
         }
@@ -955,8 +1058,23 @@ impl Realised {
             return unsup(why);
         }
         let st = &world.resources;
-        let base = include_str!("../shaders/raygen.rgen");
-        let (glsl, narrow) = raygen_glsl(st, base).map_err(RealiseError::Unsupported)?;
+        // The stages templated: the raygen, and every other stage that declares accesses or pushes.
+        let api = world.pipeline.as_ref().map_or(PipelineApi::Khr, |p| p.api);
+        let mut templated = vec![Stage::Raygen];
+        for s in &st.stages {
+            if s.stage != Stage::Raygen
+                && (!s.accesses.is_empty() || s.push_constants.is_some())
+                && !templated.contains(&s.stage)
+            {
+                templated.push(s.stage);
+            }
+        }
+        let mut sources = Vec::new();
+        for &stage in &templated {
+            let (glsl, narrow) = stage_glsl(st, stage, stage_source(stage).0)
+                .map_err(|e| RealiseError::Unsupported(format!("{stage:?} stage: {e}")))?;
+            sources.push((stage, glsl, narrow));
+        }
         let dev = &cache.dev;
         let d = &dev.device;
         // SAFETY (whole block): create infos reference live locals and objects of this device.
@@ -1479,22 +1597,26 @@ impl Realised {
                 self.pushes.push((layout, p.offset, p.size));
             }
         }
-        // The pipeline with the templated raygen.
-        let mut code = compile_raygen(&glsl, trace)?;
-        patch_narrow_writes(&mut code, &narrow).map_err(|e| {
-            RealiseError::Failed(format!("patching the raygen's narrow writes: {e}"))
-        })?;
-        // SAFETY: valid SPIR-V words.
-        self.raygen = unsafe {
-            cache
-                .dev
-                .device
-                .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None)
+        // The pipeline with the templated stages (KHR or NV GLSL by the pipeline's API).
+        for (stage, glsl, narrow) in &sources {
+            let mut code = compile_stage(glsl, *stage, trace, api)?;
+            patch_narrow_writes(&mut code, narrow).map_err(|e| {
+                RealiseError::Failed(format!(
+                    "patching the {stage:?} shader's narrow writes: {e}"
+                ))
+            })?;
+            // SAFETY: valid SPIR-V words.
+            let m = unsafe {
+                cache
+                    .dev
+                    .device
+                    .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&code), None)
+            }
+            .map_err(vkfail("vkCreateShaderModule"))?;
+            self.modules.push((shader_kind(*stage, trace), m));
         }
-        .map_err(vkfail("vkCreateShaderModule"))?;
         if let Some(p) = world.pipeline.as_ref() {
-            let rp =
-                cache.create_pipeline_with(p, trace, self.harness_layout, Some(self.raygen))?;
+            let rp = cache.create_pipeline_with(p, trace, self.harness_layout, &self.modules)?;
             cache.resource_pipeline = Some(rp);
         }
         Ok(())
@@ -1571,8 +1693,8 @@ impl Realised {
             if let Some(p) = cache.resource_pipeline.take() {
                 d.destroy_pipeline(p.pipeline, None);
             }
-            if self.raygen != vk::ShaderModule::null() {
-                d.destroy_shader_module(self.raygen, None);
+            for (_, m) in self.modules {
+                d.destroy_shader_module(m, None);
             }
             if self.pool != vk::DescriptorPool::null() {
                 d.destroy_descriptor_pool(self.pool, None);
