@@ -90,6 +90,8 @@ fn realise_err(e: RealiseError) -> String {
 /// Device objects of one case.
 struct Realised {
     buffers: BTreeMap<String, Allocation>,
+    /// Non-sparse buffers with no memory bound (a case's `unbound` buffer that no address names).
+    bare: BTreeMap<String, vk::Buffer>,
     structures: BTreeMap<String, (vk::AccelerationStructureKHR, u64)>,
 }
 
@@ -112,6 +114,10 @@ impl Realised {
         }
         for (_, a) in self.buffers {
             a.destroy(dev);
+        }
+        for (_, b) in self.bare {
+            // SAFETY: nothing uses it (callers wait).
+            unsafe { dev.device.destroy_buffer(b, None) };
         }
     }
 }
@@ -263,60 +269,152 @@ pub fn device_for(
     })
 }
 
-fn realise(dev: &VkDevice, case: &BuildCase) -> Result<Realised, String> {
+/// Whether any address of the call (indirect records, scratch, geometry data) lies in buffer `name`.
+fn addressed(case: &BuildCase, name: &str) -> bool {
+    let is = |a: &model::call::Address| a.buffer().is_some_and(|(b, _)| b == name);
+    case.call.indirect_addresses.iter().any(is)
+        || case.call.infos.iter().any(|i| {
+            is(&i.scratch)
+                || i.geometries.iter().any(|g| match &g.data {
+                    GeometryData::Triangles {
+                        vertex_data,
+                        index_data,
+                        transform_data,
+                        ..
+                    } => is(vertex_data) || is(index_data) || is(transform_data),
+                    GeometryData::Aabbs { data, .. } => is(data),
+                    GeometryData::Instances { data, .. } => is(data),
+                    _ => false,
+                })
+        })
+}
+
+/// Creates the case's buffers and structures and writes the memory image. Memory follows each buffer's
+/// binding: wholly bound buffers get one allocation; sparse buffers are bound with `vkQueueBindSparse`
+/// (whole: one memory object, scattered: two, unbound: none) waiting on `fence`; a non-sparse unbound
+/// buffer is created with no memory where no address of the call lies in it (a structure may be placed
+/// on it: VkAccelerationStructureCreateInfoKHR asks nothing of its binding). What Vulkan forbids is
+/// `unsupported` with the rule: a non-sparse buffer bound to several memory objects, and the device
+/// address of a non-sparse unbound buffer (VUID-VkBufferDeviceAddressInfo-buffer-02600).
+fn realise(dev: &VkDevice, case: &BuildCase, fence: vk::Fence) -> Result<Realised, String> {
+    use model::world::MemoryBinding;
     let accel = dev
         .accel
         .as_ref()
         .ok_or("unsupported: the case does not enable VK_KHR_acceleration_structure")?;
     let mut r = Realised {
         buffers: BTreeMap::new(),
+        bare: BTreeMap::new(),
         structures: BTreeMap::new(),
     };
     let made = (|| -> Result<(), String> {
         for b in &case.world.buffers {
-            if b.is_sparse() || b.memory != model::world::MemoryBinding::Whole {
-                return Err(format!(
-                    "unsupported: buffer `{}`: only wholly bound, non-sparse buffers are realised",
-                    b.name
-                ));
-            }
             let usage = vk::BufferUsageFlags::from_raw(b.usage.0 as u32)
                 | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-            let a = Allocation::new(
-                dev,
-                b.size,
-                usage,
-                vk::BufferCreateFlags::from_raw(b.flags.0 as u32),
-                BUFFER_PLACEMENT_ALIGNMENT,
-            )
-            .map_err(realise_err)?;
-            r.buffers.insert(b.name.clone(), a);
+            let flags = vk::BufferCreateFlags::from_raw(b.flags.0 as u32);
+            if b.is_sparse() {
+                if !dev.has_feature("sparseBinding") || !dev.sparse_binding {
+                    return Err(format!(
+                        "unsupported: buffer `{}` is sparse: creating it needs the sparseBinding feature and \
+                         binding it a queue with VK_QUEUE_SPARSE_BINDING_BIT (the case's device has {})",
+                        b.name,
+                        if dev.has_feature("sparseBinding") {
+                            "no such queue"
+                        } else {
+                            "no sparseBinding"
+                        }
+                    ));
+                }
+                let plan = match b.memory {
+                    MemoryBinding::Whole => crate::realise::SparsePlan::One,
+                    MemoryBinding::Scattered => crate::realise::SparsePlan::Two,
+                    MemoryBinding::Unbound => crate::realise::SparsePlan::Unbound,
+                };
+                let a = Allocation::sparse(dev, fence, b.size, usage, flags, plan)
+                    .map_err(realise_err)?;
+                r.buffers.insert(b.name.clone(), a);
+                continue;
+            }
+            match b.memory {
+                MemoryBinding::Whole => {
+                    let a = Allocation::new(dev, b.size, usage, flags, BUFFER_PLACEMENT_ALIGNMENT)
+                        .map_err(realise_err)?;
+                    r.buffers.insert(b.name.clone(), a);
+                }
+                MemoryBinding::Scattered => {
+                    return Err(format!(
+                        "unsupported: buffer `{}` is not sparse, so it cannot be bound to several memory objects \
+                         (vkBindBufferMemory binds a non-sparse buffer to one, completely and contiguously); the \
+                         one realisable non-contiguous non-sparse buffer is an unbound one, whose device address \
+                         is itself invalid to ask for (VUID-VkBufferDeviceAddressInfo-buffer-02600)",
+                        b.name
+                    ))
+                }
+                MemoryBinding::Unbound if addressed(case, &b.name) || !b.contents.is_empty() => {
+                    return Err(format!(
+                        "unsupported: buffer `{}` is not sparse and has no memory bound, yet the call reads \
+                         it by device address: vkGetBufferDeviceAddress on it is itself invalid \
+                         (VUID-VkBufferDeviceAddressInfo-buffer-02600: a non-sparse buffer must be bound \
+                         completely and contiguously to a single VkDeviceMemory object)",
+                        b.name
+                    ))
+                }
+                MemoryBinding::Unbound => {
+                    let info = vk::BufferCreateInfo::default()
+                        .size(b.size.max(1))
+                        .usage(usage)
+                        .flags(flags);
+                    // SAFETY: valid create info; destroyed with the case.
+                    let buf = unsafe { dev.device.create_buffer(&info, None) }
+                        .map_err(fail("vkCreateBuffer"))?;
+                    r.bare.insert(b.name.clone(), buf);
+                }
+            }
         }
         for s in &case.world.structures {
-            let buf = r
-                .buffers
-                .get(&s.buffer)
-                .ok_or_else(|| format!("structure `{}`: no buffer `{}`", s.name, s.buffer))?;
+            let (buffer, bound) = match (r.buffers.get(&s.buffer), r.bare.get(&s.buffer)) {
+                (Some(a), _) => (a.buffer, a.memory_count() > 0),
+                (None, Some(b)) => (*b, false),
+                _ => return Err(format!("structure `{}`: no buffer `{}`", s.name, s.buffer)),
+            };
             let info = vk::AccelerationStructureCreateInfoKHR::default()
-                .buffer(buf.buffer)
+                .buffer(buffer)
                 .offset(s.offset)
                 .size(s.size)
                 .ty(vk_type(s.ty));
             // SAFETY: the buffer lives as long as the structure.
             let h = unsafe { accel.create_acceleration_structure(&info, None) }
                 .map_err(fail("vkCreateAccelerationStructureKHR"))?;
-            // SAFETY: valid structure.
-            let addr = unsafe {
-                accel.get_acceleration_structure_device_address(
-                    &vk::AccelerationStructureDeviceAddressInfoKHR::default()
-                        .acceleration_structure(h),
-                )
+            // The address of a structure on unbound memory is never read by the call (newer registries
+            // forbid asking: VUID-vkGetAccelerationStructureDeviceAddressKHR-pInfo-09541).
+            let addr = if bound {
+                // SAFETY: valid structure on bound memory.
+                unsafe {
+                    accel.get_acceleration_structure_device_address(
+                        &vk::AccelerationStructureDeviceAddressInfoKHR::default()
+                            .acceleration_structure(h),
+                    )
+                }
+            } else {
+                0
             };
             r.structures.insert(s.name.clone(), (h, addr));
         }
         for b in &case.world.buffers {
+            let Some(a) = r.buffers.get(&b.name) else {
+                continue;
+            };
+            if a.memory_count() == 0 {
+                if !b.contents.is_empty() {
+                    return Err(format!(
+                        "unsupported: buffer `{}` has no memory bound, so its contents cannot be written",
+                        b.name
+                    ));
+                }
+                continue;
+            }
             let bytes = case.world.image(&b.name, &r).expect("buffer of the world");
-            r.buffers[&b.name].write(0, &bytes);
+            a.write(0, &bytes);
         }
         Ok(())
     })();
@@ -364,7 +462,11 @@ fn device_sizes(dev: &VkDevice, case: &BuildCase, r: &Realised) -> Option<Vec<Bu
 struct Commands {
     pool: vk::CommandPool,
     cb: vk::CommandBuffer,
+    /// A secondary command buffer of the same pool, for cases recorded at the secondary level.
+    secondary: vk::CommandBuffer,
     fence: vk::Fence,
+    /// An empty render pass and its 1x1 framebuffer, made for cases recorded inside a render pass.
+    render_pass: Option<(vk::RenderPass, vk::Framebuffer)>,
 }
 
 impl Commands {
@@ -388,10 +490,24 @@ impl Commands {
                         .command_buffer_count(1),
                 )
                 .map_err(fail("vkAllocateCommandBuffers"))?[0];
+            let secondary = d
+                .allocate_command_buffers(
+                    &vk::CommandBufferAllocateInfo::default()
+                        .command_pool(pool)
+                        .level(vk::CommandBufferLevel::SECONDARY)
+                        .command_buffer_count(1),
+                )
+                .map_err(fail("vkAllocateCommandBuffers"))?[0];
             let fence = d
                 .create_fence(&vk::FenceCreateInfo::default(), None)
                 .map_err(fail("vkCreateFence"))?;
-            Ok(Commands { pool, cb, fence })
+            Ok(Commands {
+                pool,
+                cb,
+                secondary,
+                fence,
+                render_pass: None,
+            })
         }
     }
     fn begin(&self, dev: &VkDevice) -> Result<(), String> {
@@ -447,9 +563,47 @@ impl Commands {
             )
         };
     }
+    /// The empty render pass (no attachments, one graphics subpass) and a 1x1 framebuffer for it.
+    fn render_pass(&mut self, dev: &VkDevice) -> Result<(vk::RenderPass, vk::Framebuffer), String> {
+        if let Some(rp) = self.render_pass {
+            return Ok(rp);
+        }
+        let d = &dev.device;
+        let subpass =
+            [vk::SubpassDescription::default()
+                .pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)];
+        // SAFETY: valid create infos; destroyed with the commands.
+        unsafe {
+            let rp = d
+                .create_render_pass(
+                    &vk::RenderPassCreateInfo::default().subpasses(&subpass),
+                    None,
+                )
+                .map_err(fail("vkCreateRenderPass"))?;
+            let fb = d
+                .create_framebuffer(
+                    &vk::FramebufferCreateInfo::default()
+                        .render_pass(rp)
+                        .width(1)
+                        .height(1)
+                        .layers(1),
+                    None,
+                )
+                .map_err(|r| {
+                    d.destroy_render_pass(rp, None);
+                    format!("vkCreateFramebuffer failed: {r:?}")
+                })?;
+            self.render_pass = Some((rp, fb));
+            Ok((rp, fb))
+        }
+    }
     fn destroy(self, dev: &VkDevice) {
         // SAFETY: idle.
         unsafe {
+            if let Some((rp, fb)) = self.render_pass {
+                dev.device.destroy_framebuffer(fb, None);
+                dev.device.destroy_render_pass(rp, None);
+            }
             dev.device.destroy_fence(self.fence, None);
             dev.device.destroy_command_pool(self.pool, None);
         }
@@ -498,15 +652,202 @@ fn indirect_args<'a>(
     (infos, addrs, maxima)
 }
 
-/// Records the indirect call under the layer (dropped by the messenger, never submitted) and returns
-/// the layer's messages.
+/// Why the case's command buffer state cannot be realised on this device, if it cannot: protected
+/// command buffers, video coding scopes, pools of a queue family without compute, and recording between
+/// suspended render pass instances. Every other state (primary or secondary, initial, recording,
+/// executable or invalid, inside a render pass or not) is realised by [`record_indirect`].
+fn unrealisable_state(inst: &VkInstance, case: &BuildCase) -> Option<String> {
+    let cbs = &case.world.command_buffer;
+    // SAFETY: plain query.
+    let families = unsafe {
+        inst.instance
+            .get_physical_device_queue_family_properties(inst.physical)
+    };
+    let any = |f: vk::QueueFlags| families.iter().any(|p| p.queue_flags.intersects(f));
+    let protected_memory = inst
+        .device_features()
+        .iter()
+        .any(|(k, on)| *on && k.ends_with("::protectedMemory"));
+    if cbs.protected {
+        return Some(format!(
+            "a protected command buffer comes from a pool created with VK_COMMAND_POOL_CREATE_PROTECTED_BIT, \
+             which needs the protectedMemory feature (VUID-VkCommandPoolCreateInfo-flags-02860) and a queue \
+             created with VK_DEVICE_QUEUE_CREATE_PROTECTED_BIT; {}",
+            if protected_memory {
+                "the harness's device creates no protected queue"
+            } else {
+                "the device lacks protectedMemory"
+            }
+        ));
+    }
+    if cbs.in_video_coding {
+        let video = vk::QueueFlags::VIDEO_DECODE_KHR | vk::QueueFlags::VIDEO_ENCODE_KHR;
+        return Some(if any(video) {
+            "a video coding scope needs a video session (VK_KHR_video_queue) on a video queue; the harness \
+             creates neither"
+                .into()
+        } else {
+            "a video coding scope (vkCmdBeginVideoCodingKHR) needs a queue family with video decode or encode; \
+             the device has none"
+                .into()
+        });
+    }
+    if !cbs
+        .pool_queue
+        .contains(model::flags::QueueFlags::COMPUTE_BIT)
+    {
+        let without_compute = families
+            .iter()
+            .any(|p| !p.queue_flags.contains(vk::QueueFlags::COMPUTE));
+        return Some(if without_compute {
+            "a pool of a queue family without compute needs the device created with a queue of that family \
+             (VUID-vkCreateCommandPool-queueFamilyIndex-01937); the harness's device has its compute family only"
+                .into()
+        } else {
+            format!(
+                "a pool of a queue family without VK_QUEUE_COMPUTE_BIT needs such a family; every one of the \
+                 device's {} queue famil{} has compute",
+                families.len(),
+                if families.len() == 1 { "y" } else { "ies" }
+            )
+        });
+    }
+    if case.world.between_suspended_render_passes {
+        return Some(
+            "recording between suspended render pass instances (dynamic rendering) is not realised for builds"
+                .into(),
+        );
+    }
+    None
+}
+
+/// Puts the case's command buffer into its state: primary or secondary (a secondary inside a render pass
+/// continues the empty render pass through its inheritance), begun unless initial, inside the empty
+/// render pass when asked (a primary begins it inline), ended when executable, and submitted once with
+/// ONE_TIME_SUBMIT when invalid. Returns the command buffer the call is recorded into.
+fn enter_state(
+    dev: &VkDevice,
+    cmds: &mut Commands,
+    case: &BuildCase,
+) -> Result<vk::CommandBuffer, String> {
+    use model::world::{CommandBufferLevel, CommandBufferLifecycle};
+    let cbs = &case.world.command_buffer;
+    let d = &dev.device;
+    let secondary = cbs.level == CommandBufferLevel::Secondary;
+    let cb = if secondary { cmds.secondary } else { cmds.cb };
+    let rp = if cbs.in_render_pass {
+        Some(cmds.render_pass(dev)?)
+    } else {
+        None
+    };
+    // SAFETY: the command buffers are idle; everything named is alive.
+    unsafe {
+        d.reset_command_buffer(cb, vk::CommandBufferResetFlags::empty())
+            .map_err(fail("vkResetCommandBuffer"))?;
+        if cbs.lifecycle == CommandBufferLifecycle::Initial {
+            return Ok(cb);
+        }
+        let mut inherit = vk::CommandBufferInheritanceInfo::default();
+        let mut flags = vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT;
+        if let (true, Some((pass, fb))) = (secondary, rp) {
+            inherit = inherit.render_pass(pass).subpass(0).framebuffer(fb);
+            flags |= vk::CommandBufferUsageFlags::RENDER_PASS_CONTINUE;
+        }
+        let mut begin = vk::CommandBufferBeginInfo::default().flags(flags);
+        if secondary {
+            begin = begin.inheritance_info(&inherit);
+        }
+        d.begin_command_buffer(cb, &begin)
+            .map_err(fail("vkBeginCommandBuffer"))?;
+        let primary_pass = rp.filter(|_| !secondary);
+        if let Some((pass, fb)) = primary_pass {
+            let info = vk::RenderPassBeginInfo::default()
+                .render_pass(pass)
+                .framebuffer(fb)
+                .render_area(vk::Rect2D {
+                    offset: vk::Offset2D::default(),
+                    extent: vk::Extent2D {
+                        width: 1,
+                        height: 1,
+                    },
+                });
+            d.cmd_begin_render_pass(cb, &info, vk::SubpassContents::INLINE);
+        }
+        match cbs.lifecycle {
+            CommandBufferLifecycle::Executable | CommandBufferLifecycle::Invalid => {
+                if primary_pass.is_some() {
+                    d.cmd_end_render_pass(cb);
+                }
+                d.end_command_buffer(cb)
+                    .map_err(fail("vkEndCommandBuffer"))?;
+            }
+            _ => {}
+        }
+        if cbs.lifecycle == CommandBufferLifecycle::Invalid {
+            // A ONE_TIME_SUBMIT buffer moves to the invalid state once its submission completes; a
+            // secondary one is executed once from the primary.
+            let submit_cb = if secondary {
+                d.reset_command_buffer(cmds.cb, vk::CommandBufferResetFlags::empty())
+                    .map_err(fail("vkResetCommandBuffer"))?;
+                d.begin_command_buffer(
+                    cmds.cb,
+                    &vk::CommandBufferBeginInfo::default()
+                        .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+                )
+                .map_err(fail("vkBeginCommandBuffer"))?;
+                if let Some((pass, fb)) = rp {
+                    let info = vk::RenderPassBeginInfo::default()
+                        .render_pass(pass)
+                        .framebuffer(fb)
+                        .render_area(vk::Rect2D {
+                            offset: vk::Offset2D::default(),
+                            extent: vk::Extent2D {
+                                width: 1,
+                                height: 1,
+                            },
+                        });
+                    d.cmd_begin_render_pass(
+                        cmds.cb,
+                        &info,
+                        vk::SubpassContents::SECONDARY_COMMAND_BUFFERS,
+                    );
+                    d.cmd_execute_commands(cmds.cb, &[cb]);
+                    d.cmd_end_render_pass(cmds.cb);
+                } else {
+                    d.cmd_execute_commands(cmds.cb, &[cb]);
+                }
+                d.end_command_buffer(cmds.cb)
+                    .map_err(fail("vkEndCommandBuffer"))?;
+                cmds.cb
+            } else {
+                cb
+            };
+            let cbs_ = [submit_cb];
+            d.queue_submit(
+                dev.queue,
+                &[vk::SubmitInfo::default().command_buffers(&cbs_)],
+                cmds.fence,
+            )
+            .map_err(fail("vkQueueSubmit"))?;
+            d.wait_for_fences(&[cmds.fence], true, 60_000_000_000)
+                .map_err(fail("vkWaitForFences"))?;
+            d.reset_fences(&[cmds.fence])
+                .map_err(fail("vkResetFences"))?;
+        }
+    }
+    Ok(cb)
+}
+
+/// Records the indirect call under the layer (dropped by the messenger, never submitted) into a command
+/// buffer in the case's state and returns the layer's messages.
 fn record_indirect(
     inst: &VkInstance,
     dev: &VkDevice,
-    cmds: &Commands,
+    cmds: &mut Commands,
     case: &BuildCase,
     r: &Realised,
 ) -> Result<Vec<LayerMessage>, String> {
+    use model::world::{CommandBufferLevel, CommandBufferLifecycle};
     let accel = dev
         .accel
         .as_ref()
@@ -519,13 +860,14 @@ fn record_indirect(
         .collect::<Option<_>>()
         .ok_or("unsupported: geometry type not realised")?;
     let (infos, addrs, maxima) = indirect_args(case, r, &geoms);
-    cmds.begin(dev)?;
+    let cb = enter_state(dev, cmds, case)?;
     inst.collector.clear();
     inst.collector.set_abort(true);
-    // SAFETY: recording; with the messenger returning VK_TRUE the layer drops an invalid call.
+    // SAFETY: with the messenger returning VK_TRUE the layer drops an invalid call (one recorded into a
+    // command buffer that is not recording included).
     unsafe {
         accel.cmd_build_acceleration_structures_indirect(
-            cmds.cb,
+            cb,
             &infos,
             &addrs,
             &case.call.indirect_strides,
@@ -534,9 +876,20 @@ fn record_indirect(
     };
     inst.collector.set_abort(false);
     let msgs = inst.collector.take();
-    // SAFETY: ending a recording command buffer, never submitted.
+    let cbs = &case.world.command_buffer;
+    // SAFETY: ending what was begun (never submitted); the buffers are reset before their next use.
     unsafe {
-        let _ = dev.device.end_command_buffer(cmds.cb);
+        if cbs.lifecycle == CommandBufferLifecycle::Recording {
+            if cbs.in_render_pass && cbs.level == CommandBufferLevel::Primary {
+                dev.device.cmd_end_render_pass(cb);
+            }
+            let _ = dev.device.end_command_buffer(cb);
+        }
+        for b in [cmds.cb, cmds.secondary] {
+            let _ = dev
+                .device
+                .reset_command_buffer(b, vk::CommandBufferResetFlags::empty());
+        }
     }
     Ok(msgs)
 }
@@ -575,12 +928,8 @@ pub fn run_case_with(
         status: "ran".into(),
         ..Default::default()
     };
-    // The harness records into a fresh primary command buffer of a compute-capable pool, outside any
-    // render pass or video coding scope; other command buffer states are not realised yet.
-    if case.world.command_buffer != model::world::CommandBufferState::default()
-        || case.world.between_suspended_render_passes
-    {
-        obs.status = "unsupported: command buffer states other than a plain recording primary are not realised for builds".into();
+    if let Some(why) = unrealisable_state(inst, case) {
+        obs.status = format!("unsupported: {why}");
         return obs;
     }
     let dev = match device_for(inst, case, options.check) {
@@ -591,8 +940,14 @@ pub fn run_case_with(
         }
     };
     let result = (|| -> Result<(), String> {
-        let r = realise(&dev, case)?;
-        let cmds = Commands::new(&dev)?;
+        let mut cmds = Commands::new(&dev)?;
+        let r = match realise(&dev, case, cmds.fence) {
+            Ok(r) => r,
+            Err(e) => {
+                cmds.destroy(&dev);
+                return Err(e);
+            }
+        };
         let out = (|| -> Result<(), String> {
             let mut world = case.world.clone();
             if let Some(s) = device_sizes(&dev, case, &r) {
@@ -602,7 +957,7 @@ pub fn run_case_with(
             let verdict = rules.validate(profile, &world, &case.call);
             let set: BTreeSet<String> = verdict.violations.into_iter().map(|v| v.vuid).collect();
             obs.model_vuids = set.iter().cloned().collect();
-            obs.layer_messages = record_indirect(inst, &dev, &cmds, case, &r)?;
+            obs.layer_messages = record_indirect(inst, &dev, &mut cmds, case, &r)?;
             obs.layer_vuids = vuids(&obs.layer_messages);
             if obs.model_vuids.iter().all(|v| unavoidable.contains(v)) {
                 direct_and_trace(inst, &dev, &cmds, case, &r, &world, options.check, &mut obs)?;
@@ -1852,8 +2207,14 @@ pub fn probe_rays(
 ) -> Result<Hits, String> {
     let dev = device_for(inst, case, check)?;
     let check = resolve_check(&dev, check)?;
-    let r = realise(&dev, case)?;
     let cmds = Commands::new(&dev)?;
+    let r = match realise(&dev, case, cmds.fence) {
+        Ok(r) => r,
+        Err(e) => {
+            cmds.destroy(&dev);
+            return Err(e);
+        }
+    };
     let out = (|| -> Result<Hits, String> {
         let info = case.call.infos.first().ok_or("no build info")?;
         if info.ty != AsType::BottomLevel {
