@@ -556,6 +556,9 @@ pub fn mutate(case: &BuildCase, tail: &str, profile: &DeviceProfile) -> Option<B
     let w = &mut c.world;
     let call = &mut c.call;
     let tag = tail.rsplit('-').next()?;
+    if let Some(two) = mutate_two_infos(case, tag) {
+        return settle(two?, case, profile, tail);
+    }
     let first_geom = call.infos[0].geometries[0].data.clone();
     match tag {
         "03650" => {
@@ -878,16 +881,24 @@ fn last_geometry(d: &GeometryData) -> LastGeometry {
 
 /// Completes an update-mode mutation: the last build's ranges, indices and activity are the current ones.
 fn finish_update(
-    mut c: BuildCase,
+    c: BuildCase,
     base: &BuildCase,
     profile: &DeviceProfile,
     tail: &str,
 ) -> Option<BuildCase> {
+    let c = record_last_build(c, 0, "dst")?;
+    settle(c, base, profile, tail)
+}
+
+/// Gives structure `name` the last build an update of info `i` expects: the info's type, flags and
+/// geometries, with the ranges, indices and activity the info reads now.
+fn record_last_build(mut c: BuildCase, i: usize, name: &str) -> Option<BuildCase> {
     let mem = c.world.memory();
-    let ranges = model::build::indirect_ranges(&mem, &c.call, 0).ok()?;
-    let prims = model::build::build_primitives(&mem, &c.call.infos[0], &ranges).ok()?;
+    let ranges = model::build::indirect_ranges(&mem, &c.call, i).ok()?;
+    let info = &c.call.infos[i];
+    let prims = model::build::build_primitives(&mem, info, &ranges).ok()?;
     let mut geoms = Vec::new();
-    for (j, (g, r)) in c.call.infos[0].geometries.iter().zip(&ranges).enumerate() {
+    for (j, (g, r)) in info.geometries.iter().zip(&ranges).enumerate() {
         let mut lg = last_geometry(&g.data);
         lg.flags = g.flags;
         lg.range = *r;
@@ -900,10 +911,206 @@ fn finish_update(
         geoms.push(lg);
     }
     drop(mem);
-    if let Some(lb) = &mut c.world.structures[0].last_build {
-        lb.geometries = geoms;
+    let (ty, flags) = (info.ty, info.flags);
+    let s = c.world.structures.iter_mut().find(|s| s.name == name)?;
+    match &mut s.last_build {
+        // 03667's base: the structure already carries the last build's type and flags.
+        Some(lb) if name == "dst" && i == 0 => lb.geometries = geoms,
+        lb => {
+            *lb = Some(LastBuild {
+                ty,
+                flags,
+                geometries: geoms,
+            })
+        }
     }
-    settle(c, base, profile, tail)
+    Some(c)
+}
+
+/// A second build info, so rules between infos have a place: the first info's geometries again, building
+/// `dst2` (on its own buffer `storage2`) with its own scratch buffer `scratch2`, reading the same range
+/// records (a second `pIndirectDeviceAddresses` entry with the first's address and stride) with the same
+/// maxima. Valid when the one-info case is: nothing of one info overlaps or names the other's.
+pub fn add_second_info(c: &mut BuildCase) {
+    let w = &mut c.world;
+    let call = &mut c.call;
+    let storage = w
+        .buffers
+        .iter()
+        .find(|b| b.name == "storage")
+        .expect("generated buffer")
+        .clone();
+    let scratch = w
+        .buffers
+        .iter()
+        .find(|b| b.name == "scratch")
+        .expect("generated buffer")
+        .clone();
+    w.buffers.push(BuildBuffer {
+        name: "storage2".into(),
+        size: ASSUMED.structure,
+        ..storage
+    });
+    w.buffers.push(BuildBuffer {
+        name: "scratch2".into(),
+        ..scratch
+    });
+    let ty = call.infos[0].ty;
+    w.structures.push(AccelerationStructure {
+        name: "dst2".into(),
+        ty,
+        buffer: "storage2".into(),
+        offset: 0,
+        size: ASSUMED.structure,
+        last_build: None,
+    });
+    w.sizes.push(ASSUMED);
+    let mut second = call.infos[0].clone();
+    second.dst = Some("dst2".into());
+    second.scratch = addr("scratch2", 0);
+    call.infos.push(second);
+    call.indirect_addresses
+        .push(call.indirect_addresses[0].clone());
+    call.indirect_strides.push(call.indirect_strides[0]);
+    call.max_primitive_counts
+        .push(call.max_primitive_counts[0].clone());
+}
+
+/// Turns info `i` into an update of `dst` from `src` (ALLOW_UPDATE on the info and on the last build
+/// `src` records, with the shape the info reads).
+fn make_update(c: BuildCase, i: usize, src: &str) -> Option<BuildCase> {
+    let mut c = c;
+    let info = &mut c.call.infos[i];
+    info.flags = BuildFlags(info.flags.0 | BuildFlags::ALLOW_UPDATE);
+    info.mode = BuildMode::Update;
+    info.src = Some(src.into());
+    record_last_build(c, i, src)
+}
+
+/// The mutations that need two build infos (`pInfos-03403`, `dstAccelerationStructure-03698`, …), on
+/// the case with [`add_second_info`]; None when the tag is not one of them or the case has no place.
+fn mutate_two_infos(case: &BuildCase, tag: &str) -> Option<Option<BuildCase>> {
+    let mut c = case.clone();
+    if !matches!(
+        tag,
+        "03698" | "03702" | "03703" | "03704" | "03705" | "03403" | "03407"
+    ) {
+        return None;
+    }
+    if c.call.infos.len() != 1 {
+        return Some(None);
+    }
+    add_second_info(&mut c);
+    let storage_usage = BufferUsage::ACCELERATION_STRUCTURE_STORAGE_BIT_KHR
+        | BufferUsage::SHADER_DEVICE_ADDRESS_BIT
+        | BufferUsage::STORAGE_BUFFER_BIT;
+    let c = match tag {
+        // The same destination twice (its memory then overlaps itself: 03702 too).
+        "03698" => {
+            c.call.infos[1].dst = Some("dst".into());
+            Some(c)
+        }
+        // Two destinations whose memory overlaps: dst2 256 bytes into dst's buffer.
+        "03702" => {
+            let s = c.world.structures.iter_mut().find(|s| s.name == "dst2")?;
+            s.buffer = "storage".into();
+            s.offset = 256;
+            let b = buffer_mut(&mut c.world, "storage");
+            b.size = b.size.max(256 + ASSUMED.structure);
+            Some(c)
+        }
+        // The second info's scratch lies in the memory backing the first info's destination.
+        "03703" => {
+            buffer_mut(&mut c.world, "storage").usage = storage_usage;
+            c.call.infos[1].scratch = addr("storage", 0);
+            Some(c)
+        }
+        // Both infos use the same scratch memory.
+        "03704" => {
+            c.call.infos[1].scratch = addr("scratch", 0);
+            Some(c)
+        }
+        // The first info's scratch lies in the memory of the second's update source `old` (its own
+        // buffer `storage3`, so nothing else overlaps).
+        "03705" => {
+            let storage = c
+                .world
+                .buffers
+                .iter()
+                .find(|b| b.name == "storage2")?
+                .clone();
+            c.world.buffers.push(BuildBuffer {
+                name: "storage3".into(),
+                usage: storage_usage,
+                ..storage
+            });
+            let ty = c.call.infos[1].ty;
+            c.world.structures.push(AccelerationStructure {
+                name: "old".into(),
+                ty,
+                buffer: "storage3".into(),
+                offset: 0,
+                size: ASSUMED.structure,
+                last_build: None,
+            });
+            let mut c = make_update(c, 1, "old")?;
+            c.call.infos[0].scratch = addr("storage3", 0);
+            Some(c)
+        }
+        // The second info updates from the first info's destination (whose memory it then reads while
+        // the first writes it: 03701 too).
+        "03403" => make_update(c, 1, "dst"),
+        // A top-level build whose instances reference `blas`, built by the second info in the same call
+        // (one triangle).
+        "03407" => {
+            if c.call.infos[0].ty != AsType::TopLevel {
+                return Some(None);
+            }
+            let input = buffer_mut(&mut c.world, "input");
+            let vbase = align_up(input.size, 16);
+            input.contents.push(BuildContents::Floats {
+                offset: vbase,
+                values: vec![-0.5, -0.5, 0.0, 0.5, -0.5, 0.0, 0.0, 0.5, 0.0],
+            });
+            input.size = vbase + 48;
+            let indirect = buffer_mut(&mut c.world, "indirect");
+            let rbase = align_up(indirect.size, 16);
+            indirect.contents.push(BuildContents::Ranges {
+                offset: rbase,
+                stride: 16,
+                ranges: vec![RangeInfo {
+                    primitive_count: 1,
+                    ..RangeInfo::default()
+                }],
+            });
+            indirect.size = rbase + 16;
+            let info = &mut c.call.infos[1];
+            info.ty = AsType::BottomLevel;
+            info.dst = Some(BLAS.into());
+            info.geometries = vec![Geometry {
+                flags: GeometryFlags(1),
+                data: GeometryData::Triangles {
+                    vertex_format: VertexFormat::R32g32b32Sfloat,
+                    vertex_data: addr("input", vbase),
+                    vertex_stride: 12,
+                    max_vertex: 2,
+                    index_type: IndexType::None,
+                    index_data: Address::NULL,
+                    transform_data: Address::NULL,
+                    motion_vertex_data: None,
+                    opacity_micromap: None,
+                },
+            }];
+            c.call.indirect_addresses[1] = addr("indirect", rbase);
+            c.call.indirect_strides[1] = 16;
+            c.call.max_primitive_counts[1] = vec![1];
+            c.world.structures.retain(|s| s.name != "dst2");
+            c.world.buffers.retain(|b| b.name != "storage2");
+            Some(c)
+        }
+        _ => None,
+    };
+    Some(c)
 }
 
 /// Moves the input contents at or after `from` by `delta`, and every address into `input` at or
@@ -952,6 +1159,8 @@ fn siblings(tag: &str) -> &'static [&'static str] {
         "06707" => &["12281"],
         "03800" => &["03652"],
         "03646" => &["03651"],
+        "03698" => &["03702"],
+        "03403" => &["03701"],
         _ => &[],
     }
 }
@@ -1059,6 +1268,13 @@ pub const MUTATIONS: &[&str] = &[
     "videocoding",
     "commandBuffer-03649",
     "infoCount-arraylength",
+    "dstAccelerationStructure-03698",
+    "dstAccelerationStructure-03702",
+    "dstAccelerationStructure-03703",
+    "scratchData-03704",
+    "scratchData-03705",
+    "pInfos-03403",
+    "None-03407",
 ];
 
 /// Deterministic cases: for each plan drawn from `seed`, the valid case and every mutation that fits.
