@@ -1641,42 +1641,7 @@ fn trace(
                     .set_layouts(&sets),
             )
             .map_err(fail("vkAllocateDescriptorSets"))?[0];
-        let scenes = [scene];
-        let mut asw = vk::WriteDescriptorSetAccelerationStructureKHR::default()
-            .acceleration_structures(&scenes);
-        let bi = |a: &Allocation| {
-            [vk::DescriptorBufferInfo {
-                buffer: a.buffer,
-                offset: 0,
-                range: vk::WHOLE_SIZE,
-            }]
-        };
-        let (b1, b2, b3) = (bi(&rb), bi(&hb), bi(&bb));
-        let mut w0 = vk::WriteDescriptorSet::default()
-            .dst_set(set)
-            .dst_binding(0)
-            .descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR)
-            .push_next(&mut asw);
-        w0.descriptor_count = 1;
-        let writes = [
-            w0,
-            vk::WriteDescriptorSet::default()
-                .dst_set(set)
-                .dst_binding(1)
-                .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-                .buffer_info(&b1),
-            vk::WriteDescriptorSet::default()
-                .dst_set(set)
-                .dst_binding(2)
-                .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-                .buffer_info(&b2),
-            vk::WriteDescriptorSet::default()
-                .dst_set(set)
-                .dst_binding(3)
-                .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-                .buffer_info(&b3),
-        ];
-        d.update_descriptor_sets(&writes, &[]);
+        write_check_set(d, set, scene, [rb.buffer, hb.buffer, bb.buffer]);
         let run = (|| -> Result<(), String> {
             cmds.begin(dev)?;
             d.cmd_bind_pipeline(cmds.cb, vk::PipelineBindPoint::COMPUTE, pipe);
@@ -1977,42 +1942,7 @@ fn trace_pipeline(
                                 .set_layouts(&sets),
                         )
                         .map_err(fail("vkAllocateDescriptorSets"))?[0];
-                    let scenes = [scene];
-                    let mut asw = vk::WriteDescriptorSetAccelerationStructureKHR::default()
-                        .acceleration_structures(&scenes);
-                    let bi = |b: vk::Buffer| {
-                        [vk::DescriptorBufferInfo {
-                            buffer: b,
-                            offset: 0,
-                            range: vk::WHOLE_SIZE,
-                        }]
-                    };
-                    let (b1, b2, b3) = (bi(rb_buf), bi(hb_buf), bi(bb_buf));
-                    let mut w0 = vk::WriteDescriptorSet::default()
-                        .dst_set(set)
-                        .dst_binding(0)
-                        .descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR)
-                        .push_next(&mut asw);
-                    w0.descriptor_count = 1;
-                    let writes = [
-                        w0,
-                        vk::WriteDescriptorSet::default()
-                            .dst_set(set)
-                            .dst_binding(1)
-                            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-                            .buffer_info(&b1),
-                        vk::WriteDescriptorSet::default()
-                            .dst_set(set)
-                            .dst_binding(2)
-                            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-                            .buffer_info(&b2),
-                        vk::WriteDescriptorSet::default()
-                            .dst_set(set)
-                            .dst_binding(3)
-                            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-                            .buffer_info(&b3),
-                    ];
-                    d.update_descriptor_sets(&writes, &[]);
+                    write_check_set(d, set, scene, [rb_buf, hb_buf, bb_buf]);
                     cmds.begin(dev)?;
                     d.cmd_bind_pipeline(cmds.cb, vk::PipelineBindPoint::RAY_TRACING_KHR, pipe);
                     d.cmd_bind_descriptor_sets(
@@ -2251,4 +2181,52 @@ pub fn probe_rays(
     cmds.destroy(&dev);
     r.destroy(&dev);
     out
+}
+
+/// Writes the traced check's descriptor set: the structure under test at binding 0 and the rays, hits
+/// and built-primitive buffers at bindings 1 to 3 (the same layout for the ray-query and the pipeline path).
+///
+/// # Safety
+/// `set` is a set of the check's layout that no pending command uses; the handles are live.
+unsafe fn write_check_set(
+    d: &ash::Device,
+    set: vk::DescriptorSet,
+    scene: vk::AccelerationStructureKHR,
+    buffers: [vk::Buffer; 3],
+) {
+    let scenes = [scene];
+    let mut asw =
+        vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&scenes);
+    let infos = buffers.map(|buffer| {
+        [vk::DescriptorBufferInfo {
+            buffer,
+            offset: 0,
+            range: vk::WHOLE_SIZE,
+        }]
+    });
+    let mut w0 = vk::WriteDescriptorSet::default()
+        .dst_set(set)
+        .dst_binding(0)
+        .descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR)
+        .push_next(&mut asw);
+    w0.descriptor_count = 1;
+    fn buffer_write(
+        set: vk::DescriptorSet,
+        binding: u32,
+        info: &[vk::DescriptorBufferInfo; 1],
+    ) -> vk::WriteDescriptorSet<'_> {
+        vk::WriteDescriptorSet::default()
+            .dst_set(set)
+            .dst_binding(binding)
+            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+            .buffer_info(info)
+    }
+    let writes = [
+        w0,
+        buffer_write(set, 1, &infos[0]),
+        buffer_write(set, 2, &infos[1]),
+        buffer_write(set, 3, &infos[2]),
+    ];
+    // SAFETY: guaranteed by the caller.
+    unsafe { d.update_descriptor_sets(&writes, &[]) };
 }
