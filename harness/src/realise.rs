@@ -1067,39 +1067,8 @@ impl DeviceCache {
             | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
         let scratch_align = (dev.limits.scratch_alignment as u64).max(256);
         let none = vk::BufferCreateFlags::empty();
-        // Geometry input: triangles (3 vertices) and boxes per geometry, all in one buffer.
-        let mut input: Vec<u8> = Vec::new();
-        let mut offsets: Vec<Vec<u64>> = Vec::new();
-        for (i, inst) in instances.iter().enumerate() {
-            let mut per = Vec::new();
-            for (g, kind) in inst.geometries.iter().enumerate() {
-                let (cx, cy) = (2.0 * g as f32, 4.0 * i as f32);
-                while input.len() % 16 != 0 {
-                    input.push(0);
-                }
-                per.push(input.len() as u64);
-                let floats: Vec<f32> = match kind {
-                    GeometryKind::Triangles => {
-                        vec![
-                            cx - 0.5,
-                            cy - 0.5,
-                            0.0,
-                            cx + 0.5,
-                            cy - 0.5,
-                            0.0,
-                            cx,
-                            cy + 0.5,
-                            0.0,
-                        ]
-                    }
-                    GeometryKind::Aabbs => vec![cx - 0.5, cy - 0.5, -0.5, cx + 0.5, cy + 0.5, 0.5],
-                };
-                floats
-                    .iter()
-                    .for_each(|f| input.extend_from_slice(&f.to_ne_bytes()));
-            }
-            offsets.push(per);
-        }
+        // Geometry input: one triangle or box per geometry, all in one buffer.
+        let (input, offsets) = geometry_input(instances);
         let inputs = Allocation::new(dev, input.len().max(16) as u64, input_usage, none, 256)?;
         inputs.write(0, &input);
         let input_address = inputs.address;
@@ -1295,37 +1264,8 @@ impl DeviceCache {
         let dev = &self.dev;
         let usage = vk::BufferUsageFlags::RAY_TRACING_NV;
         let none = vk::BufferCreateFlags::empty();
-        // Geometry input, as for KHR: one triangle or box per geometry; offsets 16-aligned (AABBs need 8).
-        let mut input: Vec<u8> = Vec::new();
-        let mut offsets: Vec<Vec<u64>> = Vec::new();
-        for (i, inst) in instances.iter().enumerate() {
-            let mut per = Vec::new();
-            for (g, kind) in inst.geometries.iter().enumerate() {
-                let (cx, cy) = (2.0 * g as f32, 4.0 * i as f32);
-                while input.len() % 16 != 0 {
-                    input.push(0);
-                }
-                per.push(input.len() as u64);
-                let floats: Vec<f32> = match kind {
-                    GeometryKind::Triangles => vec![
-                        cx - 0.5,
-                        cy - 0.5,
-                        0.0,
-                        cx + 0.5,
-                        cy - 0.5,
-                        0.0,
-                        cx,
-                        cy + 0.5,
-                        0.0,
-                    ],
-                    GeometryKind::Aabbs => vec![cx - 0.5, cy - 0.5, -0.5, cx + 0.5, cy + 0.5, 0.5],
-                };
-                floats
-                    .iter()
-                    .for_each(|f| input.extend_from_slice(&f.to_ne_bytes()));
-            }
-            offsets.push(per);
-        }
+        // Geometry input, as for KHR (offsets 16-aligned; AABBs need 8).
+        let (input, offsets) = geometry_input(instances);
         let inputs = Allocation::new(dev, input.len().max(16) as u64, usage, none, 256)?;
         inputs.write(0, &input);
         let input_buffer = inputs.buffer;
@@ -1969,4 +1909,39 @@ fn sized_structure(
     }
     .map_err(vkfail("vkCreateAccelerationStructureKHR"))?;
     Ok((structure, storage, scratch))
+}
+
+/// The bytes every scene's bottom-level structures are built from, and each geometry's offset in them:
+/// geometry `g` of instance `i` is a triangle (3 vertices) or a box (min, max) around (2g, 4i, 0), at a
+/// 16-aligned offset. The rays and the intersection shader rely on this placement (see `Instance`).
+fn geometry_input(instances: &[Instance]) -> (Vec<u8>, Vec<Vec<u64>>) {
+    let mut input: Vec<u8> = Vec::new();
+    let mut offsets = Vec::with_capacity(instances.len());
+    for (i, inst) in instances.iter().enumerate() {
+        let mut per = Vec::with_capacity(inst.geometries.len());
+        for (g, kind) in inst.geometries.iter().enumerate() {
+            let (cx, cy) = (2.0 * g as f32, 4.0 * i as f32);
+            input.resize(input.len().next_multiple_of(16), 0);
+            per.push(input.len() as u64);
+            let floats: &[f32] = match kind {
+                GeometryKind::Triangles => &[
+                    cx - 0.5,
+                    cy - 0.5,
+                    0.0,
+                    cx + 0.5,
+                    cy - 0.5,
+                    0.0,
+                    cx,
+                    cy + 0.5,
+                    0.0,
+                ],
+                GeometryKind::Aabbs => &[cx - 0.5, cy - 0.5, -0.5, cx + 0.5, cy + 0.5, 0.5],
+            };
+            floats
+                .iter()
+                .for_each(|f| input.extend_from_slice(&f.to_ne_bytes()));
+        }
+        offsets.push(per);
+    }
+    (input, offsets)
 }
