@@ -94,27 +94,7 @@ pub fn run(a: ReplayArgs) -> Result<i32, String> {
             m.text.chars().take(300).collect::<String>()
         );
     }
-    if let Some(ok) = report.output_matches {
-        println!(
-            "output:  {}",
-            if ok {
-                "matches the model"
-            } else {
-                "DIFFERS from the model"
-            }
-        );
-    }
-    println!("outcome: {:?} {}", report.outcome, report.detail);
-    Ok(
-        if matches!(
-            report.outcome,
-            harness::compare::Outcome::Pass | harness::compare::Outcome::Triaged
-        ) {
-            0
-        } else {
-            1
-        },
-    )
+    Ok(print_outcome(&report))
 }
 
 /// Whether a file that parses as neither kind was meant as a build case (its call has `infos`).
@@ -215,6 +195,12 @@ fn run_build(a: &ReplayArgs, case: model::build::BuildCase) -> Result<i32, Strin
             );
         }
     }
+    Ok(print_outcome(&report))
+}
+
+/// Prints the end of a replay's report (output check and outcome) and returns the exit status:
+/// 0 when the case passed or disagreed only as the triage files say.
+fn print_outcome(report: &harness::compare::CaseReport) -> i32 {
     if let Some(ok) = report.output_matches {
         println!(
             "output:  {}",
@@ -226,14 +212,8 @@ fn run_build(a: &ReplayArgs, case: model::build::BuildCase) -> Result<i32, Strin
         );
     }
     println!("outcome: {:?} {}", report.outcome, report.detail);
-    Ok(
-        if matches!(
-            report.outcome,
-            harness::compare::Outcome::Pass | harness::compare::Outcome::Triaged
-        ) {
-            0
-        } else {
-            1
-        },
-    )
+    match report.outcome {
+        harness::compare::Outcome::Pass | harness::compare::Outcome::Triaged => 0,
+        _ => 1,
+    }
 }
