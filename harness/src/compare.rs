@@ -240,17 +240,7 @@ pub fn compare(
             problems.push(format!("the model does not report the target {t}"));
         }
     }
-    report.outcome = if !problems.is_empty() {
-        Outcome::Fail
-    } else if !triaged.is_empty() {
-        Outcome::Triaged
-    } else {
-        Outcome::Pass
-    };
-    let mut detail = problems;
-    detail.extend(triaged);
-    report.detail = detail.join("; ");
-    report
+    conclude(report, problems, triaged)
 }
 
 /// Compares one build case's observation with the model. `model` is the model's verdict for the world
@@ -379,6 +369,12 @@ pub fn compare_build(
             problems.push(format!("the model does not report the target {t}"));
         }
     }
+    conclude(report, problems, triaged)
+}
+
+/// The outcome of a comparison that ran: a failure if any problem is left, triaged if only triaged
+/// disagreements are, a pass otherwise; the detail lists the problems, then the triaged ones.
+fn conclude(mut report: CaseReport, problems: Vec<String>, triaged: Vec<String>) -> CaseReport {
     report.outcome = if !problems.is_empty() {
         Outcome::Fail
     } else if !triaged.is_empty() {
@@ -386,9 +382,11 @@ pub fn compare_build(
     } else {
         Outcome::Pass
     };
-    let mut detail = problems;
-    detail.extend(triaged);
-    report.detail = detail.join("; ");
+    report.detail = problems
+        .into_iter()
+        .chain(triaged)
+        .collect::<Vec<_>>()
+        .join("; ");
     report
 }
 
