@@ -5,7 +5,7 @@
 //! it into cases deterministically from a seed; [`case_strategy`] is the underlying proptest strategy;
 //! [`shrink_failure`] minimises a case a predicate says fails and writes it as YAML.
 
-pub mod build; // issue 5
+pub mod accel;
 pub mod mutation;
 pub mod plan;
 pub mod profiles;

@@ -1,10 +1,10 @@
 //! Generated build cases judge as declared: valid plans give exactly the device's unavoidable VUIDs,
 //! each mutation gives its VUID plus declared co-violations; cases round-trip through YAML.
 
-use generator::build::{
+use generator::accel::{
     generate, mutate, plan_strategy, realise, unavoidable, use_rules, MUTATIONS,
 };
-use model::build::{BuildCase, BuildRuleSet};
+use model::accel::{BuildCase, BuildRuleSet};
 use proptest::prelude::*;
 use std::collections::BTreeSet;
 
@@ -93,7 +93,7 @@ proptest! {
         let c = realise(&plan, &p, "prop");
         prop_assert_eq!(verdict(&r, &p, &c), unavoidable(&p));
         // and the build has a meaning
-        prop_assert!(model::build::indirect_build(&c.world, &c.call).is_ok());
+        prop_assert!(model::accel::indirect_build(&c.world, &c.call).is_ok());
     }
 
     #[test]

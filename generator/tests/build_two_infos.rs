@@ -3,10 +3,10 @@
 //! update source that is another info's destination or under another info's scratch, a destination
 //! another info's instances reference) violates exactly its VUID plus its declared co-violation.
 
-use generator::build::{
+use generator::accel::{
     add_second_info, generate, mutate, plan_strategy, realise, unavoidable, use_rules,
 };
-use model::build::{BuildCase, BuildRuleSet};
+use model::accel::{BuildCase, BuildRuleSet};
 use proptest::prelude::*;
 use std::collections::BTreeSet;
 
@@ -53,9 +53,9 @@ fn every_two_info_mutation_is_generated_and_judges_as_declared() {
             let got = verdict(&r, &p, c);
             assert_eq!(got, c.expected_vuids(), "{}:\n{}", c.name, c.to_yaml());
             let mut want: Vec<String> = unavoidable(&p);
-            want.push(generator::build::vuid(tail));
+            want.push(generator::accel::vuid(tail));
             if let Some(co) = co {
-                want.push(generator::build::vuid(co));
+                want.push(generator::accel::vuid(co));
             }
             want.sort();
             assert_eq!(
@@ -78,7 +78,7 @@ proptest! {
         let mut c = realise(&plan, &p, "prop");
         add_second_info(&mut c);
         prop_assert_eq!(verdict(&r, &p, &c), unavoidable(&p));
-        prop_assert!(model::build::indirect_build(&c.world, &c.call).is_ok());
+        prop_assert!(model::accel::indirect_build(&c.world, &c.call).is_ok());
     }
 
     #[test]

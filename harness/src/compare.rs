@@ -249,14 +249,14 @@ pub fn compare(
 /// indirect call must draw exactly them, and the traced check of its direct build (and, on a device
 /// with the feature, of its real indirect build) must agree with the model's primitives.
 pub fn compare_build(
-    case: &model::build::BuildCase,
+    case: &model::accel::BuildCase,
     model: &[String],
-    obs: &crate::build::BuildObservation,
+    obs: &crate::accel::BuildObservation,
     unavoidable: &[String],
     triage: &Triage,
     millis: f64,
 ) -> CaseReport {
-    let command = model::build::call::COMMAND;
+    let command = model::accel::call::COMMAND;
     let expected = case.expected_vuids();
     let valid = expected.iter().all(|v| unavoidable.contains(v));
     let (layer, layer_other): (Vec<String>, Vec<String>) = obs
@@ -340,7 +340,7 @@ pub fn compare_build(
             if !obs.ray_mismatches.is_empty() {
                 let key = format!(
                     "output:{command}:{}",
-                    crate::build::deviation(case, obs).unwrap_or_else(|| "rays".into())
+                    crate::accel::deviation(case, obs).unwrap_or_else(|| "rays".into())
                 );
                 let first = obs.ray_mismatches[0].clone();
                 match triage.covers(&key) {

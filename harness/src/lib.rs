@@ -1,7 +1,7 @@
 //! rtconf harness: realises model cases on a real Vulkan driver under the validation layer, records and
 //! runs the trace call, and reports what the layer said and what the shaders wrote.
 
-pub mod build; // issue 5
+pub mod accel;
 pub mod compare;
 pub mod error;
 pub mod execute;

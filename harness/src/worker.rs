@@ -4,12 +4,12 @@
 //! A request is a trace case ([`WorkerRequest`], answered with a [`CaseResult`]) or a build case
 //! ([`BuildRequest`], answered with a [`BuildResult`]); one pool runs either kind.
 
-use crate::build::{BuildObservation, BuildOptions};
+use crate::accel::{BuildObservation, BuildOptions};
 use crate::execute::{execute, Executor};
 use crate::observe::{CaseResult, Observation, Status};
 use crate::vulkan::Driver;
 use crate::vulkan::VkInstance;
-use model::build::{BuildCase, BuildRuleSet};
+use model::accel::{BuildCase, BuildRuleSet};
 use model::case::Case;
 use model::DeviceProfile;
 use std::collections::VecDeque;
@@ -47,7 +47,7 @@ pub struct BuildRequest {
 }
 
 mod yaml_text {
-    use model::build::BuildCase;
+    use model::accel::BuildCase;
     pub fn serialize<S: serde::Serializer>(c: &BuildCase, s: S) -> Result<S::Ok, S::Error> {
         s.serialize_str(&c.to_yaml())
     }
@@ -111,8 +111,8 @@ fn run_build_request(
         }
     }
     let c = ctx.as_ref().expect("made above");
-    let unavoidable = generator::build::unavoidable(&c.profile);
-    crate::build::run_case_with(
+    let unavoidable = generator::accel::unavoidable(&c.profile);
+    crate::accel::run_case_with(
         &c.inst,
         &c.profile,
         &c.rules,

@@ -3,10 +3,10 @@
 //! cases (valid apart from the missing accelerationStructureIndirectBuild) run as the equivalent direct
 //! build and one traced ray per built primitive must agree with the model's primitive list.
 
-use harness::build::{expected_rays, run_case};
+use harness::accel::{expected_rays, run_case};
 use harness::vulkan::VkInstance;
 use harness::Driver;
-use model::build::BuildRuleSet;
+use model::accel::BuildRuleSet;
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::Arc;
 
@@ -22,7 +22,7 @@ fn setup() -> (Arc<VkInstance>, model::DeviceProfile, BuildRuleSet) {
     let set = vk_registry::source::load_vuids(std::path::Path::new("/usr/share/vulkan/registry"))
         .unwrap();
     let rules = BuildRuleSet::from_vuids(&set);
-    generator::build::use_rules(rules.clone());
+    generator::accel::use_rules(rules.clone());
     (inst, profile, rules)
 }
 
@@ -30,12 +30,12 @@ fn setup() -> (Arc<VkInstance>, model::DeviceProfile, BuildRuleSet) {
 fn valid_builds_trace_as_the_model_says_and_the_layer_reports_the_missing_feature() {
     let _one = DEVICE.lock().unwrap_or_else(|e| e.into_inner());
     let (inst, profile, rules) = setup();
-    let unavoidable = generator::build::unavoidable(&profile);
+    let unavoidable = generator::accel::unavoidable(&profile);
     let mut traced = 0;
     let mut known_deviation = 0;
     let mut kinds = BTreeSet::new();
     for seed in 0..4 {
-        for case in generator::build::generate(&profile, seed, 4)
+        for case in generator::accel::generate(&profile, seed, 4)
             .into_iter()
             .filter(|c| c.name.ends_with("-valid"))
         {
@@ -62,7 +62,7 @@ fn valid_builds_trace_as_the_model_says_and_the_layer_reports_the_missing_featur
             // device's hits are those of the build with firstVertex doubled) so a fixed driver or a new
             // departure shows up here. See cases/build/indexed-first-vertex-shifted-primitives.yaml.
             let deviates = !obs.ray_mismatches.is_empty()
-                && harness::build::deviation(&case, &obs)
+                && harness::accel::deviation(&case, &obs)
                     .is_some_and(|d| d.contains("first-vertex-applied-twice"));
             if deviates {
                 known_deviation += 1;
@@ -93,9 +93,9 @@ fn valid_builds_trace_as_the_model_says_and_the_layer_reports_the_missing_featur
 #[test]
 fn expected_rays_hit_active_primitives_and_miss_inactive_ones() {
     let profile = generator::profiles::load("lavapipe").unwrap();
-    let plan = generator::build::BuildPlan {
-        kind: generator::build::Kind::Aabbs,
-        geometries: vec![generator::build::GeometryPlan {
+    let plan = generator::accel::BuildPlan {
+        kind: generator::accel::Kind::Aabbs,
+        geometries: vec![generator::accel::GeometryPlan {
             count: 3,
             slack: 0,
             offset_units: 1,
@@ -106,8 +106,8 @@ fn expected_rays_hit_active_primitives_and_miss_inactive_ones() {
         stride_extra: 0,
         address_units: 0,
     };
-    let case = generator::build::realise(&plan, &profile, "aabbs");
-    let prims = model::build::indirect_build(&case.world, &case.call)
+    let case = generator::accel::realise(&plan, &profile, "aabbs");
+    let prims = model::accel::indirect_build(&case.world, &case.call)
         .unwrap()
         .remove(0);
     let rays = expected_rays(&prims, false);
@@ -122,9 +122,9 @@ fn expected_rays_hit_active_primitives_and_miss_inactive_ones() {
 fn invalid_builds_under_the_layer_agree_with_the_model_or_are_known_layer_gaps() {
     let _one = DEVICE.lock().unwrap_or_else(|e| e.into_inner());
     let (inst, profile, rules) = setup();
-    let unavoidable = generator::build::unavoidable(&profile);
+    let unavoidable = generator::accel::unavoidable(&profile);
     let mut table: BTreeMap<String, (usize, usize, BTreeSet<String>)> = BTreeMap::new();
-    for case in generator::build::generate(&profile, 7, 3)
+    for case in generator::accel::generate(&profile, 7, 3)
         .into_iter()
         .filter(|c| !c.name.ends_with("-valid"))
     {

@@ -1,12 +1,12 @@
 //! The inactive-triangle deviation of lavapipe (Mesa 25.0.7), probed with rays away from the model's
 //! centroids: geometry 0 of `cases/build/lavapipe-unexplained-rays.yaml` holds the triangles of
 //! firstVertex applied twice, geometry 1 loses primitive 0 next to its inactive (NaN) triangle, and
-//! `harness::build::deviation` names both cases after the CPU cast.
+//! `harness::accel::deviation` names both cases after the CPU cast.
 
-use harness::build::{probe_rays, run_case, TraceCheck, INACTIVE_TRIANGLE_DROPS};
+use harness::accel::{probe_rays, run_case, TraceCheck, INACTIVE_TRIANGLE_DROPS};
 use harness::vulkan::VkInstance;
 use harness::Driver;
-use model::build::{BuildCase, BuildRuleSet};
+use model::accel::{BuildCase, BuildRuleSet};
 use std::sync::Arc;
 
 fn case(name: &str) -> BuildCase {
@@ -41,10 +41,10 @@ fn lavapipe_drops_a_primitive_beside_an_inactive_triangle() {
     let set = vk_registry::source::load_vuids(std::path::Path::new("/usr/share/vulkan/registry"))
         .unwrap();
     let rules = BuildRuleSet::from_vuids(&set);
-    let unavoidable = generator::build::unavoidable(&profile);
+    let unavoidable = generator::accel::unavoidable(&profile);
     let obs = run_case(&inst, &profile, &rules, &unexplained, &unavoidable);
     assert_eq!(obs.status, "ran");
-    let named = harness::build::deviation(&unexplained, &obs).unwrap();
+    let named = harness::accel::deviation(&unexplained, &obs).unwrap();
     assert!(
         named
             .split('|')
@@ -57,12 +57,12 @@ fn lavapipe_drops_a_primitive_beside_an_inactive_triangle() {
     assert_eq!(obs.status, "ran");
     assert_eq!(obs.ray_mismatches.len(), 1, "{:?}", obs.ray_mismatches);
     assert_eq!(
-        harness::build::deviation(&clean, &obs).as_deref(),
+        harness::accel::deviation(&clean, &obs).as_deref(),
         Some(INACTIVE_TRIANGLE_DROPS)
     );
     // A device that hits a primitive the cast does not is no deviation, dropped primitives or not.
     let mut wrong = obs.clone();
     let k = wrong.ray_hits.iter().position(|h| h.is_some()).unwrap();
     wrong.ray_hits[k] = Some((0, 7, 7));
-    assert_eq!(harness::build::deviation(&clean, &wrong), None);
+    assert_eq!(harness::accel::deviation(&clean, &wrong), None);
 }

@@ -3,10 +3,10 @@
 //! with a ray tracing pipeline (raygen, closest-hit, intersection for AABBs) reports the same hit,
 //! instance, geometry and primitive for every ray, the lavapipe firstVertex deviation included.
 
-use harness::build::{run_case_with, BuildOptions, TraceCheck};
+use harness::accel::{run_case_with, BuildOptions, TraceCheck};
 use harness::vulkan::VkInstance;
 use harness::Driver;
-use model::build::{BuildCase, BuildRuleSet};
+use model::accel::{BuildCase, BuildRuleSet};
 use std::collections::BTreeSet;
 use std::sync::Arc;
 
@@ -20,14 +20,14 @@ fn pipeline_check_reports_what_ray_query_reports() {
     let set = vk_registry::source::load_vuids(std::path::Path::new("/usr/share/vulkan/registry"))
         .unwrap();
     let rules = BuildRuleSet::from_vuids(&set);
-    generator::build::use_rules(rules.clone());
-    let unavoidable = generator::build::unavoidable(&profile);
+    generator::accel::use_rules(rules.clone());
+    let unavoidable = generator::accel::unavoidable(&profile);
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../cases/build/lavapipe-indexed-first-vertex.yaml");
     let first_vertex =
         BuildCase::from_yaml("first-vertex", &std::fs::read_to_string(dir).unwrap()).unwrap();
     let mut cases: Vec<BuildCase> = (0..3)
-        .flat_map(|seed| generator::build::generate(&profile, seed, 4))
+        .flat_map(|seed| generator::accel::generate(&profile, seed, 4))
         .filter(|c| c.name.ends_with("-valid"))
         .collect();
     cases.push(first_vertex);
@@ -113,7 +113,7 @@ fn lavapipe_first_vertex_deviation_is_named_by_the_cpu_cast() {
         &profile,
         &rules,
         &case,
-        &generator::build::unavoidable(&profile),
+        &generator::accel::unavoidable(&profile),
         BuildOptions {
             check: TraceCheck::Pipeline,
         },
@@ -123,13 +123,13 @@ fn lavapipe_first_vertex_deviation_is_named_by_the_cpu_cast() {
     // FIXME(lavapipe, Mesa 25.0.7): a fixed driver traces [(0,0,0), (0,0,1)] and this fails.
     assert_eq!(obs.ray_hits, vec![None, Some((0, 0, 0))]);
     assert_eq!(
-        harness::build::deviation(&case, &obs).as_deref(),
+        harness::accel::deviation(&case, &obs).as_deref(),
         Some("first-vertex-applied-twice")
     );
     let mut model_obs = obs.clone();
     model_obs.ray_hits = vec![Some((0, 0, 0)), Some((0, 0, 1))];
     assert_eq!(
-        harness::build::deviation(&case, &model_obs),
+        harness::accel::deviation(&case, &model_obs),
         None,
         "the model's own hits are no deviation"
     );

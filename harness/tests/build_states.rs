@@ -3,10 +3,10 @@
 //! are realised and recorded (the 1.3.239 layer reports only the missing feature for them: layer gaps in
 //! triage/), and what Vulkan or the device rules out is `unsupported` with its reason.
 
-use harness::build::run_case;
+use harness::accel::run_case;
 use harness::vulkan::VkInstance;
 use harness::Driver;
-use model::build::{BuildCase, BuildRuleSet};
+use model::accel::{BuildCase, BuildRuleSet};
 use model::world::{CommandBufferLevel, CommandBufferLifecycle};
 use std::sync::Arc;
 
@@ -31,7 +31,7 @@ fn command_buffer_states_and_unbound_memory_are_realised() {
     let set = vk_registry::source::load_vuids(std::path::Path::new("/usr/share/vulkan/registry"))
         .unwrap();
     let rules = BuildRuleSet::from_vuids(&set);
-    let unavoidable = generator::build::unavoidable(&profile);
+    let unavoidable = generator::accel::unavoidable(&profile);
     let run = |c: &BuildCase| run_case(&inst, &profile, &rules, c, &unavoidable);
 
     let executable = case("layer-1.3.239-recording");

@@ -3,7 +3,7 @@
 //!
 //! Pure and deterministic: the same case always gets the same verdict and the same expected output.
 
-pub mod build; // issue 5
+pub mod accel;
 pub mod call;
 pub mod case;
 pub mod flags;

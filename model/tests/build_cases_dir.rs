@@ -1,6 +1,6 @@
 //! The build cases under `cases/build/` parse and judge as they declare on the lavapipe profile.
 
-use model::build::{BuildCase, BuildRuleSet};
+use model::accel::{BuildCase, BuildRuleSet};
 
 #[test]
 fn committed_build_cases_judge_as_declared() {

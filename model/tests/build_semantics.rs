@@ -2,9 +2,9 @@
 //! PrimitiveId from the range start, arrays of pointers) and the metamorphic relation
 //! "indirect with ranges R ≡ direct with R" over many stride/offset layouts of the same records.
 
-use model::build::call::{BuildFlags, GeometryFlags};
-use model::build::world::{identity, InstanceRecord, InstanceReference};
-use model::build::*;
+use model::accel::call::{BuildFlags, GeometryFlags};
+use model::accel::world::{identity, InstanceRecord, InstanceReference};
+use model::accel::*;
 use model::call::Address;
 use model::flags::BufferUsage;
 

@@ -19,7 +19,7 @@ fn every_modelled_vuid_of_the_installed_registry_has_exactly_one_row() {
     let rows: Vec<&str> = rules.rows.iter().map(|r| r.vuid.as_str()).collect();
     assert_eq!(rows, expected);
     // A trace-command row executes through its predicate; the build command's rows execute through
-    // `model::build::BuildRuleSet`, which compiles the same registry records.
+    // `model::accel::BuildRuleSet`, which compiles the same registry records.
     for r in &rules.rows {
         let build = model::rules::BUILD_COMMANDS.contains(&r.scope.as_str());
         assert!(

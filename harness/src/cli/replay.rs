@@ -3,7 +3,7 @@
 //! kind is detected from the file.
 
 use clap::Args;
-use harness::build::{BuildOptions, TraceCheck};
+use harness::accel::{BuildOptions, TraceCheck};
 use harness::compare::{compare, compare_build, Triage};
 use std::path::PathBuf;
 
@@ -43,7 +43,7 @@ pub fn run(a: ReplayArgs) -> Result<i32, String> {
         std::fs::read_to_string(&a.case).map_err(|e| format!("{shown}: cannot read: {e}"))?;
     let case = match model::Case::from_yaml(&shown, &text) {
         Ok(c) => c,
-        Err(trace_err) => match model::build::BuildCase::from_yaml(&shown, &text) {
+        Err(trace_err) => match model::accel::BuildCase::from_yaml(&shown, &text) {
             Ok(b) => return run_build(&a, b),
             Err(build_err) if looks_like_build(&text) => return Err(build_err.to_string()),
             Err(_) => return Err(trace_err.to_string()),
@@ -107,11 +107,11 @@ fn looks_like_build(text: &str) -> bool {
 
 /// A build case: the indirect call under the layer (its messages in full), the model's verdict with the
 /// device's sizes, and for a valid case the traced check of the equivalent direct build.
-fn run_build(a: &ReplayArgs, case: model::build::BuildCase) -> Result<i32, String> {
+fn run_build(a: &ReplayArgs, case: model::accel::BuildCase) -> Result<i32, String> {
     let set = super::load_sources(&a.from)?;
-    let rules = model::build::BuildRuleSet::from_vuids(&set);
+    let rules = model::accel::BuildRuleSet::from_vuids(&set);
     let profile = super::profile_for(a.profile.as_deref().unwrap_or(&case.profile))?;
-    let unavoidable = generator::build::unavoidable(&profile);
+    let unavoidable = generator::accel::unavoidable(&profile);
     let driver = harness::vulkan::Driver::parse(&a.driver);
     let inst = std::sync::Arc::new(
         harness::vulkan::VkInstance::new(driver, true).map_err(|e| e.to_string())?,
@@ -122,7 +122,7 @@ fn run_build(a: &ReplayArgs, case: model::build::BuildCase) -> Result<i32, Strin
         CheckArg::Pipeline => TraceCheck::Pipeline,
     };
     let started = std::time::Instant::now();
-    let obs = harness::build::run_case_with(
+    let obs = harness::accel::run_case_with(
         &inst,
         &profile,
         &rules,
@@ -179,7 +179,7 @@ fn run_build(a: &ReplayArgs, case: model::build::BuildCase) -> Result<i32, Strin
         for m in &obs.ray_mismatches {
             println!("         MISMATCH {m}");
         }
-        if let Some(d) = harness::build::deviation(&case, &obs) {
+        if let Some(d) = harness::accel::deviation(&case, &obs) {
             println!("         the device's hits are exactly those of the build under `{d}`");
         }
         if !obs.direct_layer_vuids.is_empty() {

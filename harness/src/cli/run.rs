@@ -200,7 +200,7 @@ pub fn run(a: RunArgs) -> Result<i32, String> {
     std::env::set_var(harness::worker::DRIVER_ENV, &a.driver);
 
     let specs = plan_specs(&a, &rules, &profile);
-    let build_rules = model::build::BuildRuleSet::from_vuids(&set);
+    let build_rules = model::accel::BuildRuleSet::from_vuids(&set);
     let build_specs = if a.command.iter().any(|c| c == BUILD_COMMAND) {
         build_specs(&a, &build_rules)
     } else {
@@ -365,10 +365,10 @@ fn spec_label(spec: &CaseSpec) -> String {
 }
 
 /// The build command's name on the command line.
-const BUILD_COMMAND: &str = model::build::call::COMMAND;
+const BUILD_COMMAND: &str = model::accel::call::COMMAND;
 
 /// The build specs of a run: `None` for valid cases, then every executable build VUID with a mutation.
-fn build_specs(a: &RunArgs, rules: &model::build::BuildRuleSet) -> Vec<Option<String>> {
+fn build_specs(a: &RunArgs, rules: &model::accel::BuildRuleSet) -> Vec<Option<String>> {
     let mut specs = Vec::new();
     if a.vuid.is_empty() {
         specs.push(None);
@@ -381,7 +381,7 @@ fn build_specs(a: &RunArgs, rules: &model::build::BuildRuleSet) -> Vec<Option<St
         if !a.vuid.is_empty() && !a.vuid.contains(&row.vuid) {
             continue;
         }
-        if generator::build::mutation_for(&row.vuid).is_some() && seen.insert(row.vuid.clone()) {
+        if generator::accel::mutation_for(&row.vuid).is_some() && seen.insert(row.vuid.clone()) {
             specs.push(Some(row.vuid.clone()));
         }
     }
@@ -410,9 +410,9 @@ fn run_builds(
     bar: &indicatif::ProgressBar,
     results: &mut std::fs::File,
 ) -> Result<(), String> {
-    let rules = model::build::BuildRuleSet::from_vuids(set);
-    generator::build::use_rules(rules.clone());
-    let unavoidable = generator::build::unavoidable(profile);
+    let rules = model::accel::BuildRuleSet::from_vuids(set);
+    generator::accel::use_rules(rules.clone());
+    let unavoidable = generator::accel::unavoidable(profile);
     let sources = super::sources_or_default(&a.from);
     let sources: Vec<PathBuf> = sources
         .iter()
@@ -460,7 +460,7 @@ fn run_builds(
         for start in (0..a.count).step_by(CHUNK) {
             let range = start..(start + CHUNK).min(a.count);
             let len = range.len();
-            let cases = generator::build::generate_range(profile, target.as_deref(), seed, range);
+            let cases = generator::accel::generate_range(profile, target.as_deref(), seed, range);
             // Indices no plan fits give no case: counted done on the bar.
             bar.inc((len - cases.len()) as u64);
             for c in cases {

@@ -3,7 +3,7 @@
 //! hand-written predicate tagged with the VUID), not executable with a written reason, or pending.
 //! Coverage is this table joined with the registry's VUID set, never a hand count.
 
-pub mod build; // issue 5: build rows come from crate::build
+pub mod accel;
 pub mod predicate;
 pub mod reasons;
 pub mod template;
@@ -137,8 +137,8 @@ impl Row {
             predicate: None,
         };
         if BUILD_COMMANDS.contains(&r.scope.as_str()) {
-            // issue 5: the build command's rows are compiled by crate::build::rules.
-            return build::row(r);
+            // issue 5: the build command's rows are compiled by crate::accel::rules.
+            return accel::row(r);
         }
         if let Some(p) = template::compile(&r.scope, command_for_scope(&r.scope), &r.text) {
             row.status = Status::Executable;

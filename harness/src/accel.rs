@@ -12,10 +12,10 @@
 use crate::realise::{Allocation, RealiseError};
 use crate::vulkan::{LayerMessage, VkDevice, VkInstance};
 use ash::vk;
-use model::build::call::{BuildGeometryInfo, BuildMode, GeometryData, IndexType, VertexFormat};
-use model::build::semantics::Shape;
-use model::build::world::AddressResolver;
-use model::build::{AsType, BuildCase, BuildRuleSet, BuildSizes, BuiltPrimitive};
+use model::accel::call::{BuildGeometryInfo, BuildMode, GeometryData, IndexType, VertexFormat};
+use model::accel::semantics::Shape;
+use model::accel::world::AddressResolver;
+use model::accel::{AsType, BuildCase, BuildRuleSet, BuildSizes, BuiltPrimitive};
 use model::call::BUFFER_PLACEMENT_ALIGNMENT;
 use model::DeviceProfile;
 use std::collections::{BTreeMap, BTreeSet};
@@ -1206,7 +1206,7 @@ fn direct_and_trace(
     cmds: &Commands,
     case: &BuildCase,
     r: &Realised,
-    world: &model::build::BuildWorld,
+    world: &model::accel::BuildWorld,
     check: TraceCheck,
     obs: &mut BuildObservation,
 ) -> Result<(), String> {
@@ -1221,8 +1221,8 @@ fn direct_and_trace(
     let info = &case.call.infos[0];
     let top = info.ty == AsType::TopLevel;
     let mem = world.memory();
-    let ranges = model::build::indirect_ranges(&mem, &case.call, 0).map_err(|e| e.to_string())?;
-    let prims = model::build::build_primitives(&mem, info, &ranges).map_err(|e| e.to_string())?;
+    let ranges = model::accel::indirect_ranges(&mem, &case.call, 0).map_err(|e| e.to_string())?;
+    let prims = model::accel::build_primitives(&mem, info, &ranges).map_err(|e| e.to_string())?;
     drop(mem);
     let mut extra: Vec<Allocation> = Vec::new();
     let result =
@@ -1363,7 +1363,7 @@ fn build_and_trace(
     cmds: &Commands,
     case: &BuildCase,
     r: &Realised,
-    ranges: &[model::build::RangeInfo],
+    ranges: &[model::accel::RangeInfo],
     path: BuildPath,
     check: TraceCheck,
     rays: &[ExpectedRay],
@@ -1982,11 +1982,11 @@ fn trace_pipeline(
 /// Named ways a driver's build may depart from the model: each rewrites the ranges the build reads.
 const DEVIATIONS: &[(
     &str,
-    fn(&GeometryData, model::build::RangeInfo) -> model::build::RangeInfo,
+    fn(&GeometryData, model::accel::RangeInfo) -> model::accel::RangeInfo,
 )] = &[
     ("indexed-first-vertex-ignored", |g, r| match g {
         GeometryData::Triangles { index_type, .. } if *index_type != IndexType::None => {
-            model::build::RangeInfo {
+            model::accel::RangeInfo {
                 first_vertex: 0,
                 ..r
             }
@@ -1994,7 +1994,7 @@ const DEVIATIONS: &[(
         _ => r,
     }),
     ("first-vertex-applied-twice", |g, r| match g {
-        GeometryData::Triangles { .. } => model::build::RangeInfo {
+        GeometryData::Triangles { .. } => model::accel::RangeInfo {
             first_vertex: r.first_vertex.saturating_mul(2),
             ..r
         },
@@ -2022,8 +2022,8 @@ pub fn deviation(case: &BuildCase, obs: &BuildObservation) -> Option<String> {
         return None;
     }
     let mem = case.world.memory();
-    let ranges = model::build::indirect_ranges(&mem, &case.call, 0).ok()?;
-    let prims = model::build::build_primitives(&mem, info, &ranges).ok()?;
+    let ranges = model::accel::indirect_ranges(&mem, &case.call, 0).ok()?;
+    let prims = model::accel::build_primitives(&mem, info, &ranges).ok()?;
     let rays = expected_rays(&prims, false);
     if rays.len() != obs.ray_hits.len() {
         return None;
@@ -2037,11 +2037,11 @@ pub fn deviation(case: &BuildCase, obs: &BuildObservation) -> Option<String> {
     let padded_mem = padded.memory();
     // Each candidate: its name and what the cast reports per ray at the structure it builds (with
     // whether that structure holds an inactive triangle). "none" is the model's own build.
-    let identity: fn(&GeometryData, model::build::RangeInfo) -> model::build::RangeInfo = |_, r| r;
+    let identity: fn(&GeometryData, model::accel::RangeInfo) -> model::accel::RangeInfo = |_, r| r;
     let candidates: Vec<(&str, Hits, bool)> = std::iter::once(("none", identity))
         .chain(DEVIATIONS.iter().copied())
         .filter_map(|(name, f)| {
-            let alt: Vec<model::build::RangeInfo> = info
+            let alt: Vec<model::accel::RangeInfo> = info
                 .geometries
                 .iter()
                 .zip(&ranges)
@@ -2050,7 +2050,7 @@ pub fn deviation(case: &BuildCase, obs: &BuildObservation) -> Option<String> {
             if name != "none" && alt == ranges {
                 return None;
             }
-            let alt_prims = model::build::build_primitives(&padded_mem, info, &alt).ok()?;
+            let alt_prims = model::accel::build_primitives(&padded_mem, info, &alt).ok()?;
             let inactive = alt_prims
                 .iter()
                 .any(|p| !p.active && matches!(p.shape, Shape::Triangle(_)));
@@ -2152,9 +2152,9 @@ pub fn probe_rays(
         }
         let mem = case.world.memory();
         let ranges =
-            model::build::indirect_ranges(&mem, &case.call, 0).map_err(|e| e.to_string())?;
+            model::accel::indirect_ranges(&mem, &case.call, 0).map_err(|e| e.to_string())?;
         let prims =
-            model::build::build_primitives(&mem, info, &ranges).map_err(|e| e.to_string())?;
+            model::accel::build_primitives(&mem, info, &ranges).map_err(|e| e.to_string())?;
         drop(mem);
         let rays: Vec<ExpectedRay> = origins
             .iter()

@@ -1,9 +1,9 @@
 //! The rule-table hook for `vkCmdBuildAccelerationStructuresIndirectKHR`: turns the build module's
 //! compiled rule (or its reason) into the shared coverage [`Row`]. The predicate itself lives in
-//! [`crate::build::rules`] and is judged by [`crate::build::BuildRuleSet`].
+//! [`crate::accel::rules`] and is judged by [`crate::accel::BuildRuleSet`].
 
 use super::{Row, Status};
-use crate::build::rules::{compile, Compiled};
+use crate::accel::rules::{compile, Compiled};
 use vk_registry::vuid::VuidRecord;
 
 /// The coverage row of one build VUID.

@@ -3,9 +3,9 @@
 //! [`BuildCase`], and one-VUID mutations of it, each checked against the model so that a case violates
 //! exactly its VUID plus the co-violations the device makes unavoidable (declared in `also`).
 
-use model::build::call::{BuildFlags, GeometryFlags};
-use model::build::world::{identity, InstanceRecord, InstanceReference, LastBuild, LastGeometry};
-use model::build::{
+use model::accel::call::{BuildFlags, GeometryFlags};
+use model::accel::world::{identity, InstanceRecord, InstanceReference, LastBuild, LastGeometry};
+use model::accel::{
     AccelerationStructure, AsType, BuildBuffer, BuildCase, BuildContents, BuildGeometryInfo,
     BuildIndirect, BuildMode, BuildRuleSet, BuildSizes, BuildWorld, Geometry, GeometryData,
     IndexType, RangeInfo, VertexFormat,
@@ -624,7 +624,7 @@ pub fn mutate(case: &BuildCase, tail: &str, profile: &DeviceProfile) -> Option<B
                 return None;
             }
             let mem = case.world.memory();
-            let r = model::build::indirect_ranges(&mem, &case.call, 0).ok()?;
+            let r = model::accel::indirect_ranges(&mem, &case.call, 0).ok()?;
             if r[0].primitive_count == 0 {
                 return None;
             }
@@ -894,15 +894,15 @@ fn finish_update(
 /// geometries, with the ranges, indices and activity the info reads now.
 fn record_last_build(mut c: BuildCase, i: usize, name: &str) -> Option<BuildCase> {
     let mem = c.world.memory();
-    let ranges = model::build::indirect_ranges(&mem, &c.call, i).ok()?;
+    let ranges = model::accel::indirect_ranges(&mem, &c.call, i).ok()?;
     let info = &c.call.infos[i];
-    let prims = model::build::build_primitives(&mem, info, &ranges).ok()?;
+    let prims = model::accel::build_primitives(&mem, info, &ranges).ok()?;
     let mut geoms = Vec::new();
     for (j, (g, r)) in info.geometries.iter().zip(&ranges).enumerate() {
         let mut lg = last_geometry(&g.data);
         lg.flags = g.flags;
         lg.range = *r;
-        lg.indices = model::build::semantics::range_indices(&mem, &g.data, r, "").ok()?;
+        lg.indices = model::accel::semantics::range_indices(&mem, &g.data, r, "").ok()?;
         lg.active = prims
             .iter()
             .filter(|p| p.geometry == j as u32)
