@@ -5,4 +5,4 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 export VK_DRIVER_FILES=${VK_DRIVER_FILES:-/usr/share/vulkan/icd.d/lvp_icd.json}
-cargo run --release --locked -q -p rtconf-harness --bin rtconf -- run --driver lavapipe --out out/lavapipe "$@"
+cargo run --release --locked -q -p rtconf-cli --bin rtconf -- run --driver lavapipe --out out/lavapipe "$@"

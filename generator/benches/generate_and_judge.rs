@@ -1,7 +1,8 @@
 //! Benchmark: cases generated and judged per second on one thread, valid and one-VUID-invalid mixed
 //! (every spec the lavapipe profile supports), ending with the line `cases/s: N`.
 
-use generator::{case_runner, case_strategy, executable_vuids, mutations_for, CaseSpec, Command};
+use generator::{case_runner, case_strategy, executable_vuids, mutations_for, CaseSpec};
+use model::CommandId;
 use proptest::strategy::{Strategy, ValueTree};
 use std::time::Instant;
 
@@ -13,7 +14,7 @@ fn main() {
     let profile = generator::profiles::load(&name).expect("profile loads");
     let rules = generator::registry::default_rules().expect("registry loads");
     let mut strategies = vec![];
-    for command in Command::ALL {
+    for command in CommandId::TRACE {
         let mut specs = vec![
             CaseSpec::valid(command),
             CaseSpec::valid(command).at_limits(),
@@ -52,9 +53,7 @@ fn main() {
             .new_tree(&mut runner)
             .expect("strategies do not reject")
             .current();
-        let verdict = rules
-            .prepare(&profile, &case.world, case.call.command())
-            .judge(&case.world, &case.call);
+        let verdict = model::validate(&rules, &profile, &case);
         invalid_seen += !verdict.is_valid() as usize;
     }
     let secs = start.elapsed().as_secs_f64();

@@ -1,24 +1,26 @@
 //! proptest strategies for valid and one-VUID-invalid rtconf cases, generation with fixed seeds, and
 //! shrinking of failing cases into `cases/regressions/`.
 //!
-//! A [`CaseSpec`] names the command and the intent (valid, or violating one VUID); [`generate`] turns
-//! it into cases deterministically from a seed; [`case_strategy`] is the underlying proptest strategy;
-//! [`shrink_failure`] minimises a case a predicate says fails and writes it as YAML.
+//! A [`CaseSpec`] names the command and the intent (valid, or violating one VUID); [`generate_range`]
+//! turns it into cases deterministically from a seed for every command (trace calls through
+//! [`case_strategy`], builds through [`accel`]), judged with the rules it is given;
+//! [`shrink_failure`] minimises a failing trace case and writes it as YAML.
 
 pub mod accel;
 pub mod mutation;
+pub mod mutation_io;
 pub mod plan;
 pub mod profiles;
 pub mod registry;
-pub mod resources; // issue 4: resource worlds and their mutations
+pub mod resources;
 pub mod valid;
 
 pub use mutation::{mutations_for, Mutation, NullHit};
-pub use plan::{Command, Limits};
+pub use plan::Limits;
 pub use valid::DimensionRange;
 
 use model::rules::{applies_to, RuleSet, Status};
-use model::{Case, DeviceProfile, Intent};
+use model::{Case, CommandId, DeviceProfile, Intent};
 use proptest::strategy::{BoxedStrategy, Strategy, ValueTree};
 use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
 use std::path::{Path, PathBuf};
@@ -55,14 +57,15 @@ pub enum SpecIntent {
 /// The knobs of a generation request.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct CaseSpec {
-    pub command: Command,
+    /// The command; for a violating spec, the command the VUID names (see [`CaseSpec::for_vuid`]).
+    pub command: CommandId,
     pub intent: SpecIntent,
     /// How large the launch dimensions of the underlying valid case are.
     pub dimensions: DimensionRange,
 }
 
 impl CaseSpec {
-    pub fn valid(command: Command) -> CaseSpec {
+    pub fn valid(command: CommandId) -> CaseSpec {
         CaseSpec {
             command,
             intent: SpecIntent::Valid,
@@ -70,12 +73,18 @@ impl CaseSpec {
         }
     }
 
-    pub fn violate(command: Command, vuid: &str) -> CaseSpec {
+    pub fn violate(command: CommandId, vuid: &str) -> CaseSpec {
         CaseSpec {
             command,
             intent: SpecIntent::Violate(vuid.to_string()),
             dimensions: DimensionRange::Small,
         }
+    }
+
+    /// The spec violating `vuid`, for the command its scope names, or `command` for a structure's VUID
+    /// (`VUID-VkStridedDeviceAddressRegionKHR-…` applies to the KHR trace calls).
+    pub fn for_vuid(vuid: &str, command: CommandId) -> CaseSpec {
+        CaseSpec::violate(CommandId::from_vuid(vuid).unwrap_or(command), vuid)
     }
 
     /// The same request with dimensions up to the profile's limits.
@@ -91,11 +100,11 @@ pub fn short_vuid(vuid: &str) -> &str {
 }
 
 /// The executable VUIDs that apply to a command (its own rows and its structures'), sorted.
-pub fn executable_vuids(rules: &RuleSet, command: Command) -> Vec<String> {
+pub fn executable_vuids(rules: &RuleSet, command: CommandId) -> Vec<String> {
     let mut v: Vec<String> = rules
         .rows
         .iter()
-        .filter(|r| r.status == Status::Executable && applies_to(&r.scope, command.vk_name()))
+        .filter(|r| r.status == Status::Executable && applies_to(&r.scope, command))
         .map(|r| r.vuid.clone())
         .collect();
     v.sort();
@@ -125,7 +134,7 @@ pub fn check_spec(
     };
     let row = rules
         .row(vuid)
-        .filter(|r| applies_to(&r.scope, spec.command.vk_name()))
+        .filter(|r| applies_to(&r.scope, spec.command))
         .ok_or_else(|| GenError::NotForCommand {
             vuid: vuid.clone(),
             command: spec.command.vk_name().into(),
@@ -175,14 +184,7 @@ pub fn case_strategy(
             .prop_map(move |raw| {
                 let plan = valid::resolve(&raw, &profile, &lim, command, dims);
                 let (world, call) = plan::realize(&plan, &lim);
-                Case {
-                    name: String::new(),
-                    profile: profile_name.clone(),
-                    seed: None,
-                    intent: Intent::Valid,
-                    world,
-                    call,
-                }
+                Case::trace("", &profile_name, Intent::Valid, world, call)
             })
             .boxed()),
         (Some(m), SpecIntent::Violate(vuid)) => {
@@ -194,7 +196,7 @@ pub fn case_strategy(
                 .map_err(|e| GenError::Io(e.to_string()))?
                 .current();
             let probe = valid::resolve(&probe_raw, &profile, &lim, command, dims);
-            let input = |knob, pick| mutation::MutationInput {
+            let input = |knob, pick| mutation_io::MutationInput {
                 profile: &profile,
                 rules: &rules,
                 lim: &lim,
@@ -209,7 +211,7 @@ pub fn case_strategy(
             Ok((valid::raw_strategy(), knob, 0..4u32)
                 .prop_map(move |(raw, knob, pick)| {
                     let plan = valid::resolve(&raw, &profile, &lim, command, dims);
-                    let input = mutation::MutationInput {
+                    let input = mutation_io::MutationInput {
                         profile: &profile,
                         rules: &rules,
                         lim: &lim,
@@ -220,17 +222,11 @@ pub fn case_strategy(
                     };
                     let mutated = mutation::apply(m, plan, &input)
                         .expect("a mutation that applied once applies to every plan");
-                    Case {
-                        name: String::new(),
-                        profile: profile_name.clone(),
-                        seed: None,
-                        intent: Intent::Violates {
-                            vuid: vuid.clone(),
-                            also: mutated.also,
-                        },
-                        world: mutated.world,
-                        call: mutated.call,
-                    }
+                    let intent = Intent::Violates {
+                        vuid: vuid.clone(),
+                        also: mutated.also,
+                    };
+                    Case::trace("", &profile_name, intent, mutated.world, mutated.call)
                 })
                 .boxed())
         }
@@ -279,7 +275,7 @@ pub fn case_name(spec: &CaseSpec, seed: u64, index: usize) -> String {
     }
 }
 
-/// Generates `count` cases of a spec, deterministically from `seed`; case `i` records `"<seed>/<i>"`.
+/// Generates `count` cases of a spec, deterministically from `seed` (see [`generate_range`]).
 pub fn generate(
     profile: &DeviceProfile,
     profile_name: &str,
@@ -291,8 +287,10 @@ pub fn generate(
     generate_range(profile, profile_name, rules, spec, 0..count, seed)
 }
 
-/// Cases `range` of a spec's sequence for `seed` — the same cases `generate` makes at those indices,
-/// so a long run can be generated a slice at a time.
+/// Cases `range` of a spec's sequence for `seed`, for any command — the same cases at those indices
+/// however the range is sliced, so a long run can be generated a slice at a time. A trace case `i`
+/// records `"<seed>/<i>"`; a build case is the first of the plans drawn for its index that the
+/// spec's mutation fits (an index none fits gives no case), judged with `rules`.
 pub fn generate_range(
     profile: &DeviceProfile,
     profile_name: &str,
@@ -301,6 +299,14 @@ pub fn generate_range(
     range: std::ops::Range<usize>,
     seed: u64,
 ) -> Result<Vec<Case>, GenError> {
+    if !spec.command.is_trace() {
+        let target = match &spec.intent {
+            SpecIntent::Valid => None,
+            SpecIntent::Violate(v) if accel::mutation_for(v).is_some() => Some(v.as_str()),
+            SpecIntent::Violate(v) => return Err(GenError::NoMutation(v.clone())),
+        };
+        return Ok(accel::generate_range(profile, rules, target, seed, range));
+    }
     let strategy = case_strategy(profile, profile_name, rules, spec)?;
     range
         .map(|i| {

@@ -2,9 +2,8 @@
 //! values first (knob 0 is always the boundary: alignment + 1 byte, limit + 1, one byte past the end),
 //! and says which co-violations the device makes unavoidable, decided from what the rules mean.
 
-use crate::plan::{
-    queue_families, realize, round_up, table_buffer, Command, Limits, Plan, INDIRECT,
-};
+use crate::mutation_io::{Mutated, MutationInput};
+use crate::plan::{queue_families, realize, round_up, table_buffer, Plan, INDIRECT};
 use crate::valid::GroupIndex;
 use crate::GenError;
 use model::flags::{BufferCreate, BufferUsage, PipelineCreate, QueueFlags};
@@ -13,6 +12,7 @@ use model::world::{
     CommandBufferLifecycle, Contents, GeneralStage, GeometryKind, HandleRef, Instance,
     MemoryBinding, RayTarget, ShaderGroup, TraceRay,
 };
+use model::CommandId;
 use model::{Call, DeviceProfile, Table, World};
 
 /// Which NO_NULL_* hit flag a mutation breaks.
@@ -200,29 +200,8 @@ pub fn mutations_for(vuid: &str) -> Option<Mutation> {
     }
 }
 
-/// Everything a mutation reads besides the plan.
-pub struct MutationInput<'a> {
-    pub profile: &'a DeviceProfile,
-    pub rules: &'a RuleSet,
-    pub lim: &'a Limits,
-    pub command: Command,
-    /// The VUID the case targets.
-    pub vuid: &'a str,
-    /// 0: the boundary value; larger: other violating values.
-    pub knob: u32,
-    /// A second free choice (which table, which record).
-    pub pick: u32,
-}
-
-/// A mutated case: the world, the call and the declared co-violations.
-pub struct Mutated {
-    pub world: World,
-    pub call: Call,
-    pub also: Vec<String>,
-}
-
 /// Whether a mutation can be expressed on a profile (without building a case).
-pub fn supported(m: Mutation, profile: &DeviceProfile, command: Command) -> Result<(), GenError> {
+pub fn supported(m: Mutation, profile: &DeviceProfile, command: CommandId) -> Result<(), GenError> {
     let unsupported = |why: &str| {
         Err(GenError::Unsupported(format!(
             "{m:?} on {}: {why}",
@@ -765,7 +744,7 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
             if let Some(max_inv) = lim.max_invocations {
                 if over > max_inv {
                     // width × height × depth is then above maxRayDispatchInvocationCount too.
-                    let scope = if cmd == Command::TraceRaysIndirect {
+                    let scope = if cmd == CommandId::TraceRaysIndirect {
                         "VkTraceRaysIndirectCommandKHR"
                     } else {
                         cmd.vk_name()

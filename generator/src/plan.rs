@@ -11,51 +11,8 @@ use model::world::{
     Buffer, CommandBufferState, Contents, DeviceState, HandleRef, Launch, MemoryBinding, Pipeline,
     PipelineApi, ShaderGroup,
 };
+use model::CommandId;
 use model::{Address, Call, DeviceProfile, StridedRegion, Table, World};
-
-/// The trace command a case calls.
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
-)]
-pub enum Command {
-    TraceRaysIndirect,
-    TraceRays,
-    TraceRaysNv,
-}
-
-impl Command {
-    pub const ALL: [Command; 3] = [
-        Command::TraceRaysIndirect,
-        Command::TraceRays,
-        Command::TraceRaysNv,
-    ];
-
-    /// The Vulkan command name.
-    pub fn vk_name(self) -> &'static str {
-        match self {
-            Command::TraceRaysIndirect => "vkCmdTraceRaysIndirectKHR",
-            Command::TraceRays => "vkCmdTraceRaysKHR",
-            Command::TraceRaysNv => "vkCmdTraceRaysNV",
-        }
-    }
-
-    /// The stem of valid case names.
-    pub fn case_stem(self) -> &'static str {
-        match self {
-            Command::TraceRaysIndirect => "trace-indirect",
-            Command::TraceRays => "trace",
-            Command::TraceRaysNv => "trace-nv",
-        }
-    }
-
-    pub fn from_vk_name(name: &str) -> Option<Command> {
-        Command::ALL.into_iter().find(|c| c.vk_name() == name)
-    }
-
-    pub fn is_nv(self) -> bool {
-        self == Command::TraceRaysNv
-    }
-}
 
 /// The device numbers a case is laid out with, read from the profile for the command's extension.
 #[derive(Debug, Clone, PartialEq)]
@@ -80,7 +37,13 @@ fn need(profile: &DeviceProfile, name: &str) -> Result<u64, GenError> {
 }
 
 impl Limits {
-    pub fn for_command(profile: &DeviceProfile, command: Command) -> Result<Limits, GenError> {
+    /// The numbers a trace command's case is laid out with (a build case has no trace plan).
+    pub fn for_command(profile: &DeviceProfile, command: CommandId) -> Result<Limits, GenError> {
+        if !command.is_trace() {
+            return Err(GenError::Unsupported(format!(
+                "{command} is not a trace command: its cases come from `generator::accel`"
+            )));
+        }
         if command.is_nv() {
             let s = "VkPhysicalDeviceRayTracingPropertiesNV::";
             let handle_size = need(profile, &format!("{s}shaderGroupHandleSize"))?;
@@ -210,7 +173,7 @@ pub struct IndirectPlan {
 /// A case before layout.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Plan {
-    pub command: Command,
+    pub command: CommandId,
     pub device: DeviceState,
     pub command_buffer: CommandBufferState,
     pub groups: Vec<ShaderGroup>,
@@ -325,7 +288,7 @@ pub fn realize(plan: &Plan, lim: &Limits) -> (World, Call) {
         buffers.insert(0, shared);
     }
     let dims = plan.dims;
-    if plan.command == Command::TraceRaysIndirect {
+    if plan.command == CommandId::TraceRaysIndirect {
         let ip = &plan.indirect;
         let offset = ip.offset + ip.misalign;
         buffers.push(Buffer {
@@ -366,7 +329,7 @@ pub fn realize(plan: &Plan, lim: &Limits) -> (World, Call) {
         },
     };
     let call = match plan.command {
-        Command::TraceRaysIndirect => Call::TraceRaysIndirect(TraceRaysIndirect {
+        CommandId::TraceRaysIndirect => Call::TraceRaysIndirect(TraceRaysIndirect {
             raygen: region(Table::Raygen),
             miss: region(Table::Miss),
             hit: region(Table::Hit),
@@ -376,7 +339,7 @@ pub fn realize(plan: &Plan, lim: &Limits) -> (World, Call) {
                 offset: plan.indirect.offset + plan.indirect.misalign,
             },
         }),
-        Command::TraceRays => Call::TraceRays(TraceRays {
+        CommandId::TraceRays => Call::TraceRays(TraceRays {
             raygen: region(Table::Raygen),
             miss: region(Table::Miss),
             hit: region(Table::Hit),
@@ -385,7 +348,7 @@ pub fn realize(plan: &Plan, lim: &Limits) -> (World, Call) {
             height: dims[1],
             depth: dims[2],
         }),
-        Command::TraceRaysNv => Call::TraceRaysNv(TraceRaysNv {
+        CommandId::TraceRaysNv => Call::TraceRaysNv(TraceRaysNv {
             raygen: nv_table(Table::Raygen),
             miss: nv_table(Table::Miss),
             hit: nv_table(Table::Hit),
@@ -394,6 +357,9 @@ pub fn realize(plan: &Plan, lim: &Limits) -> (World, Call) {
             height: dims[1],
             depth: dims[2],
         }),
+        CommandId::BuildAccelerationStructuresIndirect => {
+            unreachable!("trace plans are made for trace commands only (Limits::for_command)")
+        }
     };
     let world = World {
         device: plan.device.clone(),
@@ -436,7 +402,7 @@ pub fn queue_families(profile: &DeviceProfile) -> Vec<QueueFlags> {
 
 /// The device state a valid case enables: the features and extensions the command needs that the
 /// profile has.
-pub fn device_state(profile: &DeviceProfile, command: Command) -> DeviceState {
+pub fn device_state(profile: &DeviceProfile, command: CommandId) -> DeviceState {
     let (features, extensions): (&[&str], &[&str]) = if command.is_nv() {
         (&[], &["VK_NV_ray_tracing"])
     } else {

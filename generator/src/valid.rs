@@ -2,15 +2,14 @@
 //! them into a plan whose every rule holds (no filtering): records each ray reaches hold a group of
 //! the matching kind or zero, strides and offsets come from the profile's alignments and limits.
 
-use crate::plan::{
-    device_state, queue_families, round_up, Command, IndirectPlan, Limits, Plan, TablePlan,
-};
+use crate::plan::{device_state, queue_families, round_up, IndirectPlan, Limits, Plan, TablePlan};
 use model::flags::{PipelineCreate, QueueFlags};
 use model::semantics::hit_record;
 use model::world::{
     CommandBufferState, GeneralStage, GeometryKind, HandleRef, Instance, Launch, RayTarget,
     ShaderGroup, TraceRay,
 };
+use model::CommandId;
 use model::{DeviceProfile, Table};
 use proptest::prelude::*;
 use std::collections::BTreeMap;
@@ -190,7 +189,7 @@ pub fn resolve(
     raw: &Raw,
     profile: &DeviceProfile,
     lim: &Limits,
-    command: Command,
+    command: CommandId,
     dims: DimensionRange,
 ) -> Plan {
     // Pipeline: raygen, miss, hit, callable groups.

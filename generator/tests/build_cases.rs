@@ -1,26 +1,24 @@
 //! Generated build cases judge as declared: valid plans give exactly the device's unavoidable VUIDs,
 //! each mutation gives its VUID plus declared co-violations; cases round-trip through YAML.
 
-use generator::accel::{
-    generate, mutate, plan_strategy, realise, unavoidable, use_rules, MUTATIONS,
-};
-use model::accel::{BuildCase, BuildRuleSet};
+use generator::accel::{generate, mutate, plan_strategy, realise, MUTATIONS};
+use model::accel::unavoidable;
+use model::{Case, RuleSet};
 use proptest::prelude::*;
 use std::collections::BTreeSet;
 
-fn rules() -> BuildRuleSet {
+fn rules() -> RuleSet {
     let set = vk_registry::source::load_vuids(std::path::Path::new("/usr/share/vulkan/registry"))
         .expect("installed registry");
-    BuildRuleSet::from_vuids(&set)
+    RuleSet::from_vuids(&set)
 }
 
 fn lavapipe() -> model::DeviceProfile {
     generator::profiles::load("lavapipe").unwrap()
 }
 
-fn verdict(rules: &BuildRuleSet, p: &model::DeviceProfile, c: &BuildCase) -> Vec<String> {
-    let v: BTreeSet<String> = rules
-        .validate(p, &c.world, &c.call)
+fn verdict(rules: &RuleSet, p: &model::DeviceProfile, c: &Case) -> Vec<String> {
+    let v: BTreeSet<String> = model::validate(rules, p, c)
         .violations
         .into_iter()
         .map(|v| v.vuid)
@@ -31,11 +29,10 @@ fn verdict(rules: &BuildRuleSet, p: &model::DeviceProfile, c: &BuildCase) -> Vec
 #[test]
 fn generated_cases_judge_as_declared_and_cover_most_mutations() {
     let r = rules();
-    use_rules(r.clone());
     let p = lavapipe();
     let mut covered = BTreeSet::new();
     for seed in 0..6 {
-        for c in generate(&p, seed, 6) {
+        for c in generate(&p, &r, seed, 6) {
             assert_eq!(
                 verdict(&r, &p, &c),
                 c.expected_vuids(),
@@ -46,7 +43,7 @@ fn generated_cases_judge_as_declared_and_cover_most_mutations() {
             if let model::Intent::Violates { vuid, .. } = &c.intent {
                 covered.insert(vuid.clone());
             }
-            let back = BuildCase::from_yaml("mem", &c.to_yaml()).unwrap();
+            let back = Case::from_yaml("mem", &c.to_yaml()).unwrap();
             assert_eq!(back.expected_vuids(), c.expected_vuids());
             assert_eq!(
                 verdict(&r, &p, &back),
@@ -67,9 +64,9 @@ fn generated_cases_judge_as_declared_and_cover_most_mutations() {
 
 #[test]
 fn every_mutation_fits_some_plan() {
-    use_rules(rules());
     let p = lavapipe();
-    let cases: Vec<BuildCase> = (0..12).flat_map(|s| generate(&p, s, 8)).collect();
+    let r = rules();
+    let cases: Vec<Case> = (0..12).flat_map(|s| generate(&p, &r, s, 8)).collect();
     let missing: Vec<&str> = MUTATIONS
         .iter()
         .copied()
@@ -93,16 +90,15 @@ proptest! {
         let c = realise(&plan, &p, "prop");
         prop_assert_eq!(verdict(&r, &p, &c), unavoidable(&p));
         // and the build has a meaning
-        prop_assert!(model::accel::indirect_build(&c.world, &c.call).is_ok());
+        prop_assert!(model::accel::indirect_build(&c.as_accel().unwrap().world, &c.as_accel().unwrap().call).is_ok());
     }
 
     #[test]
     fn a_mutation_never_adds_undeclared_violations(plan in plan_strategy(), k in 0usize..MUTATIONS.len()) {
         let r = rules();
-        use_rules(r.clone());
         let p = lavapipe();
         let base = realise(&plan, &p, "prop");
-        if let Some(m) = mutate(&base, MUTATIONS[k], &p) {
+        if let Some(m) = mutate(&base, MUTATIONS[k], &p, &r) {
             prop_assert_eq!(verdict(&r, &p, &m), m.expected_vuids());
         }
     }

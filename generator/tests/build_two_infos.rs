@@ -3,22 +3,20 @@
 //! update source that is another info's destination or under another info's scratch, a destination
 //! another info's instances reference) violates exactly its VUID plus its declared co-violation.
 
-use generator::accel::{
-    add_second_info, generate, mutate, plan_strategy, realise, unavoidable, use_rules,
-};
-use model::accel::{BuildCase, BuildRuleSet};
+use generator::accel::{add_second_info, generate, mutate, plan_strategy, realise};
+use model::accel::unavoidable;
+use model::{Case, RuleSet};
 use proptest::prelude::*;
 use std::collections::BTreeSet;
 
-fn rules() -> BuildRuleSet {
+fn rules() -> RuleSet {
     let set = vk_registry::source::load_vuids(std::path::Path::new("/usr/share/vulkan/registry"))
         .expect("installed registry");
-    BuildRuleSet::from_vuids(&set)
+    RuleSet::from_vuids(&set)
 }
 
-fn verdict(rules: &BuildRuleSet, p: &model::DeviceProfile, c: &BuildCase) -> Vec<String> {
-    let v: BTreeSet<String> = rules
-        .validate(p, &c.world, &c.call)
+fn verdict(rules: &RuleSet, p: &model::DeviceProfile, c: &Case) -> Vec<String> {
+    let v: BTreeSet<String> = model::validate(rules, p, c)
         .violations
         .into_iter()
         .map(|v| v.vuid)
@@ -42,14 +40,13 @@ const TWO_INFO: &[(&str, Option<&str>)] = &[
 #[test]
 fn every_two_info_mutation_is_generated_and_judges_as_declared() {
     let r = rules();
-    use_rules(r.clone());
     let p = generator::profiles::load("lavapipe").unwrap();
-    let cases: Vec<BuildCase> = (0..8).flat_map(|s| generate(&p, s, 8)).collect();
+    let cases: Vec<Case> = (0..8).flat_map(|s| generate(&p, &r, s, 8)).collect();
     for (tail, co) in TWO_INFO {
-        let made: Vec<&BuildCase> = cases.iter().filter(|c| c.name.ends_with(tail)).collect();
+        let made: Vec<&Case> = cases.iter().filter(|c| c.name.ends_with(tail)).collect();
         assert!(!made.is_empty(), "{tail}: no plan fits");
         for c in made {
-            assert_eq!(c.call.infos.len(), 2, "{}", c.name);
+            assert_eq!(c.as_accel().unwrap().call.infos.len(), 2, "{}", c.name);
             let got = verdict(&r, &p, c);
             assert_eq!(got, c.expected_vuids(), "{}:\n{}", c.name, c.to_yaml());
             let mut want: Vec<String> = unavoidable(&p);
@@ -63,7 +60,7 @@ fn every_two_info_mutation_is_generated_and_judges_as_declared() {
                 "{}: exactly the target and its co-violation",
                 c.name
             );
-            let back = BuildCase::from_yaml("mem", &c.to_yaml()).unwrap();
+            let back = Case::from_yaml("mem", &c.to_yaml()).unwrap();
             assert_eq!(verdict(&r, &p, &back), got, "round trip of {}", c.name);
         }
     }
@@ -76,19 +73,18 @@ proptest! {
         let r = rules();
         let p = generator::profiles::load("lavapipe").unwrap();
         let mut c = realise(&plan, &p, "prop");
-        add_second_info(&mut c);
+        add_second_info(c.as_accel_mut().unwrap());
         prop_assert_eq!(verdict(&r, &p, &c), unavoidable(&p));
-        prop_assert!(model::accel::indirect_build(&c.world, &c.call).is_ok());
+        prop_assert!(model::accel::indirect_build(&c.as_accel().unwrap().world, &c.as_accel().unwrap().call).is_ok());
     }
 
     #[test]
     fn two_info_mutations_never_add_undeclared_violations(plan in plan_strategy(), k in 0usize..TWO_INFO.len()) {
         let r = rules();
-        use_rules(r.clone());
         let p = generator::profiles::load("lavapipe").unwrap();
         let base = realise(&plan, &p, "prop");
-        if let Some(m) = mutate(&base, TWO_INFO[k].0, &p) {
-            prop_assert_eq!(m.call.infos.len(), 2);
+        if let Some(m) = mutate(&base, TWO_INFO[k].0, &p, &r) {
+            prop_assert_eq!(m.as_accel().unwrap().call.infos.len(), 2);
             prop_assert_eq!(verdict(&r, &p, &m), m.expected_vuids());
         }
     }

@@ -40,5 +40,5 @@ pub fn per_spec() -> usize {
 }
 
 pub fn judge(profile: &DeviceProfile, case: &Case) -> model::Verdict {
-    model::validate(rules(), profile, &case.world, &case.call)
+    model::validate(rules(), profile, case)
 }

@@ -4,8 +4,9 @@
 
 mod common;
 
-use generator::{generate, CaseSpec, Command};
+use generator::{generate, CaseSpec};
 use model::Case;
+use model::CommandId;
 use std::collections::BTreeSet;
 
 /// The edge cases and how they are made: (file stem, spec, seed, index).
@@ -13,14 +14,14 @@ fn edge_specs() -> Vec<(&'static str, CaseSpec, u64, usize)> {
     vec![
         (
             "trace-indirect-valid-at-limits",
-            CaseSpec::valid(Command::TraceRaysIndirect).at_limits(),
+            CaseSpec::valid(CommandId::TraceRaysIndirect).at_limits(),
             1,
             0,
         ),
         (
             "indirect-address-plus-one",
             CaseSpec::violate(
-                Command::TraceRaysIndirect,
+                CommandId::TraceRaysIndirect,
                 "VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634",
             ),
             1,
@@ -29,7 +30,7 @@ fn edge_specs() -> Vec<(&'static str, CaseSpec, u64, usize)> {
         (
             "indirect-command-one-byte-past-end",
             CaseSpec::violate(
-                Command::TraceRaysIndirect,
+                CommandId::TraceRaysIndirect,
                 "VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03636",
             ),
             1,
@@ -38,7 +39,7 @@ fn edge_specs() -> Vec<(&'static str, CaseSpec, u64, usize)> {
         (
             "region-one-byte-past-end",
             CaseSpec::violate(
-                Command::TraceRays,
+                CommandId::TraceRays,
                 "VUID-VkStridedDeviceAddressRegionKHR-size-04631",
             ),
             1,
@@ -47,7 +48,7 @@ fn edge_specs() -> Vec<(&'static str, CaseSpec, u64, usize)> {
         (
             "indirect-width-limit-plus-one",
             CaseSpec::violate(
-                Command::TraceRaysIndirect,
+                CommandId::TraceRaysIndirect,
                 "VUID-VkTraceRaysIndirectCommandKHR-width-03638",
             ),
             1,

@@ -4,7 +4,8 @@
 
 mod common;
 
-use generator::{executable_vuids, generate, mutations_for, CaseSpec, Command, GenError};
+use generator::{executable_vuids, generate, mutations_for, CaseSpec, GenError};
+use model::CommandId;
 use std::collections::BTreeSet;
 
 /// VUIDs excluded because of a model bug (see the generator report); empty when none.
@@ -17,7 +18,7 @@ fn one_vuid_invalid_cases_carry_their_vuid_and_nothing_undeclared() {
     let mut failures = vec![];
     let mut generated_any = 0;
     for (name, profile) in common::profiles() {
-        for command in Command::ALL {
+        for command in CommandId::TRACE {
             for vuid in executable_vuids(common::rules(), command) {
                 if mutations_for(&vuid).is_none() || MODEL_BUG_EXCLUDED.contains(&vuid.as_str()) {
                     continue;
@@ -85,7 +86,7 @@ const NO_MUTATION_YET: &[&str] = &[];
 #[test]
 fn executable_vuids_without_a_mutation_match_the_committed_list() {
     let mut missing: BTreeSet<String> = BTreeSet::new();
-    for command in Command::ALL {
+    for command in CommandId::TRACE {
         for vuid in executable_vuids(common::rules(), command) {
             if mutations_for(&vuid).is_none() {
                 missing.insert(vuid);
@@ -110,7 +111,7 @@ fn invalid_case_names_use_the_short_vuid_and_seed() {
         &profile,
         &name,
         common::rules(),
-        &CaseSpec::violate(Command::TraceRaysIndirect, vuid),
+        &CaseSpec::violate(CommandId::TraceRaysIndirect, vuid),
         2,
         5,
     )
@@ -140,14 +141,14 @@ fn boundary_values_come_first() {
         &profile,
         &name,
         common::rules(),
-        &CaseSpec::violate(Command::TraceRaysIndirect, vuid),
+        &CaseSpec::violate(CommandId::TraceRaysIndirect, vuid),
         100,
         9,
     )
     .unwrap();
     let one_off = cases
         .iter()
-        .filter(|c| matches!(&c.call, model::Call::TraceRaysIndirect(x) if x.indirect_address.alignment_value() % 4 == 1))
+        .filter(|c| matches!(&c.as_trace().unwrap().call, model::Call::TraceRaysIndirect(x) if x.indirect_address.alignment_value() % 4 == 1))
         .count();
     assert!(one_off >= 50, "only {one_off} of 100 at alignment + 1");
 }
@@ -163,7 +164,7 @@ fn vuids_of_other_commands_are_refused() {
         &name,
         common::rules(),
         &CaseSpec::violate(
-            Command::TraceRays,
+            CommandId::TraceRays,
             "VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634",
         ),
         1,

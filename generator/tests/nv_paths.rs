@@ -4,8 +4,9 @@
 
 mod common;
 
-use generator::{executable_vuids, generate, mutations_for, CaseSpec, Command, GenError};
+use generator::{executable_vuids, generate, mutations_for, CaseSpec, GenError};
 use model::profile::PropertyValue;
+use model::CommandId;
 use std::collections::BTreeSet;
 
 fn derived_nv_profile() -> (String, model::DeviceProfile) {
@@ -41,8 +42,8 @@ fn nv_valid_and_invalid_cases_on_a_derived_profile() {
     let (name, profile) = derived_nv_profile();
     let n = common::per_spec() / 2;
     for spec in [
-        CaseSpec::valid(Command::TraceRaysNv),
-        CaseSpec::valid(Command::TraceRaysNv).at_limits(),
+        CaseSpec::valid(CommandId::TraceRaysNv),
+        CaseSpec::valid(CommandId::TraceRaysNv).at_limits(),
     ] {
         for case in generate(&profile, &name, common::rules(), &spec, n, 5).unwrap() {
             let v = common::judge(&profile, &case);
@@ -56,13 +57,13 @@ fn nv_valid_and_invalid_cases_on_a_derived_profile() {
         }
     }
     let mut generated = 0;
-    for vuid in executable_vuids(common::rules(), Command::TraceRaysNv) {
+    for vuid in executable_vuids(common::rules(), CommandId::TraceRaysNv) {
         assert!(mutations_for(&vuid).is_some(), "{vuid}");
         let cases = match generate(
             &profile,
             &name,
             common::rules(),
-            &CaseSpec::violate(Command::TraceRaysNv, &vuid),
+            &CaseSpec::violate(CommandId::TraceRaysNv, &vuid),
             n,
             5,
         ) {

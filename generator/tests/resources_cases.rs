@@ -5,7 +5,8 @@
 mod common;
 
 use generator::resources::mutation_for;
-use generator::{executable_vuids, generate, CaseSpec, Command};
+use generator::{executable_vuids, generate, CaseSpec};
+use model::CommandId;
 use std::collections::BTreeSet;
 
 fn dir() -> std::path::PathBuf {
@@ -24,16 +25,17 @@ fn write_cases() {
         &profile,
         &name,
         common::rules(),
-        &CaseSpec::valid(Command::TraceRaysIndirect),
+        &CaseSpec::valid(CommandId::TraceRaysIndirect),
         1,
         4,
     )
     .unwrap()
     .remove(0);
-    valid.world.resources = generator::resources::valid_state(&profile, 3, 0x1ff);
+    valid.as_trace_mut().unwrap().world.resources =
+        generator::resources::valid_state(&profile, 3, 0x1ff);
     valid.name = "trace-indirect-valid-resources".into();
     std::fs::write(dir().join(format!("{}.yaml", valid.name)), valid.to_yaml()).unwrap();
-    for vuid in executable_vuids(common::rules(), Command::TraceRaysIndirect) {
+    for vuid in executable_vuids(common::rules(), CommandId::TraceRaysIndirect) {
         if mutation_for(&vuid).is_none() {
             continue;
         }
@@ -41,7 +43,7 @@ fn write_cases() {
             &profile,
             &name,
             common::rules(),
-            &CaseSpec::violate(Command::TraceRaysIndirect, &vuid),
+            &CaseSpec::violate(CommandId::TraceRaysIndirect, &vuid),
             1,
             4,
         ) {
@@ -74,7 +76,7 @@ fn resource_cases_judge_as_declared() {
             model::Intent::Valid => {
                 assert!(got.is_empty(), "{}: {got:?}", path.display());
                 assert!(
-                    !case.world.resources.is_empty(),
+                    !case.as_trace().unwrap().world.resources.is_empty(),
                     "{}: a resource case has resources",
                     path.display()
                 );

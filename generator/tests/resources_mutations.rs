@@ -5,12 +5,13 @@
 mod common;
 
 use generator::resources::{mutate, mutation_for, state_strategy, vendor, TAGS};
-use generator::{executable_vuids, generate, CaseSpec, Command, GenError};
+use generator::{executable_vuids, generate, CaseSpec, GenError};
 use model::rules::{RuleSet, Status};
+use model::CommandId;
 use proptest::strategy::{Strategy, ValueTree};
 use std::collections::BTreeSet;
 
-fn resource_vuids(rules: &RuleSet, command: Command) -> Vec<String> {
+fn resource_vuids(rules: &RuleSet, command: CommandId) -> Vec<String> {
     executable_vuids(rules, command)
         .into_iter()
         .filter(|v| mutation_for(v).is_some())
@@ -19,7 +20,7 @@ fn resource_vuids(rules: &RuleSet, command: Command) -> Vec<String> {
 
 #[test]
 fn every_executable_resource_rule_has_a_mutation() {
-    for command in Command::ALL {
+    for command in CommandId::TRACE {
         for row in common::rules()
             .rows
             .iter()
@@ -46,7 +47,7 @@ fn resource_invalid_cases_carry_their_vuid_and_nothing_undeclared() {
     let mut report = vec![];
     let mut failures = vec![];
     for (name, profile) in common::profiles() {
-        for command in Command::ALL {
+        for command in CommandId::TRACE {
             for vuid in resource_vuids(common::rules(), command) {
                 let cases = match generate(
                     &profile,
@@ -121,13 +122,13 @@ fn vendor_mutations_fire_their_rule_in_the_model() {
         &profile,
         &name,
         &rules,
-        &CaseSpec::valid(Command::TraceRays),
+        &CaseSpec::valid(CommandId::TraceRays),
         8,
         5,
     )
     .unwrap();
     let mut checked = 0;
-    for vuid in executable_vuids(&rules, Command::TraceRays) {
+    for vuid in executable_vuids(&rules, CommandId::TraceRays) {
         let Some(m) = mutation_for(&vuid) else {
             continue;
         };
@@ -136,26 +137,27 @@ fn vendor_mutations_fire_their_rule_in_the_model() {
         }
         for (k, case) in base.iter().enumerate() {
             let mut case = case.clone();
-            if let model::Call::TraceRays(x) = &mut case.call {
+            if let model::Call::TraceRays(x) = &mut case.as_trace_mut().unwrap().call {
                 x.width = x.width.max(1);
                 x.height = x.height.max(1);
                 x.depth = x.depth.max(1);
             }
             let mut st = generator::resources::valid_state(&profile, k as u32, 0x1ff);
+            let world = &mut case.as_trace_mut().unwrap().world;
             let tags = mutate(
                 m,
                 &mut st,
-                &mut case.world.device,
-                &mut case.world.command_buffer,
+                &mut world.device,
+                &mut world.command_buffer,
                 &profile,
                 k as u32,
             )
             .unwrap();
-            case.world.resources = st;
+            case.as_trace_mut().unwrap().world.resources = st;
             let row = rules.row(&vuid).unwrap();
             // Enable what the row's condition names, as a device with the extension would: all of them,
             // or, where the condition excludes one (`…+(A,B)+!(B)`), one of them at a time.
-            let base = case.world.device.extensions.clone();
+            let base = case.as_trace().unwrap().world.device.extensions.clone();
             let names: Vec<String> = row
                 .condition
                 .names()
@@ -172,11 +174,11 @@ fn vendor_mutations_fire_their_rule_in_the_model() {
                     .condition
                     .eval(&|n: &str| exts.contains(n) || n.starts_with("VK_VERSION_1_"))
                 {
-                    case.world.device.extensions = exts;
+                    case.as_trace_mut().unwrap().world.device.extensions = exts;
                     break;
                 }
             }
-            let v = model::validate(&rules, &profile, &case.world, &case.call);
+            let v = model::validate(&rules, &profile, &case);
             let got: BTreeSet<String> = v.vuids().into_iter().map(String::from).collect();
             let allowed: BTreeSet<String> = std::iter::once(vuid.clone())
                 .chain(tags.iter().filter_map(|t| {
@@ -211,7 +213,7 @@ fn valid_cases_stay_valid_with_empty_or_generated_resource_states() {
     let mut judged = 0;
     for (name, profile) in common::profiles() {
         let strategy = state_strategy(&profile);
-        for command in Command::ALL {
+        for command in CommandId::TRACE {
             let cases = match generate(
                 &profile,
                 &name,
@@ -227,7 +229,8 @@ fn valid_cases_stay_valid_with_empty_or_generated_resource_states() {
             for (i, case) in cases.into_iter().enumerate() {
                 let mut runner = generator::case_runner(77, i as u64);
                 let mut case = case;
-                case.world.resources = strategy.new_tree(&mut runner).unwrap().current();
+                case.as_trace_mut().unwrap().world.resources =
+                    strategy.new_tree(&mut runner).unwrap().current();
                 let v = common::judge(&profile, &case);
                 assert!(
                     v.is_valid(),

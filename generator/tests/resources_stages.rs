@@ -6,8 +6,9 @@
 mod common;
 
 use generator::resources::{launch_stages, mutation_for};
-use generator::{executable_vuids, generate, CaseSpec, Command, GenError};
+use generator::{executable_vuids, generate, CaseSpec, GenError};
 use model::resources::Stage;
+use model::CommandId;
 use std::collections::BTreeSet;
 
 #[test]
@@ -18,7 +19,7 @@ fn resource_accesses_sit_in_executed_stages_and_need_no_derivatives() {
         .expect("the lavapipe profile");
     let mut seen: BTreeSet<Stage> = BTreeSet::new();
     let mut cases = 0;
-    for command in Command::ALL {
+    for command in CommandId::TRACE {
         for vuid in executable_vuids(common::rules(), command) {
             if mutation_for(&vuid).is_none() {
                 continue;
@@ -36,8 +37,11 @@ fn resource_accesses_sit_in_executed_stages_and_need_no_derivatives() {
                 Err(e) => panic!("{vuid}: {e}"),
             };
             for case in generated {
-                let executed = launch_stages(&case.world, &case.call);
-                for s in &case.world.resources.stages {
+                let executed = launch_stages(
+                    &case.as_trace().unwrap().world,
+                    &case.as_trace().unwrap().call,
+                );
+                for s in &case.as_trace().unwrap().world.resources.stages {
                     if s.accesses.is_empty() && s.push_constants.is_none() {
                         continue;
                     }
@@ -78,7 +82,7 @@ fn the_unnormalized_instruction_rules_keep_explicit_lod_variants() {
             &profile,
             &name,
             common::rules(),
-            &CaseSpec::violate(Command::TraceRays, &vuid),
+            &CaseSpec::violate(CommandId::TraceRays, &vuid),
             8,
             9,
         )
@@ -86,6 +90,8 @@ fn the_unnormalized_instruction_rules_keep_explicit_lod_variants() {
         assert!(!cases.is_empty());
         for c in cases {
             let a = c
+                .as_trace()
+                .unwrap()
                 .world
                 .resources
                 .stages

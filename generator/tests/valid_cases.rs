@@ -3,14 +3,15 @@
 
 mod common;
 
-use generator::{generate, CaseSpec, Command, GenError};
+use generator::{generate, CaseSpec, GenError};
+use model::CommandId;
 
 #[test]
 fn valid_cases_have_empty_verdicts_on_every_profile() {
     let n = common::per_spec();
     let mut judged = 0;
     for (name, profile) in common::profiles() {
-        for command in Command::ALL {
+        for command in CommandId::TRACE {
             for spec in [
                 CaseSpec::valid(command),
                 CaseSpec::valid(command).at_limits(),
@@ -51,7 +52,7 @@ fn nv_is_unsupported_without_the_extension() {
             &profile,
             &name,
             common::rules(),
-            &CaseSpec::valid(Command::TraceRaysNv),
+            &CaseSpec::valid(CommandId::TraceRaysNv),
             1,
             1
         )
@@ -61,7 +62,7 @@ fn nv_is_unsupported_without_the_extension() {
         &profile,
         &name,
         common::rules(),
-        &CaseSpec::valid(Command::TraceRaysNv),
+        &CaseSpec::valid(CommandId::TraceRaysNv),
         1,
         1,
     )
@@ -78,7 +79,7 @@ fn generation_is_deterministic_and_names_carry_the_seed() {
         .into_iter()
         .find(|(n, _)| n == "lavapipe")
         .unwrap();
-    let spec = CaseSpec::valid(Command::TraceRaysIndirect);
+    let spec = CaseSpec::valid(CommandId::TraceRaysIndirect);
     let a = generate(&profile, &name, common::rules(), &spec, 20, 42).unwrap();
     let b = generate(&profile, &name, common::rules(), &spec, 20, 42).unwrap();
     let c = generate(&profile, &name, common::rules(), &spec, 20, 43).unwrap();
@@ -100,12 +101,14 @@ fn valid_cases_cover_the_interesting_shapes() {
         &profile,
         &name,
         common::rules(),
-        &CaseSpec::valid(Command::TraceRaysIndirect),
+        &CaseSpec::valid(CommandId::TraceRaysIndirect),
         300,
         3,
     )
     .unwrap();
-    let has = |f: &dyn Fn(&model::Case) -> bool| cases.iter().filter(|c| f(c)).count();
+    let has = |f: &dyn Fn(&model::TraceBody) -> bool| {
+        cases.iter().filter(|c| f(c.as_trace().unwrap())).count()
+    };
     let zero_dim = has(&|c| c.call.dimensions(&c.world).is_some_and(|d| d.contains(&0)));
     let aabb = has(&|c| {
         c.world

@@ -3,8 +3,9 @@
 
 mod common;
 
-use generator::{case_strategy, generate, shrink_failure, CaseSpec, Command};
+use generator::{case_strategy, generate, shrink_failure, CaseSpec};
 use model::Case;
+use model::CommandId;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
 
@@ -19,14 +20,14 @@ fn lavapipe() -> (String, model::DeviceProfile) {
 fn yaml_round_trip_of_generated_cases_is_exact() {
     let (name, profile) = lavapipe();
     let specs = [
-        CaseSpec::valid(Command::TraceRaysIndirect),
-        CaseSpec::valid(Command::TraceRays).at_limits(),
+        CaseSpec::valid(CommandId::TraceRaysIndirect),
+        CaseSpec::valid(CommandId::TraceRays).at_limits(),
         CaseSpec::violate(
-            Command::TraceRaysIndirect,
+            CommandId::TraceRaysIndirect,
             "VUID-vkCmdTraceRaysIndirectKHR-pHitShaderBindingTable-04736",
         ),
         CaseSpec::violate(
-            Command::TraceRays,
+            CommandId::TraceRays,
             "VUID-VkStridedDeviceAddressRegionKHR-size-04631",
         ),
     ];
@@ -59,7 +60,7 @@ fn malformed_case_yaml_reports_line_and_problem() {
         &profile,
         &name,
         common::rules(),
-        &CaseSpec::valid(Command::TraceRaysIndirect),
+        &CaseSpec::valid(CommandId::TraceRaysIndirect),
         1,
         1,
     )
@@ -93,12 +94,12 @@ fn shrinking_finds_a_minimal_failing_case_and_writes_it() {
     let (name, profile) = lavapipe();
     let dir = std::env::temp_dir().join(format!("rtconf-shrink-{}", std::process::id()));
     // "Fails" whenever the launch traces a ray: the minimum keeps exactly one ray and drops the rest.
-    let fails = |c: &Case| !c.world.launch.rays.is_empty();
-    let spec = CaseSpec::valid(Command::TraceRaysIndirect);
+    let fails = |c: &Case| !c.as_trace().unwrap().world.launch.rays.is_empty();
+    let spec = CaseSpec::valid(CommandId::TraceRaysIndirect);
     let index = (0..50)
         .find(|&i| {
             let c = &generate(&profile, &name, common::rules(), &spec, i + 1, 21).unwrap()[i];
-            c.world.launch.rays.len() >= 2
+            c.as_trace().unwrap().world.launch.rays.len() >= 2
         })
         .expect("some case traces two rays");
     let shrunk = shrink_failure(
@@ -114,13 +115,20 @@ fn shrinking_finds_a_minimal_failing_case_and_writes_it() {
     .unwrap()
     .expect("it fails");
     assert_eq!(
-        shrunk.case.world.launch.rays.len(),
+        shrunk.case.as_trace().unwrap().world.launch.rays.len(),
         1,
         "{}",
         shrunk.case.to_yaml()
     );
     assert!(
-        shrunk.case.world.launch.instances.is_empty(),
+        shrunk
+            .case
+            .as_trace()
+            .unwrap()
+            .world
+            .launch
+            .instances
+            .is_empty(),
         "{}",
         shrunk.case.to_yaml()
     );

@@ -1,80 +1,29 @@
 //! Realises build cases on a device: buffers at 4096-aligned addresses with the model's memory image
 //! (written through the device's addresses), acceleration structures at their buffer ranges, and
 //! `vkCmdBuildAccelerationStructuresIndirectKHR` recorded under the validation layer with the messenger
-//! returning VK_TRUE (never submitted). A valid case runs as the equivalent direct build
+//! returning VK_TRUE (never submitted). A case run as valid is also built directly
 //! (`vkCmdBuildAccelerationStructuresKHR` with the ranges the model reads from memory) and the result is
-//! checked by tracing one ray per built primitive against the model's primitive list: with ray query in
-//! a compute shader, or — where the device lacks rayQuery, or when asked ([`TraceCheck::Pipeline`]) —
-//! with a ray tracing pipeline (raygen, closest-hit, intersection for AABBs). Where the device has
-//! `accelerationStructureIndirectBuild`, the case's indirect build is submitted for real too and must
-//! trace as the direct build does. [`deviation`] names known driver departures by a CPU cast.
+//! traced with one ray per built primitive (the model's [`model::accel::check::expected_rays`]): with ray
+//! query in a compute shader, or — where the device lacks rayQuery, or when asked
+//! ([`TraceCheck::Pipeline`]) — with a ray tracing pipeline (raygen, closest-hit, intersection for
+//! AABBs). Where the device has `accelerationStructureIndirectBuild`, the case's indirect build is
+//! submitted for real too and traced the same way. What came back is observed, never judged.
 
+use crate::observe::{
+    error_ids, Hits, IndirectBuild, Observation, Output, TraceCheck, TracedBuild,
+};
 use crate::realise::{Allocation, RealiseError};
 use crate::vulkan::{LayerMessage, VkDevice, VkInstance};
 use ash::vk;
 use model::accel::call::{BuildGeometryInfo, BuildMode, GeometryData, IndexType, VertexFormat};
+use model::accel::check::{expected_rays, ExpectedRay};
 use model::accel::semantics::Shape;
 use model::accel::world::AddressResolver;
-use model::accel::{AsType, BuildCase, BuildRuleSet, BuildSizes, BuiltPrimitive};
+use model::accel::{AsType, BuildSizes, BuiltPrimitive};
 use model::call::BUFFER_PLACEMENT_ALIGNMENT;
-use model::DeviceProfile;
-use std::collections::{BTreeMap, BTreeSet};
+use model::{AccelBody, Case};
+use std::collections::BTreeMap;
 use std::sync::Arc;
-
-/// What one build case did on the device.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct BuildObservation {
-    pub case: String,
-    /// `ran`, `unsupported: …`, `failed: …`, `crash: …` or `timeout: …` (the last two from the worker pool).
-    pub status: String,
-    /// VUIDs the layer reported for the indirect call, sorted.
-    pub layer_vuids: Vec<String>,
-    /// The layer's messages for the indirect call, in full.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub layer_messages: Vec<LayerMessage>,
-    /// VUIDs the model predicts with the device's build sizes, sorted.
-    pub model_vuids: Vec<String>,
-    /// The sizes the device reported per info.
-    pub device_sizes: Vec<BuildSizes>,
-    /// For valid cases: rays traced against the directly built structure, and those that disagreed.
-    pub rays: usize,
-    pub ray_mismatches: Vec<String>,
-    /// What each ray reported: `(instance, geometry, primitive)` of its hit, or None for a miss.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub ray_hits: Vec<Option<(u32, u32, u32)>>,
-    /// How the rays were traced: `ray-query` (compute shader) or `pipeline` (raygen + closest-hit).
-    #[serde(default, skip_serializing_if = "String::is_empty")]
-    pub check: String,
-    /// Layer messages for the direct build of a valid case (must be none).
-    pub direct_layer_vuids: Vec<String>,
-    /// Where the device has accelerationStructureIndirectBuild: the indirect build ran for real, and
-    /// how its traced result differed from the direct build's (must not).
-    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
-    pub indirect_ran: bool,
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub indirect_vs_direct: Vec<String>,
-    /// Layer VUIDs of the real indirect build (must be none).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub indirect_layer_vuids: Vec<String>,
-}
-
-/// Which traced check a valid case uses.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum TraceCheck {
-    /// Ray query where the device has it, else a ray tracing pipeline.
-    #[default]
-    Auto,
-    RayQuery,
-    Pipeline,
-}
-
-/// How a build case is run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-pub struct BuildOptions {
-    #[serde(default)]
-    pub check: TraceCheck,
-}
 
 fn fail(what: &'static str) -> impl Fn(vk::Result) -> String {
     move |r| format!("{what} failed: {r:?}")
@@ -247,7 +196,7 @@ fn vk_info<'a>(
 /// (ray query, or a ray tracing pipeline where ray query is absent or the pipeline check is asked for).
 pub fn device_for(
     inst: &Arc<VkInstance>,
-    case: &BuildCase,
+    case: &AccelBody,
     check: TraceCheck,
 ) -> Result<VkDevice, String> {
     let mut ext = case.world.device.extensions.clone();
@@ -270,7 +219,7 @@ pub fn device_for(
 }
 
 /// Whether any address of the call (indirect records, scratch, geometry data) lies in buffer `name`.
-fn addressed(case: &BuildCase, name: &str) -> bool {
+fn addressed(case: &AccelBody, name: &str) -> bool {
     let is = |a: &model::call::Address| a.buffer().is_some_and(|(b, _)| b == name);
     case.call.indirect_addresses.iter().any(is)
         || case.call.infos.iter().any(|i| {
@@ -296,7 +245,7 @@ fn addressed(case: &BuildCase, name: &str) -> bool {
 /// on it: VkAccelerationStructureCreateInfoKHR asks nothing of its binding). What Vulkan forbids is
 /// `unsupported` with the rule: a non-sparse buffer bound to several memory objects, and the device
 /// address of a non-sparse unbound buffer (VUID-VkBufferDeviceAddressInfo-buffer-02600).
-fn realise(dev: &VkDevice, case: &BuildCase, fence: vk::Fence) -> Result<Realised, String> {
+fn realise(dev: &VkDevice, case: &AccelBody, fence: vk::Fence) -> Result<Realised, String> {
     use model::world::MemoryBinding;
     let accel = dev
         .accel
@@ -428,7 +377,7 @@ fn realise(dev: &VkDevice, case: &BuildCase, fence: vk::Fence) -> Result<Realise
 }
 
 /// The sizes the device reports for each info of the call with its maxima.
-fn device_sizes(dev: &VkDevice, case: &BuildCase, r: &Realised) -> Option<Vec<BuildSizes>> {
+fn device_sizes(dev: &VkDevice, case: &AccelBody, r: &Realised) -> Option<Vec<BuildSizes>> {
     let accel = dev.accel.as_ref()?;
     case.call
         .infos
@@ -610,19 +559,10 @@ impl Commands {
     }
 }
 
-fn vuids(messages: &[crate::vulkan::LayerMessage]) -> Vec<String> {
-    let s: BTreeSet<String> = messages
-        .iter()
-        .filter(|m| m.id.starts_with("VUID-"))
-        .map(|m| m.id.clone())
-        .collect();
-    s.into_iter().collect()
-}
-
 /// The Vulkan form of the case's indirect call: infos (with their geometries kept alive), addresses,
 /// strides and maxima.
 fn indirect_args<'a>(
-    case: &'a BuildCase,
+    case: &'a AccelBody,
     r: &Realised,
     geoms: &'a [Vec<vk::AccelerationStructureGeometryKHR<'static>>],
 ) -> (
@@ -656,7 +596,7 @@ fn indirect_args<'a>(
 /// command buffers, video coding scopes, pools of a queue family without compute, and recording between
 /// suspended render pass instances. Every other state (primary or secondary, initial, recording,
 /// executable or invalid, inside a render pass or not) is realised by [`record_indirect`].
-fn unrealisable_state(inst: &VkInstance, case: &BuildCase) -> Option<String> {
+fn unrealisable_state(inst: &VkInstance, case: &AccelBody) -> Option<String> {
     let cbs = &case.world.command_buffer;
     // SAFETY: plain query.
     let families = unsafe {
@@ -712,7 +652,7 @@ fn unrealisable_state(inst: &VkInstance, case: &BuildCase) -> Option<String> {
             )
         });
     }
-    if case.world.between_suspended_render_passes {
+    if case.world.command_buffer.between_suspended_render_passes {
         return Some(
             "recording between suspended render pass instances (dynamic rendering) is not realised for builds"
                 .into(),
@@ -728,7 +668,7 @@ fn unrealisable_state(inst: &VkInstance, case: &BuildCase) -> Option<String> {
 fn enter_state(
     dev: &VkDevice,
     cmds: &mut Commands,
-    case: &BuildCase,
+    case: &AccelBody,
 ) -> Result<vk::CommandBuffer, String> {
     use model::world::{CommandBufferLevel, CommandBufferLifecycle};
     let cbs = &case.world.command_buffer;
@@ -844,7 +784,7 @@ fn record_indirect(
     inst: &VkInstance,
     dev: &VkDevice,
     cmds: &mut Commands,
-    case: &BuildCase,
+    case: &AccelBody,
     r: &Realised,
 ) -> Result<Vec<LayerMessage>, String> {
     use model::world::{CommandBufferLevel, CommandBufferLifecycle};
@@ -894,54 +834,29 @@ fn record_indirect(
     Ok(msgs)
 }
 
-/// Runs one build case with the default options (see [`run_case_with`]).
-pub fn run_case(
+/// Runs one build case: the indirect call recorded under the layer, the sizes the device reports, and
+/// for a case run as valid (`run_valid`), the direct build traced with the model's rays (and, where the
+/// device has accelerationStructureIndirectBuild, the indirect build for real, traced the same).
+pub fn execute(
     inst: &Arc<VkInstance>,
-    profile: &DeviceProfile,
-    rules: &BuildRuleSet,
-    case: &BuildCase,
-    unavoidable: &[String],
-) -> BuildObservation {
-    run_case_with(
-        inst,
-        profile,
-        rules,
-        case,
-        unavoidable,
-        BuildOptions::default(),
-    )
-}
-
-/// Runs one build case: the indirect call under the layer, the model's verdict with the device's sizes,
-/// and for a case valid apart from `unavoidable`, the direct build traced against the model (and, where
-/// the device has accelerationStructureIndirectBuild, the indirect build for real, traced the same).
-pub fn run_case_with(
-    inst: &Arc<VkInstance>,
-    profile: &DeviceProfile,
-    rules: &BuildRuleSet,
-    case: &BuildCase,
-    unavoidable: &[String],
-    options: BuildOptions,
-) -> BuildObservation {
-    let mut obs = BuildObservation {
-        case: case.name.clone(),
-        status: "ran".into(),
-        ..Default::default()
+    case: &Case,
+    run_valid: bool,
+    check: TraceCheck,
+) -> Observation {
+    let Some(body) = case.as_accel() else {
+        return Observation::crash(format!("{} is not a build case", case.name));
     };
-    if let Some(why) = unrealisable_state(inst, case) {
-        obs.status = format!("unsupported: {why}");
-        return obs;
+    let mut obs = Observation::with_status(crate::observe::Status::Ran);
+    if let Some(why) = unrealisable_state(inst, body) {
+        return Observation::unsupported(why);
     }
-    let dev = match device_for(inst, case, options.check) {
+    let dev = match device_for(inst, body, check) {
         Ok(d) => d,
-        Err(e) => {
-            obs.status = e;
-            return obs;
-        }
+        Err(e) => return failure(e),
     };
     let result = (|| -> Result<(), String> {
         let mut cmds = Commands::new(&dev)?;
-        let r = match realise(&dev, case, cmds.fence) {
+        let r = match realise(&dev, body, cmds.fence) {
             Ok(r) => r,
             Err(e) => {
                 cmds.destroy(&dev);
@@ -949,18 +864,14 @@ pub fn run_case_with(
             }
         };
         let out = (|| -> Result<(), String> {
-            let mut world = case.world.clone();
-            if let Some(s) = device_sizes(&dev, case, &r) {
-                obs.device_sizes = s.clone();
-                world.sizes = s;
+            if let Some(s) = device_sizes(&dev, body, &r) {
+                obs.device_sizes = s;
             }
-            let verdict = rules.validate(profile, &world, &case.call);
-            let set: BTreeSet<String> = verdict.violations.into_iter().map(|v| v.vuid).collect();
-            obs.model_vuids = set.iter().cloned().collect();
-            obs.layer_messages = record_indirect(inst, &dev, &mut cmds, case, &r)?;
-            obs.layer_vuids = vuids(&obs.layer_messages);
-            if obs.model_vuids.iter().all(|v| unavoidable.contains(v)) {
-                direct_and_trace(inst, &dev, &cmds, case, &r, &world, options.check, &mut obs)?;
+            let messages = record_indirect(inst, &dev, &mut cmds, body, &r)?;
+            obs.set_messages(messages);
+            if run_valid && fits_device_sizes(body, &obs.device_sizes) {
+                let traced = direct_and_trace(inst, &dev, &cmds, body, &r, check)?;
+                obs.output = Some(Output::Rays(traced));
             }
             Ok(())
         })();
@@ -968,62 +879,37 @@ pub fn run_case_with(
         r.destroy(&dev);
         out
     })();
-    if let Err(e) = result {
-        obs.status = if e.starts_with("unsupported") {
-            e
-        } else {
-            format!("failed: {e}")
-        };
+    match result {
+        Ok(()) => obs,
+        Err(e) => failure(e),
     }
-    obs
 }
 
-/// One ray per built primitive: origin above the primitive, direction +z, and what it must report.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ExpectedRay {
-    pub origin: [f32; 3],
-    /// (instance, geometry, primitive) when it must hit; None when it must miss.
-    pub hit: Option<(u32, u32, u32)>,
+/// An error of the build path as an observation: `unsupported: …` names what the device or harness
+/// lacks; anything else is a failure of the driver or the harness.
+fn failure(e: String) -> Observation {
+    match e.strip_prefix("unsupported: ") {
+        Some(reason) => Observation::unsupported(reason),
+        None => Observation::crash(format!("failed: {e}")),
+    }
 }
 
-/// The rays that check a built structure, from the model's primitives (top-level: instances of the
-/// one-triangle BLAS the generator uses, whose triangle's centroid is (0, -1/6)).
-pub fn expected_rays(prims: &[BuiltPrimitive], top: bool) -> Vec<ExpectedRay> {
-    prims
-        .iter()
-        .filter_map(|p| {
-            let (x, y) = match &p.shape {
-                Shape::Triangle(v) if p.active => (
-                    (v[0][0] + v[1][0] + v[2][0]) / 3.0,
-                    (v[0][1] + v[1][1] + v[2][1]) / 3.0,
-                ),
-                Shape::Triangle(v) => ((v[1][0] + v[2][0]) / 2.0, (v[1][1] + v[2][1]) / 2.0),
-                Shape::Aabb { min, max } => {
-                    let x = if min[0].is_nan() {
-                        max[0] - 0.5
-                    } else {
-                        (min[0] + max[0]) / 2.0
-                    };
-                    (x, (min[1] + max[1]) / 2.0)
-                }
-                Shape::Instance(rec) => (rec.transform[3], rec.transform[7] - 1.0 / 6.0),
-            };
-            if !x.is_finite() || !y.is_finite() {
-                return None;
-            }
-            let hit = p.active.then(|| {
-                if top {
-                    (p.primitive, 0, 0)
-                } else {
-                    (0, p.geometry, p.primitive)
-                }
-            });
-            Some(ExpectedRay {
-                origin: [x, y, -1.0],
-                hit,
-            })
-        })
-        .collect()
+/// Whether the case's first destination and scratch are as large as the device says the build needs:
+/// the direct build writes them, and a smaller range would be written out of bounds.
+fn fits_device_sizes(case: &AccelBody, sizes: &[BuildSizes]) -> bool {
+    let (Some(info), Some(need)) = (case.call.infos.first(), sizes.first()) else {
+        return true;
+    };
+    let dst = info.dst.as_deref().and_then(|n| case.world.structure(n));
+    let scratch = info
+        .scratch
+        .buffer()
+        .and_then(|(b, off)| Some(case.world.buffer(b)?.size.saturating_sub(off)));
+    let scratch_need = match info.mode {
+        BuildMode::Update => need.update_scratch,
+        _ => need.build_scratch,
+    };
+    dst.is_none_or(|s| s.size >= need.structure) && scratch.is_none_or(|s| s >= scratch_need)
 }
 
 const TRACE_COMP: &str = r#"#version 460
@@ -1169,9 +1055,6 @@ fn build_direct(
     Ok((s, addr, storage, scratch))
 }
 
-/// What each ray hit: `(instance, geometry, primitive)`, or None for a miss.
-pub type Hits = Vec<Option<(u32, u32, u32)>>;
-
 /// How the structure under test is built.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum BuildPath {
@@ -1204,12 +1087,10 @@ fn direct_and_trace(
     inst: &VkInstance,
     dev: &VkDevice,
     cmds: &Commands,
-    case: &BuildCase,
+    case: &AccelBody,
     r: &Realised,
-    world: &model::accel::BuildWorld,
     check: TraceCheck,
-    obs: &mut BuildObservation,
-) -> Result<(), String> {
+) -> Result<TracedBuild, String> {
     let check = resolve_check(dev, check)?;
     if case.call.infos.len() != 1 {
         return Err("unsupported: the traced check handles one build info".into());
@@ -1220,13 +1101,13 @@ fn direct_and_trace(
         .ok_or("no acceleration structure extension")?;
     let info = &case.call.infos[0];
     let top = info.ty == AsType::TopLevel;
-    let mem = world.memory();
+    let mem = case.world.memory();
     let ranges = model::accel::indirect_ranges(&mem, &case.call, 0).map_err(|e| e.to_string())?;
     let prims = model::accel::build_primitives(&mem, info, &ranges).map_err(|e| e.to_string())?;
     drop(mem);
     let mut extra: Vec<Allocation> = Vec::new();
     let result =
-        (|| -> Result<(), String> {
+        (|| -> Result<TracedBuild, String> {
             // Top-level cases reference the BLAS: build it first (one triangle at the origin).
             if top {
                 let tri: Vec<u8> = [-0.5f32, -0.5, 0.0, 0.5, -0.5, 0.0, 0.0, 0.5, 0.0]
@@ -1306,24 +1187,8 @@ fn direct_and_trace(
                 &rays,
                 &boxes,
             )?;
-            obs.check = match check {
-                TraceCheck::Pipeline => "pipeline",
-                _ => "ray-query",
-            }
-            .into();
-            obs.direct_layer_vuids = direct;
-            obs.rays = rays.len();
-            obs.ray_hits = hits.clone();
-            for (k, (ray, got)) in rays.iter().zip(&hits).enumerate() {
-                if *got != ray.hit {
-                    obs.ray_mismatches.push(format!(
-                        "ray {k} at {:?}: expected {:?}, device {:?}",
-                        ray.origin, ray.hit, got
-                    ));
-                }
-            }
-            if dev.has_feature("accelerationStructureIndirectBuild") {
-                let (ihits, ivuids) = build_and_trace(
+            let indirect = if dev.has_feature("accelerationStructureIndirectBuild") {
+                let (hits, layer_vuids) = build_and_trace(
                     inst,
                     dev,
                     cmds,
@@ -1335,18 +1200,16 @@ fn direct_and_trace(
                     &rays,
                     &boxes,
                 )?;
-                obs.indirect_ran = true;
-                obs.indirect_layer_vuids = ivuids;
-                for (k, (d, i)) in hits.iter().zip(&ihits).enumerate() {
-                    if d != i {
-                        obs.indirect_vs_direct.push(format!(
-                            "ray {k} at {:?}: direct build {d:?}, indirect build {i:?}",
-                            rays[k].origin
-                        ));
-                    }
-                }
-            }
-            Ok(())
+                Some(IndirectBuild { hits, layer_vuids })
+            } else {
+                None
+            };
+            Ok(TracedBuild {
+                check,
+                hits,
+                direct_layer_vuids: direct,
+                indirect,
+            })
         })();
     for a in extra {
         a.destroy(dev);
@@ -1361,7 +1224,7 @@ fn build_and_trace(
     inst: &VkInstance,
     dev: &VkDevice,
     cmds: &Commands,
-    case: &BuildCase,
+    case: &AccelBody,
     r: &Realised,
     ranges: &[model::accel::RangeInfo],
     path: BuildPath,
@@ -1426,7 +1289,7 @@ fn build_and_trace(
         }
         cmds.barrier(dev);
         cmds.submit(dev)?;
-        let layer = vuids(&inst.collector.take());
+        let layer = error_ids(&inst.collector.take());
         let (dst, dst_addr) = r
             .structures
             .get(info.dst.as_deref().unwrap_or(""))
@@ -1979,162 +1842,16 @@ fn trace_pipeline(
     }
 }
 
-/// Named ways a driver's build may depart from the model: each rewrites the ranges the build reads.
-const DEVIATIONS: &[(
-    &str,
-    fn(&GeometryData, model::accel::RangeInfo) -> model::accel::RangeInfo,
-)] = &[
-    ("indexed-first-vertex-ignored", |g, r| match g {
-        GeometryData::Triangles { index_type, .. } if *index_type != IndexType::None => {
-            model::accel::RangeInfo {
-                first_vertex: 0,
-                ..r
-            }
-        }
-        _ => r,
-    }),
-    ("first-vertex-applied-twice", |g, r| match g {
-        GeometryData::Triangles { .. } => model::accel::RangeInfo {
-            first_vertex: r.first_vertex.saturating_mul(2),
-            ..r
-        },
-        _ => r,
-    }),
-];
-
-/// A relaxation that may follow a range deviation (or none), for structures holding an inactive triangle
-/// (a vertex whose X is NaN): lavapipe (Mesa 25.0.7) keeps such a triangle in its BVH, and its NaN bounds
-/// make primitives elsewhere in the tree unreachable (which ones depends on the tree, so a CPU cast
-/// cannot name them). Under it every ray the device reports as a hit must hit what the cast says; rays
-/// the cast says hit may miss. Only named when the exact casts fail.
-pub const INACTIVE_TRIANGLE_DROPS: &str = "inactive-triangle-drops-primitives";
-
-/// The names (see [`DEVIATIONS`], joined by `|` when several fit) of the deviations that explain a valid
-/// case's ray mismatches exactly: the same rays cast on the CPU at the structure built under the
-/// deviation report precisely what the device reported. Where no deviation explains them exactly and the
-/// built structure holds an inactive triangle, the deviations (none included) that explain them up to
-/// the fewest dropped primitives are named with `+` [`INACTIVE_TRIANGLE_DROPS`] (`inactive-triangle-drops-primitives`
-/// alone for none). None when no deviation explains them, or when a CPU cast cannot decide (a ray
-/// grazing an edge, a non-triangle build).
-pub fn deviation(case: &BuildCase, obs: &BuildObservation) -> Option<String> {
-    let info = case.call.infos.first()?;
-    if obs.ray_hits.is_empty() || case.call.infos.len() != 1 || info.ty != AsType::BottomLevel {
-        return None;
-    }
-    let mem = case.world.memory();
-    let ranges = model::accel::indirect_ranges(&mem, &case.call, 0).ok()?;
-    let prims = model::accel::build_primitives(&mem, info, &ranges).ok()?;
-    let rays = expected_rays(&prims, false);
-    if rays.len() != obs.ray_hits.len() {
-        return None;
-    }
-    // A deviating build may read past the end of a buffer: the harness's buffers lie in zeroed
-    // allocations, so the cast reads zeros there (degenerate triangles that nothing hits).
-    let mut padded = case.world.clone();
-    for b in &mut padded.buffers {
-        b.size += 4096;
-    }
-    let padded_mem = padded.memory();
-    // Each candidate: its name and what the cast reports per ray at the structure it builds (with
-    // whether that structure holds an inactive triangle). "none" is the model's own build.
-    let identity: fn(&GeometryData, model::accel::RangeInfo) -> model::accel::RangeInfo = |_, r| r;
-    let candidates: Vec<(&str, Hits, bool)> = std::iter::once(("none", identity))
-        .chain(DEVIATIONS.iter().copied())
-        .filter_map(|(name, f)| {
-            let alt: Vec<model::accel::RangeInfo> = info
-                .geometries
-                .iter()
-                .zip(&ranges)
-                .map(|(g, r)| f(&g.data, *r))
-                .collect();
-            if name != "none" && alt == ranges {
-                return None;
-            }
-            let alt_prims = model::accel::build_primitives(&padded_mem, info, &alt).ok()?;
-            let inactive = alt_prims
-                .iter()
-                .any(|p| !p.active && matches!(p.shape, Shape::Triangle(_)));
-            let hits: Option<Hits> = rays.iter().map(|r| cast(&alt_prims, r.origin)).collect();
-            Some((name, hits?, inactive))
-        })
-        .collect();
-    let exact: Vec<&str> = candidates
-        .iter()
-        .filter(|(name, hits, _)| *name != "none" && *hits == obs.ray_hits)
-        .map(|c| c.0)
-        .collect();
-    if !exact.is_empty() {
-        return Some(exact.join("|"));
-    }
-    // Up to dropped primitives: the candidates whose every device hit is the cast's, fewest drops first.
-    let drops = |hits: &Hits| -> Option<usize> {
-        let mut n = 0;
-        for (want, got) in hits.iter().zip(&obs.ray_hits) {
-            match got {
-                None if want.is_some() => n += 1,
-                _ if got != want => return None,
-                _ => {}
-            }
-        }
-        Some(n)
-    };
-    let relaxed: Vec<(&str, usize)> = candidates
-        .iter()
-        .filter(|c| c.2)
-        .filter_map(|(name, hits, _)| Some((*name, drops(hits)?)))
-        .collect();
-    let fewest = relaxed.iter().map(|r| r.1).min();
-    let dropped: Vec<String> = relaxed
-        .iter()
-        .filter(|r| Some(r.1) == fewest)
-        .map(|(name, _)| match *name {
-            "none" => INACTIVE_TRIANGLE_DROPS.to_string(),
-            n => format!("{n}+{INACTIVE_TRIANGLE_DROPS}"),
-        })
-        .collect();
-    (!dropped.is_empty()).then(|| dropped.join("|"))
-}
-
-/// What a ray from `origin` along +z (t in [0, 100]) hits among triangle primitives, on the CPU; the
-/// outer None when it cannot be decided (a ray within 1e-4 of an edge, a non-triangle primitive).
-fn cast(prims: &[BuiltPrimitive], origin: [f32; 3]) -> Option<Option<(u32, u32, u32)>> {
-    let mut best: Option<(f32, (u32, u32, u32))> = None;
-    for p in prims.iter().filter(|p| p.active) {
-        let Shape::Triangle(v) = &p.shape else {
-            return None;
-        };
-        let (ox, oy) = (origin[0] as f64, origin[1] as f64);
-        let x = |i: usize| v[i][0] as f64;
-        let y = |i: usize| v[i][1] as f64;
-        let area = (x(1) - x(0)) * (y(2) - y(0)) - (x(2) - x(0)) * (y(1) - y(0));
-        if !area.is_finite() || area.abs() < 1e-9 {
-            continue;
-        }
-        let edge =
-            |a: usize, b: usize| ((x(b) - x(a)) * (oy - y(a)) - (ox - x(a)) * (y(b) - y(a))) / area;
-        let w = [edge(1, 2), edge(2, 0), edge(0, 1)];
-        if w.iter().all(|c| *c > 1e-4) {
-            let z = w[0] * v[0][2] as f64 + w[1] * v[1][2] as f64 + w[2] * v[2][2] as f64;
-            let t = (z - origin[2] as f64) as f32;
-            if (0.0..=100.0).contains(&t) && best.map_or(true, |(bt, _)| t < bt) {
-                best = Some((t, (0, p.geometry, p.primitive)));
-            }
-        } else if w.iter().all(|c| *c > -1e-4) {
-            return None;
-        }
-    }
-    Some(best.map(|b| b.1))
-}
-
 /// What the device built for a case, seen through arbitrary rays: the case's first info built directly
 /// with the ranges the model reads from memory, then one ray (+z, t in [0, 100]) from each origin. For
 /// writing down what a driver built where no named deviation explains it.
 pub fn probe_rays(
     inst: &Arc<VkInstance>,
-    case: &BuildCase,
+    case: &Case,
     origins: &[[f32; 3]],
     check: TraceCheck,
 ) -> Result<Hits, String> {
+    let case = case.as_accel().ok_or("probing needs a build case")?;
     let dev = device_for(inst, case, check)?;
     let check = resolve_check(&dev, check)?;
     let cmds = Commands::new(&dev)?;

@@ -1,22 +1,46 @@
-//! Executes a case: picks (or creates) the device for its enabled state, realises the world, records the
-//! trace call with the layer's messages collected — dropped by the layer for invalid cases, which are never
-//! submitted — and, for valid cases, submits, waits and reads the output words back.
+//! Executes a case on one driver: a trace case on the device for its enabled state (cached), with the
+//! world realised and the call recorded with the layer's messages collected — dropped by the layer
+//! unless the case is run as valid, in which case it is submitted and the output words read back — and
+//! a build case through [`crate::accel`]. Every command gives one [`Observation`].
 
 use crate::error::HarnessError;
-use crate::observe::{Observation, Status};
+use crate::observe::{Observation, Output, Status, TraceCheck};
 use crate::realise::{Allocation, DeviceCache, RealiseError, Tlas, RAY_RECORD_SIZE};
 use crate::vulkan::{DeviceError, Driver, VkDevice, VkInstance};
 use ash::vk;
 use model::call::{Address, Call, StridedRegion};
-use model::case::{Case, Intent};
+use model::case::Case;
 use model::flags::QueueFlags;
 use model::world::{CommandBufferLevel, CommandBufferLifecycle, PipelineApi, RayTarget, World};
+use model::DeviceProfile;
 use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Duration;
 
 /// The most output words the harness reads back for one launch.
 pub const MAX_OUTPUT_WORDS: usize = 1 << 24;
+
+/// How the harness is asked to run a case.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub struct Execution {
+    /// Run the case for real: submit it and read the output back (trace), build it directly and trace
+    /// what was built (build). Otherwise the call is only recorded under the layer, which drops it.
+    pub run_valid: bool,
+    /// How a build's traced check traces its rays.
+    #[serde(default)]
+    pub check: TraceCheck,
+}
+
+impl Execution {
+    /// The execution a case gets on a device of `profile`: for real when it is valid, or violates only
+    /// what the device makes unavoidable ([`Case::runs_as_valid`]).
+    pub fn for_case(case: &Case, profile: &DeviceProfile) -> Execution {
+        Execution {
+            run_valid: case.runs_as_valid(profile),
+            check: TraceCheck::Auto,
+        }
+    }
+}
 
 /// Runs cases on one driver, caching a device per distinct enabled (extensions, features) set.
 pub struct Executor {
@@ -42,6 +66,16 @@ impl Executor {
 
     fn device_key(world: &World) -> String {
         serde_json::to_string(&world.device).unwrap_or_default()
+    }
+
+    /// Runs one case and reports what the layer said and what the device produced (see
+    /// [`Executor::execute_trace`] and [`crate::accel::execute`]).
+    pub fn execute(&mut self, case: &Case, exec: &Execution) -> Observation {
+        if case.as_trace().is_some() {
+            self.execute_trace(case, exec.run_valid)
+        } else {
+            crate::accel::execute(&self.inst, case, exec.run_valid, exec.check)
+        }
     }
 
     fn device(&mut self, world: &World) -> Result<&mut DeviceCache, Observation> {
@@ -82,14 +116,25 @@ fn realise_failure(e: RealiseError) -> Observation {
     }
 }
 
-/// Runs one case and reports what the layer said and, for valid cases, what the shaders wrote.
-///
-/// A submission that ends in ERROR_DEVICE_LOST is a crash of this case; one that does not finish in
-/// [`Executor::gpu_timeout`] is its timeout. Either way the device is dropped from the executor without
-/// touching it again (its objects are leaked, see `DeviceCache::lost`), so no later case reuses it.
-pub fn execute(case: &Case, ctx: &mut Executor) -> Observation {
-    // issue 4 hook: resource states are realised by `crate::resources`; what it cannot realise is
-    // unsupported (running without it would show the layer a call that violates nothing).
+impl Executor {
+    /// Runs one trace case and reports what the layer said and, when run as valid, what the shaders
+    /// wrote.
+    ///
+    /// A submission that ends in ERROR_DEVICE_LOST is a crash of this case; one that does not finish in
+    /// [`Executor::gpu_timeout`] is its timeout. Either way the device is dropped from the executor
+    /// without touching it again (its objects are leaked, see `DeviceCache::lost`), so no later case
+    /// reuses it.
+    fn execute_trace(&mut self, case: &Case, run_valid: bool) -> Observation {
+        let Some(body) = case.as_trace() else {
+            return Observation::crash(format!("{} is not a trace case", case.name));
+        };
+        trace(self, body, run_valid)
+    }
+}
+
+fn trace(ctx: &mut Executor, case: &model::TraceBody, run_valid: bool) -> Observation {
+    // Resource states are realised by `crate::resources`; what it cannot realise is unsupported
+    // (running without it would show the layer a call that violates nothing).
     if let Some(why) = crate::resources::unsupported(&case.world) {
         return Observation::unsupported(why);
     }
@@ -101,9 +146,17 @@ pub fn execute(case: &Case, ctx: &mut Executor) -> Observation {
     };
     let mut buffers = Vec::new();
     let mut res: Option<crate::resources::Realised> = None;
-    let result = run(case, cache, &mut buffers, &mut res, timeout, &collector);
+    let result = run(
+        case,
+        run_valid,
+        cache,
+        &mut buffers,
+        &mut res,
+        timeout,
+        &collector,
+    );
     let lost = cache.lost;
-    // issue 4 hook: the case's resource objects (and its pipeline) go with the case; a lost device leaks them.
+    // The case's resource objects (and its pipeline) go with the case; a lost device leaks them.
     match res {
         Some(r) if !lost => r.destroy(cache),
         _ => cache.resource_pipeline = None,
@@ -150,7 +203,8 @@ fn region(
 }
 
 fn run(
-    case: &Case,
+    case: &model::TraceBody,
+    valid: bool,
     cache: &mut DeviceCache,
     buffers: &mut Vec<(String, Allocation)>,
     res: &mut Option<crate::resources::Realised>,
@@ -158,7 +212,6 @@ fn run(
     collector: &crate::vulkan::Collector,
 ) -> Result<Observation, RealiseError> {
     let world = &case.world;
-    let valid = matches!(case.intent, Intent::Valid);
     let cbs = &world.command_buffer;
     let nv_call = matches!(case.call, Call::TraceRaysNv(_));
     if nv_call && cache.dev.nv.is_none() {
@@ -207,8 +260,8 @@ fn run(
         },
         |p| p.api,
     );
-    // issue 4 hook: the resource state, and the case's pipeline with its templated raygen, before the
-    // shader binding tables are filled with that pipeline's handles.
+    // The resource state, and the case's pipeline with its templated raygen, before the shader binding
+    // tables are filled with that pipeline's handles.
     if !world.resources.is_empty() {
         let harness_set = cache.layouts(trace, api)?.set;
         *res = Some(crate::resources::Realised::new(
@@ -441,7 +494,7 @@ fn run(
                 );
             }
             if let Some(r) = res.as_ref() {
-                r.record_transitions(d, cb); // issue 4 hook
+                r.record_transitions(d, cb);
             }
             if let Some(p) = vk_pipeline.filter(|_| cbs.pipeline_bound) {
                 d.cmd_bind_pipeline(cb, vk::PipelineBindPoint::RAY_TRACING_KHR, p);
@@ -454,8 +507,8 @@ fn run(
                     }
                 }
             }
-            // issue 4 hook: with a resource state the harness set is bound with the case pipeline's
-            // realised layout, then the case's own binds and pushes follow.
+            // With a resource state the harness set is bound with the case pipeline's realised layout,
+            // then the case's own binds and pushes follow.
             let harness_layout = res.as_ref().map_or(layouts.pipeline, |r| r.harness_layout);
             d.cmd_bind_descriptor_sets(
                 cb,
@@ -576,6 +629,6 @@ fn run(
     collector.clear();
     cache.submit_and_wait(timeout)?;
     let out = cache.output.as_ref().expect("made above");
-    obs.output = Some(out.read_u32s(words));
+    obs.output = Some(Output::Words(out.read_u32s(words)));
     Ok(obs)
 }

@@ -1,13 +1,16 @@
-//! What the harness saw when it ran a case: the run status, the VUIDs the validation layer reported while
-//! the trace call was recorded, and the words the shaders wrote.
+//! What the harness saw when it ran a case — one type for every command: the run status, the VUIDs the
+//! validation layer reported while the call was recorded, and what the device produced (the words the
+//! shaders wrote for a trace call; the sizes it asked for and the rays traced at what it built for a
+//! build). Nothing here is judged: the session compares it with the model.
 
 use crate::vulkan::LayerMessage;
+use model::accel::BuildSizes;
 
 /// How a case's run ended.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case", tag = "kind")]
 pub enum Status {
-    /// Recorded (and, for valid cases, submitted and read back).
+    /// Recorded (and, for cases run as valid, submitted and read back).
     Ran,
     /// The device or the harness cannot realise the case; the reason names what is missing.
     Unsupported { reason: String },
@@ -17,18 +20,69 @@ pub enum Status {
     Timeout { seconds: f64 },
 }
 
+/// What each ray of a traced check hit: `(instance, geometry, primitive)`, or None for a miss.
+pub type Hits = Vec<Option<(u32, u32, u32)>>;
+
+/// How the rays of a build's check were traced.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TraceCheck {
+    /// Ray query where the device has it, else a ray tracing pipeline.
+    #[default]
+    Auto,
+    /// `rayQueryEXT` in a compute shader.
+    RayQuery,
+    /// A ray tracing pipeline: raygen, closest-hit, miss, and an intersection shader for AABBs.
+    Pipeline,
+}
+
+/// The traced check of a build run as valid: the case built directly (with the ranges the model reads
+/// from memory), one ray per built primitive traced at it, and, where the device has
+/// `accelerationStructureIndirectBuild`, the case's own indirect build traced with the same rays.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TracedBuild {
+    /// How the rays were traced (never `Auto`).
+    pub check: TraceCheck,
+    /// What each ray reported at the directly built structure.
+    pub hits: Hits,
+    /// The layer's VUIDs for the direct build.
+    pub direct_layer_vuids: Vec<String>,
+    /// The real indirect build, where the device could run it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub indirect: Option<IndirectBuild>,
+}
+
+/// The case's indirect build submitted for real, traced with the direct build's rays.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct IndirectBuild {
+    pub hits: Hits,
+    pub layer_vuids: Vec<String>,
+}
+
+/// What the device produced for a case.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Output {
+    /// The output words of a trace call run as valid (one per launch ID, x fastest).
+    Words(Vec<u32>),
+    /// The traced check of a build run as valid.
+    Rays(TracedBuild),
+}
+
 /// The harness's observation of one case.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Observation {
     pub status: Status,
-    /// Sorted, unique `pMessageIdName`s of the layer's errors while the trace call was recorded.
+    /// Sorted, unique `pMessageIdName`s of the layer's errors while the call was recorded.
     pub layer_vuids: Vec<String>,
     /// Those messages in full (errors and warnings), for reports.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub layer_messages: Vec<LayerMessage>,
-    /// The output words of a valid case (one per launch ID, x fastest).
+    /// The sizes the device reported for each build info with its maxima (builds only).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub device_sizes: Vec<BuildSizes>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub output: Option<Vec<u32>>,
+    pub output: Option<Output>,
 }
 
 impl Observation {
@@ -37,6 +91,7 @@ impl Observation {
             status,
             layer_vuids: Vec::new(),
             layer_messages: Vec::new(),
+            device_sizes: Vec::new(),
             output: None,
         }
     }
@@ -55,25 +110,35 @@ impl Observation {
 
     /// Keeps the messages and derives the sorted unique VUIDs of the errors among them.
     pub fn set_messages(&mut self, messages: Vec<LayerMessage>) {
-        let mut ids: Vec<String> = messages
-            .iter()
-            .filter(|m| m.severity == "error" && !m.id.is_empty())
-            .map(|m| m.id.clone())
-            .collect();
-        ids.sort();
-        ids.dedup();
-        self.layer_vuids = ids;
+        self.layer_vuids = error_ids(&messages);
         self.layer_messages = messages;
+    }
+
+    /// The output words of a trace call, when it was run as valid.
+    pub fn words(&self) -> Option<&[u32]> {
+        match &self.output {
+            Some(Output::Words(w)) => Some(w),
+            _ => None,
+        }
+    }
+
+    /// The traced check of a build, when it was run as valid.
+    pub fn traced(&self) -> Option<&TracedBuild> {
+        match &self.output {
+            Some(Output::Rays(t)) => Some(t),
+            _ => None,
+        }
     }
 }
 
-/// One case's result as the worker pool reports it.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct CaseResult {
-    /// Position of the case in the batch given to the pool.
-    pub index: usize,
-    pub name: String,
-    pub observation: Observation,
-    /// Wall time of the case in the worker, in milliseconds.
-    pub millis: f64,
+/// The sorted unique ids of the errors among the layer's messages.
+pub fn error_ids(messages: &[LayerMessage]) -> Vec<String> {
+    let mut ids: Vec<String> = messages
+        .iter()
+        .filter(|m| m.severity == "error" && !m.id.is_empty())
+        .map(|m| m.id.clone())
+        .collect();
+    ids.sort();
+    ids.dedup();
+    ids
 }

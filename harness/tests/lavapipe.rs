@@ -5,17 +5,12 @@
 
 mod common;
 
-use common::{at, recursive_callable_case, valid_case};
-use harness::{execute, Driver, Executor, Status};
+use common::{at, body, call, execute, executor, recursive_callable_case, valid_case, world};
+use harness::{Executor, Status};
 use model::call::Call;
 use model::case::{Case, Intent};
 use model::flags::BufferCreate;
 use model::world::MemoryBinding;
-
-fn executor() -> Executor {
-    Executor::new(Driver::Lavapipe)
-        .expect("lavapipe and the validation layer are installed by scripts/setup.sh")
-}
 
 /// Runs `case` and checks the status, the layer's VUIDs and, for valid cases, the words against the model.
 fn check(ctx: &mut Executor, case: &Case, expect_vuids: &[&str]) {
@@ -27,17 +22,18 @@ fn check(ctx: &mut Executor, case: &Case, expect_vuids: &[&str]) {
         case.name, obs.layer_messages
     );
     if matches!(case.intent, Intent::Valid) {
-        let expected = model::semantics::expected_launch(&case.world, &case.call)
+        let expected = model::semantics::expected_launch(&body(case).world, &body(case).call)
             .expect("dimensions are known");
         assert_eq!(
-            obs.output.as_deref(),
+            obs.words(),
             Some(expected.words.as_slice()),
             "{}",
             case.name
         );
     } else {
         assert_eq!(
-            obs.output, None,
+            obs.words(),
+            None,
             "{}: invalid cases are never submitted",
             case.name
         );
@@ -54,7 +50,7 @@ fn valid_indirect_launch_writes_what_the_model_expects() {
     let h = model::semantics::HIT_TAG;
     let m = model::semantics::MISS_TAG;
     assert_eq!(
-        obs.output.unwrap(),
+        obs.words().unwrap(),
         vec![h | 3, m | 1, m | 2, h | 3, m | 1, m | 2, h | 3, m | 1]
     );
 }
@@ -63,7 +59,7 @@ fn valid_indirect_launch_writes_what_the_model_expects() {
 fn miss_stride_not_a_multiple_of_the_handle_alignment_is_reported() {
     let mut ctx = executor();
     let mut case = valid_case();
-    let Call::TraceRaysIndirect(c) = &mut case.call else {
+    let Call::TraceRaysIndirect(c) = call(&mut case) else {
         unreachable!()
     };
     c.miss.stride = 40;
@@ -83,7 +79,7 @@ fn miss_stride_not_a_multiple_of_the_handle_alignment_is_reported() {
 fn indirect_address_not_a_multiple_of_four_is_reported() {
     let mut ctx = executor();
     let mut case = valid_case();
-    let Call::TraceRaysIndirect(c) = &mut case.call else {
+    let Call::TraceRaysIndirect(c) = call(&mut case) else {
         unreachable!()
     };
     c.indirect_address = at("indirect", 2);
@@ -102,11 +98,11 @@ fn indirect_address_not_a_multiple_of_four_is_reported() {
 fn a_missing_feature_is_unsupported_with_its_name() {
     let mut ctx = executor();
     let mut case = valid_case();
-    case.world
+    world(&mut case)
         .device
         .features
         .insert("sparseResidencyAliased".into());
-    case.world
+    world(&mut case)
         .device
         .extensions
         .insert("VK_NV_ray_tracing".into());
@@ -121,7 +117,7 @@ fn a_missing_feature_is_unsupported_with_its_name() {
 fn both_violations_in_one_call_are_both_reported() {
     let mut ctx = executor();
     let mut case = valid_case();
-    let Call::TraceRaysIndirect(c) = &mut case.call else {
+    let Call::TraceRaysIndirect(c) = call(&mut case) else {
         unreachable!()
     };
     c.miss.stride = 40;
@@ -142,9 +138,17 @@ fn both_violations_in_one_call_are_both_reported() {
 fn callables_and_extra_recursion_run_silently_and_as_the_model_expects() {
     let mut ctx = executor();
     let case = recursive_callable_case();
-    let depth = case.world.launch.recursion_depth();
+    let depth = body(&case).world.launch.recursion_depth();
     assert_eq!(depth, 3, "the closest-hit traces twice more");
-    assert!(depth <= case.world.pipeline.as_ref().unwrap().max_recursion_depth);
+    assert!(
+        depth
+            <= body(&case)
+                .world
+                .pipeline
+                .as_ref()
+                .unwrap()
+                .max_recursion_depth
+    );
     let obs = execute(&case, &mut ctx);
     assert_eq!(obs.status, Status::Ran, "{obs:?}");
     assert!(
@@ -152,14 +156,14 @@ fn callables_and_extra_recursion_run_silently_and_as_the_model_expects() {
         "no layer message at all: {:#?}",
         obs.layer_messages
     );
-    let expected =
-        model::semantics::expected_launch(&case.world, &case.call).expect("direct dimensions");
-    assert_eq!(obs.output.as_deref(), Some(expected.words.as_slice()));
+    let expected = model::semantics::expected_launch(&body(&case).world, &body(&case).call)
+        .expect("direct dimensions");
+    assert_eq!(obs.words(), Some(expected.words.as_slice()));
     // The nested traces use their own payload: the outer word is still the first closest-hit's.
     let h = model::semantics::HIT_TAG;
     let m = model::semantics::MISS_TAG;
     assert_eq!(
-        obs.output.unwrap(),
+        obs.words().unwrap(),
         vec![h | 3, m | 1, m | 2, h | 3, m | 1, m | 2]
     );
 }
@@ -169,8 +173,12 @@ fn a_dynamic_stack_size_gets_the_pipelines_default_and_runs() {
     let mut ctx = executor();
     let mut case = recursive_callable_case();
     case.name = "dynamic-stack".into();
-    case.world.pipeline.as_mut().unwrap().dynamic_stack_size = true;
-    case.world.command_buffer.stack_size_set = true;
+    world(&mut case)
+        .pipeline
+        .as_mut()
+        .unwrap()
+        .dynamic_stack_size = true;
+    world(&mut case).command_buffer.stack_size_set = true;
     check(&mut ctx, &case, &[]);
 }
 
@@ -178,7 +186,7 @@ fn a_dynamic_stack_size_gets_the_pipelines_default_and_runs() {
 fn a_non_sparse_unbound_buffer_is_unsupported_naming_02600() {
     let mut ctx = executor();
     let mut case = valid_case();
-    case.world.buffers[1].memory = MemoryBinding::Unbound;
+    world(&mut case).buffers[1].memory = MemoryBinding::Unbound;
     let obs = execute(&case, &mut ctx);
     let Status::Unsupported { reason } = &obs.status else {
         panic!("{obs:?}")
@@ -190,8 +198,9 @@ fn a_non_sparse_unbound_buffer_is_unsupported_naming_02600() {
 }
 
 fn sparse(case: &mut Case, buffer: usize, memory: MemoryBinding) {
-    case.world.device.features.insert("sparseBinding".into());
-    let b = &mut case.world.buffers[buffer];
+    let w = world(case);
+    w.device.features.insert("sparseBinding".into());
+    let b = &mut w.buffers[buffer];
     b.flags = BufferCreate::SPARSE_BINDING_BIT;
     b.memory = memory;
 }
@@ -210,7 +219,7 @@ fn a_sparse_table_scattered_over_two_memory_objects_runs_as_expected() {
     let mut case = valid_case();
     // Two sparse blocks at least: the records at 0..256 stay in the first, the second block is bound to a
     // second memory object.
-    case.world.buffers[0].size = 1 << 17;
+    world(&mut case).buffers[0].size = 1 << 17;
     sparse(&mut case, 0, MemoryBinding::Scattered);
     let obs = execute(&case, &mut ctx);
     match &obs.status {
@@ -226,7 +235,7 @@ fn a_sparse_buffer_without_the_feature_enabled_is_unsupported_naming_00915() {
     let mut ctx = executor();
     let mut case = valid_case();
     sparse(&mut case, 0, MemoryBinding::Whole);
-    case.world.device.features.remove("sparseBinding");
+    world(&mut case).device.features.remove("sparseBinding");
     let obs = execute(&case, &mut ctx);
     let Status::Unsupported { reason } = &obs.status else {
         panic!("{obs:?}")
@@ -244,7 +253,7 @@ fn an_unbound_sparse_buffer_of_an_invalid_case_is_recorded_not_submitted() {
     // The indirect command lives in an unbound sparse buffer: the layer cannot see that, so the case is
     // declared invalid only by intent here; what matters is that it is realised and never submitted.
     sparse(&mut case, 1, MemoryBinding::Unbound);
-    let Call::TraceRaysIndirect(c) = &mut case.call else {
+    let Call::TraceRaysIndirect(c) = call(&mut case) else {
         unreachable!()
     };
     c.indirect_address = at("indirect", 2);

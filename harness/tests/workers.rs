@@ -3,7 +3,7 @@
 
 mod common;
 
-use harness::{run_in_workers_with, worker_main, Status, WorkerCommand};
+use harness::{run_in_workers_with, worker_main, Execution, Request, Status, WorkerCommand};
 use std::time::Duration;
 
 const WORKER_ENV: &str = "RTCONF_TEST_AS_WORKER";
@@ -44,16 +44,31 @@ fn crashes_and_hangs_cost_one_case_each() {
         common::bad_miss_stride_case(),
         valid.clone(),
     ];
+    let requests: Vec<Request> = cases
+        .into_iter()
+        .enumerate()
+        .map(|(index, case)| Request {
+            index,
+            execution: Execution {
+                run_valid: case.intent == model::Intent::Valid,
+                ..Default::default()
+            },
+            case,
+        })
+        .collect();
     let mut results = Vec::new();
-    run_in_workers_with(&cmd, &cases, 2, Duration::from_secs(8), |r| results.push(r));
+    run_in_workers_with(&cmd, &requests, 2, Duration::from_secs(8), |r| {
+        results.push(r)
+    });
     results.sort_by_key(|r| r.index);
     assert_eq!(
         results.iter().map(|r| r.index).collect::<Vec<_>>(),
         vec![0, 1, 2, 3, 4, 5]
     );
-    let expected = model::semantics::expected_launch(&valid.world, &valid.call)
-        .unwrap()
-        .words;
+    let expected =
+        model::semantics::expected_launch(&common::body(&valid).world, &common::body(&valid).call)
+            .unwrap()
+            .words;
     for i in [0, 2, 5] {
         assert_eq!(
             results[i].observation.status,
@@ -61,7 +76,7 @@ fn crashes_and_hangs_cost_one_case_each() {
             "{:?}",
             results[i]
         );
-        assert_eq!(results[i].observation.output.as_ref(), Some(&expected));
+        assert_eq!(results[i].observation.words(), Some(expected.as_slice()));
     }
     assert!(
         matches!(&results[1].observation.status, Status::Crash { message } if message.contains("died")),

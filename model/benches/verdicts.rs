@@ -37,7 +37,7 @@ fn main() {
     )
     .expect("parses");
     assert!(
-        model::validate(&rules, &profile, &case.world, &case.call).is_valid(),
+        model::validate(&rules, &profile, &case).is_valid(),
         "the basic case is valid"
     );
 
@@ -45,13 +45,12 @@ fn main() {
         black_box(model::validate(
             black_box(&rules),
             &profile,
-            black_box(&case.world),
-            black_box(&case.call),
+            black_box(&case),
         ));
     });
-    let judge = rules.prepare(&profile, &case.world, case.call.command());
+    let judge = rules.prepare(&profile, case.body.device(), case.command());
     let prepared = rate(200_000, || {
-        black_box(judge.judge(black_box(&case.world), black_box(&case.call)));
+        black_box(judge.judge(black_box(&case.body)));
     });
     println!("rows judged per call: {}", judge.len());
     println!("validate (rows selected per call): {full:.0} verdicts/s");

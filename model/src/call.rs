@@ -145,15 +145,11 @@ pub struct TraceRaysNv {
     pub depth: u32,
 }
 
-/// A call the model judges.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(tag = "command")]
+/// A trace call the model judges (a case writes its parameters under `call:`, its command beside it).
+#[derive(Debug, Clone, PartialEq)]
 pub enum Call {
-    #[serde(rename = "vkCmdTraceRaysIndirectKHR")]
     TraceRaysIndirect(TraceRaysIndirect),
-    #[serde(rename = "vkCmdTraceRaysKHR")]
     TraceRays(TraceRays),
-    #[serde(rename = "vkCmdTraceRaysNV")]
     TraceRaysNv(TraceRaysNv),
 }
 
@@ -170,12 +166,12 @@ pub enum Param {
 }
 
 impl Call {
-    /// The Vulkan command name.
-    pub fn command(&self) -> &'static str {
+    /// The command this call is.
+    pub fn command(&self) -> crate::CommandId {
         match self {
-            Call::TraceRaysIndirect(_) => "vkCmdTraceRaysIndirectKHR",
-            Call::TraceRays(_) => "vkCmdTraceRaysKHR",
-            Call::TraceRaysNv(_) => "vkCmdTraceRaysNV",
+            Call::TraceRaysIndirect(_) => crate::CommandId::TraceRaysIndirect,
+            Call::TraceRays(_) => crate::CommandId::TraceRays,
+            Call::TraceRaysNv(_) => crate::CommandId::TraceRaysNv,
         }
     }
 
@@ -208,6 +204,9 @@ impl Call {
     /// `missShaderBindingStride`, `indirectDeviceAddress`, `width`); case-insensitive on the stem
     /// since the texts spell `pRayGenShaderBindingTable` where the prototype has `pRaygen…`.
     pub fn resolve_path(command: &str, path: &str) -> Option<Param> {
+        if !crate::CommandId::from_vk_name(command).is_none_or(|c| c.is_trace()) {
+            return None;
+        }
         let p = path.trim().trim_matches('`').to_ascii_lowercase();
         let khr = command != "vkCmdTraceRaysNV";
         for t in Table::ALL {

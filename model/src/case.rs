@@ -1,8 +1,22 @@
-//! A case: the unit that is generated, judged, executed, reported, shrunk and replayed — one serde type,
-//! written as YAML a person can read and edit.
+//! A case: the unit that is generated, judged, executed, reported, shrunk and replayed — one serde type
+//! for every command, written as YAML a person can read and edit.
+//!
+//! ```yaml
+//! name: trace-indirect-basic
+//! profile: lavapipe
+//! intent: valid
+//! command: vkCmdTraceRaysIndirectKHR
+//! world: { ... }   # the world of the command: a trace world, or a build world
+//! call: { ... }    # the call's parameters
+//! ```
+//!
+//! `command` comes before `world` and `call`, since it says what they are.
 
+use crate::accel::{BuildIndirect, BuildWorld};
 use crate::call::Call;
-use crate::world::World;
+use crate::command::CommandId;
+use crate::profile::DeviceProfile;
+use crate::world::{CommandBufferState, DeviceState, World};
 
 /// What a case is meant to be.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -18,19 +32,37 @@ pub enum Intent {
     },
 }
 
+/// A trace call and the world it is made in.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TraceBody {
+    pub world: World,
+    pub call: Call,
+}
+
+/// An acceleration structure build call and the world it is made in.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AccelBody {
+    pub world: BuildWorld,
+    pub call: BuildIndirect,
+}
+
+/// What a case calls, per command family.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Body {
+    Trace(TraceBody),
+    Accel(AccelBody),
+}
+
 /// A generated or hand-written case.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Case {
     pub name: String,
     /// The device profile it was made for (`lavapipe`, `nvidia-h100`, or a path).
     pub profile: String,
     /// The proptest seed that produced it, when generated.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub seed: Option<String>,
     pub intent: Intent,
-    pub world: World,
-    pub call: Call,
+    pub body: Body,
 }
 
 /// A case file that could not be read: the line and what is wrong.
@@ -42,7 +74,14 @@ pub struct CaseError {
     pub problem: String,
 }
 
-/// Parses any case type from YAML, reporting the line and column of what is wrong.
+/// Why a valid case must not be handed to a driver: what it would read that is undefined.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("the valid case's launch has undefined reads: {}", reads.join("; "))]
+pub struct NotRunnable {
+    pub reads: Vec<String>,
+}
+
+/// Parses any serde type from YAML, reporting the line and column of what is wrong.
 pub fn parse_yaml<T: serde::de::DeserializeOwned>(path: &str, text: &str) -> Result<T, CaseError> {
     serde_yaml::from_str(text).map_err(|e| CaseError {
         path: path.to_string(),
@@ -66,9 +105,70 @@ impl Intent {
             }
         }
     }
+
+    /// The VUID an invalid case targets.
+    pub fn target(&self) -> Option<&str> {
+        match self {
+            Intent::Valid => None,
+            Intent::Violates { vuid, .. } => Some(vuid),
+        }
+    }
+}
+
+impl Body {
+    pub fn command(&self) -> CommandId {
+        match self {
+            Body::Trace(t) => t.call.command(),
+            Body::Accel(_) => CommandId::BuildAccelerationStructuresIndirect,
+        }
+    }
+
+    /// The device state the world enables.
+    pub fn device(&self) -> &DeviceState {
+        match self {
+            Body::Trace(t) => &t.world.device,
+            Body::Accel(a) => &a.world.device,
+        }
+    }
+
+    /// The command buffer the call is recorded into.
+    pub fn command_buffer(&self) -> &CommandBufferState {
+        match self {
+            Body::Trace(t) => &t.world.command_buffer,
+            Body::Accel(a) => &a.world.command_buffer,
+        }
+    }
 }
 
 impl Case {
+    /// A case of a trace call.
+    pub fn trace(name: &str, profile: &str, intent: Intent, world: World, call: Call) -> Case {
+        Case {
+            name: name.into(),
+            profile: profile.into(),
+            seed: None,
+            intent,
+            body: Body::Trace(TraceBody { world, call }),
+        }
+    }
+
+    /// A case of an acceleration structure build.
+    pub fn accel(
+        name: &str,
+        profile: &str,
+        intent: Intent,
+        world: BuildWorld,
+        call: BuildIndirect,
+    ) -> Case {
+        Case {
+            name: name.into(),
+            profile: profile.into(),
+            seed: None,
+            intent,
+            body: Body::Accel(AccelBody { world, call }),
+        }
+    }
+
     /// Parses a case from YAML, reporting the line and column of what is wrong.
     pub fn from_yaml(path: &str, text: &str) -> Result<Case, CaseError> {
         parse_yaml(path, text)
@@ -78,8 +178,286 @@ impl Case {
         serde_yaml::to_string(self).expect("a case always serialises")
     }
 
+    pub fn command(&self) -> CommandId {
+        self.body.command()
+    }
+
+    /// The trace body, for a trace case.
+    pub fn as_trace(&self) -> Option<&TraceBody> {
+        match &self.body {
+            Body::Trace(t) => Some(t),
+            Body::Accel(_) => None,
+        }
+    }
+
+    pub fn as_trace_mut(&mut self) -> Option<&mut TraceBody> {
+        match &mut self.body {
+            Body::Trace(t) => Some(t),
+            Body::Accel(_) => None,
+        }
+    }
+
+    /// The build body, for an acceleration structure case.
+    pub fn as_accel(&self) -> Option<&AccelBody> {
+        match &self.body {
+            Body::Accel(a) => Some(a),
+            Body::Trace(_) => None,
+        }
+    }
+
+    pub fn as_accel_mut(&mut self) -> Option<&mut AccelBody> {
+        match &mut self.body {
+            Body::Accel(a) => Some(a),
+            Body::Trace(_) => None,
+        }
+    }
+
     /// The VUIDs the case expects its verdict to hold, sorted.
     pub fn expected_vuids(&self) -> Vec<String> {
         self.intent.expected_vuids()
+    }
+
+    /// Whether the case is run for real (submitted, its output read back and checked): valid, or
+    /// violating only what the device makes unavoidable ([`crate::accel::unavoidable`]: a build on a
+    /// device without `accelerationStructureIndirectBuild`).
+    pub fn runs_as_valid(&self, profile: &DeviceProfile) -> bool {
+        match &self.body {
+            Body::Trace(_) => self.intent == Intent::Valid,
+            Body::Accel(_) => {
+                let unavoidable = crate::accel::unavoidable(profile);
+                self.expected_vuids()
+                    .iter()
+                    .all(|v| unavoidable.contains(v))
+            }
+        }
+    }
+
+    /// The undefined-reads gate: a valid case never hands undefined behaviour to a driver. A valid trace
+    /// case whose launch reads outside its tables (or reads a record nothing wrote) is not runnable;
+    /// every path that gives a case to a driver (run, replay, tests) asks this first. Invalid cases are
+    /// never submitted, and a build reads only what its rules cover, so both are runnable.
+    pub fn runnable(&self, profile: &DeviceProfile) -> Result<(), NotRunnable> {
+        match &self.body {
+            Body::Trace(t) if self.intent == Intent::Valid => {
+                let reads = crate::semantics::undefined_reads(
+                    crate::semantics::handle_size(profile),
+                    &t.world,
+                    &t.call,
+                );
+                if reads.is_empty() {
+                    Ok(())
+                } else {
+                    Err(NotRunnable { reads })
+                }
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+mod serial {
+    //! The YAML form of a case: `command` first, then the world and the call of that command.
+
+    use super::*;
+    use crate::call::{TraceRays, TraceRaysIndirect, TraceRaysNv};
+    use serde::de::{self, MapAccess, Visitor};
+    use serde::ser::SerializeMap;
+
+    impl serde::Serialize for Case {
+        fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+            let mut m = s.serialize_map(None)?;
+            m.serialize_entry("name", &self.name)?;
+            m.serialize_entry("profile", &self.profile)?;
+            if let Some(seed) = &self.seed {
+                m.serialize_entry("seed", seed)?;
+            }
+            m.serialize_entry("intent", &self.intent)?;
+            m.serialize_entry("command", &self.command())?;
+            match &self.body {
+                Body::Trace(t) => {
+                    m.serialize_entry("world", &t.world)?;
+                    match &t.call {
+                        Call::TraceRaysIndirect(c) => m.serialize_entry("call", c)?,
+                        Call::TraceRays(c) => m.serialize_entry("call", c)?,
+                        Call::TraceRaysNv(c) => m.serialize_entry("call", c)?,
+                    }
+                }
+                Body::Accel(a) => {
+                    m.serialize_entry("world", &a.world)?;
+                    m.serialize_entry("call", &a.call)?;
+                }
+            }
+            m.end()
+        }
+    }
+
+    /// The keys of a case (an unknown key is reported where it stands).
+    #[derive(serde::Deserialize)]
+    #[serde(field_identifier, rename_all = "snake_case")]
+    enum Field {
+        Name,
+        Profile,
+        Seed,
+        Intent,
+        Command,
+        World,
+        Call,
+    }
+
+    /// A value that is out of place: read as an error located where the value stands.
+    struct Misplaced(&'static str);
+
+    impl<'de> de::DeserializeSeed<'de> for Misplaced {
+        type Value = ();
+        fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+            d.deserialize_any(self)
+        }
+    }
+
+    impl<'de> Visitor<'de> for Misplaced {
+        type Value = ();
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            write!(f, "`command` before `{}`", self.0)
+        }
+        fn visit_map<A: MapAccess<'de>>(self, _: A) -> Result<(), A::Error> {
+            Err(de::Error::custom(format!(
+                "`command` must come before `{}` (it says which world and call follow)",
+                self.0
+            )))
+        }
+    }
+
+    /// The world of either family, read once the command is known.
+    enum AnyWorld {
+        Trace(World),
+        Accel(BuildWorld),
+    }
+
+    /// The call of either family, read once the command is known.
+    enum AnyCall {
+        Trace(Call),
+        Accel(BuildIndirect),
+    }
+
+    struct CaseVisitor;
+
+    impl<'de> Visitor<'de> for CaseVisitor {
+        type Value = Case;
+
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str("a case: name, profile, seed, intent, command, world and call")
+        }
+
+        fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Case, A::Error> {
+            let mut name = None;
+            let mut profile = None;
+            let mut seed = None;
+            let mut intent = None;
+            let mut command: Option<CommandId> = None;
+            let mut world: Option<AnyWorld> = None;
+            let mut call: Option<AnyCall> = None;
+            while let Some(key) = map.next_key::<Field>()? {
+                match key {
+                    Field::Name => name = Some(map.next_value()?),
+                    Field::Profile => profile = Some(map.next_value()?),
+                    Field::Seed => seed = map.next_value()?,
+                    Field::Intent => intent = Some(map.next_value()?),
+                    Field::Command => command = Some(map.next_value()?),
+                    Field::World => {
+                        let Some(c) = command else {
+                            map.next_value_seed(Misplaced("world"))?;
+                            return Err(de::Error::custom("`command` must come before `world`"));
+                        };
+                        world = Some(if c.is_trace() {
+                            AnyWorld::Trace(map.next_value()?)
+                        } else {
+                            AnyWorld::Accel(map.next_value()?)
+                        });
+                    }
+                    Field::Call => {
+                        let Some(c) = command else {
+                            map.next_value_seed(Misplaced("call"))?;
+                            return Err(de::Error::custom("`command` must come before `call`"));
+                        };
+                        call = Some(match c {
+                            CommandId::TraceRaysIndirect => AnyCall::Trace(
+                                Call::TraceRaysIndirect(map.next_value::<TraceRaysIndirect>()?),
+                            ),
+                            CommandId::TraceRays => {
+                                AnyCall::Trace(Call::TraceRays(map.next_value::<TraceRays>()?))
+                            }
+                            CommandId::TraceRaysNv => {
+                                AnyCall::Trace(Call::TraceRaysNv(map.next_value::<TraceRaysNv>()?))
+                            }
+                            CommandId::BuildAccelerationStructuresIndirect => {
+                                AnyCall::Accel(map.next_value()?)
+                            }
+                        });
+                    }
+                }
+            }
+            let body = match (
+                world.ok_or_else(|| de::Error::missing_field("world"))?,
+                call.ok_or_else(|| de::Error::missing_field("call"))?,
+            ) {
+                (AnyWorld::Trace(world), AnyCall::Trace(call)) => {
+                    Body::Trace(TraceBody { world, call })
+                }
+                (AnyWorld::Accel(world), AnyCall::Accel(call)) => {
+                    Body::Accel(AccelBody { world, call })
+                }
+                _ => unreachable!("the world and the call are read for the same command"),
+            };
+            Ok(Case {
+                name: name.ok_or_else(|| de::Error::missing_field("name"))?,
+                profile: profile.ok_or_else(|| de::Error::missing_field("profile"))?,
+                seed,
+                intent: intent.ok_or_else(|| de::Error::missing_field("intent"))?,
+                body,
+            })
+        }
+    }
+
+    impl<'de> serde::Deserialize<'de> for Case {
+        fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Case, D::Error> {
+            d.deserialize_map(CaseVisitor)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TRACE: &str = "name: t\nprofile: lavapipe\nintent: valid\ncommand: vkCmdTraceRaysKHR\n\
+        world:\n  device: {}\n  pipeline: null\n  command_buffer: { pool_queue: [COMPUTE_BIT] }\n\
+        call:\n  raygen: { address: 0, stride: 0, size: 0 }\n  miss: { address: 0, stride: 0, size: 0 }\n\
+        \x20 hit: { address: 0, stride: 0, size: 0 }\n  callable: { address: 0, stride: 0, size: 0 }\n\
+        \x20 width: 1\n  height: 1\n  depth: 1\n";
+
+    #[test]
+    fn a_case_round_trips_through_yaml_with_its_command_first() {
+        let c = Case::from_yaml("t.yaml", TRACE).unwrap();
+        assert_eq!(c.command(), CommandId::TraceRays);
+        let yaml = c.to_yaml();
+        let command_at = yaml.find("command:").unwrap();
+        assert!(command_at < yaml.find("world:").unwrap(), "{yaml}");
+        assert_eq!(Case::from_yaml("again", &yaml).unwrap(), c);
+    }
+
+    #[test]
+    fn misplaced_and_unknown_fields_are_located_errors() {
+        let late =
+            TRACE.replace("command: vkCmdTraceRaysKHR\n", "") + "command: vkCmdTraceRaysKHR\n";
+        let e = Case::from_yaml("late.yaml", &late).unwrap_err();
+        assert!(
+            e.problem.contains("`command` must come before `world`"),
+            "{e}"
+        );
+        assert_eq!(e.location.map(|l| l.0), Some(5), "{e}");
+        let unknown = TRACE.replace("intent: valid", "intent: valid\ncolour: blue");
+        let e = Case::from_yaml("unknown.yaml", &unknown).unwrap_err();
+        assert!(e.problem.contains("colour"), "{e}");
+        assert_eq!(e.location.map(|l| l.0), Some(4), "{e}");
     }
 }

@@ -6,6 +6,7 @@
 pub mod accel;
 pub mod call;
 pub mod case;
+pub mod command;
 pub mod flags;
 pub mod profile;
 pub mod resources; // issue 4: the resource world and its rules
@@ -15,7 +16,8 @@ pub mod verdict;
 pub mod world;
 
 pub use call::{Address, Call, StridedRegion, Table};
-pub use case::{Case, Intent};
+pub use case::{AccelBody, Body, Case, Intent, NotRunnable, TraceBody};
+pub use command::CommandId;
 pub use profile::DeviceProfile;
 pub use rules::{validate, RuleSet};
 pub use verdict::{Verdict, Violation};

@@ -182,6 +182,12 @@ pub fn records_read(world: &World, call: &Call) -> Vec<(Table, u64)> {
     out
 }
 
+/// The size of a shader group handle on a device: the profile's `shaderGroupHandleSize`, or 32, the
+/// value the specification requires of every device with ray tracing pipelines.
+pub fn handle_size(profile: &crate::DeviceProfile) -> u64 {
+    profile.limit("shaderGroupHandleSize").unwrap_or(32)
+}
+
 /// Reads of the launch that the spec leaves undefined: a record in a null region, or past its region's
 /// size (KHR) or its buffer's end (NV). A valid case must have none; the driver's output for such a
 /// case is never judged.

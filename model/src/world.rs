@@ -195,6 +195,9 @@ pub struct CommandBufferState {
     /// Whether `vkCmdSetRayTracingPipelineStackSizeKHR` was recorded after binding.
     #[serde(default, skip_serializing_if = "is_default")]
     pub stack_size_set: bool,
+    /// Recorded between suspended render pass instances (dynamic rendering with SUSPENDING/RESUMING).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub between_suspended_render_passes: bool,
 }
 
 impl Default for CommandBufferState {
@@ -210,6 +213,7 @@ impl Default for CommandBufferState {
             in_video_coding: false,
             pipeline_bound: true,
             stack_size_set: false,
+            between_suspended_render_passes: false,
         }
     }
 }

@@ -4,7 +4,7 @@
 use model::rules::{RuleSet, Status};
 use std::path::{Path, PathBuf};
 
-const COMMAND: &str = "vkCmdBuildAccelerationStructuresIndirectKHR";
+const COMMAND: model::CommandId = model::CommandId::BuildAccelerationStructuresIndirect;
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -28,7 +28,11 @@ fn check(paths: &[&Path]) -> (usize, usize) {
             .unwrap();
     let rules = RuleSet::from_vuids(&set);
     let rows = rules.coverage(Some(COMMAND));
-    let want = set.records.iter().filter(|r| r.scope == COMMAND).count();
+    let want = set
+        .records
+        .iter()
+        .filter(|r| r.scope == COMMAND.vk_name())
+        .count();
     assert_eq!(rows.len(), want, "every VUID of the command has a row");
     for r in &rows {
         assert_ne!(r.status, Status::Pending, "{} is pending", r.vuid);

@@ -33,7 +33,6 @@ fn world(buffers: Vec<BuildBuffer>) -> BuildWorld {
         buffers,
         structures: vec![],
         command_buffer: Default::default(),
-        between_suspended_render_passes: false,
         sizes: vec![],
     }
 }

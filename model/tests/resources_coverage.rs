@@ -4,7 +4,8 @@
 //! captured profile reports.
 
 use model::resources::{rule_for, Entry};
-use model::rules::{reasons, RuleSet, Status, TRACE_COMMANDS};
+use model::rules::{reasons, RuleSet, Status};
+use model::CommandId;
 use model::DeviceProfile;
 use std::path::{Path, PathBuf};
 
@@ -43,8 +44,8 @@ fn no_trace_row_is_pending_for_lack_of_a_resource_model() {
         let set = vk_registry::source::load_union(&paths).expect("registry loads");
         let rules = RuleSet::from_vuids(&set);
         let mut resource_rows = 0;
-        for cmd in TRACE_COMMANDS {
-            let rows: Vec<_> = rules.rows.iter().filter(|r| r.scope == *cmd).collect();
+        for cmd in CommandId::TRACE.map(CommandId::vk_name) {
+            let rows: Vec<_> = rules.rows.iter().filter(|r| r.scope == cmd).collect();
             let count = |s: Status| rows.iter().filter(|r| r.status == s).count();
             println!(
                 "{name} {cmd}: {} executable, {} not executable, {} pending",
@@ -67,7 +68,7 @@ fn no_trace_row_is_pending_for_lack_of_a_resource_model() {
         for rec in set
             .records
             .iter()
-            .filter(|r| TRACE_COMMANDS.contains(&r.scope.as_str()))
+            .filter(|r| CommandId::from_vk_name(&r.scope).is_some_and(CommandId::is_trace))
         {
             if let Some(e) = rule_for(rec) {
                 resource_rows += 1;

@@ -78,7 +78,7 @@ fn a_resource_state_round_trips_through_yaml_and_empty_states_are_not_written() 
     )
     .unwrap();
     let case = model::Case::from_yaml("basic", &case).unwrap();
-    assert!(case.world.resources.is_empty());
+    assert!(case.as_trace().unwrap().world.resources.is_empty());
     assert!(
         !case.to_yaml().contains("resources"),
         "an empty resource state is not written"

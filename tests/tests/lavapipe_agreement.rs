@@ -3,13 +3,14 @@
 //! must agree with the model's or match the triage file; valid cases are submitted and their read-back
 //! output must equal the model's expected launch.
 
-use generator::{CaseSpec, Command};
-use harness::compare::{compare, Outcome, Triage};
-use harness::{Driver, Executor};
-use rtconf_tests::{installed_rules, profile, repo};
+use generator::CaseSpec;
+use harness::{Driver, Executor, TraceCheck};
+use model::CommandId;
+use rtconf_tests::{installed_rules, profile};
+use session::{CaseReport, Outcome, Triage};
 use std::collections::BTreeMap;
 
-const COMMAND: &str = "vkCmdTraceRaysIndirectKHR";
+const COMMAND: CommandId = CommandId::TraceRaysIndirect;
 
 /// lavapipe under the validation layer, with the installed registry's rules and the triage files.
 struct Lavapipe {
@@ -23,13 +24,8 @@ impl Lavapipe {
     fn new() -> Lavapipe {
         std::env::set_var("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json");
         let rules = installed_rules();
-        let triage = Triage::load(
-            &repo().join("triage"),
-            &[],
-            rules.version.as_deref(),
-            "lavapipe",
-        )
-        .expect("triage files parse");
+        let triage = session::sources::triage_for(&[], rules.version.as_deref(), &Driver::Lavapipe)
+            .expect("triage files parse");
         let executor = Executor::new(Driver::Lavapipe)
             .expect("lavapipe and the validation layer: run `bash scripts/setup.sh`");
         Lavapipe {
@@ -49,13 +45,19 @@ impl Lavapipe {
         generator::generate(&self.profile, "lavapipe", &self.rules, spec, count, seed)
     }
 
-    fn run(&mut self, cases: &[model::Case]) -> Vec<harness::compare::CaseReport> {
+    /// Each case run and judged as a run does (the gate, the execution, one verdict, the comparison).
+    fn run(&mut self, cases: &[model::Case]) -> Vec<CaseReport> {
+        let judging = session::run::Judging {
+            rules: &self.rules,
+            profile: &self.profile,
+            triage: &self.triage,
+        };
         cases
             .iter()
             .map(|c| {
-                let verdict = model::validate(&self.rules, &self.profile, &c.world, &c.call);
-                let obs = harness::execute(c, &mut self.executor);
-                compare(c, &verdict, &obs, &self.triage, 0.0)
+                judging
+                    .run_here(&mut self.executor, c, TraceCheck::Auto)
+                    .report
             })
             .collect()
     }
@@ -77,7 +79,7 @@ fn the_layer_agrees_with_the_model_on_every_executable_vuid_or_the_triage_says_w
     let mut outcomes: BTreeMap<String, Vec<Outcome>> = BTreeMap::new();
     let mut failures = Vec::new();
     for vuid in &rows {
-        let spec = CaseSpec::violate(Command::TraceRaysIndirect, vuid);
+        let spec = CaseSpec::violate(COMMAND, vuid);
         let cases = match lvp.generate(&spec, 3, 11) {
             Ok(c) => c,
             Err(generator::GenError::Unsupported(why)) => {
@@ -125,7 +127,7 @@ fn the_layer_agrees_with_the_model_on_every_executable_vuid_or_the_triage_says_w
 fn valid_launches_write_what_the_model_expects_and_the_layer_stays_silent() {
     let mut lvp = Lavapipe::new();
     let cases = lvp
-        .generate(&CaseSpec::valid(Command::TraceRaysIndirect), 40, 3)
+        .generate(&CaseSpec::valid(COMMAND), 40, 3)
         .expect("valid cases");
     let reports = lvp.run(&cases);
     let bad: Vec<String> = reports

@@ -6,7 +6,7 @@
 //! Mutations are named by the VUID tag they break ([`ResourceMutation`]); [`mutate`] edits a world
 //! in place and is what [`apply`] (the `generator::mutation` hook) and the tests call.
 
-use crate::mutation::{Mutated, MutationInput};
+use crate::mutation_io::{Mutated, MutationInput};
 use crate::plan::{realize, Plan};
 use crate::GenError;
 use model::resources::formats::{self, Usage};
@@ -107,7 +107,7 @@ pub struct ResourceMutation {
 pub fn mutation_for(vuid: &str) -> Option<ResourceMutation> {
     let rest = vuid.strip_prefix("VUID-")?;
     let (scope, rest) = rest.split_once('-')?;
-    if !model::rules::TRACE_COMMANDS.contains(&scope) {
+    if !model::CommandId::from_vk_name(scope).is_some_and(model::CommandId::is_trace) {
         return None;
     }
     let tag = rest.rsplit('-').next()?;

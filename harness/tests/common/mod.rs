@@ -1,29 +1,8 @@
-//! Hand-made cases shared by the lavapipe tests and the worker-pool tests.
+//! Hand-made cases shared by the lavapipe tests and the worker-pool tests, and how they are run.
 
-use model::call::{Address, Call, StridedRegion, TraceRaysIndirect};
+use model::call::{Address, Call, StridedRegion};
 use model::case::{Case, Intent};
-use model::flags::BufferUsage;
 use model::world::*;
-
-pub fn device() -> DeviceState {
-    DeviceState {
-        extensions: [
-            "VK_KHR_ray_tracing_pipeline",
-            "VK_KHR_acceleration_structure",
-            "VK_KHR_deferred_host_operations",
-        ]
-        .map(String::from)
-        .into(),
-        features: [
-            "rayTracingPipeline",
-            "rayTracingPipelineTraceRaysIndirect",
-            "bufferDeviceAddress",
-            "accelerationStructure",
-        ]
-        .map(String::from)
-        .into(),
-    }
-}
 
 pub fn at(buffer: &str, offset: u64) -> Address {
     Address::InBuffer {
@@ -32,129 +11,14 @@ pub fn at(buffer: &str, offset: u64) -> Address {
     }
 }
 
-/// Raygen + two miss groups + one triangle hit group; records laid out at shaderGroupBaseAlignment (32);
-/// three rays (hit the triangle, miss with index 0, miss with index 1); an indirect 4x2x1 launch.
+/// The hand-made valid case (`cases/hand/trace-indirect-records-32.yaml`): raygen + two miss groups +
+/// one triangle hit group; records laid out at shaderGroupBaseAlignment (32); three rays (hit the
+/// triangle, miss with index 0, miss with index 1); an indirect 4x2x1 launch.
 pub fn valid_case() -> Case {
-    let sbt_usage =
-        BufferUsage::SHADER_BINDING_TABLE_BIT_KHR | BufferUsage::SHADER_DEVICE_ADDRESS_BIT;
-    let records = |offset, handles: Vec<HandleRef>| Contents::ShaderRecords {
-        offset,
-        stride: 32,
-        handles,
-    };
-    let world = World {
-        device: device(),
-        buffers: vec![
-            Buffer {
-                name: "sbt".into(),
-                size: 256,
-                usage: sbt_usage,
-                flags: Default::default(),
-                memory: MemoryBinding::Whole,
-                contents: vec![
-                    records(0, vec![HandleRef::Group(0)]),
-                    records(64, vec![HandleRef::Group(1), HandleRef::Group(2)]),
-                    records(128, vec![HandleRef::Group(3)]),
-                ],
-            },
-            Buffer {
-                name: "indirect".into(),
-                size: 64,
-                usage: BufferUsage::INDIRECT_BUFFER_BIT | BufferUsage::SHADER_DEVICE_ADDRESS_BIT,
-                flags: Default::default(),
-                memory: MemoryBinding::Whole,
-                contents: vec![Contents::TraceRaysIndirectCommand {
-                    offset: 0,
-                    width: 4,
-                    height: 2,
-                    depth: 1,
-                }],
-            },
-        ],
-        pipeline: Some(Pipeline {
-            api: PipelineApi::Khr,
-            flags: Default::default(),
-            groups: vec![
-                ShaderGroup::General {
-                    stage: GeneralStage::Raygen,
-                },
-                ShaderGroup::General {
-                    stage: GeneralStage::Miss,
-                },
-                ShaderGroup::General {
-                    stage: GeneralStage::Miss,
-                },
-                ShaderGroup::TrianglesHit {
-                    closest_hit: true,
-                    any_hit: false,
-                },
-            ],
-            max_recursion_depth: 1,
-            dynamic_stack_size: false,
-            allow_cluster_acceleration_structures: false,
-        }),
-        command_buffer: CommandBufferState::default(),
-        launch: Launch {
-            instances: vec![Instance {
-                geometries: vec![GeometryKind::Triangles],
-                sbt_record_offset: 0,
-                mask: 0xff,
-                cluster: false,
-            }],
-            rays: vec![
-                ray(
-                    RayTarget::Geometry {
-                        instance: 0,
-                        geometry: 0,
-                    },
-                    0,
-                ),
-                ray(RayTarget::Nothing, 0),
-                ray(RayTarget::Nothing, 1),
-            ],
-            callables: vec![],
-            extra_recursion: 0,
-        },
-        resources: Default::default(), // issue 4
-    };
-    let call = Call::TraceRaysIndirect(TraceRaysIndirect {
-        raygen: StridedRegion {
-            address: at("sbt", 0),
-            stride: 32,
-            size: 32,
-        },
-        miss: StridedRegion {
-            address: at("sbt", 64),
-            stride: 32,
-            size: 64,
-        },
-        hit: StridedRegion {
-            address: at("sbt", 128),
-            stride: 32,
-            size: 32,
-        },
-        callable: StridedRegion::unused(),
-        indirect_address: at("indirect", 0),
-    });
-    Case {
-        name: "hand-made-valid".into(),
-        profile: "lavapipe".into(),
-        seed: None,
-        intent: Intent::Valid,
-        world,
-        call,
-    }
-}
-
-pub fn ray(target: RayTarget, miss_index: u32) -> TraceRay {
-    TraceRay {
-        target,
-        sbt_offset: 0,
-        sbt_stride: 0,
-        miss_index,
-        cull_mask: 0xff,
-        ray_flags: 0,
-    }
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../cases/hand/trace-indirect-records-32.yaml");
+    let text = std::fs::read_to_string(&path).expect("the hand-made case");
+    Case::from_yaml(&path.display().to_string(), &text).expect("the hand-made case parses")
 }
 
 /// The valid case with its miss stride broken (40 is not a multiple of shaderGroupHandleAlignment 16).
@@ -162,7 +26,7 @@ pub fn ray(target: RayTarget, miss_index: u32) -> TraceRay {
 pub fn bad_miss_stride_case() -> Case {
     let mut case = valid_case();
     case.name = "bad-miss-stride".into();
-    if let Call::TraceRaysIndirect(c) = &mut case.call {
+    if let Some(Call::TraceRaysIndirect(c)) = case.as_trace_mut().map(|t| &mut t.call) {
         c.miss.stride = 40;
         c.miss.size = 80;
     }
@@ -180,7 +44,8 @@ pub fn bad_miss_stride_case() -> Case {
 pub fn recursive_callable_case() -> Case {
     let mut case = valid_case();
     case.name = "hand-made-callables-recursion".into();
-    let w = &mut case.world;
+    let t = case.as_trace_mut().expect("a trace case");
+    let w = &mut t.world;
     w.buffers[0].contents.push(Contents::ShaderRecords {
         offset: 192,
         stride: 32,
@@ -196,10 +61,10 @@ pub fn recursive_callable_case() -> Case {
     p.max_recursion_depth = 3;
     w.launch.callables = vec![1, 0];
     w.launch.extra_recursion = 2;
-    let Call::TraceRaysIndirect(c) = &case.call else {
+    let Call::TraceRaysIndirect(c) = &t.call else {
         unreachable!()
     };
-    case.call = Call::TraceRays(model::call::TraceRays {
+    t.call = Call::TraceRays(model::call::TraceRays {
         raygen: c.raygen.clone(),
         miss: c.miss.clone(),
         hit: c.hit.clone(),
@@ -213,4 +78,58 @@ pub fn recursive_callable_case() -> Case {
         depth: 1,
     });
     case
+}
+
+/// The trace body of a hand-made case.
+#[allow(dead_code)]
+pub fn body(case: &Case) -> &model::TraceBody {
+    case.as_trace().expect("a trace case")
+}
+
+/// The world of a hand-made case, to edit.
+#[allow(dead_code)]
+pub fn world(case: &mut Case) -> &mut World {
+    &mut case.as_trace_mut().expect("a trace case").world
+}
+
+/// The call of a hand-made case, to edit.
+#[allow(dead_code)]
+pub fn call(case: &mut Case) -> &mut Call {
+    &mut case.as_trace_mut().expect("a trace case").call
+}
+
+/// Runs a case as a run would: the undefined-reads gate first, then for real when it is valid,
+/// recorded only otherwise.
+#[allow(dead_code)]
+pub fn execute(case: &Case, ex: &mut harness::Executor) -> harness::Observation {
+    case.runnable(lavapipe())
+        .unwrap_or_else(|e| panic!("{}: {e}", case.name));
+    ex.execute(case, &harness::Execution::for_case(case, lavapipe()))
+}
+
+/// A runner for the tests: lavapipe with the validation layer.
+#[allow(dead_code)]
+pub fn executor() -> harness::Executor {
+    harness::Executor::new(harness::Driver::Lavapipe)
+        .expect("lavapipe and the validation layer are installed by scripts/setup.sh")
+}
+
+/// A committed case by path under `cases/`.
+#[allow(dead_code)]
+pub fn committed(path: &str) -> Case {
+    let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../cases")
+        .join(path);
+    let text = std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+    Case::from_yaml(&p.display().to_string(), &text).expect("a case file")
+}
+
+/// The lavapipe profile the hand-made cases are for.
+fn lavapipe() -> &'static model::DeviceProfile {
+    static PROFILE: std::sync::OnceLock<model::DeviceProfile> = std::sync::OnceLock::new();
+    PROFILE.get_or_init(|| {
+        let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../profiles/lavapipe.json");
+        let text = std::fs::read_to_string(p).expect("profiles/lavapipe.json");
+        model::DeviceProfile::from_profiles_json("lavapipe", &text).expect("a profile")
+    })
 }

@@ -241,9 +241,6 @@ pub struct BuildIndirect {
     pub max_primitive_counts: Vec<Vec<u32>>,
 }
 
-/// The command name.
-pub const COMMAND: &str = "vkCmdBuildAccelerationStructuresIndirectKHR";
-
 impl BuildIndirect {
     /// The address of range record `j` of info `i`.
     pub fn range_address(&self, i: usize, j: usize) -> Option<Address> {

@@ -1,10 +1,11 @@
 //! `vkCmdBuildAccelerationStructuresIndirectKHR` end to end in the model: the build world and call,
 //! the rule table of the command, and the meaning of a valid build (semantics.md §4, §8).
 //!
-//! A [`BuildCase`] is the build counterpart of [`crate::Case`]: one serde type, written as YAML under
-//! `cases/build/`, generated, judged, executed and replayed as the same value.
+//! A build case is a [`crate::Case`] whose body is [`crate::AccelBody`] (this world and call); the
+//! committed ones live under `cases/build/`.
 
 pub mod call;
+pub mod check;
 pub mod rules;
 pub mod semantics;
 pub mod world;
@@ -12,7 +13,7 @@ pub mod world;
 pub use call::{
     BuildGeometryInfo, BuildIndirect, BuildMode, Geometry, GeometryData, IndexType, VertexFormat,
 };
-pub use rules::{BuildRuleSet, Compiled};
+pub use rules::{AccelPredicate, Compiled};
 pub use semantics::{
     build_primitives, direct_build, indirect_build, indirect_ranges, BuiltPrimitive, Shape,
 };
@@ -20,32 +21,19 @@ pub use world::{
     AccelerationStructure, AsType, BuildBuffer, BuildContents, BuildSizes, BuildWorld, RangeInfo,
 };
 
-use crate::case::{CaseError, Intent};
+use crate::profile::DeviceProfile;
 
-/// A build case: a world, one indirect build call, and what it is meant to be.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct BuildCase {
-    pub name: String,
-    pub profile: String,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub seed: Option<String>,
-    pub intent: Intent,
-    pub world: BuildWorld,
-    pub call: BuildIndirect,
-}
+/// The VUID of the feature the indirect build needs.
+pub const FEATURE_VUID: &str =
+    "VUID-vkCmdBuildAccelerationStructuresIndirectKHR-accelerationStructureIndirectBuild-03650";
 
-impl BuildCase {
-    pub fn from_yaml(path: &str, text: &str) -> Result<BuildCase, CaseError> {
-        crate::case::parse_yaml(path, text)
-    }
-
-    pub fn to_yaml(&self) -> String {
-        serde_yaml::to_string(self).expect("a build case always serialises")
-    }
-
-    /// The VUIDs the case expects its verdict to hold, sorted.
-    pub fn expected_vuids(&self) -> Vec<String> {
-        self.intent.expected_vuids()
+/// The VUIDs every build case violates on `profile`: the feature's, when the device lacks
+/// `accelerationStructureIndirectBuild` (as lavapipe does). A case expecting no more than these is
+/// valid apart from the device: recorded under the layer, and also built directly and checked.
+pub fn unavoidable(profile: &DeviceProfile) -> Vec<String> {
+    if profile.has_feature("accelerationStructureIndirectBuild") {
+        vec![]
+    } else {
+        vec![FEATURE_VUID.into()]
     }
 }

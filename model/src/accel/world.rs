@@ -228,9 +228,6 @@ pub struct BuildWorld {
     pub structures: Vec<AccelerationStructure>,
     #[serde(default)]
     pub command_buffer: CommandBufferState,
-    /// Recorded between suspended render pass instances (dynamic rendering with SUSPENDING/RESUMING).
-    #[serde(default, skip_serializing_if = "is_default")]
-    pub between_suspended_render_passes: bool,
     /// The sizes the device reports per build info (index `i` of the call); rules about sizes read these.
     #[serde(default)]
     pub sizes: Vec<BuildSizes>,

@@ -148,7 +148,7 @@ const NOT_ON_DRIVERS: &str =
 
 /// The entry for a record of a trace command, if it is one of the shared resource-access rules.
 pub fn rule_for(r: &VuidRecord) -> Option<Entry> {
-    if !crate::rules::TRACE_COMMANDS.contains(&r.scope.as_str()) {
+    if !crate::CommandId::from_vk_name(&r.scope).is_some_and(crate::CommandId::is_trace) {
         return None;
     }
     let t = r.text.as_str();

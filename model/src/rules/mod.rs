@@ -3,35 +3,28 @@
 //! hand-written predicate tagged with the VUID), not executable with a written reason, or pending.
 //! Coverage is this table joined with the registry's VUID set, never a hand count.
 
-pub mod accel;
 pub mod predicate;
 pub mod reasons;
 pub mod template;
 
 use crate::call::{Call, Param, Table};
+use crate::case::{Body, Case};
+use crate::command::CommandId;
 use crate::profile::DeviceProfile;
 use crate::verdict::{Verdict, Violation};
-use crate::world::World;
-use predicate::{NullHitKind, Predicate};
+use crate::world::{DeviceState, World};
+use predicate::{Failure, NullHitKind, Predicate};
 use vk_registry::vuid::{Condition, VuidRecord, VuidSet};
 
-/// The commands this model judges, and the structures whose VUIDs apply to their parameters.
-pub const TRACE_COMMANDS: &[&str] = &[
-    "vkCmdTraceRaysIndirectKHR",
-    "vkCmdTraceRaysNV",
-    "vkCmdTraceRaysKHR",
-];
+/// The structures whose VUIDs apply to the KHR trace calls' parameters.
 pub const TRACE_STRUCTURES: &[&str] = &[
     "VkStridedDeviceAddressRegionKHR",
     "VkTraceRaysIndirectCommandKHR",
 ];
-pub const BUILD_COMMANDS: &[&str] = &["vkCmdBuildAccelerationStructuresIndirectKHR"];
 
-/// Whether a VUID scope is one the table has rows for.
+/// Whether a VUID scope is one the table has rows for: a modelled command or a trace structure.
 pub fn modelled_scope(scope: &str) -> bool {
-    TRACE_COMMANDS.contains(&scope)
-        || TRACE_STRUCTURES.contains(&scope)
-        || BUILD_COMMANDS.contains(&scope)
+    CommandId::from_vk_name(scope).is_some() || TRACE_STRUCTURES.contains(&scope)
 }
 
 /// The status of a row.
@@ -75,7 +68,7 @@ pub struct CoverageRow {
 
 /// The hand-written predicate for a VUID tag, shared by every trace command that carries the tag.
 fn hand_rule(scope: &str, tag: &str) -> Option<Predicate> {
-    if !TRACE_COMMANDS.contains(&scope) {
+    if !CommandId::from_vk_name(scope).is_some_and(CommandId::is_trace) {
         return None;
     }
     use crate::flags::PipelineCreate as F;
@@ -136,9 +129,22 @@ impl Row {
             condition: r.condition.clone(),
             predicate: None,
         };
-        if BUILD_COMMANDS.contains(&r.scope.as_str()) {
-            // issue 5: the build command's rows are compiled by crate::accel::rules.
-            return accel::row(r);
+        if CommandId::from_vk_name(&r.scope) == Some(CommandId::BuildAccelerationStructuresIndirect)
+        {
+            // The build command: template shapes, then its tag table (`crate::accel::rules`).
+            match crate::accel::rules::compile(r) {
+                crate::accel::rules::Compiled::Rule(p, source) => {
+                    row.status = Status::Executable;
+                    row.source = Some(source);
+                    row.predicate = Some(p);
+                }
+                crate::accel::rules::Compiled::NotExecutable(why) => {
+                    row.status = Status::NotExecutable;
+                    row.reason = Some(why);
+                }
+                crate::accel::rules::Compiled::Pending(why) => row.reason = Some(why),
+            }
+            return row;
         }
         if let Some(p) = template::compile(&r.scope, command_for_scope(&r.scope), &r.text) {
             row.status = Status::Executable;
@@ -149,7 +155,7 @@ impl Row {
             row.source = Some(Source::Hand);
             row.predicate = Some(p);
         } else if let Some(e) = crate::resources::rule_for(r) {
-            // issue 4: the resource-access rules shared with draw/dispatch.
+            // The resource-access rules shared with draw/dispatch.
             match e {
                 crate::resources::Entry::Executable { rule, note } => {
                     row.status = Status::Executable;
@@ -208,7 +214,7 @@ impl RuleSet {
     }
 
     /// The coverage table, optionally for one command (its structures' rows included for the KHR calls).
-    pub fn coverage(&self, command: Option<&str>) -> Vec<CoverageRow> {
+    pub fn coverage(&self, command: Option<CommandId>) -> Vec<CoverageRow> {
         self.rows
             .iter()
             .filter(|r| command.is_none_or(|c| applies_to(&r.scope, c)))
@@ -216,13 +222,13 @@ impl RuleSet {
             .collect()
     }
 
-    /// Prepares the rows that apply to `command` on a device: the profile's API version and the world's
-    /// enabled extensions decide each row's registry condition once, not per call.
+    /// Prepares the rows that apply to `command` on a device: the profile's API version and the
+    /// device's enabled extensions decide each row's registry condition once, not per call.
     pub fn prepare<'a>(
         &'a self,
         profile: &'a DeviceProfile,
-        world: &World,
-        command: &str,
+        device: &DeviceState,
+        command: CommandId,
     ) -> Judge<'a> {
         let (major, minor) = profile.api_major_minor();
         let enabled = |name: &str| -> bool {
@@ -231,7 +237,7 @@ impl RuleSet {
                 let want = (it.next().unwrap_or(1), it.next().unwrap_or(0));
                 return (major, minor) >= want;
             }
-            world.device.extension(name)
+            device.extension(name)
         };
         let active = self
             .rows
@@ -245,14 +251,20 @@ impl RuleSet {
             .collect();
         Judge { profile, active }
     }
+
+    /// The verdict on one case's call in its world (any command).
+    pub fn judge(&self, profile: &DeviceProfile, body: &Body) -> Verdict {
+        self.prepare(profile, body.device(), body.command())
+            .judge(body)
+    }
 }
 
 /// Whether rows of `scope` are judged for a call of `command`.
-pub fn applies_to(scope: &str, command: &str) -> bool {
-    scope == command
+pub fn applies_to(scope: &str, command: CommandId) -> bool {
+    scope == command.vk_name()
         || (scope == "VkStridedDeviceAddressRegionKHR"
-            && matches!(command, "vkCmdTraceRaysIndirectKHR" | "vkCmdTraceRaysKHR"))
-        || (scope == "VkTraceRaysIndirectCommandKHR" && command == "vkCmdTraceRaysIndirectKHR")
+            && matches!(command, CommandId::TraceRaysIndirect | CommandId::TraceRays))
+        || (scope == "VkTraceRaysIndirectCommandKHR" && command == CommandId::TraceRaysIndirect)
 }
 
 /// The rows that apply to one command on one device, ready to judge calls.
@@ -262,7 +274,7 @@ pub struct Judge<'a> {
     active: Vec<(&'a Row, Predicate)>,
 }
 
-/// What a predicate sees.
+/// What a trace predicate sees.
 pub struct Context<'a> {
     pub profile: &'a DeviceProfile,
     pub world: &'a World,
@@ -282,22 +294,42 @@ impl Context<'_> {
 
 impl Judge<'_> {
     /// The verdict on one call: every violated row with its context, sorted.
-    pub fn judge(&self, world: &World, call: &Call) -> Verdict {
-        let cx = Context {
-            profile: self.profile,
-            world,
-            call,
-        };
-        let mut failures = Vec::new();
+    pub fn judge(&self, body: &Body) -> Verdict {
         let mut violations = Vec::new();
-        for (row, p) in &self.active {
-            p.check(&cx, &mut failures);
+        let mut failures = Vec::new();
+        let mut record = |row: &Row, failures: &mut Vec<Failure>| {
             for f in failures.drain(..) {
                 violations.push(Violation {
                     vuid: row.vuid.clone(),
                     context: f.context,
                     problem: f.problem,
                 });
+            }
+        };
+        match body {
+            Body::Trace(t) => {
+                let cx = Context {
+                    profile: self.profile,
+                    world: &t.world,
+                    call: &t.call,
+                };
+                for (row, p) in &self.active {
+                    p.check(&cx, &mut failures);
+                    record(row, &mut failures);
+                }
+            }
+            Body::Accel(a) => {
+                let cx = crate::accel::rules::AccelContext::new(self.profile, &a.world, &a.call);
+                for (row, p) in &self.active {
+                    match p {
+                        Predicate::Accel(ap) => cx.check(ap, &mut failures),
+                        p => failures.extend(
+                            p.check_state(&a.world.device, &a.world.command_buffer)
+                                .flatten(),
+                        ),
+                    }
+                    record(row, &mut failures);
+                }
             }
         }
         violations.sort();
@@ -315,9 +347,7 @@ impl Judge<'_> {
     }
 }
 
-/// Judges one call in one world on one device.
-pub fn validate(rules: &RuleSet, profile: &DeviceProfile, world: &World, call: &Call) -> Verdict {
-    rules
-        .prepare(profile, world, call.command())
-        .judge(world, call)
+/// Judges one case on one device: the verdict of the rule table on its call in its world.
+pub fn validate(rules: &RuleSet, profile: &DeviceProfile, case: &Case) -> Verdict {
+    rules.judge(profile, &case.body)
 }

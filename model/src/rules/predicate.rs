@@ -6,7 +6,8 @@ use crate::call::{Call, Param, Table};
 use crate::flags::{BufferUsage, PipelineCreate, QueueFlags};
 use crate::semantics::{hit_record, record_handle};
 use crate::world::{
-    CommandBufferLifecycle, GeometryKind, HandleRef, MemoryBinding, RayTarget, ShaderGroup,
+    CommandBufferLifecycle, CommandBufferState, DeviceState, GeometryKind, HandleRef,
+    MemoryBinding, RayTarget, ShaderGroup,
 };
 
 /// A number a rule compares against.
@@ -56,11 +57,13 @@ pub enum Predicate {
     LaunchDimensionAtMost(u8, Operand),
     /// The product of the launch dimensions is at most the operand.
     LaunchInvocationsAtMost(Operand),
+    /// Command-buffer state and feature rules shared by every command: see [`Predicate::check_state`].
     NotProtectedCommandBuffer,
     Recording,
     PoolSupports(QueueFlags),
     OutsideRenderPass,
     OutsideVideoCoding,
+    NotBetweenSuspendedRenderPasses,
     PipelineBound,
     /// Hand rules that read the launch: see each variant's VUID in `hand.rs`.
     HandlesFromBoundPipeline,
@@ -72,8 +75,10 @@ pub enum Predicate {
     ClusterStructuresAllowed,
     NoStaticStateSet,
     NoProtectedResourceFromUnprotected,
-    /// issue 4: a resource-access rule shared with draw/dispatch, judged by `crate::resources`.
+    /// A resource-access rule shared with draw/dispatch, judged by `crate::resources`.
     Resource(crate::resources::ResourceRule),
+    /// A rule of the build command's own, judged on the build world by `crate::accel::rules`.
+    Accel(crate::accel::rules::AccelPredicate),
 }
 
 /// Which NO_NULL_* hit flag a rule speaks of.
@@ -183,17 +188,75 @@ impl Predicate {
         }
     }
 
-    /// Checks the predicate; every failure found is pushed (a region rule may fail for several regions).
+    /// Checks a rule every command shares (the enabled features and the command buffer's state), or
+    /// None when the predicate is not one of them.
+    pub fn check_state(
+        &self,
+        device: &DeviceState,
+        cb: &CommandBufferState,
+    ) -> Option<Option<Failure>> {
+        Some(match self {
+            Predicate::FeatureEnabled(f) if !device.feature(f) => {
+                fail("world.device.features", format!("`{f}` is not enabled"))
+            }
+            Predicate::NotProtectedCommandBuffer if cb.protected => {
+                fail("commandBuffer", "is a protected command buffer")
+            }
+            Predicate::Recording if cb.lifecycle != CommandBufferLifecycle::Recording => fail(
+                "commandBuffer",
+                format!("is in the {:?} state", cb.lifecycle),
+            ),
+            Predicate::PoolSupports(q) if !cb.pool_queue.intersects(*q) => fail(
+                "commandBuffer",
+                format!("its pool's queue family lacks {}", q.names().join(" or ")),
+            ),
+            Predicate::OutsideRenderPass if cb.in_render_pass => {
+                fail("commandBuffer", "is inside a render pass instance")
+            }
+            Predicate::OutsideVideoCoding if cb.in_video_coding => {
+                fail("commandBuffer", "is inside a video coding scope")
+            }
+            Predicate::NotBetweenSuspendedRenderPasses if cb.between_suspended_render_passes => {
+                fail(
+                    "commandBuffer",
+                    "is between suspended render pass instances",
+                )
+            }
+            Predicate::FeatureEnabled(_)
+            | Predicate::NotProtectedCommandBuffer
+            | Predicate::Recording
+            | Predicate::PoolSupports(_)
+            | Predicate::OutsideRenderPass
+            | Predicate::OutsideVideoCoding
+            | Predicate::NotBetweenSuspendedRenderPasses => None,
+            _ => return None,
+        })
+    }
+
+    /// Checks the predicate on a trace call; every failure found is pushed (a region rule may fail for
+    /// several regions).
     pub fn check(&self, cx: &Context, out: &mut Vec<Failure>) {
         let call = cx.call;
         let world = cx.world;
+        if let Some(f) = self.check_state(&world.device, &world.command_buffer) {
+            out.extend(f);
+            return;
+        }
         let mut push = |f: Option<Failure>| {
             if let Some(f) = f {
                 out.push(f)
             }
         };
         match self {
-            // issue 4: resource rules judge the world's resource state.
+            // Judged by `check_state` above, or on the build world (never active for a trace call).
+            Predicate::FeatureEnabled(_)
+            | Predicate::NotProtectedCommandBuffer
+            | Predicate::Recording
+            | Predicate::PoolSupports(_)
+            | Predicate::OutsideRenderPass
+            | Predicate::OutsideVideoCoding
+            | Predicate::NotBetweenSuspendedRenderPasses
+            | Predicate::Accel(_) => {}
             Predicate::Resource(r) => r.check(cx, out),
             Predicate::MultipleOf(p, op) => {
                 if !Self::applies(*p, call) {
@@ -242,14 +305,6 @@ impl Predicate {
                             format!("is zero but the pipeline has {}", flag.names().join("|")),
                         ));
                     }
-                }
-            }
-            Predicate::FeatureEnabled(f) => {
-                if !world.device.feature(f) {
-                    push(fail(
-                        "world.device.features",
-                        format!("`{f}` is not enabled"),
-                    ));
                 }
             }
             Predicate::FeatureEnabledIfPipelineFlag(flag, f) => {
@@ -402,37 +457,6 @@ impl Predicate {
                             ),
                         ));
                     }
-                }
-            }
-            Predicate::NotProtectedCommandBuffer => {
-                if world.command_buffer.protected {
-                    push(fail("commandBuffer", "is a protected command buffer"));
-                }
-            }
-            Predicate::Recording => {
-                if world.command_buffer.lifecycle != CommandBufferLifecycle::Recording {
-                    push(fail(
-                        "commandBuffer",
-                        format!("is in the {:?} state", world.command_buffer.lifecycle),
-                    ));
-                }
-            }
-            Predicate::PoolSupports(q) => {
-                if !world.command_buffer.pool_queue.intersects(*q) {
-                    push(fail(
-                        "commandBuffer",
-                        format!("its pool's queue family lacks {}", q.names().join(" or ")),
-                    ));
-                }
-            }
-            Predicate::OutsideRenderPass => {
-                if world.command_buffer.in_render_pass {
-                    push(fail("commandBuffer", "is inside a render pass instance"));
-                }
-            }
-            Predicate::OutsideVideoCoding => {
-                if world.command_buffer.in_video_coding {
-                    push(fail("commandBuffer", "is inside a video coding scope"));
                 }
             }
             Predicate::PipelineBound => {

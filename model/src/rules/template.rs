@@ -1,10 +1,15 @@
 //! The template compiler: turns VUID texts of the common shapes ("`X` must be a multiple of `Y`",
 //! "the buffer from which `A` was queried must have been created with the `B` usage flag", the
 //! implicit `-recording`/`-cmdpool`/`-renderpass`/… rules) into [`Predicate`]s by resolving the quoted
-//! parameter paths against the call and the quoted limits against the profile. No rule-specific code.
+//! parameter paths against the call and the quoted limits against the profile. One compiler for every
+//! command: the command-buffer state and feature shapes give the same predicate for a trace call and a
+//! build; the build command's array shapes (`Each element of pIndirectStrides …`) give its own.
+//! No rule-specific code.
 
 use super::predicate::{Operand, Predicate};
+use crate::accel::rules::AccelPredicate;
 use crate::call::{Call, Param, Table};
+use crate::command::CommandId;
 use crate::flags::{BufferUsage, PipelineCreate, QueueFlags};
 use regex::Regex;
 use std::sync::OnceLock;
@@ -73,6 +78,11 @@ fn nv_buffer_param(command: &str, text: &str) -> Option<Param> {
         .map(Param::TableAddress)
 }
 
+/// Some(()) for the build command, whose array parameters the build shapes name.
+fn build_only(command: &str) -> Option<()> {
+    (command == CommandId::BuildAccelerationStructuresIndirect.vk_name()).then_some(())
+}
+
 type Shape = (
     &'static str,
     fn(&str, &regex::Captures) -> Option<Predicate>,
@@ -112,7 +122,7 @@ fn shapes() -> &'static [(Regex, fn(&str, &regex::Captures) -> Option<Predicate>
             (r"^If the bound ray tracing pipeline was created with (?P<f>\S+),? (?:`?Vk[A-Za-z]+`?::)?(?P<feat>\S+) feature must be enabled$", |_, m| {
                 Some(Predicate::FeatureEnabledIfPipelineFlag(flag_pipeline(&m["f"])?, clean(&m["feat"])))
             }),
-            (r"^The (?P<f>\S+) feature must be enabled$", |_, m| Some(Predicate::FeatureEnabled(clean(&m["f"])))),
+            (r"^The (?:`?VkPhysicalDevice[A-Za-z0-9]+`?::)?(?P<f>\S+) feature must be enabled$", |_, m| Some(Predicate::FeatureEnabled(clean(&m["f"])))),
             (r"^The buffer from which (?:the )?(?P<p>\S+) (?:is|was) queried must have been created with the (?P<u>\S+) (?:usage flag|bit set)$", |c, m| {
                 Some(Predicate::BufferUsage(param(c, &m["p"])?, flag_usage(&m["u"])?))
             }),
@@ -143,9 +153,9 @@ fn shapes() -> &'static [(Regex, fn(&str, &regex::Captures) -> Option<Predicate>
                 let mut q = QueueFlags::empty();
                 for w in m["q"].split(|c: char| c == ',' || c.is_whitespace()).filter(|w| !w.is_empty() && *w != "or") {
                     q.insert(match w {
-                        "graphics" => QueueFlags::GRAPHICS_BIT,
-                        "compute" => QueueFlags::COMPUTE_BIT,
-                        "transfer" => QueueFlags::TRANSFER_BIT,
+                        "graphics" | "VK_QUEUE_GRAPHICS_BIT" => QueueFlags::GRAPHICS_BIT,
+                        "compute" | "VK_QUEUE_COMPUTE_BIT" => QueueFlags::COMPUTE_BIT,
+                        "transfer" | "VK_QUEUE_TRANSFER_BIT" => QueueFlags::TRANSFER_BIT,
                         _ => return None,
                     });
                 }
@@ -153,6 +163,22 @@ fn shapes() -> &'static [(Regex, fn(&str, &regex::Captures) -> Option<Predicate>
             }),
             (r"^This command must only be called outside of a render pass instance$", |_, _| Some(Predicate::OutsideRenderPass)),
             (r"^This command must only be called outside of a video coding scope$", |_, _| Some(Predicate::OutsideVideoCoding)),
+            (r"^This command must not be called between suspended render pass instances$", |_, _| {
+                Some(Predicate::NotBetweenSuspendedRenderPasses)
+            }),
+            (r"^Each element of (?P<p>pIndirectDeviceAddresses|pIndirectStrides) must be a multiple of (?P<n>\d+)$", |c, m| {
+                build_only(c)?;
+                let n = m["n"].parse().ok()?;
+                Some(Predicate::Accel(if &m["p"] == "pIndirectStrides" {
+                    AccelPredicate::IndirectStrideMultipleOf(n)
+                } else {
+                    AccelPredicate::IndirectAddressMultipleOf(n)
+                }))
+            }),
+            (r"^infoCount must be greater than 0$", |c, _| {
+                build_only(c)?;
+                Some(Predicate::Accel(AccelPredicate::InfoCountPositive))
+            }),
             (r"^(?:If the `?shaderObject`? feature is not enabled, )?[Aa] valid pipeline must be bound to the pipeline bind point used by this command$", |_, _| {
                 Some(Predicate::PipelineBound)
             }),

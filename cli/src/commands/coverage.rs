@@ -18,9 +18,9 @@ pub struct CoverageArgs {
 }
 
 /// Coverage rows and the VUIDs of the sources that have no row (which must be none).
-pub fn compute(
+fn compute(
     set: &vk_registry::vuid::VuidSet,
-    command: Option<&str>,
+    command: Option<model::CommandId>,
 ) -> (Vec<CoverageRow>, Vec<String>) {
     let rules = RuleSet::from_vuids(set);
     let rows = rules.coverage(command);
@@ -37,13 +37,14 @@ pub fn compute(
     (rows, missing)
 }
 
-pub fn run(a: CoverageArgs) -> Result<i32, String> {
-    let set = super::load_sources(&a.from)?;
-    let (rows, missing) = compute(&set, a.command.as_deref());
+pub fn run(a: CoverageArgs) -> super::Exit {
+    let set = session::sources::load_sources(&a.from)?;
+    let command = a.command.as_deref().map(super::command_id).transpose()?;
+    let (rows, missing) = compute(&set, command);
     if a.json {
         println!(
             "{}",
-            serde_json::to_string_pretty(&rows).map_err(|e| e.to_string())?
+            serde_json::to_string_pretty(&rows).unwrap_or_default()
         );
     } else {
         print_table(&rows);

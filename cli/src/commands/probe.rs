@@ -16,15 +16,16 @@ pub struct ProbeArgs {
     name: Option<String>,
 }
 
-pub fn run(a: ProbeArgs) -> Result<i32, String> {
+pub fn run(a: ProbeArgs) -> super::Exit {
     let driver = harness::vulkan::Driver::parse(&a.driver);
-    let mut profile = harness::probe::probe(driver).map_err(|e| e.to_string())?;
+    let mut profile = harness::probe::probe(driver)?;
     if let Some(n) = a.name {
         profile.name = n;
     }
     let text = profile.to_profiles_json();
     match a.out {
-        Some(p) => std::fs::write(&p, text).map_err(|e| format!("{}: {e}", p.display()))?,
+        Some(p) => std::fs::write(&p, text)
+            .map_err(|e| session::SessionError::io(p.display().to_string(), e))?,
         None => print!("{text}"),
     }
     Ok(0)

@@ -33,7 +33,7 @@ pub enum RegistryCommand {
     },
 }
 
-fn print(s: &str) -> Result<i32, String> {
+fn print(s: &str) -> super::Exit {
     let mut out = std::io::stdout().lock();
     // A closed pipe (`| head`) is not an error worth a message.
     let _ = out.write_all(s.as_bytes());
@@ -43,14 +43,22 @@ fn print(s: &str) -> Result<i32, String> {
     Ok(0)
 }
 
-pub fn run(c: RegistryCommand) -> Result<i32, String> {
+/// A registry error as the session reports it.
+fn registry_error(e: impl std::fmt::Display) -> session::SessionError {
+    session::SessionError::Registry {
+        problem: e.to_string(),
+        hint: String::new(),
+    }
+}
+
+pub fn run(c: RegistryCommand) -> super::Exit {
     match c {
         RegistryCommand::Vuids {
             from,
             command,
             json,
         } => {
-            let set = super::load_sources(&from)?;
+            let set = session::sources::load_sources(&from)?;
             let text = if json {
                 vk_registry::report::vuids_json(&set, command.as_deref())
             } else {
@@ -59,8 +67,8 @@ pub fn run(c: RegistryCommand) -> Result<i32, String> {
             print(&text)
         }
         RegistryCommand::Diff { a, b, command } => {
-            let sa = vk_registry::source::load_vuids(&a).map_err(|e| e.to_string())?;
-            let sb = vk_registry::source::load_vuids(&b).map_err(|e| e.to_string())?;
+            let sa = vk_registry::source::load_vuids(&a).map_err(registry_error)?;
+            let sb = vk_registry::source::load_vuids(&b).map_err(registry_error)?;
             print(&vk_registry::report::diff(&sa, &sb, command.as_deref()))
         }
         RegistryCommand::Show { name, from } => {
@@ -71,9 +79,8 @@ pub fn run(c: RegistryCommand) -> Result<i32, String> {
             } else {
                 dir
             };
-            let reg =
-                vk_registry::xml::Registry::load(Path::new(&xml)).map_err(|e| e.to_string())?;
-            let text = vk_registry::report::show(&reg, &name).map_err(|e| e.to_string())?;
+            let reg = vk_registry::xml::Registry::load(Path::new(&xml)).map_err(registry_error)?;
+            let text = vk_registry::report::show(&reg, &name).map_err(registry_error)?;
             print(&text)
         }
     }

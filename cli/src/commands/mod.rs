@@ -10,7 +10,7 @@ mod replay;
 mod run;
 
 use clap::{Parser, Subcommand};
-use std::path::PathBuf;
+use session::SessionError;
 
 #[derive(Parser)]
 #[command(
@@ -45,26 +45,12 @@ enum Command {
     Worker,
 }
 
-/// Sources of VUIDs named on the command line, or the installed registry.
-pub fn sources_or_default(from: &[PathBuf]) -> Vec<PathBuf> {
-    if from.is_empty() {
-        vec![PathBuf::from(vk_registry::source::DEFAULT_REGISTRY_DIR)]
-    } else {
-        from.to_vec()
-    }
-}
+/// What a subcommand gives back: its exit status, or the error that stopped it.
+type Exit = Result<i32, SessionError>;
 
-/// Loads the union of the sources, with a message that says how to install the registry if missing.
-pub fn load_sources(from: &[PathBuf]) -> Result<vk_registry::vuid::VuidSet, String> {
-    let paths = sources_or_default(from);
-    vk_registry::source::load_union(&paths).map_err(|e| {
-        let hint = if from.is_empty() {
-            "\n(the registry comes with libvulkan-dev: run `bash scripts/setup.sh`)"
-        } else {
-            ""
-        };
-        format!("{e}{hint}")
-    })
+/// A command name of the command line, as a typed id.
+fn command_id(name: &str) -> Result<model::CommandId, SessionError> {
+    Ok(session::plan::commands(&[name.to_string()])?[0])
 }
 
 pub fn main() -> i32 {
@@ -81,38 +67,9 @@ pub fn main() -> i32 {
     };
     match result {
         Ok(code) => code,
-        Err(msg) => {
-            eprintln!("rtconf: {msg}");
+        Err(e) => {
+            eprintln!("rtconf: {e}");
             2
         }
     }
-}
-
-/// The repository root (profiles/, triage/, cases/); `RTCONF_HOME` overrides it for an installed binary.
-pub fn repo_dir() -> PathBuf {
-    match std::env::var("RTCONF_HOME") {
-        Ok(d) => PathBuf::from(d),
-        Err(_) => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(".."),
-    }
-}
-
-/// The directory holding the committed device profiles (`profiles/` at the repository root).
-pub fn profiles_dir() -> PathBuf {
-    repo_dir().join("profiles")
-}
-
-/// A profile by short name (`lavapipe`, `nvidia-h100`) from `profiles/`, or by path.
-pub fn profile_for(name: &str) -> Result<model::DeviceProfile, String> {
-    let path = if name.ends_with(".json") || name.contains('/') {
-        PathBuf::from(name)
-    } else {
-        profiles_dir().join(format!("{name}.json"))
-    };
-    let text = std::fs::read_to_string(&path).map_err(|e| {
-        format!(
-            "profile `{name}`: cannot read {}: {e} (capture one with `rtconf probe`)",
-            path.display()
-        )
-    })?;
-    model::DeviceProfile::from_profiles_json(name, &text).map_err(|e| e.to_string())
 }

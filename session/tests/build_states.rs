@@ -3,38 +3,26 @@
 //! are realised and recorded (the 1.3.239 layer reports only the missing feature for them: layer gaps in
 //! triage/), and what Vulkan or the device rules out is `unsupported` with its reason.
 
-use harness::accel::run_case;
-use harness::vulkan::VkInstance;
-use harness::Driver;
-use model::accel::{BuildCase, BuildRuleSet};
-use model::world::{CommandBufferLevel, CommandBufferLifecycle};
-use std::sync::Arc;
+mod common;
 
-fn case(name: &str) -> BuildCase {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join(format!("../cases/build/{name}.yaml"));
-    BuildCase::from_yaml(name, &std::fs::read_to_string(path).unwrap()).unwrap()
-}
+use common::{committed, layer_vuids, model_vuids, status, unsupported, Lavapipe};
+use harness::{Status, TraceCheck};
+use model::world::{CommandBufferLevel, CommandBufferLifecycle, CommandBufferState};
+use model::Case;
 
 const FEATURE: &str =
     "VUID-vkCmdBuildAccelerationStructuresIndirectKHR-accelerationStructureIndirectBuild-03650";
 const RECORDING: &str = "VUID-vkCmdBuildAccelerationStructuresIndirectKHR-commandBuffer-recording";
 const RENDERPASS: &str = "VUID-vkCmdBuildAccelerationStructuresIndirectKHR-renderpass";
 
+fn command_buffer(c: &mut Case) -> &mut CommandBufferState {
+    &mut c.as_accel_mut().unwrap().world.command_buffer
+}
+
 #[test]
 fn command_buffer_states_and_unbound_memory_are_realised() {
-    let inst = Arc::new(
-        VkInstance::new(Driver::Lavapipe, true)
-            .expect("lavapipe and the layer are installed by scripts/setup.sh"),
-    );
-    let profile = generator::profiles::load("lavapipe").unwrap();
-    let set = vk_registry::source::load_vuids(std::path::Path::new("/usr/share/vulkan/registry"))
-        .unwrap();
-    let rules = BuildRuleSet::from_vuids(&set);
-    let unavoidable = generator::accel::unavoidable(&profile);
-    let run = |c: &BuildCase| run_case(&inst, &profile, &rules, c, &unavoidable);
-
-    let executable = case("layer-1.3.239-recording");
+    let mut lvp = Lavapipe::new();
+    let executable = committed("build/layer-1.3.239-recording.yaml");
     let mut variants = vec![(executable.clone(), vec![FEATURE, RECORDING])];
     for (lifecycle, level, in_pass) in [
         (
@@ -64,9 +52,10 @@ fn command_buffer_states_and_unbound_memory_are_realised() {
         ),
     ] {
         let mut c = executable.clone();
-        c.world.command_buffer.lifecycle = lifecycle;
-        c.world.command_buffer.level = level;
-        c.world.command_buffer.in_render_pass = in_pass;
+        let cb = command_buffer(&mut c);
+        cb.lifecycle = lifecycle;
+        cb.level = level;
+        cb.in_render_pass = in_pass;
         let mut want = vec![FEATURE];
         if lifecycle != CommandBufferLifecycle::Recording {
             want.push(RECORDING);
@@ -77,38 +66,40 @@ fn command_buffer_states_and_unbound_memory_are_realised() {
         want.sort();
         variants.push((c, want));
     }
-    variants.push((case("layer-1.3.239-renderpass"), vec![FEATURE, RENDERPASS]));
     variants.push((
-        case("layer-1.3.239-03707"),
+        committed("build/layer-1.3.239-renderpass.yaml"),
+        vec![FEATURE, RENDERPASS],
+    ));
+    variants.push((
+        committed("build/layer-1.3.239-03707.yaml"),
         vec![
             FEATURE,
             "VUID-vkCmdBuildAccelerationStructuresIndirectKHR-pInfos-03707",
         ],
     ));
     for (c, want) in &variants {
-        let obs = run(c);
-        assert_eq!(obs.status, "ran", "{:?}", c.world.command_buffer);
-        assert_eq!(&obs.model_vuids, want, "{:?}", c.world.command_buffer);
+        let cb = &c.as_accel().unwrap().world.command_buffer;
+        let ran = lvp.run(c, TraceCheck::Auto);
+        assert_eq!(status(&ran), &Status::Ran, "{cb:?}");
+        assert_eq!(&model_vuids(&ran), want, "{cb:?}");
         assert_eq!(
-            obs.layer_vuids,
+            layer_vuids(&ran),
             vec![FEATURE],
             "the 1.3.239 layer reports only the missing feature (triaged layer gaps)"
         );
     }
 
     let mut protected = executable.clone();
-    protected.world.command_buffer.lifecycle = CommandBufferLifecycle::Recording;
-    protected.world.command_buffer.protected = true;
-    let obs = run(&protected);
+    command_buffer(&mut protected).lifecycle = CommandBufferLifecycle::Recording;
+    command_buffer(&mut protected).protected = true;
+    let why = unsupported(&lvp.run(&protected, TraceCheck::Auto));
     assert!(
-        obs.status
-            .starts_with("unsupported: a protected command buffer")
-            && obs.status.contains("lacks protectedMemory"),
-        "{}",
-        obs.status
+        why.starts_with("a protected command buffer") && why.contains("lacks protectedMemory"),
+        "{why}"
     );
-    let mut scattered = case("layer-1.3.239-03707");
-    scattered.world.buffers[0].memory = model::world::MemoryBinding::Unbound;
-    let obs = run(&scattered);
-    assert!(obs.status.contains("02600"), "{}", obs.status);
+    let mut scattered = committed("build/layer-1.3.239-03707.yaml");
+    scattered.as_accel_mut().unwrap().world.buffers[0].memory =
+        model::world::MemoryBinding::Unbound;
+    let why = unsupported(&lvp.run(&scattered, TraceCheck::Auto));
+    assert!(why.contains("02600"), "{why}");
 }

@@ -1,7 +1,7 @@
-//! `rtconf check`: the model's verdict on case files, each judged on the profile it names.
+//! `rtconf check`: the model's verdict on case files (any command), each judged on the profile it names.
 
 use clap::Args;
-use model::{Case, RuleSet};
+use model::RuleSet;
 use std::path::PathBuf;
 
 #[derive(Args)]
@@ -24,20 +24,17 @@ struct CheckResult {
     violations: Vec<model::Violation>,
 }
 
-pub fn run(a: CheckArgs) -> Result<i32, String> {
+pub fn run(a: CheckArgs) -> super::Exit {
     if a.cases.is_empty() {
-        return Err("no case files given".into());
+        return Err(session::SessionError::Usage("no case files given".into()));
     }
-    let set = super::load_sources(&a.from)?;
+    let set = session::sources::load_sources(&a.from)?;
     let rules = RuleSet::from_vuids(&set);
     let mut results = Vec::new();
     let mut errors = 0;
     for path in &a.cases {
         let shown = path.display().to_string();
-        let case = match std::fs::read_to_string(path)
-            .map_err(|e| format!("{shown}: cannot read: {e}"))
-            .and_then(|t| Case::from_yaml(&shown, &t).map_err(|e| e.to_string()))
-        {
+        let case = match session::replay::read_case(path) {
             Ok(c) => c,
             Err(e) => {
                 // Report and carry on: verdicts already computed for other files are kept.
@@ -46,7 +43,7 @@ pub fn run(a: CheckArgs) -> Result<i32, String> {
                 continue;
             }
         };
-        let profile = match crate::cli::profile_for(&case.profile) {
+        let profile = match session::sources::profile_for(&case.profile) {
             Ok(p) => p,
             Err(e) => {
                 eprintln!("rtconf: {shown}: {e}");
@@ -54,7 +51,7 @@ pub fn run(a: CheckArgs) -> Result<i32, String> {
                 continue;
             }
         };
-        let verdict = model::validate(&rules, &profile, &case.world, &case.call);
+        let verdict = model::validate(&rules, &profile, &case);
         let vuids: Vec<String> = verdict.vuids().into_iter().map(String::from).collect();
         let expected = case.expected_vuids();
         results.push(CheckResult {
@@ -68,7 +65,7 @@ pub fn run(a: CheckArgs) -> Result<i32, String> {
     if a.json {
         println!(
             "{}",
-            serde_json::to_string_pretty(&results).map_err(|e| e.to_string())?
+            serde_json::to_string_pretty(&results).unwrap_or_default()
         );
     } else {
         for r in &results {

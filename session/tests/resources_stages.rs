@@ -1,18 +1,21 @@
-//! Resource accesses in every ray tracing stage (issue 4), realised on lavapipe under the 1.3.239
+//! Resource accesses in every ray tracing stage, realised on lavapipe under the 1.3.239
 //! validation layer: a valid state's accesses placed in each stage a generated launch executes run
 //! silently and leave the model's output words; an Unknown-format read placed in each stage draws its
 //! rule from the layer (statically used by a bound shader, reached or not); accesses in a stage the
 //! pipeline lacks are unsupported; and every stage's templated GLSL compiles for NV pipelines too.
 
+mod common;
+
+use common::{body, committed, world, Lavapipe};
 use generator::resources::{launch_stages, move_to_stage, valid_state};
-use generator::{generate, CaseSpec, Command};
+use generator::{generate, CaseSpec};
 use harness::resources::{compile_stage, stage_glsl, stage_source};
-use harness::{execute, Driver, Executor, Status};
+use harness::Status;
 use model::case::Case;
 use model::resources::Stage;
 use model::world::PipelineApi;
+use model::CommandId;
 use std::collections::BTreeMap;
-use std::path::PathBuf;
 
 const STAGES: [Stage; 6] = [
     Stage::Raygen,
@@ -23,23 +26,14 @@ const STAGES: [Stage; 6] = [
     Stage::Callable,
 ];
 
-fn executor() -> Executor {
-    Executor::new(Driver::Lavapipe)
-        .expect("lavapipe and the validation layer are installed by scripts/setup.sh")
-}
-
 fn case(name: &str) -> Case {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../cases/resources")
-        .join(format!("{name}.yaml"));
-    let text = std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
-    Case::from_yaml(&p.display().to_string(), &text).expect("a case file")
+    committed(&format!("resources/{name}.yaml"))
 }
 
 /// Generated valid launches, one per stage they execute (the first found), for every stage any of
 /// them executes.
 fn launches_by_stage() -> BTreeMap<Stage, Case> {
-    let profile = generator::profiles::load("lavapipe").expect("profiles/lavapipe.json");
+    let profile = session::sources::profile_for("lavapipe").expect("profiles/lavapipe.json");
     let rules = generator::registry::default_rules().expect("the installed registry loads");
     let mut out = BTreeMap::new();
     for seed in 0..6 {
@@ -47,16 +41,17 @@ fn launches_by_stage() -> BTreeMap<Stage, Case> {
             &profile,
             "lavapipe",
             &rules,
-            &CaseSpec::valid(Command::TraceRays),
+            &CaseSpec::valid(CommandId::TraceRays),
             40,
             seed,
         )
         .expect("valid cases");
         for c in cases {
-            if c.world.pipeline.as_ref().map(|p| p.api) != Some(PipelineApi::Khr) {
+            let t = body(&c);
+            if t.world.pipeline.as_ref().map(|p| p.api) != Some(PipelineApi::Khr) {
                 continue;
             }
-            for s in launch_stages(&c.world, &c.call) {
+            for s in launch_stages(&t.world, &t.call) {
                 out.entry(s).or_insert_with(|| c.clone());
             }
         }
@@ -66,7 +61,7 @@ fn launches_by_stage() -> BTreeMap<Stage, Case> {
 
 #[test]
 fn valid_accesses_run_in_every_stage_the_launch_executes() {
-    let profile = generator::profiles::load("lavapipe").expect("profiles/lavapipe.json");
+    let profile = session::sources::profile_for("lavapipe").expect("profiles/lavapipe.json");
     let launches = launches_by_stage();
     for s in [
         Stage::Raygen,
@@ -80,25 +75,22 @@ fn valid_accesses_run_in_every_stage_the_launch_executes() {
             "no generated launch executes {s:?}"
         );
     }
-    let mut ctx = executor();
+    let mut lvp = Lavapipe::new();
     for (stage, base) in &launches {
         let mut c = base.clone();
-        c.world.resources = valid_state(&profile, 3, 0x1ff);
-        move_to_stage(&mut c.world.resources, *stage);
-        assert!(launch_stages(&c.world, &c.call).contains(stage));
-        let obs = execute(&c, &mut ctx);
+        world(&mut c).resources = valid_state(&profile, 3, 0x1ff);
+        move_to_stage(&mut world(&mut c).resources, *stage);
+        assert!(launch_stages(&body(&c).world, &body(&c).call).contains(stage));
+        let obs = lvp.observe(&c);
         assert_eq!(obs.status, Status::Ran, "{stage:?}: {obs:?}");
         assert!(
             obs.layer_vuids.is_empty(),
             "{stage:?}: {:#?}",
             obs.layer_messages
         );
-        let expected = model::semantics::expected_launch(&c.world, &c.call).expect("dimensions");
-        assert_eq!(
-            obs.output.as_deref(),
-            Some(expected.words.as_slice()),
-            "{stage:?}"
-        );
+        let expected =
+            model::semantics::expected_launch(&body(&c).world, &body(&c).call).expect("dimensions");
+        assert_eq!(obs.words(), Some(expected.words.as_slice()), "{stage:?}");
     }
 }
 
@@ -106,7 +98,7 @@ fn valid_accesses_run_in_every_stage_the_launch_executes() {
 fn an_unknown_format_read_in_any_bound_stage_draws_its_rule() {
     // The committed 07028 case's pipeline has raygen, miss, procedural hit groups (closest-hit and
     // intersection) and callables; its launch reaches only some of them, and the rule is about static use.
-    let mut ctx = executor();
+    let mut lvp = Lavapipe::new();
     for stage in [
         Stage::Raygen,
         Stage::Miss,
@@ -115,8 +107,8 @@ fn an_unknown_format_read_in_any_bound_stage_draws_its_rule() {
         Stage::Callable,
     ] {
         let mut c = case("vkCmdTraceRaysIndirectKHR-OpTypeImage-07028-4-0");
-        move_to_stage(&mut c.world.resources, stage);
-        let obs = execute(&c, &mut ctx);
+        move_to_stage(&mut world(&mut c).resources, stage);
+        let obs = lvp.observe(&c);
         assert_eq!(obs.status, Status::Ran, "{stage:?}: {obs:?}");
         assert!(
             obs.layer_vuids
@@ -132,8 +124,8 @@ fn an_unknown_format_read_in_any_bound_stage_draws_its_rule() {
 fn accesses_in_a_stage_the_pipeline_lacks_are_unsupported() {
     // The committed cases' pipelines have no any-hit shader.
     let mut c = case("vkCmdTraceRaysIndirectKHR-OpTypeImage-07028-4-0");
-    move_to_stage(&mut c.world.resources, Stage::AnyHit);
-    let obs = execute(&c, &mut executor());
+    move_to_stage(&mut world(&mut c).resources, Stage::AnyHit);
+    let obs = Lavapipe::new().observe(&c);
     match &obs.status {
         Status::Unsupported { reason } => assert!(reason.contains("AnyHit"), "{reason}"),
         other => panic!("{other:?}"),
@@ -142,7 +134,7 @@ fn accesses_in_a_stage_the_pipeline_lacks_are_unsupported() {
 
 #[test]
 fn every_stage_template_compiles_for_khr_and_nv() {
-    let profile = generator::profiles::load("lavapipe").expect("profiles/lavapipe.json");
+    let profile = session::sources::profile_for("lavapipe").expect("profiles/lavapipe.json");
     for stage in STAGES {
         let mut st = valid_state(&profile, 3, 0x1ff);
         move_to_stage(&mut st, stage);
@@ -156,4 +148,46 @@ fn every_stage_template_compiles_for_khr_and_nv() {
             }
         }
     }
+}
+
+#[test]
+fn generated_valid_resource_states_run_silently() {
+    // The generator's valid states (every access subset, Unknown formats, pushes, atomics) on the
+    // valid case's launch: the layer stays silent and the words are the model's.
+    let mut lvp = Lavapipe::new();
+    let base = case("trace-indirect-valid-resources");
+    let expected = model::semantics::expected_launch(&body(&base).world, &body(&base).call)
+        .expect("dimensions are known");
+    let mut ran = 0;
+    for (choice, bits) in [
+        (0, 0x1ff),
+        (1, 0x1ff),
+        (2, 0x0ff),
+        (3, 0x17f),
+        (5, 0x041),
+        (6, 0x103),
+        (7, 0x1ff),
+        (11, 0x0a5),
+    ] {
+        let mut c = base.clone();
+        world(&mut c).resources = valid_state(&lvp.profile, choice, bits);
+        let obs = lvp.observe(&c);
+        assert_eq!(
+            obs.status,
+            Status::Ran,
+            "choice {choice} bits {bits:#x}: {obs:?}"
+        );
+        assert!(
+            obs.layer_vuids.is_empty(),
+            "choice {choice} bits {bits:#x}: {:#?}",
+            obs.layer_messages
+        );
+        assert_eq!(
+            obs.words(),
+            Some(expected.words.as_slice()),
+            "choice {choice} bits {bits:#x}"
+        );
+        ran += 1;
+    }
+    assert_eq!(ran, 8);
 }

@@ -1,0 +1,59 @@
+//! `rtconf gen`: write N generated cases (valid, or violating one VUID) of any command as YAML; the same
+//! seed writes the same cases. A VUID that names its command decides the command.
+
+use clap::Args;
+use generator::CaseSpec;
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct GenArgs {
+    /// A profile name under profiles/ or a path.
+    #[arg(long, default_value = "lavapipe")]
+    profile: String,
+    /// Valid cases.
+    #[arg(long, conflicts_with = "vuid")]
+    valid: bool,
+    /// Cases violating this VUID.
+    #[arg(long)]
+    vuid: Option<String>,
+    /// The command (a VUID that names one decides it; default vkCmdTraceRaysIndirectKHR).
+    #[arg(long)]
+    command: Option<String>,
+    #[arg(long, default_value_t = 10)]
+    count: usize,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    #[arg(long)]
+    out: PathBuf,
+    #[arg(long = "from")]
+    from: Vec<PathBuf>,
+}
+
+pub fn run(a: GenArgs) -> super::Exit {
+    let command = match &a.command {
+        Some(c) => super::command_id(c)?,
+        None => model::CommandId::TraceRaysIndirect,
+    };
+    let spec = match (a.valid, a.vuid) {
+        (_, Some(v)) => CaseSpec::for_vuid(&v, command),
+        (true, None) => CaseSpec::valid(command),
+        (false, None) => {
+            return Err(session::SessionError::Usage(
+                "say --valid or --vuid VUID".into(),
+            ))
+        }
+    };
+    let set = session::sources::load_sources(&a.from)?;
+    let rules = model::RuleSet::from_vuids(&set);
+    let profile = session::sources::profile_for(&a.profile)?;
+    let cases = generator::generate(&profile, &a.profile, &rules, &spec, a.count, a.seed)?;
+    std::fs::create_dir_all(&a.out)
+        .map_err(|e| session::SessionError::io(a.out.display().to_string(), e))?;
+    for c in &cases {
+        let p = a.out.join(format!("{}.yaml", c.name));
+        std::fs::write(&p, c.to_yaml())
+            .map_err(|e| session::SessionError::io(p.display().to_string(), e))?;
+    }
+    eprintln!("wrote {} cases to {}", cases.len(), a.out.display());
+    Ok(0)
+}

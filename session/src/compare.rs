@@ -1,0 +1,333 @@
+//! The one place where the model's verdict and expected output meet the driver's observation: per case,
+//! the model's VUIDs, the layer's VUIDs, the output check (the launch's words for a trace call, the
+//! rays traced at what was built for a build), and the outcome against the triage files.
+
+use crate::triage::Triage;
+use harness::observe::{Observation, Status, TracedBuild};
+use model::accel::check::{deviation, ExpectedRay};
+use model::rules::modelled_scope;
+use model::{Body, Case, CommandId, DeviceProfile, Verdict};
+use std::collections::BTreeSet;
+
+/// How one case ended against the model and the triage.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Outcome {
+    /// Model and driver agree.
+    Pass,
+    /// They disagree and no triage entry explains it.
+    Fail,
+    /// They disagree exactly as a triage entry says.
+    Triaged,
+    Unsupported,
+    Crash,
+    Timeout,
+}
+
+impl Outcome {
+    /// Whether the outcome makes a run fail (the exit status) and its case worth keeping.
+    pub fn is_unexpected(self) -> bool {
+        matches!(self, Outcome::Fail | Outcome::Crash | Outcome::Timeout)
+    }
+}
+
+/// One line of `results.jsonl`.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CaseReport {
+    pub case: String,
+    pub command: CommandId,
+    /// The VUID an invalid case targets; None for cases run as valid.
+    pub target: Option<String>,
+    pub outcome: Outcome,
+    /// VUIDs the model says the call violates.
+    pub model: Vec<String>,
+    /// VUIDs of the modelled scopes the layer reported.
+    pub layer: Vec<String>,
+    /// Other VUIDs the layer reported (outside the modelled scopes), kept for the record.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub layer_other: Vec<String>,
+    /// For cases run as valid: whether what the device produced is what the model expects.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub output_matches: Option<bool>,
+    /// What went wrong or what triage entry applied.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub detail: String,
+    pub millis: f64,
+}
+
+impl CaseReport {
+    fn new(case: &Case, millis: f64) -> CaseReport {
+        CaseReport {
+            case: case.name.clone(),
+            command: case.command(),
+            target: None,
+            outcome: Outcome::Pass,
+            model: vec![],
+            layer: vec![],
+            layer_other: vec![],
+            output_matches: None,
+            detail: String::new(),
+            millis,
+        }
+    }
+}
+
+/// The report of a valid case that is not run because it is not runnable (undefined reads the driver
+/// may crash on): a generator or case-file bug, reported as a failure.
+pub fn not_runnable(case: &Case, why: &model::NotRunnable) -> CaseReport {
+    CaseReport {
+        outcome: Outcome::Fail,
+        detail: format!("not run: {why}"),
+        ..CaseReport::new(case, 0.0)
+    }
+}
+
+/// The case as the model judges it after the run: a build's sizes are the ones the device reported.
+pub fn as_run<'a>(case: &'a Case, obs: &Observation) -> std::borrow::Cow<'a, Case> {
+    match &case.body {
+        Body::Accel(_) if !obs.device_sizes.is_empty() => {
+            let mut c = case.clone();
+            if let Some(a) = c.as_accel_mut() {
+                a.world.sizes = obs.device_sizes.clone();
+            }
+            std::borrow::Cow::Owned(c)
+        }
+        _ => std::borrow::Cow::Borrowed(case),
+    }
+}
+
+/// Compares one case's observation with the model's verdict (judged on [`as_run`]'s case). A case run as
+/// valid ([`Case::runs_as_valid`]) must draw no more than what the device makes unavoidable, from the
+/// model and from the layer, and its output must be the model's.
+pub fn compare(
+    case: &Case,
+    profile: &DeviceProfile,
+    verdict: &Verdict,
+    obs: &Observation,
+    triage: &Triage,
+    millis: f64,
+) -> CaseReport {
+    let mut report = CaseReport::new(case, millis);
+    let model: Vec<String> = verdict.vuids().into_iter().map(String::from).collect();
+    let (layer, layer_other): (Vec<String>, Vec<String>) = obs
+        .layer_vuids
+        .iter()
+        .cloned()
+        .partition(|v| vuid_scope(v).is_some_and(modelled_scope));
+    let valid = case.runs_as_valid(profile);
+    report.target = match case.intent.target() {
+        Some(t) if !valid => Some(t.to_string()),
+        _ => None,
+    };
+    report.model = model.clone();
+    report.layer = layer.clone();
+    report.layer_other = layer_other;
+    match &obs.status {
+        Status::Unsupported { reason } => {
+            report.outcome = Outcome::Unsupported;
+            report.detail = reason.clone();
+            return report;
+        }
+        Status::Crash { message } => {
+            report.outcome = Outcome::Crash;
+            report.detail = message.clone();
+            return report;
+        }
+        Status::Timeout { seconds } => {
+            report.outcome = Outcome::Timeout;
+            report.detail = format!("after {seconds:.1} s");
+            return report;
+        }
+        Status::Ran => {}
+    }
+    let mut problems = Vec::new();
+    let mut triaged = Vec::new();
+    let m: BTreeSet<&String> = model.iter().collect();
+    let l: BTreeSet<&String> = layer.iter().collect();
+    for v in m.symmetric_difference(&l) {
+        let side = if m.contains(v) {
+            "model only"
+        } else {
+            "layer only"
+        };
+        match triage.covers(v) {
+            Some(t) => triaged.push(format!("{v} ({side}; triaged {}: {})", t.kind, t.reason)),
+            None => problems.push(format!("{v}: {side}")),
+        }
+    }
+    if valid {
+        let unavoidable = match case.body {
+            Body::Trace(_) => vec![],
+            Body::Accel(_) => model::accel::unavoidable(profile),
+        };
+        let extra: Vec<&String> = model.iter().filter(|v| !unavoidable.contains(v)).collect();
+        if !extra.is_empty() {
+            problems.push(format!(
+                "the model judges this valid-by-construction case invalid: {}",
+                extra
+                    .iter()
+                    .map(|s| s.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
+        if !report.layer_other.is_empty() {
+            problems.push(format!(
+                "the layer reported {} on a valid case",
+                report.layer_other.join(", ")
+            ));
+        }
+        match &case.body {
+            Body::Trace(t) => {
+                if let Some(expected) = model::semantics::expected_launch(&t.world, &t.call) {
+                    let ok = compare_words(obs.words(), &expected.words, &mut problems);
+                    report.output_matches = ok;
+                }
+            }
+            Body::Accel(a) if extra.is_empty() => {
+                let ok = compare_rays(case, a, obs.traced(), triage, &mut problems, &mut triaged);
+                report.output_matches = Some(ok);
+            }
+            Body::Accel(_) => {}
+        }
+    } else if let Some(t) = &report.target {
+        if !m.contains(t) {
+            problems.push(format!("the model does not report the target {t}"));
+        }
+    }
+    conclude(report, problems, triaged)
+}
+
+/// The launch's words against the model's; Some(whether they match) when words were read back.
+fn compare_words(
+    got: Option<&[u32]>,
+    expected: &[u32],
+    problems: &mut Vec<String>,
+) -> Option<bool> {
+    let Some(words) = got else {
+        problems.push("no output was read back".into());
+        return None;
+    };
+    let ok = words == expected;
+    if !ok {
+        let first = words.iter().zip(expected).position(|(a, b)| a != b);
+        problems.push(match first {
+            Some(i) => format!(
+                "output word {i}: driver 0x{:08x}, model 0x{:08x}",
+                words[i], expected[i]
+            ),
+            None => format!(
+                "output has {} words, model expects {}",
+                words.len(),
+                expected.len()
+            ),
+        });
+    }
+    Some(ok)
+}
+
+/// The rays traced at what the device built against the model's primitives: a mismatch is a failure
+/// unless the triage names the deviation that explains it; the direct and the real indirect build must
+/// draw no layer message and must trace alike. Returns whether everything matched.
+fn compare_rays(
+    case: &Case,
+    body: &model::AccelBody,
+    traced: Option<&TracedBuild>,
+    triage: &Triage,
+    problems: &mut Vec<String>,
+    triaged: &mut Vec<String>,
+) -> bool {
+    let Some(traced) = traced else {
+        problems.push("no traced check of the build came back".into());
+        return false;
+    };
+    if !traced.direct_layer_vuids.is_empty() {
+        problems.push(format!(
+            "the layer reported {} for the equivalent direct build",
+            traced.direct_layer_vuids.join(", ")
+        ));
+    }
+    let rays: Vec<ExpectedRay> = model::accel::check::check_rays(body).unwrap_or_default();
+    let mismatches = ray_mismatches(&rays, &traced.hits);
+    let mut indirect_vs_direct = Vec::new();
+    if let Some(ind) = &traced.indirect {
+        if !ind.layer_vuids.is_empty() {
+            problems.push(format!(
+                "the layer reported {} for the real indirect build",
+                ind.layer_vuids.join(", ")
+            ));
+        }
+        for (k, (d, i)) in traced.hits.iter().zip(&ind.hits).enumerate() {
+            if d != i {
+                let origin = rays.get(k).map(|r| r.origin).unwrap_or_default();
+                indirect_vs_direct.push(format!(
+                    "ray {k} at {origin:?}: direct build {d:?}, indirect build {i:?}"
+                ));
+            }
+        }
+    }
+    if let Some(first) = mismatches.first() {
+        let key = format!(
+            "output:{}:{}",
+            case.command(),
+            deviation(body, &traced.hits).unwrap_or_else(|| "rays".into())
+        );
+        let n = traced.hits.len();
+        match triage.covers(&key) {
+            Some(t) => triaged.push(format!(
+                "{key} ({} of {n} rays, first {first}; triaged {}: {})",
+                mismatches.len(),
+                t.kind,
+                t.reason
+            )),
+            None => problems.push(format!(
+                "{key}: {} of {n} rays disagree with the model's primitives, first {first}",
+                mismatches.len()
+            )),
+        }
+    }
+    if let Some(first) = indirect_vs_direct.first() {
+        problems.push(format!(
+            "the real indirect build traces differently from the direct build: {first}"
+        ));
+    }
+    mismatches.is_empty() && indirect_vs_direct.is_empty()
+}
+
+/// The rays whose device hit is not the model's, as a person reads them.
+pub fn ray_mismatches(rays: &[ExpectedRay], hits: &harness::observe::Hits) -> Vec<String> {
+    rays.iter()
+        .zip(hits)
+        .enumerate()
+        .filter(|(_, (ray, got))| **got != ray.hit)
+        .map(|(k, (ray, got))| {
+            format!(
+                "ray {k} at {:?}: expected {:?}, device {:?}",
+                ray.origin, ray.hit, got
+            )
+        })
+        .collect()
+}
+
+/// The outcome of a comparison that ran: a failure if any problem is left, triaged if only triaged
+/// disagreements are, a pass otherwise; the detail lists the problems, then the triaged ones.
+fn conclude(mut report: CaseReport, problems: Vec<String>, triaged: Vec<String>) -> CaseReport {
+    report.outcome = if !problems.is_empty() {
+        Outcome::Fail
+    } else if !triaged.is_empty() {
+        Outcome::Triaged
+    } else {
+        Outcome::Pass
+    };
+    report.detail = problems
+        .into_iter()
+        .chain(triaged)
+        .collect::<Vec<_>>()
+        .join("; ");
+    report
+}
+
+/// The scope part of a VUID (`vkCmdTraceRaysIndirectKHR` of `VUID-vkCmdTraceRaysIndirectKHR-stride-03686`).
+pub fn vuid_scope(vuid: &str) -> Option<&str> {
+    vuid.strip_prefix("VUID-")?.split('-').next()
+}

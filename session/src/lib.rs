@@ -1,0 +1,24 @@
+//! rtconf's run session: where the model and the device meet. A run plans its specs, generates cases
+//! a chunk at a time, gates them ([`model::Case::runnable`]), dispatches them to worker processes
+//! ([`harness::run_in_workers`]), judges each result once ([`run::Judging`]), compares it with the
+//! observation ([`compare`]) against the triage files, and streams `results.jsonl`; then the summary,
+//! the JUnit report and shrunk regressions. A replay does the same for one case in this process.
+//!
+//! The command line, the tests and the benches call this crate instead of copying its pieces.
+
+pub mod compare;
+pub mod error;
+pub mod plan;
+pub mod replay;
+pub mod report;
+pub mod run;
+pub mod shrink;
+pub mod sources;
+pub mod triage;
+
+pub use compare::{compare, CaseReport, Outcome};
+pub use error::SessionError;
+pub use plan::Scope;
+pub use replay::{replay, ReplayConfig, Replayed};
+pub use run::{run, Progress, RunConfig, RunOutcome};
+pub use triage::Triage;

@@ -1,0 +1,96 @@
+//! Where a session finds what it reads: the repository root (`profiles/`, `triage/`, `cases/`), the
+//! registry sources of the rules, and device profiles by short name or path.
+
+use crate::error::SessionError;
+use crate::triage::Triage;
+use model::DeviceProfile;
+use std::path::{Path, PathBuf};
+
+/// The repository root (profiles/, triage/, cases/); `RTCONF_HOME` overrides it for an installed binary.
+pub fn repo_dir() -> PathBuf {
+    match std::env::var("RTCONF_HOME") {
+        Ok(d) => PathBuf::from(d),
+        Err(_) => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(".."),
+    }
+}
+
+/// The directory holding the committed device profiles (`profiles/` at the repository root).
+pub fn profiles_dir() -> PathBuf {
+    repo_dir().join("profiles")
+}
+
+/// Sources of VUIDs named on the command line, or the installed registry.
+pub fn sources_or_default(from: &[PathBuf]) -> Vec<PathBuf> {
+    if from.is_empty() {
+        vec![PathBuf::from(vk_registry::source::DEFAULT_REGISTRY_DIR)]
+    } else {
+        from.to_vec()
+    }
+}
+
+/// Loads the union of the sources, with a message that says how to install the registry if missing.
+pub fn load_sources(from: &[PathBuf]) -> Result<vk_registry::vuid::VuidSet, SessionError> {
+    let paths = sources_or_default(from);
+    vk_registry::source::load_union(&paths).map_err(|e| SessionError::Registry {
+        problem: e.to_string(),
+        hint: if from.is_empty() {
+            format!(
+                "\n(the registry comes with libvulkan-dev: run `{}`)",
+                harness::error::SETUP_COMMAND
+            )
+        } else {
+            String::new()
+        },
+    })
+}
+
+/// The file of a profile named by short name (`lavapipe`, `nvidia-h100`, from `profiles/`) or by path.
+pub fn profile_path(name: &str) -> PathBuf {
+    if name.ends_with(".json") || name.contains('/') {
+        PathBuf::from(name)
+    } else {
+        profiles_dir().join(format!("{name}.json"))
+    }
+}
+
+/// A profile by short name or path (see [`profile_path`]).
+pub fn profile_for(name: &str) -> Result<DeviceProfile, SessionError> {
+    let path = profile_path(name);
+    let text = std::fs::read_to_string(&path).map_err(|e| SessionError::Profile {
+        name: name.into(),
+        problem: format!(
+            "cannot read {}: {e} (capture one with `rtconf probe`)",
+            path.display()
+        ),
+    })?;
+    DeviceProfile::from_profiles_json(name, &text).map_err(|e| SessionError::Profile {
+        name: name.into(),
+        problem: e.to_string(),
+    })
+}
+
+/// The profile a driver's cases are generated from by default: its short name (nvidia → nvidia-h100).
+pub fn default_profile_name(driver: &str) -> String {
+    match driver {
+        "nvidia" => "nvidia-h100".into(),
+        "lavapipe" | "lvp" => "lavapipe".into(),
+        other => Path::new(other)
+            .file_stem()
+            .map_or("icd".into(), |s| s.to_string_lossy().into_owned()),
+    }
+}
+
+/// The triage files of a run: the named ones, or `triage/<driver>.yaml` and
+/// `triage/layer-<registry version>.yaml` where present (the same for a run and a replay).
+pub fn triage_for(
+    named: &[PathBuf],
+    layer_version: Option<&str>,
+    driver: &harness::Driver,
+) -> Result<Triage, SessionError> {
+    Triage::load(
+        &repo_dir().join("triage"),
+        named,
+        layer_version,
+        &driver.name(),
+    )
+}

@@ -1,0 +1,122 @@
+//! What the session's lavapipe tests share: the installed registry's rules, the lavapipe profile, the
+//! triage files a run uses, and one executor, so each test runs and judges cases exactly as a run does.
+
+#![allow(dead_code)] // each test binary uses its own part
+
+use harness::observe::{Hits, Status, TracedBuild};
+use harness::{Driver, Executor, TraceCheck};
+use model::{Case, DeviceProfile, RuleSet};
+use session::run::{Judging, Ran};
+use session::Triage;
+
+/// One Vulkan instance at a time: tests of one binary share lavapipe and the layer in one process.
+pub static DEVICE: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+pub struct Lavapipe {
+    pub rules: RuleSet,
+    pub profile: DeviceProfile,
+    pub triage: Triage,
+    pub executor: Executor,
+}
+
+impl Lavapipe {
+    pub fn new() -> Lavapipe {
+        let set = session::sources::load_sources(&[]).expect("the installed registry");
+        let driver = Driver::Lavapipe;
+        Lavapipe {
+            rules: RuleSet::from_vuids(&set),
+            profile: session::sources::profile_for("lavapipe").expect("profiles/lavapipe.json"),
+            triage: session::sources::triage_for(&[], set.version.as_deref(), &driver)
+                .expect("the triage files"),
+            executor: Executor::new(driver)
+                .expect("lavapipe and the layer are installed by scripts/setup.sh"),
+        }
+    }
+
+    /// Runs and judges one case in this process, as a run does (the gate first).
+    pub fn run(&mut self, case: &Case, check: TraceCheck) -> Ran {
+        let judging = Judging {
+            rules: &self.rules,
+            profile: &self.profile,
+            triage: &self.triage,
+        };
+        judging.run_here(&mut self.executor, case, check)
+    }
+}
+
+/// A committed case by path under `cases/`.
+pub fn committed(path: &str) -> Case {
+    let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../cases")
+        .join(path);
+    session::replay::read_case(&p).expect("a committed case")
+}
+
+/// The status of a case that ran.
+pub fn status(ran: &Ran) -> &Status {
+    &ran.observation
+        .as_ref()
+        .expect("the case was runnable")
+        .status
+}
+
+/// The model's VUIDs for the case as it ran, sorted.
+pub fn model_vuids(ran: &Ran) -> Vec<String> {
+    ran.verdict.vuids().into_iter().map(String::from).collect()
+}
+
+/// The layer's VUIDs for the case's call.
+pub fn layer_vuids(ran: &Ran) -> Vec<String> {
+    ran.observation
+        .as_ref()
+        .map(|o| o.layer_vuids.clone())
+        .unwrap_or_default()
+}
+
+/// The traced check of a build run as valid.
+pub fn traced(ran: &Ran) -> &TracedBuild {
+    ran.observation
+        .as_ref()
+        .and_then(|o| o.traced())
+        .unwrap_or_else(|| panic!("{}: no traced check: {:?}", ran.case.name, ran.observation))
+}
+
+/// The rays whose device hit is not the model's.
+pub fn mismatches(ran: &Ran) -> Vec<String> {
+    let body = ran.case.as_accel().expect("a build case");
+    let rays = model::accel::check::check_rays(body).unwrap_or_default();
+    session::compare::ray_mismatches(&rays, &traced(ran).hits)
+}
+
+/// The deviation the CPU cast names for hits at a build case.
+pub fn deviation(case: &Case, hits: &Hits) -> Option<String> {
+    model::accel::check::deviation(case.as_accel().expect("a build case"), hits)
+}
+
+/// The reason of an unsupported case.
+pub fn unsupported(ran: &Ran) -> String {
+    match status(ran) {
+        Status::Unsupported { reason } => reason.clone(),
+        other => panic!("{}: not unsupported: {other:?}", ran.case.name),
+    }
+}
+
+impl Lavapipe {
+    /// What the device does with a case, unjudged: the gate, then the execution a run gives it.
+    pub fn observe(&mut self, case: &Case) -> harness::Observation {
+        case.runnable(&self.profile)
+            .unwrap_or_else(|e| panic!("{}: {e}", case.name));
+        let exec = harness::Execution::for_case(case, &self.profile);
+        self.executor.execute(case, &exec)
+    }
+}
+
+/// The trace body of a case.
+pub fn body(case: &Case) -> &model::TraceBody {
+    case.as_trace().expect("a trace case")
+}
+
+/// The world of a trace case, to edit.
+pub fn world(case: &mut Case) -> &mut model::World {
+    &mut case.as_trace_mut().expect("a trace case").world
+}
