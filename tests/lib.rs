@@ -9,9 +9,14 @@ pub fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
-/// The seeds folder beside the repository (`../shared/seeds`).
+/// The seeds folder beside the repository (`../shared/seeds`; for a worktree deeper down, the nearest
+/// ancestor's `shared/seeds`).
 pub fn seeds() -> PathBuf {
-    repo().join("..").join("shared").join("seeds")
+    repo()
+        .ancestors()
+        .map(|a| a.join("shared").join("seeds"))
+        .find(|p| p.is_dir())
+        .unwrap_or_else(|| repo().join("..").join("shared").join("seeds"))
 }
 
 /// The installed registry's VUIDs (1.3.239 on Debian 12; `bash scripts/setup.sh` installs it).

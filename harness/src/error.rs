@@ -3,8 +3,9 @@
 /// The command that installs lavapipe, the loader, the validation layer and glslang.
 pub const SETUP_COMMAND: &str = "bash scripts/setup.sh";
 
-/// What went wrong before or while talking to a driver.
-#[derive(Debug, thiserror::Error)]
+/// What went wrong before or while talking to a driver. [`HarnessError::Unsupported`] is not a failure:
+/// the device or the harness cannot realise the case, and the reason names what is missing.
+#[derive(Debug, Clone, thiserror::Error)]
 pub enum HarnessError {
     #[error("the Vulkan loader (libvulkan.so.1) could not be loaded: {0}; install it with `{SETUP_COMMAND}`")]
     LoaderMissing(String),
@@ -23,11 +24,39 @@ pub enum HarnessError {
     Shader(String),
     #[error("{0}")]
     Io(String),
+    /// The device or the harness cannot realise the case (the reason names what is missing).
+    #[error("unsupported: {0}")]
+    Unsupported(String),
+    /// Realising or running the case failed (not a Vulkan call's result: a missing object, a readback
+    /// that does not fit).
+    #[error("{0}")]
+    Failed(String),
+    /// A submission did not finish in time; the device is not used again.
+    #[error("TIMEOUT: {0}")]
+    Timeout(String),
 }
 
 impl HarnessError {
+    /// The error of a Vulkan call named `what`.
     pub fn vk(what: impl Into<String>) -> impl FnOnce(ash::vk::Result) -> HarnessError {
         let what = what.into();
         move |result| HarnessError::Vulkan { what, result }
+    }
+
+    pub(crate) fn unsupported<T>(why: impl Into<String>) -> Result<T, HarnessError> {
+        Err(HarnessError::Unsupported(why.into()))
+    }
+
+    pub(crate) fn failed(what: impl std::fmt::Display) -> HarnessError {
+        HarnessError::Failed(what.to_string())
+    }
+}
+
+/// The error of a Vulkan call named `what`, for `map_err` (the call's result is copied, so the closure
+/// can be used many times).
+pub(crate) fn vkfail(what: &'static str) -> impl Fn(ash::vk::Result) -> HarnessError {
+    move |result| HarnessError::Vulkan {
+        what: what.into(),
+        result,
     }
 }

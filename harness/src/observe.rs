@@ -3,7 +3,7 @@
 //! shaders wrote for a trace call; the sizes it asked for and the rays traced at what it built for a
 //! build). Nothing here is judged: the session compares it with the model.
 
-use crate::vulkan::LayerMessage;
+use crate::vk::LayerMessage;
 use model::accel::BuildSizes;
 
 /// How a case's run ended.

@@ -2,10 +2,9 @@
 //! format features, queue families) and fills a [`DeviceProfile`] keyed `Struct::member`.
 
 use crate::error::HarnessError;
-use crate::layout::{self, EXTENSIBLE_HEADER};
-use crate::structs::{self, RawChain, PROPERTY_STRUCTS};
-use crate::vk_tables;
-use crate::vulkan::{Driver, VkInstance};
+use crate::vk::layout::{self, EXTENSIBLE_HEADER};
+use crate::vk::structs::{self, RawChain, PROPERTY_STRUCTS};
+use crate::vk::{Driver, VkInstance};
 use ash::vk;
 use model::profile::{DeviceProfile, FormatFeatures, PropertyValue};
 use std::collections::BTreeSet;
@@ -186,14 +185,14 @@ pub fn probe(driver: Driver) -> Result<DeviceProfile, HarnessError> {
         ),
     );
     for (n, v) in layout::read_members(
-        vk_tables::PHYSICAL_DEVICE_LIMITS,
+        crate::vk::tables::PHYSICAL_DEVICE_LIMITS,
         0,
         structs::as_bytes(&base.limits),
     ) {
         props.insert(format!("VkPhysicalDeviceLimits::{n}"), v);
     }
     for (n, v) in layout::read_members(
-        vk_tables::PHYSICAL_DEVICE_SPARSE_PROPERTIES,
+        crate::vk::tables::PHYSICAL_DEVICE_SPARSE_PROPERTIES,
         0,
         structs::as_bytes(&base.sparse_properties),
     ) {

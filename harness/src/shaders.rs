@@ -1,8 +1,15 @@
-//! The SPIR-V of the harness's shaders: compiled by build.rs from `harness/shaders/*.glsl`, or at first use
-//! when the build had no glslangValidator, with an error naming the set-up command when it is still missing.
+//! The one shader path of the harness: the SPIR-V of its own shaders (compiled by build.rs from
+//! `harness/shaders/`, or at first use when the build had no glslangValidator), every GLSL it compiles
+//! at run time (resource-state stages, the build checks' shaders) through [`compile_glsl`] — one
+//! glslangValidator invocation, cached by content — and the one place SPIR-V becomes a shader module
+//! ([`module`]).
 
-use crate::error::{HarnessError, SETUP_COMMAND};
+use crate::error::{vkfail, HarnessError, SETUP_COMMAND};
+use crate::vk::VkDevice;
+use ash::vk;
+use std::collections::HashMap;
 use std::process::Command;
+use std::sync::Mutex;
 
 include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
 
@@ -60,6 +67,7 @@ impl ShaderKind {
         }
     }
 
+    /// The GLSL file, its text and the defines of the kind's variant.
     fn source(self) -> (&'static str, &'static str, &'static [&'static str]) {
         match self {
             ShaderKind::RaygenTrace => (
@@ -106,14 +114,26 @@ const _: () = assert!(model::semantics::UNTOUCHED == 0xFFFF_FFFE);
 /// The SPIR-V words of a shader kind for a pipeline API.
 pub fn spirv(kind: ShaderKind, api: ShaderApi) -> Result<Vec<u32>, HarnessError> {
     let name = kind.variant_name(api);
-    let bytes = match PRECOMPILED
+    match PRECOMPILED
         .iter()
         .find(|(n, _)| *n == name)
         .and_then(|(_, b)| *b)
     {
-        Some(b) => b.to_vec(),
-        None => compile_now(kind, api)?,
-    };
+        Some(b) => words(&name, b),
+        None => {
+            let (file, text, args) = kind.source();
+            let ext = file.rsplit('.').next().unwrap_or(file);
+            let mut defines: Vec<&str> = args.iter().map(|a| a.trim_start_matches("-D")).collect();
+            if api == ShaderApi::Nv {
+                defines.push("NV");
+            }
+            compile_glsl(file, ext, text, &defines)
+        }
+    }
+}
+
+/// SPIR-V bytes as words, checked for the size of a module.
+fn words(name: &str, bytes: &[u8]) -> Result<Vec<u32>, HarnessError> {
     if bytes.len() % 4 != 0 || bytes.len() < 20 {
         return Err(HarnessError::Shader(format!(
             "{name}: not SPIR-V ({} bytes)",
@@ -126,35 +146,79 @@ pub fn spirv(kind: ShaderKind, api: ShaderApi) -> Result<Vec<u32>, HarnessError>
         .collect())
 }
 
-fn compile_now(kind: ShaderKind, api: ShaderApi) -> Result<Vec<u8>, HarnessError> {
-    let (file, text, args) = kind.source();
-    let nv: &[&str] = if api == ShaderApi::Nv { &["-DNV"] } else { &[] };
-    let dir = std::env::temp_dir().join(format!("rtconf-shaders-{}", std::process::id()));
-    std::fs::create_dir_all(&dir)
-        .map_err(|e| HarnessError::Io(format!("{}: {e}", dir.display())))?;
-    let src = dir.join(file);
-    let spv = dir.join(format!("{}.spv", kind.variant_name(api)));
-    std::fs::write(&src, text).map_err(|e| HarnessError::Io(format!("{}: {e}", src.display())))?;
-    let out = Command::new("glslangValidator")
-        .args(["--target-env", "vulkan1.2", "-V"])
-        .args(args)
-        .args(nv)
-        .arg(&src)
-        .arg("-o")
-        .arg(&spv)
-        .output()
-        .map_err(|e| {
-            HarnessError::Shader(format!(
-                "glslangValidator is not available ({e}); install it with `{SETUP_COMMAND}`"
-            ))
-        })?;
-    if !out.status.success() {
-        return Err(HarnessError::Shader(format!(
-            "glslangValidator failed on {file}: {}",
-            String::from_utf8_lossy(&out.stdout)
-        )));
+/// Compiles GLSL to SPIR-V words with glslangValidator (Vulkan 1.2 target): `ext` is the stage's file
+/// extension (`rgen`, `rchit`, `comp`, …), `defines` the preprocessor names (`TRACE`, `NV`), `what`
+/// names the shader in errors. Results are cached in this process and on disk by content, so worker
+/// processes compile each source once.
+pub fn compile_glsl(
+    what: &str,
+    ext: &str,
+    text: &str,
+    defines: &[&str],
+) -> Result<Vec<u32>, HarnessError> {
+    use std::hash::{Hash, Hasher};
+    static MEMO: Mutex<Option<HashMap<u64, Vec<u32>>>> = Mutex::new(None);
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    (text, ext, defines).hash(&mut h);
+    let key = h.finish();
+    if let Some(w) = MEMO
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .get_or_insert_with(HashMap::new)
+        .get(&key)
+    {
+        return Ok(w.clone());
     }
-    std::fs::read(&spv).map_err(|e| HarnessError::Io(format!("{}: {e}", spv.display())))
+    let io =
+        |p: &std::path::Path, e: std::io::Error| HarnessError::Io(format!("{}: {e}", p.display()));
+    let dir = std::env::temp_dir().join("rtconf-shaders");
+    std::fs::create_dir_all(&dir).map_err(|e| io(&dir, e))?;
+    let spv = dir.join(format!("{key:016x}.spv"));
+    if !spv.exists() {
+        let pid = std::process::id();
+        let src = dir.join(format!("{key:016x}-{pid}.{ext}"));
+        std::fs::write(&src, text).map_err(|e| io(&src, e))?;
+        let tmp = dir.join(format!("{key:016x}-{pid}.spv"));
+        let out = Command::new("glslangValidator")
+            .args(["--target-env", "vulkan1.2", "-V"])
+            .args(defines.iter().map(|d| format!("-D{d}")))
+            .arg(&src)
+            .arg("-o")
+            .arg(&tmp)
+            .output()
+            .map_err(|e| {
+                HarnessError::Shader(format!(
+                    "glslangValidator is not available ({e}); install it with `{SETUP_COMMAND}`"
+                ))
+            });
+        let _ = std::fs::remove_file(&src);
+        let out = out?;
+        if !out.status.success() {
+            return Err(HarnessError::Shader(format!(
+                "glslangValidator failed on {what}: {}\n{text}",
+                String::from_utf8_lossy(&out.stdout)
+            )));
+        }
+        // Renamed into place whole, so another worker never reads a half-written module.
+        std::fs::rename(&tmp, &spv).map_err(|e| io(&spv, e))?;
+    }
+    let bytes = std::fs::read(&spv).map_err(|e| io(&spv, e))?;
+    let w = words(what, &bytes)?;
+    MEMO.lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .get_or_insert_with(HashMap::new)
+        .insert(key, w.clone());
+    Ok(w)
+}
+
+/// A shader module of SPIR-V words on a device; the caller destroys it.
+pub fn module(dev: &VkDevice, code: &[u32]) -> Result<vk::ShaderModule, HarnessError> {
+    // SAFETY: `code` is SPIR-V from glslangValidator (checked for a module's size).
+    unsafe {
+        dev.device
+            .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(code), None)
+    }
+    .map_err(vkfail("vkCreateShaderModule"))
 }
 
 #[cfg(test)]

@@ -5,7 +5,7 @@
 
 use crate::execute::{Execution, Executor};
 use crate::observe::{Observation, Status};
-use crate::vulkan::Driver;
+use crate::vk::Driver;
 use model::case::Case;
 use std::collections::VecDeque;
 use std::io::{BufRead, BufReader, Read, Write};
@@ -69,7 +69,7 @@ impl Request {
 /// code.
 pub fn worker_main() -> i32 {
     let driver = Driver::parse(&std::env::var(DRIVER_ENV).unwrap_or_else(|_| "lavapipe".into()));
-    let mut executor: Option<Result<Executor, String>> = None;
+    let mut executor: Option<Result<Executor, crate::HarnessError>> = None;
     let stdin = std::io::stdin();
     let mut stdout = std::io::stdout();
     for line in stdin.lock().lines() {
@@ -89,12 +89,10 @@ pub fn worker_main() -> i32 {
             }
             Ok(req) => {
                 inject_fault(&req.case.name);
-                let ctx = executor.get_or_insert_with(|| {
-                    Executor::new(driver.clone()).map_err(|e| e.to_string())
-                });
+                let ctx = executor.get_or_insert_with(|| Executor::new(driver.clone()));
                 let obs = match ctx {
                     Ok(ctx) => ctx.execute(&req.case, &req.execution),
-                    Err(e) => Observation::crash(e.clone()),
+                    Err(e) => Observation::crash(e.to_string()),
                 };
                 // A lost device stays lost: start the next case on a fresh instance and device rather
                 // than let every later case of this worker hang or fail for it.

@@ -6,20 +6,14 @@
 mod common;
 
 use common::{committed, deviation, mismatches, status, traced, Lavapipe};
-use harness::accel::probe_rays;
-use harness::vulkan::VkInstance;
-use harness::{Driver, Status, TraceCheck};
+use harness::{Status, TraceCheck};
 use model::accel::check::INACTIVE_TRIANGLE_DROPS;
-use std::sync::Arc;
 
 #[test]
 fn lavapipe_drops_a_primitive_beside_an_inactive_triangle() {
     let unexplained = committed("build/lavapipe-unexplained-rays.yaml");
+    let mut lvp = Lavapipe::new();
     {
-        let inst = Arc::new(
-            VkInstance::new(Driver::Lavapipe, true)
-                .expect("lavapipe and the layer are installed by scripts/setup.sh"),
-        );
         // The centroids of geometry 0's primitives 0-2 with indices + 2 x firstVertex (vertices 5,6,4;
         // 8,9,7; 11,12,10), then geometry 1's primitive 0 where the model puts it.
         let origins = [
@@ -28,7 +22,10 @@ fn lavapipe_drops_a_primitive_beside_an_inactive_triangle() {
             [8.0, -1.0 / 6.0, -1.0],
             [0.0, 2.5 + 1.0 / 3.0, -1.0],
         ];
-        let hits = probe_rays(&inst, &unexplained, &origins, TraceCheck::Auto).unwrap();
+        let hits = lvp
+            .executor
+            .probe_rays(&unexplained, &origins, TraceCheck::Auto)
+            .unwrap();
         // FIXME(lavapipe, Mesa 25.0.7): a fixed driver misses the first three and hits (0, 1, 0).
         assert_eq!(
             hits,
@@ -36,7 +33,6 @@ fn lavapipe_drops_a_primitive_beside_an_inactive_triangle() {
         );
     }
 
-    let mut lvp = Lavapipe::new();
     let ran = lvp.run(&unexplained, TraceCheck::Auto);
     assert_eq!(status(&ran), &Status::Ran);
     let named = deviation(&unexplained, &traced(&ran).hits).unwrap();

@@ -6,12 +6,14 @@
 //! * [`validusage`] — validusage.json (both schemas) into a [`vuid::VuidSet`];
 //! * [`manpage`] — man pages (three formats) into a [`vuid::VuidSet`] and a [`manpage::ManPage`];
 //! * [`source`] — loading any of those from a path, and unions of several sources;
-//! * [`report`] — the text printed by the `rtconf registry` subcommands.
+//! * [`report`] — the text printed by the `rtconf registry` subcommands;
+//! * [`tables`] — the harness's generated structure tables (the `vk-tables` binary writes them).
 
 pub mod error;
 pub mod manpage;
 pub mod report;
 pub mod source;
+pub mod tables;
 pub mod validusage;
 pub mod vuid;
 pub mod xml;

@@ -18,7 +18,13 @@ pub fn fixture_text(name: &str) -> String {
 }
 
 pub fn seeds_dir() -> PathBuf {
-    manifest_dir().join("../../shared/seeds")
+    // The seeds sit in `shared/` beside the checkout (`/work/shared` for `/work/main`); a worktree may sit
+    // deeper (`/work/wt/NAME`), so the nearest ancestor that has them is taken.
+    manifest_dir()
+        .ancestors()
+        .map(|a| a.join("shared/seeds"))
+        .find(|p| p.is_dir())
+        .unwrap_or_else(|| manifest_dir().join("../../shared/seeds"))
 }
 
 pub fn installed_dir() -> PathBuf {

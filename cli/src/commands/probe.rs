@@ -17,7 +17,7 @@ pub struct ProbeArgs {
 }
 
 pub fn run(a: ProbeArgs) -> super::Exit {
-    let driver = harness::vulkan::Driver::parse(&a.driver);
+    let driver = harness::Driver::parse(&a.driver);
     let mut profile = harness::probe::probe(driver)?;
     if let Some(n) = a.name {
         profile.name = n;

@@ -1,141 +1,22 @@
-//! Executes a case on one driver: a trace case on the device for its enabled state (cached), with the
-//! world realised and the call recorded with the layer's messages collected — dropped by the layer
-//! unless the case is run as valid, in which case it is submitted and the output words read back — and
-//! a build case through [`crate::accel`]. Every command gives one [`Observation`].
+//! The trace path: the world realised on the device for its enabled state, the command buffer put in
+//! the case's state, the call recorded with the layer's messages collected (dropped unless the case is
+//! run as valid), and a valid launch submitted and its output words read back.
 
+use super::{failure, Executor, MAX_OUTPUT_WORDS};
 use crate::error::HarnessError;
-use crate::observe::{Observation, Output, Status, TraceCheck};
-use crate::realise::{Allocation, DeviceCache, RealiseError, Tlas, RAY_RECORD_SIZE};
-use crate::vulkan::{DeviceError, Driver, VkDevice, VkInstance};
+use crate::observe::{Observation, Output, Status};
+use crate::realise::{DeviceCache, Tlas, RAY_RECORD_SIZE};
+use crate::vk::memory::Allocation;
 use ash::vk;
 use model::call::{Address, Call, StridedRegion};
-use model::case::Case;
 use model::flags::QueueFlags;
-use model::world::{CommandBufferLevel, CommandBufferLifecycle, PipelineApi, RayTarget, World};
-use model::DeviceProfile;
-use std::collections::HashMap;
-use std::sync::Arc;
+use model::world::{CommandBufferLevel, CommandBufferLifecycle, PipelineApi, RayTarget};
 use std::time::Duration;
 
-/// The most output words the harness reads back for one launch.
-pub const MAX_OUTPUT_WORDS: usize = 1 << 24;
-
-/// How the harness is asked to run a case.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-pub struct Execution {
-    /// Run the case for real: submit it and read the output back (trace), build it directly and trace
-    /// what was built (build). Otherwise the call is only recorded under the layer, which drops it.
-    pub run_valid: bool,
-    /// How a build's traced check traces its rays.
-    #[serde(default)]
-    pub check: TraceCheck,
-}
-
-impl Execution {
-    /// The execution a case gets on a device of `profile`: for real when it is valid, or violates only
-    /// what the device makes unavoidable ([`Case::runs_as_valid`]).
-    pub fn for_case(case: &Case, profile: &DeviceProfile) -> Execution {
-        Execution {
-            run_valid: case.runs_as_valid(profile),
-            check: TraceCheck::Auto,
-        }
-    }
-}
-
-/// Runs cases on one driver, caching a device per distinct enabled (extensions, features) set.
-pub struct Executor {
-    inst: Arc<VkInstance>,
-    devices: HashMap<String, Result<DeviceCache, String>>,
-    /// How long a valid case's submission may run.
-    pub gpu_timeout: Duration,
-}
-
-impl Executor {
-    /// Loads `driver` with the validation layer.
-    pub fn new(driver: Driver) -> Result<Executor, HarnessError> {
-        Ok(Executor {
-            inst: Arc::new(VkInstance::new(driver, true)?),
-            devices: HashMap::new(),
-            gpu_timeout: Duration::from_secs(20),
-        })
-    }
-
-    pub fn driver(&self) -> &Driver {
-        &self.inst.driver
-    }
-
-    fn device_key(world: &World) -> String {
-        serde_json::to_string(&world.device).unwrap_or_default()
-    }
-
-    /// Runs one case and reports what the layer said and what the device produced (see
-    /// [`Executor::execute_trace`] and [`crate::accel::execute`]).
-    pub fn execute(&mut self, case: &Case, exec: &Execution) -> Observation {
-        if case.as_trace().is_some() {
-            self.execute_trace(case, exec.run_valid)
-        } else {
-            crate::accel::execute(&self.inst, case, exec.run_valid, exec.check)
-        }
-    }
-
-    fn device(&mut self, world: &World) -> Result<&mut DeviceCache, Observation> {
-        let key = Self::device_key(world);
-        if !self.devices.contains_key(&key) {
-            let made = match VkDevice::new(
-                self.inst.clone(),
-                &world.device.extensions,
-                &world.device.features,
-            ) {
-                Ok(dev) => DeviceCache::new(dev).map_err(|e| match e {
-                    RealiseError::Unsupported(s) => format!("unsupported: {s}"),
-                    RealiseError::Failed(s) => s,
-                }),
-                Err(DeviceError::Unsupported(s)) => Err(format!("unsupported: {s}")),
-                Err(DeviceError::Failed(e)) => Err(e.to_string()),
-            };
-            self.inst.collector.clear();
-            self.devices.insert(key.clone(), made);
-        }
-        match self.devices.get_mut(&key).expect("inserted above") {
-            Ok(c) => Ok(c),
-            Err(s) => Err(match s.strip_prefix("unsupported: ") {
-                Some(r) => Observation::unsupported(r),
-                None => Observation::crash(s.clone()),
-            }),
-        }
-    }
-}
-
-fn realise_failure(e: RealiseError) -> Observation {
-    match e {
-        RealiseError::Unsupported(s) => Observation::unsupported(s),
-        RealiseError::Failed(s) if s.starts_with("TIMEOUT") => {
-            Observation::with_status(Status::Timeout { seconds: 0.0 })
-        }
-        RealiseError::Failed(s) => Observation::crash(s),
-    }
-}
-
-impl Executor {
-    /// Runs one trace case and reports what the layer said and, when run as valid, what the shaders
-    /// wrote.
-    ///
-    /// A submission that ends in ERROR_DEVICE_LOST is a crash of this case; one that does not finish in
-    /// [`Executor::gpu_timeout`] is its timeout. Either way the device is dropped from the executor
-    /// without touching it again (its objects are leaked, see `DeviceCache::lost`), so no later case
-    /// reuses it.
-    fn execute_trace(&mut self, case: &Case, run_valid: bool) -> Observation {
-        let Some(body) = case.as_trace() else {
-            return Observation::crash(format!("{} is not a trace case", case.name));
-        };
-        trace(self, body, run_valid)
-    }
-}
-
-fn trace(ctx: &mut Executor, case: &model::TraceBody, run_valid: bool) -> Observation {
-    // Resource states are realised by `crate::resources`; what it cannot realise is unsupported
+pub(super) fn trace(ctx: &mut Executor, case: &model::TraceBody, run_valid: bool) -> Observation {
+    // Resource states are realised by `crate::realise::resources`; what it cannot realise is unsupported
     // (running without it would show the layer a call that violates nothing).
-    if let Some(why) = crate::resources::unsupported(&case.world) {
+    if let Some(why) = crate::realise::resources::unsupported(&case.world) {
         return Observation::unsupported(why);
     }
     let timeout = ctx.gpu_timeout;
@@ -145,7 +26,7 @@ fn trace(ctx: &mut Executor, case: &model::TraceBody, run_valid: bool) -> Observ
         Err(obs) => return obs,
     };
     let mut buffers = Vec::new();
-    let mut res: Option<crate::resources::Realised> = None;
+    let mut res: Option<crate::realise::resources::Realised> = None;
     let result = run(
         case,
         run_valid,
@@ -187,14 +68,14 @@ fn trace(ctx: &mut Executor, case: &model::TraceBody, run_valid: bool) -> Observ
     }
     match result {
         Ok(obs) => obs,
-        Err(e) => realise_failure(e),
+        Err(e) => failure(e),
     }
 }
 
 fn region(
     r: &StridedRegion,
-    addr: &dyn Fn(&Address) -> Result<u64, RealiseError>,
-) -> Result<vk::StridedDeviceAddressRegionKHR, RealiseError> {
+    addr: &dyn Fn(&Address) -> Result<u64, HarnessError>,
+) -> Result<vk::StridedDeviceAddressRegionKHR, HarnessError> {
     Ok(vk::StridedDeviceAddressRegionKHR {
         device_address: addr(&r.address)?,
         stride: r.stride,
@@ -207,36 +88,36 @@ fn run(
     valid: bool,
     cache: &mut DeviceCache,
     buffers: &mut Vec<(String, Allocation)>,
-    res: &mut Option<crate::resources::Realised>,
+    res: &mut Option<crate::realise::resources::Realised>,
     timeout: Duration,
-    collector: &crate::vulkan::Collector,
-) -> Result<Observation, RealiseError> {
+    collector: &crate::vk::Collector,
+) -> Result<Observation, HarnessError> {
     let world = &case.world;
     let cbs = &world.command_buffer;
     let nv_call = matches!(case.call, Call::TraceRaysNv(_));
     if nv_call && cache.dev.nv.is_none() {
-        return Err(RealiseError::Unsupported(
+        return Err(HarnessError::Unsupported(
             "the case does not enable VK_NV_ray_tracing, so vkCmdTraceRaysNV cannot be called"
                 .into(),
         ));
     }
     if !nv_call && cache.dev.rt.is_none() {
-        return Err(RealiseError::Unsupported(
+        return Err(HarnessError::Unsupported(
             "the case does not enable VK_KHR_ray_tracing_pipeline, so vkCmdTraceRays*KHR cannot be called".into(),
         ));
     }
     if cbs.in_video_coding || cbs.protected || cbs.lifecycle == CommandBufferLifecycle::Invalid {
-        return Err(RealiseError::Unsupported(
+        return Err(HarnessError::Unsupported(
             "video coding scopes, protected and invalid command buffers are not realised by the harness yet".into(),
         ));
     }
     if !cbs.pool_queue.contains(QueueFlags::COMPUTE_BIT) {
-        return Err(RealiseError::Unsupported(
+        return Err(HarnessError::Unsupported(
             "a command pool for a queue family without compute is not realised yet".into(),
         ));
     }
     if cbs.level == CommandBufferLevel::Secondary && cbs.in_render_pass {
-        return Err(RealiseError::Unsupported(
+        return Err(HarnessError::Unsupported(
             "secondary command buffers inside a render pass are not realised yet".into(),
         ));
     }
@@ -246,7 +127,7 @@ fn run(
         .map(|d| d.iter().map(|&x| x as usize).product::<usize>())
         .unwrap_or(0);
     if valid && words > MAX_OUTPUT_WORDS {
-        return Err(RealiseError::Unsupported(format!(
+        return Err(HarnessError::Unsupported(format!(
             "a launch of {words} IDs is larger than the harness reads back"
         )));
     }
@@ -264,7 +145,7 @@ fn run(
     // tables are filled with that pipeline's handles.
     if !world.resources.is_empty() {
         let harness_set = cache.layouts(trace, api)?.set;
-        *res = Some(crate::resources::Realised::new(
+        *res = Some(crate::realise::resources::Realised::new(
             cache,
             world,
             trace,
@@ -353,14 +234,14 @@ fn run(
     // SAFETY: the pool's sets are not in use (previous cases finished).
     let set = unsafe {
         d.reset_descriptor_pool(cache.descriptor_pool, vk::DescriptorPoolResetFlags::empty())
-            .map_err(|r| RealiseError::Failed(format!("vkResetDescriptorPool: {r:?}")))?;
+            .map_err(|r| HarnessError::Failed(format!("vkResetDescriptorPool: {r:?}")))?;
         let sl = [layouts.set];
         d.allocate_descriptor_sets(
             &vk::DescriptorSetAllocateInfo::default()
                 .descriptor_pool(cache.descriptor_pool)
                 .set_layouts(&sl),
         )
-        .map_err(|r| RealiseError::Failed(format!("vkAllocateDescriptorSets: {r:?}")))?[0]
+        .map_err(|r| HarnessError::Failed(format!("vkAllocateDescriptorSets: {r:?}")))?[0]
     };
     let out_info = [vk::DescriptorBufferInfo {
         buffer: out.buffer,
@@ -430,7 +311,7 @@ fn run(
     unsafe { d.update_descriptor_sets(&writes, &[]) };
 
     // Addresses and buffers by name.
-    let addr = |a: &Address| -> Result<u64, RealiseError> {
+    let addr = |a: &Address| -> Result<u64, HarnessError> {
         match a {
             Address::Raw(v) => Ok(*v),
             Address::InBuffer { buffer, offset } => buffers
@@ -438,13 +319,13 @@ fn run(
                 .find(|(n, _)| n == buffer)
                 .map(|(_, a)| a.address + offset)
                 .ok_or_else(|| {
-                    RealiseError::Unsupported(format!(
+                    HarnessError::Unsupported(format!(
                         "the call names buffer `{buffer}`, which the world lacks"
                     ))
                 }),
         }
     };
-    let buffer_named = |name: &Option<String>| -> Result<vk::Buffer, RealiseError> {
+    let buffer_named = |name: &Option<String>| -> Result<vk::Buffer, HarnessError> {
         match name {
             None => Ok(vk::Buffer::null()),
             Some(n) => buffers
@@ -452,7 +333,7 @@ fn run(
                 .find(|(b, _)| b == n)
                 .map(|(_, a)| a.buffer)
                 .ok_or_else(|| {
-                    RealiseError::Unsupported(format!(
+                    HarnessError::Unsupported(format!(
                         "the call names buffer `{n}`, which the world lacks"
                     ))
                 }),
@@ -475,7 +356,7 @@ fn run(
                 begin = begin.inheritance_info(&inherit);
             }
             d.begin_command_buffer(cb, &begin)
-                .map_err(|r| RealiseError::Failed(format!("vkBeginCommandBuffer: {r:?}")))?;
+                .map_err(|r| HarnessError::Failed(format!("vkBeginCommandBuffer: {r:?}")))?;
             if trace {
                 // The scene was built by an earlier submission: a memory dependency from its build to the
                 // shaders' reads (submission order alone gives only an execution dependency). Recorded
@@ -539,7 +420,7 @@ fn run(
                     d.cmd_end_render_pass(cb);
                 }
                 d.end_command_buffer(cb)
-                    .map_err(|r| RealiseError::Failed(format!("vkEndCommandBuffer: {r:?}")))?;
+                    .map_err(|r| HarnessError::Failed(format!("vkEndCommandBuffer: {r:?}")))?;
             }
         }
     }
@@ -550,7 +431,7 @@ fn run(
     }
     let resolved = match &case.call {
         Call::TraceRaysNv(c) => {
-            let t = |t: &model::call::NvTable| -> Result<(vk::Buffer, u64, u64), RealiseError> {
+            let t = |t: &model::call::NvTable| -> Result<(vk::Buffer, u64, u64), HarnessError> {
                 Ok((buffer_named(&t.buffer)?, t.offset, t.stride))
             };
             Resolved::Nv([t(&c.raygen)?, t(&c.miss)?, t(&c.hit)?, t(&c.callable)?])
@@ -624,7 +505,7 @@ fn run(
             &[],
         );
         d.end_command_buffer(cb)
-            .map_err(|r| RealiseError::Failed(format!("vkEndCommandBuffer: {r:?}")))?;
+            .map_err(|r| HarnessError::Failed(format!("vkEndCommandBuffer: {r:?}")))?;
     }
     collector.clear();
     cache.submit_and_wait(timeout)?;

@@ -1,5 +1,5 @@
 //! Reads and writes Vulkan feature and property structures by their C layout, from the member lists in
-//! [`crate::vk_tables`], so the probe and device creation need no hand-written field per member.
+//! [`crate::vk::tables`], so the probe and device creation need no hand-written field per member.
 
 use model::profile::PropertyValue;
 

@@ -1,8 +1,8 @@
 //! The catalogue of feature and property structures the harness chains (`pNext`) into queries and device
 //! creation, and an owned chain of raw structures built from it.
 
-use crate::layout::{self, Member, EXTENSIBLE_HEADER};
-use crate::vk_tables as t;
+use crate::vk::layout::{self, Member, EXTENSIBLE_HEADER};
+use crate::vk::tables as t;
 use ash::vk;
 
 /// One extensible structure: its type name, members, `sType`, and when a device may use it.
@@ -205,7 +205,7 @@ pub fn as_bytes<T>(v: &T) -> &[u8] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::layout::offsets;
+    use crate::vk::layout::offsets;
     use std::mem::size_of;
 
     #[test]

@@ -1,0 +1,537 @@
+//! The traced check of a build run as valid: the case's first info built directly with the ranges the
+//! model reads from memory (a top-level case's BLAS built first), one ray per built primitive traced at
+//! it — with ray query in a compute shader ([`ray_query`]), or with a ray tracing pipeline
+//! ([`pipeline`]) where the device lacks ray query or when asked — and, where the device has
+//! `accelerationStructureIndirectBuild`, the case's own indirect build submitted and traced the same.
+
+mod pipeline;
+mod ray_query;
+
+use crate::error::{vkfail, HarnessError};
+use crate::observe::{error_ids, Hits, IndirectBuild, TraceCheck, TracedBuild};
+use crate::realise::accel::{device_for, indirect_args, realise, vk_geometries, vk_info, Realised};
+use crate::vk::commands::Commands;
+use crate::vk::memory::Allocation;
+use crate::vk::{VkDevice, VkInstance};
+use ash::vk;
+use model::accel::call::{BuildGeometryInfo, GeometryData};
+use model::accel::check::{expected_rays, ExpectedRay};
+use model::accel::semantics::Shape;
+use model::accel::{AsType, BuiltPrimitive};
+use model::{AccelBody, Case};
+use std::sync::Arc;
+
+/// Builds one structure directly: returns (structure, its address, storage and scratch allocations).
+fn build_direct(
+    dev: &VkDevice,
+    cmds: &Commands,
+    ty: vk::AccelerationStructureTypeKHR,
+    geoms: &[vk::AccelerationStructureGeometryKHR],
+    ranges: &[vk::AccelerationStructureBuildRangeInfoKHR],
+) -> Result<(vk::AccelerationStructureKHR, u64, Allocation, Allocation), HarnessError> {
+    let accel = dev
+        .accel
+        .as_ref()
+        .ok_or_else(|| HarnessError::Failed("no acceleration structure extension".into()))?;
+    let counts: Vec<u32> = ranges.iter().map(|r| r.primitive_count).collect();
+    let info = vk::AccelerationStructureBuildGeometryInfoKHR::default()
+        .ty(ty)
+        .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
+        .geometries(geoms);
+    let mut sizes = vk::AccelerationStructureBuildSizesInfoKHR::default();
+    // SAFETY: counts match.
+    unsafe {
+        accel.get_acceleration_structure_build_sizes(
+            vk::AccelerationStructureBuildTypeKHR::DEVICE,
+            &info,
+            &counts,
+            &mut sizes,
+        )
+    };
+    let storage = Allocation::new(
+        dev,
+        sizes.acceleration_structure_size.max(256),
+        vk::BufferUsageFlags::ACCELERATION_STRUCTURE_STORAGE_KHR
+            | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+        vk::BufferCreateFlags::empty(),
+        256,
+    )?;
+    let scratch = Allocation::new(
+        dev,
+        sizes.build_scratch_size.max(1),
+        vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+        vk::BufferCreateFlags::empty(),
+        256,
+    )?;
+    // SAFETY: storage is large enough.
+    let s = unsafe {
+        accel.create_acceleration_structure(
+            &vk::AccelerationStructureCreateInfoKHR::default()
+                .buffer(storage.buffer)
+                .size(sizes.acceleration_structure_size)
+                .ty(ty),
+            None,
+        )
+    }
+    .map_err(vkfail("vkCreateAccelerationStructureKHR"))?;
+    // SAFETY: valid structure.
+    let addr = unsafe {
+        accel.get_acceleration_structure_device_address(
+            &vk::AccelerationStructureDeviceAddressInfoKHR::default().acceleration_structure(s),
+        )
+    };
+    cmds.begin(dev)?;
+    let info = info
+        .dst_acceleration_structure(s)
+        .scratch_data(vk::DeviceOrHostAddressKHR {
+            device_address: scratch.address,
+        });
+    // SAFETY: recording.
+    unsafe { accel.cmd_build_acceleration_structures(cmds.cb, &[info], &[ranges]) };
+    cmds.barrier(dev);
+    cmds.submit(dev)?;
+    Ok((s, addr, storage, scratch))
+}
+
+/// How the structure under test is built.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum BuildPath {
+    /// `vkCmdBuildAccelerationStructuresKHR` with the ranges the model reads from memory.
+    Direct,
+    /// The case's own `vkCmdBuildAccelerationStructuresIndirectKHR`, submitted.
+    Indirect,
+}
+
+/// The check a device gets: ray query unless the pipeline is asked for or ray query is absent.
+fn resolve_check(dev: &VkDevice, check: TraceCheck) -> Result<TraceCheck, HarnessError> {
+    let query = dev.has_feature("rayQuery");
+    let pipeline = dev.has_feature("rayTracingPipeline") && dev.rt.is_some();
+    match check {
+        TraceCheck::RayQuery if query => Ok(TraceCheck::RayQuery),
+        TraceCheck::Pipeline if pipeline => Ok(TraceCheck::Pipeline),
+        TraceCheck::Auto if query => Ok(TraceCheck::RayQuery),
+        TraceCheck::Auto if pipeline => Ok(TraceCheck::Pipeline),
+        _ => HarnessError::unsupported(format!(
+            "the traced check ({check:?}) needs rayQuery or rayTracingPipeline"
+        )),
+    }
+}
+
+/// The valid case as a direct build with the ranges the model reads, then one ray per primitive; where
+/// the device has accelerationStructureIndirectBuild, the case's indirect build is submitted too and
+/// traced with the same rays, and must report what the direct build did.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn direct_and_trace(
+    inst: &VkInstance,
+    dev: &VkDevice,
+    cmds: &Commands,
+    case: &AccelBody,
+    r: &Realised,
+    check: TraceCheck,
+) -> Result<TracedBuild, HarnessError> {
+    let check = resolve_check(dev, check)?;
+    if case.call.infos.len() != 1 {
+        return HarnessError::unsupported("the traced check handles one build info");
+    }
+    let accel = dev
+        .accel
+        .as_ref()
+        .ok_or_else(|| HarnessError::Failed("no acceleration structure extension".into()))?;
+    let info = &case.call.infos[0];
+    let top = info.ty == AsType::TopLevel;
+    let mem = case.world.memory();
+    let ranges =
+        model::accel::indirect_ranges(&mem, &case.call, 0).map_err(HarnessError::failed)?;
+    let prims =
+        model::accel::build_primitives(&mem, info, &ranges).map_err(HarnessError::failed)?;
+    drop(mem);
+    let mut extra: Vec<Allocation> = Vec::new();
+    let result =
+        (|| -> Result<TracedBuild, HarnessError> {
+            // Top-level cases reference the BLAS: build it first (one triangle at the origin).
+            if top {
+                let tri: Vec<u8> = [-0.5f32, -0.5, 0.0, 0.5, -0.5, 0.0, 0.0, 0.5, 0.0]
+                    .iter()
+                    .flat_map(|f| f.to_le_bytes())
+                    .collect();
+                let (blas, _) = r.structures.get(generator_blas()).copied().ok_or_else(|| {
+                    HarnessError::Failed("the top-level case has no `blas` structure".into())
+                })?;
+                let vb = Allocation::new(
+                    dev,
+                    64,
+                    vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
+                        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                    vk::BufferCreateFlags::empty(),
+                    256,
+                )?;
+                vb.write(0, &tri);
+                let g = [vk::AccelerationStructureGeometryKHR::default()
+                    .geometry_type(vk::GeometryTypeKHR::TRIANGLES)
+                    .geometry(vk::AccelerationStructureGeometryDataKHR {
+                        triangles: vk::AccelerationStructureGeometryTrianglesDataKHR::default()
+                            .vertex_format(vk::Format::R32G32B32_SFLOAT)
+                            .vertex_data(vk::DeviceOrHostAddressConstKHR {
+                                device_address: vb.address,
+                            })
+                            .vertex_stride(12)
+                            .max_vertex(2)
+                            .index_type(vk::IndexType::NONE_KHR),
+                    })];
+                let scratch = Allocation::new(
+                    dev,
+                    1 << 16,
+                    vk::BufferUsageFlags::STORAGE_BUFFER
+                        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                    vk::BufferCreateFlags::empty(),
+                    256,
+                )?;
+                let bi = vk::AccelerationStructureBuildGeometryInfoKHR::default()
+                    .ty(vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL)
+                    .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
+                    .geometries(&g)
+                    .dst_acceleration_structure(blas)
+                    .scratch_data(vk::DeviceOrHostAddressKHR {
+                        device_address: scratch.address,
+                    });
+                cmds.begin(dev)?;
+                // SAFETY: recording.
+                unsafe {
+                    accel.cmd_build_acceleration_structures(
+                        cmds.cb,
+                        &[bi],
+                        &[&[vk::AccelerationStructureBuildRangeInfoKHR::default()
+                            .primitive_count(1)]],
+                    )
+                };
+                cmds.barrier(dev);
+                cmds.submit(dev)?;
+                extra.push(vb);
+                extra.push(scratch);
+            }
+            let rays = expected_rays(&prims, top);
+            let boxes = box_table(info, &prims);
+            let (hits, direct) = build_and_trace(
+                inst,
+                dev,
+                cmds,
+                case,
+                r,
+                &ranges,
+                BuildPath::Direct,
+                check,
+                &rays,
+                &boxes,
+            )?;
+            let indirect = if dev.has_feature("accelerationStructureIndirectBuild") {
+                let (hits, layer_vuids) = build_and_trace(
+                    inst,
+                    dev,
+                    cmds,
+                    case,
+                    r,
+                    &ranges,
+                    BuildPath::Indirect,
+                    check,
+                    &rays,
+                    &boxes,
+                )?;
+                Some(IndirectBuild { hits, layer_vuids })
+            } else {
+                None
+            };
+            Ok(TracedBuild {
+                check,
+                hits,
+                direct_layer_vuids: direct,
+                indirect,
+            })
+        })();
+    for a in extra {
+        a.destroy(dev);
+    }
+    result
+}
+
+/// Builds the case's destination one way, under the layer, and traces the rays at it (a bottom-level
+/// result through a one-instance TLAS). Returns what each ray hit and the layer's VUIDs for the build.
+#[allow(clippy::too_many_arguments)]
+fn build_and_trace(
+    inst: &VkInstance,
+    dev: &VkDevice,
+    cmds: &Commands,
+    case: &AccelBody,
+    r: &Realised,
+    ranges: &[model::accel::RangeInfo],
+    path: BuildPath,
+    check: TraceCheck,
+    rays: &[ExpectedRay],
+    boxes: &[u8],
+) -> Result<(Hits, Vec<String>), HarnessError> {
+    let accel = dev
+        .accel
+        .as_ref()
+        .ok_or_else(|| HarnessError::Failed("no acceleration structure extension".into()))?;
+    let info = &case.call.infos[0];
+    let top = info.ty == AsType::TopLevel;
+    let mut extra: Vec<Allocation> = Vec::new();
+    let mut extra_as: Vec<vk::AccelerationStructureKHR> = Vec::new();
+    let result = (|| -> Result<(Hits, Vec<String>), HarnessError> {
+        let geoms = vk_geometries(info, r)
+            .ok_or_else(|| HarnessError::Unsupported("geometry type not realised".into()))?;
+        inst.collector.clear();
+        cmds.begin(dev)?;
+        match path {
+            BuildPath::Direct => {
+                let vi = vk_info(info, &geoms, r);
+                let vranges: Vec<vk::AccelerationStructureBuildRangeInfoKHR> = ranges
+                    .iter()
+                    .map(|x| vk::AccelerationStructureBuildRangeInfoKHR {
+                        primitive_count: x.primitive_count,
+                        primitive_offset: x.primitive_offset,
+                        first_vertex: x.first_vertex,
+                        transform_offset: x.transform_offset,
+                    })
+                    .collect();
+                // SAFETY: recording a valid direct build.
+                unsafe { accel.cmd_build_acceleration_structures(cmds.cb, &[vi], &[&vranges]) };
+            }
+            BuildPath::Indirect => {
+                let all = [geoms.clone()];
+                let (infos, addrs, maxima) = indirect_args(case, r, &all);
+                // The range records are read by the build as indirect data.
+                let b = vk::MemoryBarrier::default()
+                    .src_access_mask(vk::AccessFlags::HOST_WRITE)
+                    .dst_access_mask(vk::AccessFlags::INDIRECT_COMMAND_READ);
+                // SAFETY: recording a valid indirect build on a device with accelerationStructureIndirectBuild.
+                unsafe {
+                    dev.device.cmd_pipeline_barrier(
+                        cmds.cb,
+                        vk::PipelineStageFlags::HOST,
+                        vk::PipelineStageFlags::DRAW_INDIRECT,
+                        vk::DependencyFlags::empty(),
+                        &[b],
+                        &[],
+                        &[],
+                    );
+                    accel.cmd_build_acceleration_structures_indirect(
+                        cmds.cb,
+                        &infos,
+                        &addrs,
+                        &case.call.indirect_strides,
+                        &maxima,
+                    );
+                }
+            }
+        }
+        cmds.barrier(dev);
+        cmds.submit(dev)?;
+        let layer = error_ids(&inst.collector.take());
+        let (dst, dst_addr) = r
+            .structures
+            .get(info.dst.as_deref().unwrap_or(""))
+            .copied()
+            .ok_or_else(|| HarnessError::Failed("no dst".into()))?;
+        let scene = if top {
+            dst
+        } else {
+            let rec = vk::AccelerationStructureInstanceKHR {
+                transform: vk::TransformMatrixKHR {
+                    matrix: [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+                },
+                instance_custom_index_and_mask: vk::Packed24_8::new(0, 0xff),
+                instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(0, 0),
+                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR {
+                    device_handle: dst_addr,
+                },
+            };
+            let ib = Allocation::new(
+                dev,
+                64,
+                vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
+                    | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
+                vk::BufferCreateFlags::empty(),
+                256,
+            )?;
+            ib.write(0, crate::vk::structs::as_bytes(&rec));
+            let g = [vk::AccelerationStructureGeometryKHR::default()
+                .geometry_type(vk::GeometryTypeKHR::INSTANCES)
+                .geometry(vk::AccelerationStructureGeometryDataKHR {
+                    instances: vk::AccelerationStructureGeometryInstancesDataKHR::default().data(
+                        vk::DeviceOrHostAddressConstKHR {
+                            device_address: ib.address,
+                        },
+                    ),
+                })];
+            let (tlas, _, st, sc) = build_direct(
+                dev,
+                cmds,
+                vk::AccelerationStructureTypeKHR::TOP_LEVEL,
+                &g,
+                &[vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(1)],
+            )?;
+            extra.extend([ib, st, sc]);
+            extra_as.push(tlas);
+            tlas
+        };
+        let procedural = info
+            .geometries
+            .iter()
+            .any(|g| matches!(g.data, GeometryData::Aabbs { .. }));
+        let words = match check {
+            TraceCheck::Pipeline => {
+                pipeline::trace_pipeline(dev, cmds, scene, rays, boxes, procedural, &mut extra)?
+            }
+            _ => ray_query::trace(dev, cmds, scene, rays, boxes, &mut extra)?,
+        };
+        let hits = words
+            .iter()
+            .map(|h| (h[0] == 1).then_some((h[1], h[2], h[3])))
+            .collect();
+        Ok((hits, layer))
+    })();
+    for s in extra_as {
+        // SAFETY: idle.
+        unsafe { accel.destroy_acceleration_structure(s, None) };
+    }
+    for a in extra {
+        a.destroy(dev);
+    }
+    result
+}
+
+fn generator_blas() -> &'static str {
+    "blas"
+}
+
+/// Per-geometry base indices (8 slots) and the boxes of every AABB primitive, as floats.
+fn box_table(info: &BuildGeometryInfo, prims: &[BuiltPrimitive]) -> Vec<u8> {
+    let mut base = [0u32; 8];
+    let mut boxes: Vec<f32> = Vec::new();
+    let mut n = 0u32;
+    for g in 0..info.geometries.len().min(8) {
+        base[g] = n;
+        for p in prims.iter().filter(|p| p.geometry == g as u32) {
+            if let Shape::Aabb { min, max } = &p.shape {
+                boxes.extend([min[0], min[1], min[2], 0.0, max[0], max[1], max[2], 0.0]);
+                n += 1;
+            }
+        }
+    }
+    let mut bytes: Vec<u8> = base.iter().flat_map(|b| b.to_le_bytes()).collect();
+    bytes.extend(boxes.iter().flat_map(|f| f.to_le_bytes()));
+    bytes.resize(bytes.len().max(64), 0);
+    bytes
+}
+
+/// What the device built for a case, seen through arbitrary rays: the case's first info built directly
+/// with the ranges the model reads from memory, then one ray (+z, t in [0, 100]) from each origin. For
+/// writing down what a driver built where no named deviation explains it.
+pub(crate) fn probe_rays(
+    inst: &Arc<VkInstance>,
+    case: &Case,
+    origins: &[[f32; 3]],
+    check: TraceCheck,
+) -> Result<Hits, HarnessError> {
+    let case = case
+        .as_accel()
+        .ok_or_else(|| HarnessError::Failed("probing needs a build case".into()))?;
+    let dev = device_for(inst, case, check)?;
+    let check = resolve_check(&dev, check)?;
+    let cmds = Commands::new(&dev)?;
+    let r = match realise(&dev, case, cmds.fence) {
+        Ok(r) => r,
+        Err(e) => {
+            cmds.destroy(&dev);
+            return Err(e);
+        }
+    };
+    let out = (|| -> Result<Hits, HarnessError> {
+        let info = case
+            .call
+            .infos
+            .first()
+            .ok_or_else(|| HarnessError::Failed("no build info".into()))?;
+        if info.ty != AsType::BottomLevel {
+            return HarnessError::unsupported("probing handles bottom-level builds");
+        }
+        let mem = case.world.memory();
+        let ranges =
+            model::accel::indirect_ranges(&mem, &case.call, 0).map_err(HarnessError::failed)?;
+        let prims =
+            model::accel::build_primitives(&mem, info, &ranges).map_err(HarnessError::failed)?;
+        drop(mem);
+        let rays: Vec<ExpectedRay> = origins
+            .iter()
+            .map(|o| ExpectedRay {
+                origin: *o,
+                hit: None,
+            })
+            .collect();
+        let boxes = box_table(info, &prims);
+        let (hits, _) = build_and_trace(
+            inst,
+            &dev,
+            &cmds,
+            case,
+            &r,
+            &ranges,
+            BuildPath::Direct,
+            check,
+            &rays,
+            &boxes,
+        )?;
+        Ok(hits)
+    })();
+    cmds.destroy(&dev);
+    r.destroy(&dev);
+    out
+}
+
+/// Writes the traced check's descriptor set: the structure under test at binding 0 and the rays, hits
+/// and built-primitive buffers at bindings 1 to 3 (the same layout for the ray-query and the pipeline path).
+///
+/// # Safety
+/// `set` is a set of the check's layout that no pending command uses; the handles are live.
+unsafe fn write_check_set(
+    d: &ash::Device,
+    set: vk::DescriptorSet,
+    scene: vk::AccelerationStructureKHR,
+    buffers: [vk::Buffer; 3],
+) {
+    let scenes = [scene];
+    let mut asw =
+        vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&scenes);
+    let infos = buffers.map(|buffer| {
+        [vk::DescriptorBufferInfo {
+            buffer,
+            offset: 0,
+            range: vk::WHOLE_SIZE,
+        }]
+    });
+    let mut w0 = vk::WriteDescriptorSet::default()
+        .dst_set(set)
+        .dst_binding(0)
+        .descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR)
+        .push_next(&mut asw);
+    w0.descriptor_count = 1;
+    fn buffer_write(
+        set: vk::DescriptorSet,
+        binding: u32,
+        info: &[vk::DescriptorBufferInfo; 1],
+    ) -> vk::WriteDescriptorSet<'_> {
+        vk::WriteDescriptorSet::default()
+            .dst_set(set)
+            .dst_binding(binding)
+            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+            .buffer_info(info)
+    }
+    let writes = [
+        w0,
+        buffer_write(set, 1, &infos[0]),
+        buffer_write(set, 2, &infos[1]),
+        buffer_write(set, 3, &infos[2]),
+    ];
+    // SAFETY: guaranteed by the caller.
+    unsafe { d.update_descriptor_sets(&writes, &[]) };
+}

@@ -1,0 +1,306 @@
+//! Realises a trace case's world on a device: buffers placed at 4096-aligned addresses with their
+//! contents (shader group handles, indirect commands), the ray tracing pipeline with one specialised
+//! stage per group, the scene (one BLAS per instance, a TLAS; KHR or NV structures), the case's resource
+//! state, and a build case's buffers and structures ([`accel`]). Pipelines and scenes are cached per
+//! device across cases ([`DeviceCache`]).
+
+pub mod accel;
+mod buffers;
+mod pipeline;
+pub mod resources;
+mod scene;
+
+pub use pipeline::{Layouts, RealPipeline};
+pub use scene::{Scene, Tlas};
+
+use crate::error::{vkfail, HarnessError};
+use crate::shaders::ShaderKind;
+use crate::vk::memory::Allocation;
+use crate::vk::VkDevice;
+use ash::vk;
+use std::collections::HashMap;
+
+/// Per-device objects the harness reuses across cases.
+pub struct DeviceCache {
+    modules: HashMap<(ShaderKind, bool), vk::ShaderModule>,
+    layouts: HashMap<(bool, bool), Layouts>,
+    pipelines: HashMap<String, Result<RealPipeline, HarnessError>>,
+    scenes: HashMap<String, Result<Scene, HarnessError>>,
+    pub command_pool: vk::CommandPool,
+    pub primary: vk::CommandBuffer,
+    pub secondary: vk::CommandBuffer,
+    pub fence: vk::Fence,
+    pub descriptor_pool: vk::DescriptorPool,
+    /// Output words and rays, reused and grown as needed.
+    pub output: Option<Allocation>,
+    pub rays: Option<Allocation>,
+    /// The callable record indices the raygen executes: a 16-byte header (count) and one u32 each.
+    pub callables: Option<Allocation>,
+    /// Set when a submission ended in DEVICE_LOST or a timeout: nothing may be recorded on this device
+    /// again, and dropping it neither waits for it nor resets what is pending on it.
+    pub lost: bool,
+    pub render_pass: Option<(vk::RenderPass, vk::Framebuffer)>,
+    /// issue 4 hook: the pipeline of a case with a resource state (its own raygen module and pipeline
+    /// layout, made by `crate::realise::resources`), returned by [`DeviceCache::pipeline`] for the case's own
+    /// (non-foreign) pipeline while that case runs. Owned and destroyed by `crate::realise::resources::Realised`.
+    pub resource_pipeline: Option<RealPipeline>,
+    pub dev: VkDevice,
+}
+
+/// The ray data the raygen shader reads: std430 `Ray` (64 bytes) after a 16-byte header.
+pub const RAY_RECORD_SIZE: usize = 64;
+
+impl Drop for DeviceCache {
+    fn drop(&mut self) {
+        if self.lost {
+            // A lost device: destroying its objects is allowed but waiting on it may not return on every
+            // driver, and a timed-out submission may still be running. Leak every object (handles have no
+            // destructor of their own) and the VkDevice with the instance it holds, rather than free memory
+            // the GPU may still use or block the process; the worker then starts a fresh instance.
+            self.dev.leak = true;
+            return;
+        }
+        // SAFETY: the device is idle after this wait; everything below was made from it.
+        unsafe {
+            let _ = self.dev.device.device_wait_idle();
+        }
+        for (_, s) in std::mem::take(&mut self.scenes) {
+            if let Ok(s) = s {
+                self.destroy_scene(s);
+            }
+        }
+        let d = &self.dev.device;
+        // SAFETY: as above.
+        unsafe {
+            for (_, p) in self.pipelines.drain() {
+                if let Ok(p) = p {
+                    d.destroy_pipeline(p.pipeline, None);
+                }
+            }
+            for (_, l) in self.layouts.drain() {
+                d.destroy_pipeline_layout(l.pipeline, None);
+                d.destroy_descriptor_set_layout(l.set, None);
+            }
+            for (_, m) in self.modules.drain() {
+                d.destroy_shader_module(m, None);
+            }
+            if let Some((rp, fb)) = self.render_pass.take() {
+                d.destroy_framebuffer(fb, None);
+                d.destroy_render_pass(rp, None);
+            }
+            d.destroy_descriptor_pool(self.descriptor_pool, None);
+            d.destroy_fence(self.fence, None);
+            d.destroy_command_pool(self.command_pool, None);
+        }
+        if let Some(a) = self.output.take() {
+            a.destroy(&self.dev);
+        }
+        if let Some(a) = self.rays.take() {
+            a.destroy(&self.dev);
+        }
+        if let Some(a) = self.callables.take() {
+            a.destroy(&self.dev);
+        }
+    }
+}
+
+impl DeviceCache {
+    pub fn new(dev: VkDevice) -> Result<DeviceCache, HarnessError> {
+        let d = &dev.device;
+        // SAFETY: valid create infos on a live device.
+        unsafe {
+            let command_pool = d
+                .create_command_pool(
+                    &vk::CommandPoolCreateInfo::default()
+                        .queue_family_index(dev.queue_family)
+                        .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
+                    None,
+                )
+                .map_err(vkfail("vkCreateCommandPool"))?;
+            let alloc = |level| {
+                d.allocate_command_buffers(
+                    &vk::CommandBufferAllocateInfo::default()
+                        .command_pool(command_pool)
+                        .level(level)
+                        .command_buffer_count(1),
+                )
+                .map(|v| v[0])
+            };
+            let primary = alloc(vk::CommandBufferLevel::PRIMARY)
+                .map_err(vkfail("vkAllocateCommandBuffers"))?;
+            let secondary = alloc(vk::CommandBufferLevel::SECONDARY)
+                .map_err(vkfail("vkAllocateCommandBuffers"))?;
+            let fence = d
+                .create_fence(&vk::FenceCreateInfo::default(), None)
+                .map_err(vkfail("vkCreateFence"))?;
+            let mut sizes = vec![vk::DescriptorPoolSize {
+                ty: vk::DescriptorType::STORAGE_BUFFER,
+                descriptor_count: 6,
+            }];
+            if dev.accel.is_some() {
+                sizes.push(vk::DescriptorPoolSize {
+                    ty: vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
+                    descriptor_count: 2,
+                });
+            }
+            if dev.nv.is_some() {
+                sizes.push(vk::DescriptorPoolSize {
+                    ty: vk::DescriptorType::ACCELERATION_STRUCTURE_NV,
+                    descriptor_count: 2,
+                });
+            }
+            let descriptor_pool = d
+                .create_descriptor_pool(
+                    &vk::DescriptorPoolCreateInfo::default()
+                        .max_sets(2)
+                        .pool_sizes(&sizes),
+                    None,
+                )
+                .map_err(vkfail("vkCreateDescriptorPool"))?;
+            Ok(DeviceCache {
+                modules: HashMap::new(),
+                layouts: HashMap::new(),
+                pipelines: HashMap::new(),
+                scenes: HashMap::new(),
+                command_pool,
+                primary,
+                secondary,
+                fence,
+                descriptor_pool,
+                output: None,
+                rays: None,
+                callables: None,
+                lost: false,
+                render_pass: None,
+                resource_pipeline: None,
+                dev,
+            })
+        }
+    }
+
+    /// Submits the primary command buffer and waits for it. A lost device or a submission that does not
+    /// finish marks the cache [`lost`](Self::lost): nothing is recorded or submitted on it again.
+    pub fn submit_and_wait(&mut self, timeout: std::time::Duration) -> Result<(), HarnessError> {
+        if self.lost {
+            return Err(HarnessError::Failed(
+                "the device was lost by an earlier case (ERROR_DEVICE_LOST)".into(),
+            ));
+        }
+        let d = &self.dev.device;
+        let cbs = [self.primary];
+        let submit = [vk::SubmitInfo::default().command_buffers(&cbs)];
+        // SAFETY: the command buffer is executable; the fence is unsignalled.
+        unsafe {
+            if let Err(r) = d.queue_submit(self.dev.queue, &submit, self.fence) {
+                self.lost |= r == vk::Result::ERROR_DEVICE_LOST;
+                return Err(HarnessError::Failed(format!("vkQueueSubmit failed: {r:?}")));
+            }
+            let waited = d.wait_for_fences(
+                &[self.fence],
+                true,
+                timeout.as_nanos().min(u64::MAX as u128) as u64,
+            );
+            match waited {
+                Ok(()) => {}
+                Err(vk::Result::TIMEOUT) => {
+                    self.lost = true;
+                    return Err(HarnessError::Timeout(format!(
+                        "the GPU did not finish within {timeout:?}"
+                    )));
+                }
+                Err(r) => {
+                    self.lost |= r == vk::Result::ERROR_DEVICE_LOST;
+                    return Err(HarnessError::Failed(format!(
+                        "vkWaitForFences failed: {r:?}"
+                    )));
+                }
+            }
+            d.reset_fences(&[self.fence])
+                .map_err(vkfail("vkResetFences"))?;
+        }
+        Ok(())
+    }
+
+    /// Buffers at least `words` output words, `rays` ray records and `callables` callable indices large
+    /// (grown when needed).
+    pub fn io_buffers(
+        &mut self,
+        words: usize,
+        rays: usize,
+        callables: usize,
+    ) -> Result<(), HarnessError> {
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let want_out = (words.max(1) * 4) as u64;
+        if self.output.as_ref().is_none_or(|a| a.size < want_out) {
+            if let Some(a) = self.output.take() {
+                a.destroy(&self.dev);
+            }
+            self.output = Some(Allocation::new(
+                &self.dev,
+                want_out.max(4096),
+                usage,
+                vk::BufferCreateFlags::empty(),
+                1,
+            )?);
+        }
+        let want_rays = (16 + rays.max(1) * RAY_RECORD_SIZE) as u64;
+        if self.rays.as_ref().is_none_or(|a| a.size < want_rays) {
+            if let Some(a) = self.rays.take() {
+                a.destroy(&self.dev);
+            }
+            self.rays = Some(Allocation::new(
+                &self.dev,
+                want_rays.max(4096),
+                usage,
+                vk::BufferCreateFlags::empty(),
+                1,
+            )?);
+        }
+        let want_calls = (16 + callables.max(1) * 4) as u64;
+        if self.callables.as_ref().is_none_or(|a| a.size < want_calls) {
+            if let Some(a) = self.callables.take() {
+                a.destroy(&self.dev);
+            }
+            self.callables = Some(Allocation::new(
+                &self.dev,
+                want_calls.max(256),
+                usage,
+                vk::BufferCreateFlags::empty(),
+                1,
+            )?);
+        }
+        Ok(())
+    }
+
+    /// A render pass with no attachments and a 1x1 framebuffer, for cases recorded inside a render pass.
+    pub fn empty_render_pass(&mut self) -> Result<(vk::RenderPass, vk::Framebuffer), HarnessError> {
+        if let Some(rp) = self.render_pass {
+            return Ok(rp);
+        }
+        let d = &self.dev.device;
+        let subpass =
+            [vk::SubpassDescription::default()
+                .pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)];
+        // SAFETY: valid create infos.
+        unsafe {
+            let rp = d
+                .create_render_pass(
+                    &vk::RenderPassCreateInfo::default().subpasses(&subpass),
+                    None,
+                )
+                .map_err(vkfail("vkCreateRenderPass"))?;
+            let fb = d
+                .create_framebuffer(
+                    &vk::FramebufferCreateInfo::default()
+                        .render_pass(rp)
+                        .width(1)
+                        .height(1)
+                        .layers(1),
+                    None,
+                )
+                .map_err(vkfail("vkCreateFramebuffer"))?;
+            self.render_pass = Some((rp, fb));
+            Ok((rp, fb))
+        }
+    }
+}

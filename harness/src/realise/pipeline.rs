@@ -1,0 +1,427 @@
+//! Ray tracing pipelines of a world's description: the harness's descriptor layouts, one specialised
+//! stage per group (or a case's templated module of that kind), KHR or NV, cached per device, with the
+//! spec's default stack size.
+
+use super::DeviceCache;
+use crate::error::{vkfail, HarnessError};
+use crate::shaders::{self, ShaderKind};
+use ash::vk;
+use model::world::{GeneralStage, Pipeline, PipelineApi, ShaderGroup};
+
+/// The descriptor set layout and pipeline layout of one raygen variant.
+#[derive(Clone, Copy)]
+pub struct Layouts {
+    pub set: vk::DescriptorSetLayout,
+    pub pipeline: vk::PipelineLayout,
+}
+
+/// A created ray tracing pipeline and its group handles.
+pub struct RealPipeline {
+    pub pipeline: vk::Pipeline,
+    pub handles: Vec<u8>,
+    pub group_count: usize,
+    /// The stack size the spec's default formula gives for the pipeline's recursion depth (section "Ray
+    /// Tracing Pipeline Stack"), used for `vkCmdSetRayTracingPipelineStackSizeKHR`; 0 for NV pipelines.
+    pub default_stack_size: u32,
+}
+
+/// The stack size of the spec's default pipeline stack computation ("Ray Tracing Pipeline Stack"):
+/// `raygen + min(1, depth) × max(closestHit, miss, intersection + anyHit) + max(0, depth - 1) ×
+/// max(closestHit, miss) + 2 × callable`, each term the largest stack size of that shader kind. A pipeline
+/// with dynamic stack size must be given at least this (an arbitrary constant is too small on real GPUs
+/// once closest-hit shaders trace again).
+fn default_stack_size(
+    rt: &ash::khr::ray_tracing_pipeline::Device,
+    pipeline: vk::Pipeline,
+    groups: &[(vk::RayTracingShaderGroupTypeKHR, [u32; 4])],
+    depth: u32,
+) -> u32 {
+    let unused = vk::SHADER_UNUSED_KHR;
+    let (mut raygen, mut miss, mut callable, mut closest, mut any, mut isect) =
+        (0u64, 0u64, 0u64, 0u64, 0u64, 0u64);
+    for (g, (ty, [gen, ch, ah, is])) in groups.iter().enumerate() {
+        // SAFETY: valid pipeline and group; only shaders the group has are queried.
+        let size = |which| unsafe {
+            rt.get_ray_tracing_shader_group_stack_size(pipeline, g as u32, which)
+        };
+        if *ty == vk::RayTracingShaderGroupTypeKHR::GENERAL && *gen != unused {
+            // Which general stage this is does not matter for the maximum of its own kind; count it in all
+            // three general kinds conservatively.
+            let s = size(vk::ShaderGroupShaderKHR::GENERAL);
+            raygen = raygen.max(s);
+            miss = miss.max(s);
+            callable = callable.max(s);
+        }
+        if *ch != unused {
+            closest = closest.max(size(vk::ShaderGroupShaderKHR::CLOSEST_HIT));
+        }
+        if *ah != unused {
+            any = any.max(size(vk::ShaderGroupShaderKHR::ANY_HIT));
+        }
+        if *is != unused {
+            isect = isect.max(size(vk::ShaderGroupShaderKHR::INTERSECTION));
+        }
+    }
+    let d = depth as u64;
+    let total = raygen
+        + d.min(1) * closest.max(miss).max(isect + any)
+        + d.saturating_sub(1) * closest.max(miss)
+        + 2 * callable;
+    total.min(u32::MAX as u64) as u32
+}
+
+impl DeviceCache {
+    fn module(
+        &mut self,
+        kind: ShaderKind,
+        api: PipelineApi,
+    ) -> Result<vk::ShaderModule, HarnessError> {
+        if let Some(m) = self.modules.get(&(kind, api == PipelineApi::Nv)) {
+            return Ok(*m);
+        }
+        let code = shaders::spirv(kind, api)?;
+        let m = shaders::module(&self.dev, &code)?;
+        self.modules.insert((kind, api == PipelineApi::Nv), m);
+        Ok(m)
+    }
+
+    /// Layouts for the raygen variant: with the scene at binding 0 (`trace`, a KHR or NV acceleration
+    /// structure by `api`) or without. Binding 1 is the output, 2 the rays, 3 the callable indices; the
+    /// closest-hit reads the scene and the rays to trace its ray again.
+    pub fn layouts(&mut self, trace: bool, api: PipelineApi) -> Result<Layouts, HarnessError> {
+        if let Some(l) = self.layouts.get(&(trace, api == PipelineApi::Nv)) {
+            return Ok(*l);
+        }
+        let raygen = vk::ShaderStageFlags::RAYGEN_KHR;
+        let traced = if trace {
+            raygen | vk::ShaderStageFlags::CLOSEST_HIT_KHR
+        } else {
+            raygen
+        };
+        let storage = |binding: u32, stages| {
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(binding)
+                .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                .descriptor_count(1)
+                .stage_flags(stages)
+        };
+        let mut bindings = vec![storage(1, raygen), storage(2, traced), storage(3, raygen)];
+        if trace {
+            let ty = match api {
+                PipelineApi::Khr => vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
+                PipelineApi::Nv => vk::DescriptorType::ACCELERATION_STRUCTURE_NV,
+            };
+            bindings.push(
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(0)
+                    .descriptor_type(ty)
+                    .descriptor_count(1)
+                    .stage_flags(traced),
+            );
+        }
+        let d = &self.dev.device;
+        // SAFETY: valid create infos.
+        let set = unsafe {
+            d.create_descriptor_set_layout(
+                &vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings),
+                None,
+            )
+        }
+        .map_err(vkfail("vkCreateDescriptorSetLayout"))?;
+        let sets = [set];
+        // SAFETY: as above.
+        let pipeline = unsafe {
+            d.create_pipeline_layout(
+                &vk::PipelineLayoutCreateInfo::default().set_layouts(&sets),
+                None,
+            )
+        }
+        .map_err(vkfail("vkCreatePipelineLayout"))?;
+        let l = Layouts { set, pipeline };
+        self.layouts.insert((trace, api == PipelineApi::Nv), l);
+        Ok(l)
+    }
+
+    /// The pipeline for a description (cached); `foreign` makes a second, distinct pipeline of it.
+    pub fn pipeline(
+        &mut self,
+        p: &Pipeline,
+        trace: bool,
+        foreign: bool,
+    ) -> Result<&RealPipeline, HarnessError> {
+        // issue 4 hook: a case with a resource state runs its own pipeline (see `resource_pipeline`).
+        if !foreign && self.resource_pipeline.is_some() {
+            return Ok(self.resource_pipeline.as_ref().expect("checked"));
+        }
+        let key = format!(
+            "{}|{trace}|{foreign}",
+            serde_json::to_string(p).unwrap_or_default()
+        );
+        if !self.pipelines.contains_key(&key) {
+            let made = self.create_pipeline(p, trace);
+            self.pipelines.insert(key.clone(), made);
+        }
+        match &self.pipelines[&key] {
+            Ok(p) => Ok(p),
+            Err(e) => Err(e.clone()),
+        }
+    }
+
+    fn create_pipeline(&mut self, p: &Pipeline, trace: bool) -> Result<RealPipeline, HarnessError> {
+        let layout = self.layouts(trace, p.api)?.pipeline;
+        self.create_pipeline_with(p, trace, layout, &[])
+    }
+
+    /// issue 4 hook: the pipeline for a description with `layout` and, for each shader kind `modules`
+    /// names, that module in every stage of that kind (used by `crate::realise::resources` for cases with a
+    /// resource state: its templated raygen, closest-hit, miss, ... modules). Not cached.
+    pub fn create_pipeline_with(
+        &mut self,
+        p: &Pipeline,
+        trace: bool,
+        layout: vk::PipelineLayout,
+        modules: &[(ShaderKind, vk::ShaderModule)],
+    ) -> Result<RealPipeline, HarnessError> {
+        let api = p.api;
+        match api {
+            PipelineApi::Khr if self.dev.rt.is_none() => {
+                return Err(HarnessError::Unsupported(
+                    "the case does not enable VK_KHR_ray_tracing_pipeline, so no ray tracing pipeline can be made".into(),
+                ))
+            }
+            PipelineApi::Nv if self.dev.nv.is_none() => {
+                return Err(HarnessError::Unsupported(
+                    "the case does not enable VK_NV_ray_tracing, so no NV ray tracing pipeline can be made".into(),
+                ))
+            }
+            _ => {}
+        }
+        let raygen = if trace {
+            ShaderKind::RaygenTrace
+        } else {
+            ShaderKind::RaygenPlain
+        };
+        let closest = if trace {
+            ShaderKind::ClosestHitTrace
+        } else {
+            ShaderKind::ClosestHitPlain
+        };
+        // (group index, stage flag, module) per stage, and per group (type, [general, closest, any, intersection]).
+        let mut stage_list: Vec<(u32, vk::ShaderStageFlags, vk::ShaderModule)> = Vec::new();
+        let mut groups: Vec<(vk::RayTracingShaderGroupTypeKHR, [u32; 4])> = Vec::new();
+        let unused = vk::SHADER_UNUSED_KHR;
+        for (g, group) in p.groups.iter().enumerate() {
+            let g = g as u32;
+            let mut add = |this: &mut Self,
+                           kind: ShaderKind,
+                           stage: vk::ShaderStageFlags|
+             -> Result<u32, HarnessError> {
+                // issue 4 hook: a templated module of this kind replaces the harness's.
+                let m = match modules.iter().find(|(k, _)| *k == kind) {
+                    Some(&(_, m)) => m,
+                    None => this.module(kind, api)?,
+                };
+                stage_list.push((g, stage, m));
+                Ok(stage_list.len() as u32 - 1)
+            };
+            let info = match group {
+                ShaderGroup::General { stage } => {
+                    let (kind, flag) = match stage {
+                        GeneralStage::Raygen => (raygen, vk::ShaderStageFlags::RAYGEN_KHR),
+                        GeneralStage::Miss => (ShaderKind::Miss, vk::ShaderStageFlags::MISS_KHR),
+                        GeneralStage::Callable => {
+                            (ShaderKind::Callable, vk::ShaderStageFlags::CALLABLE_KHR)
+                        }
+                    };
+                    let s = add(self, kind, flag)?;
+                    (
+                        vk::RayTracingShaderGroupTypeKHR::GENERAL,
+                        [s, unused, unused, unused],
+                    )
+                }
+                ShaderGroup::TrianglesHit {
+                    closest_hit,
+                    any_hit,
+                }
+                | ShaderGroup::ProceduralHit {
+                    closest_hit,
+                    any_hit,
+                    ..
+                } => {
+                    let procedural = matches!(group, ShaderGroup::ProceduralHit { .. });
+                    let ch = if *closest_hit {
+                        add(self, closest, vk::ShaderStageFlags::CLOSEST_HIT_KHR)?
+                    } else {
+                        unused
+                    };
+                    let ah = if *any_hit {
+                        add(self, ShaderKind::AnyHit, vk::ShaderStageFlags::ANY_HIT_KHR)?
+                    } else {
+                        unused
+                    };
+                    let is = match group {
+                        ShaderGroup::ProceduralHit { intersection: true, .. } => {
+                            add(self, ShaderKind::Intersection, vk::ShaderStageFlags::INTERSECTION_KHR)?
+                        }
+                        ShaderGroup::ProceduralHit { intersection: false, .. } => {
+                            return Err(HarnessError::Unsupported(format!(
+                                "group {g} is procedural without an intersection shader, which no valid pipeline has"
+                            )))
+                        }
+                        _ => unused,
+                    };
+                    let ty = if procedural {
+                        vk::RayTracingShaderGroupTypeKHR::PROCEDURAL_HIT_GROUP
+                    } else {
+                        vk::RayTracingShaderGroupTypeKHR::TRIANGLES_HIT_GROUP
+                    };
+                    (ty, [unused, ch, ah, is])
+                }
+            };
+            groups.push(info);
+        }
+        let group_values: Vec<u32> = stage_list.iter().map(|(g, _, _)| *g).collect();
+        let entry = [vk::SpecializationMapEntry {
+            constant_id: 0,
+            offset: 0,
+            size: 4,
+        }];
+        let specs: Vec<vk::SpecializationInfo> = group_values
+            .iter()
+            .map(|v| {
+                let bytes: &[u8] = crate::vk::structs::as_bytes(v);
+                vk::SpecializationInfo::default()
+                    .map_entries(&entry)
+                    .data(bytes)
+            })
+            .collect();
+        let main = c"main";
+        let stages: Vec<vk::PipelineShaderStageCreateInfo> = stage_list
+            .iter()
+            .zip(&specs)
+            .map(|((_, flag, m), spec)| {
+                vk::PipelineShaderStageCreateInfo::default()
+                    .stage(*flag)
+                    .module(*m)
+                    .name(main)
+                    .specialization_info(spec)
+            })
+            .collect();
+        let flags = vk::PipelineCreateFlags::from_raw(p.flags.0 as u32);
+        let hs = self.dev.limits.handle_size as usize;
+        let n = p.groups.len();
+        if api == PipelineApi::Nv {
+            let hs = self.dev.limits.nv_handle_size as usize;
+            let nv_groups: Vec<vk::RayTracingShaderGroupCreateInfoNV> = groups
+                .iter()
+                .map(|(ty, [gen, ch, ah, is])| {
+                    vk::RayTracingShaderGroupCreateInfoNV::default()
+                        .ty(*ty)
+                        .general_shader(*gen)
+                        .closest_hit_shader(*ch)
+                        .any_hit_shader(*ah)
+                        .intersection_shader(*is)
+                })
+                .collect();
+            // The KHR-only flags (NO_NULL_*, SKIP_*, LIBRARY) are not NV pipeline flags.
+            let info = vk::RayTracingPipelineCreateInfoNV::default()
+                .flags(
+                    flags
+                        & (vk::PipelineCreateFlags::DISABLE_OPTIMIZATION
+                            | vk::PipelineCreateFlags::DEFER_COMPILE_NV),
+                )
+                .stages(&stages)
+                .groups(&nv_groups)
+                .max_recursion_depth(p.max_recursion_depth)
+                .layout(layout);
+            let nv = self.dev.nv.as_ref().expect("checked above");
+            // SAFETY: every pointer in `info` outlives the call.
+            let pipeline = unsafe {
+                nv.create_ray_tracing_pipelines(vk::PipelineCache::null(), &[info], None)
+            }
+            .map_err(|(_, r)| {
+                HarnessError::Failed(format!("vkCreateRayTracingPipelinesNV failed: {r:?}"))
+            })?[0];
+            let mut handles = vec![0u8; hs * n];
+            if n > 0 {
+                // SAFETY: valid pipeline, group range inside it, data sized for the groups.
+                if let Err(r) = unsafe {
+                    nv.get_ray_tracing_shader_group_handles(pipeline, 0, n as u32, &mut handles)
+                } {
+                    // SAFETY: destroying what we created.
+                    unsafe { self.dev.device.destroy_pipeline(pipeline, None) };
+                    return Err(HarnessError::Failed(format!(
+                        "vkGetRayTracingShaderGroupHandlesNV failed: {r:?}"
+                    )));
+                }
+            }
+            return Ok(RealPipeline {
+                pipeline,
+                handles,
+                group_count: n,
+                default_stack_size: 0,
+            });
+        }
+        let khr_groups: Vec<vk::RayTracingShaderGroupCreateInfoKHR> = groups
+            .iter()
+            .map(|(ty, [gen, ch, ah, is])| {
+                vk::RayTracingShaderGroupCreateInfoKHR::default()
+                    .ty(*ty)
+                    .general_shader(*gen)
+                    .closest_hit_shader(*ch)
+                    .any_hit_shader(*ah)
+                    .intersection_shader(*is)
+            })
+            .collect();
+        let dynamic = [vk::DynamicState::RAY_TRACING_PIPELINE_STACK_SIZE_KHR];
+        let dyn_info = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic);
+        // The payload is `Payload { uint word, depth, ray; }` (12 bytes); the shaders declare no hit attributes.
+        let iface = vk::RayTracingPipelineInterfaceCreateInfoKHR::default()
+            .max_pipeline_ray_payload_size(12)
+            .max_pipeline_ray_hit_attribute_size(8);
+        let mut info = vk::RayTracingPipelineCreateInfoKHR::default()
+            .flags(flags)
+            .stages(&stages)
+            .groups(&khr_groups)
+            .max_pipeline_ray_recursion_depth(p.max_recursion_depth)
+            .layout(layout);
+        if p.dynamic_stack_size {
+            info = info.dynamic_state(&dyn_info);
+        }
+        if flags.contains(vk::PipelineCreateFlags::LIBRARY_KHR) {
+            info = info.library_interface(&iface);
+        }
+        let rt = self.dev.rt.as_ref().expect("checked above");
+        // SAFETY: every pointer in `info` outlives the call.
+        let pipeline = unsafe {
+            rt.create_ray_tracing_pipelines(
+                vk::DeferredOperationKHR::null(),
+                vk::PipelineCache::null(),
+                &[info],
+                None,
+            )
+        }
+        .map_err(|(_, r)| {
+            HarnessError::Failed(format!("vkCreateRayTracingPipelinesKHR failed: {r:?}"))
+        })?[0];
+        let library = flags.contains(vk::PipelineCreateFlags::LIBRARY_KHR);
+        let handles = if library || n == 0 {
+            vec![0u8; hs * n]
+        } else {
+            // SAFETY: valid pipeline, group range inside it.
+            unsafe { rt.get_ray_tracing_shader_group_handles(pipeline, 0, n as u32, hs * n) }
+                .map_err(vkfail("vkGetRayTracingShaderGroupHandlesKHR"))?
+        };
+        let default_stack_size = if library {
+            0
+        } else {
+            default_stack_size(rt, pipeline, &groups, p.max_recursion_depth)
+        };
+        Ok(RealPipeline {
+            pipeline,
+            handles,
+            group_count: n,
+            default_stack_size,
+        })
+    }
+}

@@ -1,0 +1,339 @@
+//! Realises a case's resource state (issue 4) on a device: descriptor set layouts, pipeline layouts,
+//! descriptor sets with their written descriptors, samplers, images and views, buffers and buffer views,
+//! the binds and pushes recorded before the trace, and stage shaders that perform exactly the declared
+//! accesses — so the validation layer's draw-time checks see the state the model judged.
+//!
+//! **Set numbering.** The harness's own set (scene, output, rays, callables) stays at set 0, where every
+//! stage shader of the harness reads it; the case's set `n` is realised as set `n + 1`. Every realised
+//! pipeline layout is `[harness set layout] ++ the case layout's sets` (with the case layout's push
+//! constant ranges), so two realised layouts are compatible for set `n + 1` exactly when the case's are
+//! compatible for set `n`, and the harness set, bound first with the pipeline's layout, is never disturbed
+//! by the case's binds (its definition is the same in every layout).
+//!
+//! **Shaders.** Each stage that declares accesses (and the raygen always) is the harness's own shader of
+//! that stage (`shaders/raygen.rgen`, `closest_hit.rchit`, `miss.rmiss`, `any_hit.rahit`,
+//! `intersection.rint`, `callable.rcall`) with the stage's accesses injected at the start of `main`: one
+//! GLSL declaration per access (aliases of one binding are allowed), the access itself in straight-line
+//! code, and its result folded into a value that is consumed only under a condition that never holds at
+//! run time (so every access is static use and none changes the output words; the stage's own code runs
+//! after it). The templated module replaces the harness's in every stage of that kind in the pipeline
+//! (`DeviceCache::create_pipeline_with`). Accesses in a stage the pipeline has no shader of are
+//! unsupported (nothing bound would use them statically); a stage the pipeline has but the launch does
+//! not reach still uses them statically, which is what these rules ask. Texel operands narrower than
+//! four components, which GLSL's `imageStore` cannot express, are patched into the compiled module
+//! (`OpImageWrite` with a narrow constant texel, see [`patch_narrow_writes`]). Sources are compiled with
+//! glslangValidator at first use into a cache keyed by their hash, with `-DNV` for VK_NV_ray_tracing
+//! pipelines (the same GLSL in GL_NV_ray_tracing names, as build.rs compiles the harness's shaders).
+//!
+//! What is not realised is reported unsupported by [`unsupported`] with the reason (vendor objects,
+//! descriptor buffers, sparse and tile memory, implicit-LOD sampling, which ray tracing stages cannot do,
+//! 64-bit images, accesses in a stage the pipeline lacks, sets statically used but never bound,
+//! descriptors of the wrong kind).
+
+mod glsl;
+mod objects;
+
+pub use glsl::{compile_stage, glsl_format, stage_glsl, stage_source, NarrowWrite};
+
+use glsl::pipeline_has;
+use objects::renew_command_buffers;
+
+use crate::error::HarnessError;
+use crate::realise::DeviceCache;
+use crate::shaders::ShaderKind;
+use crate::vk::memory::Allocation;
+use ash::vk;
+use model::resources::*;
+use model::world::World;
+use std::collections::HashMap;
+
+fn unsup<T>(s: impl Into<String>) -> Result<T, HarnessError> {
+    Err(HarnessError::Unsupported(s.into()))
+}
+
+/// The ray tracing stages every realised binding and push constant range is visible to.
+pub fn rt_stages() -> vk::ShaderStageFlags {
+    vk::ShaderStageFlags::RAYGEN_KHR
+        | vk::ShaderStageFlags::ANY_HIT_KHR
+        | vk::ShaderStageFlags::CLOSEST_HIT_KHR
+        | vk::ShaderStageFlags::MISS_KHR
+        | vk::ShaderStageFlags::INTERSECTION_KHR
+        | vk::ShaderStageFlags::CALLABLE_KHR
+}
+
+/// Why the harness cannot realise this world's resource state, if it cannot (checked before any device
+/// work; [`Realised::new`] may still find a reason in what the device or GLSL cannot express).
+pub fn unsupported(world: &World) -> Option<String> {
+    let st = &world.resources;
+    if st.is_empty() {
+        return None;
+    }
+    if st.descriptor_source == DescriptorSource::Buffers
+        || st.pipeline_descriptor_buffer
+        || st.descriptor_memory_not_resident
+    {
+        return Some("descriptor buffers (VK_EXT_descriptor_buffer) are not realised: the captured lavapipe lacks the extension".into());
+    }
+    if !st.tensors.is_empty() || !st.tensor_views.is_empty() {
+        return Some(
+            "tensors (VK_ARM_tensors) are not realised: no reachable driver has the extension"
+                .into(),
+        );
+    }
+    if st.tile != TileState::default()
+        || st.images.iter().any(|i| i.tile_memory.is_some())
+        || st.buffers.iter().any(|b| b.tile_memory.is_some())
+    {
+        return Some("tile shading and tile memory (VK_QCOM_tile_shading / _tile_memory_heap) are not realised: no reachable driver has them".into());
+    }
+    if st.images.iter().any(|i| i.sparse_residency) || st.buffers.iter().any(|b| b.sparse_residency)
+    {
+        return Some("sparse-resident images and descriptor buffers are not realised for resource states yet".into());
+    }
+    if st.images.iter().any(|i| i.corner_sampled) {
+        return Some("corner-sampled images (VK_NV_corner_sampled_image) are not realised: lavapipe lacks the extension".into());
+    }
+    if st.samplers.iter().any(|s| {
+        s.filters(Filter::CubicExt)
+            || s.image_processing
+            || s.ycbcr_conversion
+            || s.reduction == Reduction::WeightedAverageRangeclampQcom
+            || s.cubic_weights != CubicWeights::CatmullRom
+    }) || st.image_views.iter().any(|v| v.ycbcr_conversion)
+    {
+        return Some("cubic filtering, QCOM image processing and YCbCr conversion samplers/views are not realised: lavapipe lacks those extensions".into());
+    }
+    if let Some(p) = world.pipeline.as_ref() {
+        for s in st
+            .stages
+            .iter()
+            .filter(|s| !s.accesses.is_empty() || s.push_constants.is_some())
+        {
+            if !pipeline_has(p, s.stage) {
+                return Some(format!(
+                    "the state declares accesses in the {:?} stage but the pipeline has no such shader, so nothing \
+                     bound uses them statically (the model reads them as performed; the harness cannot place them)",
+                    s.stage
+                ));
+            }
+        }
+    }
+    if st
+        .stages
+        .iter()
+        .any(|s| s.robustness != StageRobustness::default())
+    {
+        return Some(
+            "per-stage pipeline robustness (VK_EXT_pipeline_robustness) is not realised yet".into(),
+        );
+    }
+    for a in st.stages.iter().flat_map(|s| &s.accesses) {
+        if a.op.is_qcom_processing() || matches!(a.op, Op::SampleWeightQcom | Op::Tensor) {
+            return Some(format!(
+                "{:?} accesses are vendor instructions no reachable driver has",
+                a.op
+            ));
+        }
+        if a.implicit_lod || a.lod_bias {
+            return Some(
+                "implicit-LOD sampling (and a LOD bias, which needs it) is not valid SPIR-V in a ray tracing stage: \
+                 no shader the harness can build performs it"
+                    .into(),
+            );
+        }
+        if a.image.is_some_and(|t| t.width == 64) {
+            return Some("64-bit image accesses (Int64ImageEXT) are not realised yet".into());
+        }
+    }
+    if let Some(n) = st.used_sets().into_iter().find(|&n| st.bound(n).is_none()) {
+        return Some(format!(
+            "set {n} is statically used but never bound: VK_LAYER_KHRONOS_validation 1.3.239 crashes (SIGSEGV, or an \
+             uncaught C++ exception) validating such a trace call on lavapipe, so the harness does not record it"
+        ));
+    }
+    None
+}
+
+// ---------------------------------------------------------------------------------------------
+// GLSL
+
+/// A case's resource state realised on a device. Destroy with [`Realised::destroy`] once nothing
+/// recorded with it is pending.
+pub struct Realised {
+    set_layouts: HashMap<String, vk::DescriptorSetLayout>,
+    pipeline_layouts: HashMap<String, vk::PipelineLayout>,
+    /// The realised layout of the case's pipeline (`[harness set] ++ its sets`), which the harness binds
+    /// its own set with.
+    pub harness_layout: vk::PipelineLayout,
+    own_harness_layout: bool,
+    pool: vk::DescriptorPool,
+    sets: HashMap<String, vk::DescriptorSet>,
+    samplers: HashMap<String, vk::Sampler>,
+    images: Vec<(
+        String,
+        vk::Image,
+        vk::DeviceMemory,
+        vk::ImageLayout,
+        vk::ImageAspectFlags,
+        u32,
+        u32,
+    )>,
+    views: HashMap<String, vk::ImageView>,
+    buffers: HashMap<String, Allocation>,
+    buffer_views: HashMap<String, vk::BufferView>,
+    /// The templated module of each stage kind the pipeline gets (the raygen always; other stages when
+    /// the state declares accesses or push constant reads in them).
+    modules: Vec<(ShaderKind, vk::ShaderModule)>,
+    binds: Vec<(vk::PipelineLayout, u32, vk::DescriptorSet)>,
+    pushes: Vec<(vk::PipelineLayout, u32, u32)>,
+}
+
+impl Realised {
+    fn empty() -> Realised {
+        Realised {
+            set_layouts: HashMap::new(),
+            pipeline_layouts: HashMap::new(),
+            harness_layout: vk::PipelineLayout::null(),
+            own_harness_layout: false,
+            pool: vk::DescriptorPool::null(),
+            sets: HashMap::new(),
+            samplers: HashMap::new(),
+            images: Vec::new(),
+            views: HashMap::new(),
+            buffers: HashMap::new(),
+            buffer_views: HashMap::new(),
+            modules: Vec::new(),
+            binds: Vec::new(),
+            pushes: Vec::new(),
+        }
+    }
+
+    /// Realises `world.resources`: every object, the descriptor writes, and — when the world has a
+    /// pipeline — the case's pipeline with the templated raygen, installed as `cache.resource_pipeline`.
+    /// `harness_set` is the harness's own set layout (set 0 of every realised pipeline layout).
+    pub fn new(
+        cache: &mut DeviceCache,
+        world: &World,
+        trace: bool,
+        harness_set: vk::DescriptorSetLayout,
+    ) -> Result<Realised, HarnessError> {
+        renew_command_buffers(cache)?;
+        let mut r = Realised::empty();
+        match r.build(cache, world, trace, harness_set) {
+            Ok(()) => Ok(r),
+            Err(e) => {
+                if let Some(p) = cache.resource_pipeline.take() {
+                    // SAFETY: never used by a command buffer.
+                    unsafe { cache.dev.device.destroy_pipeline(p.pipeline, None) };
+                }
+                r.destroy(cache);
+                Err(e)
+            }
+        }
+    }
+
+    /// Records the images' transitions from UNDEFINED to the layouts the state says they are in (before
+    /// any render pass begins).
+    ///
+    /// # Safety
+    /// `cb` is recording on `d`, outside a render pass.
+    pub unsafe fn record_transitions(&self, d: &ash::Device, cb: vk::CommandBuffer) {
+        let barriers: Vec<vk::ImageMemoryBarrier> = self
+            .images
+            .iter()
+            .filter(|i| i.3 != vk::ImageLayout::UNDEFINED)
+            .map(|&(_, image, _, layout, aspect, levels, layers)| {
+                vk::ImageMemoryBarrier::default()
+                    .src_access_mask(vk::AccessFlags::empty())
+                    .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE)
+                    .old_layout(vk::ImageLayout::UNDEFINED)
+                    .new_layout(layout)
+                    .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .image(image)
+                    .subresource_range(vk::ImageSubresourceRange {
+                        aspect_mask: aspect,
+                        base_mip_level: 0,
+                        level_count: levels,
+                        base_array_layer: 0,
+                        layer_count: layers,
+                    })
+            })
+            .collect();
+        if !barriers.is_empty() {
+            d.cmd_pipeline_barrier(
+                cb,
+                vk::PipelineStageFlags::TOP_OF_PIPE,
+                vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
+                vk::DependencyFlags::empty(),
+                &[],
+                &[],
+                &barriers,
+            );
+        }
+    }
+
+    /// Records the state's binds (case set `n` at set `n + 1`) and pushes (zero bytes), in order, after
+    /// the harness bound its own set with [`Realised::harness_layout`].
+    ///
+    /// # Safety
+    /// `cb` is recording on `d`.
+    pub unsafe fn record_binds(&self, d: &ash::Device, cb: vk::CommandBuffer) {
+        for &(layout, set, ds) in &self.binds {
+            d.cmd_bind_descriptor_sets(
+                cb,
+                vk::PipelineBindPoint::RAY_TRACING_KHR,
+                layout,
+                set,
+                &[ds],
+                &[],
+            );
+        }
+        for &(layout, offset, size) in &self.pushes {
+            let zeros = vec![0u8; size as usize];
+            d.cmd_push_constants(cb, layout, rt_stages(), offset, &zeros);
+        }
+    }
+
+    /// Destroys every object (the case's pipeline in `cache.resource_pipeline` included).
+    pub fn destroy(self, cache: &mut DeviceCache) {
+        let d = &cache.dev.device;
+        // SAFETY: nothing recorded with these objects is pending (the caller's contract).
+        unsafe {
+            if let Some(p) = cache.resource_pipeline.take() {
+                d.destroy_pipeline(p.pipeline, None);
+            }
+            for (_, m) in self.modules {
+                d.destroy_shader_module(m, None);
+            }
+            if self.pool != vk::DescriptorPool::null() {
+                d.destroy_descriptor_pool(self.pool, None);
+            }
+            for (_, h) in self.buffer_views {
+                d.destroy_buffer_view(h, None);
+            }
+            for (_, a) in self.buffers {
+                a.destroy(&cache.dev);
+            }
+            for (_, h) in self.views {
+                d.destroy_image_view(h, None);
+            }
+            for (_, image, memory, ..) in self.images {
+                d.destroy_image(image, None);
+                d.free_memory(memory, None);
+            }
+            for (_, h) in self.samplers {
+                d.destroy_sampler(h, None);
+            }
+            for (_, h) in self.pipeline_layouts {
+                d.destroy_pipeline_layout(h, None);
+            }
+            if self.own_harness_layout {
+                d.destroy_pipeline_layout(self.harness_layout, None);
+            }
+            for (_, h) in self.set_layouts {
+                d.destroy_descriptor_set_layout(h, None);
+            }
+        }
+    }
+}

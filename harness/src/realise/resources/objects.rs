@@ -1,0 +1,702 @@
+//! The Vulkan objects of a resource state: set and pipeline layouts after the harness's own set,
+//! descriptor pools and sets with their writes, samplers, images and views, buffers and buffer views,
+//! the templated stage modules and the case's pipeline.
+
+use super::glsl::{patch_narrow_writes, shader_kind};
+use super::*;
+use crate::error::vkfail;
+use model::world::PipelineApi;
+
+fn descriptor_type(t: DescriptorType) -> Result<vk::DescriptorType, HarnessError> {
+    Ok(match t {
+        DescriptorType::Sampler => vk::DescriptorType::SAMPLER,
+        DescriptorType::CombinedImageSampler => vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+        DescriptorType::SampledImage => vk::DescriptorType::SAMPLED_IMAGE,
+        DescriptorType::StorageImage => vk::DescriptorType::STORAGE_IMAGE,
+        DescriptorType::UniformTexelBuffer => vk::DescriptorType::UNIFORM_TEXEL_BUFFER,
+        DescriptorType::StorageTexelBuffer => vk::DescriptorType::STORAGE_TEXEL_BUFFER,
+        DescriptorType::UniformBuffer => vk::DescriptorType::UNIFORM_BUFFER,
+        DescriptorType::StorageBuffer => vk::DescriptorType::STORAGE_BUFFER,
+        other => {
+            return unsup(format!(
+                "{other:?} descriptors are not realised (vendor or input attachment)"
+            ))
+        }
+    })
+}
+
+/// `VK_FORMAT_…` name to `vk::Format`, through ash's names of the core and extension ranges.
+fn vk_format(name: &str) -> Result<vk::Format, HarnessError> {
+    let n = name.strip_prefix("VK_FORMAT_").unwrap_or(name);
+    let ranges = [
+        (0, 185),
+        (1_000_054_000, 1_000_054_008),
+        (1_000_066_000, 1_000_066_014),
+        (1_000_156_000, 1_000_156_034),
+        (1_000_330_000, 1_000_330_004),
+        (1_000_340_000, 1_000_340_002),
+        (1_000_470_000, 1_000_470_002),
+    ];
+    ranges
+        .iter()
+        .flat_map(|&(a, b)| a..b)
+        .map(vk::Format::from_raw)
+        .find(|f| format!("{f:?}") == n)
+        .ok_or_else(|| {
+            HarnessError::Unsupported(format!("format {name} is unknown to the harness"))
+        })
+}
+
+fn vk_layout(l: ImageLayout) -> Result<vk::ImageLayout, HarnessError> {
+    Ok(match l {
+        ImageLayout::Undefined => vk::ImageLayout::UNDEFINED,
+        ImageLayout::General => vk::ImageLayout::GENERAL,
+        ImageLayout::ShaderReadOnlyOptimal => vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+        ImageLayout::ReadOnlyOptimal => vk::ImageLayout::READ_ONLY_OPTIMAL,
+        ImageLayout::DepthStencilReadOnlyOptimal => {
+            vk::ImageLayout::DEPTH_STENCIL_READ_ONLY_OPTIMAL
+        }
+        ImageLayout::TransferDstOptimal => vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+        ImageLayout::AttachmentFeedbackLoopOptimal => {
+            return unsup("the attachment feedback loop layout is not realised")
+        }
+    })
+}
+
+fn filter(f: Filter) -> vk::Filter {
+    match f {
+        Filter::Nearest => vk::Filter::NEAREST,
+        Filter::Linear => vk::Filter::LINEAR,
+        Filter::CubicExt => vk::Filter::CUBIC_EXT,
+    }
+}
+
+fn address(m: AddressMode) -> vk::SamplerAddressMode {
+    match m {
+        AddressMode::Repeat => vk::SamplerAddressMode::REPEAT,
+        AddressMode::MirroredRepeat => vk::SamplerAddressMode::MIRRORED_REPEAT,
+        AddressMode::ClampToEdge => vk::SamplerAddressMode::CLAMP_TO_EDGE,
+        AddressMode::ClampToBorder => vk::SamplerAddressMode::CLAMP_TO_BORDER,
+        AddressMode::MirrorClampToEdge => vk::SamplerAddressMode::MIRROR_CLAMP_TO_EDGE,
+    }
+}
+
+fn aspect_of(format: &str) -> vk::ImageAspectFlags {
+    let n = format.strip_prefix("VK_FORMAT_").unwrap_or(format);
+    match (
+        n.starts_with('D') || n.contains("_D"),
+        n.contains('S') && (n.starts_with('S') || n.contains("S8")),
+    ) {
+        (true, true) => vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL,
+        (true, false) => vk::ImageAspectFlags::DEPTH,
+        (false, true) if n.starts_with("S8") => vk::ImageAspectFlags::STENCIL,
+        _ => vk::ImageAspectFlags::COLOR,
+    }
+}
+
+/// Replaces the cache's command buffers with fresh ones. The 1.3.239 layer keeps a command buffer's
+/// push-constant state across vkResetCommandBuffer/vkBeginCommandBuffer, so an earlier case's push would
+/// hide a later case's "push constants never set" (VUID-…-maintenance4-06425) on a reused one.
+pub(super) fn renew_command_buffers(cache: &mut DeviceCache) -> Result<(), HarnessError> {
+    let d = &cache.dev.device;
+    // SAFETY: the old command buffers are not pending (earlier cases waited or never submitted).
+    unsafe {
+        let alloc = |level| {
+            d.allocate_command_buffers(
+                &vk::CommandBufferAllocateInfo::default()
+                    .command_pool(cache.command_pool)
+                    .level(level)
+                    .command_buffer_count(1),
+            )
+            .map(|v| v[0])
+            .map_err(vkfail("vkAllocateCommandBuffers"))
+        };
+        let primary = alloc(vk::CommandBufferLevel::PRIMARY)?;
+        let secondary = match alloc(vk::CommandBufferLevel::SECONDARY) {
+            Ok(s) => s,
+            Err(e) => {
+                d.free_command_buffers(cache.command_pool, &[primary]);
+                return Err(e);
+            }
+        };
+        d.free_command_buffers(cache.command_pool, &[cache.primary, cache.secondary]);
+        cache.primary = primary;
+        cache.secondary = secondary;
+    }
+    Ok(())
+}
+
+impl Realised {
+    pub(super) fn build(
+        &mut self,
+        cache: &mut DeviceCache,
+        world: &World,
+        trace: bool,
+        harness_set: vk::DescriptorSetLayout,
+    ) -> Result<(), HarnessError> {
+        if let Some(why) = unsupported(world) {
+            return unsup(why);
+        }
+        let st = &world.resources;
+        // The stages templated: the raygen, and every other stage that declares accesses or pushes.
+        let api = world.pipeline.as_ref().map_or(PipelineApi::Khr, |p| p.api);
+        let mut templated = vec![Stage::Raygen];
+        for s in &st.stages {
+            if s.stage != Stage::Raygen
+                && (!s.accesses.is_empty() || s.push_constants.is_some())
+                && !templated.contains(&s.stage)
+            {
+                templated.push(s.stage);
+            }
+        }
+        let mut sources = Vec::new();
+        for &stage in &templated {
+            let (glsl, narrow) =
+                stage_glsl(st, stage, stage_source(stage).0).map_err(|e| match e {
+                    HarnessError::Unsupported(why) => {
+                        HarnessError::Unsupported(format!("{stage:?} stage: {why}"))
+                    }
+                    e => e,
+                })?;
+            sources.push((stage, glsl, narrow));
+        }
+        let dev = &cache.dev;
+        let d = &dev.device;
+        // SAFETY (whole block): create infos reference live locals and objects of this device.
+        unsafe {
+            // Set layouts.
+            for l in &st.set_layouts {
+                let mut bs = Vec::new();
+                for b in &l.bindings {
+                    bs.push(
+                        vk::DescriptorSetLayoutBinding::default()
+                            .binding(b.binding)
+                            .descriptor_type(descriptor_type(b.ty)?)
+                            .descriptor_count(b.count)
+                            .stage_flags(rt_stages()),
+                    );
+                }
+                let h = d
+                    .create_descriptor_set_layout(
+                        &vk::DescriptorSetLayoutCreateInfo::default().bindings(&bs),
+                        None,
+                    )
+                    .map_err(vkfail("vkCreateDescriptorSetLayout"))?;
+                self.set_layouts.insert(l.name.clone(), h);
+            }
+            // Pipeline layouts: the harness set, then the case's.
+            for p in &st.pipeline_layouts {
+                let mut sl = vec![harness_set];
+                for s in &p.sets {
+                    sl.push(*self.set_layouts.get(s).ok_or_else(|| {
+                        HarnessError::Unsupported(format!(
+                            "pipeline layout `{}` names set layout `{s}`, which the state lacks",
+                            p.name
+                        ))
+                    })?);
+                }
+                let ranges: Vec<vk::PushConstantRange> = p
+                    .push_ranges
+                    .iter()
+                    .map(|r| vk::PushConstantRange {
+                        stage_flags: rt_stages(),
+                        offset: r.offset,
+                        size: r.size,
+                    })
+                    .collect();
+                let h = d
+                    .create_pipeline_layout(
+                        &vk::PipelineLayoutCreateInfo::default()
+                            .set_layouts(&sl)
+                            .push_constant_ranges(&ranges),
+                        None,
+                    )
+                    .map_err(vkfail("vkCreatePipelineLayout"))?;
+                self.pipeline_layouts.insert(p.name.clone(), h);
+            }
+            match st.pipeline_layout.as_deref() {
+                Some(n) => {
+                    self.harness_layout = *self.pipeline_layouts.get(n).ok_or_else(|| {
+                        HarnessError::Unsupported(format!(
+                            "the pipeline's layout `{n}` is not in the state"
+                        ))
+                    })?;
+                }
+                None => {
+                    if !st.used_sets().is_empty()
+                        || st.stages.iter().any(|s| s.push_constants.is_some())
+                    {
+                        return unsup("the state's shaders use sets or push constants but the pipeline names no layout");
+                    }
+                    let sl = [harness_set];
+                    self.harness_layout = d
+                        .create_pipeline_layout(
+                            &vk::PipelineLayoutCreateInfo::default().set_layouts(&sl),
+                            None,
+                        )
+                        .map_err(vkfail("vkCreatePipelineLayout"))?;
+                    self.own_harness_layout = true;
+                }
+            }
+            // Samplers.
+            for s in &st.samplers {
+                let mut red = vk::SamplerReductionModeCreateInfo::default().reduction_mode(match s
+                    .reduction
+                {
+                    Reduction::Min => vk::SamplerReductionMode::MIN,
+                    Reduction::Max => vk::SamplerReductionMode::MAX,
+                    _ => vk::SamplerReductionMode::WEIGHTED_AVERAGE,
+                });
+                let mut info = vk::SamplerCreateInfo::default()
+                    .mag_filter(filter(s.mag_filter))
+                    .min_filter(filter(s.min_filter))
+                    .mipmap_mode(match s.mipmap_mode {
+                        MipmapMode::Nearest => vk::SamplerMipmapMode::NEAREST,
+                        MipmapMode::Linear => vk::SamplerMipmapMode::LINEAR,
+                    })
+                    .address_mode_u(address(s.address_modes[0]))
+                    .address_mode_v(address(s.address_modes[1]))
+                    .address_mode_w(address(s.address_modes[2]))
+                    .compare_enable(s.compare_enable)
+                    .compare_op(vk::CompareOp::LESS_OR_EQUAL)
+                    .unnormalized_coordinates(s.unnormalized_coordinates)
+                    .min_lod(0.0)
+                    .max_lod(if s.unnormalized_coordinates {
+                        0.0
+                    } else {
+                        vk::LOD_CLAMP_NONE
+                    });
+                if s.reduction != Reduction::WeightedAverage {
+                    info = info.push_next(&mut red);
+                }
+                let h = d
+                    .create_sampler(&info, None)
+                    .map_err(vkfail("vkCreateSampler"))?;
+                self.samplers.insert(s.name.clone(), h);
+            }
+            // Usage of images and buffers from the descriptors written with them.
+            let mut image_usage: HashMap<&str, vk::ImageUsageFlags> = HashMap::new();
+            for set in &st.descriptor_sets {
+                let Some(l) = st.set_layout(&set.layout) else {
+                    continue;
+                };
+                for w in &set.writes {
+                    let (Some(b), Descriptor::Image { view, .. }) =
+                        (l.binding(w.binding), &w.descriptor)
+                    else {
+                        continue;
+                    };
+                    let Some(v) = st.image_view(view) else {
+                        continue;
+                    };
+                    let u = match b.ty {
+                        DescriptorType::StorageImage => vk::ImageUsageFlags::STORAGE,
+                        _ => vk::ImageUsageFlags::SAMPLED,
+                    };
+                    *image_usage.entry(v.image.as_str()).or_default() |= u;
+                }
+            }
+            // Images: their type, layers and levels follow the views made of them.
+            for img in &st.images {
+                let views: Vec<&ImageView> = st
+                    .image_views
+                    .iter()
+                    .filter(|v| v.image == img.name)
+                    .collect();
+                let vt = views.first().map_or(ViewType::TwoD, |v| v.view_type);
+                let levels = views
+                    .iter()
+                    .map(|v| v.level_count)
+                    .max()
+                    .unwrap_or(1)
+                    .max(1);
+                let mut layers = views
+                    .iter()
+                    .map(|v| v.layer_count)
+                    .max()
+                    .unwrap_or(1)
+                    .max(1);
+                let [w, h, dd] = img.extent;
+                let (ty, extent, mut flags) = match vt {
+                    ViewType::OneD | ViewType::OneDArray => (
+                        vk::ImageType::TYPE_1D,
+                        vk::Extent3D {
+                            width: w.max(1),
+                            height: 1,
+                            depth: 1,
+                        },
+                        vk::ImageCreateFlags::empty(),
+                    ),
+                    ViewType::ThreeD => (
+                        vk::ImageType::TYPE_3D,
+                        vk::Extent3D {
+                            width: w.max(1),
+                            height: h.max(1),
+                            depth: dd.max(2),
+                        },
+                        vk::ImageCreateFlags::empty(),
+                    ),
+                    ViewType::Cube | ViewType::CubeArray => {
+                        layers = layers.max(6).div_ceil(6) * 6;
+                        let s = w.max(h).max(1);
+                        (
+                            vk::ImageType::TYPE_2D,
+                            vk::Extent3D {
+                                width: s,
+                                height: s,
+                                depth: 1,
+                            },
+                            vk::ImageCreateFlags::CUBE_COMPATIBLE,
+                        )
+                    }
+                    _ => (
+                        vk::ImageType::TYPE_2D,
+                        vk::Extent3D {
+                            width: w.max(1),
+                            height: h.max(1),
+                            depth: 1,
+                        },
+                        vk::ImageCreateFlags::empty(),
+                    ),
+                };
+                if ty == vk::ImageType::TYPE_3D {
+                    layers = 1;
+                }
+                if views.iter().any(|v| v.format != img.format) {
+                    flags |= vk::ImageCreateFlags::MUTABLE_FORMAT;
+                }
+                let usage = image_usage
+                    .get(img.name.as_str())
+                    .copied()
+                    .unwrap_or(vk::ImageUsageFlags::SAMPLED);
+                let info = vk::ImageCreateInfo::default()
+                    .flags(flags)
+                    .image_type(ty)
+                    .format(vk_format(&img.format)?)
+                    .extent(extent)
+                    .mip_levels(levels)
+                    .array_layers(layers)
+                    .samples(vk::SampleCountFlags::TYPE_1)
+                    .tiling(match img.tiling {
+                        Tiling::Optimal => vk::ImageTiling::OPTIMAL,
+                        Tiling::Linear => vk::ImageTiling::LINEAR,
+                    })
+                    .usage(usage)
+                    .initial_layout(vk::ImageLayout::UNDEFINED);
+                let image = d
+                    .create_image(&info, None)
+                    .map_err(vkfail("vkCreateImage"))?;
+                let req = d.get_image_memory_requirements(image);
+                let Some(mt) =
+                    dev.memory_type(req.memory_type_bits, vk::MemoryPropertyFlags::empty())
+                else {
+                    d.destroy_image(image, None);
+                    return unsup("no memory type for an image");
+                };
+                let memory = match d.allocate_memory(
+                    &vk::MemoryAllocateInfo::default()
+                        .allocation_size(req.size)
+                        .memory_type_index(mt),
+                    None,
+                ) {
+                    Ok(m) => m,
+                    Err(e) => {
+                        d.destroy_image(image, None);
+                        return Err(HarnessError::Failed(format!(
+                            "vkAllocateMemory for an image failed: {e:?}"
+                        )));
+                    }
+                };
+                let layout = vk_layout(img.layout)?;
+                self.images.push((
+                    img.name.clone(),
+                    image,
+                    memory,
+                    layout,
+                    aspect_of(&img.format),
+                    levels,
+                    layers,
+                ));
+                d.bind_image_memory(image, memory, 0)
+                    .map_err(vkfail("vkBindImageMemory"))?;
+            }
+            for v in &st.image_views {
+                let Some(&(_, image, _, _, _, _, _)) = self.images.iter().find(|i| i.0 == v.image)
+                else {
+                    return unsup(format!("view `{}` of image `{}`, which the state lacks (destroyed images are not realised)", v.name, v.image));
+                };
+                let aspect = match v.aspect {
+                    Aspect::Color => vk::ImageAspectFlags::COLOR,
+                    Aspect::Depth => vk::ImageAspectFlags::DEPTH,
+                    Aspect::Stencil => vk::ImageAspectFlags::STENCIL,
+                    Aspect::DepthStencil => {
+                        vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL
+                    }
+                };
+                let vt = match v.view_type {
+                    ViewType::OneD => vk::ImageViewType::TYPE_1D,
+                    ViewType::TwoD => vk::ImageViewType::TYPE_2D,
+                    ViewType::ThreeD => vk::ImageViewType::TYPE_3D,
+                    ViewType::Cube => vk::ImageViewType::CUBE,
+                    ViewType::OneDArray => vk::ImageViewType::TYPE_1D_ARRAY,
+                    ViewType::TwoDArray => vk::ImageViewType::TYPE_2D_ARRAY,
+                    ViewType::CubeArray => vk::ImageViewType::CUBE_ARRAY,
+                };
+                let layers = match v.view_type {
+                    ViewType::Cube => 6,
+                    ViewType::CubeArray => v.layer_count.max(6).div_ceil(6) * 6,
+                    ViewType::ThreeD => 1,
+                    _ => v.layer_count.max(1),
+                };
+                let info = vk::ImageViewCreateInfo::default()
+                    .image(image)
+                    .view_type(vt)
+                    .format(vk_format(&v.format)?)
+                    .subresource_range(vk::ImageSubresourceRange {
+                        aspect_mask: aspect,
+                        base_mip_level: 0,
+                        level_count: v.level_count.max(1),
+                        base_array_layer: 0,
+                        layer_count: layers,
+                    });
+                let h = d
+                    .create_image_view(&info, None)
+                    .map_err(vkfail("vkCreateImageView"))?;
+                self.views.insert(v.name.clone(), h);
+            }
+            // Buffers and buffer views.
+            let usage = vk::BufferUsageFlags::UNIFORM_BUFFER
+                | vk::BufferUsageFlags::STORAGE_BUFFER
+                | vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER
+                | vk::BufferUsageFlags::STORAGE_TEXEL_BUFFER
+                | if dev.has_feature("bufferDeviceAddress") {
+                    vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS
+                } else {
+                    vk::BufferUsageFlags::empty()
+                };
+            for b in &st.buffers {
+                let a =
+                    Allocation::new(dev, b.size.max(4), usage, vk::BufferCreateFlags::empty(), 1)?;
+                self.buffers.insert(b.name.clone(), a);
+            }
+            for v in &st.buffer_views {
+                let Some(b) = self.buffers.get(&v.buffer) else {
+                    return unsup(format!(
+                        "buffer view `{}` of buffer `{}`, which the state lacks",
+                        v.name, v.buffer
+                    ));
+                };
+                let info = vk::BufferViewCreateInfo::default()
+                    .buffer(b.buffer)
+                    .format(vk_format(&v.format)?)
+                    .offset(0)
+                    .range(vk::WHOLE_SIZE);
+                let h = d
+                    .create_buffer_view(&info, None)
+                    .map_err(vkfail("vkCreateBufferView"))?;
+                self.buffer_views.insert(v.name.clone(), h);
+            }
+            // Descriptor pool and sets.
+            let mut counts: HashMap<vk::DescriptorType, u32> = HashMap::new();
+            for s in &st.descriptor_sets {
+                let Some(l) = st.set_layout(&s.layout) else {
+                    return unsup(format!(
+                        "descriptor set `{}` has layout `{}`, which the state lacks",
+                        s.name, s.layout
+                    ));
+                };
+                for b in &l.bindings {
+                    *counts.entry(descriptor_type(b.ty)?).or_default() += b.count;
+                }
+            }
+            if !st.descriptor_sets.is_empty() {
+                let sizes: Vec<vk::DescriptorPoolSize> = counts
+                    .iter()
+                    .map(|(t, n)| vk::DescriptorPoolSize {
+                        ty: *t,
+                        descriptor_count: (*n).max(1),
+                    })
+                    .collect();
+                let sizes = if sizes.is_empty() {
+                    vec![vk::DescriptorPoolSize {
+                        ty: vk::DescriptorType::SAMPLER,
+                        descriptor_count: 1,
+                    }]
+                } else {
+                    sizes
+                };
+                self.pool = d
+                    .create_descriptor_pool(
+                        &vk::DescriptorPoolCreateInfo::default()
+                            .max_sets(st.descriptor_sets.len() as u32)
+                            .pool_sizes(&sizes),
+                        None,
+                    )
+                    .map_err(vkfail("vkCreateDescriptorPool"))?;
+            }
+            for s in &st.descriptor_sets {
+                let l = [self.set_layouts[&s.layout]];
+                let h = d
+                    .allocate_descriptor_sets(
+                        &vk::DescriptorSetAllocateInfo::default()
+                            .descriptor_pool(self.pool)
+                            .set_layouts(&l),
+                    )
+                    .map_err(vkfail("vkAllocateDescriptorSets"))?[0];
+                self.sets.insert(s.name.clone(), h);
+            }
+            // Writes, one vkUpdateDescriptorSets each; destroyed objects are made, written and destroyed.
+            let mut doomed: Vec<Allocation> = Vec::new();
+            for s in &st.descriptor_sets {
+                let l = st.set_layout(&s.layout).expect("checked above");
+                for w in &s.writes {
+                    let Some(b) = l.binding(w.binding) else {
+                        return unsup(format!(
+                            "set `{}` writes binding {}, which its layout lacks",
+                            s.name, w.binding
+                        ));
+                    };
+                    if w.element >= b.count {
+                        return unsup(format!(
+                            "set `{}` writes element {} of binding {} (count {})",
+                            s.name, w.element, w.binding, b.count
+                        ));
+                    }
+                    let ty = descriptor_type(b.ty)?;
+                    let base = vk::WriteDescriptorSet::default()
+                        .dst_set(self.sets[&s.name])
+                        .dst_binding(w.binding)
+                        .dst_array_element(w.element)
+                        .descriptor_type(ty);
+                    let wrong = || {
+                        HarnessError::Unsupported(format!("set `{}` binding {} ({:?}) is written with {:?}, which a write of that type cannot carry", s.name, w.binding, b.ty, w.descriptor))
+                    };
+                    match (&w.descriptor, b.ty) {
+                        (
+                            Descriptor::Image {
+                                view,
+                                sampler,
+                                layout,
+                            },
+                            DescriptorType::CombinedImageSampler
+                            | DescriptorType::SampledImage
+                            | DescriptorType::StorageImage,
+                        ) => {
+                            let v = *self.views.get(view).ok_or_else(|| HarnessError::Unsupported(format!("descriptor names view `{view}`, which the state lacks (destroyed views are not realised)")))?;
+                            let smp = match (b.ty, sampler) {
+                                (DescriptorType::CombinedImageSampler, Some(n)) => *self.samplers.get(n).ok_or_else(|| HarnessError::Unsupported(format!("descriptor names sampler `{n}`, which the state lacks")))?,
+                                (DescriptorType::CombinedImageSampler, None) => return unsup("a combined image sampler written without a sampler (immutable samplers are not modelled)"),
+                                _ => vk::Sampler::null(),
+                            };
+                            let info = [vk::DescriptorImageInfo {
+                                sampler: smp,
+                                image_view: v,
+                                image_layout: vk_layout(*layout)?,
+                            }];
+                            d.update_descriptor_sets(&[base.image_info(&info)], &[]);
+                        }
+                        (Descriptor::Sampler { sampler }, DescriptorType::Sampler) => {
+                            let smp = *self.samplers.get(sampler).ok_or_else(|| {
+                                HarnessError::Unsupported(format!(
+                                    "descriptor names sampler `{sampler}`, which the state lacks"
+                                ))
+                            })?;
+                            let info = [vk::DescriptorImageInfo {
+                                sampler: smp,
+                                ..Default::default()
+                            }];
+                            d.update_descriptor_sets(&[base.image_info(&info)], &[]);
+                        }
+                        (
+                            Descriptor::TexelBuffer { view },
+                            DescriptorType::UniformTexelBuffer | DescriptorType::StorageTexelBuffer,
+                        ) => {
+                            let v = [*self.buffer_views.get(view).ok_or_else(|| {
+                                HarnessError::Unsupported(format!(
+                                    "descriptor names buffer view `{view}`, which the state lacks"
+                                ))
+                            })?];
+                            d.update_descriptor_sets(&[base.texel_buffer_view(&v)], &[]);
+                        }
+                        (
+                            Descriptor::Buffer {
+                                buffer,
+                                offset,
+                                range,
+                            },
+                            DescriptorType::UniformBuffer | DescriptorType::StorageBuffer,
+                        ) => {
+                            let buf = match self.buffers.get(buffer) {
+                                Some(a) => a.buffer,
+                                None => {
+                                    // A buffer the state does not hold: destroyed after the write.
+                                    let a = Allocation::new(
+                                        dev,
+                                        256,
+                                        usage,
+                                        vk::BufferCreateFlags::empty(),
+                                        1,
+                                    )?;
+                                    let h = a.buffer;
+                                    doomed.push(a);
+                                    h
+                                }
+                            };
+                            let info = [vk::DescriptorBufferInfo {
+                                buffer: buf,
+                                offset: *offset,
+                                range: range.unwrap_or(vk::WHOLE_SIZE),
+                            }];
+                            d.update_descriptor_sets(&[base.buffer_info(&info)], &[]);
+                        }
+                        _ => return Err(wrong()),
+                    }
+                }
+            }
+            for a in doomed {
+                a.destroy(dev);
+            }
+            // Binds and pushes, recorded by `record_binds`.
+            for b in &st.bound_sets {
+                let layout = *self.pipeline_layouts.get(&b.layout).ok_or_else(|| {
+                    HarnessError::Unsupported(format!(
+                        "a set is bound with layout `{}`, which the state lacks",
+                        b.layout
+                    ))
+                })?;
+                let set = *self.sets.get(&b.descriptor_set).ok_or_else(|| {
+                    HarnessError::Unsupported(format!(
+                        "descriptor set `{}` is bound but the state lacks it",
+                        b.descriptor_set
+                    ))
+                })?;
+                self.binds.push((layout, b.set + 1, set));
+            }
+            for p in &st.pushes {
+                let layout = *self.pipeline_layouts.get(&p.layout).ok_or_else(|| {
+                    HarnessError::Unsupported(format!(
+                        "constants are pushed with layout `{}`, which the state lacks",
+                        p.layout
+                    ))
+                })?;
+                self.pushes.push((layout, p.offset, p.size));
+            }
+        }
+        // The pipeline with the templated stages (KHR or NV GLSL by the pipeline's API).
+        for (stage, glsl, narrow) in &sources {
+            let mut code = compile_stage(glsl, *stage, trace, api)?;
+            patch_narrow_writes(&mut code, narrow).map_err(|e| {
+                HarnessError::Failed(format!(
+                    "patching the {stage:?} shader's narrow writes: {e}"
+                ))
+            })?;
+            let m = crate::shaders::module(&cache.dev, &code)?;
+            self.modules.push((shader_kind(*stage, trace), m));
+        }
+        if let Some(p) = world.pipeline.as_ref() {
+            let rp = cache.create_pipeline_with(p, trace, self.harness_layout, &self.modules)?;
+            cache.resource_pipeline = Some(rp);
+        }
+        Ok(())
+    }
+}

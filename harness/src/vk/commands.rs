@@ -1,0 +1,161 @@
+//! One-shot command buffers: a pool with a primary and a secondary buffer, a fence, begin / barrier /
+//! submit-and-wait, and an empty render pass for calls recorded inside one.
+
+use crate::error::{vkfail, HarnessError};
+use crate::vk::VkDevice;
+use ash::vk;
+
+pub(crate) struct Commands {
+    pub(crate) pool: vk::CommandPool,
+    pub(crate) cb: vk::CommandBuffer,
+    /// A secondary command buffer of the same pool, for cases recorded at the secondary level.
+    pub(crate) secondary: vk::CommandBuffer,
+    pub(crate) fence: vk::Fence,
+    /// An empty render pass and its 1x1 framebuffer, made for cases recorded inside a render pass.
+    pub(crate) render_pass: Option<(vk::RenderPass, vk::Framebuffer)>,
+}
+
+impl Commands {
+    pub(crate) fn new(dev: &VkDevice) -> Result<Commands, HarnessError> {
+        let d = &dev.device;
+        // SAFETY: valid create infos.
+        unsafe {
+            let pool = d
+                .create_command_pool(
+                    &vk::CommandPoolCreateInfo::default()
+                        .queue_family_index(dev.queue_family)
+                        .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
+                    None,
+                )
+                .map_err(vkfail("vkCreateCommandPool"))?;
+            let cb = d
+                .allocate_command_buffers(
+                    &vk::CommandBufferAllocateInfo::default()
+                        .command_pool(pool)
+                        .level(vk::CommandBufferLevel::PRIMARY)
+                        .command_buffer_count(1),
+                )
+                .map_err(vkfail("vkAllocateCommandBuffers"))?[0];
+            let secondary = d
+                .allocate_command_buffers(
+                    &vk::CommandBufferAllocateInfo::default()
+                        .command_pool(pool)
+                        .level(vk::CommandBufferLevel::SECONDARY)
+                        .command_buffer_count(1),
+                )
+                .map_err(vkfail("vkAllocateCommandBuffers"))?[0];
+            let fence = d
+                .create_fence(&vk::FenceCreateInfo::default(), None)
+                .map_err(vkfail("vkCreateFence"))?;
+            Ok(Commands {
+                pool,
+                cb,
+                secondary,
+                fence,
+                render_pass: None,
+            })
+        }
+    }
+    pub(crate) fn begin(&self, dev: &VkDevice) -> Result<(), HarnessError> {
+        // SAFETY: the command buffer is idle.
+        unsafe {
+            dev.device
+                .reset_command_buffer(self.cb, vk::CommandBufferResetFlags::empty())
+                .map_err(vkfail("vkResetCommandBuffer"))?;
+            dev.device
+                .begin_command_buffer(self.cb, &vk::CommandBufferBeginInfo::default())
+                .map_err(vkfail("vkBeginCommandBuffer"))
+        }
+    }
+    pub(crate) fn submit(&self, dev: &VkDevice) -> Result<(), HarnessError> {
+        let d = &dev.device;
+        // SAFETY: recorded command buffer, unsignalled fence.
+        unsafe {
+            d.end_command_buffer(self.cb)
+                .map_err(vkfail("vkEndCommandBuffer"))?;
+            let cbs = [self.cb];
+            d.queue_submit(
+                dev.queue,
+                &[vk::SubmitInfo::default().command_buffers(&cbs)],
+                self.fence,
+            )
+            .map_err(vkfail("vkQueueSubmit"))?;
+            d.wait_for_fences(&[self.fence], true, 60_000_000_000)
+                .map_err(vkfail("vkWaitForFences"))?;
+            d.reset_fences(&[self.fence])
+                .map_err(vkfail("vkResetFences"))
+        }
+    }
+    pub(crate) fn barrier(&self, dev: &VkDevice) {
+        let b = vk::MemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR)
+            .dst_access_mask(
+                vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR | vk::AccessFlags::SHADER_READ,
+            );
+        let mut dst = vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR
+            | vk::PipelineStageFlags::COMPUTE_SHADER;
+        if dev.has_feature("rayTracingPipeline") {
+            dst |= vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR;
+        }
+        // SAFETY: recording.
+        unsafe {
+            dev.device.cmd_pipeline_barrier(
+                self.cb,
+                vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR,
+                dst,
+                vk::DependencyFlags::empty(),
+                &[b],
+                &[],
+                &[],
+            )
+        };
+    }
+    /// The empty render pass (no attachments, one graphics subpass) and a 1x1 framebuffer for it.
+    pub(crate) fn render_pass(
+        &mut self,
+        dev: &VkDevice,
+    ) -> Result<(vk::RenderPass, vk::Framebuffer), HarnessError> {
+        if let Some(rp) = self.render_pass {
+            return Ok(rp);
+        }
+        let d = &dev.device;
+        let subpass =
+            [vk::SubpassDescription::default()
+                .pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)];
+        // SAFETY: valid create infos; destroyed with the commands.
+        unsafe {
+            let rp = d
+                .create_render_pass(
+                    &vk::RenderPassCreateInfo::default().subpasses(&subpass),
+                    None,
+                )
+                .map_err(vkfail("vkCreateRenderPass"))?;
+            let fb = d
+                .create_framebuffer(
+                    &vk::FramebufferCreateInfo::default()
+                        .render_pass(rp)
+                        .width(1)
+                        .height(1)
+                        .layers(1),
+                    None,
+                )
+                .map_err(|r| {
+                    d.destroy_render_pass(rp, None);
+                    vkfail("vkCreateFramebuffer")(r)
+                })?;
+            self.render_pass = Some((rp, fb));
+            Ok((rp, fb))
+        }
+    }
+    pub(crate) fn destroy(self, dev: &VkDevice) {
+        // SAFETY: idle.
+        unsafe {
+            if let Some((rp, fb)) = self.render_pass {
+                dev.device.destroy_framebuffer(fb, None);
+                dev.device.destroy_render_pass(rp, None);
+            }
+            dev.device.destroy_fence(self.fence, None);
+            dev.device.destroy_command_pool(self.pool, None);
+        }
+    }
+}

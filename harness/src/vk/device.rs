@@ -1,0 +1,294 @@
+//! Devices created with exactly the extensions and features a case enables (or the reason it cannot
+//! be), with the ray tracing limits the harness lays tables out with.
+
+use super::instance::VkInstance;
+use crate::error::HarnessError;
+use crate::vk::layout::{self, EXTENSIBLE_HEADER};
+use crate::vk::structs::{self, RawChain, FEATURE_STRUCTS};
+use crate::vk::tables as vk_tables;
+use ash::vk;
+use std::collections::{BTreeMap, BTreeSet};
+use std::ffi::CString;
+use std::sync::Arc;
+
+/// The features structures to chain for a requested feature set, or why the set cannot be enabled.
+fn feature_chain(
+    inst: &VkInstance,
+    extensions: &BTreeSet<String>,
+    features: &BTreeSet<String>,
+    supported: &BTreeMap<String, bool>,
+) -> Result<(vk::PhysicalDeviceFeatures, RawChain), HarnessError> {
+    let mut core = vk::PhysicalDeviceFeatures::default();
+    let mut chain = RawChain::new();
+    let mut missing = Vec::new();
+    for name in features {
+        let (want_struct, member) = match name.split_once("::") {
+            Some((s, m)) => (Some(s), m),
+            None => (None, name.as_str()),
+        };
+        let in_core = vk_tables::PHYSICAL_DEVICE_FEATURES
+            .iter()
+            .any(|m| m.name == member);
+        if in_core && want_struct.is_none_or(|s| s == "VkPhysicalDeviceFeatures") {
+            if !supported
+                .get(&format!("VkPhysicalDeviceFeatures::{member}"))
+                .copied()
+                .unwrap_or(false)
+            {
+                missing.push(name.clone());
+                continue;
+            }
+            // SAFETY: VkPhysicalDeviceFeatures is a plain array of VkBool32.
+            let bytes = unsafe {
+                std::slice::from_raw_parts_mut(
+                    &mut core as *mut _ as *mut u8,
+                    std::mem::size_of::<vk::PhysicalDeviceFeatures>(),
+                )
+            };
+            layout::set_bool(vk_tables::PHYSICAL_DEVICE_FEATURES, 0, bytes, member);
+            continue;
+        }
+        let candidates: Vec<&'static structs::StructInfo> = FEATURE_STRUCTS
+            .iter()
+            .filter(|s| {
+                want_struct.is_none_or(|w| w == s.name)
+                    && s.members.iter().any(|m| m.name == member)
+            })
+            .collect();
+        if candidates.is_empty() {
+            return Err(HarnessError::Unsupported(format!(
+                "unknown device feature `{name}`"
+            )));
+        }
+        let usable = candidates.iter().find(|s| {
+            s.usable(inst.api_version, |e| extensions.contains(e))
+                && supported.contains_key(&format!("{}::{member}", s.name))
+        });
+        let Some(s) = usable else {
+            let needs: Vec<String> = candidates
+                .iter()
+                .map(|s| s.extension.map_or_else(|| s.name.to_string(), String::from))
+                .collect();
+            return Err(HarnessError::Unsupported(format!(
+                "feature `{name}` needs one of [{}] enabled on a device that has it",
+                needs.join(", ")
+            )));
+        };
+        if !supported
+            .get(&format!("{}::{member}", s.name))
+            .copied()
+            .unwrap_or(false)
+        {
+            missing.push(name.clone());
+            continue;
+        }
+        let i = chain.position(s.name).unwrap_or_else(|| chain.push(s));
+        layout::set_bool(s.members, EXTENSIBLE_HEADER, chain.bytes_mut(i), member);
+    }
+    if !missing.is_empty() {
+        return Err(HarnessError::Unsupported(format!(
+            "the device lacks feature(s): {}",
+            missing.join(", ")
+        )));
+    }
+    Ok((core, chain))
+}
+
+/// Ray tracing limits the harness lays tables out with.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RtLimits {
+    pub handle_size: u32,
+    pub handle_alignment: u32,
+    pub base_alignment: u32,
+    pub scratch_alignment: u32,
+    /// `VkPhysicalDeviceRayTracingPropertiesNV::shaderGroupHandleSize` (0 without VK_NV_ray_tracing).
+    pub nv_handle_size: u32,
+}
+
+/// A logical device with exactly a case's extensions and features, and what the harness needs of it.
+pub struct VkDevice {
+    pub inst: Arc<VkInstance>,
+    pub device: ash::Device,
+    pub queue: vk::Queue,
+    pub queue_family: u32,
+    pub extensions: BTreeSet<String>,
+    pub features: BTreeSet<String>,
+    pub rt: Option<ash::khr::ray_tracing_pipeline::Device>,
+    pub accel: Option<ash::khr::acceleration_structure::Device>,
+    pub memory: vk::PhysicalDeviceMemoryProperties,
+    pub limits: RtLimits,
+    pub sparse_binding: bool,
+    /// VK_NV_ray_tracing, when the case enables it.
+    pub nv: Option<ash::nv::ray_tracing::Device>,
+    /// Set by the owner when the device was lost or a submission never finished: dropping then neither
+    /// waits for nor destroys the device, and keeps its instance alive (a leak, never a hang).
+    pub leak: bool,
+}
+
+impl VkDevice {
+    /// Creates a device with exactly `extensions` and `features` enabled, or says what the driver lacks.
+    pub fn new(
+        inst: Arc<VkInstance>,
+        extensions: &BTreeSet<String>,
+        features: &BTreeSet<String>,
+    ) -> Result<VkDevice, HarnessError> {
+        let available = inst.device_extensions();
+        let missing: Vec<&String> = extensions
+            .iter()
+            .filter(|e| !available.contains(*e))
+            .collect();
+        if !missing.is_empty() {
+            let names: Vec<&str> = missing.iter().map(|s| s.as_str()).collect();
+            return Err(HarnessError::Unsupported(format!(
+                "the device lacks extension(s): {}",
+                names.join(", ")
+            )));
+        }
+        let supported = inst.device_features();
+        let (core, mut chain) = feature_chain(&inst, extensions, features, &supported)?;
+        // SAFETY: plain query.
+        let families = unsafe {
+            inst.instance
+                .get_physical_device_queue_family_properties(inst.physical)
+        };
+        let Some(family) = families
+            .iter()
+            .position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE))
+        else {
+            return Err(HarnessError::Unsupported(
+                "no queue family with VK_QUEUE_COMPUTE_BIT".into(),
+            ));
+        };
+        let priorities = [1.0f32];
+        let queue_info = [vk::DeviceQueueCreateInfo::default()
+            .queue_family_index(family as u32)
+            .queue_priorities(&priorities)];
+        let ext_c: Vec<CString> = extensions
+            .iter()
+            .filter_map(|e| CString::new(e.as_str()).ok())
+            .collect();
+        let ext_ptrs: Vec<*const std::ffi::c_char> = ext_c.iter().map(|c| c.as_ptr()).collect();
+        let head = chain.link();
+        let mut info = vk::DeviceCreateInfo::default()
+            .queue_create_infos(&queue_info)
+            .enabled_extension_names(&ext_ptrs)
+            .enabled_features(&core);
+        info.p_next = head;
+        // SAFETY: every pointer in `info` outlives the call.
+        let device =
+            unsafe { inst.instance.create_device(inst.physical, &info, None) }.map_err(|r| {
+                HarnessError::Vulkan {
+                    what: "vkCreateDevice".into(),
+                    result: r,
+                }
+            })?;
+        // SAFETY: queue 0 of the family we created.
+        let queue = unsafe { device.get_device_queue(family as u32, 0) };
+        let rt = extensions
+            .contains("VK_KHR_ray_tracing_pipeline")
+            .then(|| ash::khr::ray_tracing_pipeline::Device::new(&inst.instance, &device));
+        let nv = extensions
+            .contains("VK_NV_ray_tracing")
+            .then(|| ash::nv::ray_tracing::Device::new(&inst.instance, &device));
+        let accel = extensions
+            .contains("VK_KHR_acceleration_structure")
+            .then(|| ash::khr::acceleration_structure::Device::new(&inst.instance, &device));
+        // SAFETY: plain queries.
+        let memory = unsafe {
+            inst.instance
+                .get_physical_device_memory_properties(inst.physical)
+        };
+        let mut rtp = vk::PhysicalDeviceRayTracingPipelinePropertiesKHR::default();
+        let mut asp = vk::PhysicalDeviceAccelerationStructurePropertiesKHR::default();
+        let mut nvp = vk::PhysicalDeviceRayTracingPropertiesNV::default();
+        let mut p2 = vk::PhysicalDeviceProperties2::default();
+        if available.contains("VK_NV_ray_tracing") {
+            p2 = p2.push_next(&mut nvp);
+        }
+        if available.contains("VK_KHR_ray_tracing_pipeline") {
+            p2 = p2.push_next(&mut rtp);
+        }
+        if available.contains("VK_KHR_acceleration_structure") {
+            p2 = p2.push_next(&mut asp);
+        }
+        // SAFETY: chain of structures the device supports.
+        unsafe {
+            inst.instance
+                .get_physical_device_properties2(inst.physical, &mut p2)
+        };
+        // A case with only VK_NV_ray_tracing lays its tables out with the NV properties.
+        let nv_only = rtp.shader_group_handle_size == 0;
+        let limits = RtLimits {
+            handle_size: if nv_only {
+                nvp.shader_group_handle_size
+            } else {
+                rtp.shader_group_handle_size
+            },
+            handle_alignment: if nv_only {
+                nvp.shader_group_handle_size
+            } else {
+                rtp.shader_group_handle_alignment
+            },
+            base_alignment: if nv_only {
+                nvp.shader_group_base_alignment
+            } else {
+                rtp.shader_group_base_alignment
+            },
+            scratch_alignment: asp.min_acceleration_structure_scratch_offset_alignment,
+            nv_handle_size: nvp.shader_group_handle_size,
+        };
+        let sparse_binding = supported
+            .get("VkPhysicalDeviceFeatures::sparseBinding")
+            .copied()
+            .unwrap_or(false)
+            && families[family]
+                .queue_flags
+                .contains(vk::QueueFlags::SPARSE_BINDING);
+        Ok(VkDevice {
+            inst,
+            device,
+            queue,
+            queue_family: family as u32,
+            extensions: extensions.clone(),
+            features: features.clone(),
+            rt,
+            accel,
+            memory,
+            limits,
+            sparse_binding,
+            nv,
+            leak: false,
+        })
+    }
+
+    /// Whether the device was created with feature `name` (member name or `Struct::member`).
+    pub fn has_feature(&self, name: &str) -> bool {
+        self.features
+            .iter()
+            .any(|f| f == name || f.rsplit("::").next() == Some(name))
+    }
+
+    /// A memory type index allowed by `bits` with all of `flags`.
+    pub fn memory_type(&self, bits: u32, flags: vk::MemoryPropertyFlags) -> Option<u32> {
+        (0..self.memory.memory_type_count).find(|&i| {
+            bits & (1 << i) != 0
+                && self.memory.memory_types[i as usize]
+                    .property_flags
+                    .contains(flags)
+        })
+    }
+}
+
+impl Drop for VkDevice {
+    fn drop(&mut self) {
+        if self.leak {
+            std::mem::forget(self.inst.clone());
+            return;
+        }
+        // SAFETY: every object made from the device is destroyed by its owner before this runs.
+        unsafe {
+            let _ = self.device.device_wait_idle();
+            self.device.destroy_device(None);
+        }
+    }
+}

@@ -1,0 +1,308 @@
+//! The Vulkan instance: loading a chosen driver, and the validation layer with a debug-utils messenger
+//! that collects the layer's messages (and, while asked, makes the layer drop the call).
+
+use crate::error::HarnessError;
+use crate::vk::layout::{self, EXTENSIBLE_HEADER};
+use crate::vk::structs::{self, RawChain, FEATURE_STRUCTS};
+use crate::vk::tables as vk_tables;
+use ash::vk;
+use std::collections::{BTreeMap, BTreeSet};
+use std::ffi::{c_void, CStr, CString};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+
+/// The name of the Khronos validation layer.
+pub const VALIDATION_LAYER: &str = "VK_LAYER_KHRONOS_validation";
+
+/// Which Vulkan driver to load.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Driver {
+    /// Mesa's CPU driver: `/usr/share/vulkan/icd.d/lvp_icd.json`.
+    Lavapipe,
+    /// NVIDIA's driver: `/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json`.
+    Nvidia,
+    /// Any ICD manifest.
+    Icd(PathBuf),
+}
+
+impl Driver {
+    pub fn icd_path(&self) -> PathBuf {
+        match self {
+            Driver::Lavapipe => PathBuf::from("/usr/share/vulkan/icd.d/lvp_icd.json"),
+            Driver::Nvidia => PathBuf::from("/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json"),
+            Driver::Icd(p) => p.clone(),
+        }
+    }
+
+    /// Short name for profiles and reports.
+    pub fn name(&self) -> String {
+        match self {
+            Driver::Lavapipe => "lavapipe".into(),
+            Driver::Nvidia => "nvidia".into(),
+            Driver::Icd(p) => p
+                .file_stem()
+                .map_or("icd".into(), |s| s.to_string_lossy().into_owned()),
+        }
+    }
+
+    /// `lavapipe`, `nvidia`, or a path to an ICD json.
+    pub fn parse(s: &str) -> Driver {
+        match s {
+            "lavapipe" | "lvp" => Driver::Lavapipe,
+            "nvidia" => Driver::Nvidia,
+            path => Driver::Icd(PathBuf::from(path)),
+        }
+    }
+}
+
+/// One message of the validation layer.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct LayerMessage {
+    /// `error`, `warning`, `info` or `verbose`.
+    pub severity: String,
+    /// `pMessageIdName`: the VUID for valid-usage errors.
+    pub id: String,
+    pub text: String,
+}
+
+/// What the messenger callback writes into; shared with the callback through its user-data pointer.
+#[derive(Default)]
+pub struct Collector {
+    messages: Mutex<Vec<LayerMessage>>,
+    /// While set, the callback returns VK_TRUE so the layer drops the call instead of passing it on.
+    abort: AtomicBool,
+}
+
+impl Collector {
+    pub fn clear(&self) {
+        self.messages
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clear();
+    }
+    pub fn take(&self) -> Vec<LayerMessage> {
+        std::mem::take(&mut *self.messages.lock().unwrap_or_else(|e| e.into_inner()))
+    }
+    pub fn set_abort(&self, abort: bool) {
+        self.abort.store(abort, Ordering::SeqCst);
+    }
+}
+
+unsafe extern "system" fn messenger_callback(
+    severity: vk::DebugUtilsMessageSeverityFlagsEXT,
+    _types: vk::DebugUtilsMessageTypeFlagsEXT,
+    data: *const vk::DebugUtilsMessengerCallbackDataEXT<'_>,
+    user: *mut c_void,
+) -> vk::Bool32 {
+    if user.is_null() {
+        return vk::FALSE;
+    }
+    let collector = &*(user as *const Collector);
+    let text = |p: *const std::ffi::c_char| {
+        if p.is_null() {
+            String::new()
+        } else {
+            CStr::from_ptr(p).to_string_lossy().into_owned()
+        }
+    };
+    let (id, message) = if data.is_null() {
+        (String::new(), String::new())
+    } else {
+        (text((*data).p_message_id_name), text((*data).p_message))
+    };
+    let severity = if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::ERROR) {
+        "error"
+    } else if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::WARNING) {
+        "warning"
+    } else if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::INFO) {
+        "info"
+    } else {
+        "verbose"
+    };
+    collector
+        .messages
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .push(LayerMessage {
+            severity: severity.into(),
+            id,
+            text: message,
+        });
+    if collector.abort.load(Ordering::SeqCst) {
+        vk::TRUE
+    } else {
+        vk::FALSE
+    }
+}
+
+/// A loaded driver: entry, instance, and (with validation) the layer's messenger.
+pub struct VkInstance {
+    pub driver: Driver,
+    pub entry: ash::Entry,
+    pub instance: ash::Instance,
+    debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
+    pub collector: Arc<Collector>,
+    pub physical: vk::PhysicalDevice,
+    pub api_version: u32,
+}
+
+// SAFETY: Vulkan instance handles may be used from any thread; the harness serialises use per device.
+unsafe impl Send for VkInstance {}
+unsafe impl Sync for VkInstance {}
+
+impl VkInstance {
+    /// Loads `driver` (setting `VK_DRIVER_FILES` before the loader reads it) and creates an instance, with
+    /// the validation layer and a messenger when `validation` is set, and picks the driver's first device.
+    pub fn new(driver: Driver, validation: bool) -> Result<VkInstance, HarnessError> {
+        let icd = driver.icd_path();
+        if !icd.is_file() {
+            return Err(HarnessError::IcdMissing(icd.display().to_string()));
+        }
+        std::env::set_var("VK_DRIVER_FILES", &icd);
+        // SAFETY: loading the system loader library; failure is reported, not unwound.
+        let entry = unsafe { ash::Entry::load() }
+            .map_err(|e| HarnessError::LoaderMissing(e.to_string()))?;
+        let layer = CString::new(VALIDATION_LAYER).expect("no NUL in a constant");
+        if validation {
+            // SAFETY: plain query.
+            let layers = unsafe { entry.enumerate_instance_layer_properties() }
+                .map_err(HarnessError::vk("vkEnumerateInstanceLayerProperties"))?;
+            let found = layers
+                .iter()
+                .any(|l| l.layer_name_as_c_str().is_ok_and(|n| n == layer.as_c_str()));
+            if !found {
+                return Err(HarnessError::LayerMissing(VALIDATION_LAYER.into()));
+            }
+        }
+        let app_name = CString::new("rtconf").expect("no NUL");
+        let app = vk::ApplicationInfo::default()
+            .application_name(&app_name)
+            .api_version(vk::API_VERSION_1_3);
+        let layer_ptrs = if validation {
+            vec![layer.as_ptr()]
+        } else {
+            vec![]
+        };
+        let ext_ptrs = if validation {
+            vec![ash::ext::debug_utils::NAME.as_ptr()]
+        } else {
+            vec![]
+        };
+        let info = vk::InstanceCreateInfo::default()
+            .application_info(&app)
+            .enabled_layer_names(&layer_ptrs)
+            .enabled_extension_names(&ext_ptrs);
+        // SAFETY: valid create info whose pointers outlive the call.
+        let instance = unsafe { entry.create_instance(&info, None) }
+            .map_err(HarnessError::vk("vkCreateInstance"))?;
+        let collector = Arc::new(Collector::default());
+        let debug = if validation {
+            let du = ash::ext::debug_utils::Instance::new(&entry, &instance);
+            let info = vk::DebugUtilsMessengerCreateInfoEXT::default()
+                .message_severity(
+                    vk::DebugUtilsMessageSeverityFlagsEXT::ERROR
+                        | vk::DebugUtilsMessageSeverityFlagsEXT::WARNING,
+                )
+                .message_type(
+                    vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                        | vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                        | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+                )
+                .pfn_user_callback(Some(messenger_callback))
+                .user_data(Arc::as_ptr(&collector) as *mut c_void);
+            // SAFETY: the collector outlives the messenger (destroyed in Drop before the Arc goes).
+            let m = unsafe { du.create_debug_utils_messenger(&info, None) }
+                .map_err(HarnessError::vk("vkCreateDebugUtilsMessengerEXT"))?;
+            Some((du, m))
+        } else {
+            None
+        };
+        // SAFETY: plain query.
+        let physicals = unsafe { instance.enumerate_physical_devices() }.unwrap_or_default();
+        let Some(&physical) = physicals.first() else {
+            // SAFETY: destroying what was created above.
+            unsafe {
+                if let Some((du, m)) = &debug {
+                    du.destroy_debug_utils_messenger(*m, None);
+                }
+                instance.destroy_instance(None);
+            }
+            return Err(HarnessError::NoDevice(icd.display().to_string()));
+        };
+        // SAFETY: plain query.
+        let api_version = unsafe { instance.get_physical_device_properties(physical) }.api_version;
+        Ok(VkInstance {
+            driver,
+            entry,
+            instance,
+            debug,
+            collector,
+            physical,
+            api_version,
+        })
+    }
+
+    /// The device extensions the physical device exposes.
+    pub fn device_extensions(&self) -> BTreeSet<String> {
+        // SAFETY: plain query.
+        unsafe {
+            self.instance
+                .enumerate_device_extension_properties(self.physical)
+        }
+        .unwrap_or_default()
+        .iter()
+        .filter_map(|e| {
+            e.extension_name_as_c_str()
+                .ok()
+                .map(|n| n.to_string_lossy().into_owned())
+        })
+        .collect()
+    }
+
+    /// Every feature the device reports, keyed `Struct::member`, querying each structure it supports.
+    pub fn device_features(&self) -> BTreeMap<String, bool> {
+        let exts = self.device_extensions();
+        let mut chain = RawChain::new();
+        for s in FEATURE_STRUCTS {
+            if s.usable(self.api_version, |e| exts.contains(e)) {
+                chain.push(s);
+            }
+        }
+        let head = chain.link();
+        let mut f2 = vk::PhysicalDeviceFeatures2::default();
+        f2.p_next = head;
+        // SAFETY: the chain holds structures with correct sTypes and sizes; it lives across the call.
+        unsafe {
+            self.instance
+                .get_physical_device_features2(self.physical, &mut f2)
+        };
+        let mut out = BTreeMap::new();
+        for (n, v) in layout::read_bools(
+            vk_tables::PHYSICAL_DEVICE_FEATURES,
+            0,
+            structs::as_bytes(&f2.features),
+        ) {
+            out.insert(format!("VkPhysicalDeviceFeatures::{n}"), v);
+        }
+        for (info, bytes) in chain.parts() {
+            for (n, v) in layout::read_bools(info.members, EXTENSIBLE_HEADER, bytes) {
+                out.insert(format!("{}::{n}", info.name), v);
+            }
+        }
+        out
+    }
+}
+
+impl Drop for VkInstance {
+    fn drop(&mut self) {
+        // SAFETY: every device made from this instance is dropped first (DeviceContext holds an Arc).
+        unsafe {
+            if let Some((du, m)) = self.debug.take() {
+                du.destroy_debug_utils_messenger(m, None);
+            }
+            self.instance.destroy_instance(None);
+        }
+    }
+}

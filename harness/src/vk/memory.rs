@@ -1,0 +1,401 @@
+//! Buffer memory: host-visible allocations mapped for the harness's writes and reads, placed at a
+//! requested address alignment, and sparse buffers bound whole, in two pieces, or not at all.
+
+use crate::error::{vkfail, HarnessError};
+use crate::vk::VkDevice;
+use ash::vk;
+use model::call::BUFFER_PLACEMENT_ALIGNMENT;
+
+/// One memory object behind (part of) a buffer: where it sits in the buffer and its host mapping.
+struct Piece {
+    memory: vk::DeviceMemory,
+    /// Byte offset in the buffer where this memory's range starts.
+    at: u64,
+    /// Bytes of the buffer backed by this memory.
+    len: u64,
+    /// Host pointer to the buffer byte `at`.
+    ptr: *mut u8,
+}
+
+/// A buffer with host-visible memory, mapped, and its device address (0 without bufferDeviceAddress). Most
+/// buffers have one memory object; a sparse buffer of a `Scattered` case has two, and an `Unbound` sparse
+/// buffer none. Memory that is not HOST_COHERENT is flushed after host writes and invalidated before reads.
+pub struct Allocation {
+    pub buffer: vk::Buffer,
+    pub address: u64,
+    pub size: u64,
+    pieces: Vec<Piece>,
+    /// The device, kept only when the memory is not HOST_COHERENT (to flush and invalidate).
+    non_coherent: Option<ash::Device>,
+}
+
+/// How a buffer's pages are bound, for [`Allocation::sparse`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SparsePlan {
+    /// No memory bound at all.
+    Unbound,
+    /// The whole buffer bound to one memory object.
+    One,
+    /// The first half of the sparse blocks bound to one memory object, the rest to a second.
+    Two,
+}
+
+/// A host-visible memory type for `bits`: coherent if there is one, else any host-visible type (flushed).
+fn host_memory_type(dev: &VkDevice, bits: u32) -> Option<(u32, bool)> {
+    let visible = vk::MemoryPropertyFlags::HOST_VISIBLE;
+    dev.memory_type(bits, visible | vk::MemoryPropertyFlags::HOST_COHERENT)
+        .map(|t| (t, true))
+        .or_else(|| dev.memory_type(bits, visible).map(|t| (t, false)))
+}
+
+fn allocate(dev: &VkDevice, size: u64, memory_type: u32) -> Result<vk::DeviceMemory, HarnessError> {
+    let mut flags_info =
+        vk::MemoryAllocateFlagsInfo::default().flags(vk::MemoryAllocateFlags::DEVICE_ADDRESS);
+    let mut ai = vk::MemoryAllocateInfo::default()
+        .allocation_size(size)
+        .memory_type_index(memory_type);
+    if dev.has_feature("bufferDeviceAddress") {
+        ai = ai.push_next(&mut flags_info);
+    }
+    // SAFETY: valid allocate info.
+    unsafe { dev.device.allocate_memory(&ai, None) }
+        .map_err(|r| HarnessError::Failed(format!("vkAllocateMemory({size}) failed: {r:?}")))
+}
+
+fn address_of(dev: &VkDevice, b: vk::Buffer) -> u64 {
+    if dev.has_feature("bufferDeviceAddress") {
+        // SAFETY: b is bound completely to memory allocated with DEVICE_ADDRESS, or sparse
+        // (VUID-VkBufferDeviceAddressInfo-buffer-02600 exempts sparse buffers).
+        unsafe {
+            dev.device
+                .get_buffer_device_address(&vk::BufferDeviceAddressInfo::default().buffer(b))
+        }
+    } else {
+        0
+    }
+}
+
+impl Allocation {
+    /// Creates a buffer of `size` bytes, binds it to its own host-visible memory at an address that is a
+    /// multiple of `align` (when `align` > 1), and maps it.
+    pub fn new(
+        dev: &VkDevice,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+        flags: vk::BufferCreateFlags,
+        align: u64,
+    ) -> Result<Allocation, HarnessError> {
+        let d = &dev.device;
+        let info = vk::BufferCreateInfo::default()
+            .size(size.max(1))
+            .usage(usage)
+            .flags(flags);
+        // SAFETY: valid create info.
+        let mut buffer =
+            unsafe { d.create_buffer(&info, None) }.map_err(vkfail("vkCreateBuffer"))?;
+        // SAFETY: buffer is valid.
+        let req = unsafe { d.get_buffer_memory_requirements(buffer) };
+        let Some((mt, coherent)) = host_memory_type(dev, req.memory_type_bits) else {
+            // SAFETY: destroying what we created.
+            unsafe { d.destroy_buffer(buffer, None) };
+            return Err(HarnessError::Unsupported(
+                "no host-visible memory type for a buffer".into(),
+            ));
+        };
+        let bda = dev.has_feature("bufferDeviceAddress");
+        let alloc_size = req.size + if align > 1 { align } else { 0 };
+        let memory = match allocate(dev, alloc_size, mt) {
+            Ok(m) => m,
+            Err(e) => {
+                // SAFETY: destroying what we created.
+                unsafe { d.destroy_buffer(buffer, None) };
+                return Err(e);
+            }
+        };
+        let cleanup = |buffer: vk::Buffer| {
+            // SAFETY: destroying what we created.
+            unsafe {
+                d.destroy_buffer(buffer, None);
+                d.free_memory(memory, None);
+            }
+        };
+        // SAFETY: fresh buffer, fresh memory large enough.
+        if let Err(r) = unsafe { d.bind_buffer_memory(buffer, memory, 0) } {
+            cleanup(buffer);
+            return Err(HarnessError::Failed(format!(
+                "vkBindBufferMemory failed: {r:?}"
+            )));
+        }
+        let mut address = address_of(dev, buffer);
+        let mut offset = 0;
+        if bda && align > 1 && address % align != 0 {
+            let delta = align - address % align;
+            if delta % req.alignment.max(1) != 0 {
+                cleanup(buffer);
+                return Err(HarnessError::Unsupported(format!(
+                    "cannot place a buffer at a {align}-aligned device address (memory at {address:#x}, alignment {})",
+                    req.alignment
+                )));
+            }
+            // SAFETY: replacing the buffer by an identical one bound at the aligning offset.
+            unsafe { d.destroy_buffer(buffer, None) };
+            // SAFETY: valid create info.
+            buffer = match unsafe { d.create_buffer(&info, None) } {
+                Ok(b) => b,
+                Err(r) => {
+                    // SAFETY: freeing what we allocated.
+                    unsafe { d.free_memory(memory, None) };
+                    return Err(HarnessError::Failed(format!(
+                        "vkCreateBuffer failed: {r:?}"
+                    )));
+                }
+            };
+            // SAFETY: offset + size fits the allocation.
+            if let Err(r) = unsafe { d.bind_buffer_memory(buffer, memory, delta) } {
+                cleanup(buffer);
+                return Err(HarnessError::Failed(format!(
+                    "vkBindBufferMemory failed: {r:?}"
+                )));
+            }
+            offset = delta;
+            address = address_of(dev, buffer);
+            if address % align != 0 {
+                cleanup(buffer);
+                return Err(HarnessError::Unsupported(format!(
+                    "the driver placed a buffer at {address:#x}, not a multiple of {align}"
+                )));
+            }
+        }
+        // SAFETY: host-visible memory, whole range.
+        let ptr =
+            match unsafe { d.map_memory(memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty()) } {
+                Ok(p) => p as *mut u8,
+                Err(r) => {
+                    cleanup(buffer);
+                    return Err(HarnessError::Failed(format!("vkMapMemory failed: {r:?}")));
+                }
+            };
+        // SAFETY: mapped range covers offset..offset+size.
+        let ptr = unsafe { ptr.add(offset as usize) };
+        let a = Allocation {
+            buffer,
+            address,
+            size,
+            pieces: vec![Piece {
+                memory,
+                at: 0,
+                len: size,
+                ptr,
+            }],
+            non_coherent: (!coherent).then(|| d.clone()),
+        };
+        a.write(0, &vec![0u8; size as usize]);
+        Ok(a)
+    }
+
+    /// Creates a sparse buffer (`flags` has SPARSE_BINDING) and binds its pages with `vkQueueBindSparse` as
+    /// `plan` says, waiting on `fence` (unsignalled, left unsignalled) for the binding to finish.
+    pub fn sparse(
+        dev: &VkDevice,
+        fence: vk::Fence,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+        flags: vk::BufferCreateFlags,
+        plan: SparsePlan,
+    ) -> Result<Allocation, HarnessError> {
+        let d = &dev.device;
+        let info = vk::BufferCreateInfo::default()
+            .size(size.max(1))
+            .usage(usage)
+            .flags(flags);
+        // SAFETY: valid create info (the caller checked sparseBinding is enabled).
+        let buffer = unsafe { d.create_buffer(&info, None) }.map_err(vkfail("vkCreateBuffer"))?;
+        let mut a = Allocation {
+            buffer,
+            address: 0,
+            size,
+            pieces: Vec::new(),
+            non_coherent: None,
+        };
+        match a.bind_sparse(dev, fence, plan) {
+            Ok(()) => Ok(a),
+            Err(e) => {
+                a.destroy(dev);
+                Err(e)
+            }
+        }
+    }
+
+    fn bind_sparse(
+        &mut self,
+        dev: &VkDevice,
+        fence: vk::Fence,
+        plan: SparsePlan,
+    ) -> Result<(), HarnessError> {
+        let d = &dev.device;
+        // SAFETY: valid buffer.
+        let req = unsafe { d.get_buffer_memory_requirements(self.buffer) };
+        let block = req.alignment.max(1);
+        let blocks = req.size.div_ceil(block);
+        let ranges: Vec<(u64, u64)> = match plan {
+            SparsePlan::Unbound => vec![],
+            SparsePlan::One => vec![(0, blocks * block)],
+            SparsePlan::Two if blocks < 2 => {
+                return Err(HarnessError::Unsupported(format!(
+                    "a sparse buffer of {} bytes is one sparse block ({block} bytes) here, so its pages cannot be \
+                     scattered over two memory objects",
+                    self.size
+                )))
+            }
+            SparsePlan::Two => vec![(0, blocks / 2 * block), (blocks / 2 * block, (blocks - blocks / 2) * block)],
+        };
+        if !ranges.is_empty() {
+            let Some((mt, coherent)) = host_memory_type(dev, req.memory_type_bits) else {
+                return Err(HarnessError::Unsupported(
+                    "no host-visible memory type for a sparse buffer (the harness writes its contents from the host)".into(),
+                ));
+            };
+            if !coherent {
+                self.non_coherent = Some(d.clone());
+            }
+            for &(at, len) in &ranges {
+                let memory = allocate(dev, len, mt)?;
+                // SAFETY: host-visible memory, whole range.
+                let ptr = match unsafe {
+                    d.map_memory(memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty())
+                } {
+                    Ok(p) => p as *mut u8,
+                    Err(r) => {
+                        // SAFETY: freeing what we allocated.
+                        unsafe { d.free_memory(memory, None) };
+                        return Err(HarnessError::Failed(format!("vkMapMemory failed: {r:?}")));
+                    }
+                };
+                self.pieces.push(Piece {
+                    memory,
+                    at,
+                    len,
+                    ptr,
+                });
+            }
+            let binds: Vec<vk::SparseMemoryBind> = self
+                .pieces
+                .iter()
+                .map(|p| vk::SparseMemoryBind {
+                    resource_offset: p.at,
+                    size: p.len,
+                    memory: p.memory,
+                    memory_offset: 0,
+                    flags: Default::default(),
+                })
+                .collect();
+            let buffer_binds = [vk::SparseBufferMemoryBindInfo::default()
+                .buffer(self.buffer)
+                .binds(&binds)];
+            let bind = [vk::BindSparseInfo::default().buffer_binds(&buffer_binds)];
+            // SAFETY: the queue's family has SPARSE_BINDING (checked by the caller); the fence is unsignalled.
+            unsafe {
+                d.queue_bind_sparse(dev.queue, &bind, fence)
+                    .map_err(vkfail("vkQueueBindSparse"))?;
+                d.wait_for_fences(&[fence], true, 10_000_000_000)
+                    .map_err(vkfail("vkWaitForFences (sparse binding)"))?;
+                d.reset_fences(&[fence]).map_err(vkfail("vkResetFences"))?;
+            }
+            self.write(0, &vec![0u8; self.size as usize]);
+        }
+        self.address = address_of(dev, self.buffer);
+        if dev.has_feature("bufferDeviceAddress") && self.address % BUFFER_PLACEMENT_ALIGNMENT != 0
+        {
+            return Err(HarnessError::Unsupported(format!(
+                "the driver placed a sparse buffer at {:#x}, not a multiple of {BUFFER_PLACEMENT_ALIGNMENT}",
+                self.address
+            )));
+        }
+        Ok(())
+    }
+
+    /// The memory objects behind the buffer (one, two for a scattered sparse buffer, none when unbound).
+    pub fn memory_count(&self) -> usize {
+        self.pieces.len()
+    }
+
+    /// Copies `bytes` to `offset`, cutting what would fall past the end of the buffer or onto unbound pages.
+    pub fn write(&self, offset: u64, bytes: &[u8]) {
+        let end = (offset + bytes.len() as u64).min(self.size);
+        for p in &self.pieces {
+            let (lo, hi) = (offset.max(p.at), end.min(p.at + p.len));
+            if lo >= hi {
+                continue;
+            }
+            // SAFETY: lo..hi lies inside this piece's mapped range.
+            unsafe {
+                std::ptr::copy_nonoverlapping(
+                    bytes.as_ptr().add((lo - offset) as usize),
+                    p.ptr.add((lo - p.at) as usize),
+                    (hi - lo) as usize,
+                )
+            };
+        }
+        self.sync(true);
+    }
+
+    pub fn read_u32s(&self, count: usize) -> Vec<u32> {
+        self.sync(false);
+        let n = count.min((self.size / 4) as usize);
+        let mut bytes = vec![0u8; n * 4];
+        for p in &self.pieces {
+            let (lo, hi) = (
+                p.at.min(bytes.len() as u64),
+                (p.at + p.len).min(bytes.len() as u64),
+            );
+            if lo < hi {
+                // SAFETY: lo..hi lies inside this piece's mapped range.
+                unsafe {
+                    std::ptr::copy_nonoverlapping(
+                        p.ptr,
+                        bytes.as_mut_ptr().add(lo as usize),
+                        (hi - lo) as usize,
+                    )
+                };
+            }
+        }
+        bytes
+            .chunks_exact(4)
+            .map(|c| u32::from_ne_bytes([c[0], c[1], c[2], c[3]]))
+            .collect()
+    }
+
+    /// Flushes host writes (`to_device`) or invalidates host caches before reading, on non-coherent memory.
+    fn sync(&self, to_device: bool) {
+        let Some(d) = &self.non_coherent else { return };
+        let ranges: Vec<vk::MappedMemoryRange> = self
+            .pieces
+            .iter()
+            .map(|p| {
+                vk::MappedMemoryRange::default()
+                    .memory(p.memory)
+                    .offset(0)
+                    .size(vk::WHOLE_SIZE)
+            })
+            .collect();
+        // SAFETY: every memory object is mapped whole; WHOLE_SIZE from offset 0 needs no atom alignment.
+        unsafe {
+            let _ = if to_device {
+                d.flush_mapped_memory_ranges(&ranges)
+            } else {
+                d.invalidate_mapped_memory_ranges(&ranges)
+            };
+        }
+    }
+
+    pub fn destroy(self, dev: &VkDevice) {
+        // SAFETY: the GPU no longer uses the buffer (callers wait first, or the device is lost).
+        unsafe {
+            dev.device.destroy_buffer(self.buffer, None);
+            for p in &self.pieces {
+                dev.device.unmap_memory(p.memory);
+                dev.device.free_memory(p.memory, None);
+            }
+        }
+    }
+}
