@@ -6,21 +6,27 @@
 //! device), [`execute`] (one [`Executor`] for every command), [`accel_check`] (the traced check of a
 //! build), [`worker`] (worker processes), [`observe`] (what came back), [`probe`] (device profiles).
 
-pub mod accel_check;
+pub(crate) mod accel_check;
 pub mod error;
-pub mod execute;
+pub(crate) mod execute;
 pub mod observe;
 pub mod probe;
-pub mod realise;
-pub mod shaders;
-pub mod vk;
+pub(crate) mod realise;
+pub(crate) mod shaders;
+pub(crate) mod vk;
 pub mod worker;
 
 pub use error::HarnessError;
 pub use execute::{Execution, Executor};
 pub use observe::{Observation, Output, Status, TraceCheck};
 pub use probe::probe;
-pub use vk::Driver;
+pub use vk::{Driver, LayerMessage, VALIDATION_LAYER};
+
+/// The GLSL the harness makes of a resource state's accesses, stage by stage, and its compilation: for
+/// tests that template every stage.
+pub mod resource_glsl {
+    pub use crate::realise::resources::{compile_stage, stage_glsl, stage_source};
+}
 pub use worker::{
     run_in_workers, run_in_workers_with, worker_main, Request, Response, WorkerCommand,
 };

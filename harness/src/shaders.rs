@@ -15,7 +15,7 @@ include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
 
 /// Shader kinds: one SPIR-V module each per API, specialised per group by constant 0 (the group index).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum ShaderKind {
+pub(crate) enum ShaderKind {
     /// Raygen that traces into the scene at binding 0.
     RaygenTrace,
     /// Raygen without a scene binding (the case traces no rays).
@@ -35,18 +35,7 @@ pub enum ShaderKind {
 pub use model::world::PipelineApi as ShaderApi;
 
 impl ShaderKind {
-    pub const ALL: [ShaderKind; 8] = [
-        ShaderKind::RaygenTrace,
-        ShaderKind::RaygenPlain,
-        ShaderKind::Miss,
-        ShaderKind::ClosestHitTrace,
-        ShaderKind::ClosestHitPlain,
-        ShaderKind::AnyHit,
-        ShaderKind::Intersection,
-        ShaderKind::Callable,
-    ];
-
-    pub fn output_name(self) -> &'static str {
+    pub(crate) fn output_name(self) -> &'static str {
         match self {
             ShaderKind::RaygenTrace => "raygen_trace",
             ShaderKind::RaygenPlain => "raygen_plain",
@@ -60,7 +49,7 @@ impl ShaderKind {
     }
 
     /// The output name of the variant for `api` (`<name>_nv` for NV).
-    pub fn variant_name(self, api: ShaderApi) -> String {
+    pub(crate) fn variant_name(self, api: ShaderApi) -> String {
         match api {
             ShaderApi::Khr => self.output_name().to_string(),
             ShaderApi::Nv => format!("{}_nv", self.output_name()),
@@ -112,7 +101,7 @@ const _: () =
 const _: () = assert!(model::semantics::UNTOUCHED == 0xFFFF_FFFE);
 
 /// The SPIR-V words of a shader kind for a pipeline API.
-pub fn spirv(kind: ShaderKind, api: ShaderApi) -> Result<Vec<u32>, HarnessError> {
+pub(crate) fn spirv(kind: ShaderKind, api: ShaderApi) -> Result<Vec<u32>, HarnessError> {
     let name = kind.variant_name(api);
     match PRECOMPILED
         .iter()
@@ -150,7 +139,7 @@ fn words(name: &str, bytes: &[u8]) -> Result<Vec<u32>, HarnessError> {
 /// extension (`rgen`, `rchit`, `comp`, …), `defines` the preprocessor names (`TRACE`, `NV`), `what`
 /// names the shader in errors. Results are cached in this process and on disk by content, so worker
 /// processes compile each source once.
-pub fn compile_glsl(
+pub(crate) fn compile_glsl(
     what: &str,
     ext: &str,
     text: &str,
@@ -212,7 +201,7 @@ pub fn compile_glsl(
 }
 
 /// A shader module of SPIR-V words on a device; the caller destroys it.
-pub fn module(dev: &VkDevice, code: &[u32]) -> Result<vk::ShaderModule, HarnessError> {
+pub(crate) fn module(dev: &VkDevice, code: &[u32]) -> Result<vk::ShaderModule, HarnessError> {
     // SAFETY: `code` is SPIR-V from glslangValidator (checked for a module's size).
     unsafe {
         dev.device
@@ -223,6 +212,17 @@ pub fn module(dev: &VkDevice, code: &[u32]) -> Result<vk::ShaderModule, HarnessE
 
 #[cfg(test)]
 mod tests {
+    const ALL: [ShaderKind; 8] = [
+        ShaderKind::RaygenTrace,
+        ShaderKind::RaygenPlain,
+        ShaderKind::Miss,
+        ShaderKind::ClosestHitTrace,
+        ShaderKind::ClosestHitPlain,
+        ShaderKind::AnyHit,
+        ShaderKind::Intersection,
+        ShaderKind::Callable,
+    ];
+
     use super::*;
 
     /// The SPIR-V capability instruction (opcode 17) operands a module declares.
@@ -243,7 +243,7 @@ mod tests {
     fn every_shader_kind_has_spirv_for_both_apis() {
         const RAY_TRACING_NV: u32 = 5340;
         const RAY_TRACING_KHR: u32 = 4479;
-        for k in ShaderKind::ALL {
+        for k in ALL {
             for api in [ShaderApi::Khr, ShaderApi::Nv] {
                 let words = spirv(k, api).unwrap();
                 assert_eq!(

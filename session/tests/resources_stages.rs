@@ -9,7 +9,7 @@ mod common;
 use common::{body, committed, world, Lavapipe};
 use generator::resources::{launch_stages, move_to_stage, valid_state};
 use generator::{generate, CaseSpec};
-use harness::realise::resources::{compile_stage, stage_glsl, stage_source};
+use harness::resource_glsl::{compile_stage, stage_glsl, stage_source};
 use harness::Status;
 use model::case::Case;
 use model::resources::Stage;

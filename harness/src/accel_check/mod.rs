@@ -6,11 +6,13 @@
 
 mod pipeline;
 mod ray_query;
+mod set;
 
-use crate::error::{vkfail, HarnessError};
+use crate::error::HarnessError;
 use crate::observe::{error_ids, Hits, IndirectBuild, TraceCheck, TracedBuild};
 use crate::realise::accel::{device_for, indirect_args, realise, vk_geometries, vk_info, Realised};
-use crate::vk::commands::Commands;
+use crate::realise::scene::sized_structure;
+use crate::vk::commands::{memory_barrier, Commands};
 use crate::vk::memory::Allocation;
 use crate::vk::{VkDevice, VkInstance};
 use ash::vk;
@@ -34,46 +36,11 @@ fn build_direct(
         .as_ref()
         .ok_or_else(|| HarnessError::Failed("no acceleration structure extension".into()))?;
     let counts: Vec<u32> = ranges.iter().map(|r| r.primitive_count).collect();
+    let (s, storage, scratch) = sized_structure(dev, accel, ty, geoms, &counts, 256, 256)?;
     let info = vk::AccelerationStructureBuildGeometryInfoKHR::default()
         .ty(ty)
         .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
         .geometries(geoms);
-    let mut sizes = vk::AccelerationStructureBuildSizesInfoKHR::default();
-    // SAFETY: counts match.
-    unsafe {
-        accel.get_acceleration_structure_build_sizes(
-            vk::AccelerationStructureBuildTypeKHR::DEVICE,
-            &info,
-            &counts,
-            &mut sizes,
-        )
-    };
-    let storage = Allocation::new(
-        dev,
-        sizes.acceleration_structure_size.max(256),
-        vk::BufferUsageFlags::ACCELERATION_STRUCTURE_STORAGE_KHR
-            | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
-        vk::BufferCreateFlags::empty(),
-        256,
-    )?;
-    let scratch = Allocation::new(
-        dev,
-        sizes.build_scratch_size.max(1),
-        vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
-        vk::BufferCreateFlags::empty(),
-        256,
-    )?;
-    // SAFETY: storage is large enough.
-    let s = unsafe {
-        accel.create_acceleration_structure(
-            &vk::AccelerationStructureCreateInfoKHR::default()
-                .buffer(storage.buffer)
-                .size(sizes.acceleration_structure_size)
-                .ty(ty),
-            None,
-        )
-    }
-    .map_err(vkfail("vkCreateAccelerationStructureKHR"))?;
     // SAFETY: valid structure.
     let addr = unsafe {
         accel.get_acceleration_structure_device_address(
@@ -300,19 +267,16 @@ fn build_and_trace(
                 let all = [geoms.clone()];
                 let (infos, addrs, maxima) = indirect_args(case, r, &all);
                 // The range records are read by the build as indirect data.
-                let b = vk::MemoryBarrier::default()
-                    .src_access_mask(vk::AccessFlags::HOST_WRITE)
-                    .dst_access_mask(vk::AccessFlags::INDIRECT_COMMAND_READ);
                 // SAFETY: recording a valid indirect build on a device with accelerationStructureIndirectBuild.
                 unsafe {
-                    dev.device.cmd_pipeline_barrier(
+                    memory_barrier(
+                        &dev.device,
                         cmds.cb,
-                        vk::PipelineStageFlags::HOST,
-                        vk::PipelineStageFlags::DRAW_INDIRECT,
-                        vk::DependencyFlags::empty(),
-                        &[b],
-                        &[],
-                        &[],
+                        (vk::PipelineStageFlags::HOST, vk::AccessFlags::HOST_WRITE),
+                        (
+                            vk::PipelineStageFlags::DRAW_INDIRECT,
+                            vk::AccessFlags::INDIRECT_COMMAND_READ,
+                        ),
                     );
                     accel.cmd_build_acceleration_structures_indirect(
                         cmds.cb,
@@ -380,9 +344,9 @@ fn build_and_trace(
             .any(|g| matches!(g.data, GeometryData::Aabbs { .. }));
         let words = match check {
             TraceCheck::Pipeline => {
-                pipeline::trace_pipeline(dev, cmds, scene, rays, boxes, procedural, &mut extra)?
+                pipeline::trace_pipeline(dev, cmds, scene, rays, boxes, procedural)?
             }
-            _ => ray_query::trace(dev, cmds, scene, rays, boxes, &mut extra)?,
+            _ => ray_query::trace(dev, cmds, scene, rays, boxes)?,
         };
         let hits = words
             .iter()
@@ -486,52 +450,4 @@ pub(crate) fn probe_rays(
     cmds.destroy(&dev);
     r.destroy(&dev);
     out
-}
-
-/// Writes the traced check's descriptor set: the structure under test at binding 0 and the rays, hits
-/// and built-primitive buffers at bindings 1 to 3 (the same layout for the ray-query and the pipeline path).
-///
-/// # Safety
-/// `set` is a set of the check's layout that no pending command uses; the handles are live.
-unsafe fn write_check_set(
-    d: &ash::Device,
-    set: vk::DescriptorSet,
-    scene: vk::AccelerationStructureKHR,
-    buffers: [vk::Buffer; 3],
-) {
-    let scenes = [scene];
-    let mut asw =
-        vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&scenes);
-    let infos = buffers.map(|buffer| {
-        [vk::DescriptorBufferInfo {
-            buffer,
-            offset: 0,
-            range: vk::WHOLE_SIZE,
-        }]
-    });
-    let mut w0 = vk::WriteDescriptorSet::default()
-        .dst_set(set)
-        .dst_binding(0)
-        .descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR)
-        .push_next(&mut asw);
-    w0.descriptor_count = 1;
-    fn buffer_write(
-        set: vk::DescriptorSet,
-        binding: u32,
-        info: &[vk::DescriptorBufferInfo; 1],
-    ) -> vk::WriteDescriptorSet<'_> {
-        vk::WriteDescriptorSet::default()
-            .dst_set(set)
-            .dst_binding(binding)
-            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-            .buffer_info(info)
-    }
-    let writes = [
-        w0,
-        buffer_write(set, 1, &infos[0]),
-        buffer_write(set, 2, &infos[1]),
-        buffer_write(set, 3, &infos[2]),
-    ];
-    // SAFETY: guaranteed by the caller.
-    unsafe { d.update_descriptor_sets(&writes, &[]) };
 }

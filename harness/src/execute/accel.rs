@@ -9,7 +9,7 @@ use crate::observe::{Observation, Output, TraceCheck};
 use crate::realise::accel::{
     device_for, device_sizes, indirect_args, realise, vk_geometries, Realised,
 };
-use crate::vk::commands::Commands;
+use crate::vk::commands::{begin_render_pass, Commands};
 use crate::vk::{LayerMessage, VkDevice, VkInstance};
 use ash::vk;
 use model::accel::call::BuildMode;
@@ -125,18 +125,8 @@ fn enter_state(
         d.begin_command_buffer(cb, &begin)
             .map_err(vkfail("vkBeginCommandBuffer"))?;
         let primary_pass = rp.filter(|_| !secondary);
-        if let Some((pass, fb)) = primary_pass {
-            let info = vk::RenderPassBeginInfo::default()
-                .render_pass(pass)
-                .framebuffer(fb)
-                .render_area(vk::Rect2D {
-                    offset: vk::Offset2D::default(),
-                    extent: vk::Extent2D {
-                        width: 1,
-                        height: 1,
-                    },
-                });
-            d.cmd_begin_render_pass(cb, &info, vk::SubpassContents::INLINE);
+        if let Some(pass) = primary_pass {
+            begin_render_pass(d, cb, pass, vk::SubpassContents::INLINE);
         }
         match cbs.lifecycle {
             CommandBufferLifecycle::Executable | CommandBufferLifecycle::Invalid => {
@@ -160,20 +150,11 @@ fn enter_state(
                         .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
                 )
                 .map_err(vkfail("vkBeginCommandBuffer"))?;
-                if let Some((pass, fb)) = rp {
-                    let info = vk::RenderPassBeginInfo::default()
-                        .render_pass(pass)
-                        .framebuffer(fb)
-                        .render_area(vk::Rect2D {
-                            offset: vk::Offset2D::default(),
-                            extent: vk::Extent2D {
-                                width: 1,
-                                height: 1,
-                            },
-                        });
-                    d.cmd_begin_render_pass(
+                if let Some(pass) = rp {
+                    begin_render_pass(
+                        d,
                         cmds.cb,
-                        &info,
+                        pass,
                         vk::SubpassContents::SECONDARY_COMMAND_BUFFERS,
                     );
                     d.cmd_execute_commands(cmds.cb, &[cb]);

@@ -6,6 +6,7 @@ use super::{failure, Executor, MAX_OUTPUT_WORDS};
 use crate::error::HarnessError;
 use crate::observe::{Observation, Output, Status};
 use crate::realise::{DeviceCache, Tlas, RAY_RECORD_SIZE};
+use crate::vk::commands::{begin_render_pass, memory_barrier};
 use crate::vk::memory::Allocation;
 use ash::vk;
 use model::call::{Address, Call, StridedRegion};
@@ -49,11 +50,11 @@ pub(super) fn trace(ctx: &mut Executor, case: &model::TraceBody, run_valid: bool
             let _ = cache
                 .dev
                 .device
-                .reset_command_buffer(cache.primary, vk::CommandBufferResetFlags::empty());
+                .reset_command_buffer(cache.cmds.cb, vk::CommandBufferResetFlags::empty());
             let _ = cache
                 .dev
                 .device
-                .reset_command_buffer(cache.secondary, vk::CommandBufferResetFlags::empty());
+                .reset_command_buffer(cache.cmds.secondary, vk::CommandBufferResetFlags::empty());
         }
         for (_, a) in buffers {
             a.destroy(&cache.dev);
@@ -341,9 +342,9 @@ fn run(
     };
     let secondary = cbs.level == CommandBufferLevel::Secondary;
     let cb = if secondary {
-        cache.secondary
+        cache.cmds.secondary
     } else {
-        cache.primary
+        cache.cmds.cb
     };
     let d = &cache.dev.device;
     // SAFETY: recording into an idle command buffer with live objects.
@@ -361,17 +362,17 @@ fn run(
                 // The scene was built by an earlier submission: a memory dependency from its build to the
                 // shaders' reads (submission order alone gives only an execution dependency). Recorded
                 // before any render pass begins, where a barrier would need a subpass self-dependency.
-                let barrier = vk::MemoryBarrier::default()
-                    .src_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR)
-                    .dst_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR);
-                d.cmd_pipeline_barrier(
+                memory_barrier(
+                    d,
                     cb,
-                    vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR,
-                    vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
-                    vk::DependencyFlags::empty(),
-                    &[barrier],
-                    &[],
-                    &[],
+                    (
+                        vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR,
+                        vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR,
+                    ),
+                    (
+                        vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
+                        vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR,
+                    ),
                 );
             }
             if let Some(r) = res.as_ref() {
@@ -402,18 +403,8 @@ fn run(
             if let Some(r) = res.as_ref() {
                 r.record_binds(d, cb);
             }
-            if let Some((rp, fb)) = render_pass {
-                let begin = vk::RenderPassBeginInfo::default()
-                    .render_pass(rp)
-                    .framebuffer(fb)
-                    .render_area(vk::Rect2D {
-                        offset: vk::Offset2D::default(),
-                        extent: vk::Extent2D {
-                            width: 1,
-                            height: 1,
-                        },
-                    });
-                d.cmd_begin_render_pass(cb, &begin, vk::SubpassContents::INLINE);
+            if let Some(pass) = render_pass {
+                begin_render_pass(d, cb, pass, vk::SubpassContents::INLINE);
             }
             if cbs.lifecycle == CommandBufferLifecycle::Executable {
                 if render_pass.is_some() {
@@ -492,17 +483,14 @@ fn run(
     }
     // SAFETY: ending and submitting a valid recording.
     unsafe {
-        let barrier = vk::MemoryBarrier::default()
-            .src_access_mask(vk::AccessFlags::SHADER_WRITE)
-            .dst_access_mask(vk::AccessFlags::HOST_READ);
-        d.cmd_pipeline_barrier(
+        memory_barrier(
+            d,
             cb,
-            vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
-            vk::PipelineStageFlags::HOST,
-            vk::DependencyFlags::empty(),
-            &[barrier],
-            &[],
-            &[],
+            (
+                vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
+                vk::AccessFlags::SHADER_WRITE,
+            ),
+            (vk::PipelineStageFlags::HOST, vk::AccessFlags::HOST_READ),
         );
         d.end_command_buffer(cb)
             .map_err(|r| HarnessError::Failed(format!("vkEndCommandBuffer: {r:?}")))?;

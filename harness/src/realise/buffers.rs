@@ -58,7 +58,7 @@ impl DeviceCache {
 
 impl DeviceCache {
     /// Creates the case's buffers with their contents; returns them by name.
-    pub fn case_buffers(
+    pub(crate) fn case_buffers(
         &mut self,
         world: &World,
         pipeline: Option<(&Pipeline, bool)>,
@@ -127,7 +127,7 @@ impl DeviceCache {
                     MemoryBinding::Scattered => SparsePlan::Two,
                 };
                 self.check_sparse(b)?;
-                Allocation::sparse(&self.dev, self.fence, b.size, usage, flags, plan)?
+                Allocation::sparse(&self.dev, self.cmds.fence, b.size, usage, flags, plan)?
             } else {
                 match b.memory {
                     MemoryBinding::Whole => {}

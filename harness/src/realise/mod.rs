@@ -4,51 +4,50 @@
 //! state, and a build case's buffers and structures ([`accel`]). Pipelines and scenes are cached per
 //! device across cases ([`DeviceCache`]).
 
-pub mod accel;
+pub(crate) mod accel;
 mod buffers;
 mod pipeline;
-pub mod resources;
-mod scene;
+pub(crate) mod resources;
+pub(crate) mod scene;
 
-pub use pipeline::{Layouts, RealPipeline};
-pub use scene::{Scene, Tlas};
+pub(crate) use pipeline::{Layouts, RealPipeline};
+pub(crate) use scene::{Scene, Tlas};
 
 use crate::error::{vkfail, HarnessError};
 use crate::shaders::ShaderKind;
+use crate::vk::commands::Commands;
 use crate::vk::memory::Allocation;
 use crate::vk::VkDevice;
 use ash::vk;
 use std::collections::HashMap;
 
 /// Per-device objects the harness reuses across cases.
-pub struct DeviceCache {
+pub(crate) struct DeviceCache {
     modules: HashMap<(ShaderKind, bool), vk::ShaderModule>,
     layouts: HashMap<(bool, bool), Layouts>,
     pipelines: HashMap<String, Result<RealPipeline, HarnessError>>,
     scenes: HashMap<String, Result<Scene, HarnessError>>,
-    pub command_pool: vk::CommandPool,
-    pub primary: vk::CommandBuffer,
-    pub secondary: vk::CommandBuffer,
-    pub fence: vk::Fence,
-    pub descriptor_pool: vk::DescriptorPool,
+    /// The command pool, the primary and secondary buffers cases are recorded into, the fence, and
+    /// the empty render pass.
+    pub(crate) cmds: Commands,
+    pub(crate) descriptor_pool: vk::DescriptorPool,
     /// Output words and rays, reused and grown as needed.
-    pub output: Option<Allocation>,
-    pub rays: Option<Allocation>,
+    pub(crate) output: Option<Allocation>,
+    pub(crate) rays: Option<Allocation>,
     /// The callable record indices the raygen executes: a 16-byte header (count) and one u32 each.
-    pub callables: Option<Allocation>,
+    pub(crate) callables: Option<Allocation>,
     /// Set when a submission ended in DEVICE_LOST or a timeout: nothing may be recorded on this device
     /// again, and dropping it neither waits for it nor resets what is pending on it.
-    pub lost: bool,
-    pub render_pass: Option<(vk::RenderPass, vk::Framebuffer)>,
-    /// issue 4 hook: the pipeline of a case with a resource state (its own raygen module and pipeline
+    pub(crate) lost: bool,
+    /// The pipeline of a case with a resource state (its own raygen module and pipeline
     /// layout, made by `crate::realise::resources`), returned by [`DeviceCache::pipeline`] for the case's own
     /// (non-foreign) pipeline while that case runs. Owned and destroyed by `crate::realise::resources::Realised`.
-    pub resource_pipeline: Option<RealPipeline>,
-    pub dev: VkDevice,
+    pub(crate) resource_pipeline: Option<RealPipeline>,
+    pub(crate) dev: VkDevice,
 }
 
 /// The ray data the raygen shader reads: std430 `Ray` (64 bytes) after a 16-byte header.
-pub const RAY_RECORD_SIZE: usize = 64;
+pub(crate) const RAY_RECORD_SIZE: usize = 64;
 
 impl Drop for DeviceCache {
     fn drop(&mut self) {
@@ -84,14 +83,9 @@ impl Drop for DeviceCache {
             for (_, m) in self.modules.drain() {
                 d.destroy_shader_module(m, None);
             }
-            if let Some((rp, fb)) = self.render_pass.take() {
-                d.destroy_framebuffer(fb, None);
-                d.destroy_render_pass(rp, None);
-            }
             d.destroy_descriptor_pool(self.descriptor_pool, None);
-            d.destroy_fence(self.fence, None);
-            d.destroy_command_pool(self.command_pool, None);
         }
+        self.cmds.destroy(&self.dev);
         if let Some(a) = self.output.take() {
             a.destroy(&self.dev);
         }
@@ -105,34 +99,11 @@ impl Drop for DeviceCache {
 }
 
 impl DeviceCache {
-    pub fn new(dev: VkDevice) -> Result<DeviceCache, HarnessError> {
+    pub(crate) fn new(dev: VkDevice) -> Result<DeviceCache, HarnessError> {
         let d = &dev.device;
         // SAFETY: valid create infos on a live device.
         unsafe {
-            let command_pool = d
-                .create_command_pool(
-                    &vk::CommandPoolCreateInfo::default()
-                        .queue_family_index(dev.queue_family)
-                        .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
-                    None,
-                )
-                .map_err(vkfail("vkCreateCommandPool"))?;
-            let alloc = |level| {
-                d.allocate_command_buffers(
-                    &vk::CommandBufferAllocateInfo::default()
-                        .command_pool(command_pool)
-                        .level(level)
-                        .command_buffer_count(1),
-                )
-                .map(|v| v[0])
-            };
-            let primary = alloc(vk::CommandBufferLevel::PRIMARY)
-                .map_err(vkfail("vkAllocateCommandBuffers"))?;
-            let secondary = alloc(vk::CommandBufferLevel::SECONDARY)
-                .map_err(vkfail("vkAllocateCommandBuffers"))?;
-            let fence = d
-                .create_fence(&vk::FenceCreateInfo::default(), None)
-                .map_err(vkfail("vkCreateFence"))?;
+            let cmds = Commands::new(&dev)?;
             let mut sizes = vec![vk::DescriptorPoolSize {
                 ty: vk::DescriptorType::STORAGE_BUFFER,
                 descriptor_count: 6,
@@ -162,16 +133,12 @@ impl DeviceCache {
                 layouts: HashMap::new(),
                 pipelines: HashMap::new(),
                 scenes: HashMap::new(),
-                command_pool,
-                primary,
-                secondary,
-                fence,
+                cmds,
                 descriptor_pool,
                 output: None,
                 rays: None,
                 callables: None,
                 lost: false,
-                render_pass: None,
                 resource_pipeline: None,
                 dev,
             })
@@ -180,23 +147,26 @@ impl DeviceCache {
 
     /// Submits the primary command buffer and waits for it. A lost device or a submission that does not
     /// finish marks the cache [`lost`](Self::lost): nothing is recorded or submitted on it again.
-    pub fn submit_and_wait(&mut self, timeout: std::time::Duration) -> Result<(), HarnessError> {
+    pub(crate) fn submit_and_wait(
+        &mut self,
+        timeout: std::time::Duration,
+    ) -> Result<(), HarnessError> {
         if self.lost {
             return Err(HarnessError::Failed(
                 "the device was lost by an earlier case (ERROR_DEVICE_LOST)".into(),
             ));
         }
         let d = &self.dev.device;
-        let cbs = [self.primary];
+        let cbs = [self.cmds.cb];
         let submit = [vk::SubmitInfo::default().command_buffers(&cbs)];
         // SAFETY: the command buffer is executable; the fence is unsignalled.
         unsafe {
-            if let Err(r) = d.queue_submit(self.dev.queue, &submit, self.fence) {
+            if let Err(r) = d.queue_submit(self.dev.queue, &submit, self.cmds.fence) {
                 self.lost |= r == vk::Result::ERROR_DEVICE_LOST;
                 return Err(HarnessError::Failed(format!("vkQueueSubmit failed: {r:?}")));
             }
             let waited = d.wait_for_fences(
-                &[self.fence],
+                &[self.cmds.fence],
                 true,
                 timeout.as_nanos().min(u64::MAX as u128) as u64,
             );
@@ -215,7 +185,7 @@ impl DeviceCache {
                     )));
                 }
             }
-            d.reset_fences(&[self.fence])
+            d.reset_fences(&[self.cmds.fence])
                 .map_err(vkfail("vkResetFences"))?;
         }
         Ok(())
@@ -223,7 +193,7 @@ impl DeviceCache {
 
     /// Buffers at least `words` output words, `rays` ray records and `callables` callable indices large
     /// (grown when needed).
-    pub fn io_buffers(
+    pub(crate) fn io_buffers(
         &mut self,
         words: usize,
         rays: usize,
@@ -273,34 +243,9 @@ impl DeviceCache {
     }
 
     /// A render pass with no attachments and a 1x1 framebuffer, for cases recorded inside a render pass.
-    pub fn empty_render_pass(&mut self) -> Result<(vk::RenderPass, vk::Framebuffer), HarnessError> {
-        if let Some(rp) = self.render_pass {
-            return Ok(rp);
-        }
-        let d = &self.dev.device;
-        let subpass =
-            [vk::SubpassDescription::default()
-                .pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)];
-        // SAFETY: valid create infos.
-        unsafe {
-            let rp = d
-                .create_render_pass(
-                    &vk::RenderPassCreateInfo::default().subpasses(&subpass),
-                    None,
-                )
-                .map_err(vkfail("vkCreateRenderPass"))?;
-            let fb = d
-                .create_framebuffer(
-                    &vk::FramebufferCreateInfo::default()
-                        .render_pass(rp)
-                        .width(1)
-                        .height(1)
-                        .layers(1),
-                    None,
-                )
-                .map_err(vkfail("vkCreateFramebuffer"))?;
-            self.render_pass = Some((rp, fb));
-            Ok((rp, fb))
-        }
+    pub(crate) fn empty_render_pass(
+        &mut self,
+    ) -> Result<(vk::RenderPass, vk::Framebuffer), HarnessError> {
+        self.cmds.render_pass(&self.dev)
     }
 }

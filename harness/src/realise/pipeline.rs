@@ -10,19 +10,18 @@ use model::world::{GeneralStage, Pipeline, PipelineApi, ShaderGroup};
 
 /// The descriptor set layout and pipeline layout of one raygen variant.
 #[derive(Clone, Copy)]
-pub struct Layouts {
-    pub set: vk::DescriptorSetLayout,
-    pub pipeline: vk::PipelineLayout,
+pub(crate) struct Layouts {
+    pub(crate) set: vk::DescriptorSetLayout,
+    pub(crate) pipeline: vk::PipelineLayout,
 }
 
 /// A created ray tracing pipeline and its group handles.
-pub struct RealPipeline {
-    pub pipeline: vk::Pipeline,
-    pub handles: Vec<u8>,
-    pub group_count: usize,
+pub(crate) struct RealPipeline {
+    pub(crate) pipeline: vk::Pipeline,
+    pub(crate) handles: Vec<u8>,
     /// The stack size the spec's default formula gives for the pipeline's recursion depth (section "Ray
     /// Tracing Pipeline Stack"), used for `vkCmdSetRayTracingPipelineStackSizeKHR`; 0 for NV pipelines.
-    pub default_stack_size: u32,
+    pub(crate) default_stack_size: u32,
 }
 
 /// The stack size of the spec's default pipeline stack computation ("Ray Tracing Pipeline Stack"):
@@ -88,7 +87,11 @@ impl DeviceCache {
     /// Layouts for the raygen variant: with the scene at binding 0 (`trace`, a KHR or NV acceleration
     /// structure by `api`) or without. Binding 1 is the output, 2 the rays, 3 the callable indices; the
     /// closest-hit reads the scene and the rays to trace its ray again.
-    pub fn layouts(&mut self, trace: bool, api: PipelineApi) -> Result<Layouts, HarnessError> {
+    pub(crate) fn layouts(
+        &mut self,
+        trace: bool,
+        api: PipelineApi,
+    ) -> Result<Layouts, HarnessError> {
         if let Some(l) = self.layouts.get(&(trace, api == PipelineApi::Nv)) {
             return Ok(*l);
         }
@@ -143,7 +146,7 @@ impl DeviceCache {
     }
 
     /// The pipeline for a description (cached); `foreign` makes a second, distinct pipeline of it.
-    pub fn pipeline(
+    pub(crate) fn pipeline(
         &mut self,
         p: &Pipeline,
         trace: bool,
@@ -175,7 +178,7 @@ impl DeviceCache {
     /// issue 4 hook: the pipeline for a description with `layout` and, for each shader kind `modules`
     /// names, that module in every stage of that kind (used by `crate::realise::resources` for cases with a
     /// resource state: its templated raygen, closest-hit, miss, ... modules). Not cached.
-    pub fn create_pipeline_with(
+    pub(crate) fn create_pipeline_with(
         &mut self,
         p: &Pipeline,
         trace: bool,
@@ -358,7 +361,6 @@ impl DeviceCache {
             return Ok(RealPipeline {
                 pipeline,
                 handles,
-                group_count: n,
                 default_stack_size: 0,
             });
         }
@@ -420,7 +422,6 @@ impl DeviceCache {
         Ok(RealPipeline {
             pipeline,
             handles,
-            group_count: n,
             default_stack_size,
         })
     }

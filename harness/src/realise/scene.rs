@@ -4,6 +4,7 @@
 
 use super::DeviceCache;
 use crate::error::{vkfail, HarnessError};
+use crate::vk::commands::memory_barrier;
 use crate::vk::memory::Allocation;
 use crate::vk::VkDevice;
 use ash::vk;
@@ -11,14 +12,14 @@ use model::world::{GeometryKind, Instance, PipelineApi};
 
 /// The top-level structure of a built scene, of the extension the case's pipeline uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Tlas {
+pub(crate) enum Tlas {
     Khr(vk::AccelerationStructureKHR),
     Nv(vk::AccelerationStructureNV),
 }
 
 /// A built scene: BLASes, TLAS and their buffers (and, for NV structures, their memory).
-pub struct Scene {
-    pub tlas: Tlas,
+pub(crate) struct Scene {
+    pub(crate) tlas: Tlas,
     structures: Vec<vk::AccelerationStructureKHR>,
     nv_structures: Vec<vk::AccelerationStructureNV>,
     nv_memory: Vec<vk::DeviceMemory>,
@@ -26,14 +27,17 @@ pub struct Scene {
 }
 
 /// An acceleration structure of `ty` sized for `geometries` with `counts` primitives: its storage buffer,
-/// its scratch buffer (aligned to `scratch_align`) and the created, not yet built, structure.
-fn sized_structure(
+/// its scratch buffer (aligned to `scratch_align`) and the created, not yet built, structure. The storage
+/// buffer holds at least `storage_min` bytes.
+#[allow(clippy::type_complexity)]
+pub(crate) fn sized_structure(
     dev: &VkDevice,
     accel: &ash::khr::acceleration_structure::Device,
     ty: vk::AccelerationStructureTypeKHR,
     geometries: &[vk::AccelerationStructureGeometryKHR],
     counts: &[u32],
     scratch_align: u64,
+    storage_min: u64,
 ) -> Result<(vk::AccelerationStructureKHR, Allocation, Allocation), HarnessError> {
     let info = vk::AccelerationStructureBuildGeometryInfoKHR::default()
         .ty(ty)
@@ -56,7 +60,7 @@ fn sized_structure(
     let none = vk::BufferCreateFlags::empty();
     let storage = Allocation::new(
         dev,
-        sizes.acceleration_structure_size,
+        sizes.acceleration_structure_size.max(storage_min),
         storage_usage,
         none,
         256,
@@ -119,7 +123,7 @@ fn geometry_input(instances: &[Instance]) -> (Vec<u8>, Vec<Vec<u64>>) {
 
 impl DeviceCache {
     /// The scene for a list of instances (cached).
-    pub fn scene(
+    pub(crate) fn scene(
         &mut self,
         instances: &[Instance],
         api: PipelineApi,
@@ -268,6 +272,7 @@ impl DeviceCache {
                 &geoms,
                 &counts,
                 scratch_align,
+                0,
             )?;
             scene.structures.push(blas);
             // SAFETY: valid structure.
@@ -330,6 +335,7 @@ impl DeviceCache {
             &tlas_geom,
             &tlas_count,
             scratch_align,
+            0,
         )?;
         scene.structures.push(tlas);
         scene.tlas = Tlas::Khr(tlas);
@@ -339,7 +345,7 @@ impl DeviceCache {
 
         // Record: every BLAS, a barrier, the TLAS; submit and wait.
         let d = &dev.device;
-        let cb = self.primary;
+        let cb = self.cmds.cb;
         // SAFETY: the command buffer is idle (every case waits or resets before returning).
         unsafe {
             d.reset_command_buffer(cb, vk::CommandBufferResetFlags::empty())
@@ -361,18 +367,18 @@ impl DeviceCache {
                     });
                 accel.cmd_build_acceleration_structures(cb, &[info], &[ranges.as_slice()]);
             }
-            let barrier = vk::MemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR)
-                .dst_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR);
-            d.cmd_pipeline_barrier(
+            memory_barrier(
+                d,
                 cb,
-                vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR,
-                vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR
-                    | vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
-                vk::DependencyFlags::empty(),
-                &[barrier],
-                &[],
-                &[],
+                (
+                    vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR,
+                    vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR,
+                ),
+                (
+                    vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR
+                        | vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
+                    vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR,
+                ),
             );
             let info = vk::AccelerationStructureBuildGeometryInfoKHR::default()
                 .ty(vk::AccelerationStructureTypeKHR::TOP_LEVEL)
@@ -555,7 +561,7 @@ impl DeviceCache {
         scene.tlas = Tlas::Nv(tlas);
 
         let d = &self.dev.device;
-        let cb = self.primary;
+        let cb = self.cmds.cb;
         // SAFETY: the command buffer is idle; every structure is bound to memory.
         unsafe {
             d.reset_command_buffer(cb, vk::CommandBufferResetFlags::empty())
@@ -582,18 +588,18 @@ impl DeviceCache {
                     0,
                 );
             }
-            let barrier = vk::MemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_NV)
-                .dst_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_READ_NV);
-            d.cmd_pipeline_barrier(
+            memory_barrier(
+                d,
                 cb,
-                vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_NV,
-                vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_NV
-                    | vk::PipelineStageFlags::RAY_TRACING_SHADER_NV,
-                vk::DependencyFlags::empty(),
-                &[barrier],
-                &[],
-                &[],
+                (
+                    vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_NV,
+                    vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_NV,
+                ),
+                (
+                    vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_NV
+                        | vk::PipelineStageFlags::RAY_TRACING_SHADER_NV,
+                    vk::AccessFlags::ACCELERATION_STRUCTURE_READ_NV,
+                ),
             );
             nv.cmd_build_acceleration_structure(
                 cb,

@@ -87,11 +87,6 @@ impl Commands {
         }
     }
     pub(crate) fn barrier(&self, dev: &VkDevice) {
-        let b = vk::MemoryBarrier::default()
-            .src_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR)
-            .dst_access_mask(
-                vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR | vk::AccessFlags::SHADER_READ,
-            );
         let mut dst = vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR
             | vk::PipelineStageFlags::COMPUTE_SHADER;
         if dev.has_feature("rayTracingPipeline") {
@@ -99,14 +94,17 @@ impl Commands {
         }
         // SAFETY: recording.
         unsafe {
-            dev.device.cmd_pipeline_barrier(
+            memory_barrier(
+                &dev.device,
                 self.cb,
-                vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR,
-                dst,
-                vk::DependencyFlags::empty(),
-                &[b],
-                &[],
-                &[],
+                (
+                    vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR,
+                    vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR,
+                ),
+                (
+                    dst,
+                    vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR | vk::AccessFlags::SHADER_READ,
+                ),
             )
         };
     }
@@ -147,7 +145,7 @@ impl Commands {
             Ok((rp, fb))
         }
     }
-    pub(crate) fn destroy(self, dev: &VkDevice) {
+    pub(crate) fn destroy(&self, dev: &VkDevice) {
         // SAFETY: idle.
         unsafe {
             if let Some((rp, fb)) = self.render_pass {
@@ -158,4 +156,55 @@ impl Commands {
             dev.device.destroy_command_pool(self.pool, None);
         }
     }
+}
+
+/// Records a global memory barrier from `src` (stages, accesses) to `dst`.
+///
+/// # Safety
+/// `cb` is recording, outside a render pass instance.
+pub(crate) unsafe fn memory_barrier(
+    d: &ash::Device,
+    cb: vk::CommandBuffer,
+    src: (vk::PipelineStageFlags, vk::AccessFlags),
+    dst: (vk::PipelineStageFlags, vk::AccessFlags),
+) {
+    let barrier = vk::MemoryBarrier::default()
+        .src_access_mask(src.1)
+        .dst_access_mask(dst.1);
+    // SAFETY: guaranteed by the caller.
+    unsafe {
+        d.cmd_pipeline_barrier(
+            cb,
+            src.0,
+            dst.0,
+            vk::DependencyFlags::empty(),
+            &[barrier],
+            &[],
+            &[],
+        )
+    };
+}
+
+/// Begins the 1x1 empty render pass `(pass, framebuffer)` in `cb`.
+///
+/// # Safety
+/// `cb` is a recording primary command buffer outside a render pass instance; the objects are live.
+pub(crate) unsafe fn begin_render_pass(
+    d: &ash::Device,
+    cb: vk::CommandBuffer,
+    (pass, framebuffer): (vk::RenderPass, vk::Framebuffer),
+    contents: vk::SubpassContents,
+) {
+    let info = vk::RenderPassBeginInfo::default()
+        .render_pass(pass)
+        .framebuffer(framebuffer)
+        .render_area(vk::Rect2D {
+            offset: vk::Offset2D::default(),
+            extent: vk::Extent2D {
+                width: 1,
+                height: 1,
+            },
+        });
+    // SAFETY: guaranteed by the caller.
+    unsafe { d.cmd_begin_render_pass(cb, &info, contents) };
 }

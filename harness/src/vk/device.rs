@@ -96,38 +96,37 @@ fn feature_chain(
 
 /// Ray tracing limits the harness lays tables out with.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct RtLimits {
-    pub handle_size: u32,
-    pub handle_alignment: u32,
-    pub base_alignment: u32,
-    pub scratch_alignment: u32,
+pub(crate) struct RtLimits {
+    pub(crate) handle_size: u32,
+    pub(crate) handle_alignment: u32,
+    pub(crate) base_alignment: u32,
+    pub(crate) scratch_alignment: u32,
     /// `VkPhysicalDeviceRayTracingPropertiesNV::shaderGroupHandleSize` (0 without VK_NV_ray_tracing).
-    pub nv_handle_size: u32,
+    pub(crate) nv_handle_size: u32,
 }
 
 /// A logical device with exactly a case's extensions and features, and what the harness needs of it.
-pub struct VkDevice {
-    pub inst: Arc<VkInstance>,
-    pub device: ash::Device,
-    pub queue: vk::Queue,
-    pub queue_family: u32,
-    pub extensions: BTreeSet<String>,
-    pub features: BTreeSet<String>,
-    pub rt: Option<ash::khr::ray_tracing_pipeline::Device>,
-    pub accel: Option<ash::khr::acceleration_structure::Device>,
-    pub memory: vk::PhysicalDeviceMemoryProperties,
-    pub limits: RtLimits,
-    pub sparse_binding: bool,
+pub(crate) struct VkDevice {
+    pub(crate) inst: Arc<VkInstance>,
+    pub(crate) device: ash::Device,
+    pub(crate) queue: vk::Queue,
+    pub(crate) queue_family: u32,
+    pub(crate) features: BTreeSet<String>,
+    pub(crate) rt: Option<ash::khr::ray_tracing_pipeline::Device>,
+    pub(crate) accel: Option<ash::khr::acceleration_structure::Device>,
+    pub(crate) memory: vk::PhysicalDeviceMemoryProperties,
+    pub(crate) limits: RtLimits,
+    pub(crate) sparse_binding: bool,
     /// VK_NV_ray_tracing, when the case enables it.
-    pub nv: Option<ash::nv::ray_tracing::Device>,
+    pub(crate) nv: Option<ash::nv::ray_tracing::Device>,
     /// Set by the owner when the device was lost or a submission never finished: dropping then neither
     /// waits for nor destroys the device, and keeps its instance alive (a leak, never a hang).
-    pub leak: bool,
+    pub(crate) leak: bool,
 }
 
 impl VkDevice {
     /// Creates a device with exactly `extensions` and `features` enabled, or says what the driver lacks.
-    pub fn new(
+    pub(crate) fn new(
         inst: Arc<VkInstance>,
         extensions: &BTreeSet<String>,
         features: &BTreeSet<String>,
@@ -249,7 +248,6 @@ impl VkDevice {
             device,
             queue,
             queue_family: family as u32,
-            extensions: extensions.clone(),
             features: features.clone(),
             rt,
             accel,
@@ -262,14 +260,14 @@ impl VkDevice {
     }
 
     /// Whether the device was created with feature `name` (member name or `Struct::member`).
-    pub fn has_feature(&self, name: &str) -> bool {
+    pub(crate) fn has_feature(&self, name: &str) -> bool {
         self.features
             .iter()
             .any(|f| f == name || f.rsplit("::").next() == Some(name))
     }
 
     /// A memory type index allowed by `bits` with all of `flags`.
-    pub fn memory_type(&self, bits: u32, flags: vk::MemoryPropertyFlags) -> Option<u32> {
+    pub(crate) fn memory_type(&self, bits: u32, flags: vk::MemoryPropertyFlags) -> Option<u32> {
         (0..self.memory.memory_type_count).find(|&i| {
             bits & (1 << i) != 0
                 && self.memory.memory_types[i as usize]

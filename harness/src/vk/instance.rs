@@ -69,23 +69,23 @@ pub struct LayerMessage {
 
 /// What the messenger callback writes into; shared with the callback through its user-data pointer.
 #[derive(Default)]
-pub struct Collector {
+pub(crate) struct Collector {
     messages: Mutex<Vec<LayerMessage>>,
     /// While set, the callback returns VK_TRUE so the layer drops the call instead of passing it on.
     abort: AtomicBool,
 }
 
 impl Collector {
-    pub fn clear(&self) {
+    pub(crate) fn clear(&self) {
         self.messages
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .clear();
     }
-    pub fn take(&self) -> Vec<LayerMessage> {
+    pub(crate) fn take(&self) -> Vec<LayerMessage> {
         std::mem::take(&mut *self.messages.lock().unwrap_or_else(|e| e.into_inner()))
     }
-    pub fn set_abort(&self, abort: bool) {
+    pub(crate) fn set_abort(&self, abort: bool) {
         self.abort.store(abort, Ordering::SeqCst);
     }
 }
@@ -138,14 +138,15 @@ unsafe extern "system" fn messenger_callback(
 }
 
 /// A loaded driver: entry, instance, and (with validation) the layer's messenger.
-pub struct VkInstance {
-    pub driver: Driver,
-    pub entry: ash::Entry,
-    pub instance: ash::Instance,
+pub(crate) struct VkInstance {
+    pub(crate) driver: Driver,
+    /// The loaded Vulkan loader, kept for as long as the instance lives.
+    _entry: ash::Entry,
+    pub(crate) instance: ash::Instance,
     debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
-    pub collector: Arc<Collector>,
-    pub physical: vk::PhysicalDevice,
-    pub api_version: u32,
+    pub(crate) collector: Arc<Collector>,
+    pub(crate) physical: vk::PhysicalDevice,
+    pub(crate) api_version: u32,
 }
 
 // SAFETY: Vulkan instance handles may be used from any thread; the harness serialises use per device.
@@ -155,7 +156,7 @@ unsafe impl Sync for VkInstance {}
 impl VkInstance {
     /// Loads `driver` (setting `VK_DRIVER_FILES` before the loader reads it) and creates an instance, with
     /// the validation layer and a messenger when `validation` is set, and picks the driver's first device.
-    pub fn new(driver: Driver, validation: bool) -> Result<VkInstance, HarnessError> {
+    pub(crate) fn new(driver: Driver, validation: bool) -> Result<VkInstance, HarnessError> {
         let icd = driver.icd_path();
         if !icd.is_file() {
             return Err(HarnessError::IcdMissing(icd.display().to_string()));
@@ -235,7 +236,7 @@ impl VkInstance {
         let api_version = unsafe { instance.get_physical_device_properties(physical) }.api_version;
         Ok(VkInstance {
             driver,
-            entry,
+            _entry: entry,
             instance,
             debug,
             collector,
@@ -245,7 +246,7 @@ impl VkInstance {
     }
 
     /// The device extensions the physical device exposes.
-    pub fn device_extensions(&self) -> BTreeSet<String> {
+    pub(crate) fn device_extensions(&self) -> BTreeSet<String> {
         // SAFETY: plain query.
         unsafe {
             self.instance
@@ -262,7 +263,7 @@ impl VkInstance {
     }
 
     /// Every feature the device reports, keyed `Struct::member`, querying each structure it supports.
-    pub fn device_features(&self) -> BTreeMap<String, bool> {
+    pub(crate) fn device_features(&self) -> BTreeMap<String, bool> {
         let exts = self.device_extensions();
         let mut chain = RawChain::new();
         for s in FEATURE_STRUCTS {

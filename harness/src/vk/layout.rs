@@ -5,7 +5,7 @@ use model::profile::PropertyValue;
 
 /// The C type of a structure member, as far as its layout and its printed value go.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum MemberKind {
+pub(crate) enum MemberKind {
     U32,
     I32,
     F32,
@@ -21,10 +21,10 @@ pub enum MemberKind {
 
 /// One member of a structure: name, type, array length (1 for a scalar).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Member {
-    pub name: &'static str,
-    pub kind: MemberKind,
-    pub count: usize,
+pub(crate) struct Member {
+    pub(crate) name: &'static str,
+    pub(crate) kind: MemberKind,
+    pub(crate) count: usize,
 }
 
 impl MemberKind {
@@ -39,10 +39,10 @@ impl MemberKind {
 }
 
 /// Bytes before the first member: `sType` and `pNext` for extensible structures, none otherwise.
-pub const EXTENSIBLE_HEADER: usize = 16;
+pub(crate) const EXTENSIBLE_HEADER: usize = 16;
 
 /// The offset of each member and the structure's total size, C rules, after a header of `header` bytes.
-pub fn offsets(members: &[Member], header: usize) -> (Vec<usize>, usize) {
+pub(crate) fn offsets(members: &[Member], header: usize) -> (Vec<usize>, usize) {
     let mut at = header;
     let mut max_align = if header > 0 { 8 } else { 1 };
     let mut out = Vec::with_capacity(members.len());
@@ -81,7 +81,7 @@ fn read_one(kind: MemberKind, bytes: &[u8], at: usize) -> PropertyValue {
 }
 
 /// Every member's value read from a structure's bytes; `char` arrays become text, other arrays arrays.
-pub fn read_members(
+pub(crate) fn read_members(
     members: &[Member],
     header: usize,
     bytes: &[u8],
@@ -114,7 +114,11 @@ pub fn read_members(
 }
 
 /// The boolean members (features) of a structure with their values.
-pub fn read_bools(members: &[Member], header: usize, bytes: &[u8]) -> Vec<(&'static str, bool)> {
+pub(crate) fn read_bools(
+    members: &[Member],
+    header: usize,
+    bytes: &[u8],
+) -> Vec<(&'static str, bool)> {
     read_members(members, header, bytes)
         .into_iter()
         .filter_map(|(n, v)| match v {
@@ -125,7 +129,7 @@ pub fn read_bools(members: &[Member], header: usize, bytes: &[u8]) -> Vec<(&'sta
 }
 
 /// Sets the boolean member `name` to true; false when the structure has no such member.
-pub fn set_bool(members: &[Member], header: usize, bytes: &mut [u8], name: &str) -> bool {
+pub(crate) fn set_bool(members: &[Member], header: usize, bytes: &mut [u8], name: &str) -> bool {
     let (offs, size) = offsets(members, header);
     if bytes.len() < size {
         return false;

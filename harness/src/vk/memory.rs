@@ -20,10 +20,10 @@ struct Piece {
 /// A buffer with host-visible memory, mapped, and its device address (0 without bufferDeviceAddress). Most
 /// buffers have one memory object; a sparse buffer of a `Scattered` case has two, and an `Unbound` sparse
 /// buffer none. Memory that is not HOST_COHERENT is flushed after host writes and invalidated before reads.
-pub struct Allocation {
-    pub buffer: vk::Buffer,
-    pub address: u64,
-    pub size: u64,
+pub(crate) struct Allocation {
+    pub(crate) buffer: vk::Buffer,
+    pub(crate) address: u64,
+    pub(crate) size: u64,
     pieces: Vec<Piece>,
     /// The device, kept only when the memory is not HOST_COHERENT (to flush and invalidate).
     non_coherent: Option<ash::Device>,
@@ -31,7 +31,7 @@ pub struct Allocation {
 
 /// How a buffer's pages are bound, for [`Allocation::sparse`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum SparsePlan {
+pub(crate) enum SparsePlan {
     /// No memory bound at all.
     Unbound,
     /// The whole buffer bound to one memory object.
@@ -78,7 +78,7 @@ fn address_of(dev: &VkDevice, b: vk::Buffer) -> u64 {
 impl Allocation {
     /// Creates a buffer of `size` bytes, binds it to its own host-visible memory at an address that is a
     /// multiple of `align` (when `align` > 1), and maps it.
-    pub fn new(
+    pub(crate) fn new(
         dev: &VkDevice,
         size: u64,
         usage: vk::BufferUsageFlags,
@@ -195,7 +195,7 @@ impl Allocation {
 
     /// Creates a sparse buffer (`flags` has SPARSE_BINDING) and binds its pages with `vkQueueBindSparse` as
     /// `plan` says, waiting on `fence` (unsignalled, left unsignalled) for the binding to finish.
-    pub fn sparse(
+    pub(crate) fn sparse(
         dev: &VkDevice,
         fence: vk::Fence,
         size: u64,
@@ -315,12 +315,12 @@ impl Allocation {
     }
 
     /// The memory objects behind the buffer (one, two for a scattered sparse buffer, none when unbound).
-    pub fn memory_count(&self) -> usize {
+    pub(crate) fn memory_count(&self) -> usize {
         self.pieces.len()
     }
 
     /// Copies `bytes` to `offset`, cutting what would fall past the end of the buffer or onto unbound pages.
-    pub fn write(&self, offset: u64, bytes: &[u8]) {
+    pub(crate) fn write(&self, offset: u64, bytes: &[u8]) {
         let end = (offset + bytes.len() as u64).min(self.size);
         for p in &self.pieces {
             let (lo, hi) = (offset.max(p.at), end.min(p.at + p.len));
@@ -339,7 +339,7 @@ impl Allocation {
         self.sync(true);
     }
 
-    pub fn read_u32s(&self, count: usize) -> Vec<u32> {
+    pub(crate) fn read_u32s(&self, count: usize) -> Vec<u32> {
         self.sync(false);
         let n = count.min((self.size / 4) as usize);
         let mut bytes = vec![0u8; n * 4];
@@ -388,7 +388,7 @@ impl Allocation {
         }
     }
 
-    pub fn destroy(self, dev: &VkDevice) {
+    pub(crate) fn destroy(self, dev: &VkDevice) {
         // SAFETY: the GPU no longer uses the buffer (callers wait first, or the device is lost).
         unsafe {
             dev.device.destroy_buffer(self.buffer, None);

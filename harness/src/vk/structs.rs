@@ -7,19 +7,19 @@ use ash::vk;
 
 /// One extensible structure: its type name, members, `sType`, and when a device may use it.
 #[derive(Debug, Clone, Copy)]
-pub struct StructInfo {
-    pub name: &'static str,
-    pub members: &'static [Member],
-    pub s_type: vk::StructureType,
+pub(crate) struct StructInfo {
+    pub(crate) name: &'static str,
+    pub(crate) members: &'static [Member],
+    pub(crate) s_type: vk::StructureType,
     /// Usable when the device's API version is at least this (core), …
-    pub core: Option<u32>,
+    pub(crate) core: Option<u32>,
     /// … or when the device exposes (and, for device creation, the case enables) this extension.
-    pub extension: Option<&'static str>,
+    pub(crate) extension: Option<&'static str>,
 }
 
 impl StructInfo {
     /// Whether a device of `api_version` with `has_ext` may use this structure.
-    pub fn usable(&self, api_version: u32, has_ext: impl Fn(&str) -> bool) -> bool {
+    pub(crate) fn usable(&self, api_version: u32, has_ext: impl Fn(&str) -> bool) -> bool {
         self.core.is_some_and(|v| api_version >= v) || self.extension.is_some_and(has_ext)
     }
 }
@@ -28,7 +28,7 @@ const V1_2: u32 = vk::API_VERSION_1_2;
 const V1_3: u32 = vk::API_VERSION_1_3;
 
 /// Feature structures chained behind `VkPhysicalDeviceFeatures2`, in lookup order (core first).
-pub const FEATURE_STRUCTS: &[StructInfo] = &[
+pub(crate) const FEATURE_STRUCTS: &[StructInfo] = &[
     StructInfo {
         name: "VkPhysicalDeviceVulkan11Features",
         members: t::PHYSICAL_DEVICE_VULKAN11_FEATURES,
@@ -88,7 +88,7 @@ pub const FEATURE_STRUCTS: &[StructInfo] = &[
 ];
 
 /// Property structures chained behind `VkPhysicalDeviceProperties2`.
-pub const PROPERTY_STRUCTS: &[StructInfo] = &[
+pub(crate) const PROPERTY_STRUCTS: &[StructInfo] = &[
     StructInfo {
         name: "VkPhysicalDeviceVulkan11Properties",
         members: t::PHYSICAL_DEVICE_VULKAN11_PROPERTIES,
@@ -134,17 +134,17 @@ pub const PROPERTY_STRUCTS: &[StructInfo] = &[
 ];
 
 /// An owned `pNext` chain of raw extensible structures (8-byte aligned storage).
-pub struct RawChain {
+pub(crate) struct RawChain {
     parts: Vec<(&'static StructInfo, Vec<u64>)>,
 }
 
 impl RawChain {
-    pub fn new() -> RawChain {
+    pub(crate) fn new() -> RawChain {
         RawChain { parts: Vec::new() }
     }
 
     /// Appends a zeroed structure (with its `sType`) and returns its index.
-    pub fn push(&mut self, info: &'static StructInfo) -> usize {
+    pub(crate) fn push(&mut self, info: &'static StructInfo) -> usize {
         let (_, size) = layout::offsets(info.members, EXTENSIBLE_HEADER);
         let mut words = vec![0u64; size.div_ceil(8)];
         words[0] = info.s_type.as_raw() as u32 as u64;
@@ -152,29 +152,29 @@ impl RawChain {
         self.parts.len() - 1
     }
 
-    pub fn position(&self, name: &str) -> Option<usize> {
+    pub(crate) fn position(&self, name: &str) -> Option<usize> {
         self.parts.iter().position(|(i, _)| i.name == name)
     }
 
-    pub fn bytes(&self, i: usize) -> &[u8] {
+    pub(crate) fn bytes(&self, i: usize) -> &[u8] {
         let w = &self.parts[i].1;
         // SAFETY: a u64 slice viewed as bytes of the same length.
         unsafe { std::slice::from_raw_parts(w.as_ptr() as *const u8, w.len() * 8) }
     }
 
-    pub fn bytes_mut(&mut self, i: usize) -> &mut [u8] {
+    pub(crate) fn bytes_mut(&mut self, i: usize) -> &mut [u8] {
         let w = &mut self.parts[i].1;
         // SAFETY: as above, exclusive borrow.
         unsafe { std::slice::from_raw_parts_mut(w.as_mut_ptr() as *mut u8, w.len() * 8) }
     }
 
-    pub fn parts(&self) -> impl Iterator<Item = (&'static StructInfo, &[u8])> {
+    pub(crate) fn parts(&self) -> impl Iterator<Item = (&'static StructInfo, &[u8])> {
         (0..self.parts.len()).map(|i| (self.parts[i].0, self.bytes(i)))
     }
 
     /// Links every structure's `pNext` to the next one and returns the head (null when empty). The
     /// pointers stay valid while `self` is neither moved-from nor modified.
-    pub fn link(&mut self) -> *mut std::ffi::c_void {
+    pub(crate) fn link(&mut self) -> *mut std::ffi::c_void {
         let n = self.parts.len();
         for i in 0..n {
             let next = if i + 1 < n {
@@ -197,7 +197,7 @@ impl Default for RawChain {
 }
 
 /// Views a plain Vulkan structure as its bytes.
-pub fn as_bytes<T>(v: &T) -> &[u8] {
+pub(crate) fn as_bytes<T>(v: &T) -> &[u8] {
     // SAFETY: any initialised value may be viewed as bytes; Vulkan structures have no padding reads that matter.
     unsafe { std::slice::from_raw_parts(v as *const T as *const u8, std::mem::size_of::<T>()) }
 }

@@ -144,7 +144,7 @@ fn view_format(st: &ResourceState, a: &Access) -> Option<String> {
 
 /// Whether a pipeline has a shader of `stage` (in any group): only then can a stage's declared accesses
 /// be statically used by a bound shader.
-pub fn pipeline_has(p: &model::world::Pipeline, stage: Stage) -> bool {
+pub(crate) fn pipeline_has(p: &model::world::Pipeline, stage: Stage) -> bool {
     use model::world::{GeneralStage, ShaderGroup};
     p.groups.iter().any(|g| match (g, stage) {
         (ShaderGroup::General { stage: s }, _) => matches!(
@@ -164,7 +164,7 @@ pub fn pipeline_has(p: &model::world::Pipeline, stage: Stage) -> bool {
 
 /// The harness shader a stage's accesses are injected into (`trace`: the launch traces rays, so the
 /// raygen and closest-hit are the variants with the scene binding).
-pub fn shader_kind(stage: Stage, trace: bool) -> ShaderKind {
+pub(crate) fn shader_kind(stage: Stage, trace: bool) -> ShaderKind {
     match (stage, trace) {
         (Stage::Raygen, true) => ShaderKind::RaygenTrace,
         (Stage::Raygen, false) => ShaderKind::RaygenPlain,
@@ -558,9 +558,9 @@ pub fn stage_glsl(
 /// components of class `component`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct NarrowWrite {
-    pub variable: String,
-    pub component: Numeric,
-    pub components: u32,
+    pub(crate) variable: String,
+    pub(crate) component: Numeric,
+    pub(crate) components: u32,
 }
 
 fn narrow_value(base: &str) -> &'static str {
@@ -574,7 +574,10 @@ fn narrow_value(base: &str) -> &'static str {
 /// Rewrites the texel operand of each narrow write's `OpImageWrite` to a constant of the declared width
 /// (the module holds one, from the `n<i>` variable [`raygen_glsl`] adds). Errors when the module lacks
 /// what the patch needs.
-pub fn patch_narrow_writes(words: &mut [u32], narrow: &[NarrowWrite]) -> Result<(), HarnessError> {
+pub(crate) fn patch_narrow_writes(
+    words: &mut [u32],
+    narrow: &[NarrowWrite],
+) -> Result<(), HarnessError> {
     if narrow.is_empty() {
         return Ok(());
     }

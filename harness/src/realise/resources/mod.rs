@@ -33,7 +33,7 @@
 mod glsl;
 mod objects;
 
-pub use glsl::{compile_stage, glsl_format, stage_glsl, stage_source, NarrowWrite};
+pub use glsl::{compile_stage, stage_glsl, stage_source};
 
 use glsl::pipeline_has;
 use objects::renew_command_buffers;
@@ -52,7 +52,7 @@ fn unsup<T>(s: impl Into<String>) -> Result<T, HarnessError> {
 }
 
 /// The ray tracing stages every realised binding and push constant range is visible to.
-pub fn rt_stages() -> vk::ShaderStageFlags {
+pub(crate) fn rt_stages() -> vk::ShaderStageFlags {
     vk::ShaderStageFlags::RAYGEN_KHR
         | vk::ShaderStageFlags::ANY_HIT_KHR
         | vk::ShaderStageFlags::CLOSEST_HIT_KHR
@@ -63,7 +63,7 @@ pub fn rt_stages() -> vk::ShaderStageFlags {
 
 /// Why the harness cannot realise this world's resource state, if it cannot (checked before any device
 /// work; [`Realised::new`] may still find a reason in what the device or GLSL cannot express).
-pub fn unsupported(world: &World) -> Option<String> {
+pub(crate) fn unsupported(world: &World) -> Option<String> {
     let st = &world.resources;
     if st.is_empty() {
         return None;
@@ -159,12 +159,12 @@ pub fn unsupported(world: &World) -> Option<String> {
 
 /// A case's resource state realised on a device. Destroy with [`Realised::destroy`] once nothing
 /// recorded with it is pending.
-pub struct Realised {
+pub(crate) struct Realised {
     set_layouts: HashMap<String, vk::DescriptorSetLayout>,
     pipeline_layouts: HashMap<String, vk::PipelineLayout>,
     /// The realised layout of the case's pipeline (`[harness set] ++ its sets`), which the harness binds
     /// its own set with.
-    pub harness_layout: vk::PipelineLayout,
+    pub(crate) harness_layout: vk::PipelineLayout,
     own_harness_layout: bool,
     pool: vk::DescriptorPool,
     sets: HashMap<String, vk::DescriptorSet>,
@@ -211,7 +211,7 @@ impl Realised {
     /// Realises `world.resources`: every object, the descriptor writes, and — when the world has a
     /// pipeline — the case's pipeline with the templated raygen, installed as `cache.resource_pipeline`.
     /// `harness_set` is the harness's own set layout (set 0 of every realised pipeline layout).
-    pub fn new(
+    pub(crate) fn new(
         cache: &mut DeviceCache,
         world: &World,
         trace: bool,
@@ -237,7 +237,7 @@ impl Realised {
     ///
     /// # Safety
     /// `cb` is recording on `d`, outside a render pass.
-    pub unsafe fn record_transitions(&self, d: &ash::Device, cb: vk::CommandBuffer) {
+    pub(crate) unsafe fn record_transitions(&self, d: &ash::Device, cb: vk::CommandBuffer) {
         let barriers: Vec<vk::ImageMemoryBarrier> = self
             .images
             .iter()
@@ -278,7 +278,7 @@ impl Realised {
     ///
     /// # Safety
     /// `cb` is recording on `d`.
-    pub unsafe fn record_binds(&self, d: &ash::Device, cb: vk::CommandBuffer) {
+    pub(crate) unsafe fn record_binds(&self, d: &ash::Device, cb: vk::CommandBuffer) {
         for &(layout, set, ds) in &self.binds {
             d.cmd_bind_descriptor_sets(
                 cb,
@@ -296,7 +296,7 @@ impl Realised {
     }
 
     /// Destroys every object (the case's pipeline in `cache.resource_pipeline` included).
-    pub fn destroy(self, cache: &mut DeviceCache) {
+    pub(crate) fn destroy(self, cache: &mut DeviceCache) {
         let d = &cache.dev.device;
         // SAFETY: nothing recorded with these objects is pending (the caller's contract).
         unsafe {

@@ -104,7 +104,7 @@ pub(super) fn renew_command_buffers(cache: &mut DeviceCache) -> Result<(), Harne
         let alloc = |level| {
             d.allocate_command_buffers(
                 &vk::CommandBufferAllocateInfo::default()
-                    .command_pool(cache.command_pool)
+                    .command_pool(cache.cmds.pool)
                     .level(level)
                     .command_buffer_count(1),
             )
@@ -115,13 +115,13 @@ pub(super) fn renew_command_buffers(cache: &mut DeviceCache) -> Result<(), Harne
         let secondary = match alloc(vk::CommandBufferLevel::SECONDARY) {
             Ok(s) => s,
             Err(e) => {
-                d.free_command_buffers(cache.command_pool, &[primary]);
+                d.free_command_buffers(cache.cmds.pool, &[primary]);
                 return Err(e);
             }
         };
-        d.free_command_buffers(cache.command_pool, &[cache.primary, cache.secondary]);
-        cache.primary = primary;
-        cache.secondary = secondary;
+        d.free_command_buffers(cache.cmds.pool, &[cache.cmds.cb, cache.cmds.secondary]);
+        cache.cmds.cb = primary;
+        cache.cmds.secondary = secondary;
     }
     Ok(())
 }

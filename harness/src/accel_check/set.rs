@@ -1,0 +1,197 @@
+//! What both traced checks bind: the ray origins, the hits they write and the built primitives' box
+//! table as storage buffers, and the structure under test, in one descriptor set of one layout.
+
+use crate::error::{vkfail, HarnessError};
+use crate::vk::memory::Allocation;
+use crate::vk::VkDevice;
+use ash::vk;
+use model::accel::check::ExpectedRay;
+
+/// The check's buffers and descriptor set, for shaders of `stages`. Destroy with [`CheckSet::destroy`]
+/// once nothing recorded with it is pending.
+pub(super) struct CheckSet {
+    rays: Allocation,
+    hits: Allocation,
+    boxes: Allocation,
+    pub(super) layout: vk::DescriptorSetLayout,
+    pool: vk::DescriptorPool,
+    pub(super) set: vk::DescriptorSet,
+    count: usize,
+}
+
+impl CheckSet {
+    /// Binding 0: `scene`; 1: one `vec4` origin per ray; 2: one `uvec4` hit per ray; 3: `boxes`.
+    pub(super) fn new(
+        dev: &VkDevice,
+        scene: vk::AccelerationStructureKHR,
+        rays: &[ExpectedRay],
+        boxes: &[u8],
+        stages: vk::ShaderStageFlags,
+    ) -> Result<CheckSet, HarnessError> {
+        let sb = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let none = vk::BufferCreateFlags::empty();
+        let origins: Vec<u8> = rays
+            .iter()
+            .flat_map(|r| [r.origin[0], r.origin[1], r.origin[2], 0.0])
+            .flat_map(|f: f32| f.to_le_bytes())
+            .collect();
+        let rb = Allocation::new(dev, origins.len() as u64, sb, none, 1)?;
+        rb.write(0, &origins);
+        let hb = Allocation::new(dev, 16 * rays.len() as u64, sb, none, 1)?;
+        let bb = Allocation::new(dev, boxes.len() as u64, sb, none, 1)?;
+        bb.write(0, boxes);
+        let mut cs = CheckSet {
+            rays: rb,
+            hits: hb,
+            boxes: bb,
+            layout: vk::DescriptorSetLayout::null(),
+            pool: vk::DescriptorPool::null(),
+            set: vk::DescriptorSet::null(),
+            count: rays.len(),
+        };
+        match cs.make_set(dev, scene, stages) {
+            Ok(()) => Ok(cs),
+            Err(e) => {
+                cs.destroy(dev);
+                Err(e)
+            }
+        }
+    }
+
+    fn make_set(
+        &mut self,
+        dev: &VkDevice,
+        scene: vk::AccelerationStructureKHR,
+        stages: vk::ShaderStageFlags,
+    ) -> Result<(), HarnessError> {
+        let d = &dev.device;
+        let bind = |b: u32, t: vk::DescriptorType| {
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(b)
+                .descriptor_type(t)
+                .descriptor_count(1)
+                .stage_flags(stages)
+        };
+        let bindings = [
+            bind(0, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR),
+            bind(1, vk::DescriptorType::STORAGE_BUFFER),
+            bind(2, vk::DescriptorType::STORAGE_BUFFER),
+            bind(3, vk::DescriptorType::STORAGE_BUFFER),
+        ];
+        let sizes = [
+            vk::DescriptorPoolSize {
+                ty: vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
+                descriptor_count: 1,
+            },
+            vk::DescriptorPoolSize {
+                ty: vk::DescriptorType::STORAGE_BUFFER,
+                descriptor_count: 3,
+            },
+        ];
+        // SAFETY: valid create infos; the objects are destroyed by `destroy`.
+        unsafe {
+            self.layout = d
+                .create_descriptor_set_layout(
+                    &vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings),
+                    None,
+                )
+                .map_err(vkfail("vkCreateDescriptorSetLayout"))?;
+            self.pool = d
+                .create_descriptor_pool(
+                    &vk::DescriptorPoolCreateInfo::default()
+                        .max_sets(1)
+                        .pool_sizes(&sizes),
+                    None,
+                )
+                .map_err(vkfail("vkCreateDescriptorPool"))?;
+            let layouts = [self.layout];
+            self.set = d
+                .allocate_descriptor_sets(
+                    &vk::DescriptorSetAllocateInfo::default()
+                        .descriptor_pool(self.pool)
+                        .set_layouts(&layouts),
+                )
+                .map_err(vkfail("vkAllocateDescriptorSets"))?[0];
+            write_check_set(
+                d,
+                self.set,
+                scene,
+                [self.rays.buffer, self.hits.buffer, self.boxes.buffer],
+            );
+        }
+        Ok(())
+    }
+
+    /// What each ray wrote: `[hit, instance, geometry, primitive]`.
+    pub(super) fn hits(&self) -> Vec<[u32; 4]> {
+        self.hits
+            .read_u32s(4 * self.count)
+            .chunks_exact(4)
+            .map(|c| [c[0], c[1], c[2], c[3]])
+            .collect()
+    }
+
+    pub(super) fn destroy(self, dev: &VkDevice) {
+        let d = &dev.device;
+        // SAFETY: nothing recorded with the set is pending (the caller's contract).
+        unsafe {
+            if self.pool != vk::DescriptorPool::null() {
+                d.destroy_descriptor_pool(self.pool, None);
+            }
+            if self.layout != vk::DescriptorSetLayout::null() {
+                d.destroy_descriptor_set_layout(self.layout, None);
+            }
+        }
+        for a in [self.rays, self.hits, self.boxes] {
+            a.destroy(dev);
+        }
+    }
+}
+
+/// Writes the traced check's descriptor set: the structure under test at binding 0 and the rays, hits
+/// and built-primitive buffers at bindings 1 to 3 (the same layout for the ray-query and the pipeline path).
+///
+/// # Safety
+/// `set` is a set of the check's layout that no pending command uses; the handles are live.
+unsafe fn write_check_set(
+    d: &ash::Device,
+    set: vk::DescriptorSet,
+    scene: vk::AccelerationStructureKHR,
+    buffers: [vk::Buffer; 3],
+) {
+    let scenes = [scene];
+    let mut asw =
+        vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&scenes);
+    let infos = buffers.map(|buffer| {
+        [vk::DescriptorBufferInfo {
+            buffer,
+            offset: 0,
+            range: vk::WHOLE_SIZE,
+        }]
+    });
+    let mut w0 = vk::WriteDescriptorSet::default()
+        .dst_set(set)
+        .dst_binding(0)
+        .descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR)
+        .push_next(&mut asw);
+    w0.descriptor_count = 1;
+    fn buffer_write(
+        set: vk::DescriptorSet,
+        binding: u32,
+        info: &[vk::DescriptorBufferInfo; 1],
+    ) -> vk::WriteDescriptorSet<'_> {
+        vk::WriteDescriptorSet::default()
+            .dst_set(set)
+            .dst_binding(binding)
+            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+            .buffer_info(info)
+    }
+    let writes = [
+        w0,
+        buffer_write(set, 1, &infos[0]),
+        buffer_write(set, 2, &infos[1]),
+        buffer_write(set, 3, &infos[2]),
+    ];
+    // SAFETY: guaranteed by the caller.
+    unsafe { d.update_descriptor_sets(&writes, &[]) };
+}
