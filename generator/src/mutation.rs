@@ -78,7 +78,7 @@ pub enum Mutation {
     NvOffsetPastBuffer(Table),
     /// NV: the table's buffer is not a valid handle.
     NvInvalidBuffer(Table),
-    /// issue 4: a resource-access rule broken in the world's resource state (`crate::resources`).
+    /// A resource-access rule broken in the world's resource state (`crate::resources`).
     Resource(crate::resources::ResourceMutation),
 }
 
@@ -88,7 +88,7 @@ fn tables_by_tag(tag: &str, tags: [&str; 4]) -> Option<Table> {
 
 /// The mutation that violates `vuid`, if one is written.
 pub fn mutations_for(vuid: &str) -> Option<Mutation> {
-    // issue 4: resource-access rules have their own mutations.
+    // Resource-access rules have their own mutations.
     if let Some(m) = crate::resources::mutation_for(vuid) {
         return Some(Mutation::Resource(m));
     }
@@ -210,7 +210,7 @@ pub fn supported(m: Mutation, profile: &DeviceProfile, command: CommandId) -> Re
     };
     let families = queue_families(profile);
     match m {
-        // issue 4: resource mutations decide for themselves.
+        // Resource mutations decide for themselves.
         Mutation::Resource(r) => crate::resources::supported(r, profile),
         Mutation::MotionPipelineWithoutFeature
             if !profile.has_extension("VK_NV_ray_tracing_motion_blur") =>
@@ -393,7 +393,7 @@ fn buffer_mut<'w>(world: &'w mut World, name: &str) -> &'w mut model::world::Buf
 
 /// Applies a mutation to a valid plan and realises it.
 pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutated, GenError> {
-    // issue 4: resource mutations edit the realised world.
+    // Resource mutations edit the realised world.
     if let Mutation::Resource(r) = m {
         return crate::resources::apply(r, plan, input);
     }
@@ -879,7 +879,7 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
                 }
             }));
         }
-        // issue 4: handled at the top of this function.
+        // Resource mutations are handled at the top of this function.
         Mutation::Resource(_) => unreachable!("resource mutations return early"),
         Mutation::NvInvalidBuffer(t) => {
             ensure_used(&mut plan, t);

@@ -378,7 +378,7 @@ pub fn realize(plan: &Plan, lim: &Limits) -> (World, Call) {
         }),
         command_buffer: plan.command_buffer.clone(),
         launch: plan.launch.clone(),
-        resources: Default::default(), // issue 4: mutations add resources after layout
+        resources: Default::default(), // resource mutations add a state after layout
     };
     (world, call)
 }

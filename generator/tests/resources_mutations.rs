@@ -1,4 +1,4 @@
-//! Meta-tests of the resource-access mutations (issue 4): generated invalid cases carry their VUID
+//! Meta-tests of the resource-access mutations: generated invalid cases carry their VUID
 //! and nothing undeclared; vendor mutations, which no captured driver can run, do the same when
 //! judged by the model alone; valid cases stay valid with an empty or a generated resource state.
 

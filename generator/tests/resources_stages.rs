@@ -1,4 +1,4 @@
-//! Resource cases place their accesses where a ray tracing pipeline can run them (issue 4): every
+//! Resource cases place their accesses where a ray tracing pipeline can run them: every
 //! generated resource case declares its accesses in a stage the launch executes (by the model's
 //! semantics), the stages vary across cases, and no access needs implicit derivatives (implicit-LOD
 //! sampling or a LOD bias), which ray tracing stages do not have.

@@ -9,7 +9,7 @@ pub mod case;
 pub mod command;
 pub mod flags;
 pub mod profile;
-pub mod resources; // issue 4: the resource world and its rules
+pub mod resources;
 pub mod rules;
 pub mod semantics;
 pub mod verdict;

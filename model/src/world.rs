@@ -308,7 +308,7 @@ pub struct World {
     pub command_buffer: CommandBufferState,
     #[serde(default)]
     pub launch: Launch,
-    /// issue 4: descriptors, views, samplers, push constants and the shaders' resource use.
+    /// Descriptors, views, samplers, push constants and the shaders' resource use.
     #[serde(
         default,
         skip_serializing_if = "crate::resources::ResourceState::is_empty"

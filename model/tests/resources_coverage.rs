@@ -1,4 +1,4 @@
-//! Coverage of the shared resource-access rules (issue 4): in every registry version at hand, no row
+//! Coverage of the shared resource-access rules: in every registry version at hand, no row
 //! of a trace command is left pending for lack of a resource model, each resource row is executable
 //! or carries a reason, and the "not exercisable on a driver" notes name extensions that no
 //! captured profile reports.

@@ -1,4 +1,4 @@
-//! Resource worlds for the shared resource-access rules (issue 4): a valid [`ResourceState`] built
+//! Resource worlds for the shared resource-access rules: a valid [`ResourceState`] built
 //! from a device profile's formats (strategy [`state_strategy`]), and one mutation per executable
 //! resource rule that makes exactly that rule fire, with the co-violations the captured devices make
 //! unavoidable declared.

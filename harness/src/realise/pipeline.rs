@@ -152,7 +152,7 @@ impl DeviceCache {
         trace: bool,
         foreign: bool,
     ) -> Result<&RealPipeline, HarnessError> {
-        // issue 4 hook: a case with a resource state runs its own pipeline (see `resource_pipeline`).
+        // A case with a resource state runs its own pipeline (see `resource_pipeline`).
         if !foreign && self.resource_pipeline.is_some() {
             return Ok(self.resource_pipeline.as_ref().expect("checked"));
         }
@@ -175,7 +175,7 @@ impl DeviceCache {
         self.create_pipeline_with(p, trace, layout, &[])
     }
 
-    /// issue 4 hook: the pipeline for a description with `layout` and, for each shader kind `modules`
+    /// The pipeline for a description with `layout` and, for each shader kind `modules`
     /// names, that module in every stage of that kind (used by `crate::realise::resources` for cases with a
     /// resource state: its templated raygen, closest-hit, miss, ... modules). Not cached.
     pub(crate) fn create_pipeline_with(
@@ -219,7 +219,7 @@ impl DeviceCache {
                            kind: ShaderKind,
                            stage: vk::ShaderStageFlags|
              -> Result<u32, HarnessError> {
-                // issue 4 hook: a templated module of this kind replaces the harness's.
+                // A templated module of this kind replaces the harness's.
                 let m = match modules.iter().find(|(k, _)| *k == kind) {
                     Some(&(_, m)) => m,
                     None => this.module(kind, api)?,

@@ -1,4 +1,4 @@
-//! The world of resources a launch's shaders touch (issue 4): descriptor set layouts and sets with
+//! The world of resources a launch's shaders touch: descriptor set layouts and sets with
 //! their written descriptors, samplers, images and image views, buffers and buffer views, tensors,
 //! pipeline layouts and what was bound and pushed with them, and a per-stage summary of each shader's
 //! static resource use. The rules every dispatching command shares with draw/dispatch are judged

@@ -4,11 +4,9 @@
 use super::Status;
 use vk_registry::vuid::VuidRecord;
 
-pub const BUILD_PENDING: &str =
-    "vkCmdBuildAccelerationStructuresIndirectKHR rules are modelled under issue 5 (build world and device-side ranges)";
-
+/// A resource-access rule the resource world (`crate::resources`) does not model yet.
 pub const RESOURCE_PENDING: &str =
-    "resource-access rule shared with draw/dispatch (samplers, views, descriptors, push constants, formats): modelled under issue 4";
+    "resource-access rule shared with draw/dispatch (samplers, views, descriptors, push constants, formats) that the resource world does not model yet";
 
 const TERMINATE: &str =
     "termination of shader code is undecidable in general; the suite's shaders are straight-line \

@@ -1,4 +1,4 @@
-//! Realises a case's resource state (issue 4) on a device: descriptor set layouts, pipeline layouts,
+//! Realises a case's resource state on a device: descriptor set layouts, pipeline layouts,
 //! descriptor sets with their written descriptors, samplers, images and views, buffers and buffer views,
 //! the binds and pushes recorded before the trace, and stage shaders that perform exactly the declared
 //! accesses — so the validation layer's draw-time checks see the state the model judged.
