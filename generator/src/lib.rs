@@ -196,34 +196,23 @@ pub fn case_strategy(
                 .map_err(|e| GenError::Io(e.to_string()))?
                 .current();
             let probe = valid::resolve(&probe_raw, &profile, &lim, command, dims);
-            let input = |knob, pick| mutation_io::MutationInput {
-                profile: &profile,
-                rules: &rules,
-                lim: &lim,
+            let target = mutation_io::Target {
+                profile,
+                rules,
+                lim,
                 command,
-                vuid: &vuid,
-                knob,
-                pick,
+                vuid,
             };
-            mutation::apply(m, probe, &input(0, 0))?;
+            mutation::apply(m, probe, &target.input(0, 0))?;
             // Knob 0 (the boundary value) is drawn most often and is where shrinking goes.
             let knob = proptest::prop_oneof![3 => proptest::strategy::Just(0u32), 2 => 0..4u32];
             Ok((valid::raw_strategy(), knob, 0..4u32)
                 .prop_map(move |(raw, knob, pick)| {
-                    let plan = valid::resolve(&raw, &profile, &lim, command, dims);
-                    let input = mutation_io::MutationInput {
-                        profile: &profile,
-                        rules: &rules,
-                        lim: &lim,
-                        command,
-                        vuid: &vuid,
-                        knob,
-                        pick,
-                    };
-                    let mutated = mutation::apply(m, plan, &input)
+                    let plan = valid::resolve(&raw, &target.profile, &target.lim, command, dims);
+                    let mutated = mutation::apply(m, plan, &target.input(knob, pick))
                         .expect("a mutation that applied once applies to every plan");
                     let intent = Intent::Violates {
-                        vuid: vuid.clone(),
+                        vuid: target.vuid.clone(),
                         also: mutated.also,
                     };
                     Case::trace("", &profile_name, intent, mutated.world, mutated.call)

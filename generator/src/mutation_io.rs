@@ -20,6 +20,31 @@ pub struct MutationInput<'a> {
     pub pick: u32,
 }
 
+/// What every mutation of one spec reads: the device, the rules, the layout numbers, the command and
+/// the targeted VUID, owned so a strategy can keep it.
+pub struct Target {
+    pub profile: DeviceProfile,
+    pub rules: std::sync::Arc<RuleSet>,
+    pub lim: Limits,
+    pub command: CommandId,
+    pub vuid: String,
+}
+
+impl Target {
+    /// The input of the mutation drawn with `knob` (0: the boundary value) and `pick`.
+    pub fn input(&self, knob: u32, pick: u32) -> MutationInput<'_> {
+        MutationInput {
+            profile: &self.profile,
+            rules: &self.rules,
+            lim: &self.lim,
+            command: self.command,
+            vuid: &self.vuid,
+            knob,
+            pick,
+        }
+    }
+}
+
 /// A mutated case: the world, the call and the declared co-violations.
 pub struct Mutated {
     pub world: World,

@@ -4,26 +4,21 @@
 use generator::accel::{generate, mutate, plan_strategy, realise, MUTATIONS};
 use model::accel::unavoidable;
 use model::{Case, RuleSet};
+
+mod common;
 use proptest::prelude::*;
 use std::collections::BTreeSet;
 
-fn rules() -> RuleSet {
-    let set = vk_registry::source::load_vuids(std::path::Path::new("/usr/share/vulkan/registry"))
-        .expect("installed registry");
-    RuleSet::from_vuids(&set)
+fn rules() -> &'static RuleSet {
+    common::rules()
+}
+
+fn verdict(_: &RuleSet, p: &model::DeviceProfile, c: &Case) -> Vec<String> {
+    common::verdict_vuids(p, c)
 }
 
 fn lavapipe() -> model::DeviceProfile {
     generator::profiles::load("lavapipe").unwrap()
-}
-
-fn verdict(rules: &RuleSet, p: &model::DeviceProfile, c: &Case) -> Vec<String> {
-    let v: BTreeSet<String> = model::validate(rules, p, c)
-        .violations
-        .into_iter()
-        .map(|v| v.vuid)
-        .collect();
-    v.into_iter().collect()
 }
 
 #[test]

@@ -23,41 +23,17 @@ fn one_vuid_invalid_cases_carry_their_vuid_and_nothing_undeclared() {
                 if mutations_for(&vuid).is_none() || MODEL_BUG_EXCLUDED.contains(&vuid.as_str()) {
                     continue;
                 }
-                let cases = match generate(
-                    &profile,
-                    &name,
-                    common::rules(),
-                    &CaseSpec::violate(command, &vuid),
-                    n,
-                    11,
-                ) {
-                    Ok(c) => c,
-                    Err(GenError::Unsupported(why)) => {
-                        report.push(format!("{name} {vuid}: unsupported ({why})"));
-                        continue;
-                    }
-                    Err(e) => panic!("{name} {vuid}: {e}"),
+                let Some(cases) =
+                    common::violating((&name, &profile), command, &vuid, n, 11, &mut report)
+                else {
+                    continue;
                 };
                 generated_any += 1;
-                let mut good = 0;
-                let mut exact = 0;
-                let mut example = None;
-                for case in &cases {
-                    let v = common::judge(&profile, case);
-                    let expected: BTreeSet<String> = case.expected_vuids().into_iter().collect();
-                    let got: BTreeSet<String> = v.vuids().into_iter().map(String::from).collect();
-                    if got.contains(&vuid) && got.is_subset(&expected) {
-                        good += 1;
-                        exact += (got == expected) as usize;
-                    } else if example.is_none() {
-                        example = Some(format!(
-                            "{}\nverdict: {:?}\n{}",
-                            case.name,
-                            v.violations,
-                            case.to_yaml()
-                        ));
-                    }
-                }
+                let common::Judged {
+                    good,
+                    exact,
+                    example,
+                } = common::judge_all(&profile, &cases, &vuid);
                 let rate = good as f64 / cases.len() as f64;
                 report.push(format!(
                     "{name} {vuid}: {good}/{} ({:.1}%), exact {exact}",

@@ -49,39 +49,14 @@ fn resource_invalid_cases_carry_their_vuid_and_nothing_undeclared() {
     for (name, profile) in common::profiles() {
         for command in CommandId::TRACE {
             for vuid in resource_vuids(common::rules(), command) {
-                let cases = match generate(
-                    &profile,
-                    &name,
-                    common::rules(),
-                    &CaseSpec::violate(command, &vuid),
-                    n,
-                    23,
-                ) {
-                    Ok(c) => c,
-                    Err(GenError::Unsupported(why)) => {
-                        report.push(format!("{name} {vuid}: unsupported ({why})"));
-                        continue;
-                    }
-                    Err(e) => panic!("{name} {vuid}: {e}"),
+                let Some(cases) =
+                    common::violating((&name, &profile), command, &vuid, n, 23, &mut report)
+                else {
+                    continue;
                 };
                 generated += 1;
-                let mut good = 0;
-                let mut example = None;
-                for case in &cases {
-                    let v = common::judge(&profile, case);
-                    let expected: BTreeSet<String> = case.expected_vuids().into_iter().collect();
-                    let got: BTreeSet<String> = v.vuids().into_iter().map(String::from).collect();
-                    if got.contains(&vuid) && got.is_subset(&expected) {
-                        good += 1;
-                    } else if example.is_none() {
-                        example = Some(format!(
-                            "{}\nverdict: {:?}\nexpected: {expected:?}\n{}",
-                            case.name,
-                            v.violations,
-                            case.to_yaml()
-                        ));
-                    }
-                }
+                let common::Judged { good, example, .. } =
+                    common::judge_all(&profile, &cases, &vuid);
                 report.push(format!("{name} {vuid}: {good}/{}", cases.len()));
                 if good * 100 < cases.len() * 95 {
                     failures.push(format!(

@@ -241,20 +241,18 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
     let mut not_expressible = Vec::new();
     let mut gen_errors = Vec::new();
     let mut chunk: Vec<Case> = Vec::with_capacity(CHUNK);
-    let timeout = Duration::from_secs(config.timeout);
+    let dispatch = Dispatch {
+        jobs: config.jobs,
+        timeout: Duration::from_secs(config.timeout),
+        judging: &judging,
+        progress,
+    };
     let mut family = None;
     for planned in &specs {
         // A chunk holds cases of one command family, in the plan's order.
         let this = planned.spec.command.is_trace();
         if family.is_some_and(|f| f != this) && !chunk.is_empty() {
-            run_chunk(
-                &mut chunk,
-                config.jobs,
-                timeout,
-                &judging,
-                &mut sink,
-                progress,
-            );
+            dispatch.run(&mut chunk, &mut sink);
         }
         family = Some(this);
         for range in slices(config.count) {
@@ -293,27 +291,13 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
                 }
                 chunk.push(c);
                 if chunk.len() == CHUNK {
-                    run_chunk(
-                        &mut chunk,
-                        config.jobs,
-                        timeout,
-                        &judging,
-                        &mut sink,
-                        progress,
-                    );
+                    dispatch.run(&mut chunk, &mut sink);
                 }
             }
         }
     }
     if !chunk.is_empty() {
-        run_chunk(
-            &mut chunk,
-            config.jobs,
-            timeout,
-            &judging,
-            &mut sink,
-            progress,
-        );
+        dispatch.run(&mut chunk, &mut sink);
     }
     if let Some(e) = sink.error.take() {
         return Err(SessionError::io(sink.results_path.display().to_string(), e));
@@ -346,31 +330,34 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
     })
 }
 
-/// Runs one chunk on a fresh set of workers (which keep their devices and pipelines warm for the
-/// chunk), judging and writing each result as it arrives.
-fn run_chunk(
-    chunk: &mut Vec<Case>,
+/// How a run's chunks go to the workers and their results to the judge.
+struct Dispatch<'a> {
     jobs: usize,
     timeout: Duration,
-    judging: &Judging,
-    sink: &mut Sink,
-    progress: &dyn Progress,
-) {
-    let requests: Vec<Request> = std::mem::take(chunk)
-        .into_iter()
-        .enumerate()
-        .map(|(index, case)| Request {
-            index,
-            execution: Execution::for_case(&case, judging.profile),
-            case,
-        })
-        .collect();
-    harness::run_in_workers(&requests, jobs, timeout, |resp| {
-        let case = &requests[resp.index.min(requests.len() - 1)].case;
-        let report = judging.judge(case, &resp);
-        sink.write(case, &report);
-        progress.advance(1);
-    });
+    judging: &'a Judging<'a>,
+    progress: &'a dyn Progress,
+}
+
+impl Dispatch<'_> {
+    /// Runs one chunk on a fresh set of workers (which keep their devices and pipelines warm for the
+    /// chunk), judging and writing each result as it arrives.
+    fn run(&self, chunk: &mut Vec<Case>, sink: &mut Sink) {
+        let requests: Vec<Request> = std::mem::take(chunk)
+            .into_iter()
+            .enumerate()
+            .map(|(index, case)| Request {
+                index,
+                execution: Execution::for_case(&case, self.judging.profile),
+                case,
+            })
+            .collect();
+        harness::run_in_workers(&requests, self.jobs, self.timeout, |resp| {
+            let case = &requests[resp.index.min(requests.len() - 1)].case;
+            let report = self.judging.judge(case, &resp);
+            sink.write(case, &report);
+            self.progress.advance(1);
+        });
+    }
 }
 
 /// `0..count` in slices of [`CHUNK`].

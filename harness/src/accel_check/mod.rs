@@ -11,7 +11,7 @@ mod set;
 use crate::error::HarnessError;
 use crate::observe::{error_ids, Hits, IndirectBuild, TraceCheck, TracedBuild};
 use crate::realise::accel::{device_for, indirect_args, realise, vk_geometries, vk_info, Realised};
-use crate::realise::scene::sized_structure;
+use crate::realise::scene::{instance_buffer, sized_structure};
 use crate::vk::commands::{memory_barrier, Commands};
 use crate::vk::memory::Allocation;
 use crate::vk::{VkDevice, VkInstance};
@@ -124,15 +124,7 @@ pub(crate) fn direct_and_trace(
                 let (blas, _) = r.structures.get(generator_blas()).copied().ok_or_else(|| {
                     HarnessError::Failed("the top-level case has no `blas` structure".into())
                 })?;
-                let vb = Allocation::new(
-                    dev,
-                    64,
-                    vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
-                        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
-                    vk::BufferCreateFlags::empty(),
-                    256,
-                )?;
-                vb.write(0, &tri);
+                let vb = Allocation::filled(dev, &tri, 64, build_input(), 256)?;
                 let g = [vk::AccelerationStructureGeometryKHR::default()
                     .geometry_type(vk::GeometryTypeKHR::TRIANGLES)
                     .geometry(vk::AccelerationStructureGeometryDataKHR {
@@ -299,25 +291,14 @@ fn build_and_trace(
         let scene = if top {
             dst
         } else {
-            let rec = vk::AccelerationStructureInstanceKHR {
-                transform: vk::TransformMatrixKHR {
-                    matrix: [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0],
-                },
-                instance_custom_index_and_mask: vk::Packed24_8::new(0, 0xff),
-                instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(0, 0),
-                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR {
-                    device_handle: dst_addr,
-                },
+            // One instance (full mask, record offset 0, identity transform) of the built structure.
+            let one = model::world::Instance {
+                geometries: vec![],
+                sbt_record_offset: 0,
+                mask: 0xff,
+                cluster: false,
             };
-            let ib = Allocation::new(
-                dev,
-                64,
-                vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
-                    | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
-                vk::BufferCreateFlags::empty(),
-                256,
-            )?;
-            ib.write(0, crate::vk::structs::as_bytes(&rec));
+            let ib = instance_buffer(dev, &[one], &[dst_addr], build_input())?;
             let g = [vk::AccelerationStructureGeometryKHR::default()
                 .geometry_type(vk::GeometryTypeKHR::INSTANCES)
                 .geometry(vk::AccelerationStructureGeometryDataKHR {
@@ -450,4 +431,10 @@ pub(crate) fn probe_rays(
     cmds.destroy(&dev);
     r.destroy(&dev);
     out
+}
+
+/// The usage of the check's build inputs (the BLAS's triangle, the TLAS's instance).
+fn build_input() -> vk::BufferUsageFlags {
+    vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
+        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS
 }

@@ -107,13 +107,7 @@ pub(super) fn trace_pipeline(
     // SAFETY: valid create infos; everything made here is destroyed below after the wait.
     let out = unsafe {
         (|| -> Result<Vec<[u32; 4]>, HarnessError> {
-            let sets = [check.layout];
-            pl = d
-                .create_pipeline_layout(
-                    &vk::PipelineLayoutCreateInfo::default().set_layouts(&sets),
-                    None,
-                )
-                .map_err(vkfail("vkCreatePipelineLayout"))?;
+            pl = check.pipeline_layout(dev)?;
             let kinds = [
                 vk::ShaderStageFlags::RAYGEN_KHR,
                 vk::ShaderStageFlags::MISS_KHR,

@@ -69,13 +69,7 @@ pub(super) fn trace(
     // SAFETY: valid create infos; everything is destroyed below after the wait.
     let out = unsafe {
         (|| -> Result<Vec<[u32; 4]>, HarnessError> {
-            let sets = [check.layout];
-            pl = d
-                .create_pipeline_layout(
-                    &vk::PipelineLayoutCreateInfo::default().set_layouts(&sets),
-                    None,
-                )
-                .map_err(vkfail("vkCreatePipelineLayout"))?;
+            pl = check.pipeline_layout(dev)?;
             module = shaders::module(dev, &code)?;
             let st = vk::PipelineShaderStageCreateInfo::default()
                 .stage(stage)

@@ -2,6 +2,7 @@
 //! table as storage buffers, and the structure under test, in one descriptor set of one layout.
 
 use crate::error::{vkfail, HarnessError};
+use crate::vk::descriptors::{storage_write, structure_write, whole};
 use crate::vk::memory::Allocation;
 use crate::vk::VkDevice;
 use ash::vk;
@@ -122,6 +123,22 @@ impl CheckSet {
         Ok(())
     }
 
+    /// A pipeline layout of the check's one set; the caller destroys it.
+    pub(super) fn pipeline_layout(
+        &self,
+        dev: &VkDevice,
+    ) -> Result<vk::PipelineLayout, HarnessError> {
+        let sets = [self.layout];
+        // SAFETY: valid create info; the set layout is live.
+        unsafe {
+            dev.device.create_pipeline_layout(
+                &vk::PipelineLayoutCreateInfo::default().set_layouts(&sets),
+                None,
+            )
+        }
+        .map_err(vkfail("vkCreatePipelineLayout"))
+    }
+
     /// What each ray wrote: `[hit, instance, geometry, primitive]`.
     pub(super) fn hits(&self) -> Vec<[u32; 4]> {
         self.hits
@@ -162,35 +179,17 @@ unsafe fn write_check_set(
     let scenes = [scene];
     let mut asw =
         vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&scenes);
-    let infos = buffers.map(|buffer| {
-        [vk::DescriptorBufferInfo {
-            buffer,
-            offset: 0,
-            range: vk::WHOLE_SIZE,
-        }]
-    });
-    let mut w0 = vk::WriteDescriptorSet::default()
-        .dst_set(set)
-        .dst_binding(0)
-        .descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR)
-        .push_next(&mut asw);
-    w0.descriptor_count = 1;
-    fn buffer_write(
-        set: vk::DescriptorSet,
-        binding: u32,
-        info: &[vk::DescriptorBufferInfo; 1],
-    ) -> vk::WriteDescriptorSet<'_> {
-        vk::WriteDescriptorSet::default()
-            .dst_set(set)
-            .dst_binding(binding)
-            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-            .buffer_info(info)
-    }
+    let infos = buffers.map(whole);
     let writes = [
-        w0,
-        buffer_write(set, 1, &infos[0]),
-        buffer_write(set, 2, &infos[1]),
-        buffer_write(set, 3, &infos[2]),
+        structure_write(
+            set,
+            0,
+            vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
+            &mut asw,
+        ),
+        storage_write(set, 1, &infos[0]),
+        storage_write(set, 2, &infos[1]),
+        storage_write(set, 3, &infos[2]),
     ];
     // SAFETY: guaranteed by the caller.
     unsafe { d.update_descriptor_sets(&writes, &[]) };

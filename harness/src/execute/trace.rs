@@ -7,6 +7,7 @@ use crate::error::HarnessError;
 use crate::observe::{Observation, Output, Status};
 use crate::realise::{DeviceCache, Tlas, RAY_RECORD_SIZE};
 use crate::vk::commands::{begin_render_pass, memory_barrier};
+use crate::vk::descriptors::{storage_write, structure_write, whole};
 use crate::vk::memory::Allocation;
 use ash::vk;
 use model::call::{Address, Call, StridedRegion};
@@ -244,36 +245,12 @@ fn run(
         )
         .map_err(|r| HarnessError::Failed(format!("vkAllocateDescriptorSets: {r:?}")))?[0]
     };
-    let out_info = [vk::DescriptorBufferInfo {
-        buffer: out.buffer,
-        offset: 0,
-        range: vk::WHOLE_SIZE,
-    }];
-    let rays_info = [vk::DescriptorBufferInfo {
-        buffer: rays.buffer,
-        offset: 0,
-        range: vk::WHOLE_SIZE,
-    }];
-    let calls_info = [vk::DescriptorBufferInfo {
-        buffer: calls.buffer,
-        offset: 0,
-        range: vk::WHOLE_SIZE,
-    }];
-    fn storage(
-        set: vk::DescriptorSet,
-        binding: u32,
-        info: &[vk::DescriptorBufferInfo],
-    ) -> vk::WriteDescriptorSet<'_> {
-        vk::WriteDescriptorSet::default()
-            .dst_set(set)
-            .dst_binding(binding)
-            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-            .buffer_info(info)
-    }
+    let (out_info, rays_info, calls_info) =
+        (whole(out.buffer), whole(rays.buffer), whole(calls.buffer));
     let mut writes = vec![
-        storage(set, 1, &out_info),
-        storage(set, 2, &rays_info),
-        storage(set, 3, &calls_info),
+        storage_write(set, 1, &out_info),
+        storage_write(set, 2, &rays_info),
+        storage_write(set, 3, &calls_info),
     ];
     let tl_khr = [match tlas {
         Some(Tlas::Khr(t)) => t,
@@ -288,24 +265,18 @@ fn run(
     let mut as_nv =
         vk::WriteDescriptorSetAccelerationStructureNV::default().acceleration_structures(&tl_nv);
     match tlas {
-        Some(Tlas::Khr(_)) => {
-            let mut w = vk::WriteDescriptorSet::default()
-                .dst_set(set)
-                .dst_binding(0)
-                .descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR)
-                .push_next(&mut as_khr);
-            w.descriptor_count = 1;
-            writes.push(w);
-        }
-        Some(Tlas::Nv(_)) => {
-            let mut w = vk::WriteDescriptorSet::default()
-                .dst_set(set)
-                .dst_binding(0)
-                .descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_NV)
-                .push_next(&mut as_nv);
-            w.descriptor_count = 1;
-            writes.push(w);
-        }
+        Some(Tlas::Khr(_)) => writes.push(structure_write(
+            set,
+            0,
+            vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
+            &mut as_khr,
+        )),
+        Some(Tlas::Nv(_)) => writes.push(structure_write(
+            set,
+            0,
+            vk::DescriptorType::ACCELERATION_STRUCTURE_NV,
+            &mut as_nv,
+        )),
         None => {}
     }
     // SAFETY: writes reference live objects; every binding of the layout is written.

@@ -4,7 +4,7 @@
 
 use super::DeviceCache;
 use crate::error::{vkfail, HarnessError};
-use crate::vk::commands::memory_barrier;
+use crate::vk::commands::{begin_one_time, memory_barrier};
 use crate::vk::memory::Allocation;
 use crate::vk::VkDevice;
 use ash::vk;
@@ -288,35 +288,7 @@ impl DeviceCache {
             scene.buffers.push(scratch);
         }
         // Instances.
-        let records: Vec<vk::AccelerationStructureInstanceKHR> = instances
-            .iter()
-            .zip(&blas_addresses)
-            .map(|(inst, addr)| vk::AccelerationStructureInstanceKHR {
-                transform: vk::TransformMatrixKHR {
-                    matrix: [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0],
-                },
-                instance_custom_index_and_mask: vk::Packed24_8::new(0, inst.mask),
-                instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(
-                    inst.sbt_record_offset & 0xFF_FFFF,
-                    0,
-                ),
-                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR {
-                    device_handle: *addr,
-                },
-            })
-            .collect();
-        let record_bytes: Vec<u8> = records
-            .iter()
-            .flat_map(|r| crate::vk::structs::as_bytes(r).to_vec())
-            .collect();
-        let inst_buf = Allocation::new(
-            dev,
-            record_bytes.len().max(64) as u64,
-            input_usage,
-            none,
-            256,
-        )?;
-        inst_buf.write(0, &record_bytes);
+        let inst_buf = instance_buffer(dev, instances, &blas_addresses, input_usage)?;
         let tlas_geom = [vk::AccelerationStructureGeometryKHR::default()
             .geometry_type(vk::GeometryTypeKHR::INSTANCES)
             .geometry(vk::AccelerationStructureGeometryDataKHR {
@@ -348,14 +320,7 @@ impl DeviceCache {
         let cb = self.cmds.cb;
         // SAFETY: the command buffer is idle (every case waits or resets before returning).
         unsafe {
-            d.reset_command_buffer(cb, vk::CommandBufferResetFlags::empty())
-                .map_err(vkfail("vkResetCommandBuffer"))?;
-            d.begin_command_buffer(
-                cb,
-                &vk::CommandBufferBeginInfo::default()
-                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
-            )
-            .map_err(vkfail("vkBeginCommandBuffer"))?;
+            begin_one_time(d, cb)?;
             for (geoms, ranges, blas, scratch) in &builds {
                 let info = vk::AccelerationStructureBuildGeometryInfoKHR::default()
                     .ty(vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL)
@@ -529,29 +494,7 @@ impl DeviceCache {
             handles.push(handle);
             blas_builds.push((geoms, blas, scratch));
         }
-        let records: Vec<vk::AccelerationStructureInstanceNV> = instances
-            .iter()
-            .zip(&handles)
-            .map(|(inst, handle)| vk::AccelerationStructureInstanceNV {
-                transform: vk::TransformMatrixKHR {
-                    matrix: [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0],
-                },
-                instance_custom_index_and_mask: vk::Packed24_8::new(0, inst.mask),
-                instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(
-                    inst.sbt_record_offset & 0xFF_FFFF,
-                    0,
-                ),
-                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR {
-                    device_handle: *handle,
-                },
-            })
-            .collect();
-        let record_bytes: Vec<u8> = records
-            .iter()
-            .flat_map(|r| crate::vk::structs::as_bytes(r).to_vec())
-            .collect();
-        let inst_buf = Allocation::new(dev, record_bytes.len().max(64) as u64, usage, none, 256)?;
-        inst_buf.write(0, &record_bytes);
+        let inst_buf = instance_buffer(dev, instances, &handles, usage)?;
         let inst_buffer = inst_buf.buffer;
         scene.buffers.push(inst_buf);
         let tlas_info = vk::AccelerationStructureInfoNV::default()
@@ -564,14 +507,7 @@ impl DeviceCache {
         let cb = self.cmds.cb;
         // SAFETY: the command buffer is idle; every structure is bound to memory.
         unsafe {
-            d.reset_command_buffer(cb, vk::CommandBufferResetFlags::empty())
-                .map_err(vkfail("vkResetCommandBuffer"))?;
-            d.begin_command_buffer(
-                cb,
-                &vk::CommandBufferBeginInfo::default()
-                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
-            )
-            .map_err(vkfail("vkBeginCommandBuffer"))?;
+            begin_one_time(d, cb)?;
             for (geoms, blas, scratch) in &blas_builds {
                 let info = vk::AccelerationStructureInfoNV::default()
                     .ty(vk::AccelerationStructureTypeNV::BOTTOM_LEVEL)
@@ -639,4 +575,36 @@ impl DeviceCache {
             b.destroy(&self.dev);
         }
     }
+}
+
+/// The instance records of a scene's top-level structure in a buffer of `usage`: instance `i` with its
+/// mask and shader binding table offset, referencing `references[i]` (a KHR device address or an NV
+/// handle; 0 for an inactive instance), with the identity transform. KHR and NV records have one layout.
+pub(crate) fn instance_buffer(
+    dev: &VkDevice,
+    instances: &[Instance],
+    references: &[u64],
+    usage: vk::BufferUsageFlags,
+) -> Result<Allocation, HarnessError> {
+    let bytes: Vec<u8> = instances
+        .iter()
+        .zip(references)
+        .flat_map(|(inst, reference)| {
+            let record = vk::AccelerationStructureInstanceKHR {
+                transform: vk::TransformMatrixKHR {
+                    matrix: [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+                },
+                instance_custom_index_and_mask: vk::Packed24_8::new(0, inst.mask),
+                instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(
+                    inst.sbt_record_offset & 0xFF_FFFF,
+                    0,
+                ),
+                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR {
+                    device_handle: *reference,
+                },
+            };
+            crate::vk::structs::as_bytes(&record).to_vec()
+        })
+        .collect();
+    Allocation::filled(dev, &bytes, 64, usage, 256)
 }

@@ -208,3 +208,24 @@ pub(crate) unsafe fn begin_render_pass(
     // SAFETY: guaranteed by the caller.
     unsafe { d.cmd_begin_render_pass(cb, &info, contents) };
 }
+
+/// Resets `cb` and begins it for one submission.
+///
+/// # Safety
+/// `cb` is not pending execution.
+pub(crate) unsafe fn begin_one_time(
+    d: &ash::Device,
+    cb: vk::CommandBuffer,
+) -> Result<(), HarnessError> {
+    // SAFETY: guaranteed by the caller.
+    unsafe {
+        d.reset_command_buffer(cb, vk::CommandBufferResetFlags::empty())
+            .map_err(vkfail("vkResetCommandBuffer"))?;
+        d.begin_command_buffer(
+            cb,
+            &vk::CommandBufferBeginInfo::default()
+                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+        )
+        .map_err(vkfail("vkBeginCommandBuffer"))
+    }
+}

@@ -76,6 +76,25 @@ fn address_of(dev: &VkDevice, b: vk::Buffer) -> u64 {
 }
 
 impl Allocation {
+    /// A buffer holding `bytes` (at least `min` bytes long) at an address that is a multiple of `align`.
+    pub(crate) fn filled(
+        dev: &VkDevice,
+        bytes: &[u8],
+        min: u64,
+        usage: vk::BufferUsageFlags,
+        align: u64,
+    ) -> Result<Allocation, HarnessError> {
+        let a = Allocation::new(
+            dev,
+            (bytes.len() as u64).max(min),
+            usage,
+            vk::BufferCreateFlags::empty(),
+            align,
+        )?;
+        a.write(0, bytes);
+        Ok(a)
+    }
+
     /// Creates a buffer of `size` bytes, binds it to its own host-visible memory at an address that is a
     /// multiple of `align` (when `align` > 1), and maps it.
     pub(crate) fn new(

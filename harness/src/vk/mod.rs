@@ -4,6 +4,7 @@
 //! vk.xml.
 
 pub(crate) mod commands;
+pub(crate) mod descriptors;
 mod device;
 mod instance;
 pub(crate) mod layout;

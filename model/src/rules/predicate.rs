@@ -37,8 +37,6 @@ pub enum Predicate {
     Equal(Param, Operand),
     /// If the bound pipeline has the flag, the parameter must not be zero.
     NonZeroIfPipelineFlag(Param, PipelineCreate),
-    /// The named feature must be enabled.
-    FeatureEnabled(String),
     /// If the bound pipeline has the flag, the named feature must be enabled.
     FeatureEnabledIfPipelineFlag(PipelineCreate, String),
     /// The buffer the parameter's address was queried from has the usage bit.
@@ -57,13 +55,8 @@ pub enum Predicate {
     LaunchDimensionAtMost(u8, Operand),
     /// The product of the launch dimensions is at most the operand.
     LaunchInvocationsAtMost(Operand),
-    /// Command-buffer state and feature rules shared by every command: see [`Predicate::check_state`].
-    NotProtectedCommandBuffer,
-    Recording,
-    PoolSupports(QueueFlags),
-    OutsideRenderPass,
-    OutsideVideoCoding,
-    NotBetweenSuspendedRenderPasses,
+    /// A feature or command-buffer state rule, the same for every command.
+    State(StatePredicate),
     PipelineBound,
     /// Hand rules that read the launch: see each variant's VUID in `hand.rs`.
     HandlesFromBoundPipeline,
@@ -79,6 +72,53 @@ pub enum Predicate {
     Resource(crate::resources::ResourceRule),
     /// A rule of the build command's own, judged on the build world by `crate::accel::rules`.
     Accel(crate::accel::rules::AccelPredicate),
+}
+
+/// The rules every command shares: the enabled features and the command buffer's state.
+#[derive(Debug, Clone, PartialEq)]
+pub enum StatePredicate {
+    /// The named feature must be enabled.
+    FeatureEnabled(String),
+    NotProtectedCommandBuffer,
+    Recording,
+    PoolSupports(QueueFlags),
+    OutsideRenderPass,
+    OutsideVideoCoding,
+    NotBetweenSuspendedRenderPasses,
+}
+
+impl StatePredicate {
+    /// The failure of the rule for a device state and a command buffer, if it fails.
+    pub fn check(&self, device: &DeviceState, cb: &CommandBufferState) -> Option<Failure> {
+        use StatePredicate as S;
+        match self {
+            S::FeatureEnabled(f) if !device.feature(f) => {
+                fail("world.device.features", format!("`{f}` is not enabled"))
+            }
+            S::NotProtectedCommandBuffer if cb.protected => {
+                fail("commandBuffer", "is a protected command buffer")
+            }
+            S::Recording if cb.lifecycle != CommandBufferLifecycle::Recording => fail(
+                "commandBuffer",
+                format!("is in the {:?} state", cb.lifecycle),
+            ),
+            S::PoolSupports(q) if !cb.pool_queue.intersects(*q) => fail(
+                "commandBuffer",
+                format!("its pool's queue family lacks {}", q.names().join(" or ")),
+            ),
+            S::OutsideRenderPass if cb.in_render_pass => {
+                fail("commandBuffer", "is inside a render pass instance")
+            }
+            S::OutsideVideoCoding if cb.in_video_coding => {
+                fail("commandBuffer", "is inside a video coding scope")
+            }
+            S::NotBetweenSuspendedRenderPasses if cb.between_suspended_render_passes => fail(
+                "commandBuffer",
+                "is between suspended render pass instances",
+            ),
+            _ => None,
+        }
+    }
 }
 
 /// Which NO_NULL_* hit flag a rule speaks of.
@@ -188,75 +228,20 @@ impl Predicate {
         }
     }
 
-    /// Checks a rule every command shares (the enabled features and the command buffer's state), or
-    /// None when the predicate is not one of them.
-    pub fn check_state(
-        &self,
-        device: &DeviceState,
-        cb: &CommandBufferState,
-    ) -> Option<Option<Failure>> {
-        Some(match self {
-            Predicate::FeatureEnabled(f) if !device.feature(f) => {
-                fail("world.device.features", format!("`{f}` is not enabled"))
-            }
-            Predicate::NotProtectedCommandBuffer if cb.protected => {
-                fail("commandBuffer", "is a protected command buffer")
-            }
-            Predicate::Recording if cb.lifecycle != CommandBufferLifecycle::Recording => fail(
-                "commandBuffer",
-                format!("is in the {:?} state", cb.lifecycle),
-            ),
-            Predicate::PoolSupports(q) if !cb.pool_queue.intersects(*q) => fail(
-                "commandBuffer",
-                format!("its pool's queue family lacks {}", q.names().join(" or ")),
-            ),
-            Predicate::OutsideRenderPass if cb.in_render_pass => {
-                fail("commandBuffer", "is inside a render pass instance")
-            }
-            Predicate::OutsideVideoCoding if cb.in_video_coding => {
-                fail("commandBuffer", "is inside a video coding scope")
-            }
-            Predicate::NotBetweenSuspendedRenderPasses if cb.between_suspended_render_passes => {
-                fail(
-                    "commandBuffer",
-                    "is between suspended render pass instances",
-                )
-            }
-            Predicate::FeatureEnabled(_)
-            | Predicate::NotProtectedCommandBuffer
-            | Predicate::Recording
-            | Predicate::PoolSupports(_)
-            | Predicate::OutsideRenderPass
-            | Predicate::OutsideVideoCoding
-            | Predicate::NotBetweenSuspendedRenderPasses => None,
-            _ => return None,
-        })
-    }
-
     /// Checks the predicate on a trace call; every failure found is pushed (a region rule may fail for
     /// several regions).
     pub fn check(&self, cx: &Context, out: &mut Vec<Failure>) {
         let call = cx.call;
         let world = cx.world;
-        if let Some(f) = self.check_state(&world.device, &world.command_buffer) {
-            out.extend(f);
-            return;
-        }
         let mut push = |f: Option<Failure>| {
             if let Some(f) = f {
                 out.push(f)
             }
         };
         match self {
-            // Judged by `check_state` above, or on the build world (never active for a trace call).
-            Predicate::FeatureEnabled(_)
-            | Predicate::NotProtectedCommandBuffer
-            | Predicate::Recording
-            | Predicate::PoolSupports(_)
-            | Predicate::OutsideRenderPass
-            | Predicate::OutsideVideoCoding
-            | Predicate::NotBetweenSuspendedRenderPasses
-            | Predicate::Accel(_) => {}
+            Predicate::State(p) => push(p.check(&world.device, &world.command_buffer)),
+            // Judged on the build world (never active for a trace call).
+            Predicate::Accel(_) => {}
             Predicate::Resource(r) => r.check(cx, out),
             Predicate::MultipleOf(p, op) => {
                 if !Self::applies(*p, call) {

@@ -6,7 +6,7 @@
 //! build; the build command's array shapes (`Each element of pIndirectStrides …`) give its own.
 //! No rule-specific code.
 
-use super::predicate::{Operand, Predicate};
+use super::predicate::{Operand, Predicate, StatePredicate};
 use crate::accel::rules::AccelPredicate;
 use crate::call::{Call, Param, Table};
 use crate::command::CommandId;
@@ -122,7 +122,7 @@ fn shapes() -> &'static [(Regex, fn(&str, &regex::Captures) -> Option<Predicate>
             (r"^If the bound ray tracing pipeline was created with (?P<f>\S+),? (?:`?Vk[A-Za-z]+`?::)?(?P<feat>\S+) feature must be enabled$", |_, m| {
                 Some(Predicate::FeatureEnabledIfPipelineFlag(flag_pipeline(&m["f"])?, clean(&m["feat"])))
             }),
-            (r"^The (?:`?VkPhysicalDevice[A-Za-z0-9]+`?::)?(?P<f>\S+) feature must be enabled$", |_, m| Some(Predicate::FeatureEnabled(clean(&m["f"])))),
+            (r"^The (?:`?VkPhysicalDevice[A-Za-z0-9]+`?::)?(?P<f>\S+) feature must be enabled$", |_, m| Some(Predicate::State(StatePredicate::FeatureEnabled(clean(&m["f"]))))),
             (r"^The buffer from which (?:the )?(?P<p>\S+) (?:is|was) queried must have been created with the (?P<u>\S+) (?:usage flag|bit set)$", |c, m| {
                 Some(Predicate::BufferUsage(param(c, &m["p"])?, flag_usage(&m["u"])?))
             }),
@@ -147,8 +147,8 @@ fn shapes() -> &'static [(Regex, fn(&str, &regex::Captures) -> Option<Predicate>
             (r"^If `?size`? is not zero, `?stride`? must be less than or equal to the size of the buffer from which `?deviceAddress`? was queried$", |_, _| {
                 Some(Predicate::RegionStrideWithinBuffer)
             }),
-            (r"^`?commandBuffer`? must not be a protected command buffer$", |_, _| Some(Predicate::NotProtectedCommandBuffer)),
-            (r"^`?commandBuffer`? must be in the recording state$", |_, _| Some(Predicate::Recording)),
+            (r"^`?commandBuffer`? must not be a protected command buffer$", |_, _| Some(Predicate::State(StatePredicate::NotProtectedCommandBuffer))),
+            (r"^`?commandBuffer`? must be in the recording state$", |_, _| Some(Predicate::State(StatePredicate::Recording))),
             (r"^The `?VkCommandPool`? that `?commandBuffer`? was allocated from must support (?P<q>.+) operations$", |_, m| {
                 let mut q = QueueFlags::empty();
                 for w in m["q"].split(|c: char| c == ',' || c.is_whitespace()).filter(|w| !w.is_empty() && *w != "or") {
@@ -159,12 +159,12 @@ fn shapes() -> &'static [(Regex, fn(&str, &regex::Captures) -> Option<Predicate>
                         _ => return None,
                     });
                 }
-                Some(Predicate::PoolSupports(q))
+                Some(Predicate::State(StatePredicate::PoolSupports(q)))
             }),
-            (r"^This command must only be called outside of a render pass instance$", |_, _| Some(Predicate::OutsideRenderPass)),
-            (r"^This command must only be called outside of a video coding scope$", |_, _| Some(Predicate::OutsideVideoCoding)),
+            (r"^This command must only be called outside of a render pass instance$", |_, _| Some(Predicate::State(StatePredicate::OutsideRenderPass))),
+            (r"^This command must only be called outside of a video coding scope$", |_, _| Some(Predicate::State(StatePredicate::OutsideVideoCoding))),
             (r"^This command must not be called between suspended render pass instances$", |_, _| {
-                Some(Predicate::NotBetweenSuspendedRenderPasses)
+                Some(Predicate::State(StatePredicate::NotBetweenSuspendedRenderPasses))
             }),
             (r"^Each element of (?P<p>pIndirectDeviceAddresses|pIndirectStrides) must be a multiple of (?P<n>\d+)$", |c, m| {
                 build_only(c)?;
@@ -299,19 +299,19 @@ mod tests {
         check(
             "vkCmdTraceRaysIndirectKHR",
             "The pname:rayTracingPipelineTraceRaysIndirect feature must be enabled",
-            Some(Predicate::FeatureEnabled(
+            Some(Predicate::State(StatePredicate::FeatureEnabled(
                 "rayTracingPipelineTraceRaysIndirect".into(),
-            )),
+            ))),
         );
         check(
             "vkCmdTraceRaysIndirectKHR",
             "The `VkCommandPool` that `commandBuffer` was allocated from must support compute operations",
-            Some(Predicate::PoolSupports(QueueFlags::COMPUTE_BIT)),
+            Some(Predicate::State(StatePredicate::PoolSupports(QueueFlags::COMPUTE_BIT))),
         );
         check(
             "vkCmdTraceRaysKHR",
             "This command must only be called outside of a render pass instance",
-            Some(Predicate::OutsideRenderPass),
+            Some(Predicate::State(StatePredicate::OutsideRenderPass)),
         );
     }
 
