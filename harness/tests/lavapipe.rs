@@ -12,6 +12,29 @@ use model::case::{Case, Intent};
 use model::flags::BufferCreate;
 use model::world::MemoryBinding;
 
+/// Gives the miss table stride 40, not a multiple of shaderGroupHandleAlignment (16).
+fn break_miss_stride(case: &mut Case) {
+    let Call::TraceRaysIndirect(c) = call(case) else {
+        unreachable!()
+    };
+    c.miss.stride = 40;
+    c.miss.size = 80;
+}
+
+const INDIRECT_03634: &str = "VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634";
+
+/// Moves the indirect address 2 bytes off its 4-byte alignment and declares the case invalid for it.
+fn misalign_indirect_address(case: &mut Case) {
+    let Call::TraceRaysIndirect(c) = call(case) else {
+        unreachable!()
+    };
+    c.indirect_address = at("indirect", 2);
+    case.intent = Intent::Violates {
+        vuid: INDIRECT_03634.into(),
+        also: vec![],
+    };
+}
+
 /// Runs `case` and checks the status, the layer's VUIDs and, for valid cases, the words against the model.
 fn check(ctx: &mut Executor, case: &Case, expect_vuids: &[&str]) {
     let obs = execute(case, ctx);
@@ -59,11 +82,7 @@ fn valid_indirect_launch_writes_what_the_model_expects() {
 fn miss_stride_not_a_multiple_of_the_handle_alignment_is_reported() {
     let mut ctx = executor();
     let mut case = valid_case();
-    let Call::TraceRaysIndirect(c) = call(&mut case) else {
-        unreachable!()
-    };
-    c.miss.stride = 40;
-    c.miss.size = 80;
+    break_miss_stride(&mut case);
     case.intent = Intent::Violates {
         vuid: "VUID-vkCmdTraceRaysIndirectKHR-stride-03686".into(),
         also: vec![],
@@ -79,19 +98,8 @@ fn miss_stride_not_a_multiple_of_the_handle_alignment_is_reported() {
 fn indirect_address_not_a_multiple_of_four_is_reported() {
     let mut ctx = executor();
     let mut case = valid_case();
-    let Call::TraceRaysIndirect(c) = call(&mut case) else {
-        unreachable!()
-    };
-    c.indirect_address = at("indirect", 2);
-    case.intent = Intent::Violates {
-        vuid: "VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634".into(),
-        also: vec![],
-    };
-    check(
-        &mut ctx,
-        &case,
-        &["VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634"],
-    );
+    misalign_indirect_address(&mut case);
+    check(&mut ctx, &case, &[INDIRECT_03634]);
 }
 
 #[test]
@@ -117,15 +125,11 @@ fn a_missing_feature_is_unsupported_with_its_name() {
 fn both_violations_in_one_call_are_both_reported() {
     let mut ctx = executor();
     let mut case = valid_case();
-    let Call::TraceRaysIndirect(c) = call(&mut case) else {
-        unreachable!()
-    };
-    c.miss.stride = 40;
-    c.miss.size = 80;
-    c.indirect_address = at("indirect", 2);
+    break_miss_stride(&mut case);
+    misalign_indirect_address(&mut case);
     case.intent = Intent::Violates {
         vuid: "VUID-vkCmdTraceRaysIndirectKHR-stride-03686".into(),
-        also: vec!["VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634".into()],
+        also: vec![INDIRECT_03634.into()],
     };
     let expected = case.expected_vuids();
     let expected: Vec<&str> = expected.iter().map(String::as_str).collect();
@@ -253,17 +257,6 @@ fn an_unbound_sparse_buffer_of_an_invalid_case_is_recorded_not_submitted() {
     // The indirect command lives in an unbound sparse buffer: the layer cannot see that, so the case is
     // declared invalid only by intent here; what matters is that it is realised and never submitted.
     sparse(&mut case, 1, MemoryBinding::Unbound);
-    let Call::TraceRaysIndirect(c) = call(&mut case) else {
-        unreachable!()
-    };
-    c.indirect_address = at("indirect", 2);
-    case.intent = Intent::Violates {
-        vuid: "VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634".into(),
-        also: vec![],
-    };
-    check(
-        &mut ctx,
-        &case,
-        &["VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634"],
-    );
+    misalign_indirect_address(&mut case);
+    check(&mut ctx, &case, &[INDIRECT_03634]);
 }

@@ -31,10 +31,7 @@ fn build_direct(
     geoms: &[vk::AccelerationStructureGeometryKHR],
     ranges: &[vk::AccelerationStructureBuildRangeInfoKHR],
 ) -> Result<(vk::AccelerationStructureKHR, u64, Allocation, Allocation), HarnessError> {
-    let accel = dev
-        .accel
-        .as_ref()
-        .ok_or_else(|| HarnessError::Failed("no acceleration structure extension".into()))?;
+    let accel = accel_of(dev)?;
     let counts: Vec<u32> = ranges.iter().map(|r| r.primitive_count).collect();
     let (s, storage, scratch) = sized_structure(dev, accel, ty, geoms, &counts, 256, 256)?;
     let info = vk::AccelerationStructureBuildGeometryInfoKHR::default()
@@ -100,18 +97,10 @@ pub(crate) fn direct_and_trace(
     if case.call.infos.len() != 1 {
         return HarnessError::unsupported("the traced check handles one build info");
     }
-    let accel = dev
-        .accel
-        .as_ref()
-        .ok_or_else(|| HarnessError::Failed("no acceleration structure extension".into()))?;
+    let accel = accel_of(dev)?;
     let info = &case.call.infos[0];
     let top = info.ty == AsType::TopLevel;
-    let mem = case.world.memory();
-    let ranges =
-        model::accel::indirect_ranges(&mem, &case.call, 0).map_err(HarnessError::failed)?;
-    let prims =
-        model::accel::build_primitives(&mem, info, &ranges).map_err(HarnessError::failed)?;
-    drop(mem);
+    let (ranges, prims) = first_build(case)?;
     let mut extra: Vec<Allocation> = Vec::new();
     let result =
         (|| -> Result<TracedBuild, HarnessError> {
@@ -227,10 +216,7 @@ fn build_and_trace(
     rays: &[ExpectedRay],
     boxes: &[u8],
 ) -> Result<(Hits, Vec<String>), HarnessError> {
-    let accel = dev
-        .accel
-        .as_ref()
-        .ok_or_else(|| HarnessError::Failed("no acceleration structure extension".into()))?;
+    let accel = accel_of(dev)?;
     let info = &case.call.infos[0];
     let top = info.ty == AsType::TopLevel;
     let mut extra: Vec<Allocation> = Vec::new();
@@ -400,12 +386,7 @@ pub(crate) fn probe_rays(
         if info.ty != AsType::BottomLevel {
             return HarnessError::unsupported("probing handles bottom-level builds");
         }
-        let mem = case.world.memory();
-        let ranges =
-            model::accel::indirect_ranges(&mem, &case.call, 0).map_err(HarnessError::failed)?;
-        let prims =
-            model::accel::build_primitives(&mem, info, &ranges).map_err(HarnessError::failed)?;
-        drop(mem);
+        let (ranges, prims) = first_build(case)?;
         let rays: Vec<ExpectedRay> = origins
             .iter()
             .map(|o| ExpectedRay {
@@ -437,4 +418,28 @@ pub(crate) fn probe_rays(
 fn build_input() -> vk::BufferUsageFlags {
     vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
         | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS
+}
+
+/// The acceleration structure functions of the check's device (its device always enables them).
+fn accel_of(dev: &VkDevice) -> Result<&ash::khr::acceleration_structure::Device, HarnessError> {
+    dev.accel
+        .as_ref()
+        .ok_or_else(|| HarnessError::Failed("no acceleration structure extension".into()))
+}
+
+/// The ranges the case's first info reads from memory and the primitives the model builds from them.
+fn first_build(
+    case: &AccelBody,
+) -> Result<(Vec<model::accel::RangeInfo>, Vec<BuiltPrimitive>), HarnessError> {
+    let info = case
+        .call
+        .infos
+        .first()
+        .ok_or_else(|| HarnessError::Failed("no build info".into()))?;
+    let mem = case.world.memory();
+    let ranges =
+        model::accel::indirect_ranges(&mem, &case.call, 0).map_err(HarnessError::failed)?;
+    let prims =
+        model::accel::build_primitives(&mem, info, &ranges).map_err(HarnessError::failed)?;
+    Ok((ranges, prims))
 }

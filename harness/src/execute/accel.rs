@@ -168,17 +168,7 @@ fn enter_state(
             } else {
                 cb
             };
-            let cbs_ = [submit_cb];
-            d.queue_submit(
-                dev.queue,
-                &[vk::SubmitInfo::default().command_buffers(&cbs_)],
-                cmds.fence,
-            )
-            .map_err(vkfail("vkQueueSubmit"))?;
-            d.wait_for_fences(&[cmds.fence], true, 60_000_000_000)
-                .map_err(vkfail("vkWaitForFences"))?;
-            d.reset_fences(&[cmds.fence])
-                .map_err(vkfail("vkResetFences"))?;
+            cmds.submit_and_wait(dev, submit_cb)?;
         }
     }
     Ok(cb)

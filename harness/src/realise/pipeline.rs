@@ -3,6 +3,24 @@
 //! spec's default stack size.
 
 use super::DeviceCache;
+
+/// The group create infos of one API (KHR or NV: the same members under two types) from
+/// `(type, [general, closest-hit, any-hit, intersection])` per group.
+macro_rules! group_infos {
+    ($groups:expr, $info:ty) => {
+        $groups
+            .iter()
+            .map(|(ty, [gen, ch, ah, is])| {
+                <$info>::default()
+                    .ty(*ty)
+                    .general_shader(*gen)
+                    .closest_hit_shader(*ch)
+                    .any_hit_shader(*ah)
+                    .intersection_shader(*is)
+            })
+            .collect()
+    };
+}
 use crate::error::{vkfail, HarnessError};
 use crate::shaders::{self, ShaderKind};
 use ash::vk;
@@ -315,17 +333,8 @@ impl DeviceCache {
         let n = p.groups.len();
         if api == PipelineApi::Nv {
             let hs = self.dev.limits.nv_handle_size as usize;
-            let nv_groups: Vec<vk::RayTracingShaderGroupCreateInfoNV> = groups
-                .iter()
-                .map(|(ty, [gen, ch, ah, is])| {
-                    vk::RayTracingShaderGroupCreateInfoNV::default()
-                        .ty(*ty)
-                        .general_shader(*gen)
-                        .closest_hit_shader(*ch)
-                        .any_hit_shader(*ah)
-                        .intersection_shader(*is)
-                })
-                .collect();
+            let nv_groups: Vec<vk::RayTracingShaderGroupCreateInfoNV> =
+                group_infos!(groups, vk::RayTracingShaderGroupCreateInfoNV);
             // The KHR-only flags (NO_NULL_*, SKIP_*, LIBRARY) are not NV pipeline flags.
             let info = vk::RayTracingPipelineCreateInfoNV::default()
                 .flags(
@@ -364,17 +373,8 @@ impl DeviceCache {
                 default_stack_size: 0,
             });
         }
-        let khr_groups: Vec<vk::RayTracingShaderGroupCreateInfoKHR> = groups
-            .iter()
-            .map(|(ty, [gen, ch, ah, is])| {
-                vk::RayTracingShaderGroupCreateInfoKHR::default()
-                    .ty(*ty)
-                    .general_shader(*gen)
-                    .closest_hit_shader(*ch)
-                    .any_hit_shader(*ah)
-                    .intersection_shader(*is)
-            })
-            .collect();
+        let khr_groups: Vec<vk::RayTracingShaderGroupCreateInfoKHR> =
+            group_infos!(groups, vk::RayTracingShaderGroupCreateInfoKHR);
         let dynamic = [vk::DynamicState::RAY_TRACING_PIPELINE_STACK_SIZE_KHR];
         let dyn_info = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic);
         // The payload is `Payload { uint word, depth, ray; }` (12 bytes); the shaders declare no hit attributes.

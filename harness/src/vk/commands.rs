@@ -28,22 +28,18 @@ impl Commands {
                     None,
                 )
                 .map_err(vkfail("vkCreateCommandPool"))?;
-            let cb = d
-                .allocate_command_buffers(
+            let alloc = |level| {
+                d.allocate_command_buffers(
                     &vk::CommandBufferAllocateInfo::default()
                         .command_pool(pool)
-                        .level(vk::CommandBufferLevel::PRIMARY)
+                        .level(level)
                         .command_buffer_count(1),
                 )
-                .map_err(vkfail("vkAllocateCommandBuffers"))?[0];
-            let secondary = d
-                .allocate_command_buffers(
-                    &vk::CommandBufferAllocateInfo::default()
-                        .command_pool(pool)
-                        .level(vk::CommandBufferLevel::SECONDARY)
-                        .command_buffer_count(1),
-                )
-                .map_err(vkfail("vkAllocateCommandBuffers"))?[0];
+                .map(|v| v[0])
+                .map_err(vkfail("vkAllocateCommandBuffers"))
+            };
+            let cb = alloc(vk::CommandBufferLevel::PRIMARY)?;
+            let secondary = alloc(vk::CommandBufferLevel::SECONDARY)?;
             let fence = d
                 .create_fence(&vk::FenceCreateInfo::default(), None)
                 .map_err(vkfail("vkCreateFence"))?;
@@ -73,7 +69,19 @@ impl Commands {
         unsafe {
             d.end_command_buffer(self.cb)
                 .map_err(vkfail("vkEndCommandBuffer"))?;
-            let cbs = [self.cb];
+        }
+        self.submit_and_wait(dev, self.cb)
+    }
+    /// Submits the ended command buffer `cb` on the fence and waits for it (a minute at most).
+    pub(crate) fn submit_and_wait(
+        &self,
+        dev: &VkDevice,
+        cb: vk::CommandBuffer,
+    ) -> Result<(), HarnessError> {
+        let d = &dev.device;
+        // SAFETY: `cb` is executable; the fence is unsignalled.
+        unsafe {
+            let cbs = [cb];
             d.queue_submit(
                 dev.queue,
                 &[vk::SubmitInfo::default().command_buffers(&cbs)],

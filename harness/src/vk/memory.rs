@@ -75,6 +75,21 @@ fn address_of(dev: &VkDevice, b: vk::Buffer) -> u64 {
     }
 }
 
+/// A buffer of `size` bytes (at least 1) with no memory bound yet.
+pub(crate) fn create_buffer(
+    dev: &VkDevice,
+    size: u64,
+    usage: vk::BufferUsageFlags,
+    flags: vk::BufferCreateFlags,
+) -> Result<vk::Buffer, HarnessError> {
+    let info = vk::BufferCreateInfo::default()
+        .size(size.max(1))
+        .usage(usage)
+        .flags(flags);
+    // SAFETY: valid create info.
+    unsafe { dev.device.create_buffer(&info, None) }.map_err(vkfail("vkCreateBuffer"))
+}
+
 impl Allocation {
     /// A buffer holding `bytes` (at least `min` bytes long) at an address that is a multiple of `align`.
     pub(crate) fn filled(
@@ -105,13 +120,7 @@ impl Allocation {
         align: u64,
     ) -> Result<Allocation, HarnessError> {
         let d = &dev.device;
-        let info = vk::BufferCreateInfo::default()
-            .size(size.max(1))
-            .usage(usage)
-            .flags(flags);
-        // SAFETY: valid create info.
-        let mut buffer =
-            unsafe { d.create_buffer(&info, None) }.map_err(vkfail("vkCreateBuffer"))?;
+        let mut buffer = create_buffer(dev, size, usage, flags)?;
         // SAFETY: buffer is valid.
         let req = unsafe { d.get_buffer_memory_requirements(buffer) };
         let Some((mt, coherent)) = host_memory_type(dev, req.memory_type_bits) else {
@@ -158,15 +167,12 @@ impl Allocation {
             }
             // SAFETY: replacing the buffer by an identical one bound at the aligning offset.
             unsafe { d.destroy_buffer(buffer, None) };
-            // SAFETY: valid create info.
-            buffer = match unsafe { d.create_buffer(&info, None) } {
+            buffer = match create_buffer(dev, size, usage, flags) {
                 Ok(b) => b,
-                Err(r) => {
+                Err(e) => {
                     // SAFETY: freeing what we allocated.
                     unsafe { d.free_memory(memory, None) };
-                    return Err(HarnessError::Failed(format!(
-                        "vkCreateBuffer failed: {r:?}"
-                    )));
+                    return Err(e);
                 }
             };
             // SAFETY: offset + size fits the allocation.
@@ -222,13 +228,8 @@ impl Allocation {
         flags: vk::BufferCreateFlags,
         plan: SparsePlan,
     ) -> Result<Allocation, HarnessError> {
-        let d = &dev.device;
-        let info = vk::BufferCreateInfo::default()
-            .size(size.max(1))
-            .usage(usage)
-            .flags(flags);
-        // SAFETY: valid create info (the caller checked sparseBinding is enabled).
-        let buffer = unsafe { d.create_buffer(&info, None) }.map_err(vkfail("vkCreateBuffer"))?;
+        // The caller checked that sparseBinding is enabled.
+        let buffer = create_buffer(dev, size, usage, flags)?;
         let mut a = Allocation {
             buffer,
             address: 0,
