@@ -74,7 +74,7 @@ impl CaseReport {
 
 /// The report of a valid case that is not run because it is not runnable (undefined reads the driver
 /// may crash on): a generator or case-file bug, reported as a failure.
-pub fn not_runnable(case: &Case, why: &model::NotRunnable) -> CaseReport {
+pub(crate) fn not_runnable(case: &Case, why: &model::NotRunnable) -> CaseReport {
     CaseReport {
         outcome: Outcome::Fail,
         detail: format!("not run: {why}"),
@@ -83,7 +83,7 @@ pub fn not_runnable(case: &Case, why: &model::NotRunnable) -> CaseReport {
 }
 
 /// The case as the model judges it after the run: a build's sizes are the ones the device reported.
-pub fn as_run<'a>(case: &'a Case, obs: &Observation) -> std::borrow::Cow<'a, Case> {
+pub(crate) fn as_run<'a>(case: &'a Case, obs: &Observation) -> std::borrow::Cow<'a, Case> {
     match &case.body {
         Body::Accel(_) if !obs.device_sizes.is_empty() => {
             let mut c = case.clone();
@@ -328,6 +328,6 @@ fn conclude(mut report: CaseReport, problems: Vec<String>, triaged: Vec<String>)
 }
 
 /// The scope part of a VUID (`vkCmdTraceRaysIndirectKHR` of `VUID-vkCmdTraceRaysIndirectKHR-stride-03686`).
-pub fn vuid_scope(vuid: &str) -> Option<&str> {
+pub(crate) fn vuid_scope(vuid: &str) -> Option<&str> {
     vuid.strip_prefix("VUID-")?.split('-').next()
 }

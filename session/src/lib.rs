@@ -12,7 +12,7 @@ pub mod plan;
 pub mod replay;
 pub mod report;
 pub mod run;
-pub mod shrink;
+pub(crate) mod shrink;
 pub mod sources;
 pub mod triage;
 

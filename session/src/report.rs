@@ -37,7 +37,7 @@ pub struct Summary {
 }
 
 /// The reports of `results.jsonl`, read one line at a time.
-pub fn reports(path: &Path) -> Result<impl Iterator<Item = CaseReport>, SessionError> {
+pub(crate) fn reports(path: &Path) -> Result<impl Iterator<Item = CaseReport>, SessionError> {
     let f =
         std::fs::File::open(path).map_err(|e| SessionError::io(path.display().to_string(), e))?;
     Ok(std::io::BufReader::new(f)
@@ -48,7 +48,7 @@ pub fn reports(path: &Path) -> Result<impl Iterator<Item = CaseReport>, SessionE
 
 /// Reads `results.jsonl` back, streaming, into the summary; a resumed run never runs a case twice, so
 /// each line is one case. Memory is per VUID, not per case.
-pub fn summarise(
+pub(crate) fn summarise(
     path: &Path,
     driver: &str,
     profile: &str,
@@ -98,7 +98,7 @@ fn xml_escape(s: &str) -> String {
 
 /// Writes the JUnit report (one suite for the run; triaged cases pass, unsupported ones are skipped),
 /// streaming from `results.jsonl` so memory does not grow with the run.
-pub fn write_junit(results: &Path, out: &Path, s: &Summary) -> Result<(), SessionError> {
+pub(crate) fn write_junit(results: &Path, out: &Path, s: &Summary) -> Result<(), SessionError> {
     let io = |e: std::io::Error| SessionError::io(out.display().to_string(), e);
     let mut w = std::io::BufWriter::new(std::fs::File::create(out).map_err(io)?);
     let name = xml_escape(&format!("rtconf on {}", s.driver));

@@ -12,7 +12,7 @@ use std::path::Path;
 
 /// Shrinks up to `config.shrink` failing cases of the run; returns one line per case, as a person reads
 /// it (where the minimal case went, or why it was not shrunk).
-pub fn shrink_failures(
+pub(crate) fn shrink_failures(
     config: &RunConfig,
     judging: &Judging,
     profile_name: &str,

@@ -69,7 +69,7 @@ impl Triage {
 }
 
 /// Whether `text` matches `pattern`, where `*` stands for any run of characters.
-pub(crate) fn wildcard_match(pattern: &str, text: &str) -> bool {
+fn wildcard_match(pattern: &str, text: &str) -> bool {
     let mut parts = pattern.split('*');
     let first = parts.next().unwrap_or("");
     let Some(mut rest) = text.strip_prefix(first) else {
