@@ -324,6 +324,7 @@ pub struct Shrunk {
 /// Rebuilds case `index` of (`spec`, `seed`); if `fails` holds for it, shrinks it with proptest's value
 /// tree to a minimal case that still fails and writes it to `<dir>/<name>.yaml` (`dir` is usually
 /// `cases/regressions`). Returns None when the case does not fail.
+#[allow(clippy::too_many_arguments)] // the spec's identity (profile, rules, spec, seed, index) and where to write
 pub fn shrink_failure(
     profile: &DeviceProfile,
     profile_name: &str,

@@ -27,9 +27,9 @@ fn generated_cases_judge_as_declared_and_cover_most_mutations() {
     let p = lavapipe();
     let mut covered = BTreeSet::new();
     for seed in 0..6 {
-        for c in generate(&p, &r, seed, 6) {
+        for c in generate(&p, r, seed, 6) {
             assert_eq!(
-                verdict(&r, &p, &c),
+                verdict(r, &p, &c),
                 c.expected_vuids(),
                 "case {}:\n{}",
                 c.name,
@@ -41,7 +41,7 @@ fn generated_cases_judge_as_declared_and_cover_most_mutations() {
             let back = Case::from_yaml("mem", &c.to_yaml()).unwrap();
             assert_eq!(back.expected_vuids(), c.expected_vuids());
             assert_eq!(
-                verdict(&r, &p, &back),
+                verdict(r, &p, &back),
                 c.expected_vuids(),
                 "round trip of {}",
                 c.name
@@ -61,7 +61,7 @@ fn generated_cases_judge_as_declared_and_cover_most_mutations() {
 fn every_mutation_fits_some_plan() {
     let p = lavapipe();
     let r = rules();
-    let cases: Vec<Case> = (0..12).flat_map(|s| generate(&p, &r, s, 8)).collect();
+    let cases: Vec<Case> = (0..12).flat_map(|s| generate(&p, r, s, 8)).collect();
     let missing: Vec<&str> = MUTATIONS
         .iter()
         .copied()
@@ -83,7 +83,7 @@ proptest! {
         let r = rules();
         let p = lavapipe();
         let c = realise(&plan, &p, "prop");
-        prop_assert_eq!(verdict(&r, &p, &c), unavoidable(&p));
+        prop_assert_eq!(verdict(r, &p, &c), unavoidable(&p));
         // and the build has a meaning
         prop_assert!(model::accel::indirect_build(&c.as_accel().unwrap().world, &c.as_accel().unwrap().call).is_ok());
     }
@@ -93,8 +93,8 @@ proptest! {
         let r = rules();
         let p = lavapipe();
         let base = realise(&plan, &p, "prop");
-        if let Some(m) = mutate(&base, MUTATIONS[k], &p, &r) {
-            prop_assert_eq!(verdict(&r, &p, &m), m.expected_vuids());
+        if let Some(m) = mutate(&base, MUTATIONS[k], &p, r) {
+            prop_assert_eq!(verdict(r, &p, &m), m.expected_vuids());
         }
     }
 }

@@ -35,13 +35,13 @@ const TWO_INFO: &[(&str, Option<&str>)] = &[
 fn every_two_info_mutation_is_generated_and_judges_as_declared() {
     let r = rules();
     let p = generator::profiles::load("lavapipe").unwrap();
-    let cases: Vec<Case> = (0..8).flat_map(|s| generate(&p, &r, s, 8)).collect();
+    let cases: Vec<Case> = (0..8).flat_map(|s| generate(&p, r, s, 8)).collect();
     for (tail, co) in TWO_INFO {
         let made: Vec<&Case> = cases.iter().filter(|c| c.name.ends_with(tail)).collect();
         assert!(!made.is_empty(), "{tail}: no plan fits");
         for c in made {
             assert_eq!(c.as_accel().unwrap().call.infos.len(), 2, "{}", c.name);
-            let got = verdict(&r, &p, c);
+            let got = verdict(r, &p, c);
             assert_eq!(got, c.expected_vuids(), "{}:\n{}", c.name, c.to_yaml());
             let mut want: Vec<String> = unavoidable(&p);
             want.push(generator::accel::vuid(tail));
@@ -55,7 +55,7 @@ fn every_two_info_mutation_is_generated_and_judges_as_declared() {
                 c.name
             );
             let back = Case::from_yaml("mem", &c.to_yaml()).unwrap();
-            assert_eq!(verdict(&r, &p, &back), got, "round trip of {}", c.name);
+            assert_eq!(verdict(r, &p, &back), got, "round trip of {}", c.name);
         }
     }
 }
@@ -68,7 +68,7 @@ proptest! {
         let p = generator::profiles::load("lavapipe").unwrap();
         let mut c = realise(&plan, &p, "prop");
         add_second_info(c.as_accel_mut().unwrap());
-        prop_assert_eq!(verdict(&r, &p, &c), unavoidable(&p));
+        prop_assert_eq!(verdict(r, &p, &c), unavoidable(&p));
         prop_assert!(model::accel::indirect_build(&c.as_accel().unwrap().world, &c.as_accel().unwrap().call).is_ok());
     }
 
@@ -77,9 +77,9 @@ proptest! {
         let r = rules();
         let p = generator::profiles::load("lavapipe").unwrap();
         let base = realise(&plan, &p, "prop");
-        if let Some(m) = mutate(&base, TWO_INFO[k].0, &p, &r) {
+        if let Some(m) = mutate(&base, TWO_INFO[k].0, &p, r) {
             prop_assert_eq!(m.as_accel().unwrap().call.infos.len(), 2);
-            prop_assert_eq!(verdict(&r, &p, &m), m.expected_vuids());
+            prop_assert_eq!(verdict(r, &p, &m), m.expected_vuids());
         }
     }
 }

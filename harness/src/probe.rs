@@ -206,8 +206,10 @@ pub fn probe(driver: Driver) -> Result<DeviceProfile, HarnessError> {
         }
     }
     let head = chain.link();
-    let mut p2 = vk::PhysicalDeviceProperties2::default();
-    p2.p_next = head;
+    let mut p2 = vk::PhysicalDeviceProperties2 {
+        p_next: head,
+        ..Default::default()
+    };
     // SAFETY: the chain has correct sTypes and sizes and outlives the call.
     unsafe {
         inst.instance

@@ -48,6 +48,7 @@ pub struct AccelBody {
 
 /// What a case calls, per command family.
 #[derive(Debug, Clone, PartialEq)]
+#[allow(clippy::large_enum_variant)] // a case holds one body; boxing it would only add an indirection
 pub enum Body {
     Trace(TraceBody),
     Accel(AccelBody),
@@ -328,6 +329,7 @@ mod serial {
     }
 
     /// The world of either family, read once the command is known.
+    #[allow(clippy::large_enum_variant)] // one per case file, read and consumed at once
     enum AnyWorld {
         Trace(World),
         Accel(BuildWorld),

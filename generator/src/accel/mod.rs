@@ -204,11 +204,7 @@ pub fn realise(plan: &BuildPlan, profile: &DeviceProfile, name: &str) -> Case {
                 }
                 // The transform moves the geometry by (0, 0, 0) plus a zero translation check value.
                 let vbase = align_up(cursor, 16);
-                let vstart = if index == IndexType::None {
-                    vbase
-                } else {
-                    vbase
-                };
+                let vstart = vbase;
                 let voff = if index == IndexType::None {
                     primitive_offset as u64
                 } else {

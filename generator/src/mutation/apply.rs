@@ -3,6 +3,9 @@
 
 use super::*;
 
+/// An edit of the realised world and call, made after layout.
+type PostEdit = Box<dyn FnOnce(&mut World, &mut Call)>;
+
 /// The VUID of `scope` with `tag`, if the loaded registry has it (any status).
 fn registry_vuid(rules: &RuleSet, scope: &str, tag: &str) -> Option<String> {
     rules
@@ -136,7 +139,7 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
         |why: String| GenError::Unsupported(format!("{m:?} on {}: {why}", input.profile.name));
     let mut also: Vec<String> = vec![];
     // Edits made after layout, on the realised world and call.
-    let mut post: Vec<Box<dyn FnOnce(&mut World, &mut Call)>> = vec![];
+    let mut post: Vec<PostEdit> = vec![];
     match m {
         Mutation::MisalignTableAddress(t) => {
             ensure_used(&mut plan, t);
@@ -491,10 +494,10 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
             let target = max_inv + 1 + (knob % 2) as u64 * max_inv;
             let mut dims = [1u64; 3];
             let mut product = 1u64;
-            for i in 0..3 {
+            for (d, max) in dims.iter_mut().zip(lim.max_dim) {
                 let want = target.div_ceil(product);
-                dims[i] = want.min(lim.max_dim[i]).min(u32::MAX as u64).max(1);
-                product = product.saturating_mul(dims[i]);
+                *d = want.min(max).min(u32::MAX as u64).max(1);
+                product = product.saturating_mul(*d);
             }
             if product <= max_inv {
                 return Err(unsupported("the per-dimension limits keep the product within maxRayDispatchInvocationCount".into()));

@@ -340,8 +340,8 @@ fn box_table(info: &BuildGeometryInfo, prims: &[BuiltPrimitive]) -> Vec<u8> {
     let mut base = [0u32; 8];
     let mut boxes: Vec<f32> = Vec::new();
     let mut n = 0u32;
-    for g in 0..info.geometries.len().min(8) {
-        base[g] = n;
+    for (g, slot) in base.iter_mut().enumerate().take(info.geometries.len()) {
+        *slot = n;
         for p in prims.iter().filter(|p| p.geometry == g as u32) {
             if let Shape::Aabb { min, max } = &p.shape {
                 boxes.extend([min[0], min[1], min[2], 0.0, max[0], max[1], max[2], 0.0]);

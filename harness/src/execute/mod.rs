@@ -90,7 +90,7 @@ impl Executor {
         crate::accel_check::probe_rays(&self.inst, case, origins, check)
     }
 
-    fn device(&mut self, world: &World) -> Result<&mut DeviceCache, Observation> {
+    fn device(&mut self, world: &World) -> Result<&mut DeviceCache, HarnessError> {
         let key = Self::device_key(world);
         if !self.devices.contains_key(&key) {
             let made = VkDevice::new(
@@ -104,7 +104,7 @@ impl Executor {
         }
         match self.devices.get_mut(&key).expect("inserted above") {
             Ok(c) => Ok(c),
-            Err(e) => Err(failure(e.clone())),
+            Err(e) => Err(e.clone()),
         }
     }
 }

@@ -25,7 +25,7 @@ pub(super) fn trace(ctx: &mut Executor, case: &model::TraceBody, run_valid: bool
     let collector = ctx.inst.collector.clone();
     let cache = match ctx.device(&case.world) {
         Ok(c) => c,
-        Err(obs) => return obs,
+        Err(e) => return failure(e),
     };
     let mut buffers = Vec::new();
     let mut res: Option<crate::realise::resources::Realised> = None;

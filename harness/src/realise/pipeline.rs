@@ -171,6 +171,9 @@ impl DeviceCache {
         foreign: bool,
     ) -> Result<&RealPipeline, HarnessError> {
         // A case with a resource state runs its own pipeline (see `resource_pipeline`).
+        // (Checked, then borrowed: returning the borrow from an `if let` would keep `self` borrowed
+        // for the cache insertion below.)
+        #[allow(clippy::unnecessary_unwrap)]
         if !foreign && self.resource_pipeline.is_some() {
             return Ok(self.resource_pipeline.as_ref().expect("checked"));
         }

@@ -272,8 +272,10 @@ impl VkInstance {
             }
         }
         let head = chain.link();
-        let mut f2 = vk::PhysicalDeviceFeatures2::default();
-        f2.p_next = head;
+        let mut f2 = vk::PhysicalDeviceFeatures2 {
+            p_next: head,
+            ..Default::default()
+        };
         // SAFETY: the chain holds structures with correct sTypes and sizes; it lives across the call.
         unsafe {
             self.instance

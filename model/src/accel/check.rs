@@ -41,7 +41,7 @@ pub fn expected_rays(prims: &[BuiltPrimitive], top: bool) -> Vec<ExpectedRay> {
             if !x.is_finite() || !y.is_finite() {
                 return None;
             }
-            let hit = p.active.then(|| {
+            let hit = p.active.then_some({
                 if top {
                     (p.primitive, 0, 0)
                 } else {
@@ -70,8 +70,11 @@ pub fn check_rays(body: &AccelBody) -> Option<Vec<ExpectedRay>> {
     Some(expected_rays(&prims, info.ty == AsType::TopLevel))
 }
 
+/// How a deviation rewrites the ranges a build reads, per geometry.
+type RangeRewrite = fn(&GeometryData, RangeInfo) -> RangeInfo;
+
 /// Named ways a driver's build may depart from the model: each rewrites the ranges the build reads.
-const DEVIATIONS: &[(&str, fn(&GeometryData, RangeInfo) -> RangeInfo)] = &[
+const DEVIATIONS: &[(&str, RangeRewrite)] = &[
     ("indexed-first-vertex-ignored", |g, r| match g {
         GeometryData::Triangles { index_type, .. } if *index_type != IndexType::None => RangeInfo {
             first_vertex: 0,
@@ -123,7 +126,7 @@ pub fn deviation(case: &AccelBody, device_hits: &Hits) -> Option<String> {
     let padded_mem = padded.memory();
     // Each candidate: its name and what the cast reports per ray at the structure it builds (with
     // whether that structure holds an inactive triangle). "none" is the model's own build.
-    let identity: fn(&GeometryData, RangeInfo) -> RangeInfo = |_, r| r;
+    let identity: RangeRewrite = |_, r| r;
     let candidates: Vec<(&str, Hits, bool)> = std::iter::once(("none", identity))
         .chain(DEVIATIONS.iter().copied())
         .filter_map(|(name, f)| {
@@ -202,7 +205,7 @@ fn cast(prims: &[BuiltPrimitive], origin: [f32; 3]) -> Option<Option<(u32, u32, 
         if w.iter().all(|c| *c > 1e-4) {
             let z = w[0] * v[0][2] as f64 + w[1] * v[1][2] as f64 + w[2] * v[2][2] as f64;
             let t = (z - origin[2] as f64) as f32;
-            if (0.0..=100.0).contains(&t) && best.map_or(true, |(bt, _)| t < bt) {
+            if (0.0..=100.0).contains(&t) && best.is_none_or(|(bt, _)| t < bt) {
                 best = Some((t, (0, p.geometry, p.primitive)));
             }
         } else if w.iter().all(|c| *c > -1e-4) {

@@ -221,11 +221,11 @@ impl Predicate {
 
     /// Whether the parameter is part of the call at all (the raygen table has no stride for NV).
     fn applies(p: Param, call: &Call) -> bool {
-        match (call, p) {
-            (Call::TraceRaysNv(_), Param::TableStride(Table::Raygen)) => false,
-            (Call::TraceRaysNv(_), Param::TableSize(_)) => false,
-            _ => true,
-        }
+        !matches!(
+            (call, p),
+            (Call::TraceRaysNv(_), Param::TableStride(Table::Raygen))
+                | (Call::TraceRaysNv(_), Param::TableSize(_))
+        )
     }
 
     /// Checks the predicate on a trace call; every failure found is pushed (a region rule may fail for
@@ -538,13 +538,13 @@ impl Predicate {
                     }
                     if let Some(HandleRef::Group(g)) = record_handle(world, call, Table::Hit, index)
                     {
-                        let ok = match (pl.groups.get(g as usize), kind) {
-                            (Some(ShaderGroup::TrianglesHit { .. }), GeometryKind::Triangles) => {
-                                true
-                            }
-                            (Some(ShaderGroup::ProceduralHit { .. }), GeometryKind::Aabbs) => true,
-                            _ => false,
-                        };
+                        let ok = matches!(
+                            (pl.groups.get(g as usize), kind),
+                            (
+                                Some(ShaderGroup::TrianglesHit { .. }),
+                                GeometryKind::Triangles
+                            ) | (Some(ShaderGroup::ProceduralHit { .. }), GeometryKind::Aabbs)
+                        );
                         if !ok {
                             push(fail(
                                 format!("hit record {index}"),

@@ -28,7 +28,7 @@ fn operand(text: &str) -> Option<Operand> {
     let t = clean(text);
     let t = t.trim().trim_end_matches('.');
     let parts: Vec<&str> = t
-        .split(|c| c == '×')
+        .split('×')
         .flat_map(|p| p.split("{times}"))
         .map(str::trim)
         .collect();
@@ -83,15 +83,14 @@ fn build_only(command: &str) -> Option<()> {
     (command == CommandId::BuildAccelerationStructuresIndirect.vk_name()).then_some(())
 }
 
-type Shape = (
-    &'static str,
-    fn(&str, &regex::Captures) -> Option<Predicate>,
-);
+/// What a shape makes of a text it matches, for a command (None: the quoted names do not resolve).
+type Builder = fn(&str, &regex::Captures) -> Option<Predicate>;
+
+type Shape = (&'static str, Builder);
 
 /// Every text shape the compiler knows, in the order they are tried.
-fn shapes() -> &'static [(Regex, fn(&str, &regex::Captures) -> Option<Predicate>)] {
-    static SHAPES: OnceLock<Vec<(Regex, fn(&str, &regex::Captures) -> Option<Predicate>)>> =
-        OnceLock::new();
+fn shapes() -> &'static [(Regex, Builder)] {
+    static SHAPES: OnceLock<Vec<(Regex, Builder)>> = OnceLock::new();
     SHAPES.get_or_init(|| {
         let table: Vec<Shape> = vec![
             (r"^(?P<p>\S+) must be a multiple of (?P<v>.+)$", |c, m| {

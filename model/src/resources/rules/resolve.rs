@@ -158,7 +158,7 @@ pub(super) fn kind_fits(d: &Descriptor, ty: DescriptorType) -> bool {
 
 /// Why a used descriptor is not valid, if it is not.
 pub(super) fn descriptor_problem(rs: &ResourceState, r: &Resolved) -> Option<String> {
-    let Some(set) = r.set else { return None }; // unbound sets are SetsBound's concern
+    let set = r.set?; // unbound sets are SetsBound's concern
     let Some(binding) = r.binding else {
         return Some(format!(
             "set `{}` has no binding {}",
