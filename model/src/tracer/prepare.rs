@@ -163,8 +163,6 @@ pub struct PreparedScene {
     pub(crate) scene: Scene,
     pub(crate) instances: Vec<PreparedInstance>,
     pub(crate) geometries: Vec<WorldGeometry>,
-    /// `(instance, geometry)` → index in `geometries`.
-    pub(crate) geometry_index: HashMap<(u32, u32), u32>,
     pub(crate) items: Vec<Item>,
     /// The far box of each item, in `items` order.
     pub(crate) item_boxes: Vec<FarBox>,
@@ -198,7 +196,6 @@ impl PreparedScene {
         }
         let mut instances = Vec::new();
         let mut geometries = Vec::new();
-        let mut geometry_index = HashMap::new();
         let mut items = Vec::new();
         let mut boxes = Vec::new();
         let mut topology = HashMap::new();
@@ -235,7 +232,6 @@ impl PreparedScene {
             let bl = &scene.bottom_levels[b as usize];
             for (g, geometry) in bl.geometries.iter().enumerate() {
                 let gi = geometries.len() as u32;
-                geometry_index.insert((i as u32, g as u32), gi);
                 match &geometry.data {
                     GeometryData::Triangles(t) => {
                         let gm = t.transform.as_ref();
@@ -358,7 +354,6 @@ impl PreparedScene {
             scene: scene.clone(),
             instances,
             geometries,
-            geometry_index,
             items,
             item_boxes,
             nodes,

@@ -255,9 +255,20 @@ pub fn sphere_signs<T: Num>(
             roots.t1_above(tmax + band.t1_error),
         )?
     };
+    // Or the ray starts robustly inside: the point at tmin + τ lies in the sphere shrunk by the
+    // margin (spec note: a ray started within the AABB hits it).
+    let starts_inside = || -> Option<bool> {
+        if r_in <= 0.0 || !(lo < tmax - band.t_margin) {
+            return Some(false);
+        }
+        let p = [0, 1, 2].map(|k| o[k].add(&T::from_f64(lo).mul(&d[k])));
+        let det2 = det.mul(&det);
+        gt0(&T::from_f64(r_in * r_in).mul(&det2).sub(&dot3(&p, &p)))
+    };
+    let must_run = (after && before) || starts_inside()?;
     Some(SphereSigns {
         hit,
-        must_run: after && before,
+        must_run,
         entry_after_tmin,
         entry_before_tmax,
         exit_after_tmin,
