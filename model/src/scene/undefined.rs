@@ -2,7 +2,7 @@
 //! §5), each found with the path of the offending value so a case file can point at it.
 
 use super::{GeometryData, Ray, RayFlags, Scene, Transform3x4};
-use crate::tracer::arith::determinant_sign;
+use crate::tracer::arith::{determinant_sign, Dyadic, Num};
 use std::cmp::Ordering;
 
 /// The classes of undefined behaviour [`Scene::undefined`] finds.
@@ -324,13 +324,16 @@ impl Scene {
                                 let sp = format!("{gp}.spheres[{i}]");
                                 let finite =
                                     s.center.iter().all(|x| x.is_finite()) && s.radius.is_finite();
-                                // Inside the box, compared exactly in f64 (f32 sums are exact there).
+                                // Inside the box, compared exactly.
                                 let inside = finite
                                     && s.radius > 0.0
                                     && (0..3).all(|k| {
-                                        let c = s.center[k] as f64;
-                                        let r = s.radius as f64;
-                                        c - r >= bx.min[k] as f64 && c + r <= bx.max[k] as f64
+                                        let c = Dyadic::from_f32(s.center[k]);
+                                        let r = Dyadic::from_f32(s.radius);
+                                        let lo = c.sub(&r).sub(&Dyadic::from_f32(bx.min[k]));
+                                        let hi = Dyadic::from_f32(bx.max[k]).sub(&c.add(&r));
+                                        lo.sign() != Some(Ordering::Less)
+                                            && hi.sign() != Some(Ordering::Less)
                                     });
                                 if !inside {
                                     push(
