@@ -167,11 +167,11 @@ fn simulate(test: Test, scene: &Scene, ray: &Ray) -> Option<SimHit> {
 }
 
 fn random_case(rng: &mut SceneRng) -> (Scene, Vec<Ray>) {
-    let v = [
-        rng.point(-2.0, 2.0),
-        rng.point(-2.0, 2.0),
-        rng.point(-2.0, 2.0),
-    ];
+    // Triangles from 2 down to 1e-3 across, seen from up to 200 away.
+    let size = 10f64.powf(rng.range(-3.0, 0.3));
+    let centre = rng.point(-2.0, 2.0);
+    let v = [0, 1, 2]
+        .map(|_| [0, 1, 2].map(|k| (centre[k] as f64 + size * rng.range(-1.0, 1.0)) as f32));
     let geometry_transform = (rng.below(2) == 0).then(|| {
         similarity(
             [rng.range(-1.0, 1.0), 1.0, rng.range(-1.0, 1.0)],
@@ -242,7 +242,7 @@ fn random_case(rng: &mut SceneRng) -> (Scene, Vec<Ray>) {
                 rng.range(-1.0, 1.0),
                 rng.range(-1.0, 1.0),
             ];
-            let dist = rng.range(0.5, 20.0);
+            let dist = 10f64.powf(rng.range(-0.3, 2.3));
             let origin = [0, 1, 2].map(|k| (p[k] - dist * dir[k]) as f32);
             let tmax = if rng.below(5) == 0 {
                 (dist * rng.range(0.9, 1.1)) as f32
@@ -271,7 +271,7 @@ fn simulated_f32_implementations_never_contradict_a_req_classification() {
     let mut vary_disagreements = 0;
     // The largest error seen relative to the band's half width (1.0 = at the band's edge).
     let (mut worst_t, mut worst_b) = (0.0f64, 0.0f64);
-    for _ in 0..300 {
+    for _ in 0..400 {
         let (scene, rays) = random_case(&mut rng);
         let prepared = PreparedScene::new(&scene).expect("defined");
         for ray in &rays {
@@ -332,5 +332,5 @@ fn simulated_f32_implementations_never_contradict_a_req_classification() {
     eprintln!("worst t error / bound {worst_t:.3e}, worst b error / bound {worst_b:.3e}");
     assert!(worst_t < 1.0 && worst_b < 1.0);
     eprintln!("REQ-hit {req_hits}, REQ-miss {req_misses}, VARY {vary} (t outside the band on VARY: {vary_disagreements}); {stats:?}");
-    assert!(req_hits > 4000 && req_misses > 3000 && vary > 1000);
+    assert!(req_hits > 4000 && req_misses > 2500 && vary > 1000);
 }

@@ -170,16 +170,6 @@ pub fn vertex_static_radius(
     BAND_SAFETY_FACTOR * (g + carry)
 }
 
-/// `(x0 + a0)(x1 + a1) − x0·x1` for non-negative terms, without cancellation.
-fn grow2(x0: f64, a0: f64, x1: f64, a1: f64) -> f64 {
-    a0 * (x1 + a1) + x0 * a1
-}
-
-/// `(x0 + a0)(x1 + a1)(x2 + a2) − x0·x1·x2` for non-negative terms, without cancellation.
-fn grow3(x0: f64, a0: f64, x1: f64, a1: f64, x2: f64, a2: f64) -> f64 {
-    a0 * (x1 + a1) * (x2 + a2) + x0 * grow2(x1, a1, x2, a2)
-}
-
 /// Bounds on the triangle quantities of one (ray, triangle) pair: `edge[i]` bounds the change of
 /// `e_i = d·((w_{i+1} − o) × (w_{i+2} − o))`, `sum` that of `S = Σ e_i`, `plane` that of
 /// `N = (w0 − o)·((w1 − o) × (w2 − o))`, under the backward error; `t_rel` is the final division.
@@ -194,7 +184,22 @@ pub struct TriangleBand {
 /// Slack on every f64-computed bound, so its own rounding never makes it smaller than stated.
 const SLACK: f64 = 1.0 + 1e-9;
 
+fn cross_f64(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
 /// The band of one (ray, triangle) pair from f64 world vertices and their static radii.
+///
+/// With every `a_k = w_k − o` moved by at most `α_k` and `d` by at most `P·|d|`, expanding
+/// `(d + Δd)·((a + Δa) × (b + Δb)) − d·(a × b)` term by term and using
+/// `|d·(Δa × b)| = |Δa·(b × d)| ≤ |Δa|·|d|·|b⊥|` (`b⊥` the part of `b` perpendicular to `d`):
+/// `|Δe| ≤ |d|(α|b⊥| + β|a⊥| + αβ) + P|d|(|a × b| + α|b| + β|a| + αβ)`. The perpendicular parts
+/// keep the band proportional to the triangle's size seen from the ray, not to its distance.
+/// Likewise `|ΔN| ≤ Σ α_i |a_j × a_k| + Σ α_i α_j |a_k| + α_0 α_1 α_2`.
 pub fn triangle_band(
     band: &InstanceBand,
     world: &[[f64; 3]; 3],
@@ -205,14 +210,30 @@ pub fn triangle_band(
     let r_o = band.origin_radius(origin);
     let dn = norm3(direction);
     let p = band.direction_rel;
-    let dist = [0, 1, 2].map(|k| norm3([0, 1, 2].map(|c| world[k][c] - origin[c])));
-    let alpha = [0, 1, 2].map(|k| static_radius[k] + band.test_rel * dist[k] + r_o);
+    let a = [0, 1, 2].map(|k| [0, 1, 2].map(|c| world[k][c] - origin[c]));
+    let len = a.map(norm3);
+    // f64 rounding of the cross products: far below 1e-12 of the lengths.
+    let perp = [0, 1, 2].map(|k| norm3(cross_f64(a[k], direction)) / dn + 1e-12 * len[k]);
+    let cross = [0, 1, 2].map(|i| {
+        let (j, k) = ((i + 1) % 3, (i + 2) % 3);
+        norm3(cross_f64(a[j], a[k])) + 1e-12 * len[j] * len[k]
+    });
+    let alpha = [0, 1, 2].map(|k| static_radius[k] + band.test_rel * len[k] + r_o);
     let edge = [0, 1, 2].map(|i| {
         let (j, k) = ((i + 1) % 3, (i + 2) % 3);
-        let (x, a, y, b) = (dist[j], alpha[j], dist[k], alpha[k]);
-        dn * (p * (x + a) * (y + b) + grow2(x, a, y, b)) * SLACK
+        let (aj, ak) = (alpha[j], alpha[k]);
+        let vertices = aj * perp[k] + ak * perp[j] + aj * ak;
+        let tilt = p * (cross[i] + aj * len[k] + ak * len[j] + aj * ak);
+        dn * (vertices + tilt) * SLACK
     });
-    let plane = grow3(dist[0], alpha[0], dist[1], alpha[1], dist[2], alpha[2]) * SLACK;
+    let plane = (alpha[0] * cross[0]
+        + alpha[1] * cross[1]
+        + alpha[2] * cross[2]
+        + alpha[0] * alpha[1] * len[2]
+        + alpha[1] * alpha[2] * len[0]
+        + alpha[0] * alpha[2] * len[1]
+        + alpha[0] * alpha[1] * alpha[2])
+        * SLACK;
     TriangleBand {
         sum: (edge[0] + edge[1] + edge[2]) * SLACK,
         edge,

@@ -17,6 +17,7 @@ pub mod summary;
 mod traverse;
 pub mod triangle;
 mod watertight;
+pub mod workload;
 
 pub use prepare::{PreparedScene, PrimitiveKind};
 pub use traverse::{trace_launch, trace_ray};
