@@ -254,6 +254,7 @@ fn filter_and_bvh_agree_with_exact_brute_force_on_random_scenes() {
     };
     let mut filtered = TracerStats::default();
     let mut exact = TracerStats::default();
+    let mut unfiltered = TracerStats::default();
     let mut compared = 0;
     let mut candidates = 0;
     for _ in 0..100 {
@@ -275,6 +276,7 @@ fn filter_and_bvh_agree_with_exact_brute_force_on_random_scenes() {
                 &TracerConfig {
                     precision: Precision::ExactOnly,
                     use_bvh: false,
+                    far_test: true,
                 },
                 &mut exact,
             )
@@ -284,6 +286,29 @@ fn filter_and_bvh_agree_with_exact_brute_force_on_random_scenes() {
                 shape(&e),
                 "filter/BVH vs exact/brute force on {ray:?} in {scene:?}"
             );
+            // The far test rejects nothing that full classification finds required.
+            let all = trace_ray(
+                &prepared,
+                &ray,
+                &table,
+                &TracerConfig {
+                    precision: Precision::ExactOnly,
+                    use_bvh: false,
+                    far_test: false,
+                },
+                &mut unfiltered,
+            )
+            .unwrap();
+            for c in all
+                .candidates
+                .iter()
+                .filter(|c| c.presence == model::tracer::Presence::Required)
+            {
+                assert!(
+                    f.candidate(&c.primitive).is_some(),
+                    "far test dropped {c:?} for {ray:?} in {scene:?}"
+                );
+            }
             compared += 1;
             candidates += f.candidates.len();
         }
@@ -295,6 +320,11 @@ fn filter_and_bvh_agree_with_exact_brute_force_on_random_scenes() {
     assert!(filtered.vary > 1000, "{filtered:?}");
     assert!(filtered.req_hit > 1000, "{filtered:?}");
     assert_eq!(exact.exact_evaluations, exact.pair_tests);
+    assert_eq!(unfiltered.far_rejections, 0);
+    assert!(
+        unfiltered.pair_tests > 2 * filtered.pair_tests,
+        "{unfiltered:?}"
+    );
     assert_eq!(
         filtered.filter_decided + filtered.exact_evaluations,
         filtered.pair_tests
@@ -359,10 +389,7 @@ fn f32_only_mode_runs_and_counts() {
             &prepared,
             &ray,
             &table,
-            &TracerConfig {
-                precision: Precision::F32FilterOnly,
-                use_bvh: true,
-            },
+            &TracerConfig::with_precision(Precision::F32FilterOnly),
             &mut stats,
         )
         .unwrap();

@@ -44,6 +44,19 @@ pub struct TracerConfig {
     pub precision: Precision,
     /// Use the BVH (otherwise every primitive is tested: the reference for the BVH).
     pub use_bvh: bool,
+    /// Reject primitives whose padded box the ray misses before any arithmetic (otherwise every
+    /// primitive is classified in full: the reference for the far test).
+    pub far_test: bool,
+}
+
+impl TracerConfig {
+    /// The default settings with another precision.
+    pub fn with_precision(precision: Precision) -> TracerConfig {
+        TracerConfig {
+            precision,
+            ..TracerConfig::default()
+        }
+    }
 }
 
 impl Default for TracerConfig {
@@ -51,6 +64,7 @@ impl Default for TracerConfig {
         TracerConfig {
             precision: Precision::F64WithExactFallback,
             use_bvh: true,
+            far_test: true,
         }
     }
 }

@@ -327,7 +327,8 @@ impl PreparedScene {
                                 lo,
                                 hi,
                                 static_pad: 2.0 * band.norm_a * sse * 2.0 * extent + slack,
-                                rel: 2.0 * k * (band.direction_rel * k + sse) * 1.01,
+                                // Dobj ≤ 2‖A⁻¹‖·M (centre and radius seen from the origin).
+                                rel: 4.0 * k * (band.direction_rel * k + sse) * 1.01,
                                 origin_coef: 2.0 * k * (band.origin_coef + sse) * 1.01,
                                 norm_t: band.norm_t,
                             });

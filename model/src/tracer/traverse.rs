@@ -230,14 +230,15 @@ pub fn trace_ray(
     let rf = RayF64::of(ray);
     let mut near: Vec<Item> = Vec::new();
     let mut far_count = 0u64;
+    let far_test = config.far_test;
     let mut visit = |item: Item, fb: &super::prepare::FarBox| {
-        if fb.is_far(&rf) {
+        if far_test && fb.is_far(&rf) {
             far_count += 1;
         } else {
             near.push(item);
         }
     };
-    if config.use_bvh {
+    if config.use_bvh && config.far_test {
         let mut nodes = 0;
         scene.for_each_near(&rf, &mut nodes, &mut visit);
         stats.nodes_visited += nodes;

@@ -69,10 +69,7 @@ pub fn trace_with(
             group: MISS_GROUP,
         },
     };
-    let config = TracerConfig {
-        precision,
-        use_bvh: true,
-    };
+    let config = TracerConfig::with_precision(precision);
     let mut stats = TracerStats::default();
     trace_ray(&prepared, ray, &table, &config, &mut stats).expect("a defined ray")
 }
