@@ -11,6 +11,7 @@ use model::tracer::summary::Summary;
 use model::tracer::{AllowedOutcomes, AnyHitRule, HitShaders, Precision};
 use tracer_common::*;
 
+#[allow(clippy::too_many_arguments)]
 fn hit(
     instance: u32,
     geometry: u32,

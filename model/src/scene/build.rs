@@ -308,7 +308,7 @@ pub fn instanced_copies(
             SceneInstance {
                 transform: similarity(
                     axis,
-                    rng.range(0.0, 6.28),
+                    rng.range(0.0, std::f64::consts::TAU),
                     rng.range(0.5, 2.0),
                     i % 3 == 2,
                     t,

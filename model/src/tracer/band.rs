@@ -15,6 +15,7 @@
 //!   backward stable: it decides exactly for vertices moved by about 12u·|v − o| in object space
 //!   (translation 1u, shear 3u + 3u, edge-function products and difference 2u·2, in the
 //!   distorted sheared frame); we take [`ETA_TEST`] = 32u, and κ·|w − o| in world space.
+//!
 //! [`BAND_SAFETY_FACTOR`] multiplies all of it once.
 
 use crate::scene::Transform3x4;

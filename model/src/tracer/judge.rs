@@ -168,9 +168,10 @@ pub fn judge(allowed: &AllowedOutcomes, record: &RayRecord) -> RayJudgement {
             .iter()
             .find(|g| {
                 g.expect_hit
-                    && committed.map_or(true, |c| !g.members.contains(c))
-                    && committed_t.map_or(true, |t| t > g.t.hi)
-                    && !(group_seen(g) || !slots_complete)
+                    && !matches!(committed, Some(c) if g.members.contains(c))
+                    && !matches!(committed_t, Some(t) if t <= g.t.hi)
+                    && !group_seen(g)
+                    && slots_complete
             })
             .map(|g| {
                 format!(

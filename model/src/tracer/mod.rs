@@ -89,7 +89,7 @@ impl AnyHitRule {
         match self {
             AnyHitRule::Accept | AnyHitRule::Terminate => true,
             AnyHitRule::Ignore => false,
-            AnyHitRule::IgnoreOddPrimitives => primitive % 2 == 0,
+            AnyHitRule::IgnoreOddPrimitives => primitive & 1 == 0,
         }
     }
 }
@@ -302,7 +302,7 @@ pub struct CountBounds {
 
 impl CountBounds {
     pub fn contains(&self, n: u32) -> bool {
-        n >= self.min && self.max.map_or(true, |m| n <= m)
+        n >= self.min && !matches!(self.max, Some(m) if n > m)
     }
 }
 

@@ -70,6 +70,7 @@ impl FarBox {
 
     /// Whether the ray segment misses the padded box: then no conformant implementation can
     /// report a hit on anything inside (see `band::far_pad`). Monotone under box containment.
+    #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
     pub fn is_far(&self, ray: &RayF64) -> bool {
         let o = ray.origin;
         let r_o = self.origin_coef * (ray.origin_norm + self.norm_t);
@@ -148,10 +149,13 @@ pub(crate) struct Node {
 #[derive(Debug, Default)]
 pub(crate) struct Topology {
     /// Directed edge (from, to) by vertex position → triangles (geometry, primitive) having it.
-    pub edges: HashMap<([u32; 3], [u32; 3]), Vec<(u32, u32)>>,
+    pub edges: HashMap<(PositionKey, PositionKey), Vec<(u32, u32)>>,
     /// Vertex position → triangles (geometry, primitive, corner) having it.
-    pub vertices: HashMap<[u32; 3], Vec<(u32, u32, u8)>>,
+    pub vertices: HashMap<PositionKey, Vec<(u32, u32, u8)>>,
 }
+
+/// A vertex position as bits (see [`position_key`]).
+pub(crate) type PositionKey = [u32; 3];
 
 /// A position key: bit patterns with −0 read as +0 (identical position values).
 pub(crate) fn position_key(p: [f32; 3]) -> [u32; 3] {

@@ -258,7 +258,7 @@ pub fn sphere_signs<T: Num>(
     // Or the ray starts robustly inside: the point at tmin + τ lies in the sphere shrunk by the
     // margin (spec note: a ray started within the AABB hits it).
     let starts_inside = || -> Option<bool> {
-        if r_in <= 0.0 || !(lo < tmax - band.t_margin) {
+        if r_in <= 0.0 || lo >= tmax - band.t_margin {
             return Some(false);
         }
         let p = [0, 1, 2].map(|k| o[k].add(&T::from_f64(lo).mul(&d[k])));

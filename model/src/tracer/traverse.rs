@@ -91,6 +91,7 @@ fn classify_triangle(
     let inst = &scene.instances[w.instance as usize];
     let geometry_identity = t.transform.as_ref().is_none_or_identity();
     if inst.identity && geometry_identity {
+        #[allow(clippy::needless_range_loop)] // one axis indexes positions and the ray
         for k in 0..3 {
             let plane = pos[0][k];
             if pos[1][k] == plane
@@ -165,7 +166,7 @@ trait OptionTransform {
 
 impl OptionTransform for Option<&crate::scene::Transform3x4> {
     fn is_none_or_identity(&self) -> bool {
-        self.map_or(true, |m| m.is_identity())
+        !matches!(self, Some(m) if !m.is_identity())
     }
 }
 

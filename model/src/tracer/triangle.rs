@@ -260,7 +260,7 @@ impl Interval {
 
 /// `[n ± bn] / [s ± bs]` for `|s| > bs`, widened by `rel`.
 pub fn quotient(n: f64, bn: f64, s: f64, bs: f64, rel: f64) -> Interval {
-    if !(s.abs() > bs) || !n.is_finite() || !s.is_finite() {
+    if s.abs() <= bs || !n.is_finite() || !s.is_finite() || bs.is_nan() {
         return Interval::ALL;
     }
     let cands = [
