@@ -553,3 +553,58 @@ fn a_translated_rotated_instance_is_hit_where_its_transform_puts_it() {
     // The untransformed position misses.
     assert!(trace(&scene, &down(0.25, 0.25)).miss.required);
 }
+
+#[test]
+fn every_shared_point_of_a_grid_forms_its_group() {
+    // A 4x4 grid of cells 1/4: 16 diagonals + 12 + 12 interior edges = 40 shared-edge points and
+    // 9 interior vertices, each of six triangles (the diagonals meet at every other corner twice).
+    let (edges, vertices) = build::grid_shared_points(4, 4, 0.25);
+    assert_eq!((edges.len(), vertices.len()), (40, 9));
+    let scene = one_instance(build::grid(4, 4, 0.25));
+    for ray in build::rays_down_onto(&edges, 1.0) {
+        let out = trace(&scene, &ray);
+        assert_eq!(out.candidates.len(), 2, "{ray:?}");
+        assert_eq!(out.watertight.len(), 1, "{ray:?}");
+        assert_eq!(out.watertight[0].shape, WatertightShape::SharedEdge);
+        assert!(out.miss.discouraged);
+    }
+    for ray in build::rays_down_onto(&vertices, 1.0) {
+        let out = trace(&scene, &ray);
+        assert_eq!(out.candidates.len(), 6, "{ray:?}");
+        let fans: Vec<_> = out
+            .watertight
+            .iter()
+            .filter(|g| g.shape == WatertightShape::ClosedFan)
+            .collect();
+        assert_eq!(fans.len(), 1, "{ray:?}");
+        assert_eq!(fans[0].members.len(), 6);
+    }
+}
+
+#[test]
+fn an_icosphere_is_closed_and_rays_at_its_vertices_meet_fans() {
+    let bl = build::icosphere(2, 1.0);
+    let GeometryData::Triangles(t) = &bl.geometries[0].data else {
+        unreachable!()
+    };
+    assert_eq!(t.primitive_count(), 320);
+    // Closed: every directed edge appears once, and so does its reverse.
+    let mut edges = std::collections::HashMap::new();
+    for p in 0..t.primitive_count() {
+        let v = t.vertex_indices(p);
+        for k in 0..3 {
+            *edges.entry((v[k], v[(k + 1) % 3])).or_insert(0) += 1;
+        }
+    }
+    assert!(edges
+        .iter()
+        .all(|(&(a, b), &n)| n == 1 && edges.get(&(b, a)) == Some(&1)));
+    // A ray from outside straight at vertex 0 (radius 1, from distance 4: t = 3; the antipodal
+    // vertex, also a fan, at t = 5 lies beyond tmax = 4).
+    let v = t.positions[0];
+    let ray = Ray::new(v.map(|x| 4.0 * x), v.map(|x| -x), 0.0, 4.0);
+    let out = trace(&one_instance(bl), &ray);
+    assert_eq!(out.watertight.len(), 1);
+    assert_eq!(out.watertight[0].shape, WatertightShape::ClosedFan);
+    assert_eq!(out.watertight[0].members.len(), 5);
+}
