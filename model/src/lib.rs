@@ -22,3 +22,5 @@ pub use profile::DeviceProfile;
 pub use rules::{validate, RuleSet};
 pub use verdict::{Verdict, Violation};
 pub use world::World;
+pub mod scene;
+pub mod tracer;

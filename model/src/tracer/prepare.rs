@@ -1,0 +1,532 @@
+//! A scene made ready for tracing: world-space vertices (f64 with error bounds) per instance and
+//! geometry, ray-independent error radii, and a BVH over world-space primitive boxes whose culling
+//! is conservative against the band (a node is skipped only when its padded box is missed, and the
+//! pad of a node dominates the pads of everything below it, so the BVH skips exactly the
+//! primitives the per-primitive far test would reject).
+
+use super::arith::{affine, v3, BoundedF64};
+use super::band::{
+    far_pad, norm3, vertex_static_radius, InstanceBand, BAND_SAFETY_FACTOR, SPHERE_SHADER_ERROR,
+};
+use crate::scene::{GeometryData, Problem, Scene, Transform3x4};
+use std::collections::HashMap;
+use std::sync::OnceLock;
+
+/// Which kind of primitive a prepared geometry holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum PrimitiveKind {
+    Triangle,
+    Aabb,
+}
+
+/// One geometry of one instance, in world space.
+#[derive(Debug)]
+pub(crate) struct WorldGeometry {
+    pub instance: u32,
+    pub geometry: u32,
+    pub bottom_level: u32,
+    pub kind: PrimitiveKind,
+    /// Triangles: world vertices (BoundedF64 per coordinate) in the geometry's vertex order.
+    pub vertices: Vec<[BoundedF64; 3]>,
+    /// Triangles: ray-independent error radius per vertex.
+    pub static_radius: Vec<f64>,
+    /// Triangles: the identity class of the geometry transform within the bottom level.
+    pub transform_class: u32,
+}
+
+/// One instance, with its band.
+#[derive(Debug)]
+pub(crate) struct PreparedInstance {
+    pub band: InstanceBand,
+    /// Sign of det(A): a mirroring instance flips world normals against object normals.
+    pub det_negative: bool,
+    /// Both the instance and (per geometry) the geometry transform are exact identities.
+    pub identity: bool,
+}
+
+/// A world-space box with everything needed to pad it for a ray.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct FarBox {
+    pub lo: [f64; 3],
+    pub hi: [f64; 3],
+    pub static_pad: f64,
+    pub rel: f64,
+    pub origin_coef: f64,
+    pub norm_t: f64,
+}
+
+impl FarBox {
+    fn union(&self, o: &FarBox) -> FarBox {
+        FarBox {
+            lo: [0, 1, 2].map(|k| self.lo[k].min(o.lo[k])),
+            hi: [0, 1, 2].map(|k| self.hi[k].max(o.hi[k])),
+            static_pad: self.static_pad.max(o.static_pad),
+            rel: self.rel.max(o.rel),
+            origin_coef: self.origin_coef.max(o.origin_coef),
+            norm_t: self.norm_t.max(o.norm_t),
+        }
+    }
+
+    /// Whether the ray segment misses the padded box: then no conformant implementation can
+    /// report a hit on anything inside (see `band::far_pad`). Monotone under box containment.
+    #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
+    pub fn is_far(&self, ray: &RayF64) -> bool {
+        let o = ray.origin;
+        let r_o = self.origin_coef * (ray.origin_norm + self.norm_t);
+        let m2: f64 = (0..3)
+            .map(|k| {
+                let x = (self.lo[k] - o[k]).abs().max((self.hi[k] - o[k]).abs());
+                x * x
+            })
+            .sum();
+        let pad = far_pad(self.static_pad, self.rel, r_o, m2.sqrt());
+        if !pad.is_finite() {
+            return false;
+        }
+        let mut near = ray.tmin;
+        let mut far = ray.tmax;
+        for k in 0..3 {
+            let lo = self.lo[k] - pad;
+            let hi = self.hi[k] + pad;
+            let d = ray.direction[k];
+            if d == 0.0 {
+                if o[k] < lo || o[k] > hi {
+                    return true;
+                }
+            } else {
+                let t1 = (lo - o[k]) / d;
+                let t2 = (hi - o[k]) / d;
+                near = near.max(t1.min(t2));
+                far = far.min(t1.max(t2));
+            }
+        }
+        near > far
+    }
+}
+
+/// A ray in f64 (exact conversions).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct RayF64 {
+    pub origin: [f64; 3],
+    pub direction: [f64; 3],
+    pub tmin: f64,
+    pub tmax: f64,
+    pub origin_norm: f64,
+}
+
+impl RayF64 {
+    pub fn of(ray: &crate::scene::Ray) -> RayF64 {
+        let origin = ray.origin.map(|x| x as f64);
+        RayF64 {
+            origin,
+            direction: ray.direction.map(|x| x as f64),
+            tmin: ray.tmin as f64,
+            tmax: ray.tmax as f64,
+            origin_norm: norm3(origin),
+        }
+    }
+}
+
+/// A primitive in the BVH: geometry (index into `geometries`) and primitive index.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Item {
+    pub geometry: u32,
+    pub primitive: u32,
+}
+
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Node {
+    pub bounds: FarBox,
+    /// Leaf: first item; interior: index of the left child (the right child is `left + 1`).
+    pub first: u32,
+    /// Leaf: number of items (> 0); interior: 0.
+    pub count: u32,
+}
+
+/// Shared-edge and shared-vertex topology of the triangles of one transform class of a bottom
+/// level (spec, "Watertightness": identical transforms within a single instance).
+#[derive(Debug, Default)]
+pub(crate) struct Topology {
+    /// Directed edge (from, to) by vertex position → triangles (geometry, primitive) having it.
+    pub edges: HashMap<(PositionKey, PositionKey), Vec<(u32, u32)>>,
+    /// Vertex position → triangles (geometry, primitive, corner) having it.
+    pub vertices: HashMap<PositionKey, Vec<(u32, u32, u8)>>,
+}
+
+/// A vertex position as bits (see [`position_key`]).
+pub(crate) type PositionKey = [u32; 3];
+
+/// A position key: bit patterns with −0 read as +0 (identical position values).
+pub(crate) fn position_key(p: [f32; 3]) -> [u32; 3] {
+    p.map(|x| if x == 0.0 { 0 } else { x.to_bits() })
+}
+
+/// A scene ready for tracing. Build once, trace many rays (`Sync`: rays may be traced in parallel).
+pub struct PreparedScene {
+    pub(crate) scene: Scene,
+    pub(crate) instances: Vec<PreparedInstance>,
+    pub(crate) geometries: Vec<WorldGeometry>,
+    pub(crate) items: Vec<Item>,
+    /// The far box of each item, in `items` order.
+    pub(crate) item_boxes: Vec<FarBox>,
+    pub(crate) nodes: Vec<Node>,
+    /// `(bottom level, transform class)` → topology, built on first use.
+    pub(crate) topology: HashMap<(u32, u32), OnceLock<Topology>>,
+}
+
+impl std::fmt::Debug for PreparedScene {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "PreparedScene({} instances, {} primitives, {} nodes)",
+            self.instances.len(),
+            self.items.len(),
+            self.nodes.len()
+        )
+    }
+}
+
+fn effective(m: Option<&Transform3x4>) -> Transform3x4 {
+    m.copied().unwrap_or(Transform3x4::IDENTITY)
+}
+
+impl PreparedScene {
+    /// Prepares a scene; fails with the scene's undefined things (see `Scene::undefined`).
+    pub fn new(scene: &Scene) -> Result<PreparedScene, Vec<Problem>> {
+        let problems = scene.undefined(&[]);
+        if !problems.is_empty() {
+            return Err(problems);
+        }
+        let mut instances = Vec::new();
+        let mut geometries = Vec::new();
+        let mut items = Vec::new();
+        let mut boxes = Vec::new();
+        let mut topology = HashMap::new();
+        // Transform classes per bottom level: identical effective geometry transforms.
+        let mut classes: Vec<Vec<u32>> = Vec::new();
+        for (b, bl) in scene.bottom_levels.iter().enumerate() {
+            let mut seen: Vec<Transform3x4> = Vec::new();
+            let mut ids = Vec::new();
+            for g in &bl.geometries {
+                let m = match &g.data {
+                    GeometryData::Triangles(t) => effective(t.transform.as_ref()),
+                    GeometryData::Aabbs(_) => Transform3x4::IDENTITY,
+                };
+                let id = seen.iter().position(|x| *x == m).unwrap_or_else(|| {
+                    seen.push(m);
+                    seen.len() - 1
+                });
+                ids.push(id as u32);
+                topology
+                    .entry((b as u32, id as u32))
+                    .or_insert_with(OnceLock::new);
+            }
+            classes.push(ids);
+        }
+        for (i, inst) in scene.instances.iter().enumerate() {
+            let band = InstanceBand::new(&inst.transform);
+            instances.push(PreparedInstance {
+                band,
+                det_negative: super::arith::determinant_sign(&inst.transform.0)
+                    == std::cmp::Ordering::Less,
+                identity: inst.transform.is_identity(),
+            });
+            let Some(b) = inst.bottom_level else { continue };
+            let bl = &scene.bottom_levels[b as usize];
+            for (g, geometry) in bl.geometries.iter().enumerate() {
+                let gi = geometries.len() as u32;
+                match &geometry.data {
+                    GeometryData::Triangles(t) => {
+                        let gm = t.transform.as_ref();
+                        let mut vertices = Vec::with_capacity(t.positions.len());
+                        let mut radius = Vec::with_capacity(t.positions.len());
+                        for p in &t.positions {
+                            if p.iter().any(|x| !x.is_finite()) {
+                                // Only inactive triangles reach such vertices; never used.
+                                vertices.push([BoundedF64::from_f64_nan(); 3]);
+                                radius.push(f64::INFINITY);
+                                continue;
+                            }
+                            let obj = v3::<BoundedF64>(*p);
+                            let as_space = match gm {
+                                Some(m) => affine(&m.0, &obj),
+                                None => obj,
+                            };
+                            let w = affine(&inst.transform.0, &as_space);
+                            vertices.push(w);
+                            radius.push(vertex_static_radius(
+                                &band,
+                                gm,
+                                p.map(|x| x as f64),
+                                as_space.map(|x| x.value),
+                            ));
+                        }
+                        for prim in 0..t.primitive_count() {
+                            if t.is_inactive(prim) {
+                                continue;
+                            }
+                            let ids = t.vertex_indices(prim);
+                            let mut lo = [f64::INFINITY; 3];
+                            let mut hi = [f64::NEG_INFINITY; 3];
+                            let mut pad: f64 = 0.0;
+                            for &v in &ids {
+                                for k in 0..3 {
+                                    let x = vertices[v][k];
+                                    lo[k] = lo[k].min(x.value - x.error);
+                                    hi[k] = hi[k].max(x.value + x.error);
+                                }
+                                pad = pad.max(radius[v]);
+                            }
+                            boxes.push(FarBox {
+                                lo,
+                                hi,
+                                static_pad: pad,
+                                rel: band.test_rel + band.direction_rel,
+                                origin_coef: band.origin_coef,
+                                norm_t: band.norm_t,
+                            });
+                            items.push(Item {
+                                geometry: gi,
+                                primitive: prim as u32,
+                            });
+                        }
+                        geometries.push(WorldGeometry {
+                            instance: i as u32,
+                            geometry: g as u32,
+                            bottom_level: b,
+                            kind: PrimitiveKind::Triangle,
+                            vertices,
+                            static_radius: radius,
+                            transform_class: classes[b as usize][g],
+                        });
+                    }
+                    GeometryData::Aabbs(a) => {
+                        let k = band.kappa;
+                        let sse = BAND_SAFETY_FACTOR * SPHERE_SHADER_ERROR;
+                        for (prim, bx) in a.boxes.iter().enumerate() {
+                            if bx.is_inactive() {
+                                continue;
+                            }
+                            let mut lo = [f64::INFINITY; 3];
+                            let mut hi = [f64::NEG_INFINITY; 3];
+                            let mut extent: f64 = 0.0;
+                            for corner in 0..8 {
+                                let p = [0, 1, 2].map(|k| {
+                                    (if corner >> k & 1 == 1 {
+                                        bx.max[k]
+                                    } else {
+                                        bx.min[k]
+                                    }) as f64
+                                });
+                                extent = extent.max(norm3(p));
+                                let w = inst.transform.apply_f64(p);
+                                for k in 0..3 {
+                                    lo[k] = lo[k].min(w[k]);
+                                    hi[k] = hi[k].max(w[k]);
+                                }
+                            }
+                            let slack = 1e-9 * (extent * band.norm_a + band.norm_t);
+                            boxes.push(FarBox {
+                                lo,
+                                hi,
+                                static_pad: 2.0 * band.norm_a * sse * 2.0 * extent + slack,
+                                // Dobj ≤ 2‖A⁻¹‖·M (centre and radius seen from the origin).
+                                rel: 4.0 * k * (band.direction_rel * k + sse) * 1.01,
+                                origin_coef: 2.0 * k * (band.origin_coef + sse) * 1.01,
+                                norm_t: band.norm_t,
+                            });
+                            items.push(Item {
+                                geometry: gi,
+                                primitive: prim as u32,
+                            });
+                        }
+                        geometries.push(WorldGeometry {
+                            instance: i as u32,
+                            geometry: g as u32,
+                            bottom_level: b,
+                            kind: PrimitiveKind::Aabb,
+                            vertices: Vec::new(),
+                            static_radius: Vec::new(),
+                            transform_class: u32::MAX,
+                        });
+                    }
+                }
+            }
+        }
+        let (items, item_boxes, nodes) = build_bvh(items, boxes);
+        Ok(PreparedScene {
+            scene: scene.clone(),
+            instances,
+            geometries,
+            items,
+            item_boxes,
+            nodes,
+            topology,
+        })
+    }
+
+    /// The scene this was prepared from.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// Number of active primitives in the BVH.
+    pub fn primitive_count(&self) -> usize {
+        self.items.len()
+    }
+
+    /// Calls `visit` for every item whose padded box the ray does not miss.
+    pub(crate) fn for_each_near(
+        &self,
+        ray: &RayF64,
+        nodes_visited: &mut u64,
+        mut visit: impl FnMut(Item, &FarBox),
+    ) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let mut stack = vec![0u32];
+        while let Some(n) = stack.pop() {
+            let node = &self.nodes[n as usize];
+            *nodes_visited += 1;
+            if node.bounds.is_far(ray) {
+                continue;
+            }
+            if node.count > 0 {
+                let range = node.first as usize..(node.first + node.count) as usize;
+                for (it, b) in self.items[range.clone()]
+                    .iter()
+                    .zip(&self.item_boxes[range])
+                {
+                    visit(*it, b);
+                }
+            } else {
+                stack.push(node.first);
+                stack.push(node.first + 1);
+            }
+        }
+    }
+
+    /// Calls `visit` for every item, near or not (the brute-force reference for the BVH).
+    pub(crate) fn for_each_item(&self, mut visit: impl FnMut(Item, &FarBox)) {
+        for (it, b) in self.items.iter().zip(&self.item_boxes) {
+            visit(*it, b);
+        }
+    }
+
+    /// The topology of a bottom level's transform class.
+    pub(crate) fn topology(&self, bottom_level: u32, class: u32) -> &Topology {
+        self.topology[&(bottom_level, class)].get_or_init(|| {
+            let mut t = Topology::default();
+            let bl = &self.scene.bottom_levels[bottom_level as usize];
+            let prepared_class = |g: usize| -> Option<u32> {
+                let first_instance = self
+                    .geometries
+                    .iter()
+                    .find(|w| w.bottom_level == bottom_level && w.geometry == g as u32)?;
+                Some(first_instance.transform_class)
+            };
+            for (g, geometry) in bl.geometries.iter().enumerate() {
+                let GeometryData::Triangles(tri) = &geometry.data else {
+                    continue;
+                };
+                if prepared_class(g) != Some(class) {
+                    continue;
+                }
+                for p in 0..tri.primitive_count() {
+                    if tri.is_inactive(p) {
+                        continue;
+                    }
+                    let v = tri.vertices(p).map(position_key);
+                    for k in 0..3 {
+                        t.edges
+                            .entry((v[k], v[(k + 1) % 3]))
+                            .or_default()
+                            .push((g as u32, p as u32));
+                        t.vertices
+                            .entry(v[k])
+                            .or_default()
+                            .push((g as u32, p as u32, k as u8));
+                    }
+                }
+            }
+            t
+        })
+    }
+}
+
+impl BoundedF64 {
+    pub(crate) fn from_f64_nan() -> BoundedF64 {
+        BoundedF64 {
+            value: f64::NAN,
+            error: f64::INFINITY,
+        }
+    }
+}
+
+const LEAF_SIZE: usize = 4;
+
+/// Builds a BVH by median splits along the widest centroid axis; items are reordered to leaves.
+fn build_bvh(items: Vec<Item>, boxes: Vec<FarBox>) -> (Vec<Item>, Vec<FarBox>, Vec<Node>) {
+    let mut order: Vec<u32> = (0..items.len() as u32).collect();
+    let centroid = |b: &FarBox| [0, 1, 2].map(|k| 0.5 * (b.lo[k] + b.hi[k]));
+    let cents: Vec<[f64; 3]> = boxes.iter().map(centroid).collect();
+    let mut nodes: Vec<Node> = Vec::new();
+    if items.is_empty() {
+        return (items, boxes, nodes);
+    }
+    nodes.push(Node {
+        bounds: boxes[0],
+        first: 0,
+        count: 0,
+    });
+    // (node index, range start, range end)
+    let mut work = vec![(0usize, 0usize, items.len())];
+    while let Some((n, start, end)) = work.pop() {
+        let slice = &mut order[start..end];
+        let mut bounds = boxes[slice[0] as usize];
+        let mut clo = [f64::INFINITY; 3];
+        let mut chi = [f64::NEG_INFINITY; 3];
+        for &i in slice.iter() {
+            bounds = bounds.union(&boxes[i as usize]);
+            for k in 0..3 {
+                clo[k] = clo[k].min(cents[i as usize][k]);
+                chi[k] = chi[k].max(cents[i as usize][k]);
+            }
+        }
+        if end - start <= LEAF_SIZE {
+            nodes[n] = Node {
+                bounds,
+                first: start as u32,
+                count: (end - start) as u32,
+            };
+            continue;
+        }
+        let axis = (0..3)
+            .max_by(|&a, &b| (chi[a] - clo[a]).total_cmp(&(chi[b] - clo[b])))
+            .unwrap_or(0);
+        let mid = (end - start) / 2;
+        slice.select_nth_unstable_by(mid, |&a, &b| {
+            cents[a as usize][axis].total_cmp(&cents[b as usize][axis])
+        });
+        let left = nodes.len();
+        let placeholder = Node {
+            bounds,
+            first: 0,
+            count: 0,
+        };
+        nodes.push(placeholder);
+        nodes.push(placeholder);
+        nodes[n] = Node {
+            bounds,
+            first: left as u32,
+            count: 0,
+        };
+        work.push((left, start, start + mid));
+        work.push((left + 1, start + mid, end));
+    }
+    let sorted_items = order.iter().map(|&i| items[i as usize]).collect();
+    let sorted_boxes = order.iter().map(|&i| boxes[i as usize]).collect();
+    (sorted_items, sorted_boxes, nodes)
+}

@@ -1,0 +1,640 @@
+//! One ray through a prepared scene: candidates after culling (spec, "Ray Intersection Culling"),
+//! confirmation ("Ray Intersection Confirmation"), and the set of committed hits, miss rule and
+//! invocation counts the traversal may produce ("Ray Closest Hit Determination", "Ray Result
+//! Determination"; semantics.md §2, §10).
+//!
+//! Traversal order is unspecified, so the allowed committed hits are: every confirmable candidate
+//! whose t may be at most the t of every required confirmable candidate (the closest, with
+//! overlapping intervals VARY), and — when the trace may end early — every confirmable candidate
+//! that could be confirmed first (TerminateOnFirstHit: any of them; an any-hit `Terminate` rule:
+//! those candidates).
+
+use super::arith::{affine, v3, BoundedF64, Dyadic, PlainF32, V3};
+use super::band::triangle_band;
+use super::prepare::{Item, PreparedScene, RayF64, WorldGeometry};
+use super::sphere::{sphere_band, sphere_reports, sphere_signs, SphereSigns};
+use super::triangle::{
+    classify, triangle_intervals, triangle_signs, MissReason, PairClass, TriangleSigns,
+    TriangleValues, VaryReason,
+};
+use super::watertight::{watertight_groups, TriangleHit};
+use super::*;
+use crate::scene::undefined::ray_problems;
+use crate::scene::{GeometryData, Problem, Ray, RayFlags, SceneInstance};
+use std::cmp::Ordering;
+
+/// The outcome of one (ray, triangle) pair.
+struct TriangleOutcome {
+    class: PairClass,
+    signs: Option<TriangleSigns>,
+    values: Option<TriangleValues>,
+    band: Option<super::band::TriangleBand>,
+}
+
+fn dyadic_world(scene: &PreparedScene, w: &WorldGeometry, v: [f32; 3]) -> V3<Dyadic> {
+    let inst = &scene.scene.instances[w.instance as usize];
+    let GeometryData::Triangles(t) =
+        &scene.scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize].data
+    else {
+        unreachable!("triangle geometry")
+    };
+    let obj = v3::<Dyadic>(v);
+    let as_space = match &t.transform {
+        Some(m) => affine(&m.0, &obj),
+        None => obj,
+    };
+    affine(&inst.transform.0, &as_space)
+}
+
+fn f32_world(scene: &PreparedScene, w: &WorldGeometry, v: [f32; 3]) -> V3<PlainF32> {
+    let inst = &scene.scene.instances[w.instance as usize];
+    let GeometryData::Triangles(t) =
+        &scene.scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize].data
+    else {
+        unreachable!("triangle geometry")
+    };
+    let obj = v3::<PlainF32>(v);
+    let as_space = match &t.transform {
+        Some(m) => affine(&m.0, &obj),
+        None => obj,
+    };
+    affine(&inst.transform.0, &as_space)
+}
+
+fn classify_triangle(
+    scene: &PreparedScene,
+    w: &WorldGeometry,
+    primitive: u32,
+    ray: &Ray,
+    rf: &RayF64,
+    precision: Precision,
+    stats: &mut TracerStats,
+) -> TriangleOutcome {
+    let GeometryData::Triangles(t) =
+        &scene.scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize].data
+    else {
+        unreachable!("triangle geometry")
+    };
+    let ids = t.vertex_indices(primitive as usize);
+    let pos = ids.map(|i| t.positions[i]);
+    let miss = |reason| TriangleOutcome {
+        class: PairClass::ReqMiss(reason),
+        signs: None,
+        values: None,
+        band: None,
+    };
+    // Spec, "Ray Face Culling": a zero ray-space area is culled. Two coincident vertices give zero
+    // area in every implementation (identical inputs, identical arithmetic).
+    if pos[0] == pos[1] || pos[1] == pos[2] || pos[2] == pos[0] {
+        return miss(MissReason::Degenerate);
+    }
+    let inst = &scene.instances[w.instance as usize];
+    let geometry_identity = t.transform.as_ref().is_none_or_identity();
+    if inst.identity && geometry_identity {
+        #[allow(clippy::needless_range_loop)] // one axis indexes positions and the ray
+        for k in 0..3 {
+            let plane = pos[0][k];
+            if pos[1][k] == plane
+                && pos[2][k] == plane
+                && ray.direction[k] == 0.0
+                && ray.origin[k] == plane
+            {
+                return miss(MissReason::InPlane);
+            }
+        }
+    }
+    let world_f64 = ids.map(|i| w.vertices[i].map(|x| x.value));
+    let radius = ids.map(|i| w.static_radius[i]);
+    let band = triangle_band(&inst.band, &world_f64, &radius, rf.origin, rf.direction);
+    let evaluate_exact = |stats: &mut TracerStats| {
+        stats.exact_evaluations += 1;
+        let world = pos.map(|p| dyadic_world(scene, w, p));
+        triangle_signs::<Dyadic>(
+            &world,
+            &v3(ray.origin),
+            &v3(ray.direction),
+            ray.tmin,
+            ray.tmax,
+            &band,
+        )
+        .expect("exact arithmetic decides every sign")
+    };
+    let (signs, values) = match precision {
+        Precision::ExactOnly => evaluate_exact(stats),
+        Precision::F64WithExactFallback => {
+            let world = ids.map(|i| w.vertices[i]);
+            match triangle_signs::<BoundedF64>(
+                &world,
+                &v3(ray.origin),
+                &v3(ray.direction),
+                ray.tmin,
+                ray.tmax,
+                &band,
+            ) {
+                Some(x) => {
+                    stats.filter_decided += 1;
+                    x
+                }
+                None => evaluate_exact(stats),
+            }
+        }
+        Precision::F32FilterOnly => {
+            stats.f32_evaluations += 1;
+            let world = pos.map(|p| f32_world(scene, w, p));
+            triangle_signs::<PlainF32>(
+                &world,
+                &v3(ray.origin),
+                &v3(ray.direction),
+                ray.tmin,
+                ray.tmax,
+                &band,
+            )
+            .expect("f32 signs are taken at face value")
+        }
+    };
+    TriangleOutcome {
+        class: classify(&signs),
+        signs: Some(signs),
+        values: Some(values),
+        band: Some(band),
+    }
+}
+
+trait OptionTransform {
+    fn is_none_or_identity(&self) -> bool;
+}
+
+impl OptionTransform for Option<&crate::scene::Transform3x4> {
+    fn is_none_or_identity(&self) -> bool {
+        !matches!(self, Some(m) if !m.is_identity())
+    }
+}
+
+/// Opacity of a candidate (spec, "Ray Opacity Culling"): ray flags beat the instance's FORCE_*
+/// flags, which beat the geometry's OPAQUE bit.
+fn opacity(ray: &Ray, inst: &SceneInstance, geometry_opaque: bool) -> bool {
+    if ray.flags.contains(RayFlags::OPAQUE) {
+        true
+    } else if ray.flags.contains(RayFlags::NO_OPAQUE) {
+        false
+    } else if inst.flags.force_opaque {
+        true
+    } else if inst.flags.force_no_opaque {
+        false
+    } else {
+        geometry_opaque
+    }
+}
+
+/// Whether opacity culling drops the candidate (spec, "Ray Opacity Culling").
+fn opacity_culled(ray: &Ray, opaque: bool) -> bool {
+    (ray.flags.contains(RayFlags::CULL_OPAQUE) && opaque)
+        || (ray.flags.contains(RayFlags::CULL_NO_OPAQUE) && !opaque)
+}
+
+fn confirmation(opaque: bool, shaders: &HitShaders, primitive: u32) -> Confirmation {
+    if opaque {
+        Confirmation::Opaque
+    } else if !shaders.has_any_hit() {
+        Confirmation::NoAnyHit
+    } else {
+        let rule = shaders.any_hit.expect("has any-hit");
+        if rule.accepts(primitive) {
+            Confirmation::AnyHitAccepts {
+                terminates: rule == AnyHitRule::Terminate,
+            }
+        } else {
+            Confirmation::AnyHitIgnores
+        }
+    }
+}
+
+/// A procedural primitive the intersection shader must run for.
+struct MustRun {
+    t_hi: f64,
+    primitive: PrimitiveRef,
+}
+
+/// Traces one ray: the set of outcomes the spec allows. Fails with the ray's undefined things.
+pub fn trace_ray(
+    scene: &PreparedScene,
+    ray: &Ray,
+    shaders: &ShaderTable<'_>,
+    config: &TracerConfig,
+    stats: &mut TracerStats,
+) -> Result<AllowedOutcomes, Vec<Problem>> {
+    let problems = ray_problems(ray, "ray");
+    if !problems.is_empty() {
+        return Err(problems);
+    }
+    stats.rays += 1;
+    let rf = RayF64::of(ray);
+    let mut near: Vec<Item> = Vec::new();
+    let mut far_count = 0u64;
+    let far_test = config.far_test;
+    let mut visit = |item: Item, fb: &super::prepare::FarBox| {
+        if far_test && fb.is_far(&rf) {
+            far_count += 1;
+        } else {
+            near.push(item);
+        }
+    };
+    if config.use_bvh && config.far_test {
+        let mut nodes = 0;
+        scene.for_each_near(&rf, &mut nodes, &mut visit);
+        stats.nodes_visited += nodes;
+    } else {
+        scene.for_each_item(&mut visit);
+    }
+    stats.far_rejections += far_count;
+    // A deterministic order, independent of the BVH.
+    near.sort_by_key(|it| {
+        let w = &scene.geometries[it.geometry as usize];
+        (w.instance, w.geometry, it.primitive)
+    });
+
+    let mut candidates: Vec<Candidate> = Vec::new();
+    let mut hits: Vec<TriangleHit> = Vec::new();
+    let mut must_run: Vec<MustRun> = Vec::new();
+    for item in near {
+        let w = &scene.geometries[item.geometry as usize];
+        let inst = &scene.scene.instances[w.instance as usize];
+        // Spec, "Ray Mask Culling".
+        if inst.mask as u32 & ray.cull_mask & 0xFF == 0 {
+            continue;
+        }
+        // Spec, "Ray Primitive Culling".
+        let skip = match w.kind {
+            PrimitiveKind::Triangle => RayFlags::SKIP_TRIANGLES,
+            PrimitiveKind::Aabb => RayFlags::SKIP_AABBS,
+        };
+        if ray.flags.contains(skip) {
+            continue;
+        }
+        let geometry =
+            &scene.scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize];
+        let prim = PrimitiveRef {
+            instance: w.instance,
+            geometry: w.geometry,
+            primitive: item.primitive,
+        };
+        let opaque = opacity(ray, inst, geometry.flags.opaque);
+        let hit_shaders = (shaders.hit)(w.instance, w.geometry);
+        stats.pair_tests += 1;
+        match w.kind {
+            PrimitiveKind::Triangle => {
+                let out =
+                    classify_triangle(scene, w, item.primitive, ray, &rf, config.precision, stats);
+                let (presence, reason) = match out.class {
+                    PairClass::ReqHit => {
+                        stats.req_hit += 1;
+                        (Presence::Required, None)
+                    }
+                    PairClass::Vary(r) => {
+                        stats.vary += 1;
+                        (Presence::Possible, Some(r))
+                    }
+                    PairClass::ReqMiss(_) => {
+                        stats.req_miss += 1;
+                        continue;
+                    }
+                };
+                let signs = out.signs.expect("classified");
+                let values = out.values.expect("classified");
+                let band = out.band.expect("classified");
+                if opacity_culled(ray, opaque) {
+                    continue;
+                }
+                // Spec, "Ray Face Culling": facing in the bottom level's space, from the sign of
+                // S and of det(A); FLIP_FACING reverses it.
+                let front = signs.orientation.map(|o| {
+                    let world_negative = o == Ordering::Less;
+                    (world_negative != scene.instances[w.instance as usize].det_negative)
+                        != inst.flags.flip_facing
+                });
+                let mut kinds: Vec<u32> = match front {
+                    Some(true) => vec![0xFE],
+                    Some(false) => vec![0xFF],
+                    None => vec![0xFE, 0xFF],
+                };
+                let mut facing_vary = false;
+                if !inst.flags.triangle_facing_cull_disable {
+                    let before = kinds.len();
+                    if ray.flags.contains(RayFlags::CULL_BACK_FACING_TRIANGLES) {
+                        kinds.retain(|k| *k != 0xFF);
+                    }
+                    if ray.flags.contains(RayFlags::CULL_FRONT_FACING_TRIANGLES) {
+                        kinds.retain(|k| *k != 0xFE);
+                    }
+                    facing_vary = kinds.len() < before && front.is_none();
+                }
+                if kinds.is_empty() {
+                    continue;
+                }
+                let presence = if facing_vary {
+                    Presence::Possible
+                } else {
+                    presence
+                };
+                let reason = if facing_vary {
+                    Some(VaryReason::Facing)
+                } else {
+                    reason
+                };
+                let (t, bary) = triangle_intervals(&values, &band);
+                let (s, _) = values.sum;
+                let t_exact = values.plane.0 / s;
+                let bary_exact = [values.edge[1].0 / s, values.edge[2].0 / s];
+                let single = kinds.len() == 1;
+                let reports = kinds
+                    .iter()
+                    .map(|&k| AllowedReport {
+                        hit_kind: k,
+                        t,
+                        barycentrics: Some(bary),
+                        t_exact,
+                        barycentrics_exact: Some(bary_exact),
+                        required: presence == Presence::Required && single,
+                    })
+                    .collect();
+                let GeometryData::Triangles(tri) = &geometry.data else {
+                    unreachable!()
+                };
+                hits.push(TriangleHit {
+                    candidate: candidates.len(),
+                    bottom_level: w.bottom_level,
+                    class: w.transform_class,
+                    vertices: tri.vertices(item.primitive as usize),
+                    world: tri
+                        .vertex_indices(item.primitive as usize)
+                        .map(|i| w.vertices[i].map(|x| x.value)),
+                    signs,
+                });
+                candidates.push(Candidate {
+                    primitive: prim,
+                    kind: PrimitiveKind::Triangle,
+                    custom_index: inst.custom_index,
+                    presence,
+                    vary_reason: reason,
+                    opaque,
+                    confirmation: confirmation(opaque, &hit_shaders, item.primitive),
+                    shaders: hit_shaders,
+                    no_duplicate_any_hit: geometry.flags.no_duplicate_any_hit,
+                    reports,
+                });
+            }
+            PrimitiveKind::Aabb => {
+                if opacity_culled(ray, opaque) || !hit_shaders.has_intersection() {
+                    stats.req_miss += 1;
+                    continue;
+                }
+                let GeometryData::Aabbs(a) = &geometry.data else {
+                    unreachable!()
+                };
+                let sphere = a.spheres[item.primitive as usize];
+                let band = sphere_band(
+                    &scene.instances[w.instance as usize].band,
+                    &sphere,
+                    rf.origin,
+                    rf.direction,
+                );
+                let m = &inst.transform.0;
+                let exact = |stats: &mut TracerStats| -> SphereSigns {
+                    stats.exact_evaluations += 1;
+                    sphere_signs::<Dyadic>(
+                        m,
+                        &sphere,
+                        ray.origin,
+                        ray.direction,
+                        ray.tmin,
+                        ray.tmax,
+                        &band,
+                    )
+                    .expect("exact arithmetic decides every sign")
+                };
+                let signs = match config.precision {
+                    Precision::ExactOnly => exact(stats),
+                    Precision::F64WithExactFallback => {
+                        match sphere_signs::<BoundedF64>(
+                            m,
+                            &sphere,
+                            ray.origin,
+                            ray.direction,
+                            ray.tmin,
+                            ray.tmax,
+                            &band,
+                        ) {
+                            Some(s) => {
+                                stats.filter_decided += 1;
+                                s
+                            }
+                            None => exact(stats),
+                        }
+                    }
+                    Precision::F32FilterOnly => {
+                        stats.f32_evaluations += 1;
+                        sphere_signs::<PlainF32>(
+                            m,
+                            &sphere,
+                            ray.origin,
+                            ray.direction,
+                            ray.tmin,
+                            ray.tmax,
+                            &band,
+                        )
+                        .expect("f32 signs are taken at face value")
+                    }
+                };
+                if signs.must_run {
+                    must_run.push(MustRun {
+                        t_hi: band.t0.hi.max(band.t1.lo),
+                        primitive: prim,
+                    });
+                }
+                let reports: Vec<AllowedReport> = sphere_reports(&signs, &band)
+                    .into_iter()
+                    .map(|r| AllowedReport {
+                        hit_kind: r.hit_kind,
+                        t: r.t,
+                        barycentrics: None,
+                        t_exact: r.t.mid(),
+                        barycentrics_exact: None,
+                        required: r.required && signs.must_run,
+                    })
+                    .collect();
+                if reports.is_empty() {
+                    stats.req_miss += 1;
+                    continue;
+                }
+                let required = reports.iter().any(|r| r.required);
+                if required {
+                    stats.req_hit += 1;
+                } else {
+                    stats.vary += 1;
+                }
+                candidates.push(Candidate {
+                    primitive: prim,
+                    kind: PrimitiveKind::Aabb,
+                    custom_index: inst.custom_index,
+                    presence: if required {
+                        Presence::Required
+                    } else {
+                        Presence::Possible
+                    },
+                    vary_reason: if required {
+                        None
+                    } else {
+                        Some(VaryReason::Procedural)
+                    },
+                    opaque,
+                    confirmation: confirmation(opaque, &hit_shaders, item.primitive),
+                    shaders: hit_shaders,
+                    no_duplicate_any_hit: geometry.flags.no_duplicate_any_hit,
+                    reports,
+                });
+            }
+        }
+    }
+    let watertight = watertight_groups(scene, ray, &candidates, &hits);
+    Ok(conclude(
+        scene, ray, shaders, candidates, must_run, watertight,
+    ))
+}
+
+/// From the candidates to the allowed committed hits, the miss rule and the invocation counts.
+fn conclude(
+    scene: &PreparedScene,
+    ray: &Ray,
+    shaders: &ShaderTable<'_>,
+    candidates: Vec<Candidate>,
+    must_run: Vec<MustRun>,
+    watertight: Vec<WatertightGroup>,
+) -> AllowedOutcomes {
+    let tofh = ray.flags.contains(RayFlags::TERMINATE_ON_FIRST_HIT);
+    let confirmable: Vec<bool> = candidates
+        .iter()
+        .map(|c| c.confirmation.confirms())
+        .collect();
+    let early: Vec<bool> = candidates
+        .iter()
+        .zip(&confirmable)
+        .map(|(c, &ok)| {
+            ok && (tofh || c.confirmation == Confirmation::AnyHitAccepts { terminates: true })
+        })
+        .collect();
+    let hulls: Vec<Interval> = candidates.iter().map(|c| c.t_hull()).collect();
+    let required: Vec<usize> = (0..candidates.len())
+        .filter(|&i| confirmable[i] && candidates[i].presence == Presence::Required)
+        .collect();
+    let committable: Vec<usize> = (0..candidates.len())
+        .filter(|&i| {
+            confirmable[i]
+                && (early[i]
+                    || required
+                        .iter()
+                        .all(|&r| r == i || hulls[i].lo <= hulls[r].hi))
+        })
+        .collect();
+    let any_early = early.iter().any(|&e| e);
+    // A candidate must be processed when nothing can end the trace or shrink tmax below it first.
+    let must_process = |i: Option<usize>, t_hi: f64| -> bool {
+        (0..candidates.len())
+            .all(|c| Some(c) == i || !confirmable[c] || (!early[c] && hulls[c].lo > t_hi))
+    };
+    let _ = any_early;
+    // Any-hit: at most once per candidate with NO_DUPLICATE_ANY_HIT, unbounded otherwise; with
+    // TerminateOnFirstHit every accepting invocation ends the trace.
+    let mut any_hit_max: Option<u32> = Some(0);
+    let mut accepting_any_hit = false;
+    let mut any_hit_min = 0u32;
+    for (i, c) in candidates.iter().enumerate() {
+        if !c.confirmation.runs_any_hit() {
+            continue;
+        }
+        let accepts = c.confirmation.confirms();
+        accepting_any_hit |= accepts;
+        if !(tofh && accepts) {
+            any_hit_max = match (any_hit_max, c.no_duplicate_any_hit) {
+                (Some(m), true) => Some(m + 1),
+                _ => None,
+            };
+        }
+        if c.presence == Presence::Required && must_process(Some(i), hulls[i].hi) {
+            any_hit_min += 1;
+        }
+    }
+    if tofh && accepting_any_hit {
+        any_hit_max = any_hit_max.map(|m| m + 1);
+    }
+    // Intersection shaders may run for any reachable box (boxes may be enlarged without bound).
+    let mut reachable_procedural = false;
+    for (i, inst) in scene.scene.instances.iter().enumerate() {
+        let Some(b) = inst.bottom_level else { continue };
+        if inst.mask as u32 & ray.cull_mask & 0xFF == 0 || ray.flags.contains(RayFlags::SKIP_AABBS)
+        {
+            continue;
+        }
+        for (g, geometry) in scene.scene.bottom_levels[b as usize]
+            .geometries
+            .iter()
+            .enumerate()
+        {
+            let GeometryData::Aabbs(a) = &geometry.data else {
+                continue;
+            };
+            if a.boxes.iter().all(|b| b.is_inactive()) {
+                continue;
+            }
+            let opaque = opacity(ray, inst, geometry.flags.opaque);
+            if !opacity_culled(ray, opaque) && (shaders.hit)(i as u32, g as u32).has_intersection()
+            {
+                reachable_procedural = true;
+            }
+        }
+    }
+    let intersection_min = must_run
+        .iter()
+        .filter(|m| {
+            let own = candidates.iter().position(|c| c.primitive == m.primitive);
+            must_process(own, m.t_hi)
+        })
+        .count() as u32;
+    let discouraged = required.is_empty() && watertight.iter().any(|g| g.expect_hit);
+    let vary = candidates.iter().any(|c| c.presence == Presence::Possible)
+        || committable.len() > 1
+        || candidates.iter().any(|c| c.reports.len() > 1);
+    AllowedOutcomes {
+        miss: MissRule {
+            allowed: required.is_empty(),
+            required: committable.is_empty(),
+            discouraged,
+        },
+        committable,
+        candidates,
+        miss_shader: shaders.miss,
+        skip_closest_hit: ray.flags.contains(RayFlags::SKIP_CLOSEST_HIT_SHADER),
+        any_hit: CountBounds {
+            min: any_hit_min,
+            max: any_hit_max,
+        },
+        intersection: CountBounds {
+            min: intersection_min,
+            max: if reachable_procedural { None } else { Some(0) },
+        },
+        watertight,
+        vary,
+    }
+}
+
+/// Traces every ray of a launch (one shader table for all, e.g. uniform SBT parameters).
+pub fn trace_launch(
+    scene: &PreparedScene,
+    rays: &[Ray],
+    shaders: &ShaderTable<'_>,
+    config: &TracerConfig,
+    stats: &mut TracerStats,
+) -> Result<Vec<AllowedOutcomes>, Vec<Problem>> {
+    rays.iter()
+        .map(|r| trace_ray(scene, r, shaders, config, stats))
+        .collect()
+}
