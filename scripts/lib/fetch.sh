@@ -52,6 +52,7 @@ fetch_stage() {
     mkdir -p "$(dirname "$dir")"
     FETCH_STAGE=$(mktemp -d "$(dirname "$dir")/.$(basename "$dir").stage.XXXXXX") || return 1
     fetch_cleanup_paths+=("$FETCH_STAGE")
+    chmod 755 "$FETCH_STAGE"
 }
 
 fetch_commit() {
