@@ -103,7 +103,13 @@ git -C "$work/work/main" checkout -q "$commit"
 if [[ -d "$shared" ]]; then
     cp -r "$shared" "$work/work/shared"
 fi
+# The machine's network set-up: its resolver, and the certificate authorities it added locally (an
+# egress proxy's); ca-certificates inside the root picks these up when it is installed.
 cp -L /etc/resolv.conf "$work/etc/resolv.conf"
+if compgen -G "/usr/local/share/ca-certificates/*.crt" >/dev/null; then
+    mkdir -p "$work/usr/local/share/ca-certificates"
+    cp /usr/local/share/ca-certificates/*.crt "$work/usr/local/share/ca-certificates/"
+fi
 
 # 3. The two commands, timed, inside the root.
 run_in_root() {
