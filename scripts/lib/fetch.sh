@@ -12,10 +12,11 @@
 #   fetch_complete DIR         true when DIR was completed by fetch_commit
 #   fetch_stage DIR            make a new empty staging directory beside DIR, named in $FETCH_STAGE
 #                              (removed on exit unless fetch_commit renamed it)
-#   fetch_commit STAGE DIR     mark STAGE complete and rename it to DIR (replacing an incomplete DIR)
+#   fetch_commit STAGE DIR     mark STAGE complete and rename it to DIR (replacing an older DIR)
 #   fetch_apt_init SUITE...    a private apt configuration for SUITEs of the Debian mirror (amd64)
 #   fetch_debs OUTDIR PKG...   apt-get download PKGs (names or name=version) into OUTDIR
 #   fetch_deb_version DEB      the Version field of a .deb file
+#   fetch_require TOOL...      fail (status 2) unless every TOOL is on PATH
 # Environment: DEBIAN_MIRROR (default http://deb.debian.org/debian), TMPDIR.
 
 fetch_marker=.rtconf-complete
@@ -59,8 +60,9 @@ fetch_commit() {
     local stage=${1%/} dir=${2%/}
     date -u +%Y-%m-%dT%H:%M:%SZ >"$stage/$fetch_marker"
     if [[ -e "$dir" || -L "$dir" ]]; then
-        # An incomplete directory from an interrupted older run: move it aside first, so the
-        # rename below has a free name (rename(2) replaces only an empty directory).
+        # An older directory (left incomplete by an interrupted run, or made for another set of
+        # packages): move it aside first, so the rename below has a free name (rename(2) replaces
+        # only an empty directory); it is removed at exit.
         local stale
         stale=$(mktemp -u "$(dirname "$dir")/.$(basename "$dir").stale.XXXXXX")
         mv -T -- "$dir" "$stale"
