@@ -38,6 +38,7 @@ done
 bookworm_debs="$repo_root/.gl/debs"
 trixie_debs="$repo_root/.gl-1.4.309/debs"
 prefix=$(realpath -m "${RTCONF_PREFIX:-/}")
+root=${prefix%/}   # "" for /, so paths read /usr/... rather than //usr/...
 libdir=usr/lib/x86_64-linux-gnu
 manifest_name=VkLayer_khronos_validation.json
 
@@ -45,11 +46,11 @@ fetch_complete "$bookworm_debs" || { echo "nvidia-run: $bookworm_debs is missing
 fetch_require dpkg flock
 
 # 1. The loader, GL dispatch libraries, glslang, the 1.3.239 layer and registry: into the prefix, once.
-stamp="$prefix/var/lib/rtconf-bundle.stamp"
+stamp="$root/var/lib/rtconf-bundle.stamp"
 want=$(cd "$bookworm_debs" && ls -1 ./*.deb | sort | tr '\n' ' ')
 if [[ "$(cat "$stamp" 2>/dev/null)" != "$want" ]]; then
-    mkdir -p "$prefix/var/lib"
-    exec {unpack_lock}>"$prefix/var/lib/rtconf-bundle.lock"
+    mkdir -p "$root/var/lib"
+    exec {unpack_lock}>"$root/var/lib/rtconf-bundle.lock"
     flock "$unpack_lock"
     if [[ "$(cat "$stamp" 2>/dev/null)" != "$want" ]]; then
         for deb in "$bookworm_debs"/*.deb; do
@@ -61,11 +62,17 @@ if [[ "$(cat "$stamp" 2>/dev/null)" != "$want" ]]; then
     fi
     exec {unpack_lock}>&-
 fi
-export PATH="$prefix/usr/bin:$PATH"
-[[ "$prefix" == / ]] || export LD_LIBRARY_PATH="$prefix/$libdir${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+export PATH="$root/usr/bin:$PATH"
+[[ "$prefix" == / ]] || export LD_LIBRARY_PATH="$root/$libdir${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
 
 # 2. The layer.
 if [[ "$layer" == 1.4.309 ]]; then
+    # trixie's layer and libstdc++ need glibc 2.38 (Ubuntu 24.04 has 2.39, bookworm 2.36).
+    glibc=$(getconf GNU_LIBC_VERSION 2>/dev/null | awk '{ print $2 }')
+    if [[ -n "$glibc" ]] && ! printf '2.38\n%s\n' "$glibc" | sort -V -C; then
+        echo "nvidia-run: the 1.4.309 layer needs glibc >= 2.38; this machine has $glibc (here: scripts/trixie-chroot.sh)" >&2
+        exit 1
+    fi
     fetch_complete "$trixie_debs" || { echo "nvidia-run: $trixie_debs is missing or incomplete (scripts/nvidia-bundle.sh)" >&2; exit 1; }
     layer_dir="$repo_root/target/layers/1.4.309-carried"
     if ! fetch_complete "$layer_dir" || [[ "$trixie_debs/.rtconf-complete" -nt "$layer_dir/.rtconf-complete" ]]; then
@@ -82,8 +89,8 @@ if [[ "$layer" == 1.4.309 ]]; then
     export LD_LIBRARY_PATH="$layer_dir/$libdir${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
     registry="$layer_dir/usr/share/vulkan/registry"
 else
-    export VK_LAYER_PATH="$prefix/usr/share/vulkan/explicit_layer.d"
-    registry="$prefix/usr/share/vulkan/registry"
+    export VK_LAYER_PATH="$root/usr/share/vulkan/explicit_layer.d"
+    registry="$root/usr/share/vulkan/registry"
 fi
 manifest="$VK_LAYER_PATH/$manifest_name"
 [[ -s "$manifest" ]] || { echo "nvidia-run: no layer manifest at $manifest" >&2; exit 1; }
