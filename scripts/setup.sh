@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # rtconf set-up: installs what the conformance run and the tests need on Debian 12 (bookworm).
 # Idempotent: does nothing when everything is already present. Never adds trixie or sid.
+# Concurrent runs are serialised under a lock; the backports list appears whole (written, then renamed).
 set -euo pipefail
 
 need=()
@@ -15,19 +16,30 @@ lavapipe_ok() {
   dpkg --compare-versions "$v" ge 24 && [ -f "$lvp_icd" ]
 }
 
-for p in libvulkan1 libvulkan-dev vulkan-validationlayers glslang-tools vulkan-tools; do
-  have_pkg "$p" || need+=("$p")
-done
+missing() {
+  need=()
+  # ca-certificates: cargo fetches the crates over https.
+  for p in libvulkan1 libvulkan-dev vulkan-validationlayers glslang-tools vulkan-tools ca-certificates; do
+    have_pkg "$p" || need+=("$p")
+  done
+  # rustc links through the system C compiler (`cc`); a Debian with only rustup has none.
+  command -v cc >/dev/null 2>&1 || need+=(gcc libc6-dev)
+  [ ${#need[@]} -gt 0 ] || ! lavapipe_ok
+}
 
-if [ ${#need[@]} -eq 0 ] && lavapipe_ok; then
-  exit 0
-fi
+missing || exit 0
 
 if [ "$(id -u)" -ne 0 ]; then
   SUDO=sudo
 else
   SUDO=
 fi
+
+lock=/var/lock/rtconf-setup.lock
+[ -w /var/lock ] || lock=${TMPDIR:-/tmp}/rtconf-setup.lock
+exec 9>"$lock"
+flock -w 1800 9 || { echo "rtconf setup: timed out waiting for $lock" >&2; exit 1; }
+missing || exit 0   # a concurrent run installed it meanwhile
 
 codename=$(. /etc/os-release && echo "${VERSION_CODENAME:-}")
 if [ "$codename" != "bookworm" ]; then
@@ -43,14 +55,16 @@ if ! grep -rqs 'bookworm-backports' /etc/apt/sources.list /etc/apt/sources.list.
   mirror=$(cat /etc/apt/sources.list /etc/apt/sources.list.d/*.list /etc/apt/sources.list.d/*.sources 2>/dev/null \
            | grep -E '^(URIs:|deb )' | grep -oE 'https?://[^ ]+' | grep -v security | head -n1 || true)
   mirror=${mirror:-http://deb.debian.org/debian}
-  echo "deb ${mirror%/} bookworm-backports main" | $SUDO tee "$bp" >/dev/null
+  echo "deb ${mirror%/} bookworm-backports main" | $SUDO tee "$bp.rtconf-new" >/dev/null
+  $SUDO mv -f "$bp.rtconf-new" "$bp"
 fi
 
 export DEBIAN_FRONTEND=noninteractive
-$SUDO apt-get update -qq
-lavapipe_ok || $SUDO apt-get install -y -qq -t bookworm-backports mesa-vulkan-drivers
+apt_opts=(-o DPkg::Lock::Timeout=600)
+$SUDO apt-get "${apt_opts[@]}" update -qq
+lavapipe_ok || $SUDO apt-get "${apt_opts[@]}" install -y -qq -t bookworm-backports mesa-vulkan-drivers
 if [ ${#need[@]} -gt 0 ]; then
-  $SUDO apt-get install -y -qq "${need[@]}"
+  $SUDO apt-get "${apt_opts[@]}" install -y -qq "${need[@]}"
 fi
 lavapipe_ok || { echo "rtconf setup: lavapipe with ray tracing is still missing after install" >&2; exit 1; }
 echo "rtconf setup: done"
