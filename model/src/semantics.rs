@@ -182,6 +182,24 @@ pub fn records_read(world: &World, call: &Call) -> Vec<(Table, u64)> {
     out
 }
 
+/// The recursion depth the launch reaches (see [`crate::world::Launch::recursion_depth`]): 0 when it
+/// traces no ray or runs no invocation, 1 when raygen traces, and 1 + `extra_recursion` only when some
+/// ray runs a closest-hit shader — the one shader that traces again. A ray that misses, hits a zero
+/// group or a hit group without closest-hit, or reaches an AABB nothing reports, stops at depth 1.
+pub fn recursion_depth(world: &World, call: &Call) -> u32 {
+    let launch = &world.launch;
+    if launch.rays.is_empty() || call.dimensions(world).is_some_and(|d| d.contains(&0)) {
+        return 0;
+    }
+    let closest_hit_runs =
+        (0..launch.rays.len()).any(|i| word_for_ray(world, call, i) & 0xFFFF_0000 == HIT_TAG);
+    if closest_hit_runs {
+        launch.recursion_depth()
+    } else {
+        1
+    }
+}
+
 /// The size of a shader group handle on a device: the profile's `shaderGroupHandleSize`, or 32, the
 /// value the specification requires of every device with ray tracing pipelines.
 pub fn handle_size(profile: &crate::DeviceProfile) -> u64 {

@@ -253,18 +253,34 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
             }
         }
         Mutation::RecursionTooDeep => {
-            if plan.launch.rays.is_empty() && plan.launch.callables.is_empty() {
+            // Only traced rays deepen the recursion (callables add none), and closest-hit shaders
+            // trace again only where a ray runs one: the depth is the one the launch reaches.
+            if plan.launch.rays.is_empty() {
                 let h = miss_handle(&mut plan);
                 add_miss_ray(&mut plan, h);
             }
             ensure_launch(&mut plan);
-            let depth = plan.launch.recursion_depth();
+            let (world, call) = realize(&plan, lim);
+            let depth = model::semantics::recursion_depth(&world, &call).max(1);
             plan.max_recursion_depth = if knob % 2 == 0 { depth - 1 } else { 0 };
         }
-        Mutation::NullMissReached => {
+        Mutation::NullMissAtRegionAddress => {
+            // 03511 speaks of the handle at pMissShaderBindingTable->deviceAddress (record 0), whether
+            // or not a ray misses: a zero group there, or (knob 1) no miss table at all.
             plan.flags
                 .insert(PipelineCreate::RAY_TRACING_NO_NULL_MISS_SHADERS_BIT_KHR);
-            add_miss_ray(&mut plan, HandleRef::Zero);
+            if knob % 2 == 1
+                && plan
+                    .launch
+                    .rays
+                    .iter()
+                    .all(|r| r.target != RayTarget::Nothing)
+            {
+                plan.tables[Table::Miss as usize].records.clear();
+            } else {
+                ensure_used(&mut plan, Table::Miss);
+                plan.tables[Table::Miss as usize].records[0] = HandleRef::Zero;
+            }
             keep_recursion(&mut plan);
         }
         Mutation::NullHitReached(kind) => {

@@ -77,8 +77,8 @@ fn hand_rule(scope: &str, tag: &str) -> Option<Predicate> {
         "03429" => Predicate::HandlesFromBoundPipeline,
         // VUID-…-maxPipelineRayRecursionDepth-03679 (KHR), -maxRecursionDepth-03625 (NV).
         "03679" | "03625" => Predicate::RecursionWithinPipelineLimit,
-        // VUID-…-flags-03511: miss records reached are not zero under NO_NULL_MISS.
-        "03511" => Predicate::NoNullMissReached,
+        // VUID-…-flags-03511: the handle at the miss region's address is not zero under NO_NULL_MISS.
+        "03511" => Predicate::NoNullMissAtRegionAddress,
         // VUID-…-flags-03512/03513/03514: hit records reached are not zero under NO_NULL_*.
         "03512" => Predicate::NoNullHitReached(NullHitKind::AnyHit),
         "03513" => Predicate::NoNullHitReached(NullHitKind::ClosestHit),
@@ -219,6 +219,19 @@ impl RuleSet {
             .iter()
             .filter(|r| command.is_none_or(|c| applies_to(&r.scope, c)))
             .map(Row::coverage)
+            .collect()
+    }
+
+    /// The executable rows a device cannot have judged because its profile lacks a limit they compare
+    /// against, with the missing limits: such a row is reported, not silently dropped.
+    pub fn unjudged_on(&self, profile: &DeviceProfile) -> Vec<(String, Vec<String>)> {
+        self.rows
+            .iter()
+            .filter(|r| r.status == Status::Executable)
+            .filter_map(|r| {
+                let missing = r.predicate.as_ref()?.missing_limits(profile);
+                (!missing.is_empty()).then(|| (r.vuid.clone(), missing))
+            })
             .collect()
     }
 
