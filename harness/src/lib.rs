@@ -20,7 +20,7 @@ pub use error::HarnessError;
 pub use execute::{Execution, Executor};
 pub use observe::{Observation, Output, Status, TraceCheck};
 pub use probe::probe;
-pub use vk::{Driver, LayerMessage, VALIDATION_LAYER};
+pub use vk::{select_layer, validation_layer, Driver, LayerInfo, LayerMessage, VALIDATION_LAYER};
 
 /// The GLSL the harness makes of a resource state's accesses, stage by stage, and its compilation: for
 /// tests that template every stage.

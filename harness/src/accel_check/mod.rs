@@ -75,7 +75,7 @@ fn resolve_check(dev: &VkDevice, check: TraceCheck) -> Result<TraceCheck, Harnes
         TraceCheck::Pipeline if pipeline => Ok(TraceCheck::Pipeline),
         TraceCheck::Auto if query => Ok(TraceCheck::RayQuery),
         TraceCheck::Auto if pipeline => Ok(TraceCheck::Pipeline),
-        _ => HarnessError::unsupported(format!(
+        _ => HarnessError::not_realised(format!(
             "the traced check ({check:?}) needs rayQuery or rayTracingPipeline"
         )),
     }
@@ -95,7 +95,7 @@ pub(crate) fn direct_and_trace(
 ) -> Result<TracedBuild, HarnessError> {
     let check = resolve_check(dev, check)?;
     if case.call.infos.len() != 1 {
-        return HarnessError::unsupported("the traced check handles one build info");
+        return HarnessError::not_realised("the traced check handles one build info");
     }
     let accel = accel_of(dev)?;
     let info = &case.call.infos[0];
@@ -223,7 +223,7 @@ fn build_and_trace(
     let mut extra_as: Vec<vk::AccelerationStructureKHR> = Vec::new();
     let result = (|| -> Result<(Hits, Vec<String>), HarnessError> {
         let geoms = vk_geometries(info, r)
-            .ok_or_else(|| HarnessError::Unsupported("geometry type not realised".into()))?;
+            .ok_or_else(|| HarnessError::NotRealised("geometry type not realised".into()))?;
         inst.collector.clear();
         cmds.begin(dev)?;
         match path {
@@ -384,7 +384,7 @@ pub(crate) fn probe_rays(
             .first()
             .ok_or_else(|| HarnessError::Failed("no build info".into()))?;
         if info.ty != AsType::BottomLevel {
-            return HarnessError::unsupported("probing handles bottom-level builds");
+            return HarnessError::not_realised("probing handles bottom-level builds");
         }
         let (ranges, prims) = first_build(case)?;
         let rays: Vec<ExpectedRay> = origins

@@ -5,83 +5,34 @@
 
 use crate::accel_check::direct_and_trace;
 use crate::error::{vkfail, HarnessError};
-use crate::observe::{Observation, Output, TraceCheck};
+use crate::observe::{Observation, Output};
 use crate::realise::accel::{
-    device_for, device_sizes, indirect_args, realise, vk_geometries, Realised,
+    device_for, device_sizes, indirect_args, last_build_geometries, realise, vk_as_type,
+    vk_geometries, Realised,
 };
 use crate::vk::commands::{begin_render_pass, Commands};
 use crate::vk::{LayerMessage, VkDevice, VkInstance};
 use ash::vk;
 use model::accel::call::BuildMode;
+use model::accel::world::AddressResolver;
 use model::accel::BuildSizes;
 use model::{AccelBody, Case};
 use std::sync::Arc;
 
-/// Why the case's command buffer state cannot be realised on this device, if it cannot: protected
-/// command buffers, video coding scopes, pools of a queue family without compute, and recording between
-/// suspended render pass instances. Every other state (primary or secondary, initial, recording,
-/// executable or invalid, inside a render pass or not) is realised by [`record_indirect`].
-fn unrealisable_state(inst: &VkInstance, case: &AccelBody) -> Option<String> {
+/// Why the case's command buffer state cannot be realised for a build, if it cannot: what
+/// [`super::unrealisable_command_buffer`] says for every command, and recording between suspended render
+/// pass instances. Every other state (primary or secondary, initial, recording, executable or invalid,
+/// inside a render pass or not) is realised by [`record_indirect`].
+fn unrealisable_state(inst: &VkInstance, case: &AccelBody) -> Option<HarnessError> {
     let cbs = &case.world.command_buffer;
-    // SAFETY: plain query.
-    let families = unsafe {
-        inst.instance
-            .get_physical_device_queue_family_properties(inst.physical)
-    };
-    let any = |f: vk::QueueFlags| families.iter().any(|p| p.queue_flags.intersects(f));
-    let protected_memory = inst
-        .device_features()
-        .iter()
-        .any(|(k, on)| *on && k.ends_with("::protectedMemory"));
-    if cbs.protected {
-        return Some(format!(
-            "a protected command buffer comes from a pool created with VK_COMMAND_POOL_CREATE_PROTECTED_BIT, \
-             which needs the protectedMemory feature (VUID-VkCommandPoolCreateInfo-flags-02860) and a queue \
-             created with VK_DEVICE_QUEUE_CREATE_PROTECTED_BIT; {}",
-            if protected_memory {
-                "the harness's device creates no protected queue"
-            } else {
-                "the device lacks protectedMemory"
-            }
-        ));
+    if let Some(e) = super::unrealisable_command_buffer(inst, cbs) {
+        return Some(e);
     }
-    if cbs.in_video_coding {
-        let video = vk::QueueFlags::VIDEO_DECODE_KHR | vk::QueueFlags::VIDEO_ENCODE_KHR;
-        return Some(if any(video) {
-            "a video coding scope needs a video session (VK_KHR_video_queue) on a video queue; the harness \
-             creates neither"
-                .into()
-        } else {
-            "a video coding scope (vkCmdBeginVideoCodingKHR) needs a queue family with video decode or encode; \
-             the device has none"
-                .into()
-        });
-    }
-    if !cbs
-        .pool_queue
-        .contains(model::flags::QueueFlags::COMPUTE_BIT)
-    {
-        let without_compute = families
-            .iter()
-            .any(|p| !p.queue_flags.contains(vk::QueueFlags::COMPUTE));
-        return Some(if without_compute {
-            "a pool of a queue family without compute needs the device created with a queue of that family \
-             (VUID-vkCreateCommandPool-queueFamilyIndex-01937); the harness's device has its compute family only"
-                .into()
-        } else {
-            format!(
-                "a pool of a queue family without VK_QUEUE_COMPUTE_BIT needs such a family; every one of the \
-                 device's {} queue famil{} has compute",
-                families.len(),
-                if families.len() == 1 { "y" } else { "ies" }
-            )
-        });
-    }
-    if case.world.command_buffer.between_suspended_render_passes {
-        return Some(
+    if cbs.between_suspended_render_passes {
+        return Some(HarnessError::NotRealised(
             "recording between suspended render pass instances (dynamic rendering) is not realised for builds"
                 .into(),
-        );
+        ));
     }
     None
 }
@@ -174,6 +125,63 @@ fn enter_state(
     Ok(cb)
 }
 
+/// Repeats, for the layer's state, the last build the model's world says each structure had: a direct
+/// build of it with that build's type, flags and geometries, recorded (not aborted, never submitted)
+/// before the case's call, so update rules that compare with the source's last build (03667,
+/// 03758-03770) see on the device what the model sees. The layer tracks builds as they are recorded;
+/// what it says of these builds is not the case's and is dropped.
+fn replay_last_builds(
+    inst: &VkInstance,
+    dev: &VkDevice,
+    cmds: &Commands,
+    case: &AccelBody,
+    r: &Realised,
+) -> Result<(), HarnessError> {
+    let Some(accel) = dev.accel.as_ref() else {
+        return Ok(());
+    };
+    let Some(data) = r.buffers.values().map(|a| a.address).next() else {
+        return Ok(());
+    };
+    let scratch = case
+        .call
+        .infos
+        .first()
+        .map_or(data, |i| r.address(&i.scratch));
+    let d = &dev.device;
+    for s in &case.world.structures {
+        let (Some(lb), Some(&(handle, _))) = (&s.last_build, r.structures.get(&s.name)) else {
+            continue;
+        };
+        let Some((geoms, ranges)) = last_build_geometries(lb, data) else {
+            continue;
+        };
+        let info = vk::AccelerationStructureBuildGeometryInfoKHR::default()
+            .ty(vk_as_type(lb.ty))
+            .flags(vk::BuildAccelerationStructureFlagsKHR::from_raw(lb.flags.0))
+            .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
+            .dst_acceleration_structure(handle)
+            .geometries(&geoms)
+            .scratch_data(vk::DeviceOrHostAddressKHR {
+                device_address: scratch,
+            });
+        inst.collector.set_abort(false);
+        // SAFETY: recorded into an idle command buffer that is reset right after, never submitted.
+        unsafe {
+            d.reset_command_buffer(cmds.cb, vk::CommandBufferResetFlags::empty())
+                .map_err(vkfail("vkResetCommandBuffer"))?;
+            d.begin_command_buffer(cmds.cb, &vk::CommandBufferBeginInfo::default())
+                .map_err(vkfail("vkBeginCommandBuffer"))?;
+            accel.cmd_build_acceleration_structures(cmds.cb, &[info], &[&ranges]);
+            let _ = d.end_command_buffer(cmds.cb);
+            d.reset_command_buffer(cmds.cb, vk::CommandBufferResetFlags::empty())
+                .map_err(vkfail("vkResetCommandBuffer"))?;
+        }
+    }
+    inst.collector.clear();
+    Ok(())
+}
+
 /// Records the indirect call under the layer (dropped by the messenger, never submitted) into a command
 /// buffer in the case's state and returns the layer's messages.
 fn record_indirect(
@@ -182,25 +190,29 @@ fn record_indirect(
     cmds: &mut Commands,
     case: &AccelBody,
     r: &Realised,
+    continue_past: &[String],
 ) -> Result<Vec<LayerMessage>, HarnessError> {
     use model::world::{CommandBufferLevel, CommandBufferLifecycle};
     let accel = dev
         .accel
         .as_ref()
-        .ok_or_else(|| HarnessError::Unsupported("no VK_KHR_acceleration_structure".into()))?;
+        .ok_or_else(|| HarnessError::NotRealised("no VK_KHR_acceleration_structure".into()))?;
     let geoms: Vec<Vec<vk::AccelerationStructureGeometryKHR>> = case
         .call
         .infos
         .iter()
         .map(|i| vk_geometries(i, r))
         .collect::<Option<_>>()
-        .ok_or_else(|| HarnessError::Unsupported("geometry type not realised".into()))?;
+        .ok_or_else(|| HarnessError::NotRealised("geometry type not realised".into()))?;
     let (infos, addrs, maxima) = indirect_args(case, r, &geoms);
     let cb = enter_state(dev, cmds, case)?;
     inst.collector.clear();
     inst.collector.set_abort(true);
+    inst.collector.set_continue_past(continue_past);
     // SAFETY: with the messenger returning VK_TRUE the layer drops an invalid call (one recorded into a
-    // command buffer that is not recording included).
+    // command buffer that is not recording included). Past the `continue_past` VUIDs the layer goes on
+    // validating; a call it finds nothing else wrong with is recorded by the driver (copied into its
+    // command list, never submitted: the command buffers are reset below).
     unsafe {
         accel.cmd_build_acceleration_structures_indirect(
             cb,
@@ -211,6 +223,7 @@ fn record_indirect(
         )
     };
     inst.collector.set_abort(false);
+    inst.collector.set_continue_past(&[]);
     let msgs = inst.collector.take();
     let cbs = &case.world.command_buffer;
     // SAFETY: ending what was begun (never submitted); the buffers are reset before their next use.
@@ -233,18 +246,14 @@ fn record_indirect(
 /// Runs one build case: the indirect call recorded under the layer, the sizes the device reports, and
 /// for a case run as valid (`run_valid`), the direct build traced with the model's rays (and, where the
 /// device has accelerationStructureIndirectBuild, the indirect build for real, traced the same).
-pub(crate) fn execute(
-    inst: &Arc<VkInstance>,
-    case: &Case,
-    run_valid: bool,
-    check: TraceCheck,
-) -> Observation {
+pub(crate) fn execute(inst: &Arc<VkInstance>, case: &Case, exec: &super::Execution) -> Observation {
+    let (run_valid, check) = (exec.run_valid, exec.check);
     let Some(body) = case.as_accel() else {
         return Observation::crash(format!("{} is not a build case", case.name));
     };
     let mut obs = Observation::with_status(crate::observe::Status::Ran);
-    if let Some(why) = unrealisable_state(inst, body) {
-        return Observation::unsupported(why);
+    if let Some(e) = unrealisable_state(inst, body) {
+        return failure(e);
     }
     let dev = match device_for(inst, body, check) {
         Ok(d) => d,
@@ -263,7 +272,8 @@ pub(crate) fn execute(
             if let Some(s) = device_sizes(&dev, body, &r) {
                 obs.device_sizes = s;
             }
-            let messages = record_indirect(inst, &dev, &mut cmds, body, &r)?;
+            replay_last_builds(inst, &dev, &cmds, body, &r)?;
+            let messages = record_indirect(inst, &dev, &mut cmds, body, &r, &exec.continue_past)?;
             obs.set_messages(messages);
             if run_valid && fits_device_sizes(body, &obs.device_sizes) {
                 let traced = direct_and_trace(inst, &dev, &cmds, body, &r, check)?;
@@ -285,7 +295,8 @@ pub(crate) fn execute(
 /// lacks; anything else is a failure of the driver or the harness.
 fn failure(e: HarnessError) -> Observation {
     match e {
-        HarnessError::Unsupported(reason) => Observation::unsupported(reason),
+        HarnessError::NotRealised(reason) => Observation::not_realised(reason),
+        HarnessError::DeviceLacks { lack, reason } => Observation::unsupported(lack, reason),
         e => Observation::crash(format!("failed: {e}")),
     }
 }

@@ -77,6 +77,79 @@ fn vk_type(t: AsType) -> vk::AccelerationStructureTypeKHR {
     }
 }
 
+/// What the last build of a structure was, as the Vulkan structures of a direct build that repeats it
+/// for the layer's state (type, flags, and per geometry its type, flags, vertex format, maximum vertex,
+/// index type, transform and primitive count): geometry data at `data`, an address of one of the
+/// case's buffers (the build is recorded, never submitted). None for geometry types not realised.
+pub(crate) fn last_build_geometries(
+    lb: &model::accel::world::LastBuild,
+    data: u64,
+) -> Option<(
+    Vec<vk::AccelerationStructureGeometryKHR<'static>>,
+    Vec<vk::AccelerationStructureBuildRangeInfoKHR>,
+)> {
+    use model::accel::call::GeometryType;
+    let a = vk::DeviceOrHostAddressConstKHR {
+        device_address: data,
+    };
+    let mut geoms = Vec::new();
+    let mut ranges = Vec::new();
+    for g in &lb.geometries {
+        let (ty, d) = match g.geometry_type {
+            GeometryType::Triangles => (
+                vk::GeometryTypeKHR::TRIANGLES,
+                vk::AccelerationStructureGeometryDataKHR {
+                    triangles: vk::AccelerationStructureGeometryTrianglesDataKHR::default()
+                        .vertex_format(vk_format(
+                            g.vertex_format.unwrap_or(VertexFormat::R32g32b32Sfloat),
+                        ))
+                        .vertex_data(a)
+                        .vertex_stride(12)
+                        .max_vertex(g.max_vertex)
+                        .index_type(vk_index(g.index_type.unwrap_or(IndexType::None)))
+                        .index_data(a)
+                        .transform_data(vk::DeviceOrHostAddressConstKHR {
+                            device_address: if g.has_transform { data } else { 0 },
+                        }),
+                },
+            ),
+            GeometryType::Aabbs => (
+                vk::GeometryTypeKHR::AABBS,
+                vk::AccelerationStructureGeometryDataKHR {
+                    aabbs: vk::AccelerationStructureGeometryAabbsDataKHR::default()
+                        .data(a)
+                        .stride(24),
+                },
+            ),
+            GeometryType::Instances => (
+                vk::GeometryTypeKHR::INSTANCES,
+                vk::AccelerationStructureGeometryDataKHR {
+                    instances: vk::AccelerationStructureGeometryInstancesDataKHR::default().data(a),
+                },
+            ),
+            _ => return None,
+        };
+        geoms.push(
+            vk::AccelerationStructureGeometryKHR::default()
+                .geometry_type(ty)
+                .geometry(d)
+                .flags(vk::GeometryFlagsKHR::from_raw(g.flags.0)),
+        );
+        ranges.push(vk::AccelerationStructureBuildRangeInfoKHR {
+            primitive_count: g.range.primitive_count,
+            primitive_offset: g.range.primitive_offset,
+            first_vertex: g.range.first_vertex,
+            transform_offset: g.range.transform_offset,
+        });
+    }
+    Some((geoms, ranges))
+}
+
+/// The Vulkan type of a structure type.
+pub(crate) fn vk_as_type(t: AsType) -> vk::AccelerationStructureTypeKHR {
+    vk_type(t)
+}
+
 /// The Vulkan geometries of an info (None for geometry types the harness does not realise).
 pub(crate) fn vk_geometries(
     info: &BuildGeometryInfo,
@@ -229,7 +302,7 @@ pub(crate) fn realise(
 ) -> Result<Realised, HarnessError> {
     use model::world::MemoryBinding;
     let accel = dev.accel.as_ref().ok_or_else(|| {
-        HarnessError::Unsupported("the case does not enable VK_KHR_acceleration_structure".into())
+        HarnessError::NotRealised("the case does not enable VK_KHR_acceleration_structure".into())
     })?;
     let mut r = Realised {
         buffers: BTreeMap::new(),
@@ -243,7 +316,7 @@ pub(crate) fn realise(
             let flags = vk::BufferCreateFlags::from_raw(b.flags.0 as u32);
             if b.is_sparse() {
                 if !dev.has_feature("sparseBinding") || !dev.sparse_binding {
-                    return Err(HarnessError::Unsupported(format!(
+                    return Err(HarnessError::NotRealised(format!(
                         "buffer `{}` is sparse: creating it needs the sparseBinding feature and \
                          binding it a queue with VK_QUEUE_SPARSE_BINDING_BIT (the case's device has {})",
                         b.name,
@@ -270,7 +343,7 @@ pub(crate) fn realise(
                     r.buffers.insert(b.name.clone(), a);
                 }
                 MemoryBinding::Scattered => {
-                    return Err(HarnessError::Unsupported(format!(
+                    return Err(HarnessError::NotRealised(format!(
                         "buffer `{}` is not sparse, so it cannot be bound to several memory objects \
                          (vkBindBufferMemory binds a non-sparse buffer to one, completely and contiguously); the \
                          one realisable non-contiguous non-sparse buffer is an unbound one, whose device address \
@@ -279,7 +352,7 @@ pub(crate) fn realise(
                     )))
                 }
                 MemoryBinding::Unbound if addressed(case, &b.name) || !b.contents.is_empty() => {
-                    return Err(HarnessError::Unsupported(format!(
+                    return Err(HarnessError::NotRealised(format!(
                         "buffer `{}` is not sparse and has no memory bound, yet the call reads \
                          it by device address: vkGetBufferDeviceAddress on it is itself invalid \
                          (VUID-VkBufferDeviceAddressInfo-buffer-02600: a non-sparse buffer must be bound \
@@ -339,7 +412,7 @@ pub(crate) fn realise(
             };
             if a.memory_count() == 0 {
                 if !b.contents.is_empty() {
-                    return Err(HarnessError::Unsupported(format!(
+                    return Err(HarnessError::NotRealised(format!(
                         "buffer `{}` has no memory bound, so its contents cannot be written",
                         b.name
                     )));

@@ -33,20 +33,20 @@ impl DeviceCache {
         ];
         for (flag, feature, vuid) in needs {
             if b.flags.contains(flag) && !self.dev.has_feature(feature) {
-                return Err(HarnessError::Unsupported(format!(
+                return Err(HarnessError::NotRealised(format!(
                     "buffer `{}` is sparse but the case does not enable {feature}, so creating it is invalid ({vuid})",
                     b.name
                 )));
             }
         }
         if !b.flags.contains(BufferCreate::SPARSE_BINDING_BIT) {
-            return Err(HarnessError::Unsupported(format!(
+            return Err(HarnessError::NotRealised(format!(
                 "buffer `{}` has sparse residency/aliasing flags without SPARSE_BINDING (VUID-VkBufferCreateInfo-flags-00918)",
                 b.name
             )));
         }
         if !self.dev.sparse_binding {
-            return Err(HarnessError::Unsupported(format!(
+            return Err(HarnessError::NotRealised(format!(
                 "buffer `{}` is sparse but the device lacks sparseBinding or its compute queue family has no \
                  VK_QUEUE_SPARSE_BINDING_BIT, so vkQueueBindSparse cannot bind it",
                 b.name
@@ -95,7 +95,7 @@ impl DeviceCache {
         let foreign: Vec<u8> = match (pipeline, needs_foreign) {
             (Some((p, trace)), true) => self.pipeline(p, trace, true)?.handles.clone(),
             (None, true) => {
-                return Err(HarnessError::Unsupported(
+                return Err(HarnessError::NotRealised(
                     "foreign handles need a pipeline description to copy".into(),
                 ))
             }
@@ -107,7 +107,7 @@ impl DeviceCache {
             && wants_address
             && !world.buffers.is_empty()
         {
-            return Err(HarnessError::Unsupported(
+            return Err(HarnessError::NotRealised(
                 "the case does not enable bufferDeviceAddress, so the harness cannot give its buffers addresses".into(),
             ));
         }
@@ -115,7 +115,7 @@ impl DeviceCache {
             let usage = vk::BufferUsageFlags::from_raw(b.usage.0 as u32);
             let flags = vk::BufferCreateFlags::from_raw(b.flags.0 as u32);
             if b.size == 0 {
-                return Err(HarnessError::Unsupported(format!(
+                return Err(HarnessError::NotRealised(format!(
                     "buffer `{}` has size 0, which cannot be created",
                     b.name
                 )));
@@ -132,7 +132,7 @@ impl DeviceCache {
                 match b.memory {
                     MemoryBinding::Whole => {}
                     MemoryBinding::Unbound => {
-                        return Err(HarnessError::Unsupported(format!(
+                        return Err(HarnessError::NotRealised(format!(
                             "buffer `{}` is not sparse and has no memory bound: vkGetBufferDeviceAddress on it is \
                              itself invalid (VUID-VkBufferDeviceAddressInfo-buffer-02600: a non-sparse buffer must be \
                              bound completely and contiguously to a single VkDeviceMemory object), so the harness \
@@ -141,7 +141,7 @@ impl DeviceCache {
                         )))
                     }
                     MemoryBinding::Scattered => {
-                        return Err(HarnessError::Unsupported(format!(
+                        return Err(HarnessError::NotRealised(format!(
                             "buffer `{}` is not sparse, so it cannot be bound to several memory objects \
                              (vkBindBufferMemory binds one; VUID-VkBufferDeviceAddressInfo-buffer-02600)",
                             b.name

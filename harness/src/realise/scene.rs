@@ -153,7 +153,7 @@ impl DeviceCache {
             .iter()
             .position(|inst| inst.geometries.windows(2).any(|w| w[0] != w[1]))
         {
-            return Err(HarnessError::Unsupported(format!(
+            return Err(HarnessError::NotRealised(format!(
                 "instance {i} mixes triangle and AABB geometries; one acceleration structure holds one type"
             )));
         }
@@ -166,7 +166,7 @@ impl DeviceCache {
         };
         if api == PipelineApi::Nv {
             let Some(nv) = self.dev.nv.clone() else {
-                return Err(HarnessError::Unsupported(
+                return Err(HarnessError::NotRealised(
                     "the case traces rays but does not enable VK_NV_ray_tracing".into(),
                 ));
             };
@@ -179,14 +179,14 @@ impl DeviceCache {
             };
         }
         let Some(accel) = self.dev.accel.clone() else {
-            return Err(HarnessError::Unsupported(
+            return Err(HarnessError::NotRealised(
                 "the case traces rays but does not enable VK_KHR_acceleration_structure".into(),
             ));
         };
         if !self.dev.has_feature("accelerationStructure")
             || !self.dev.has_feature("bufferDeviceAddress")
         {
-            return Err(HarnessError::Unsupported(
+            return Err(HarnessError::NotRealised(
                 "the case traces rays but does not enable accelerationStructure and bufferDeviceAddress".into(),
             ));
         }
@@ -417,7 +417,7 @@ impl DeviceCache {
                     dev.memory_type(object.memory_type_bits, vk::MemoryPropertyFlags::empty())
                 })
                 .ok_or_else(|| {
-                    HarnessError::Unsupported(
+                    HarnessError::NotRealised(
                         "no memory type for an NV acceleration structure".into(),
                     )
                 })?;

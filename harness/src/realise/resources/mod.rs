@@ -48,7 +48,7 @@ use model::world::World;
 use std::collections::HashMap;
 
 fn unsup<T>(s: impl Into<String>) -> Result<T, HarnessError> {
-    Err(HarnessError::Unsupported(s.into()))
+    Err(HarnessError::NotRealised(s.into()))
 }
 
 /// The ray tracing stages every realised binding and push constant range is visible to.
