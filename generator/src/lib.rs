@@ -15,7 +15,7 @@ pub mod registry;
 pub mod resources;
 pub mod valid;
 
-pub use mutation::{mutations_for, Mutation, NullHit};
+pub use mutation::{mutations_for, unmutated, Mutation, NullHit};
 pub use plan::Limits;
 pub use valid::DimensionRange;
 

@@ -38,11 +38,12 @@ pub fn read_case(path: &std::path::Path) -> Result<Case, SessionError> {
 
 /// Replays `case`: see the module documentation.
 pub fn replay(case: &Case, config: &ReplayConfig) -> Result<Replayed, SessionError> {
-    let set = sources::load_sources(&config.from)?;
+    let layer = harness::validation_layer()?;
+    let set = sources::registry_for_layer(&config.from, Some(&layer))?;
     let rules = RuleSet::from_vuids(&set);
     let profile = sources::profile_for(config.profile.as_deref().unwrap_or(&case.profile))?;
     let driver = Driver::parse(&config.driver);
-    let triage = sources::triage_for(&[], set.version.as_deref(), &driver)?;
+    let triage = sources::triage_for(&[], Some(&layer.version), &driver)?;
     let judging = Judging {
         rules: &rules,
         profile: &profile,

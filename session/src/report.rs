@@ -3,6 +3,8 @@
 
 use crate::compare::{CaseReport, Outcome};
 use crate::error::SessionError;
+use crate::triage::Triage;
+use model::CommandId;
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::{BufRead, Write};
 use std::path::Path;
@@ -16,19 +18,42 @@ pub struct VuidTally {
     pub agree: usize,
 }
 
+/// How the run's triage entries were used.
+#[derive(Debug, Default, serde::Serialize)]
+pub struct TriageUse {
+    /// The triage files read.
+    pub files: Vec<String>,
+    pub entries: usize,
+    /// Per entry id, the disagreements it explained.
+    pub used: BTreeMap<String, usize>,
+    /// Entries about a command whose cases ran that explained nothing.
+    pub stale: Vec<String>,
+    /// Whether the stale list is a verdict: only a run of every spec of its commands can say an entry
+    /// is not needed (a `--vuid` or `--valid-only` run leaves most entries unexercised).
+    pub stale_judged: bool,
+}
+
 /// `summary.json`.
 #[derive(Debug, Default, serde::Serialize)]
 pub struct Summary {
     pub driver: String,
     pub profile: String,
     pub registry: Option<String>,
+    /// The validation layer's version, as it reports itself.
+    pub layer: Option<String>,
     pub cases: usize,
     pub passed: usize,
     pub failed: usize,
     pub triaged: usize,
+    /// The device lacks what the case needs (its profile says so).
     pub unsupported: usize,
+    /// The harness cannot realise the case on this device (the device has what it needs).
+    pub not_realised: usize,
     pub crashes: usize,
     pub timeouts: usize,
+    /// Disagreements triage entries explained, per `<kind> <direction>` (`layer-gap layer-silent`).
+    pub triaged_by: BTreeMap<String, usize>,
+    pub triage: TriageUse,
     /// Peak resident memory of the runner process itself (workers excluded), in KiB (Linux).
     pub runner_peak_rss_kib: Option<u64>,
     /// Wall time of the run, in seconds.
@@ -47,12 +72,16 @@ pub(crate) fn reports(path: &Path) -> Result<impl Iterator<Item = CaseReport>, S
 }
 
 /// Reads `results.jsonl` back, streaming, into the summary; a resumed run never runs a case twice, so
-/// each line is one case. Memory is per VUID, not per case.
+/// each line is one case. Memory is per VUID and per triage entry, not per case. `full`: the run made
+/// every spec of its commands, so an entry about a command whose cases ran and that explained nothing is
+/// a stale entry, not an unexercised one.
 pub(crate) fn summarise(
     path: &Path,
     driver: &str,
     profile: &str,
     registry: Option<String>,
+    triage: &Triage,
+    full: bool,
 ) -> Result<Summary, SessionError> {
     let mut s = Summary {
         driver: driver.into(),
@@ -60,6 +89,7 @@ pub(crate) fn summarise(
         registry,
         ..Default::default()
     };
+    let mut ran: BTreeSet<CommandId> = BTreeSet::new();
     for r in reports(path)? {
         s.cases += 1;
         match r.outcome {
@@ -67,15 +97,23 @@ pub(crate) fn summarise(
             Outcome::Fail => s.failed += 1,
             Outcome::Triaged => s.triaged += 1,
             Outcome::Unsupported => s.unsupported += 1,
+            Outcome::NotRealised => s.not_realised += 1,
             Outcome::Crash => s.crashes += 1,
             Outcome::Timeout => s.timeouts += 1,
         }
+        for m in &r.triage {
+            *s.triage.used.entry(m.entry.clone()).or_default() += 1;
+            *s.triaged_by
+                .entry(format!("{} {}", m.kind.name(), m.observed))
+                .or_default() += 1;
+        }
         if matches!(
             r.outcome,
-            Outcome::Unsupported | Outcome::Crash | Outcome::Timeout
+            Outcome::Unsupported | Outcome::NotRealised | Outcome::Crash | Outcome::Timeout
         ) {
             continue;
         }
+        ran.insert(r.command);
         let m: BTreeSet<&String> = r.model.iter().collect();
         let l: BTreeSet<&String> = r.layer.iter().collect();
         for v in m.union(&l) {
@@ -86,6 +124,11 @@ pub(crate) fn summarise(
             t.agree += (m.contains(v) == l.contains(v)) as usize;
         }
     }
+    s.triage.files = triage.files.clone();
+    s.triage.entries = triage.entries.len();
+    let used: BTreeSet<String> = s.triage.used.keys().cloned().collect();
+    s.triage.stale = crate::triage::stale(triage, &used, &ran);
+    s.triage.stale_judged = full;
     Ok(s)
 }
 
@@ -105,7 +148,11 @@ pub(crate) fn write_junit(results: &Path, out: &Path, s: &Summary) -> Result<(),
     let errors = s.crashes + s.timeouts;
     let head = format!(
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites name=\"{name}\" tests=\"{}\" failures=\"{}\" errors=\"{errors}\">\n  <testsuite name=\"{name}\" tests=\"{}\" failures=\"{}\" errors=\"{errors}\" skipped=\"{}\">\n",
-        s.cases, s.failed, s.cases, s.failed, s.unsupported
+        s.cases,
+        s.failed,
+        s.cases,
+        s.failed,
+        s.unsupported + s.not_realised
     );
     w.write_all(head.as_bytes()).map_err(io)?;
     for r in reports(results)? {
@@ -119,7 +166,12 @@ pub(crate) fn write_junit(results: &Path, out: &Path, s: &Summary) -> Result<(),
         let msg = xml_escape(&r.detail);
         let body = match r.outcome {
             Outcome::Pass | Outcome::Triaged => "/>\n".to_string(),
-            Outcome::Unsupported => format!("><skipped message=\"{msg}\"/></testcase>\n"),
+            Outcome::Unsupported => {
+                format!("><skipped message=\"unsupported: {msg}\"/></testcase>\n")
+            }
+            Outcome::NotRealised => {
+                format!("><skipped message=\"not-realised: {msg}\"/></testcase>\n")
+            }
             Outcome::Fail => format!("><failure message=\"{msg}\"/></testcase>\n"),
             Outcome::Crash | Outcome::Timeout => {
                 format!("><error message=\"{:?}: {msg}\"/></testcase>\n", r.outcome)

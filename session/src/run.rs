@@ -40,6 +40,11 @@ pub struct RunConfig {
     pub from: Vec<PathBuf>,
     /// Triage files (empty: the driver's and the layer version's, where present).
     pub triage: Vec<PathBuf>,
+    /// A validation layer build to use instead of the one the loader finds (a manifest directory or
+    /// an unpacked package root, see [`harness::select_layer`]).
+    pub layer: Option<PathBuf>,
+    /// Stale triage entries fail the run (they are always reported).
+    pub strict: bool,
 }
 
 /// How far a run has come, for a progress display.
@@ -62,6 +67,11 @@ impl Progress for Quiet {
 #[derive(Debug)]
 pub struct RunOutcome {
     pub summary: Summary,
+    /// Stale triage entries fail the run.
+    pub strict: bool,
+    /// Things the reader must know about how the run was judged (a registry of another version than
+    /// the layer's, no triage file for the layer's version).
+    pub warnings: Vec<String>,
     /// Specs the generator cannot make on this profile (a feature or queue the device lacks).
     pub not_expressible: Vec<String>,
     /// Specs the generator failed on: a failure of the run.
@@ -75,7 +85,8 @@ impl RunOutcome {
     pub fn exit_code(&self) -> i32 {
         let s = &self.summary;
         let unexpected = s.failed + s.crashes + s.timeouts;
-        if unexpected > 0 || !self.gen_errors.is_empty() {
+        let stale = self.strict && !s.triage.stale.is_empty();
+        if unexpected > 0 || !self.gen_errors.is_empty() || stale {
             1
         } else {
             0
@@ -94,6 +105,11 @@ pub struct Judging<'a> {
 }
 
 impl Judging<'_> {
+    /// The VUIDs the device makes unavoidable for builds, which the layer's validation continues past.
+    fn profile_unavoidable(&self) -> Vec<String> {
+        model::accel::unavoidable(self.profile)
+    }
+
     /// The one judgement of a case: the model's verdict on the case as it ran (a build with the sizes
     /// the device reported), compared with the observation.
     pub fn judge(&self, case: &Case, resp: &Response) -> CaseReport {
@@ -175,7 +191,10 @@ struct Sink {
 
 impl Sink {
     fn write(&mut self, case: &Case, report: &CaseReport) {
-        if report.outcome != Outcome::Pass && report.outcome != Outcome::Unsupported {
+        if !matches!(
+            report.outcome,
+            Outcome::Pass | Outcome::Unsupported | Outcome::NotRealised
+        ) {
             let _ = std::fs::write(
                 self.out
                     .join("failures")
@@ -193,7 +212,25 @@ impl Sink {
 /// Runs the configured conformance run; see the module documentation.
 pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, SessionError> {
     let started = std::time::Instant::now();
-    let set = sources::load_sources(&config.from)?;
+    if config.strict && (!config.scope.vuids.is_empty() || config.scope.valid_only) {
+        return Err(SessionError::Usage(
+            "--strict judges stale triage entries, which needs a full run of the commands (no --vuid, no --valid-only)"
+                .into(),
+        ));
+    }
+    if let Some(dir) = &config.layer {
+        harness::select_layer(dir)?;
+    }
+    let layer = harness::validation_layer()?;
+    let set = sources::registry_for_layer(&config.from, Some(&layer))?;
+    let mut warnings = Vec::new();
+    if set.version.as_deref() != Some(layer.version.as_str()) {
+        warnings.push(format!(
+            "the model judges with registry {} but the validation layer is {}: VUIDs either side lacks show as disagreements",
+            set.version.as_deref().unwrap_or("of unknown version"),
+            layer.version
+        ));
+    }
     let rules = RuleSet::from_vuids(&set);
     let profile_name = config
         .profile
@@ -207,7 +244,18 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
             path: driver.icd_path().display().to_string(),
         });
     }
-    let triage = sources::triage_for(&config.triage, set.version.as_deref(), &driver)?;
+    let triage = sources::triage_for(&config.triage, Some(&layer.version), &driver)?;
+    if config.triage.is_empty()
+        && !triage
+            .files
+            .iter()
+            .any(|f| f.ends_with(&format!("layer-{}.yaml", layer.version)))
+    {
+        warnings.push(format!(
+            "no triage/layer-{}.yaml: every disagreement with this layer is a failure",
+            layer.version
+        ));
+    }
     let failures = config.out.join("failures");
     std::fs::create_dir_all(&failures)
         .map_err(|e| SessionError::io(failures.display().to_string(), e))?;
@@ -237,7 +285,8 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
     };
 
     let specs = plan(&config.scope, &rules, &profile);
-    progress.planned((specs.len() * config.count) as u64);
+    let progress_planned = (specs.len() * config.count) as u64;
+    progress.planned(progress_planned);
     let mut not_expressible = Vec::new();
     let mut gen_errors = Vec::new();
     let mut chunk: Vec<Case> = Vec::with_capacity(CHUNK);
@@ -299,6 +348,33 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
     if !chunk.is_empty() {
         dispatch.run(&mut chunk, &mut sink);
     }
+    let full = config.scope.vuids.is_empty() && !config.scope.valid_only;
+    if full {
+        // Entries the generated cases left unused get their own evidence run: the reproducing cases
+        // they name (of this profile and a planned command), so an entry is stale only when its own
+        // case no longer disagrees as it says.
+        let planned: BTreeSet<model::CommandId> = specs.iter().map(|p| p.spec.command).collect();
+        let used: BTreeSet<String> = reports(&results_path)
+            .map(|r| r.flat_map(|r| r.triage).map(|m| m.entry).collect())
+            .unwrap_or_default();
+        let mut evidence = crate::triage::evidence_cases(&triage, &used, &planned, &profile_name);
+        let written: BTreeSet<String> = reports(&results_path)
+            .map(|r| r.map(|r| r.case).collect())
+            .unwrap_or_default();
+        evidence.retain(|c| !written.contains(&c.name));
+        progress.planned(progress_planned + evidence.len() as u64);
+        for c in evidence {
+            if let Err(why) = c.runnable(&profile) {
+                sink.write(&c, &not_runnable(&c, &why));
+                progress.advance(1);
+                continue;
+            }
+            chunk.push(c);
+        }
+        if !chunk.is_empty() {
+            dispatch.run(&mut chunk, &mut sink);
+        }
+    }
     if let Some(e) = sink.error.take() {
         return Err(SessionError::io(sink.results_path.display().to_string(), e));
     }
@@ -307,7 +383,10 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         &config.driver,
         &profile_name,
         set.version.clone(),
+        &triage,
+        full,
     )?;
+    summary.layer = Some(layer.version.clone());
     summary.runner_peak_rss_kib = peak_rss_kib();
     summary.seconds = started.elapsed().as_secs_f64();
     let summary_path = config.out.join("summary.json");
@@ -324,6 +403,8 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
     };
     Ok(RunOutcome {
         summary,
+        strict: config.strict,
+        warnings,
         not_expressible,
         gen_errors,
         shrunk,
@@ -340,7 +421,10 @@ struct Dispatch<'a> {
 
 impl Dispatch<'_> {
     /// Runs one chunk on a fresh set of workers (which keep their devices and pipelines warm for the
-    /// chunk), judging and writing each result as it arrives.
+    /// chunk), judging and writing each result as it arrives. A case whose recording, validated past
+    /// the VUIDs the device makes unavoidable, killed its worker (a layer whose later checks crash on
+    /// the call, as 1.3.239's core checks do for an update without a source) is recorded once more with
+    /// validation stopping at the first of them, and its report says so.
     fn run(&self, chunk: &mut Vec<Case>, sink: &mut Sink) {
         let requests: Vec<Request> = std::mem::take(chunk)
             .into_iter()
@@ -351,10 +435,46 @@ impl Dispatch<'_> {
                 case,
             })
             .collect();
+        let mut again: Vec<Request> = Vec::new();
         harness::run_in_workers(&requests, self.jobs, self.timeout, |resp| {
-            let case = &requests[resp.index.min(requests.len() - 1)].case;
-            let report = self.judging.judge(case, &resp);
-            sink.write(case, &report);
+            let request = &requests[resp.index.min(requests.len() - 1)];
+            if matches!(resp.observation.status, harness::Status::Crash { .. })
+                && !request.execution.continue_past.is_empty()
+            {
+                again.push(Request {
+                    index: again.len(),
+                    case: request.case.clone(),
+                    execution: Execution {
+                        continue_past: vec![],
+                        ..request.execution.clone()
+                    },
+                });
+                return;
+            }
+            let report = self.judging.judge(&request.case, &resp);
+            sink.write(&request.case, &report);
+            self.progress.advance(1);
+        });
+        if again.is_empty() {
+            return;
+        }
+        harness::run_in_workers(&again, self.jobs, self.timeout, |resp| {
+            let request = &again[resp.index.min(again.len() - 1)];
+            let mut report = self.judging.judge(&request.case, &resp);
+            let note = format!(
+                "recorded with the layer's validation continuing past {} the worker died (the layer's \
+                 later checks or the driver's recording of the call), so it was recorded again with \
+                 validation stopping there",
+                self.judging
+                    .profile_unavoidable()
+                    .join(", ")
+            );
+            report.detail = if report.detail.is_empty() {
+                note
+            } else {
+                format!("{note}; {}", report.detail)
+            };
+            sink.write(&request.case, &report);
             self.progress.advance(1);
         });
     }

@@ -46,9 +46,17 @@ pub struct RunArgs {
     /// Registry sources for the rules (default: the installed registry, the layer's own version).
     #[arg(long = "from")]
     from: Vec<PathBuf>,
-    /// Triage files (default: triage/layer-<registry version>.yaml and triage/<driver>.yaml, where present).
+    /// Triage files (default: triage/layer-<the layer's version>.yaml and triage/<driver>.yaml, where present).
     #[arg(long)]
     triage: Vec<PathBuf>,
+    /// The validation layer build to use: a directory with its manifest, or an unpacked package root
+    /// (default: the one the loader finds, or VK_LAYER_PATH). Its reported version picks the triage
+    /// file and the registry.
+    #[arg(long)]
+    layer: Option<PathBuf>,
+    /// Fail the run when a triage entry about a command that ran explained nothing (a stale entry).
+    #[arg(long)]
+    strict: bool,
 }
 
 /// The progress bar on a terminal (hidden elsewhere).
@@ -96,6 +104,8 @@ pub fn run(a: RunArgs) -> super::Exit {
         resume: a.resume,
         from: a.from,
         triage: a.triage,
+        layer: a.layer,
+        strict: a.strict,
     };
     let bar = bar();
     let outcome = session::run(&config, &bar)?;
@@ -103,7 +113,11 @@ pub fn run(a: RunArgs) -> super::Exit {
     for line in &outcome.shrunk {
         println!("{line}");
     }
+    for w in &outcome.warnings {
+        eprintln!("rtconf: warning: {w}");
+    }
     print_summary(&outcome.summary, &config.out);
+    print_triage(&outcome.summary, config.strict);
     if !outcome.not_expressible.is_empty() {
         println!(
             "{} specs are not expressible on profile {}:",
@@ -133,8 +147,19 @@ fn print_summary(s: &Summary, out: &Path) {
     }
     println!();
     println!(
-        "{} cases on {} (profile {}): {} passed, {} failed, {} triaged, {} unsupported, {} crashes, {} timeouts",
-        s.cases, s.driver, s.profile, s.passed, s.failed, s.triaged, s.unsupported, s.crashes, s.timeouts
+        "{} cases on {} (profile {}, layer {}, registry {}): {} passed, {} failed, {} triaged, {} unsupported, {} not realised, {} crashes, {} timeouts",
+        s.cases,
+        s.driver,
+        s.profile,
+        s.layer.as_deref().unwrap_or("?"),
+        s.registry.as_deref().unwrap_or("?"),
+        s.passed,
+        s.failed,
+        s.triaged,
+        s.unsupported,
+        s.not_realised,
+        s.crashes,
+        s.timeouts
     );
     println!(
         "{:.1} s, {:.0} cases/s, runner peak RSS {} KiB",
@@ -146,4 +171,38 @@ fn print_summary(s: &Summary, out: &Path) {
         "results: {0}/results.jsonl, summary: {0}/summary.json, junit: {0}/junit.xml, failing cases: {0}/failures/",
         out.display()
     );
+}
+
+/// The disagreements the triage explained, by kind and direction, and its stale entries.
+fn print_triage(s: &Summary, strict: bool) {
+    if !s.triaged_by.is_empty() {
+        println!("triaged disagreements by kind and direction:");
+        for (k, n) in &s.triaged_by {
+            println!("  {k:<40} {n:>6}");
+        }
+    }
+    let t = &s.triage;
+    if t.stale.is_empty() {
+        println!(
+            "triage: {} entries in {} file(s), none stale",
+            t.entries,
+            t.files.len()
+        );
+        return;
+    }
+    let what = if !t.stale_judged {
+        "not exercised by this partial run"
+    } else if strict {
+        "STALE (an error under --strict)"
+    } else {
+        "stale"
+    };
+    println!(
+        "triage: {} of {} entries explained nothing, {what}:",
+        t.stale.len(),
+        t.entries
+    );
+    for id in &t.stale {
+        println!("  {id}");
+    }
 }
