@@ -37,7 +37,8 @@ pub enum Style {
     LineAndMarkers(Marker),
 }
 
-/// One named series of (x, y) points, drawn in order.
+/// One named series of (x, y) points, drawn in order; a series with an empty name is left out
+/// of the legend.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Series {
     pub name: String,
@@ -242,7 +243,7 @@ impl Chart {
             }
         }
         img.paste(&clipped, a.x, a.y);
-        if self.legend && !self.series.is_empty() {
+        if self.legend && self.series.iter().any(|r| !r.name.is_empty()) {
             self.draw_legend(img, a, s);
         }
     }
@@ -259,18 +260,18 @@ impl Chart {
         let pad = 4 * s as i32;
         let sample = 16 * s as i32;
         let row = th + pad;
-        let names = self
-            .series
+        let named: Vec<&Series> = self.series.iter().filter(|r| !r.name.is_empty()).collect();
+        let names = named
             .iter()
             .map(|r| font::text_width(&r.name, s))
             .max()
             .unwrap_or(0) as i32;
         let w = pad + sample + pad + names + pad;
-        let h = pad + row * self.series.len() as i32;
+        let h = pad + row * named.len() as i32;
         let r = Rect::new(a.right() - w - pad, a.y + pad, w, h);
         img.fill_rect(r, palette::WHITE);
         img.stroke_rect(r, palette::AXIS);
-        for (i, series) in self.series.iter().enumerate() {
+        for (i, series) in named.iter().enumerate() {
             let cy = r.y + pad + row * i as i32 + th / 2;
             let (x0, x1) = (r.x + pad, r.x + pad + sample);
             if matches!(series.style, Style::Line | Style::LineAndMarkers(_)) {
