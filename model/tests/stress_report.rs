@@ -97,6 +97,40 @@ fn a_simulated_watertight_f32_driver_passes_every_family() {
 
 type Simulated = (StressCase, Vec<AllowedOutcomes>, Vec<RayRecord>);
 
+#[test]
+fn needles_seen_from_close_put_a_woop_drivers_t_outside_the_band() {
+    // FIXME: at the full size of slivers-and-tiny, rays that start about 1e-5 from the world
+    // origin (those aimed at the tiny triangles) pass within that distance of needles of aspect
+    // near 2^-22 lying there. Woop's t, interpolated from edge functions that are each rounded on
+    // their own, is then off by several times the model's t band: the band's backward-error
+    // constant does not hold for needles seen from close. Until the band covers them, this test
+    // records that the simulated driver fails there, and only there (t outside its interval, on
+    // needles); the reduced size the other tests use does not reach such rays.
+    let f = family("slivers-and-tiny").unwrap();
+    let mut case = f.case(0, f.full_size);
+    case.rays.truncate(160);
+    let (allowed, _) = case.allowed(&TracerConfig::default());
+    let records = stress_sim::records(&case);
+    let mut r = FamilyReport::new(f.name);
+    r.add_case(&case.name, &allowed, &records);
+    println!("{}", r.row());
+    assert!(
+        r.summary.fail > 0,
+        "fixed? then drop the FIXME: {}",
+        r.row()
+    );
+    for m in &r.findings {
+        assert!(m.contains("outside"), "{m}");
+    }
+    for (a, rec) in allowed.iter().zip(&records) {
+        let j = model::tracer::judge::judge(a, rec);
+        if matches!(j.verdict, model::tracer::judge::RayVerdict::Fail(_)) {
+            let needle = rec.seen.iter().any(|s| s.geometry == 0);
+            assert!(needle, "a failure off the needles: {:?}", j.findings);
+        }
+    }
+}
+
 /// A ray through a watertight group the driver hit once, behind which the ray must hit a
 /// required candidate (the far side of the closed mesh): `(case, ray, required candidate)`.
 fn watertight_ray(cases: &[Simulated]) -> (usize, usize, usize) {
@@ -256,6 +290,28 @@ fn rays_ending_a_few_ulps_from_the_hit_are_vary_never_req() {
         })
         .collect();
     assert!(limits.contains(&TLimit::Tmin) && limits.contains(&TLimit::Tmax));
+}
+
+#[test]
+fn a_family_reports_a_driver_in_one_call() {
+    let f = family("watertight-vertices").unwrap();
+    let r = f
+        .report(
+            0..2,
+            f.test_size,
+            &TracerConfig::default(),
+            stress_sim::records,
+        )
+        .expect("the claims hold");
+    assert_eq!(r, report_of(f.name, &simulated(f.name, 0..2)));
+    assert_eq!(r.cases, 2);
+    // A driver that misses everything fails every ray with a required hit.
+    let blind = f
+        .report(0..1, f.test_size, &TracerConfig::default(), |c| {
+            vec![RayRecord::miss(model::stress::STRESS_MISS_GROUP); c.rays.len()]
+        })
+        .unwrap();
+    assert!(blind.summary.fail > 0 && blind.summary.fail + blind.holes >= blind.watertight_rays);
 }
 
 #[test]

@@ -16,6 +16,7 @@ mod claims;
 mod families;
 mod mesh;
 mod numeric;
+mod proofs;
 mod report;
 mod transforms;
 
@@ -25,6 +26,7 @@ pub use mesh::LatticeMesh;
 pub use report::{ErrorStats, FamilyReport, VaryChoices};
 
 use crate::scene::{Ray, Scene};
+use crate::tracer::record::RayRecord;
 use crate::tracer::{
     trace_launch, AllowedOutcomes, AnyHitRule, HitShaders, MissShader, PreparedScene, ShaderTable,
     TracerConfig, TracerStats,
@@ -113,6 +115,41 @@ impl Family {
     pub fn case(&self, seed: u64, size: usize) -> StressCase {
         (self.generate)(seed, size)
     }
+
+    /// The family's report over the cases of `seeds` at `size`: each case's claims are proven,
+    /// `driver` writes the records of its rays (one per ray, in launch order), and the model under
+    /// `config` judges them.
+    pub fn report(
+        &self,
+        seeds: impl IntoIterator<Item = u64>,
+        size: usize,
+        config: &TracerConfig,
+        mut driver: impl FnMut(&StressCase) -> Vec<RayRecord>,
+    ) -> Result<FamilyReport, ClaimsFailed> {
+        let mut report = FamilyReport::new(self.name);
+        for seed in seeds {
+            let case = self.case(seed, size);
+            let failures = case.check_claims();
+            if !failures.is_empty() {
+                return Err(ClaimsFailed {
+                    case: case.name,
+                    failures,
+                });
+            }
+            let (allowed, _) = case.allowed(config);
+            report.add_case(&case.name, &allowed, &driver(&case));
+        }
+        Ok(report)
+    }
+}
+
+/// A generated case whose claims do not hold: a bug of its family, never the driver's.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{case}: {} claims do not hold, the first: {}", failures.len(), failures[0].1)]
+pub struct ClaimsFailed {
+    pub case: String,
+    /// `(claim index, why)`.
+    pub failures: Vec<(usize, ClaimError)>,
 }
 
 /// The family named `name`.

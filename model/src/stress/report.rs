@@ -149,6 +149,12 @@ impl FamilyReport {
         ErrorStats::of(&self.summary.t_error_ulps)
     }
 
+    /// |t − t_exact| over the half width of the allowed t interval (1.0 = at the bound): the
+    /// measure that stays meaningful when t_exact is near 0.
+    pub fn t_error_bound(&self) -> ErrorStats {
+        ErrorStats::of(&self.summary.t_error_rel)
+    }
+
     /// max over (b, c) of the barycentric error in f32 ULPs of the exact value, over the
     /// committed triangle hits (the judge's measure: unbounded for weights that are exactly 0, as
     /// on every edge-aimed ray — see [`FamilyReport::bary_error_eps`]).
@@ -190,7 +196,7 @@ impl FamilyReport {
     /// The header of [`FamilyReport::row`].
     pub fn header() -> String {
         format!(
-            "{:<20} {:>6} {:>5} {:>5} {:>5} {:>7} {:>6} {:>6} {:>8} {:>20} {:>20} {:>26}",
+            "{:<20} {:>6} {:>5} {:>5} {:>5} {:>7} {:>6} {:>6} {:>8} {:>20} {:>15} {:>20} {:>26}",
             "family",
             "rays",
             "fail",
@@ -201,6 +207,7 @@ impl FamilyReport {
             "holes",
             "VARY %",
             "t ulps med/p99/max",
+            "t/bound p99/max",
             "bary eps med/p99/max",
             "on VARY req/pos/miss/other"
         )
@@ -214,7 +221,7 @@ impl FamilyReport {
         };
         let v = &self.on_vary;
         format!(
-            "{:<20} {:>6} {:>5} {:>5} {:>5} {:>7} {:>6} {:>6} {:>8.2} {:>20} {:>20} {:>26}",
+            "{:<20} {:>6} {:>5} {:>5} {:>5} {:>7} {:>6} {:>6} {:>8.2} {:>20} {:>15} {:>20} {:>26}",
             self.family,
             self.rays(),
             self.summary.fail,
@@ -225,6 +232,11 @@ impl FamilyReport {
             self.holes,
             100.0 * self.vary_share(),
             e(self.t_error_ulps()),
+            {
+                let b = self.t_error_bound();
+                let f = |x: Option<f64>| x.map_or("-".to_string(), |v| format!("{v:.3}"));
+                format!("{}/{}", f(b.p99), f(b.max))
+            },
             e(self.bary_error_eps()),
             format!(
                 "{}/{}/{}/{}",
