@@ -12,6 +12,7 @@ pub mod profile;
 pub mod resources;
 pub mod rules;
 pub mod semantics;
+pub mod stress;
 pub mod verdict;
 pub mod world;
 
