@@ -180,7 +180,7 @@ pub fn compare(
         match &case.body {
             Body::Trace(t) => {
                 if let Some(expected) = model::semantics::expected_launch(&t.world, &t.call) {
-                    let ok = compare_words(obs.words(), &expected.words, &mut problems);
+                    let ok = compare_words(obs.words(), &expected, &mut problems);
                     report.output_matches = ok;
                 }
             }
@@ -201,29 +201,27 @@ pub fn compare(
 /// The launch's words against the model's; Some(whether they match) when words were read back.
 fn compare_words(
     got: Option<&[u32]>,
-    expected: &[u32],
+    expected: &model::semantics::ExpectedLaunch,
     problems: &mut Vec<String>,
 ) -> Option<bool> {
     let Some(words) = got else {
         problems.push("no output was read back".into());
         return None;
     };
-    let ok = words == expected;
-    if !ok {
-        let first = words.iter().zip(expected).position(|(a, b)| a != b);
-        problems.push(match first {
-            Some(i) => format!(
-                "output word {i}: driver 0x{:08x}, model 0x{:08x}",
-                words[i], expected[i]
-            ),
-            None => format!(
-                "output has {} words, model expects {}",
-                words.len(),
-                expected.len()
-            ),
-        });
+    use model::semantics::OutputDifference;
+    match expected.difference(words) {
+        None => Some(true),
+        Some(OutputDifference::Word { id, got, expected }) => {
+            problems.push(format!(
+                "output word {id}: driver 0x{got:08x}, model 0x{expected:08x}"
+            ));
+            Some(false)
+        }
+        Some(OutputDifference::Length { got, expected }) => {
+            problems.push(format!("output has {got} words, model expects {expected}"));
+            Some(false)
+        }
     }
-    Some(ok)
 }
 
 /// The rays traced at what the device built against the model's primitives: a mismatch is a failure

@@ -341,7 +341,7 @@ impl Allocation {
 
     /// Copies `bytes` to `offset`, cutting what would fall past the end of the buffer or onto unbound pages.
     pub(crate) fn write(&self, offset: u64, bytes: &[u8]) {
-        let end = (offset + bytes.len() as u64).min(self.size);
+        let end = offset.saturating_add(bytes.len() as u64).min(self.size);
         for p in &self.pieces {
             let (lo, hi) = (offset.max(p.at), end.min(p.at + p.len));
             if lo >= hi {
