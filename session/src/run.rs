@@ -3,7 +3,7 @@
 //! with what the device reported, compared with what the device did, and streamed to `results.jsonl`
 //! as it completes; then `summary.json`, `junit.xml`, and shrunk regressions when asked.
 
-use crate::compare::{as_run, compare, not_runnable, CaseReport, Outcome};
+use crate::compare::{as_run, compare, CaseReport, Outcome};
 use crate::error::SessionError;
 use crate::plan::{plan, Scope};
 use crate::report::{reports, summarise, write_junit, Summary};
@@ -71,10 +71,10 @@ pub struct RunOutcome {
 }
 
 impl RunOutcome {
-    /// The exit status of the run: non-zero for any fail, crash, timeout or generator error.
+    /// The exit status of the run: non-zero for any fail, crash, timeout, case error or generator error.
     pub fn exit_code(&self) -> i32 {
         let s = &self.summary;
-        let unexpected = s.failed + s.crashes + s.timeouts;
+        let unexpected = s.failed + s.crashes + s.timeouts + s.case_errors;
         if unexpected > 0 || !self.gen_errors.is_empty() {
             1
         } else {
@@ -131,12 +131,12 @@ impl Judging<'_> {
         case: &Case,
         check: harness::TraceCheck,
     ) -> Ran {
-        if let Err(why) = case.runnable(self.profile) {
+        if let Some(report) = crate::gate::gate(case, self) {
             return Ran {
                 case: case.clone(),
                 verdict: model::validate(self.rules, self.profile, case),
                 observation: None,
-                report: not_runnable(case, &why),
+                report,
             };
         }
         let exec = Execution {
@@ -159,6 +159,57 @@ impl Judging<'_> {
         Ran {
             case: ran,
             observation: Some(observation),
+            verdict,
+            report,
+        }
+    }
+}
+
+impl Judging<'_> {
+    /// Runs one case in a worker process (`rtconf worker`, the driver named by
+    /// [`harness::worker::DRIVER_ENV`]) as a run does, and judges it: the gate, the execution, the
+    /// verdict on the case as it ran, the comparison. A driver that kills or hangs the worker gives the
+    /// case's `crash` or `timeout`, as in a run.
+    pub fn run_in_worker(&self, case: &Case, check: harness::TraceCheck, timeout: Duration) -> Ran {
+        if let Some(report) = crate::gate::gate(case, self) {
+            return Ran {
+                case: case.clone(),
+                verdict: model::validate(self.rules, self.profile, case),
+                observation: None,
+                report,
+            };
+        }
+        let request = Request {
+            index: 0,
+            execution: Execution {
+                check,
+                ..Execution::for_case(case, self.profile)
+            },
+            case: case.clone(),
+        };
+        let mut response = None;
+        harness::run_in_workers(std::slice::from_ref(&request), 1, timeout, |r| {
+            response = Some(r)
+        });
+        let resp = response.unwrap_or_else(|| Response {
+            index: 0,
+            name: case.name.clone(),
+            observation: harness::Observation::crash("the worker gave no result"),
+            millis: 0.0,
+        });
+        let ran = as_run(case, &resp.observation).into_owned();
+        let verdict = self.rules.judge(self.profile, &ran.body);
+        let report = compare(
+            &ran,
+            self.profile,
+            &verdict,
+            &resp.observation,
+            self.triage,
+            resp.millis,
+        );
+        Ran {
+            case: ran,
+            observation: Some(resp.observation),
             verdict,
             report,
         }
@@ -195,18 +246,14 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
     let started = std::time::Instant::now();
     let set = sources::load_sources(&config.from)?;
     let rules = RuleSet::from_vuids(&set);
+    // The driver first: a path that is not a driver is never taken for a profile's name.
+    let driver = Driver::parse(&config.driver);
+    harness::check_driver(&driver)?;
     let profile_name = config
         .profile
         .clone()
         .unwrap_or_else(|| sources::default_profile_name(&config.driver));
     let profile = sources::profile_for(&profile_name)?;
-    let driver = Driver::parse(&config.driver);
-    if !driver.icd_path().exists() {
-        return Err(SessionError::NoDriver {
-            driver: config.driver.clone(),
-            path: driver.icd_path().display().to_string(),
-        });
-    }
     let triage = sources::triage_for(&config.triage, set.version.as_deref(), &driver)?;
     let failures = config.out.join("failures");
     std::fs::create_dir_all(&failures)
@@ -284,8 +331,8 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
                     progress.advance(1);
                     continue;
                 }
-                if let Err(why) = c.runnable(&profile) {
-                    sink.write(&c, &not_runnable(&c, &why));
+                if let Some(report) = crate::gate::gate(&c, &judging) {
+                    sink.write(&c, &report);
                     progress.advance(1);
                     continue;
                 }

@@ -133,8 +133,8 @@ fn print_summary(s: &Summary, out: &Path) {
     }
     println!();
     println!(
-        "{} cases on {} (profile {}): {} passed, {} failed, {} triaged, {} unsupported, {} crashes, {} timeouts",
-        s.cases, s.driver, s.profile, s.passed, s.failed, s.triaged, s.unsupported, s.crashes, s.timeouts
+        "{} cases on {} (profile {}): {} passed, {} failed, {} triaged, {} unsupported, {} crashes, {} timeouts, {} case errors",
+        s.cases, s.driver, s.profile, s.passed, s.failed, s.triaged, s.unsupported, s.crashes, s.timeouts, s.case_errors
     );
     println!(
         "{:.1} s, {:.0} cases/s, runner peak RSS {} KiB",

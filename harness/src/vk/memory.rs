@@ -58,8 +58,12 @@ fn allocate(dev: &VkDevice, size: u64, memory_type: u32) -> Result<vk::DeviceMem
         ai = ai.push_next(&mut flags_info);
     }
     // SAFETY: valid allocate info.
-    unsafe { dev.device.allocate_memory(&ai, None) }
-        .map_err(|r| HarnessError::Failed(format!("vkAllocateMemory({size}) failed: {r:?}")))
+    unsafe { dev.device.allocate_memory(&ai, None) }.map_err(|r| {
+        match crate::error::oom_or(format!("vkAllocateMemory({size})"), r) {
+            e @ HarnessError::OutOfMemory(_) => e,
+            _ => HarnessError::Failed(format!("vkAllocateMemory({size}) failed: {r:?}")),
+        }
+    })
 }
 
 fn address_of(dev: &VkDevice, b: vk::Buffer) -> u64 {
@@ -87,7 +91,8 @@ pub(crate) fn create_buffer(
         .usage(usage)
         .flags(flags);
     // SAFETY: valid create info.
-    unsafe { dev.device.create_buffer(&info, None) }.map_err(vkfail("vkCreateBuffer"))
+    unsafe { dev.device.create_buffer(&info, None) }
+        .map_err(|r| crate::error::oom_or(format!("vkCreateBuffer({size} bytes)"), r))
 }
 
 impl Allocation {
