@@ -9,10 +9,12 @@
 pub mod compare;
 pub mod error;
 pub(crate) mod gate;
+pub mod outdir;
 pub mod plan;
 pub mod replay;
 pub mod report;
 pub mod run;
+pub mod select;
 pub(crate) mod shrink;
 pub mod sources;
 pub mod triage;
