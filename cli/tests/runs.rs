@@ -117,8 +117,10 @@ fn unknown_command_names_are_errors_in_run_coverage_and_registry() {
 
 #[test]
 fn jobs_timeout_and_count_of_zero_are_refused() {
+    let out = tempfile::tempdir().unwrap();
+    let o = out_arg(out.path());
     for (flag, value) in [("--jobs", "0"), ("--timeout", "0"), ("--count", "0")] {
-        let r = rtconf(&["run", flag, value]);
+        let r = rtconf(&["run", flag, value, "--out", &o]);
         assert_eq!(r.code, 2, "{flag}: {}", r.all());
         assert!(
             r.stderr.contains(flag) && r.stderr.contains("0 is not in 1.."),
