@@ -8,6 +8,8 @@ pub mod call;
 pub mod case;
 pub mod command;
 pub mod flags;
+pub mod integrity;
+pub mod locate;
 pub mod profile;
 pub mod resources;
 pub mod rules;
