@@ -21,6 +21,10 @@ pub enum Status {
     Crash { message: String },
     /// The case ran past its time limit.
     Timeout { seconds: f64 },
+    /// The driver ran out of memory realising the case (`ERROR_OUT_OF_DEVICE_MEMORY`,
+    /// `ERROR_OUT_OF_HOST_MEMORY` from a creation or allocation): the call was never made, so this is
+    /// neither a crash nor a verdict; the session decides whose fault it is.
+    OutOfMemory { message: String },
 }
 
 /// A property of the device that a case needs and the device lacks, in the terms of its profile.
@@ -137,6 +141,12 @@ impl Observation {
     pub fn not_realised(reason: impl Into<String>) -> Observation {
         Observation::with_status(Status::NotRealised {
             reason: reason.into(),
+        })
+    }
+
+    pub fn out_of_memory(message: impl Into<String>) -> Observation {
+        Observation::with_status(Status::OutOfMemory {
+            message: message.into(),
         })
     }
 

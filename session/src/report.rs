@@ -51,6 +51,8 @@ pub struct Summary {
     pub not_realised: usize,
     pub crashes: usize,
     pub timeouts: usize,
+    /// Cases at fault themselves (`case-error`): not run, or disagreeing with the model about their intent.
+    pub case_errors: usize,
     /// Disagreements triage entries explained, per `<kind> <direction>` (`layer-gap layer-silent`).
     pub triaged_by: BTreeMap<String, usize>,
     pub triage: TriageUse,
@@ -100,6 +102,7 @@ pub(crate) fn summarise(
             Outcome::NotRealised => s.not_realised += 1,
             Outcome::Crash => s.crashes += 1,
             Outcome::Timeout => s.timeouts += 1,
+            Outcome::CaseError => s.case_errors += 1,
         }
         for m in &r.triage {
             *s.triage.used.entry(m.entry.clone()).or_default() += 1;
@@ -109,7 +112,11 @@ pub(crate) fn summarise(
         }
         if matches!(
             r.outcome,
-            Outcome::Unsupported | Outcome::NotRealised | Outcome::Crash | Outcome::Timeout
+            Outcome::Unsupported
+                | Outcome::NotRealised
+                | Outcome::Crash
+                | Outcome::Timeout
+                | Outcome::CaseError
         ) {
             continue;
         }
@@ -145,7 +152,7 @@ pub(crate) fn write_junit(results: &Path, out: &Path, s: &Summary) -> Result<(),
     let io = |e: std::io::Error| SessionError::io(out.display().to_string(), e);
     let mut w = std::io::BufWriter::new(std::fs::File::create(out).map_err(io)?);
     let name = xml_escape(&format!("rtconf on {}", s.driver));
-    let errors = s.crashes + s.timeouts;
+    let errors = s.crashes + s.timeouts + s.case_errors;
     let head = format!(
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites name=\"{name}\" tests=\"{}\" failures=\"{}\" errors=\"{errors}\">\n  <testsuite name=\"{name}\" tests=\"{}\" failures=\"{}\" errors=\"{errors}\" skipped=\"{}\">\n",
         s.cases,
@@ -173,7 +180,7 @@ pub(crate) fn write_junit(results: &Path, out: &Path, s: &Summary) -> Result<(),
                 format!("><skipped message=\"not-realised: {msg}\"/></testcase>\n")
             }
             Outcome::Fail => format!("><failure message=\"{msg}\"/></testcase>\n"),
-            Outcome::Crash | Outcome::Timeout => {
+            Outcome::Crash | Outcome::Timeout | Outcome::CaseError => {
                 format!("><error message=\"{:?}: {msg}\"/></testcase>\n", r.outcome)
             }
         };

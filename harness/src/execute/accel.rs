@@ -297,6 +297,7 @@ fn failure(e: HarnessError) -> Observation {
     match e {
         HarnessError::NotRealised(reason) => Observation::not_realised(reason),
         HarnessError::DeviceLacks { lack, reason } => Observation::unsupported(lack, reason),
+        HarnessError::OutOfMemory(s) => Observation::out_of_memory(s),
         e => Observation::crash(format!("failed: {e}")),
     }
 }

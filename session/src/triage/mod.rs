@@ -383,7 +383,8 @@ impl Triage {
                 SessionError::Case(model::case::CaseError {
                     path: path.to_string(),
                     location: None,
-                    problem: format!("entries[{i}]: {problem}"),
+                    at: format!("entries[{i}]"),
+                    problem: problem.to_string(),
                 })
             })?;
             t.entries.push(entry);
@@ -394,8 +395,9 @@ impl Triage {
                 return Err(SessionError::Case(model::case::CaseError {
                     path: path.to_string(),
                     location: None,
+                    at: format!("entries[{i}]"),
                     problem: format!(
-                        "entries[{i}]: {} is written twice (give the second a `cases:` or `when:` that tells them apart)",
+                        "{} is written twice (give the second a `cases:` or `when:` that tells them apart)",
                         e.observed.describe()
                     ),
                 }));
