@@ -170,3 +170,39 @@ fn image_layout_rule_names_the_descriptor_types_its_text_lists() {
         "the text does not list combined image samplers: {types:?}"
     );
 }
+
+/// 08606 opens "If the shaderObject feature is not enabled", 08607 "If the shaderObject feature is
+/// enabled": with no pipeline bound, a device without shaderObject violates 08606 only.
+#[test]
+fn no_pipeline_bound_is_08606_without_shader_object_and_08607_with_it() {
+    let set = vk_registry::source::load_vuids(&registry_1_4_309()).expect("the 1.4.309 registry");
+    let rules = RuleSet::from_vuids(&set);
+    let not_enabled = "VUID-vkCmdTraceRaysIndirectKHR-None-08606";
+    let enabled = "VUID-vkCmdTraceRaysIndirectKHR-None-08607";
+    for (v, want) in [(not_enabled, false), (enabled, true)] {
+        let row = rules.row(v).expect("1.4.309 has the VUID");
+        assert_eq!(
+            row.predicate,
+            Some(Predicate::PipelineBoundWhenShaderObject(want)),
+            "{v}"
+        );
+    }
+    let mut c = base();
+    c.as_trace_mut()
+        .unwrap()
+        .world
+        .command_buffer
+        .pipeline_bound = false;
+    let got = vuids(&rules, &c);
+    assert!(got.contains(&not_enabled.to_string()), "{got:?}");
+    assert!(!got.contains(&enabled.to_string()), "{got:?}");
+    c.as_trace_mut()
+        .unwrap()
+        .world
+        .device
+        .features
+        .insert("shaderObject".into());
+    let got = vuids(&rules, &c);
+    assert!(got.contains(&enabled.to_string()), "{got:?}");
+    assert!(!got.contains(&not_enabled.to_string()), "{got:?}");
+}

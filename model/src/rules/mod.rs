@@ -100,10 +100,14 @@ fn hand_rule(scope: &str, tag: &str) -> Option<Predicate> {
             F::RAY_TRACING_ALLOW_MOTION_BIT_NV,
             "rayTracingMotionBlurPipelineTraceRaysIndirect".into(),
         ),
-        // VUID-…-None-02700 / -None-08606: a pipeline is bound.
-        // (-None-08607: with shaderObject enabled, a pipeline or shader objects; ray tracing stages have
-        // no shader objects, so a pipeline must be bound.)
-        "02700" | "08606" | "08607" => Predicate::PipelineBound,
+        // VUID-…-None-02700: a pipeline is bound.
+        "02700" => Predicate::PipelineBound,
+        // VUID-…-None-08606: "If the shaderObject feature is not enabled, a valid pipeline must be bound".
+        "08606" => Predicate::PipelineBoundWhenShaderObject(false),
+        // VUID-…-None-08607: "If the shaderObject feature is enabled, either a valid pipeline … or … shader
+        // objects": ray tracing stages have no shader objects, so a pipeline must be bound — but only where
+        // the feature is enabled.
+        "08607" => Predicate::PipelineBoundWhenShaderObject(true),
         _ => return None,
     })
 }

@@ -58,6 +58,9 @@ pub enum Predicate {
     /// A feature or command-buffer state rule, the same for every command.
     State(StatePredicate),
     PipelineBound,
+    /// A pipeline is bound, judged only where the `shaderObject` feature is enabled (`true`, 08607) or
+    /// not enabled (`false`, 08606): each VUID's text opens with that condition.
+    PipelineBoundWhenShaderObject(bool),
     /// Hand rules that read the launch: see each variant's VUID in `hand.rs`.
     HandlesFromBoundPipeline,
     RecursionWithinPipelineLimit,
@@ -480,6 +483,13 @@ impl Predicate {
             }
             Predicate::PipelineBound => {
                 if world.bound_pipeline().is_none() {
+                    push(fail("commandBuffer", "no ray tracing pipeline is bound"));
+                }
+            }
+            Predicate::PipelineBoundWhenShaderObject(enabled) => {
+                if world.device.feature("shaderObject") == *enabled
+                    && world.bound_pipeline().is_none()
+                {
                     push(fail("commandBuffer", "no ray tracing pipeline is bound"));
                 }
             }
