@@ -474,7 +474,12 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
             plan.command_buffer.pool_queue = q;
             plan.command_buffer.in_video_coding = true;
         }
-        Mutation::NoPipelineBound => {
+        Mutation::NoPipelineBound | Mutation::NoPipelineBoundWithShaderObject => {
+            if m == Mutation::NoPipelineBoundWithShaderObject {
+                plan.device.features.insert("shaderObject".into());
+            } else {
+                plan.device.features.remove("shaderObject");
+            }
             // With nothing bound no handle can have been queried from the bound pipeline; a launch
             // with a zero dimension reads no record, so 03429 cannot apply.
             plan.command_buffer.pipeline_bound = false;

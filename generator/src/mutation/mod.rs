@@ -74,6 +74,8 @@ pub enum Mutation {
     InsideRenderPass,
     InsideVideoCoding,
     NoPipelineBound,
+    /// No pipeline bound on a device with shaderObject enabled (08607 holds only there).
+    NoPipelineBoundWithShaderObject,
     /// Launch dimension `i` above its limit.
     DimensionAboveLimit(u8),
     /// width × height × depth above maxRayDispatchInvocationCount.
@@ -120,7 +122,8 @@ pub fn mutations_for(vuid: &str) -> Option<Mutation> {
         Some(match tag {
             // The same rules under their newer VUIDs (08606/08607: a pipeline is bound; 08608: no
             // dynamic state set that the pipeline has static; 09458: a dynamic stack size was set).
-            "02700" | "08606" | "08607" => Mutation::NoPipelineBound,
+            "02700" | "08606" => Mutation::NoPipelineBound,
+            "08607" => Mutation::NoPipelineBoundWithShaderObject,
             "02859" | "08608" => Mutation::StaticStackSizeSet,
             "02701" | "09458" => Mutation::DynamicStackSizeNotSet,
             "03429" => Mutation::ForeignHandle,
@@ -237,6 +240,9 @@ pub fn supported(m: Mutation, profile: &DeviceProfile, command: CommandId) -> Re
             if !profile.has_extension("VK_NV_ray_tracing_motion_blur") =>
         {
             unsupported("no VK_NV_ray_tracing_motion_blur")
+        }
+        Mutation::NoPipelineBoundWithShaderObject if !profile.has_feature("shaderObject") => {
+            unsupported("shaderObject is not supported, and 08607 holds only with it enabled")
         }
         Mutation::ProtectedResource | Mutation::ProtectedCommandBuffer
             if !profile.has_feature("protectedMemory") =>
