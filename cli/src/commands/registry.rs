@@ -14,15 +14,23 @@ pub enum RegistryCommand {
         /// Only this command's VUIDs.
         #[arg(long)]
         command: Option<String>,
+        /// Print the records (text, condition, origin) as JSON.
         #[arg(long)]
         json: bool,
     },
     /// VUIDs added, removed and changed between two sources.
     Diff {
+        /// The older source: a registry directory, a validusage.json or a man page.
         a: PathBuf,
+        /// The newer source.
         b: PathBuf,
+        /// Only this command's VUIDs.
         #[arg(long)]
         command: Option<String>,
+        /// Leave out VUIDs whose text is unchanged and only their condition (the extensions and
+        /// versions they depend on) differs.
+        #[arg(long)]
+        ignore_conditions: bool,
     },
     /// A command, structure or enum of vk.xml with its attributes.
     Show {
@@ -66,10 +74,19 @@ pub fn run(c: RegistryCommand) -> super::Exit {
             };
             print(&text)
         }
-        RegistryCommand::Diff { a, b, command } => {
+        RegistryCommand::Diff {
+            a,
+            b,
+            command,
+            ignore_conditions,
+        } => {
             let sa = vk_registry::source::load_vuids(&a).map_err(registry_error)?;
             let sb = vk_registry::source::load_vuids(&b).map_err(registry_error)?;
-            print(&vk_registry::report::diff(&sa, &sb, command.as_deref()))
+            let options = vk_registry::report::DiffOptions {
+                command: command.as_deref(),
+                ignore_conditions,
+            };
+            print(&vk_registry::report::diff_with(&sa, &sb, &options))
         }
         RegistryCommand::Show { name, from } => {
             let dir =

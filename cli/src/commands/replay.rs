@@ -8,9 +8,12 @@ use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct ReplayArgs {
+    /// The case file (YAML) of any command.
     case: PathBuf,
+    /// lavapipe, nvidia, or the path of an ICD manifest.
     #[arg(long, default_value = "lavapipe")]
     driver: String,
+    /// Registry sources for the rules (default: the installed registry).
     #[arg(long = "from")]
     from: Vec<PathBuf>,
     /// The device profile the model judges with (default: the case's own).
