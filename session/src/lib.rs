@@ -10,6 +10,7 @@ pub mod baseline;
 pub mod compare;
 pub mod details;
 pub mod error;
+pub mod export;
 pub mod html;
 pub mod merge;
 pub mod plan;

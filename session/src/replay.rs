@@ -27,6 +27,11 @@ pub struct Replayed {
     pub ran: Ran,
     /// For a build whose rays disagree: the named deviation that explains them, if one does.
     pub deviation: Option<String>,
+    /// The device, driver and layer it ran on.
+    pub running_on: harness::RunningOn,
+    /// What the harness made and recorded for it (None when the gate kept it from the driver or the
+    /// harness cannot realise it).
+    pub plan: Option<harness::plan::CallPlan>,
 }
 
 /// Reads a case file (any command) with a located error.
@@ -50,6 +55,13 @@ pub fn replay(case: &Case, config: &ReplayConfig) -> Result<Replayed, SessionErr
     };
     let mut executor = Executor::new(driver)?;
     let ran = judging.run_here(&mut executor, case, config.check);
+    let plan = ran.observation.as_ref().and_then(|_| {
+        let exec = harness::Execution {
+            check: config.check,
+            ..harness::Execution::for_case(case, &profile)
+        };
+        harness::plan::CallPlan::of(case, &exec).ok()
+    });
     let deviation = match (
         ran.case.as_accel(),
         ran.observation.as_ref().and_then(|o| o.traced()),
@@ -57,5 +69,10 @@ pub fn replay(case: &Case, config: &ReplayConfig) -> Result<Replayed, SessionErr
         (Some(a), Some(t)) => model::accel::check::deviation(a, &t.hits),
         _ => None,
     };
-    Ok(Replayed { ran, deviation })
+    Ok(Replayed {
+        ran,
+        deviation,
+        running_on: executor.running_on(),
+        plan,
+    })
 }

@@ -3,6 +3,7 @@
 
 mod check;
 mod coverage;
+mod export;
 mod gen;
 mod merge;
 mod probe;
@@ -51,6 +52,8 @@ enum Command {
     /// One case on a driver with the full comparison.
     #[command(after_help = EXIT_CODES)]
     Replay(replay::ReplayArgs),
+    /// Write a case as a standalone C program (repro.c) for a bug report.
+    Export(export::ExportArgs),
     /// (internal) Run cases read from stdin; used by `run`'s worker processes.
     #[command(hide = true)]
     Worker,
@@ -83,6 +86,7 @@ pub fn main() -> i32 {
         Command::Merge(a) => merge::run(a),
         Command::Report(a) => report::run(a),
         Command::Replay(a) => replay::run(a),
+        Command::Export(a) => export::run(a),
         Command::Worker => Ok(harness::worker::worker_main()),
     };
     match result {

@@ -10,6 +10,7 @@ mod set;
 
 use crate::error::HarnessError;
 use crate::observe::{error_ids, Hits, IndirectBuild, TraceCheck, TracedBuild};
+use crate::plan::build::BuildPlan;
 use crate::realise::accel::{device_for, indirect_args, realise, vk_geometries, vk_info, Realised};
 use crate::realise::scene::{instance_buffer, sized_structure};
 use crate::vk::commands::{memory_barrier, Commands};
@@ -90,6 +91,7 @@ pub(crate) fn direct_and_trace(
     dev: &VkDevice,
     cmds: &Commands,
     case: &AccelBody,
+    plan: &BuildPlan,
     r: &Realised,
     check: TraceCheck,
 ) -> Result<TracedBuild, HarnessError> {
@@ -164,6 +166,7 @@ pub(crate) fn direct_and_trace(
                 dev,
                 cmds,
                 case,
+                plan,
                 r,
                 &ranges,
                 BuildPath::Direct,
@@ -177,6 +180,7 @@ pub(crate) fn direct_and_trace(
                     dev,
                     cmds,
                     case,
+                    plan,
                     r,
                     &ranges,
                     BuildPath::Indirect,
@@ -209,6 +213,7 @@ fn build_and_trace(
     dev: &VkDevice,
     cmds: &Commands,
     case: &AccelBody,
+    plan: &BuildPlan,
     r: &Realised,
     ranges: &[model::accel::RangeInfo],
     path: BuildPath,
@@ -222,13 +227,13 @@ fn build_and_trace(
     let mut extra: Vec<Allocation> = Vec::new();
     let mut extra_as: Vec<vk::AccelerationStructureKHR> = Vec::new();
     let result = (|| -> Result<(Hits, Vec<String>), HarnessError> {
-        let geoms = vk_geometries(info, r)
+        let geoms = vk_geometries(&plan.infos[0], r)
             .ok_or_else(|| HarnessError::Unsupported("geometry type not realised".into()))?;
         inst.collector.clear();
         cmds.begin(dev)?;
         match path {
             BuildPath::Direct => {
-                let vi = vk_info(info, &geoms, r);
+                let vi = vk_info(&plan.infos[0], &geoms, r);
                 let vranges: Vec<vk::AccelerationStructureBuildRangeInfoKHR> = ranges
                     .iter()
                     .map(|x| vk::AccelerationStructureBuildRangeInfoKHR {
@@ -243,7 +248,7 @@ fn build_and_trace(
             }
             BuildPath::Indirect => {
                 let all = [geoms.clone()];
-                let (infos, addrs, maxima) = indirect_args(case, r, &all);
+                let (infos, addrs, maxima) = indirect_args(plan, r, &all);
                 // The range records are read by the build as indirect data.
                 // SAFETY: recording a valid indirect build on a device with accelerationStructureIndirectBuild.
                 unsafe {
@@ -260,7 +265,7 @@ fn build_and_trace(
                         cmds.cb,
                         &infos,
                         &addrs,
-                        &case.call.indirect_strides,
+                        &plan.indirect_strides,
                         &maxima,
                     );
                 }
@@ -278,13 +283,8 @@ fn build_and_trace(
             dst
         } else {
             // One instance (full mask, record offset 0, identity transform) of the built structure.
-            let one = model::world::Instance {
-                geometries: vec![],
-                sbt_record_offset: 0,
-                mask: 0xff,
-                cluster: false,
-            };
-            let ib = instance_buffer(dev, &[one], &[dst_addr], build_input())?;
+            let one = crate::plan::scene::instance_record(0xff, 0, dst_addr);
+            let ib = instance_buffer(dev, &one, build_input())?;
             let g = [vk::AccelerationStructureGeometryKHR::default()
                 .geometry_type(vk::GeometryTypeKHR::INSTANCES)
                 .geometry(vk::AccelerationStructureGeometryDataKHR {
@@ -369,8 +369,9 @@ pub(crate) fn probe_rays(
         .ok_or_else(|| HarnessError::Failed("probing needs a build case".into()))?;
     let dev = device_for(inst, case, check)?;
     let check = resolve_check(&dev, check)?;
+    let plan = BuildPlan::of(case)?;
     let cmds = Commands::new(&dev)?;
-    let r = match realise(&dev, case, cmds.fence) {
+    let r = match realise(&dev, &plan, cmds.fence) {
         Ok(r) => r,
         Err(e) => {
             cmds.destroy(&dev);
@@ -400,6 +401,7 @@ pub(crate) fn probe_rays(
             &dev,
             &cmds,
             case,
+            &plan,
             &r,
             &ranges,
             BuildPath::Direct,
