@@ -11,16 +11,16 @@ mod set;
 use crate::error::HarnessError;
 use crate::observe::{error_ids, Hits, IndirectBuild, TraceCheck, TracedBuild};
 use crate::plan::build::BuildPlan;
+use crate::plan::check::{CheckPlan, BLAS_TRIANGLE, TOP_LEVEL_BLAS};
 use crate::realise::accel::{device_for, indirect_args, realise, vk_geometries, vk_info, Realised};
 use crate::realise::scene::{instance_buffer, sized_structure};
 use crate::vk::commands::{memory_barrier, Commands};
 use crate::vk::memory::Allocation;
 use crate::vk::{VkDevice, VkInstance};
 use ash::vk;
-use model::accel::call::{BuildGeometryInfo, GeometryData};
-use model::accel::check::{expected_rays, ExpectedRay};
-use model::accel::semantics::Shape;
-use model::accel::{AsType, BuiltPrimitive};
+use model::accel::call::GeometryData;
+use model::accel::check::ExpectedRay;
+use model::accel::AsType;
 use model::{AccelBody, Case};
 use std::sync::Arc;
 
@@ -102,17 +102,15 @@ pub(crate) fn direct_and_trace(
     let accel = accel_of(dev)?;
     let info = &case.call.infos[0];
     let top = info.ty == AsType::TopLevel;
-    let (ranges, prims) = first_build(case)?;
+    let check_plan = CheckPlan::of(case)?;
+    let ranges = check_plan.ranges.clone();
     let mut extra: Vec<Allocation> = Vec::new();
     let result =
         (|| -> Result<TracedBuild, HarnessError> {
             // Top-level cases reference the BLAS: build it first (one triangle at the origin).
             if top {
-                let tri: Vec<u8> = [-0.5f32, -0.5, 0.0, 0.5, -0.5, 0.0, 0.0, 0.5, 0.0]
-                    .iter()
-                    .flat_map(|f| f.to_le_bytes())
-                    .collect();
-                let (blas, _) = r.structures.get(generator_blas()).copied().ok_or_else(|| {
+                let tri: Vec<u8> = BLAS_TRIANGLE.iter().flat_map(|f| f.to_le_bytes()).collect();
+                let (blas, _) = r.structures.get(TOP_LEVEL_BLAS).copied().ok_or_else(|| {
                     HarnessError::Failed("the top-level case has no `blas` structure".into())
                 })?;
                 let vb = Allocation::filled(dev, &tri, 64, build_input(), 256)?;
@@ -159,8 +157,8 @@ pub(crate) fn direct_and_trace(
                 extra.push(vb);
                 extra.push(scratch);
             }
-            let rays = expected_rays(&prims, top);
-            let boxes = box_table(info, &prims);
+            let rays = &check_plan.rays;
+            let boxes = &check_plan.boxes;
             let (hits, direct) = build_and_trace(
                 inst,
                 dev,
@@ -171,8 +169,8 @@ pub(crate) fn direct_and_trace(
                 &ranges,
                 BuildPath::Direct,
                 check,
-                &rays,
-                &boxes,
+                rays,
+                boxes,
             )?;
             let indirect = if dev.has_feature("accelerationStructureIndirectBuild") {
                 let (hits, layer_vuids) = build_and_trace(
@@ -185,8 +183,8 @@ pub(crate) fn direct_and_trace(
                     &ranges,
                     BuildPath::Indirect,
                     check,
-                    &rays,
-                    &boxes,
+                    rays,
+                    boxes,
                 )?;
                 Some(IndirectBuild { hits, layer_vuids })
             } else {
@@ -331,30 +329,6 @@ fn build_and_trace(
     result
 }
 
-fn generator_blas() -> &'static str {
-    "blas"
-}
-
-/// Per-geometry base indices (8 slots) and the boxes of every AABB primitive, as floats.
-fn box_table(info: &BuildGeometryInfo, prims: &[BuiltPrimitive]) -> Vec<u8> {
-    let mut base = [0u32; 8];
-    let mut boxes: Vec<f32> = Vec::new();
-    let mut n = 0u32;
-    for (g, slot) in base.iter_mut().enumerate().take(info.geometries.len()) {
-        *slot = n;
-        for p in prims.iter().filter(|p| p.geometry == g as u32) {
-            if let Shape::Aabb { min, max } = &p.shape {
-                boxes.extend([min[0], min[1], min[2], 0.0, max[0], max[1], max[2], 0.0]);
-                n += 1;
-            }
-        }
-    }
-    let mut bytes: Vec<u8> = base.iter().flat_map(|b| b.to_le_bytes()).collect();
-    bytes.extend(boxes.iter().flat_map(|f| f.to_le_bytes()));
-    bytes.resize(bytes.len().max(64), 0);
-    bytes
-}
-
 /// What the device built for a case, seen through arbitrary rays: the case's first info built directly
 /// with the ranges the model reads from memory, then one ray (+z, t in [0, 100]) from each origin. For
 /// writing down what a driver built where no named deviation explains it.
@@ -387,15 +361,7 @@ pub(crate) fn probe_rays(
         if info.ty != AsType::BottomLevel {
             return HarnessError::unsupported("probing handles bottom-level builds");
         }
-        let (ranges, prims) = first_build(case)?;
-        let rays: Vec<ExpectedRay> = origins
-            .iter()
-            .map(|o| ExpectedRay {
-                origin: *o,
-                hit: None,
-            })
-            .collect();
-        let boxes = box_table(info, &prims);
+        let probe = CheckPlan::probe(case, origins)?;
         let (hits, _) = build_and_trace(
             inst,
             &dev,
@@ -403,11 +369,11 @@ pub(crate) fn probe_rays(
             case,
             &plan,
             &r,
-            &ranges,
+            &probe.ranges,
             BuildPath::Direct,
             check,
-            &rays,
-            &boxes,
+            &probe.rays,
+            &probe.boxes,
         )?;
         Ok(hits)
     })();
@@ -429,19 +395,7 @@ fn accel_of(dev: &VkDevice) -> Result<&ash::khr::acceleration_structure::Device,
         .ok_or_else(|| HarnessError::Failed("no acceleration structure extension".into()))
 }
 
-/// The ranges the case's first info reads from memory and the primitives the model builds from them.
-fn first_build(
-    case: &AccelBody,
-) -> Result<(Vec<model::accel::RangeInfo>, Vec<BuiltPrimitive>), HarnessError> {
-    let info = case
-        .call
-        .infos
-        .first()
-        .ok_or_else(|| HarnessError::Failed("no build info".into()))?;
-    let mem = case.world.memory();
-    let ranges =
-        model::accel::indirect_ranges(&mem, &case.call, 0).map_err(HarnessError::failed)?;
-    let prims =
-        model::accel::build_primitives(&mem, info, &ranges).map_err(HarnessError::failed)?;
-    Ok((ranges, prims))
+/// The SPIR-V of the ray query check's compute shader.
+pub(crate) fn ray_query_spirv() -> Result<Vec<u32>, HarnessError> {
+    ray_query::compile_trace_shader()
 }

@@ -6,6 +6,7 @@
 //! program; `rtconf replay` prints its steps. A case has one description of what runs.
 
 pub mod build;
+pub mod check;
 pub mod device;
 pub mod pipeline;
 pub mod scene;
