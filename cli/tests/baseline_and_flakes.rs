@@ -3,6 +3,7 @@
 //! expected failure, a passing case the baseline expects to fail is an unexpected pass; the statuses
 //! reach results.jsonl, summary.json, junit.xml and the console, and only failures go to `failures/`.
 
+#[path = "common/folders.rs"]
 mod common;
 
 use common::{case_as, fresh_dir, results, rtconf, summary, text};

@@ -3,6 +3,7 @@
 //! program's verdict — the VUIDs the layer reported, whether the output is the model's — equals
 //! `rtconf replay`'s, and its exit status says whether driver and layer did what the model expects.
 
+#[path = "common/folders.rs"]
 mod common;
 
 use common::{fresh_dir, rtconf, text};

@@ -5,6 +5,7 @@
 //! not pass has its section (violations, the layer's messages in full, triage, replay command), and a
 //! screenshot is kept in `target/tmp/report-browser/`.
 
+#[path = "common/folders.rs"]
 mod common;
 
 use common::{case_as, fresh_dir, rtconf, summary, text};

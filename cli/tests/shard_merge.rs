@@ -3,6 +3,7 @@
 //! with the same totals, a case list that is the union of the shards', and the merged JUnit and report;
 //! a shard left out shows as missing cases.
 
+#[path = "common/folders.rs"]
 mod common;
 
 use common::{fresh_dir, results, rtconf, summary, text};

@@ -46,7 +46,11 @@ pub(crate) fn emit(
             .ok_or_else(|| format!("the call names a buffer the world lacks: {a:?}"))
     };
     for (k, buf) in b.buffers.iter().enumerate() {
-        c::bytes(e, &format!("image_{k}"), c::trimmed(&buf.image));
+        for (j, run) in buf.image.iter().enumerate() {
+            if !c::trimmed(&run.bytes).is_empty() {
+                c::bytes(e, &format!("image_{k}_{j}"), c::trimmed(&run.bytes));
+            }
+        }
     }
     e.line("");
     e.open("int main(void) {");
@@ -132,9 +136,15 @@ pub(crate) fn emit(
         if buf.memory != MemoryBinding::Whole {
             continue;
         }
-        e.line(&format!(
-            "write_image(&world[{k}], image_{k}, sizeof image_{k});"
-        ));
+        e.line(&format!("write_image(&world[{k}], NULL, 0);"));
+        for (j, run) in buf.image.iter().enumerate() {
+            if !c::trimmed(&run.bytes).is_empty() {
+                e.line(&format!(
+                    "write_bytes(&world[{k}], {}ull, image_{k}_{j}, sizeof image_{k}_{j});",
+                    run.offset
+                ));
+            }
+        }
         for r in &buf.relocations {
             let value = match &r.target {
                 AddressOf::Buffer { name, offset } => match names.iter().position(|n| n == name) {

@@ -344,10 +344,14 @@ HELPER void write_bytes(struct buffer *b, VkDeviceSize offset, const void *bytes
     flush(b);
 }
 
-/* A memory image: the buffer zeroed, then its first `n` bytes (the rest of the image is zeros). */
+/* A memory image: the buffer zeroed, then its first `n` bytes (none: only zeroed; the runs a case
+   writes further on follow with write_bytes). */
 HELPER void write_image(struct buffer *b, const void *bytes, size_t n) {
     memset(b->map, 0, (size_t)b->size);
-    write_bytes(b, 0, bytes, n);
+    if (n)
+        write_bytes(b, 0, bytes, n);
+    else
+        flush(b);
 }
 
 HELPER void write_u64(struct buffer *b, VkDeviceSize offset, uint64_t value, size_t n) {

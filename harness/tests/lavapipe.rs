@@ -49,7 +49,7 @@ fn check(ctx: &mut Executor, case: &Case, expect_vuids: &[&str]) {
             .expect("dimensions are known");
         assert_eq!(
             obs.words(),
-            Some(expected.words.as_slice()),
+            Some(expected.words().as_slice()),
             "{}",
             case.name
         );
@@ -162,7 +162,7 @@ fn callables_and_extra_recursion_run_silently_and_as_the_model_expects() {
     );
     let expected = model::semantics::expected_launch(&body(&case).world, &body(&case).call)
         .expect("direct dimensions");
-    assert_eq!(obs.words(), Some(expected.words.as_slice()));
+    assert_eq!(obs.words(), Some(expected.words().as_slice()));
     // The nested traces use their own payload: the outer word is still the first closest-hit's.
     let h = model::semantics::HIT_TAG;
     let m = model::semantics::MISS_TAG;

@@ -68,7 +68,7 @@ fn crashes_and_hangs_cost_one_case_each() {
     let expected =
         model::semantics::expected_launch(&common::body(&valid).world, &common::body(&valid).call)
             .unwrap()
-            .words;
+            .words();
     for i in [0, 2, 5] {
         assert_eq!(
             results[i].observation.status,

@@ -14,11 +14,62 @@ pub const MISS_TAG: u32 = 0x0001_0000;
 /// High half of the output word written by a closest-hit shader of group `g`: `HIT_TAG | g`.
 pub const HIT_TAG: u32 = 0x0002_0000;
 
-/// The expected output of a valid launch: one word per launch ID, x fastest.
+/// The expected output of a valid launch: one word per launch ID, x fastest. Launch ID `id` traces ray
+/// `id % rays`, so the output repeats with the rays' period and is held as one word per ray: the model
+/// never allocates from the stated dimensions (an indirect command may state 2^96 invocations).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ExpectedLaunch {
     pub dimensions: [u32; 3],
-    pub words: Vec<u32>,
+    /// The word of each ray; a single [`UNTOUCHED`] when the launch traces none.
+    pub per_ray: Vec<u32>,
+}
+
+/// How a launch's output read back differs from the model's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutputDifference {
+    /// Another number of words than launch IDs.
+    Length { got: u64, expected: u64 },
+    /// The first launch ID whose word is not the model's.
+    Word { id: u64, got: u32, expected: u32 },
+}
+
+impl ExpectedLaunch {
+    /// The number of launch IDs (saturating at u64::MAX).
+    pub fn invocations(&self) -> u64 {
+        self.dimensions
+            .iter()
+            .map(|&d| d as u64)
+            .fold(1, u64::saturating_mul)
+    }
+
+    /// The word launch ID `id` writes.
+    pub fn word(&self, id: u64) -> u32 {
+        self.per_ray[(id % self.per_ray.len() as u64) as usize]
+    }
+
+    /// How `got` (one word per launch ID, as read back) differs from the expected output: its length,
+    /// or the first launch ID whose word is not the model's; None when it is the expected output.
+    pub fn difference(&self, got: &[u32]) -> Option<OutputDifference> {
+        if got.len() as u64 != self.invocations() {
+            return Some(OutputDifference::Length {
+                got: got.len() as u64,
+                expected: self.invocations(),
+            });
+        }
+        got.iter()
+            .enumerate()
+            .find(|(id, w)| **w != self.word(*id as u64))
+            .map(|(id, w)| OutputDifference::Word {
+                id: id as u64,
+                got: *w,
+                expected: self.word(id as u64),
+            })
+    }
+
+    /// Every word, materialised: for launches as small as an output read back from a device.
+    pub fn words(&self) -> Vec<u32> {
+        (0..self.invocations()).map(|id| self.word(id)).collect()
+    }
 }
 
 /// The miss record a ray reaches (`missIndex & 0xFFFF`, semantics.md §6).
@@ -33,18 +84,23 @@ pub fn hit_record(instance_offset: u32, geometry: u32, sbt_offset: u32, sbt_stri
         + (sbt_offset & 0xF) as u64
 }
 
+/// `base + stride * index`: where a record starts, or None past u64::MAX (where no buffer reaches).
+fn at_record(base: u64, stride: u64, index: u64) -> Option<u64> {
+    stride.checked_mul(index)?.checked_add(base)
+}
+
 /// The handle a table's record holds: (buffer, offset) resolved through the call's region or NV table.
 pub fn record_handle(world: &World, call: &Call, table: Table, index: u64) -> Option<HandleRef> {
     match call {
         Call::TraceRaysNv(_) => {
             let t = call.nv_table(table)?;
             let stride = if table == Table::Raygen { 0 } else { t.stride };
-            world.handle_at(t.buffer.as_deref()?, t.offset + stride * index)
+            world.handle_at(t.buffer.as_deref()?, at_record(t.offset, stride, index)?)
         }
         _ => {
             let r = call.region(table)?;
             let (b, off) = r.address.buffer()?;
-            world.handle_at(b, off + r.stride * index)
+            world.handle_at(b, at_record(off, r.stride, index)?)
         }
     }
 }
@@ -200,12 +256,17 @@ pub fn undefined_reads(handle_size: u64, world: &World, call: &Call) -> Vec<Stri
                     continue;
                 };
                 let stride = if table == Table::Raygen { 0 } else { t.stride };
-                let end = t.offset + stride * index + handle_size;
+                let end =
+                    at_record(t.offset, stride, index).and_then(|a| a.checked_add(handle_size));
                 match t.buffer.as_deref().and_then(|b| world.buffer(b)) {
-                    None => out.push(format!("{table:?} record {index} is read but the table has no buffer")),
-                    Some(b) if end > b.size => out.push(format!(
-                        "{table:?} record {index} ends at byte {end}, past the end of `{}` ({} bytes)",
-                        b.name, b.size
+                    None => out.push(format!(
+                        "{table:?} record {index} is read but the table has no buffer"
+                    )),
+                    Some(b) if end.is_none_or(|end| end > b.size) => out.push(format!(
+                        "{table:?} record {index} ends at byte {}, past the end of `{}` ({} bytes)",
+                        end.map_or("past u64::MAX".into(), |e| e.to_string()),
+                        b.name,
+                        b.size
                     )),
                     Some(_) => {}
                 }
@@ -218,12 +279,19 @@ pub fn undefined_reads(handle_size: u64, world: &World, call: &Call) -> Vec<Stri
                     out.push(format!(
                         "{table:?} record {index} is read but the region's address is null"
                     ));
-                } else if r.stride * index + handle_size > r.size {
-                    out.push(format!(
-                        "{table:?} record {index} ends at byte {} of the region, past its size {}",
-                        r.stride * index + handle_size,
-                        r.size
-                    ));
+                } else {
+                    let end =
+                        at_record(0, r.stride, index).and_then(|a| a.checked_add(handle_size));
+                    match end {
+                        Some(end) if end <= r.size => {}
+                        Some(end) => out.push(format!(
+                            "{table:?} record {index} ends at byte {end} of the region, past its size {}",
+                            r.size
+                        )),
+                        None => out.push(format!(
+                            "{table:?} record {index} ends past byte u64::MAX of the region"
+                        )),
+                    }
                 }
             }
         }
@@ -233,20 +301,15 @@ pub fn undefined_reads(handle_size: u64, world: &World, call: &Call) -> Vec<Stri
 
 /// The expected output words of a valid call, or None when the dimensions are not known.
 pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
-    let dims = call.dimensions(world)?;
-    let n = dims.iter().map(|&d| d as usize).product::<usize>();
+    let dimensions = call.dimensions(world)?;
     let rays = world.launch.rays.len();
-    let words = (0..n)
-        .map(|id| {
-            if rays == 0 {
-                UNTOUCHED
-            } else {
-                word_for_ray(world, call, id % rays)
-            }
-        })
-        .collect();
+    let per_ray = if rays == 0 {
+        vec![UNTOUCHED]
+    } else {
+        (0..rays).map(|r| word_for_ray(world, call, r)).collect()
+    };
     Some(ExpectedLaunch {
-        dimensions: dims,
-        words,
+        dimensions,
+        per_ray,
     })
 }

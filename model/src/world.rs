@@ -291,7 +291,7 @@ impl Launch {
         if self.rays.is_empty() && self.callables.is_empty() {
             0
         } else {
-            1 + self.extra_recursion
+            self.extra_recursion.saturating_add(1)
         }
     }
 }

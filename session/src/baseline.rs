@@ -46,10 +46,12 @@ pub enum Status {
     Flake,
     /// Planned for the run (in `caselist.txt`) but without a result.
     Missing,
+    /// The case is at fault, not the driver (never expected by a baseline: fix the case).
+    CaseError,
 }
 
 impl Status {
-    pub const ALL: [Status; 10] = [
+    pub const ALL: [Status; 11] = [
         Status::Pass,
         Status::Triaged,
         Status::Skip,
@@ -60,6 +62,7 @@ impl Status {
         Status::UnexpectedPass,
         Status::Flake,
         Status::Missing,
+        Status::CaseError,
     ];
 
     /// Whether this status makes a run fail (its exit status).
@@ -71,6 +74,7 @@ impl Status {
                 | Status::Timeout
                 | Status::UnexpectedPass
                 | Status::Missing
+                | Status::CaseError
         )
     }
 
@@ -87,6 +91,7 @@ impl Status {
             Status::UnexpectedPass => "unexpected-pass",
             Status::Flake => "flake",
             Status::Missing => "missing",
+            Status::CaseError => "case-error",
         }
     }
 
@@ -103,6 +108,7 @@ impl Status {
             Status::UnexpectedPass => "the baseline expects a failure and the case passed",
             Status::Flake => "changed outcome when run again, or on the flakes list",
             Status::Missing => "planned but without a result",
+            Status::CaseError => "the case is at fault, not the driver",
         }
     }
 }
@@ -323,6 +329,7 @@ impl Expectations {
             Outcome::Pass => Status::Pass,
             Outcome::Triaged => Status::Triaged,
             Outcome::Unsupported => Status::Skip,
+            Outcome::CaseError => Status::CaseError,
         }
     }
 }

@@ -22,12 +22,20 @@ pub enum Outcome {
     Unsupported,
     Crash,
     Timeout,
+    /// The case is at fault, not the driver: it is not a case (a name resolving to nothing, a group
+    /// the pipeline lacks), it is not runnable, the model disagrees with its intent, or it asks for
+    /// more memory than the driver gives within the profile's limits. Never run where that is known
+    /// first; the detail says where in the case (a YAML path) and what.
+    CaseError,
 }
 
 impl Outcome {
     /// Whether the outcome makes a run fail (the exit status) and its case worth keeping.
     pub fn is_unexpected(self) -> bool {
-        matches!(self, Outcome::Fail | Outcome::Crash | Outcome::Timeout)
+        matches!(
+            self,
+            Outcome::Fail | Outcome::Crash | Outcome::Timeout | Outcome::CaseError
+        )
     }
 }
 
@@ -72,12 +80,26 @@ impl CaseReport {
     }
 }
 
-/// The report of a valid case that is not run because it is not runnable (undefined reads the driver
-/// may crash on): a generator or case-file bug, reported as a failure.
+/// The report of a case that is not run because it is not runnable (undefined reads the driver may
+/// crash on, a build the model gives no meaning): an error of the case (a generator or case-file bug).
 pub(crate) fn not_runnable(case: &Case, why: &model::NotRunnable) -> CaseReport {
+    case_error(case, &why.at, &format!("not run: {why}"))
+}
+
+/// The report of a case the profile says the device cannot realise: `at` is the YAML path of what.
+pub(crate) fn not_realisable(case: &Case, at: &str, why: &str) -> CaseReport {
     CaseReport {
-        outcome: Outcome::Fail,
-        detail: format!("not run: {why}"),
+        outcome: Outcome::Unsupported,
+        detail: format!("{at}: {why}"),
+        ..CaseReport::new(case, 0.0)
+    }
+}
+
+/// The report of a case that is at fault: `at` is the YAML path of what is wrong.
+pub(crate) fn case_error(case: &Case, at: &str, problem: &str) -> CaseReport {
+    CaseReport {
+        outcome: Outcome::CaseError,
+        detail: format!("{at}: {problem}"),
         ..CaseReport::new(case, 0.0)
     }
 }
@@ -123,6 +145,15 @@ pub fn compare(
     report.layer = layer.clone();
     report.layer_other = layer_other;
     match &obs.status {
+        Status::OutOfMemory { message } => {
+            // The profile's limits allow the case's buffers (the gate checked): the case asks for
+            // more memory at once than the driver gives, which is the case's to change.
+            report.outcome = Outcome::CaseError;
+            report.detail = format!(
+                "world.buffers: not realised: the driver ran out of memory ({message}) for buffers within the profile's limits"
+            );
+            return report;
+        }
         Status::Unsupported { reason } => {
             report.outcome = Outcome::Unsupported;
             report.detail = reason.clone();
@@ -142,6 +173,8 @@ pub fn compare(
     }
     let mut problems = Vec::new();
     let mut triaged = Vec::new();
+    // Where the model disagrees with the case's own intent, the case (or its generator) is wrong.
+    let mut of_the_case = Vec::new();
     let m: BTreeSet<&String> = model.iter().collect();
     let l: BTreeSet<&String> = layer.iter().collect();
     for v in m.symmetric_difference(&l) {
@@ -162,8 +195,8 @@ pub fn compare(
         };
         let extra: Vec<&String> = model.iter().filter(|v| !unavoidable.contains(v)).collect();
         if !extra.is_empty() {
-            problems.push(format!(
-                "the model judges this valid-by-construction case invalid: {}",
+            of_the_case.push(format!(
+                "intent: the model judges this valid-by-construction case invalid: {}",
                 extra
                     .iter()
                     .map(|s| s.as_str())
@@ -180,7 +213,7 @@ pub fn compare(
         match &case.body {
             Body::Trace(t) => {
                 if let Some(expected) = model::semantics::expected_launch(&t.world, &t.call) {
-                    let ok = compare_words(obs.words(), &expected.words, &mut problems);
+                    let ok = compare_words(obs.words(), &expected, &mut problems);
                     report.output_matches = ok;
                 }
             }
@@ -192,8 +225,18 @@ pub fn compare(
         }
     } else if let Some(t) = &report.target {
         if !m.contains(t) {
-            problems.push(format!("the model does not report the target {t}"));
+            of_the_case.push(format!("intent: the model does not report the target {t}"));
         }
+    }
+    if !of_the_case.is_empty() {
+        report.outcome = Outcome::CaseError;
+        report.detail = of_the_case
+            .into_iter()
+            .chain(problems)
+            .chain(triaged)
+            .collect::<Vec<_>>()
+            .join("; ");
+        return report;
     }
     conclude(report, problems, triaged)
 }
@@ -201,29 +244,27 @@ pub fn compare(
 /// The launch's words against the model's; Some(whether they match) when words were read back.
 fn compare_words(
     got: Option<&[u32]>,
-    expected: &[u32],
+    expected: &model::semantics::ExpectedLaunch,
     problems: &mut Vec<String>,
 ) -> Option<bool> {
     let Some(words) = got else {
         problems.push("no output was read back".into());
         return None;
     };
-    let ok = words == expected;
-    if !ok {
-        let first = words.iter().zip(expected).position(|(a, b)| a != b);
-        problems.push(match first {
-            Some(i) => format!(
-                "output word {i}: driver 0x{:08x}, model 0x{:08x}",
-                words[i], expected[i]
-            ),
-            None => format!(
-                "output has {} words, model expects {}",
-                words.len(),
-                expected.len()
-            ),
-        });
+    use model::semantics::OutputDifference;
+    match expected.difference(words) {
+        None => Some(true),
+        Some(OutputDifference::Word { id, got, expected }) => {
+            problems.push(format!(
+                "output word {id}: driver 0x{got:08x}, model 0x{expected:08x}"
+            ));
+            Some(false)
+        }
+        Some(OutputDifference::Length { got, expected }) => {
+            problems.push(format!("output has {got} words, model expects {expected}"));
+            Some(false)
+        }
     }
-    Some(ok)
 }
 
 /// The rays traced at what the device built against the model's primitives: a mismatch is a failure

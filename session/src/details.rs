@@ -29,11 +29,18 @@ pub fn folder_of(outcome: Outcome, status: Status) -> Option<&'static str> {
         Outcome::Triaged => Some("triaged"),
         Outcome::Unsupported => Some("unsupported"),
         Outcome::Fail | Outcome::Crash | Outcome::Timeout => Some("failures"),
+        Outcome::CaseError => Some("case-errors"),
     }
 }
 
 /// Every folder [`folder_of`] names.
-pub const CASE_FOLDERS: [&str; 4] = ["failures", "triaged", "unsupported", "unexpected-passes"];
+pub const CASE_FOLDERS: [&str; 5] = [
+    "failures",
+    "triaged",
+    "unsupported",
+    "unexpected-passes",
+    "case-errors",
+];
 
 /// Where a run keeps a case's file, when it keeps one.
 pub fn case_path(out: &Path, report: &CaseReport, status: Status) -> Option<PathBuf> {
@@ -45,20 +52,30 @@ pub fn details_path(out: &Path, case: &str) -> PathBuf {
     out.join("details").join(format!("{case}.json"))
 }
 
-/// Writes what a run keeps of a case that did not pass (nothing for a pass).
-pub fn keep(out: &Path, case: &Case, report: &CaseReport, status: Status, details: &CaseDetails) {
+/// Writes what a run keeps of a case that did not pass (nothing for a pass): each file whole or not
+/// at all. The first file that could not be written, with its error.
+pub fn keep(
+    out: &Path,
+    case: &Case,
+    report: &CaseReport,
+    status: Status,
+    details: &CaseDetails,
+) -> Result<(), (PathBuf, std::io::Error)> {
     let Some(path) = case_path(out, report, status) else {
-        return;
+        return Ok(());
     };
-    if let Some(dir) = path.parent() {
-        let _ = std::fs::create_dir_all(dir);
-    }
-    let _ = std::fs::write(&path, case.to_yaml());
     let d = details_path(out, &case.name);
-    if let Some(dir) = d.parent() {
-        let _ = std::fs::create_dir_all(dir);
+    let details = serde_json::to_string(details).unwrap_or_default();
+    for (file, bytes) in [
+        (&path, case.to_yaml().into_bytes()),
+        (&d, details.into_bytes()),
+    ] {
+        if let Some(dir) = file.parent() {
+            std::fs::create_dir_all(dir).map_err(|e| (dir.to_path_buf(), e))?;
+        }
+        crate::outdir::write_atomically(file, &bytes).map_err(|e| (file.clone(), e))?;
     }
-    let _ = std::fs::write(d, serde_json::to_string(details).unwrap_or_default());
+    Ok(())
 }
 
 /// Reads a case's details back (None when the run kept none).

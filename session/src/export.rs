@@ -33,7 +33,7 @@ pub fn export(case: &Case, from: &[PathBuf], out: &Path) -> Result<Exported, Ses
         .as_trace()
         .filter(|_| exec.run_valid)
         .and_then(|t| model::semantics::expected_launch(&t.world, &t.call))
-        .map(|l| l.words);
+        .map(|l| l.words());
     let mut about = vec![
         format!(
             "intent: {}",

@@ -41,6 +41,8 @@ pub struct Summary {
     pub unsupported: usize,
     pub crashes: usize,
     pub timeouts: usize,
+    /// Cases at fault themselves (`case-error`): not run, or disagreeing with the model about their intent.
+    pub case_errors: usize,
     /// Cases per status against the baseline (every status, zeros included).
     pub statuses: BTreeMap<Status, usize>,
     /// Cases of the plan the skips list kept from running.
@@ -145,10 +147,11 @@ pub fn summarise(
             Outcome::Unsupported => s.unsupported += 1,
             Outcome::Crash => s.crashes += 1,
             Outcome::Timeout => s.timeouts += 1,
+            Outcome::CaseError => s.case_errors += 1,
         }
         if matches!(
             r.outcome,
-            Outcome::Unsupported | Outcome::Crash | Outcome::Timeout
+            Outcome::Unsupported | Outcome::Crash | Outcome::Timeout | Outcome::CaseError
         ) {
             continue;
         }
@@ -272,9 +275,9 @@ fn junit_body(line: &ResultLine) -> String {
         Status::Fail | Status::UnexpectedPass => body.push_str(&format!(
             "      <failure type=\"{status}\" message=\"{msg}\"/>\n"
         )),
-        Status::Crash | Status::Timeout | Status::Missing => body.push_str(&format!(
-            "      <error type=\"{status}\" message=\"{msg}\"/>\n"
-        )),
+        Status::Crash | Status::Timeout | Status::Missing | Status::CaseError => body.push_str(
+            &format!("      <error type=\"{status}\" message=\"{msg}\"/>\n"),
+        ),
     }
     format!(">{body}    </testcase>\n")
 }
@@ -288,6 +291,7 @@ pub fn outcome_name(o: Outcome) -> &'static str {
         Outcome::Unsupported => "unsupported",
         Outcome::Crash => "crash",
         Outcome::Timeout => "timeout",
+        Outcome::CaseError => "case-error",
     }
 }
 
@@ -302,7 +306,10 @@ pub fn write_junit(results: &Path, out: &Path, s: &Summary) -> Result<(), Sessio
     });
     let tests = s.cases + s.missing.len();
     let failures = s.count(Status::Fail) + s.count(Status::UnexpectedPass);
-    let errors = s.count(Status::Crash) + s.count(Status::Timeout) + s.count(Status::Missing);
+    let errors = s.count(Status::Crash)
+        + s.count(Status::Timeout)
+        + s.count(Status::Missing)
+        + s.count(Status::CaseError);
     let skipped = s.count(Status::Skip);
     let head = format!(
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites name=\"{name}\" tests=\"{tests}\" failures=\"{failures}\" errors=\"{errors}\">\n  <testsuite name=\"{name}\" tests=\"{tests}\" failures=\"{failures}\" errors=\"{errors}\" skipped=\"{skipped}\" time=\"{:.3}\">\n",

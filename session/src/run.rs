@@ -5,20 +5,19 @@
 //! baseline); then `summary.json`, `junit.xml`, the HTML report, and shrunk regressions when asked.
 
 use crate::baseline::{Expectations, Status};
-use crate::compare::{as_run, compare, not_runnable, CaseReport, Outcome};
+use crate::compare::{as_run, compare, CaseReport, Outcome};
 use crate::details::{keep, CaseDetails};
 use crate::error::SessionError;
 use crate::plan::{plan, Scope};
-use crate::report::{reports, summarise, write_junit, RunIdentity, Summary};
+use crate::report::{summarise, write_junit, RunIdentity, Summary};
 use crate::results::{applied_triage, ResultLine};
 use crate::select::Selection;
 use crate::sources;
 use crate::triage::Triage;
 use harness::{Driver, Execution, Request, Response};
 use model::{Case, DeviceProfile, RuleSet, Verdict};
-use std::collections::BTreeSet;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Duration;
 
 /// Everything a run is asked to do.
@@ -57,6 +56,8 @@ pub trait Progress {
     fn advance(&self, n: u64);
     /// A case got its status (after any retries).
     fn status(&self, _status: Status) {}
+    /// What each `--vuid` pattern expanded to, before anything is generated.
+    fn selected(&self, _expanded: &[crate::names::Expanded]) {}
 }
 
 /// A progress display that shows nothing.
@@ -83,9 +84,10 @@ pub struct RunOutcome {
 
 impl RunOutcome {
     /// The exit status of the run: non-zero for any status that is a failure (fail, crash, timeout,
-    /// unexpected pass, missing) or a generator error.
+    /// case error, unexpected pass, missing), a generator error, and a run that made no case.
     pub fn exit_code(&self) -> i32 {
-        if self.summary.unexpected() > 0 || !self.gen_errors.is_empty() {
+        // A run that made no case checked nothing: never a pass.
+        if self.summary.unexpected() > 0 || !self.gen_errors.is_empty() || self.summary.cases == 0 {
             1
         } else {
             0
@@ -138,7 +140,7 @@ pub struct Ran {
 }
 
 impl Judging<'_> {
-    /// Runs one case on `executor` and judges it: the gate ([`Case::runnable`]), the execution (for
+    /// Runs one case on `executor` and judges it: the gate (the case's own errors, [`Case::runnable`]), the execution (for
     /// real when the case runs as valid; a build's rays traced as `check` says), the verdict on the
     /// case as it ran, and the comparison.
     pub fn run_here(
@@ -147,12 +149,12 @@ impl Judging<'_> {
         case: &Case,
         check: harness::TraceCheck,
     ) -> Ran {
-        if let Err(why) = case.runnable(self.profile) {
+        if let Some(report) = crate::gate::gate(case, self) {
             return Ran {
                 case: case.clone(),
                 verdict: model::validate(self.rules, self.profile, case),
                 observation: None,
-                report: not_runnable(case, &why),
+                report,
             };
         }
         let exec = Execution {
@@ -181,13 +183,65 @@ impl Judging<'_> {
     }
 }
 
+impl Judging<'_> {
+    /// Runs one case in a worker process (`rtconf worker`, the driver named by
+    /// [`harness::worker::DRIVER_ENV`]) as a run does, and judges it: the gate, the execution, the
+    /// verdict on the case as it ran, the comparison. A driver that kills or hangs the worker gives the
+    /// case's `crash` or `timeout`, as in a run.
+    pub fn run_in_worker(&self, case: &Case, check: harness::TraceCheck, timeout: Duration) -> Ran {
+        if let Some(report) = crate::gate::gate(case, self) {
+            return Ran {
+                case: case.clone(),
+                verdict: model::validate(self.rules, self.profile, case),
+                observation: None,
+                report,
+            };
+        }
+        let request = Request {
+            index: 0,
+            execution: Execution {
+                check,
+                ..Execution::for_case(case, self.profile)
+            },
+            case: case.clone(),
+        };
+        let mut response = None;
+        harness::run_in_workers(std::slice::from_ref(&request), 1, timeout, |r| {
+            response = Some(r)
+        });
+        let resp = response.unwrap_or_else(|| Response {
+            index: 0,
+            name: case.name.clone(),
+            observation: harness::Observation::crash("the worker gave no result"),
+            millis: 0.0,
+        });
+        let ran = as_run(case, &resp.observation).into_owned();
+        let verdict = self.rules.judge(self.profile, &ran.body);
+        let report = compare(
+            &ran,
+            self.profile,
+            &verdict,
+            &resp.observation,
+            self.triage,
+            resp.millis,
+        );
+        Ran {
+            case: ran,
+            observation: Some(resp.observation),
+            verdict,
+            report,
+        }
+    }
+}
+
 /// Where a run writes: `results.jsonl` (appended and flushed per case), the case files of the cases that
 /// did not pass and their details.
 struct Sink<'a> {
     out: PathBuf,
     results_path: PathBuf,
     results: std::fs::File,
-    error: Option<std::io::Error>,
+    /// The first write that failed: the file and the error.
+    error: Option<(PathBuf, std::io::Error)>,
     expectations: &'a Expectations,
     triage: &'a Triage,
     progress: &'a dyn Progress,
@@ -195,7 +249,8 @@ struct Sink<'a> {
 
 impl Sink<'_> {
     /// Writes a case's line: its report, its status against the baseline from every attempt's outcome
-    /// (`attempts` empty when it ran once), and the triage entries that applied.
+    /// (`attempts` empty when it ran once), and the triage entries that applied. The case's files are
+    /// written whole or not at all, and before its line; the first error is kept and ends the run.
     fn write(
         &mut self,
         case: &Case,
@@ -203,6 +258,10 @@ impl Sink<'_> {
         details: &CaseDetails,
         attempts: Vec<Outcome>,
     ) {
+        // After a failed write nothing more is written: a later line must not follow a torn one.
+        if self.error.is_some() {
+            return;
+        }
         let once = [report.outcome];
         let status = self.expectations.status(
             report,
@@ -212,7 +271,10 @@ impl Sink<'_> {
                 &attempts
             },
         );
-        keep(&self.out, case, report, status, details);
+        if let Err(e) = keep(&self.out, case, report, status, details) {
+            self.error.get_or_insert(e);
+            return;
+        }
         self.progress.status(status);
         let line = ResultLine {
             report: report.clone(),
@@ -222,7 +284,7 @@ impl Sink<'_> {
         };
         let text = serde_json::to_string(&line).unwrap_or_default();
         if let Err(e) = writeln!(self.results, "{text}").and_then(|_| self.results.flush()) {
-            self.error.get_or_insert(e);
+            self.error.get_or_insert((self.results_path.clone(), e));
         }
     }
 }
@@ -277,7 +339,18 @@ fn each_case(
         }
         return Ok(planned);
     }
-    let specs = plan(&config.scope, rules, profile);
+    let mut scope = config.scope.clone();
+    if !scope.vuids.is_empty() {
+        let mut known: Vec<String> = rules.rows.iter().map(|r| r.vuid.clone()).collect();
+        known.sort();
+        known.dedup();
+        let expanded = crate::names::expand_vuids(&scope.vuids, &known)?;
+        progress.selected(&expanded);
+        scope.vuids = expanded.into_iter().flat_map(|e| e.vuids).collect();
+        scope.vuids.sort();
+        scope.vuids.dedup();
+    }
+    let specs = plan(&scope, rules, profile);
     progress.planned((specs.len() * config.count) as u64);
     for p in &specs {
         for range in slices(config.count) {
@@ -343,37 +416,64 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
     let started = std::time::Instant::now();
     let set = sources::load_sources(&config.from)?;
     let rules = RuleSet::from_vuids(&set);
+    // The driver first: a path that is not a driver is never taken for a profile's name.
+    let driver = Driver::parse(&config.driver);
+    harness::check_driver(&driver)?;
     let profile_name = config
         .profile
         .clone()
         .unwrap_or_else(|| sources::default_profile_name(&config.driver));
     let profile = sources::profile_for(&profile_name)?;
-    let driver = Driver::parse(&config.driver);
-    if !driver.icd_path().exists() {
-        return Err(SessionError::NoDriver {
-            driver: config.driver.clone(),
-            path: driver.icd_path().display().to_string(),
-        });
-    }
     let triage = sources::triage_for(&config.triage, set.version.as_deref(), &driver)?;
     let expectations = config.selection.expectations()?;
-    std::fs::create_dir_all(&config.out)
-        .map_err(|e| SessionError::io(config.out.display().to_string(), e))?;
-    let results_path = config.out.join("results.jsonl");
-    let done = if config.resume {
-        done_cases(&results_path)
-    } else {
-        // A fresh run in the folder of an earlier one: what that run kept goes with its results.
-        if std::fs::remove_file(&results_path).is_ok() {
-            for d in crate::details::CASE_FOLDERS
-                .iter()
-                .chain(&["details", "report"])
-            {
-                let _ = std::fs::remove_dir_all(config.out.join(d));
-            }
-        }
-        BTreeSet::new()
+    let params = crate::outdir::RunParameters {
+        driver: config.driver.clone(),
+        profile: profile_name.clone(),
+        command: config
+            .scope
+            .commands
+            .iter()
+            .map(|c| c.vk_name().to_string())
+            .collect(),
+        vuid: config.scope.vuids.clone(),
+        valid_only: config.scope.valid_only,
+        seed: config.scope.seed,
+        count: config.count,
+        from: config
+            .from
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect(),
+        registry: set.version.clone(),
+        triage: config
+            .triage
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect(),
+        cases: config
+            .selection
+            .cases
+            .as_ref()
+            .map(|p| p.display().to_string()),
+        shard: config.selection.shard.map(|s| s.to_string()),
+        baseline: config
+            .selection
+            .baseline
+            .as_ref()
+            .map(|p| p.display().to_string()),
+        skips: config
+            .selection
+            .skips
+            .as_ref()
+            .map(|p| p.display().to_string()),
+        flakes: config
+            .selection
+            .flakes
+            .as_ref()
+            .map(|p| p.display().to_string()),
     };
+    let done = crate::outdir::prepare(&config.out, &params, config.resume)?;
+    let results_path = config.out.join("results.jsonl");
     let results = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
@@ -411,16 +511,20 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         &expectations,
         progress,
         &mut |c: Case| {
+            // A write that failed (a full disk) ends the run: nothing more could be kept.
+            if sink.error.is_some() {
+                return;
+            }
             if done.contains(&c.name) {
                 progress.advance(1);
                 return;
             }
-            if let Err(why) = c.runnable(&profile) {
+            if let Some(report) = crate::gate::gate(&c, &judging) {
                 let details = CaseDetails {
                     violations: model::validate(&rules, &profile, &c).violations,
                     layer_messages: vec![],
                 };
-                sink.write(&c, &not_runnable(&c, &why), &details, vec![]);
+                sink.write(&c, &report, &details, vec![]);
                 progress.advance(1);
                 return;
             }
@@ -439,8 +543,14 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
     if !chunk.is_empty() {
         dispatch.run(&mut chunk, &mut sink);
     }
-    if let Some(e) = sink.error.take() {
-        return Err(SessionError::io(sink.results_path.display().to_string(), e));
+    if let Some((path, e)) = sink.error.take() {
+        return Err(SessionError::io(
+            format!(
+                "{} (resume with --resume once there is room)",
+                path.display()
+            ),
+            e,
+        ));
     }
     let caselist_path = config.out.join("caselist.txt");
     std::fs::write(
@@ -573,14 +683,6 @@ fn slices(count: usize) -> impl Iterator<Item = std::ops::Range<usize>> {
     (0..count)
         .step_by(CHUNK)
         .map(move |start| start..(start + CHUNK).min(count))
-}
-
-/// The cases a killed run already wrote.
-fn done_cases(results: &Path) -> BTreeSet<String> {
-    match reports(results) {
-        Ok(r) => r.map(|r| r.case).collect(),
-        Err(_) => BTreeSet::new(),
-    }
 }
 
 /// `VmHWM` of this process from /proc (None elsewhere).

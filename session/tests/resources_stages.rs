@@ -90,7 +90,7 @@ fn valid_accesses_run_in_every_stage_the_launch_executes() {
         );
         let expected =
             model::semantics::expected_launch(&body(&c).world, &body(&c).call).expect("dimensions");
-        assert_eq!(obs.words(), Some(expected.words.as_slice()), "{stage:?}");
+        assert_eq!(obs.words(), Some(expected.words().as_slice()), "{stage:?}");
     }
 }
 
@@ -184,7 +184,7 @@ fn generated_valid_resource_states_run_silently() {
         );
         assert_eq!(
             obs.words(),
-            Some(expected.words.as_slice()),
+            Some(expected.words().as_slice()),
             "choice {choice} bits {bits:#x}"
         );
         ran += 1;

@@ -67,6 +67,9 @@ pub fn run(c: RegistryCommand) -> super::Exit {
             json,
         } => {
             let set = session::sources::load_sources(&from)?;
+            if let Some(c) = command.as_deref() {
+                session::names::known_scope(c, set.records.iter().map(|r| r.scope.as_str()))?;
+            }
             let text = if json {
                 vk_registry::report::vuids_json(&set, command.as_deref())
             } else {
@@ -82,6 +85,14 @@ pub fn run(c: RegistryCommand) -> super::Exit {
         } => {
             let sa = vk_registry::source::load_vuids(&a).map_err(registry_error)?;
             let sb = vk_registry::source::load_vuids(&b).map_err(registry_error)?;
+            if let Some(c) = command.as_deref() {
+                let scopes = sa
+                    .records
+                    .iter()
+                    .chain(&sb.records)
+                    .map(|r| r.scope.as_str());
+                session::names::known_scope(c, scopes)?;
+            }
             let options = vk_registry::report::DiffOptions {
                 command: command.as_deref(),
                 ignore_conditions,

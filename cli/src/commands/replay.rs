@@ -28,6 +28,9 @@ pub struct ReplayArgs {
     /// Print what the replay found as one JSON object instead.
     #[arg(long)]
     json: bool,
+    /// Seconds the case may take in its worker process (at least 1).
+    #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..))]
+    timeout: u64,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -67,6 +70,7 @@ pub fn run(a: ReplayArgs) -> super::Exit {
             CheckArg::RayQuery => TraceCheck::RayQuery,
             CheckArg::Pipeline => TraceCheck::Pipeline,
         },
+        timeout: a.timeout,
     };
     let replayed = session::replay(&case, &config)?;
     let r = &replayed.ran;
@@ -126,12 +130,13 @@ pub fn run(a: ReplayArgs) -> super::Exit {
             );
         }
     }
+    let model: Vec<&str> = r.verdict.vuids().into_iter().collect();
     println!(
         "model:   {}",
-        if r.report.model.is_empty() {
+        if model.is_empty() {
             "valid".into()
         } else {
-            r.report.model.join(", ")
+            model.join(", ")
         }
     );
     for v in &r.verdict.violations {
@@ -157,6 +162,12 @@ pub fn run(a: ReplayArgs) -> super::Exit {
         }
     }
     print_outcome(&r.report);
+    if r.report.outcome == Outcome::CaseError {
+        eprintln!(
+            "rtconf: {}",
+            session::replay::located(&a.case, &r.report.detail)
+        );
+    }
     Ok(exit_status(&r.report))
 }
 
@@ -178,6 +189,7 @@ fn status(s: &Status) -> String {
         Status::Unsupported { reason } => format!("unsupported: {reason}"),
         Status::Crash { message } => format!("crash: {message}"),
         Status::Timeout { seconds } => format!("timeout after {seconds:.1} s"),
+        Status::OutOfMemory { message } => format!("out of device memory: {message}"),
     }
 }
 
@@ -256,10 +268,11 @@ fn print_outcome(report: &session::CaseReport) {
     );
 }
 
-/// 0 when the case passed or disagreed only as the triage files say.
+/// 0 when the case passed or disagreed only as the triage files say; 2 when the case is at fault.
 fn exit_status(report: &session::CaseReport) -> i32 {
     match report.outcome {
         Outcome::Pass | Outcome::Triaged => 0,
+        Outcome::CaseError => 2,
         _ => 1,
     }
 }

@@ -21,7 +21,9 @@ pub struct RunArgs {
     /// command vkCmdBuildAccelerationStructuresIndirectKHR runs only when named.
     #[arg(long)]
     command: Vec<String>,
-    /// Only these VUIDs' invalid cases (repeatable; default: every executable VUID with a mutation).
+    /// Only these VUIDs' invalid cases (repeatable; default: every executable VUID with a mutation): a
+    /// full id, a glob (`VUID-vkCmdTraceRaysIndirectKHR-*`) or a short id (`03686`, `stride-03686`).
+    /// A name that matches no VUID is an error.
     #[arg(long)]
     vuid: Vec<String>,
     /// Only valid cases (with read-back); no invalid ones.
@@ -34,9 +36,9 @@ pub struct RunArgs {
     /// Print the names of the cases the run would make (after --shard and --skips) and stop.
     #[arg(long)]
     list: bool,
-    /// Cases per VUID and valid cases per command.
-    #[arg(long, default_value_t = 4)]
-    count: usize,
+    /// Cases per VUID and valid cases per command (at least 1).
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u64).range(1..))]
+    count: u64,
     /// The run's seed: spec i of a command family draws its cases from seed + i.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -57,11 +59,11 @@ pub struct RunArgs {
     /// flake.
     #[arg(long, value_name = "N", default_value_t = 0)]
     retries: usize,
-    /// Worker processes.
-    #[arg(long, default_value_t = 2)]
-    jobs: usize,
-    /// Seconds a case may take.
-    #[arg(long, default_value_t = 60)]
+    /// Worker processes (at least 1).
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(1..))]
+    jobs: u64,
+    /// Seconds a case may take (at least 1).
+    #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..))]
     timeout: u64,
     /// The run folder: results.jsonl, summary.json, junit.xml, report/index.html, failures/, triaged/,
     /// unsupported/, details/, caselist.txt.
@@ -111,6 +113,14 @@ impl session::Progress for Bar {
             self.bar.set_message(format!("{u} unexpected, {f} flaky"));
         }
     }
+    fn selected(&self, expanded: &[session::names::Expanded]) {
+        for e in expanded {
+            if e.vuids.len() != 1 || e.vuids[0] != e.pattern {
+                self.bar
+                    .suspend(|| eprintln!("--vuid {}: {} VUID(s)", e.pattern, e.vuids.len()));
+            }
+        }
+    }
 }
 
 fn bar() -> Bar {
@@ -143,8 +153,8 @@ pub fn run(a: RunArgs) -> super::Exit {
             valid_only: a.valid_only,
             seed: a.seed,
         },
-        count: a.count,
-        jobs: a.jobs,
+        count: a.count as usize,
+        jobs: a.jobs as usize,
         timeout: a.timeout,
         out: a.out,
         shrink: a.shrink,
@@ -203,6 +213,11 @@ pub fn run(a: RunArgs) -> super::Exit {
         outcome.not_expressible.len(),
         a.verbose,
     );
+    if outcome.summary.cases == 0 {
+        eprintln!(
+            "rtconf: the run made no case: nothing was checked (the VUIDs selected have no executable mutation on this profile, or --count made none)"
+        );
+    }
     Ok(outcome.exit_code())
 }
 
@@ -269,13 +284,14 @@ pub fn print_summary(s: &Summary, out: &Path, not_expressible: usize, verbose: b
     );
     println!("status:  {}", statuses.join(", "));
     println!(
-        "outcome: {} pass, {} fail, {} triaged, {} unsupported, {} crash, {} timeout{}{}",
+        "outcome: {} pass, {} fail, {} triaged, {} unsupported, {} crash, {} timeout, {} case-error{}{}",
         s.passed,
         s.failed,
         s.triaged,
         s.unsupported,
         s.crashes,
         s.timeouts,
+        s.case_errors,
         if s.skipped > 0 {
             format!("; {} skipped by the skips list", s.skipped)
         } else {

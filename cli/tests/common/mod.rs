@@ -1,83 +1,78 @@
-//! What the command-line tests share: the built `rtconf` run on lavapipe, a folder per test under
-//! `target/tmp/` (kept as the test's artifacts), committed cases copied under another name, and a run
-//! folder's results read back by case.
+//! What the command-line tests share: the `rtconf` binary run on lavapipe with its exit status and
+//! output, committed cases, and edited copies of them in a temporary directory.
 
 #![allow(dead_code)] // each test binary uses its own part
 
-use serde_json::Value;
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
-/// The repository root.
-pub fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+/// One finished `rtconf` command.
+#[derive(Debug)]
+pub struct Ran {
+    pub code: i32,
+    pub stdout: String,
+    pub stderr: String,
 }
 
-/// A fresh folder for one test under `target/tmp/`; what the test leaves there stays for a person.
-pub fn fresh_dir(name: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("a folder under target/tmp");
-    d
+impl Ran {
+    /// stdout and stderr, for assertion messages.
+    pub fn all(&self) -> String {
+        format!(
+            "exit {}\n--- stdout\n{}\n--- stderr\n{}",
+            self.code, self.stdout, self.stderr
+        )
+    }
 }
 
-/// `rtconf ARGS` on lavapipe, with `env` added.
-pub fn rtconf(args: &[&str], env: &[(&str, &str)]) -> Output {
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// `rtconf ARGS` in the repository root with lavapipe selected.
+pub fn rtconf(args: &[&str]) -> Ran {
+    rtconf_with(args, &[])
+}
+
+/// `rtconf ARGS` with extra environment variables.
+pub fn rtconf_with(args: &[&str], env: &[(&str, &str)]) -> Ran {
     let out = Command::new(env!("CARGO_BIN_EXE_rtconf"))
         .args(args)
+        .current_dir(root())
         .env("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json")
         .envs(env.iter().copied())
-        .current_dir(repo())
         .output()
-        .expect("the rtconf binary runs");
-    out
+        .expect("rtconf runs");
+    Ran {
+        code: out.status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    }
 }
 
-/// The text of a command's standard output and error, for assertion messages.
-pub fn text(o: &Output) -> String {
-    format!(
-        "status {:?}\n--- stdout\n{}\n--- stderr\n{}",
-        o.status.code(),
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
+/// A committed file's text (path from the repository root).
+pub fn committed(path: &str) -> String {
+    std::fs::read_to_string(root().join(path)).unwrap()
 }
 
-/// A committed case file (path under `cases/`) written into `dir` as case `name`.
-pub fn case_as(committed: &str, name: &str, dir: &Path) -> PathBuf {
-    let text =
-        std::fs::read_to_string(repo().join("cases").join(committed)).expect("a committed case");
-    let renamed: String = text
-        .lines()
-        .map(|l| {
-            if l.starts_with("name:") {
-                format!("name: {name}")
-            } else {
-                l.to_string()
-            }
-        })
-        .collect::<Vec<_>>()
-        .join("\n");
-    let path = dir.join(format!("{name}.yaml"));
-    std::fs::write(&path, renamed + "\n").expect("write the case");
-    path
+/// `text` with `from` replaced once by `to` (which must be there).
+pub fn edited(text: &str, from: &str, to: &str) -> String {
+    assert!(text.contains(from), "`{from}` is not in the text");
+    text.replacen(from, to, 1)
 }
 
-/// The lines of a run folder's `results.jsonl`, by case name.
-pub fn results(run: &Path) -> BTreeMap<String, Value> {
-    std::fs::read_to_string(run.join("results.jsonl"))
-        .expect("results.jsonl")
-        .lines()
-        .map(|l| {
-            let v: Value = serde_json::from_str(l).expect("a JSON line");
-            (v["case"].as_str().expect("a case name").to_string(), v)
-        })
-        .collect()
+/// Writes `text` to `dir/name` and returns its path as a string.
+pub fn write(dir: &Path, name: &str, text: &str) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p.display().to_string()
 }
 
-/// A run folder's `summary.json`.
-pub fn summary(run: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).expect("summary.json"))
-        .expect("summary.json parses")
+/// The 1-based `line:col` of the first `needle` in `text`.
+pub fn line_col(text: &str, needle: &str) -> String {
+    let at = text.find(needle).unwrap();
+    let line = text[..at].matches('\n').count() + 1;
+    let col = at - text[..at].rfind('\n').map_or(0, |i| i + 1) + 1;
+    format!("{line}:{col}")
 }
+
+pub const HAND: &str = "cases/hand/trace-indirect-records-32.yaml";

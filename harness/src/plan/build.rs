@@ -7,7 +7,9 @@ use super::{step_text, Step};
 use crate::error::HarnessError;
 use ash::vk;
 use model::accel::call::{BuildGeometryInfo, BuildMode, GeometryData, IndexType, VertexFormat};
-use model::accel::world::{AddressResolver, BuildContents, InstanceReference, SyntheticAddresses};
+use model::accel::world::{
+    AddressResolver, BuildContents, InstanceReference, SparseImage, SyntheticAddresses,
+};
 use model::accel::{AsType, BuildWorld};
 use model::call::Address;
 use model::world::{CommandBufferLevel, CommandBufferLifecycle, MemoryBinding};
@@ -43,9 +45,17 @@ pub struct BuildBufferPlan {
     pub addressed: bool,
     /// The case writes contents into it.
     pub written: bool,
-    /// The memory image with every device address left 0.
-    pub image: Vec<u8>,
+    /// The memory image with every device address left 0: the runs the case's contents write, by
+    /// offset (the rest of the buffer is zero), never a copy sized by the buffer.
+    pub image: Vec<ImageRun>,
     pub relocations: Vec<Relocation>,
+}
+
+/// Bytes a buffer's contents write at `offset`.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct ImageRun {
+    pub offset: u64,
+    pub bytes: Vec<u8>,
 }
 
 /// One acceleration structure of a build case.
@@ -290,12 +300,11 @@ fn relocations(world: &BuildWorld, name: &str) -> Vec<Relocation> {
     let mut out: Vec<Relocation> = Vec::new();
     for (offset, target) in candidates {
         let value = resolve(&target, &synthetic);
-        let at = offset as usize;
-        if value == 0 || at >= image.len() {
+        if value == 0 || offset >= image.size() {
             continue;
         }
-        let len = (image.len() - at).min(8);
-        if image[at..at + len] != value.to_le_bytes()[..len] {
+        let len = (image.size() - offset).min(8) as usize;
+        if image.read(offset, len as u64).as_deref() != Some(&value.to_le_bytes()[..len]) {
             continue; // a later write covers it
         }
         out.retain(|r| r.offset != offset);
@@ -317,14 +326,21 @@ fn resolve(target: &AddressOf, r: &dyn AddressResolver) -> u64 {
 
 impl BuildBufferPlan {
     /// The memory image with the addresses of `resolver` written in.
-    pub fn image_at(&self, resolver: &dyn AddressResolver) -> Vec<u8> {
-        let mut bytes = self.image.clone();
+    pub fn image_at(&self, resolver: &dyn AddressResolver) -> SparseImage {
+        let mut image = SparseImage::new(self.size);
+        for run in &self.image {
+            image.write(run.offset, &run.bytes);
+        }
         for r in &self.relocations {
             let v = resolve(&r.target, resolver).to_le_bytes();
-            let at = r.offset as usize;
-            bytes[at..at + r.len].copy_from_slice(&v[..r.len]);
+            image.write(r.offset, &v[..r.len]);
         }
-        bytes
+        image
+    }
+
+    /// Bytes of the memory image the case writes (the rest is zero).
+    pub fn image_bytes(&self) -> usize {
+        self.image.iter().map(|r| r.bytes.len()).sum()
     }
 }
 
@@ -356,7 +372,17 @@ impl BuildPlan {
                 sparse: b.is_sparse(),
                 addressed: addressed(case, &b.name),
                 written: !b.contents.is_empty(),
-                image: world.image(&b.name, &NoAddresses).unwrap_or_default(),
+                image: world
+                    .image(&b.name, &NoAddresses)
+                    .map(|i| {
+                        i.runs()
+                            .map(|(offset, bytes)| ImageRun {
+                                offset,
+                                bytes: bytes.to_vec(),
+                            })
+                            .collect()
+                    })
+                    .unwrap_or_default(),
                 relocations: relocations(world, &b.name),
             })
             .collect();
@@ -428,7 +454,7 @@ impl BuildPlan {
                     MemoryBinding::Unbound => ", no memory bound",
                     MemoryBinding::Scattered => ", bound to two memory objects",
                 },
-                b.image.len(),
+                b.image_bytes(),
                 b.relocations.len()
             ));
         }

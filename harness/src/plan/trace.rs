@@ -167,8 +167,15 @@ fn writes(contents: &[Contents]) -> Vec<BufferWrite> {
                 handles,
             } => {
                 for (i, h) in handles.iter().enumerate() {
+                    // A record past u64::MAX lies past the end of the buffer: nothing is written.
+                    let Some(at) = (i as u64)
+                        .checked_mul(*stride)
+                        .and_then(|d| d.checked_add(*offset))
+                    else {
+                        break;
+                    };
                     out.push(BufferWrite::Handle {
-                        offset: offset + i as u64 * stride,
+                        offset: at,
                         handle: *h,
                     });
                 }

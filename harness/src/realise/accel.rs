@@ -283,7 +283,10 @@ pub(crate) fn realise(
                 }
                 continue;
             }
-            a.write(0, &b.image_at(&r));
+            // The buffer is zeroed: only what the contents write is copied.
+            for (at, bytes) in b.image_at(&r).runs() {
+                a.write(at, bytes);
+            }
         }
         Ok(())
     })();
