@@ -120,7 +120,9 @@ pub fn run(a: ReplayArgs) -> super::Exit {
     }
     match &r.observation {
         Some(obs) => println!("status:  {}", status(&obs.status)),
-        None => println!("status:  not run (the undefined-reads gate kept it from the driver)"),
+        None => {
+            println!("status:  not run (the gate kept it from the driver; the outcome says why)")
+        }
     }
     if let Some(a) = r.case.as_accel() {
         for (i, s) in a.world.sizes.iter().enumerate() {
