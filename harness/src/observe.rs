@@ -93,6 +93,19 @@ pub struct IndirectBuild {
     pub layer_vuids: Vec<String>,
 }
 
+/// What ran a case: the device, its driver and the validation layer, as their properties say.
+#[derive(Debug, Clone, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub struct RunningOn {
+    /// `deviceName`, with `vendorID` and `deviceID`.
+    pub device: String,
+    /// The device's Vulkan version (`1.3.289`).
+    pub api_version: String,
+    /// `driverName` and `driverInfo` of VkPhysicalDeviceDriverProperties, and `driverVersion`.
+    pub driver: String,
+    /// The layer's name, spec version and implementation version, when it is loaded.
+    pub layer: Option<String>,
+}
+
 /// What the device produced for a case.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]

@@ -13,6 +13,7 @@ pub struct CoverageArgs {
     /// Only this command (and, for the KHR trace commands, the structures they take).
     #[arg(long)]
     command: Option<String>,
+    /// Print the rows as JSON.
     #[arg(long)]
     json: bool,
     /// Device profiles to check the executable rows against (repeatable; default: every committed

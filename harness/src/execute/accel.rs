@@ -6,6 +6,8 @@
 use crate::accel_check::direct_and_trace;
 use crate::error::{vkfail, HarnessError};
 use crate::observe::{Observation, Output};
+use crate::plan::build::BuildPlan;
+use crate::plan::Step;
 use crate::realise::accel::{
     device_for, device_sizes, indirect_args, last_build_geometries, realise, vk_as_type,
     vk_geometries, Realised,
@@ -35,94 +37,6 @@ fn unrealisable_state(inst: &VkInstance, case: &AccelBody) -> Option<HarnessErro
         ));
     }
     None
-}
-
-/// Puts the case's command buffer into its state: primary or secondary (a secondary inside a render pass
-/// continues the empty render pass through its inheritance), begun unless initial, inside the empty
-/// render pass when asked (a primary begins it inline), ended when executable, and submitted once with
-/// ONE_TIME_SUBMIT when invalid. Returns the command buffer the call is recorded into.
-fn enter_state(
-    dev: &VkDevice,
-    cmds: &mut Commands,
-    case: &AccelBody,
-) -> Result<vk::CommandBuffer, HarnessError> {
-    use model::world::{CommandBufferLevel, CommandBufferLifecycle};
-    let cbs = &case.world.command_buffer;
-    let d = &dev.device;
-    let secondary = cbs.level == CommandBufferLevel::Secondary;
-    let cb = if secondary { cmds.secondary } else { cmds.cb };
-    let rp = if cbs.in_render_pass {
-        Some(cmds.render_pass(dev)?)
-    } else {
-        None
-    };
-    // SAFETY: the command buffers are idle; everything named is alive.
-    unsafe {
-        d.reset_command_buffer(cb, vk::CommandBufferResetFlags::empty())
-            .map_err(vkfail("vkResetCommandBuffer"))?;
-        if cbs.lifecycle == CommandBufferLifecycle::Initial {
-            return Ok(cb);
-        }
-        let mut inherit = vk::CommandBufferInheritanceInfo::default();
-        let mut flags = vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT;
-        if let (true, Some((pass, fb))) = (secondary, rp) {
-            inherit = inherit.render_pass(pass).subpass(0).framebuffer(fb);
-            flags |= vk::CommandBufferUsageFlags::RENDER_PASS_CONTINUE;
-        }
-        let mut begin = vk::CommandBufferBeginInfo::default().flags(flags);
-        if secondary {
-            begin = begin.inheritance_info(&inherit);
-        }
-        d.begin_command_buffer(cb, &begin)
-            .map_err(vkfail("vkBeginCommandBuffer"))?;
-        let primary_pass = rp.filter(|_| !secondary);
-        if let Some(pass) = primary_pass {
-            begin_render_pass(d, cb, pass, vk::SubpassContents::INLINE);
-        }
-        match cbs.lifecycle {
-            CommandBufferLifecycle::Executable | CommandBufferLifecycle::Invalid => {
-                if primary_pass.is_some() {
-                    d.cmd_end_render_pass(cb);
-                }
-                d.end_command_buffer(cb)
-                    .map_err(vkfail("vkEndCommandBuffer"))?;
-            }
-            _ => {}
-        }
-        if cbs.lifecycle == CommandBufferLifecycle::Invalid {
-            // A ONE_TIME_SUBMIT buffer moves to the invalid state once its submission completes; a
-            // secondary one is executed once from the primary.
-            let submit_cb = if secondary {
-                d.reset_command_buffer(cmds.cb, vk::CommandBufferResetFlags::empty())
-                    .map_err(vkfail("vkResetCommandBuffer"))?;
-                d.begin_command_buffer(
-                    cmds.cb,
-                    &vk::CommandBufferBeginInfo::default()
-                        .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
-                )
-                .map_err(vkfail("vkBeginCommandBuffer"))?;
-                if let Some(pass) = rp {
-                    begin_render_pass(
-                        d,
-                        cmds.cb,
-                        pass,
-                        vk::SubpassContents::SECONDARY_COMMAND_BUFFERS,
-                    );
-                    d.cmd_execute_commands(cmds.cb, &[cb]);
-                    d.cmd_end_render_pass(cmds.cb);
-                } else {
-                    d.cmd_execute_commands(cmds.cb, &[cb]);
-                }
-                d.end_command_buffer(cmds.cb)
-                    .map_err(vkfail("vkEndCommandBuffer"))?;
-                cmds.cb
-            } else {
-                cb
-            };
-            cmds.submit_and_wait(dev, submit_cb)?;
-        }
-    }
-    Ok(cb)
 }
 
 /// Repeats, for the layer's state, the last build the model's world says each structure had: a direct
@@ -182,62 +96,139 @@ fn replay_last_builds(
     Ok(())
 }
 
-/// Records the indirect call under the layer (dropped by the messenger, never submitted) into a command
-/// buffer in the case's state and returns the layer's messages.
+/// Records the plan's steps: the command buffer put into the case's state (primary or secondary — a
+/// secondary inside a render pass continues the empty render pass through its inheritance — begun
+/// unless initial, inside the empty render pass when asked, ended when executable, and submitted once
+/// with ONE_TIME_SUBMIT when invalid), then the indirect call under the layer (dropped by the
+/// messenger, never submitted). Returns the layer's messages for the call.
 fn record_indirect(
     inst: &VkInstance,
     dev: &VkDevice,
     cmds: &mut Commands,
-    case: &AccelBody,
+    plan: &BuildPlan,
     r: &Realised,
     continue_past: &[String],
 ) -> Result<Vec<LayerMessage>, HarnessError> {
-    use model::world::{CommandBufferLevel, CommandBufferLifecycle};
+    use model::world::CommandBufferLevel;
     let accel = dev
         .accel
         .as_ref()
         .ok_or_else(|| HarnessError::NotRealised("no VK_KHR_acceleration_structure".into()))?;
-    let geoms: Vec<Vec<vk::AccelerationStructureGeometryKHR>> = case
-        .call
+    let geoms: Vec<Vec<vk::AccelerationStructureGeometryKHR>> = plan
         .infos
         .iter()
         .map(|i| vk_geometries(i, r))
         .collect::<Option<_>>()
         .ok_or_else(|| HarnessError::NotRealised("geometry type not realised".into()))?;
-    let (infos, addrs, maxima) = indirect_args(case, r, &geoms);
-    let cb = enter_state(dev, cmds, case)?;
-    inst.collector.clear();
-    inst.collector.set_abort(true);
-    inst.collector.set_continue_past(continue_past);
-    // SAFETY: with the messenger returning VK_TRUE the layer drops an invalid call (one recorded into a
-    // command buffer that is not recording included). Past the `continue_past` VUIDs the layer goes on
-    // validating; a call it finds nothing else wrong with is recorded by the driver (copied into its
-    // command list, never submitted: the command buffers are reset below).
-    unsafe {
-        accel.cmd_build_acceleration_structures_indirect(
-            cb,
-            &infos,
-            &addrs,
-            &case.call.indirect_strides,
-            &maxima,
-        )
+    let (infos, addrs, maxima) = indirect_args(plan, r, &geoms);
+    let secondary = plan.level == CommandBufferLevel::Secondary;
+    let cb = if secondary { cmds.secondary } else { cmds.cb };
+    let rp = if plan.in_render_pass {
+        Some(cmds.render_pass(dev)?)
+    } else {
+        None
     };
-    inst.collector.set_abort(false);
-    inst.collector.set_continue_past(&[]);
-    let msgs = inst.collector.take();
-    let cbs = &case.world.command_buffer;
-    // SAFETY: ending what was begun (never submitted); the buffers are reset before their next use.
-    unsafe {
-        if cbs.lifecycle == CommandBufferLifecycle::Recording {
-            if cbs.in_render_pass && cbs.level == CommandBufferLevel::Primary {
-                dev.device.cmd_end_render_pass(cb);
+    let d = &dev.device;
+    let mut msgs = Vec::new();
+    let mut called = false;
+    for step in &plan.steps {
+        // SAFETY: the command buffers are idle; everything named is alive. With the messenger returning
+        // VK_TRUE the layer drops an invalid call (one recorded into a command buffer that is not
+        // recording included).
+        unsafe {
+            match step {
+                Step::Reset { .. } => d
+                    .reset_command_buffer(cb, vk::CommandBufferResetFlags::empty())
+                    .map_err(vkfail("vkResetCommandBuffer"))?,
+                Step::Begin {
+                    continue_render_pass,
+                    ..
+                } => {
+                    let mut inherit = vk::CommandBufferInheritanceInfo::default();
+                    let mut flags = vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT;
+                    if let (true, Some((pass, fb))) = (*continue_render_pass, rp) {
+                        inherit = inherit.render_pass(pass).subpass(0).framebuffer(fb);
+                        flags |= vk::CommandBufferUsageFlags::RENDER_PASS_CONTINUE;
+                    }
+                    let mut begin = vk::CommandBufferBeginInfo::default().flags(flags);
+                    if secondary {
+                        begin = begin.inheritance_info(&inherit);
+                    }
+                    d.begin_command_buffer(cb, &begin)
+                        .map_err(vkfail("vkBeginCommandBuffer"))?;
+                }
+                Step::BeginRenderPass => {
+                    if let Some(pass) = rp {
+                        begin_render_pass(d, cb, pass, vk::SubpassContents::INLINE);
+                    }
+                }
+                Step::EndRenderPass => d.cmd_end_render_pass(cb),
+                // After the call a recording buffer is ended only to be reset.
+                Step::End if called => {
+                    let _ = d.end_command_buffer(cb);
+                }
+                Step::End => d
+                    .end_command_buffer(cb)
+                    .map_err(vkfail("vkEndCommandBuffer"))?,
+                Step::SubmitToInvalidate => {
+                    // A ONE_TIME_SUBMIT buffer moves to the invalid state once its submission completes;
+                    // a secondary one is executed once from the primary.
+                    let submit_cb = if secondary {
+                        d.reset_command_buffer(cmds.cb, vk::CommandBufferResetFlags::empty())
+                            .map_err(vkfail("vkResetCommandBuffer"))?;
+                        d.begin_command_buffer(
+                            cmds.cb,
+                            &vk::CommandBufferBeginInfo::default()
+                                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+                        )
+                        .map_err(vkfail("vkBeginCommandBuffer"))?;
+                        if let Some(pass) = rp {
+                            begin_render_pass(
+                                d,
+                                cmds.cb,
+                                pass,
+                                vk::SubpassContents::SECONDARY_COMMAND_BUFFERS,
+                            );
+                            d.cmd_execute_commands(cmds.cb, &[cb]);
+                            d.cmd_end_render_pass(cmds.cb);
+                        } else {
+                            d.cmd_execute_commands(cmds.cb, &[cb]);
+                        }
+                        d.end_command_buffer(cmds.cb)
+                            .map_err(vkfail("vkEndCommandBuffer"))?;
+                        cmds.cb
+                    } else {
+                        cb
+                    };
+                    cmds.submit_and_wait(dev, submit_cb)?;
+                }
+                Step::Call { .. } => {
+                    inst.collector.clear();
+                    inst.collector.set_abort(true);
+                    // Past the `continue_past` VUIDs the layer goes on validating; a call it finds
+                    // nothing else wrong with is recorded by the driver (never submitted: the command
+                    // buffers are reset before their next use).
+                    inst.collector.set_continue_past(continue_past);
+                    accel.cmd_build_acceleration_structures_indirect(
+                        cb,
+                        &infos,
+                        &addrs,
+                        &plan.indirect_strides,
+                        &maxima,
+                    );
+                    inst.collector.set_abort(false);
+                    inst.collector.set_continue_past(&[]);
+                    msgs = inst.collector.take();
+                    called = true;
+                }
+                _ => {}
             }
-            let _ = dev.device.end_command_buffer(cb);
         }
+    }
+    // SAFETY: never submitted (or waited for); the buffers are reset before their next use.
+    unsafe {
         for b in [cmds.cb, cmds.secondary] {
-            let _ = dev
-                .device
-                .reset_command_buffer(b, vk::CommandBufferResetFlags::empty());
+            let _ = d.reset_command_buffer(b, vk::CommandBufferResetFlags::empty());
         }
     }
     Ok(msgs)
@@ -255,13 +246,17 @@ pub(crate) fn execute(inst: &Arc<VkInstance>, case: &Case, exec: &super::Executi
     if let Some(e) = unrealisable_state(inst, body) {
         return failure(e);
     }
+    let plan = match BuildPlan::of(body) {
+        Ok(p) => p,
+        Err(e) => return failure(e),
+    };
     let dev = match device_for(inst, body, check) {
         Ok(d) => d,
         Err(e) => return failure(e),
     };
     let result = (|| -> Result<(), HarnessError> {
         let mut cmds = Commands::new(&dev)?;
-        let r = match realise(&dev, body, cmds.fence) {
+        let r = match realise(&dev, &plan, cmds.fence) {
             Ok(r) => r,
             Err(e) => {
                 cmds.destroy(&dev);
@@ -269,14 +264,14 @@ pub(crate) fn execute(inst: &Arc<VkInstance>, case: &Case, exec: &super::Executi
             }
         };
         let out = (|| -> Result<(), HarnessError> {
-            if let Some(s) = device_sizes(&dev, body, &r) {
+            if let Some(s) = device_sizes(&dev, &plan, &r) {
                 obs.device_sizes = s;
             }
             replay_last_builds(inst, &dev, &cmds, body, &r)?;
-            let messages = record_indirect(inst, &dev, &mut cmds, body, &r, &exec.continue_past)?;
+            let messages = record_indirect(inst, &dev, &mut cmds, &plan, &r, &exec.continue_past)?;
             obs.set_messages(messages);
             if run_valid && fits_device_sizes(body, &obs.device_sizes) {
-                let traced = direct_and_trace(inst, &dev, &cmds, body, &r, check)?;
+                let traced = direct_and_trace(inst, &dev, &cmds, body, &plan, &r, check)?;
                 obs.output = Some(Output::Rays(traced));
             }
             Ok(())

@@ -74,6 +74,11 @@ impl Executor {
         &self.inst.driver
     }
 
+    /// The device, driver and layer that run this executor's cases.
+    pub fn running_on(&self) -> crate::observe::RunningOn {
+        self.inst.running_on()
+    }
+
     fn device_key(world: &World) -> String {
         serde_json::to_string(&world.device).unwrap_or_default()
     }

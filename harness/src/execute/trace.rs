@@ -1,17 +1,21 @@
-//! The trace path: the world realised on the device for its enabled state, the command buffer put in
-//! the case's state, the call recorded with the layer's messages collected (dropped unless the case is
-//! run as valid), and a valid launch submitted and its output words read back.
+//! The trace path: the case's plan ([`TracePlan`]) realised on the device for its enabled state — the
+//! world's buffers, pipeline and scene, the harness's buffers and descriptor set — and its steps
+//! recorded: the command buffer put in the case's state, the call recorded with the layer's messages
+//! collected (dropped unless the case is run as valid), and a valid launch submitted and its output
+//! words read back.
 
-use super::{failure, Executor, MAX_OUTPUT_WORDS};
+use super::{failure, Executor};
 use crate::error::HarnessError;
 use crate::observe::{Observation, Output, Status};
-use crate::realise::{DeviceCache, Tlas, RAY_RECORD_SIZE};
+use crate::plan::trace::TracePlan;
+use crate::plan::{Barrier, Step};
+use crate::realise::{DeviceCache, Tlas};
 use crate::vk::commands::{begin_render_pass, memory_barrier};
 use crate::vk::descriptors::{storage_write, structure_write, whole};
 use crate::vk::memory::Allocation;
 use ash::vk;
 use model::call::{Address, Call, StridedRegion};
-use model::world::{CommandBufferLevel, CommandBufferLifecycle, PipelineApi, RayTarget};
+use model::world::CommandBufferLevel;
 use std::time::Duration;
 
 pub(super) fn trace(ctx: &mut Executor, case: &model::TraceBody, run_valid: bool) -> Observation {
@@ -94,7 +98,6 @@ fn run(
     collector: &crate::vk::Collector,
 ) -> Result<Observation, HarnessError> {
     let world = &case.world;
-    let cbs = &world.command_buffer;
     let nv_call = matches!(case.call, Call::TraceRaysNv(_));
     if nv_call && cache.dev.nv.is_none() {
         return Err(HarnessError::NotRealised(
@@ -107,42 +110,17 @@ fn run(
             "the case does not enable VK_KHR_ray_tracing_pipeline, so vkCmdTraceRays*KHR cannot be called".into(),
         ));
     }
-    if let Some(e) = super::unrealisable_command_buffer(&cache.dev.inst, cbs) {
+    // What the device lacks (checked against its profile) before what the harness does not realise.
+    if let Some(e) = super::unrealisable_command_buffer(&cache.dev.inst, &world.command_buffer) {
         return Err(e);
     }
-    if cbs.lifecycle == CommandBufferLifecycle::Invalid {
-        return Err(HarnessError::NotRealised(
-            "invalid command buffers are not realised for trace calls (the build path realises them)".into(),
-        ));
-    }
-    if cbs.level == CommandBufferLevel::Secondary && cbs.in_render_pass {
-        return Err(HarnessError::NotRealised(
-            "secondary command buffers inside a render pass are not realised yet".into(),
-        ));
-    }
-    let trace = !world.launch.rays.is_empty();
-    let dims = case.call.dimensions(world);
-    let words = dims
-        .map(|d| d.iter().map(|&x| x as usize).product::<usize>())
-        .unwrap_or(0);
-    if valid && words > MAX_OUTPUT_WORDS {
-        return Err(HarnessError::NotRealised(format!(
-            "a launch of {words} IDs is larger than the harness reads back"
-        )));
-    }
+    let plan = TracePlan::of(case, valid)?;
+    let trace = plan.traces;
+    let api = plan.api;
     let pipeline = world.pipeline.as_ref();
-    // The scene and descriptor layout follow the pipeline's API (an NV pipeline reads an NV structure).
-    let api = pipeline.map_or(
-        if nv_call {
-            PipelineApi::Nv
-        } else {
-            PipelineApi::Khr
-        },
-        |p| p.api,
-    );
     // The resource state, and the case's pipeline with its templated raygen, before the shader binding
     // tables are filled with that pipeline's handles.
-    if !world.resources.is_empty() {
+    if plan.resources {
         let harness_set = cache.layouts(trace, api)?.set;
         *res = Some(crate::realise::resources::Realised::new(
             cache,
@@ -151,11 +129,10 @@ fn run(
             harness_set,
         )?);
     }
-    *buffers = cache.case_buffers(world, pipeline.map(|p| (p, trace)))?;
-    let tlas = if trace {
-        Some(cache.scene(&world.launch.instances, api)?)
-    } else {
-        None
+    *buffers = cache.case_buffers(&plan.buffers, pipeline.map(|p| (p, trace)))?;
+    let tlas = match &plan.scene {
+        Some(s) => Some(cache.scene(s)?),
+        None => None,
     };
     let layouts = cache.layouts(trace, api)?;
     let (vk_pipeline, stack_size) = match pipeline {
@@ -165,14 +142,14 @@ fn run(
         }
         None => (None, 0),
     };
-    let render_pass = if cbs.in_render_pass {
+    let render_pass = if plan.in_render_pass {
         Some(cache.empty_render_pass()?)
     } else {
         None
     };
     let launch = &world.launch;
     cache.io_buffers(
-        words.min(MAX_OUTPUT_WORDS),
+        plan.io.output_words,
         launch.rays.len(),
         launch.callables.len(),
     )?;
@@ -181,52 +158,17 @@ fn run(
         cache.rays.as_ref().expect("made above"),
         cache.callables.as_ref().expect("made above"),
     );
-    // Output pre-filled with NOT_RUN; rays header (count, capacity, extra recursion) and records; callables.
-    let fill: Vec<u8> = std::iter::repeat_n(model::semantics::NOT_RUN.to_ne_bytes(), words)
+    if plan.io.fill_output {
+        let fill: Vec<u8> = std::iter::repeat_n(
+            model::semantics::NOT_RUN.to_le_bytes(),
+            plan.io.output_words,
+        )
         .flatten()
         .collect();
-    out.write(0, &fill);
-    let mut ray_bytes: Vec<u8> = Vec::with_capacity(16 + launch.rays.len() * RAY_RECORD_SIZE);
-    for v in [
-        launch.rays.len() as u32,
-        words.min(MAX_OUTPUT_WORDS) as u32,
-        launch.extra_recursion,
-        0,
-    ] {
-        ray_bytes.extend_from_slice(&v.to_ne_bytes());
+        out.write(0, &fill);
     }
-    for r in &launch.rays {
-        let (x, y) = match r.target {
-            RayTarget::Nothing => (-1000.0f32, -1000.0f32),
-            RayTarget::Geometry { instance, geometry } => {
-                (2.0 * geometry as f32, 4.0 * instance as f32)
-            }
-        };
-        for f in [x, y, -1.0, 1.0, 0.0, 0.0, 1.0, 0.0] {
-            ray_bytes.extend_from_slice(&f32::to_ne_bytes(f));
-        }
-        for v in [
-            r.sbt_offset,
-            r.sbt_stride,
-            r.miss_index,
-            r.cull_mask,
-            r.ray_flags,
-            0,
-            0,
-            0,
-        ] {
-            ray_bytes.extend_from_slice(&v.to_ne_bytes());
-        }
-    }
-    rays.write(0, &ray_bytes);
-    let mut call_bytes: Vec<u8> = Vec::with_capacity(16 + launch.callables.len() * 4);
-    for v in [launch.callables.len() as u32, 0, 0, 0]
-        .iter()
-        .chain(&launch.callables)
-    {
-        call_bytes.extend_from_slice(&v.to_ne_bytes());
-    }
-    calls.write(0, &call_bytes);
+    rays.write(0, &plan.io.rays);
+    calls.write(0, &plan.io.callables);
 
     let d = &cache.dev.device;
     // Descriptor set.
@@ -308,82 +250,7 @@ fn run(
                 }),
         }
     };
-    let secondary = cbs.level == CommandBufferLevel::Secondary;
-    let cb = if secondary {
-        cache.cmds.secondary
-    } else {
-        cache.cmds.cb
-    };
-    let d = &cache.dev.device;
-    // SAFETY: recording into an idle command buffer with live objects.
-    unsafe {
-        if cbs.lifecycle != CommandBufferLifecycle::Initial {
-            let inherit = vk::CommandBufferInheritanceInfo::default();
-            let mut begin = vk::CommandBufferBeginInfo::default()
-                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
-            if secondary {
-                begin = begin.inheritance_info(&inherit);
-            }
-            d.begin_command_buffer(cb, &begin)
-                .map_err(|r| HarnessError::Failed(format!("vkBeginCommandBuffer: {r:?}")))?;
-            if trace {
-                // The scene was built by an earlier submission: a memory dependency from its build to the
-                // shaders' reads (submission order alone gives only an execution dependency). Recorded
-                // before any render pass begins, where a barrier would need a subpass self-dependency.
-                memory_barrier(
-                    d,
-                    cb,
-                    (
-                        vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR,
-                        vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR,
-                    ),
-                    (
-                        vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
-                        vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR,
-                    ),
-                );
-            }
-            if let Some(r) = res.as_ref() {
-                r.record_transitions(d, cb);
-            }
-            if let Some(p) = vk_pipeline.filter(|_| cbs.pipeline_bound) {
-                d.cmd_bind_pipeline(cb, vk::PipelineBindPoint::RAY_TRACING_KHR, p);
-                if cbs.stack_size_set {
-                    if let Some(rt) = &cache.dev.rt {
-                        // The spec's default stack size for the pipeline (a fixed guess can be too small on
-                        // a real GPU once closest-hit shaders recurse: undefined behaviour, not a test).
-                        let size = if stack_size == 0 { 4096 } else { stack_size };
-                        rt.cmd_set_ray_tracing_pipeline_stack_size(cb, size);
-                    }
-                }
-            }
-            // With a resource state the harness set is bound with the case pipeline's realised layout,
-            // then the case's own binds and pushes follow.
-            let harness_layout = res.as_ref().map_or(layouts.pipeline, |r| r.harness_layout);
-            d.cmd_bind_descriptor_sets(
-                cb,
-                vk::PipelineBindPoint::RAY_TRACING_KHR,
-                harness_layout,
-                0,
-                &[set],
-                &[],
-            );
-            if let Some(r) = res.as_ref() {
-                r.record_binds(d, cb);
-            }
-            if let Some(pass) = render_pass {
-                begin_render_pass(d, cb, pass, vk::SubpassContents::INLINE);
-            }
-            if cbs.lifecycle == CommandBufferLifecycle::Executable {
-                if render_pass.is_some() {
-                    d.cmd_end_render_pass(cb);
-                }
-                d.end_command_buffer(cb)
-                    .map_err(|r| HarnessError::Failed(format!("vkEndCommandBuffer: {r:?}")))?;
-            }
-        }
-    }
-    // The call's arguments, resolved before collecting so only the call's own messages are kept.
+    // The call's arguments, resolved before recording so only the call's own messages are kept.
     enum Resolved {
         Khr([vk::StridedDeviceAddressRegionKHR; 4], Option<u64>),
         Nv([(vk::Buffer, u64, u64); 4]),
@@ -410,62 +277,139 @@ fn run(
             Resolved::Khr(r, indirect)
         }
     };
-    collector.clear();
-    collector.set_abort(!valid);
-    // SAFETY: for valid cases every parameter is valid; for invalid ones the layer drops the call.
-    unsafe {
-        match (&case.call, &resolved) {
-            (Call::TraceRays(c), Resolved::Khr([rg, ms, ht, cl], _)) => cache
-                .dev
-                .rt
-                .as_ref()
-                .expect("checked above")
-                .cmd_trace_rays(cb, rg, ms, ht, cl, c.width, c.height, c.depth),
-            (Call::TraceRaysIndirect(_), Resolved::Khr([rg, ms, ht, cl], Some(a))) => cache
-                .dev
-                .rt
-                .as_ref()
-                .expect("checked above")
-                .cmd_trace_rays_indirect(cb, rg, ms, ht, cl, *a),
-            (Call::TraceRaysNv(c), Resolved::Nv([rg, ms, ht, cl])) => cache
-                .dev
-                .nv
-                .as_ref()
-                .expect("checked above")
-                .cmd_trace_rays(
-                    cb, rg.0, rg.1, ms.0, ms.1, ms.2, ht.0, ht.1, ht.2, cl.0, cl.1, cl.2, c.width,
-                    c.height, c.depth,
+    let secondary = plan.level == CommandBufferLevel::Secondary;
+    let cb = if secondary {
+        cache.cmds.secondary
+    } else {
+        cache.cmds.cb
+    };
+    // With a resource state the harness set is bound with the case pipeline's realised layout, then the
+    // case's own binds and pushes follow.
+    let harness_layout = res.as_ref().map_or(layouts.pipeline, |r| r.harness_layout);
+    let mut obs = Observation::with_status(Status::Ran);
+    for step in &plan.steps {
+        let d = &cache.dev.device;
+        // SAFETY: recording into an idle command buffer with live objects; for valid cases every
+        // parameter of the call is valid, for invalid ones the layer drops it.
+        unsafe {
+            match step {
+                Step::Begin { level, .. } => {
+                    let inherit = vk::CommandBufferInheritanceInfo::default();
+                    let mut begin = vk::CommandBufferBeginInfo::default()
+                        .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+                    if *level == CommandBufferLevel::Secondary {
+                        begin = begin.inheritance_info(&inherit);
+                    }
+                    d.begin_command_buffer(cb, &begin).map_err(|r| {
+                        HarnessError::Failed(format!("vkBeginCommandBuffer: {r:?}"))
+                    })?;
+                }
+                Step::Barrier(Barrier::SceneBuildToShaders) => memory_barrier(
+                    d,
+                    cb,
+                    (
+                        vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR,
+                        vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR,
+                    ),
+                    (
+                        vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
+                        vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR,
+                    ),
                 ),
-            _ => {}
+                Step::Barrier(Barrier::ShaderWritesToHost) => memory_barrier(
+                    d,
+                    cb,
+                    (
+                        vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
+                        vk::AccessFlags::SHADER_WRITE,
+                    ),
+                    (vk::PipelineStageFlags::HOST, vk::AccessFlags::HOST_READ),
+                ),
+                Step::ResourceTransitions => {
+                    if let Some(r) = res.as_ref() {
+                        r.record_transitions(d, cb);
+                    }
+                }
+                Step::BindPipeline => {
+                    if let Some(p) = vk_pipeline {
+                        d.cmd_bind_pipeline(cb, vk::PipelineBindPoint::RAY_TRACING_KHR, p);
+                    }
+                }
+                Step::SetStackSize => {
+                    if let Some(rt) = &cache.dev.rt {
+                        // The spec's default stack size for the pipeline (a fixed guess can be too small
+                        // on a real GPU once closest-hit shaders recurse: undefined behaviour, not a test).
+                        let size = if stack_size == 0 { 4096 } else { stack_size };
+                        rt.cmd_set_ray_tracing_pipeline_stack_size(cb, size);
+                    }
+                }
+                Step::BindHarnessSet => d.cmd_bind_descriptor_sets(
+                    cb,
+                    vk::PipelineBindPoint::RAY_TRACING_KHR,
+                    harness_layout,
+                    0,
+                    &[set],
+                    &[],
+                ),
+                Step::ResourceBinds => {
+                    if let Some(r) = res.as_ref() {
+                        r.record_binds(d, cb);
+                    }
+                }
+                Step::BeginRenderPass => {
+                    if let Some(pass) = render_pass {
+                        begin_render_pass(d, cb, pass, vk::SubpassContents::INLINE);
+                    }
+                }
+                Step::EndRenderPass => d.cmd_end_render_pass(cb),
+                Step::End => d
+                    .end_command_buffer(cb)
+                    .map_err(|r| HarnessError::Failed(format!("vkEndCommandBuffer: {r:?}")))?,
+                Step::Call { dropped } => {
+                    collector.clear();
+                    collector.set_abort(*dropped);
+                    match (&case.call, &resolved) {
+                        (Call::TraceRays(c), Resolved::Khr([rg, ms, ht, cl], _)) => cache
+                            .dev
+                            .rt
+                            .as_ref()
+                            .expect("checked above")
+                            .cmd_trace_rays(cb, rg, ms, ht, cl, c.width, c.height, c.depth),
+                        (Call::TraceRaysIndirect(_), Resolved::Khr([rg, ms, ht, cl], Some(a))) => {
+                            cache
+                                .dev
+                                .rt
+                                .as_ref()
+                                .expect("checked above")
+                                .cmd_trace_rays_indirect(cb, rg, ms, ht, cl, *a)
+                        }
+                        (Call::TraceRaysNv(c), Resolved::Nv([rg, ms, ht, cl])) => cache
+                            .dev
+                            .nv
+                            .as_ref()
+                            .expect("checked above")
+                            .cmd_trace_rays(
+                                cb, rg.0, rg.1, ms.0, ms.1, ms.2, ht.0, ht.1, ht.2, cl.0, cl.1,
+                                cl.2, c.width, c.height, c.depth,
+                            ),
+                        _ => {}
+                    }
+                    collector.set_abort(false);
+                    obs.set_messages(collector.take());
+                }
+                Step::Submit => {
+                    d.end_command_buffer(cb)
+                        .map_err(|r| HarnessError::Failed(format!("vkEndCommandBuffer: {r:?}")))?;
+                    collector.clear();
+                    cache.submit_and_wait(timeout)?;
+                }
+                Step::ReadBack { words } => {
+                    let out = cache.output.as_ref().expect("made above");
+                    obs.output = Some(Output::Words(out.read_u32s(*words)));
+                }
+                Step::Reset { .. } | Step::SubmitToInvalidate => {}
+            }
         }
     }
-    collector.set_abort(false);
-    let mut obs = Observation::with_status(Status::Ran);
-    obs.set_messages(collector.take());
-    if !valid
-        || cbs.lifecycle != CommandBufferLifecycle::Recording
-        || secondary
-        || render_pass.is_some()
-    {
-        return Ok(obs);
-    }
-    // SAFETY: ending and submitting a valid recording.
-    unsafe {
-        memory_barrier(
-            d,
-            cb,
-            (
-                vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
-                vk::AccessFlags::SHADER_WRITE,
-            ),
-            (vk::PipelineStageFlags::HOST, vk::AccessFlags::HOST_READ),
-        );
-        d.end_command_buffer(cb)
-            .map_err(|r| HarnessError::Failed(format!("vkEndCommandBuffer: {r:?}")))?;
-    }
-    collector.clear();
-    cache.submit_and_wait(timeout)?;
-    let out = cache.output.as_ref().expect("made above");
-    obs.output = Some(Output::Words(out.read_u32s(words)));
     Ok(obs)
 }

@@ -1,6 +1,6 @@
-//! Ray tracing pipelines of a world's description: the harness's descriptor layouts, one specialised
-//! stage per group (or a case's templated module of that kind), KHR or NV, cached per device, with the
-//! spec's default stack size.
+//! Ray tracing pipelines of a world's description, realised from their plan ([`PipelinePlan`]): the
+//! harness's descriptor layouts, one specialised stage per group (or a case's templated module of that
+//! kind), KHR or NV, cached per device, with the spec's default stack size.
 
 use super::DeviceCache;
 
@@ -22,9 +22,10 @@ macro_rules! group_infos {
     };
 }
 use crate::error::{vkfail, HarnessError};
+use crate::plan::pipeline::{PipelinePlan, MAX_HIT_ATTRIBUTE_SIZE, MAX_PAYLOAD_SIZE};
 use crate::shaders::{self, ShaderKind};
 use ash::vk;
-use model::world::{GeneralStage, Pipeline, PipelineApi, ShaderGroup};
+use model::world::{Pipeline, PipelineApi};
 
 /// The descriptor set layout and pipeline layout of one raygen variant.
 #[derive(Clone, Copy)]
@@ -113,33 +114,17 @@ impl DeviceCache {
         if let Some(l) = self.layouts.get(&(trace, api == PipelineApi::Nv)) {
             return Ok(*l);
         }
-        let raygen = vk::ShaderStageFlags::RAYGEN_KHR;
-        let traced = if trace {
-            raygen | vk::ShaderStageFlags::CLOSEST_HIT_KHR
-        } else {
-            raygen
-        };
-        let storage = |binding: u32, stages| {
-            vk::DescriptorSetLayoutBinding::default()
-                .binding(binding)
-                .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-                .descriptor_count(1)
-                .stage_flags(stages)
-        };
-        let mut bindings = vec![storage(1, raygen), storage(2, traced), storage(3, raygen)];
-        if trace {
-            let ty = match api {
-                PipelineApi::Khr => vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
-                PipelineApi::Nv => vk::DescriptorType::ACCELERATION_STRUCTURE_NV,
-            };
-            bindings.push(
-                vk::DescriptorSetLayoutBinding::default()
-                    .binding(0)
-                    .descriptor_type(ty)
-                    .descriptor_count(1)
-                    .stage_flags(traced),
-            );
-        }
+        let bindings: Vec<vk::DescriptorSetLayoutBinding> =
+            crate::plan::trace::harness_bindings(trace, api)
+                .iter()
+                .map(|b| {
+                    vk::DescriptorSetLayoutBinding::default()
+                        .binding(b.binding)
+                        .descriptor_type(vk::DescriptorType::from_raw(b.ty))
+                        .descriptor_count(1)
+                        .stage_flags(vk::ShaderStageFlags::from_raw(b.stages))
+                })
+                .collect();
         let d = &self.dev.device;
         // SAFETY: valid create infos.
         let set = unsafe {
@@ -220,90 +205,27 @@ impl DeviceCache {
             }
             _ => {}
         }
-        let raygen = if trace {
-            ShaderKind::RaygenTrace
-        } else {
-            ShaderKind::RaygenPlain
-        };
-        let closest = if trace {
-            ShaderKind::ClosestHitTrace
-        } else {
-            ShaderKind::ClosestHitPlain
-        };
+        let plan = PipelinePlan::of(p, trace)?;
         // (group index, stage flag, module) per stage, and per group (type, [general, closest, any, intersection]).
         let mut stage_list: Vec<(u32, vk::ShaderStageFlags, vk::ShaderModule)> = Vec::new();
-        let mut groups: Vec<(vk::RayTracingShaderGroupTypeKHR, [u32; 4])> = Vec::new();
-        let unused = vk::SHADER_UNUSED_KHR;
-        for (g, group) in p.groups.iter().enumerate() {
-            let g = g as u32;
-            let mut add = |this: &mut Self,
-                           kind: ShaderKind,
-                           stage: vk::ShaderStageFlags|
-             -> Result<u32, HarnessError> {
-                // A templated module of this kind replaces the harness's.
-                let m = match modules.iter().find(|(k, _)| *k == kind) {
-                    Some(&(_, m)) => m,
-                    None => this.module(kind, api)?,
-                };
-                stage_list.push((g, stage, m));
-                Ok(stage_list.len() as u32 - 1)
+        for st in &plan.stages {
+            // A templated module of this kind replaces the harness's.
+            let m = match modules.iter().find(|(k, _)| *k == st.shader) {
+                Some(&(_, m)) => m,
+                None => self.module(st.shader, api)?,
             };
-            let info = match group {
-                ShaderGroup::General { stage } => {
-                    let (kind, flag) = match stage {
-                        GeneralStage::Raygen => (raygen, vk::ShaderStageFlags::RAYGEN_KHR),
-                        GeneralStage::Miss => (ShaderKind::Miss, vk::ShaderStageFlags::MISS_KHR),
-                        GeneralStage::Callable => {
-                            (ShaderKind::Callable, vk::ShaderStageFlags::CALLABLE_KHR)
-                        }
-                    };
-                    let s = add(self, kind, flag)?;
-                    (
-                        vk::RayTracingShaderGroupTypeKHR::GENERAL,
-                        [s, unused, unused, unused],
-                    )
-                }
-                ShaderGroup::TrianglesHit {
-                    closest_hit,
-                    any_hit,
-                }
-                | ShaderGroup::ProceduralHit {
-                    closest_hit,
-                    any_hit,
-                    ..
-                } => {
-                    let procedural = matches!(group, ShaderGroup::ProceduralHit { .. });
-                    let ch = if *closest_hit {
-                        add(self, closest, vk::ShaderStageFlags::CLOSEST_HIT_KHR)?
-                    } else {
-                        unused
-                    };
-                    let ah = if *any_hit {
-                        add(self, ShaderKind::AnyHit, vk::ShaderStageFlags::ANY_HIT_KHR)?
-                    } else {
-                        unused
-                    };
-                    let is = match group {
-                        ShaderGroup::ProceduralHit { intersection: true, .. } => {
-                            add(self, ShaderKind::Intersection, vk::ShaderStageFlags::INTERSECTION_KHR)?
-                        }
-                        ShaderGroup::ProceduralHit { intersection: false, .. } => {
-                            return Err(HarnessError::NotRealised(format!(
-                                "group {g} is procedural without an intersection shader, which no valid pipeline has"
-                            )))
-                        }
-                        _ => unused,
-                    };
-                    let ty = if procedural {
-                        vk::RayTracingShaderGroupTypeKHR::PROCEDURAL_HIT_GROUP
-                    } else {
-                        vk::RayTracingShaderGroupTypeKHR::TRIANGLES_HIT_GROUP
-                    };
-                    (ty, [unused, ch, ah, is])
-                }
-            };
-            groups.push(info);
+            stage_list.push((st.group, vk::ShaderStageFlags::from_raw(st.stage), m));
         }
+        let groups: Vec<(vk::RayTracingShaderGroupTypeKHR, [u32; 4])> = plan
+            .groups
+            .iter()
+            .map(|g| {
+                (
+                    vk::RayTracingShaderGroupTypeKHR::from_raw(g.ty.raw()),
+                    [g.general, g.closest_hit, g.any_hit, g.intersection],
+                )
+            })
+            .collect();
         let group_values: Vec<u32> = stage_list.iter().map(|(g, _, _)| *g).collect();
         let entry = [vk::SpecializationMapEntry {
             constant_id: 0,
@@ -331,20 +253,16 @@ impl DeviceCache {
                     .specialization_info(spec)
             })
             .collect();
-        let flags = vk::PipelineCreateFlags::from_raw(p.flags.0 as u32);
+        let flags = vk::PipelineCreateFlags::from_raw(plan.flags);
         let hs = self.dev.limits.handle_size as usize;
         let n = p.groups.len();
         if api == PipelineApi::Nv {
             let hs = self.dev.limits.nv_handle_size as usize;
             let nv_groups: Vec<vk::RayTracingShaderGroupCreateInfoNV> =
                 group_infos!(groups, vk::RayTracingShaderGroupCreateInfoNV);
-            // The KHR-only flags (NO_NULL_*, SKIP_*, LIBRARY) are not NV pipeline flags.
+            // The plan keeps only the NV pipeline flags.
             let info = vk::RayTracingPipelineCreateInfoNV::default()
-                .flags(
-                    flags
-                        & (vk::PipelineCreateFlags::DISABLE_OPTIMIZATION
-                            | vk::PipelineCreateFlags::DEFER_COMPILE_NV),
-                )
+                .flags(flags)
                 .stages(&stages)
                 .groups(&nv_groups)
                 .max_recursion_depth(p.max_recursion_depth)
@@ -380,20 +298,19 @@ impl DeviceCache {
             group_infos!(groups, vk::RayTracingShaderGroupCreateInfoKHR);
         let dynamic = [vk::DynamicState::RAY_TRACING_PIPELINE_STACK_SIZE_KHR];
         let dyn_info = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic);
-        // The payload is `Payload { uint word, depth, ray; }` (12 bytes); the shaders declare no hit attributes.
         let iface = vk::RayTracingPipelineInterfaceCreateInfoKHR::default()
-            .max_pipeline_ray_payload_size(12)
-            .max_pipeline_ray_hit_attribute_size(8);
+            .max_pipeline_ray_payload_size(MAX_PAYLOAD_SIZE)
+            .max_pipeline_ray_hit_attribute_size(MAX_HIT_ATTRIBUTE_SIZE);
         let mut info = vk::RayTracingPipelineCreateInfoKHR::default()
             .flags(flags)
             .stages(&stages)
             .groups(&khr_groups)
             .max_pipeline_ray_recursion_depth(p.max_recursion_depth)
             .layout(layout);
-        if p.dynamic_stack_size {
+        if plan.dynamic_stack_size {
             info = info.dynamic_state(&dyn_info);
         }
-        if flags.contains(vk::PipelineCreateFlags::LIBRARY_KHR) {
+        if plan.library {
             info = info.library_interface(&iface);
         }
         let rt = self.dev.rt.as_ref().expect("checked above");
@@ -409,7 +326,7 @@ impl DeviceCache {
         .map_err(|(_, r)| {
             HarnessError::Failed(format!("vkCreateRayTracingPipelinesKHR failed: {r:?}"))
         })?[0];
-        let library = flags.contains(vk::PipelineCreateFlags::LIBRARY_KHR);
+        let library = plan.library;
         let handles = if library || n == 0 {
             vec![0u8; hs * n]
         } else {

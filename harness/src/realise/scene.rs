@@ -1,14 +1,18 @@
-//! The scene the rays see: one bottom-level structure per instance holding its geometries (one triangle
-//! or box each, at the positions the rays aim at), a top-level structure over them, as KHR or as NV
-//! acceleration structures, built once and cached per device.
+//! The scene the rays see, realised from its plan ([`ScenePlan`]): one bottom-level structure per
+//! instance holding its geometries (one triangle or box each, at the positions the rays aim at), a
+//! top-level structure over them, as KHR or as NV acceleration structures, built once and cached per
+//! device.
 
 use super::DeviceCache;
 use crate::error::{vkfail, HarnessError};
+use crate::plan::scene::{
+    instance_record, ScenePlan, AABB_STRIDE, TRIANGLE_VERTICES, VERTEX_STRIDE,
+};
 use crate::vk::commands::{begin_one_time, memory_barrier};
 use crate::vk::memory::Allocation;
 use crate::vk::VkDevice;
 use ash::vk;
-use model::world::{GeometryKind, Instance, PipelineApi};
+use model::world::{GeometryKind, PipelineApi};
 
 /// The top-level structure of a built scene, of the extension the case's pipeline uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -86,54 +90,12 @@ pub(crate) fn sized_structure(
     Ok((structure, storage, scratch))
 }
 
-/// The bytes every scene's bottom-level structures are built from, and each geometry's offset in them:
-/// geometry `g` of instance `i` is a triangle (3 vertices) or a box (min, max) around (2g, 4i, 0), at a
-/// 16-aligned offset. The rays and the intersection shader rely on this placement (see `Instance`).
-fn geometry_input(instances: &[Instance]) -> (Vec<u8>, Vec<Vec<u64>>) {
-    let mut input: Vec<u8> = Vec::new();
-    let mut offsets = Vec::with_capacity(instances.len());
-    for (i, inst) in instances.iter().enumerate() {
-        let mut per = Vec::with_capacity(inst.geometries.len());
-        for (g, kind) in inst.geometries.iter().enumerate() {
-            let (cx, cy) = (2.0 * g as f32, 4.0 * i as f32);
-            input.resize(input.len().next_multiple_of(16), 0);
-            per.push(input.len() as u64);
-            let floats: &[f32] = match kind {
-                GeometryKind::Triangles => &[
-                    cx - 0.5,
-                    cy - 0.5,
-                    0.0,
-                    cx + 0.5,
-                    cy - 0.5,
-                    0.0,
-                    cx,
-                    cy + 0.5,
-                    0.0,
-                ],
-                GeometryKind::Aabbs => &[cx - 0.5, cy - 0.5, -0.5, cx + 0.5, cy + 0.5, 0.5],
-            };
-            floats
-                .iter()
-                .for_each(|f| input.extend_from_slice(&f.to_ne_bytes()));
-        }
-        offsets.push(per);
-    }
-    (input, offsets)
-}
-
 impl DeviceCache {
-    /// The scene for a list of instances (cached).
-    pub(crate) fn scene(
-        &mut self,
-        instances: &[Instance],
-        api: PipelineApi,
-    ) -> Result<Tlas, HarnessError> {
-        let key = format!(
-            "{api:?}|{}",
-            serde_json::to_string(instances).unwrap_or_default()
-        );
+    /// The scene of a plan (cached).
+    pub(crate) fn scene(&mut self, plan: &ScenePlan) -> Result<Tlas, HarnessError> {
+        let key = serde_json::to_string(plan).unwrap_or_default();
         if !self.scenes.contains_key(&key) {
-            let built = self.build_scene(instances, api);
+            let built = self.build_scene(plan);
             self.scenes.insert(key.clone(), built);
         }
         match &self.scenes[&key] {
@@ -142,21 +104,7 @@ impl DeviceCache {
         }
     }
 
-    fn build_scene(
-        &mut self,
-        instances: &[Instance],
-        api: PipelineApi,
-    ) -> Result<Scene, HarnessError> {
-        // A bottom-level structure holds geometries of one type; a case that mixes them cannot be built
-        // validly, so it is not realised rather than handed to the driver.
-        if let Some(i) = instances
-            .iter()
-            .position(|inst| inst.geometries.windows(2).any(|w| w[0] != w[1]))
-        {
-            return Err(HarnessError::NotRealised(format!(
-                "instance {i} mixes triangle and AABB geometries; one acceleration structure holds one type"
-            )));
-        }
+    fn build_scene(&mut self, plan: &ScenePlan) -> Result<Scene, HarnessError> {
         let mut scene = Scene {
             tlas: Tlas::Khr(vk::AccelerationStructureKHR::null()),
             structures: Vec::new(),
@@ -164,13 +112,13 @@ impl DeviceCache {
             nv_memory: Vec::new(),
             buffers: Vec::new(),
         };
-        if api == PipelineApi::Nv {
+        if plan.api == PipelineApi::Nv {
             let Some(nv) = self.dev.nv.clone() else {
                 return Err(HarnessError::NotRealised(
                     "the case traces rays but does not enable VK_NV_ray_tracing".into(),
                 ));
             };
-            return match self.build_nv_scene_into(&nv, instances, &mut scene) {
+            return match self.build_nv_scene_into(&nv, plan, &mut scene) {
                 Ok(()) => Ok(scene),
                 Err(e) => {
                     self.destroy_scene(scene);
@@ -190,7 +138,7 @@ impl DeviceCache {
                 "the case traces rays but does not enable accelerationStructure and bufferDeviceAddress".into(),
             ));
         }
-        let result = self.build_scene_into(&accel, instances, &mut scene);
+        let result = self.build_scene_into(&accel, plan, &mut scene);
         match result {
             Ok(()) => Ok(scene),
             Err(e) => {
@@ -203,7 +151,7 @@ impl DeviceCache {
     fn build_scene_into(
         &mut self,
         accel: &ash::khr::acceleration_structure::Device,
-        instances: &[Instance],
+        plan: &ScenePlan,
         scene: &mut Scene,
     ) -> Result<(), HarnessError> {
         let dev = &self.dev;
@@ -212,9 +160,9 @@ impl DeviceCache {
         let scratch_align = (dev.limits.scratch_alignment as u64).max(256);
         let none = vk::BufferCreateFlags::empty();
         // Geometry input: one triangle or box per geometry, all in one buffer.
-        let (input, offsets) = geometry_input(instances);
+        let input = &plan.input;
         let inputs = Allocation::new(dev, input.len().max(16) as u64, input_usage, none, 256)?;
-        inputs.write(0, &input);
+        inputs.write(0, input);
         let input_address = inputs.address;
         scene.buffers.push(inputs);
 
@@ -225,34 +173,27 @@ impl DeviceCache {
             vk::AccelerationStructureKHR,
             u64,
         )> = Vec::new();
-        for (i, inst) in instances.iter().enumerate() {
-            if inst.geometries.is_empty() {
-                // An instance without geometry is made inactive (reference 0, semantics.md §4): it keeps its
-                // place in the instance numbering, and no bottom-level structure of zero geometries (whose
-                // size query some drivers answer with 0) is built.
-                blas_addresses.push(0);
-                continue;
-            }
+        for bottom in &plan.bottoms {
             let mut geoms = Vec::new();
             let mut ranges = Vec::new();
-            for (g, kind) in inst.geometries.iter().enumerate() {
-                let at = input_address + offsets[i][g];
-                let data = match kind {
+            for g in bottom {
+                let at = input_address + g.offset;
+                let data = match g.kind {
                     GeometryKind::Triangles => vk::AccelerationStructureGeometryDataKHR {
                         triangles: vk::AccelerationStructureGeometryTrianglesDataKHR::default()
                             .vertex_format(vk::Format::R32G32B32_SFLOAT)
                             .vertex_data(vk::DeviceOrHostAddressConstKHR { device_address: at })
-                            .vertex_stride(12)
-                            .max_vertex(2)
+                            .vertex_stride(VERTEX_STRIDE)
+                            .max_vertex(TRIANGLE_VERTICES - 1)
                             .index_type(vk::IndexType::NONE_KHR),
                     },
                     GeometryKind::Aabbs => vk::AccelerationStructureGeometryDataKHR {
                         aabbs: vk::AccelerationStructureGeometryAabbsDataKHR::default()
                             .data(vk::DeviceOrHostAddressConstKHR { device_address: at })
-                            .stride(24),
+                            .stride(AABB_STRIDE),
                     },
                 };
-                let ty = match kind {
+                let ty = match g.kind {
                     GeometryKind::Triangles => vk::GeometryTypeKHR::TRIANGLES,
                     GeometryKind::Aabbs => vk::GeometryTypeKHR::AABBS,
                 };
@@ -287,8 +228,9 @@ impl DeviceCache {
             scene.buffers.push(storage);
             scene.buffers.push(scratch);
         }
-        // Instances.
-        let inst_buf = instance_buffer(dev, instances, &blas_addresses, input_usage)?;
+        // Instances: an inactive one (no geometry, semantics.md §4) references 0.
+        let records = plan_records(plan, &blas_addresses);
+        let inst_buf = instance_buffer(dev, &records, input_usage)?;
         let tlas_geom = [vk::AccelerationStructureGeometryKHR::default()
             .geometry_type(vk::GeometryTypeKHR::INSTANCES)
             .geometry(vk::AccelerationStructureGeometryDataKHR {
@@ -299,7 +241,7 @@ impl DeviceCache {
                 ),
             })];
         scene.buffers.push(inst_buf);
-        let tlas_count = [instances.len() as u32];
+        let tlas_count = [plan.instances.len() as u32];
         let (tlas, storage, scratch) = sized_structure(
             dev,
             accel,
@@ -354,7 +296,7 @@ impl DeviceCache {
                     device_address: tlas_scratch,
                 });
             let range = [vk::AccelerationStructureBuildRangeInfoKHR::default()
-                .primitive_count(instances.len() as u32)];
+                .primitive_count(plan.instances.len() as u32)];
             accel.cmd_build_acceleration_structures(cb, &[info], &[&range]);
             d.end_command_buffer(cb)
                 .map_err(vkfail("vkEndCommandBuffer"))?;
@@ -369,16 +311,16 @@ impl DeviceCache {
     fn build_nv_scene_into(
         &mut self,
         nv: &ash::nv::ray_tracing::Device,
-        instances: &[Instance],
+        plan: &ScenePlan,
         scene: &mut Scene,
     ) -> Result<(), HarnessError> {
         let dev = &self.dev;
         let usage = vk::BufferUsageFlags::RAY_TRACING_NV;
         let none = vk::BufferCreateFlags::empty();
         // Geometry input, as for KHR (offsets 16-aligned; AABBs need 8).
-        let (input, offsets) = geometry_input(instances);
+        let input = &plan.input;
         let inputs = Allocation::new(dev, input.len().max(16) as u64, usage, none, 256)?;
-        inputs.write(0, &input);
+        inputs.write(0, input);
         let input_buffer = inputs.buffer;
         scene.buffers.push(inputs);
 
@@ -449,25 +391,19 @@ impl DeviceCache {
         let mut handles = Vec::new();
         let mut blas_builds: Vec<(Vec<vk::GeometryNV>, vk::AccelerationStructureNV, vk::Buffer)> =
             Vec::new();
-        for (i, inst) in instances.iter().enumerate() {
-            if inst.geometries.is_empty() {
-                handles.push(0u64);
-                continue;
-            }
-            let geoms: Vec<vk::GeometryNV> = inst
-                .geometries
+        for bottom in &plan.bottoms {
+            let geoms: Vec<vk::GeometryNV> = bottom
                 .iter()
-                .enumerate()
-                .map(|(g, kind)| {
-                    let at = offsets[i][g];
+                .map(|g| {
+                    let at = g.offset;
                     let mut data = vk::GeometryDataNV::default();
-                    let ty = match kind {
+                    let ty = match g.kind {
                         GeometryKind::Triangles => {
                             data.triangles = vk::GeometryTrianglesNV::default()
                                 .vertex_data(input_buffer)
                                 .vertex_offset(at)
-                                .vertex_count(3)
-                                .vertex_stride(12)
+                                .vertex_count(TRIANGLE_VERTICES)
+                                .vertex_stride(VERTEX_STRIDE)
                                 .vertex_format(vk::Format::R32G32B32_SFLOAT)
                                 .index_type(vk::IndexType::NONE_NV);
                             vk::GeometryTypeNV::TRIANGLES
@@ -476,7 +412,7 @@ impl DeviceCache {
                             data.aabbs = vk::GeometryAABBNV::default()
                                 .aabb_data(input_buffer)
                                 .num_aab_bs(1)
-                                .stride(24)
+                                .stride(AABB_STRIDE as u32)
                                 .offset(at);
                             vk::GeometryTypeNV::AABBS
                         }
@@ -494,12 +430,13 @@ impl DeviceCache {
             handles.push(handle);
             blas_builds.push((geoms, blas, scratch));
         }
-        let inst_buf = instance_buffer(dev, instances, &handles, usage)?;
+        let records = plan_records(plan, &handles);
+        let inst_buf = instance_buffer(dev, &records, usage)?;
         let inst_buffer = inst_buf.buffer;
         scene.buffers.push(inst_buf);
         let tlas_info = vk::AccelerationStructureInfoNV::default()
             .ty(vk::AccelerationStructureTypeNV::TOP_LEVEL)
-            .instance_count(instances.len() as u32);
+            .instance_count(plan.instances.len() as u32);
         let (tlas, tlas_scratch) = make(tlas_info, scene)?;
         scene.tlas = Tlas::Nv(tlas);
 
@@ -577,34 +514,28 @@ impl DeviceCache {
     }
 }
 
-/// The instance records of a scene's top-level structure in a buffer of `usage`: instance `i` with its
-/// mask and shader binding table offset, referencing `references[i]` (a KHR device address or an NV
-/// handle; 0 for an inactive instance), with the identity transform. KHR and NV records have one layout.
+/// The instance records of a scene's top-level structure: instance `i` with its mask and shader
+/// binding table offset, referencing the bottom-level structure it names (`references[k]`, a KHR device
+/// address or an NV handle) or 0 when it has none.
+fn plan_records(plan: &ScenePlan, references: &[u64]) -> Vec<u8> {
+    plan.instances
+        .iter()
+        .flat_map(|i| {
+            let reference = i
+                .bottom
+                .and_then(|k| references.get(k))
+                .copied()
+                .unwrap_or(0);
+            instance_record(i.mask, i.sbt_record_offset, reference)
+        })
+        .collect()
+}
+
+/// Instance records (64 bytes each) in a buffer of `usage`.
 pub(crate) fn instance_buffer(
     dev: &VkDevice,
-    instances: &[Instance],
-    references: &[u64],
+    records: &[u8],
     usage: vk::BufferUsageFlags,
 ) -> Result<Allocation, HarnessError> {
-    let bytes: Vec<u8> = instances
-        .iter()
-        .zip(references)
-        .flat_map(|(inst, reference)| {
-            let record = vk::AccelerationStructureInstanceKHR {
-                transform: vk::TransformMatrixKHR {
-                    matrix: [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0],
-                },
-                instance_custom_index_and_mask: vk::Packed24_8::new(0, inst.mask),
-                instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(
-                    inst.sbt_record_offset & 0xFF_FFFF,
-                    0,
-                ),
-                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR {
-                    device_handle: *reference,
-                },
-            };
-            crate::vk::structs::as_bytes(&record).to_vec()
-        })
-        .collect();
-    Allocation::filled(dev, &bytes, 64, usage, 256)
+    Allocation::filled(dev, records, 64, usage, 256)
 }

@@ -366,6 +366,58 @@ impl VkInstance {
         })
     }
 
+    /// What runs cases: the physical device, its driver and the validation layer.
+    pub(crate) fn running_on(&self) -> crate::observe::RunningOn {
+        let version = |v: u32| {
+            format!(
+                "{}.{}.{}",
+                vk::api_version_major(v),
+                vk::api_version_minor(v),
+                vk::api_version_patch(v)
+            )
+        };
+        let mut driver = vk::PhysicalDeviceDriverProperties::default();
+        let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver);
+        // SAFETY: plain query; the driver properties are core in Vulkan 1.2.
+        unsafe {
+            self.instance
+                .get_physical_device_properties2(self.physical, &mut p2)
+        };
+        let p = p2.properties;
+        let text = |c: Result<&CStr, _>| {
+            c.map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        };
+        let name = text(p.device_name_as_c_str());
+        let layer = self.debug.as_ref().and_then(|_| {
+            // SAFETY: plain query.
+            let layers = unsafe { self._entry.enumerate_instance_layer_properties() }.ok()?;
+            let l = layers.iter().find(|l| {
+                l.layer_name_as_c_str()
+                    .is_ok_and(|n| n.to_bytes() == VALIDATION_LAYER.as_bytes())
+            })?;
+            Some(format!(
+                "{VALIDATION_LAYER} {} (implementation {})",
+                version(l.spec_version),
+                l.implementation_version
+            ))
+        });
+        crate::observe::RunningOn {
+            device: format!(
+                "{name} (vendor {:#06x}, device {:#06x})",
+                p.vendor_id, p.device_id
+            ),
+            api_version: version(p.api_version),
+            driver: format!(
+                "{} {} (driver version {:#010x})",
+                text(driver.driver_name_as_c_str()),
+                text(driver.driver_info_as_c_str()),
+                p.driver_version
+            ),
+            layer,
+        }
+    }
+
     /// The name the physical device reports.
     pub(crate) fn device_name(&self) -> String {
         // SAFETY: plain query.
