@@ -64,7 +64,8 @@ pub struct CaseReport {
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub detail: String,
     /// The disagreements triage entries explained, each with its entry (empty unless triaged).
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    /// (Written `matched`: a results line's `triage` is the applied entries, see `results::ResultLine`.)
+    #[serde(default, rename = "matched", skip_serializing_if = "Vec::is_empty")]
     pub triage: Vec<TriageMatch>,
     pub millis: f64,
 }
