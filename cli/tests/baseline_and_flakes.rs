@@ -135,7 +135,7 @@ fn statuses_against_the_baseline_reach_every_output() {
         t.contains("<property name=\"triage.kind\" value=\"layer-gap\"/>"),
         "{t}"
     );
-    assert!(t.contains("<property name=\"triage.reason\" value=\"no error for an unnormalized-coordinate sampler"), "{t}");
+    assert!(t.contains("<property name=\"triage.reason\" value=\"the view-type check of an unnormalized-coordinate sampler"), "{t}");
     assert!(
         t.contains(
             "<system-out>triaged layer-gap: VUID-vkCmdTraceRaysIndirectKHR-None-02702 (model only)"

@@ -220,13 +220,13 @@ pub fn run(a: RunArgs) -> super::Exit {
     if let Err(e) = &outcome.report {
         eprintln!("rtconf: the HTML report could not be written: {e}");
     }
+    print_triage(&outcome.summary, config.strict);
     print_summary(
         &outcome.summary,
         &config.out,
         outcome.not_expressible.len(),
         a.verbose,
     );
-    print_triage(&outcome.summary, config.strict);
     if outcome.summary.cases == 0 {
         eprintln!(
             "rtconf: the run made no case: nothing was checked (the VUIDs selected have no executable mutation on this profile, or --count made none)"
@@ -360,11 +360,19 @@ fn print_triage(s: &Summary, strict: bool) {
             t.entries,
             t.files.len()
         );
+        println!();
         return;
     }
-    let what = if !t.stale_judged {
-        "not exercised by this partial run"
-    } else if strict {
+    if !t.stale_judged {
+        println!(
+            "triage: {} of {} entries not exercised by this partial run (stale only in a whole run)",
+            t.stale.len(),
+            t.entries
+        );
+        println!();
+        return;
+    }
+    let what = if strict {
         "STALE (an error under --strict)"
     } else {
         "stale"
@@ -377,4 +385,5 @@ fn print_triage(s: &Summary, strict: bool) {
     for id in &t.stale {
         println!("  {id}");
     }
+    println!();
 }
