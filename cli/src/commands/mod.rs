@@ -43,7 +43,7 @@ enum Command {
     /// A conformance run: generated cases (or a folder of case files) on a driver under the validation
     /// layer, compared with the model, judged against a baseline.
     #[command(after_help = EXIT_CODES)]
-    Run(run::RunArgs),
+    Run(Box<run::RunArgs>),
     /// Merge the run folders of a sharded run into one (results, summary, JUnit, report).
     #[command(after_help = EXIT_CODES)]
     Merge(merge::MergeArgs),
@@ -82,7 +82,7 @@ pub fn main() -> i32 {
         Command::Check(a) => check::run(a),
         Command::Gen(a) => gen::run(a),
         Command::Probe(a) => probe::run(a),
-        Command::Run(a) => run::run(a),
+        Command::Run(a) => run::run(*a),
         Command::Merge(a) => merge::run(a),
         Command::Report(a) => report::run(a),
         Command::Replay(a) => replay::run(a),
