@@ -166,7 +166,10 @@ pub fn run_catching(target: Target, data: &[u8]) -> Result<Outcome, Panic> {
             if !CATCHING.with(|c| c.get()) {
                 return before(info);
             }
-            let message = info.payload_as_str().unwrap_or("(no message)").to_string();
+            let payload = info.payload();
+            let message = (payload.downcast_ref::<&str>().map(|s| s.to_string()))
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "(no message)".into());
             let location = info.location().map(|l| l.to_string()).unwrap_or_default();
             LAST_PANIC.with(|p| *p.borrow_mut() = Some(Panic { location, message }));
         }))
