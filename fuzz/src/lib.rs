@@ -259,6 +259,10 @@ fn fixed() -> &'static Fixed {
                 "nvidia-h100",
                 include_str!("../../profiles/nvidia-h100.json"),
             ),
+            (
+                "nvidia-h200",
+                include_str!("../../profiles/nvidia-h200.json"),
+            ),
         ]
         .into_iter()
         .filter_map(|(name, text)| DeviceProfile::from_profiles_json(name, text).ok())
