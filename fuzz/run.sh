@@ -15,6 +15,7 @@ case $target in
   vk_xml) dict=xml ;;
   validusage_json | device_profile) dict=json ;;
   manpage_*) dict=manpage ;;
+  baseline | case_patterns) dict=lines ;;
   *) echo "unknown target $target" >&2; exit 2 ;;
 esac
 work=fuzz/work

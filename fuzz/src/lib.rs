@@ -38,10 +38,16 @@ pub enum Target {
     /// A device profile: `model::DeviceProfile::from_profiles_json`, then a trace case and a build
     /// case judged on it.
     DeviceProfile,
+    /// A baseline file of expected failures (`--baseline`): `session::baseline::parse_baseline`, then
+    /// its `*` patterns matched against case names and VUIDs.
+    Baseline,
+    /// A skips or flakes file (`--skips`, `--flakes`): `session::baseline::parse_patterns`, then its
+    /// regular expressions matched against case names and VUIDs.
+    CasePatterns,
 }
 
 impl Target {
-    pub const ALL: [Target; 9] = [
+    pub const ALL: [Target; 11] = [
         Target::VkXml,
         Target::Validusage,
         Target::ManpageMarkdown,
@@ -51,6 +57,8 @@ impl Target {
         Target::BuildCase,
         Target::Triage,
         Target::DeviceProfile,
+        Target::Baseline,
+        Target::CasePatterns,
     ];
 
     /// The name of the target's libFuzzer binary and of its folders under `fuzz/corpus/` and
@@ -66,6 +74,8 @@ impl Target {
             Target::BuildCase => "build_case",
             Target::Triage => "triage",
             Target::DeviceProfile => "device_profile",
+            Target::Baseline => "baseline",
+            Target::CasePatterns => "case_patterns",
         }
     }
 
@@ -141,6 +151,24 @@ pub fn run(target: Target, data: &[u8]) -> Outcome {
                 message: e.problem,
             },
         },
+        Target::Baseline => {
+            let (entries, errors) = session::baseline::parse_baseline(ORIGIN, text);
+            for e in &entries {
+                for name in MATCHED_NAMES {
+                    let _ = session::baseline::wildcard_match(&e.key, name);
+                }
+            }
+            lines(&errors)
+        }
+        Target::CasePatterns => {
+            let (patterns, errors) = session::baseline::parse_patterns(ORIGIN, text);
+            for p in &patterns {
+                for name in MATCHED_NAMES {
+                    let _ = p.regex.is_match(name);
+                }
+            }
+            lines(&errors)
+        }
     }
 }
 
@@ -195,6 +223,24 @@ fn registry<T>(r: Result<T, vk_registry::RegistryError>) -> Outcome {
         Ok(_) => Outcome::Accepted,
         Err(e) => Outcome::Rejected {
             location: e.location().map(|l| l.to_string()),
+            message: e.to_string(),
+        },
+    }
+}
+
+/// Names that baseline, skips and flakes entries are matched against: case names and VUIDs.
+const MATCHED_NAMES: [&str; 3] = [
+    "trace-indirect-valid-3-7",
+    "build-0-0-valid",
+    "VUID-vkCmdTraceRaysIndirectKHR-None-03429",
+];
+
+/// The outcome of a line-based file: accepted, or refused at the line of its first error.
+fn lines(errors: &[session::baseline::LineError]) -> Outcome {
+    match errors.first() {
+        None => Outcome::Accepted,
+        Some(e) => Outcome::Rejected {
+            location: Some(e.line.to_string()),
             message: e.to_string(),
         },
     }

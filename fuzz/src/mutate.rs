@@ -192,6 +192,14 @@ fn tokens(target: Target) -> &'static [&'static str] {
             "\"shaderGroupHandleSize\":0",
             "\"shaderGroupBaseAlignment\":0",
         ],
+        Target::Baseline => &[
+            ",", ",fail", ",crash", ",timeout", ",pass", "*", "**", "#", "VUID-", " ", "\t", "\r",
+            "\n", "\u{feff}",
+        ],
+        Target::CasePatterns => &[
+            "(", ")", "[", "]", "{", "}", "*", "+", "?", "^", "$", "\\", "|", "{1000}", "{0,}",
+            "(?i)", "(?x)", "\\p{L}", "\\b", ".", "#", "\n",
+        ],
     }
 }
 
@@ -208,6 +216,8 @@ fn nesting(target: Target, rng: &mut Rng) -> (&'static str, &'static str) {
         Target::TraceCase | Target::BuildCase | Target::Triage => {
             &[("[", "]"), ("{a: ", "}"), ("- ", ""), ("*", "")]
         }
+        Target::Baseline => &[("*", ""), ("a*", "")],
+        Target::CasePatterns => &[("(", ")"), ("[", "]"), ("(?:a|", ")"), ("a{2}", "")],
     };
     *rng.pick(choices)
 }

@@ -6,7 +6,7 @@
 use rtconf_fuzz::mutate::{mutate, Rng};
 use rtconf_fuzz::{fuzz_dir, inputs_in, run, run_catching, Outcome, Target};
 
-/// Mutations of each target's seeds (nine targets); `RTCONF_FUZZ_MUTATIONS` raises it for a longer
+/// Mutations of each target's seeds (eleven targets); `RTCONF_FUZZ_MUTATIONS` raises it for a longer
 /// hunt (`RTCONF_FUZZ_SEED` varies the sequence).
 const MUTATIONS_PER_TARGET: usize = 400;
 
