@@ -33,7 +33,7 @@ pub enum Target {
     /// A case file of the build command: the same reader and judging as [`Target::TraceCase`],
     /// seeded with build cases so that mutations reach the build world.
     BuildCase,
-    /// A triage file: `session::triage::Triage::from_yaml`, then a wildcard lookup.
+    /// A triage file: `session::triage::Triage::from_yaml`, then each entry's id and patterns.
     Triage,
     /// A device profile: `model::DeviceProfile::from_profiles_json`, then a trace case and a build
     /// case judged on it.
@@ -130,8 +130,22 @@ pub fn run(target: Target, data: &[u8]) -> Outcome {
         },
         Target::Triage => match session::triage::Triage::from_yaml(ORIGIN, text) {
             Ok(triage) => {
-                let _ = triage.covers("VUID-vkCmdTraceRaysIndirectKHR-None-03429");
+                // what a run asks of an entry: its id, and whether its patterns match a VUID
+                for e in &triage.entries {
+                    let _ = (e.id(), e.observed.describe());
+                    for p in observed_patterns(&e.observed) {
+                        let _ = p.captures(MATCHED_NAMES[2]);
+                    }
+                }
                 Outcome::Accepted
+            }
+            // An entry that is not one (two directions, a kind that cannot explain its direction, a key
+            // written twice) is named by its YAML path (`entries[3]`), without line:column.
+            Err(session::SessionError::Case(e)) if e.location.is_none() && !e.at.is_empty() => {
+                Outcome::Rejected {
+                    location: Some(e.at.clone()),
+                    message: e.to_string(),
+                }
             }
             Err(session::SessionError::Case(e)) => case_error(e),
             Err(e) => Outcome::Rejected {
@@ -234,6 +248,15 @@ const MATCHED_NAMES: [&str; 3] = [
     "build-0-0-valid",
     "VUID-vkCmdTraceRaysIndirectKHR-None-03429",
 ];
+
+/// The wildcard patterns of what a triage entry says was observed.
+fn observed_patterns(o: &session::triage::Observed) -> Vec<&session::triage::Pattern> {
+    use session::triage::Observed;
+    match o {
+        Observed::LayerSilent(p) | Observed::LayerExtra(p) | Observed::Output(p) => vec![p],
+        Observed::LayerRenames { model, layer } => vec![model, layer],
+    }
+}
 
 /// The outcome of a line-based file: accepted, or refused at the line of its first error.
 fn lines(errors: &[session::baseline::LineError]) -> Outcome {

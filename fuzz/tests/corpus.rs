@@ -76,18 +76,40 @@ fn corpus_and_mutations_neither_panic_nor_lose_the_location() {
                 record(name, data, p);
             }
         }
+        let started = std::time::Instant::now();
         let (mut accepted, mut rejected) = (0usize, 0usize);
         let mut rng = Rng::new(seed_base() + k as u64);
         for i in 0..mutations_per_target() {
             let (_, a) = rng.pick(&seeds).clone();
             let (_, b) = rng.pick(&seeds).clone();
             let m = mutate(target, &a, &b, &mut rng);
-            match check(target, &m) {
+            let one = std::time::Instant::now();
+            let outcome = check(target, &m);
+            if one.elapsed() > std::time::Duration::from_millis(500) {
+                let file = out_dir
+                    .join("slow")
+                    .join(target.name())
+                    .join(format!("mutation-{i}"));
+                let _ = std::fs::create_dir_all(file.parent().unwrap());
+                let _ = std::fs::write(&file, &m);
+                eprintln!(
+                    "{}: slow input saved as {} ({:.1?})",
+                    target.name(),
+                    file.display(),
+                    one.elapsed()
+                );
+            }
+            match outcome {
                 Ok(Outcome::Accepted) => accepted += 1,
                 Ok(_) => rejected += 1,
                 Err(p) => record(&format!("mutation-{i}"), &m, p),
             }
         }
+        eprintln!(
+            "{}: {accepted} accepted, {rejected} refused in {:.1?}",
+            target.name(),
+            started.elapsed()
+        );
         // the mutations reach both what follows a parser (the model judges what was read) and its
         // errors
         assert!(
