@@ -274,6 +274,7 @@ impl VkInstance {
         // limit from the environment (0 there means unlimited, but a settings file may set one).
         std::env::set_var("VK_LAYER_DUPLICATE_MESSAGE_LIMIT", "1000000000");
         std::env::set_var("VK_LAYER_ENABLE_MESSAGE_LIMIT", "false");
+        std::env::set_var("VK_KHRONOS_VALIDATION_ENABLE_MESSAGE_LIMIT", "false");
         let settings_ext = validation
             && unsafe { entry.enumerate_instance_extension_properties(Some(layer.as_c_str())) }
                 .unwrap_or_default()
@@ -317,8 +318,23 @@ impl VkInstance {
             info = info.push_next(&mut settings);
         }
         // SAFETY: valid create info whose pointers outlive the call.
-        let instance = unsafe { entry.create_instance(&info, None) }
-            .map_err(HarnessError::vk("vkCreateInstance"))?;
+        let created = unsafe { entry.create_instance(&info, None) };
+        let instance = match created {
+            // An older loader under a newer layer (bookworm's 1.3.239 loader with the 1.4.309 layer)
+            // passes the layer's VK_EXT_layer_settings down to a driver that lacks it; the layer then
+            // takes the limit from the environment set above.
+            Err(vk::Result::ERROR_EXTENSION_NOT_PRESENT) if settings_ext => {
+                ext_ptrs.retain(|p| *p != ash::ext::layer_settings::NAME.as_ptr());
+                let info = vk::InstanceCreateInfo::default()
+                    .application_info(&app)
+                    .enabled_layer_names(&layer_ptrs)
+                    .enabled_extension_names(&ext_ptrs);
+                // SAFETY: valid create info whose pointers outlive the call.
+                unsafe { entry.create_instance(&info, None) }
+            }
+            other => other,
+        }
+        .map_err(HarnessError::vk("vkCreateInstance"))?;
         let collector = Arc::new(Collector::default());
         let debug = if validation {
             let du = ash::ext::debug_utils::Instance::new(&entry, &instance);
