@@ -74,20 +74,21 @@ bin="$repo_root/.gl/bin/rtconf"
     fi
     echo "- script: \`bash scripts/nvidia-full-run.sh --out DIR --count $count --valid-count $valid_count --phases '$phases'\`"
     echo
-    echo "| phase | command | exit | seconds | cases | pass | triaged | unsupported | fail | crash | timeout | case-error |"
-    echo "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+    echo "| phase | command | exit | seconds | cases | pass | triaged | unsupported | not-realised | fail | crash | timeout | case-error | stale triage |"
+    echo "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
 } >"$readme"
 
 # One row of the README from a run folder's summary.json (python3 where there is one).
 row() {
     local phase=$1 cmd=$2 rc=$3 secs=$4 summary="$out/$1/summary.json"
-    local counts="| | | | | | | |"
+    local counts="| | | | | | | | | |"
     if [[ -s "$summary" ]] && command -v python3 >/dev/null; then
         counts=$(python3 - "$summary" <<'PY'
 import json, sys
 s = json.load(open(sys.argv[1]))
-keys = ["cases", "passed", "triaged", "unsupported", "failed", "crashes", "timeouts", "case_errors"]
-print("| " + " | ".join(str(s.get(k, "")) for k in keys) + " |")
+keys = ["cases", "passed", "triaged", "unsupported", "not_realised", "failed", "crashes", "timeouts", "case_errors"]
+stale = len((s.get("triage") or {}).get("stale") or [])
+print("| " + " | ".join(str(s.get(k, "")) for k in keys) + f" | {stale} |")
 PY
 )
     fi
@@ -129,7 +130,7 @@ for p in $phases; do
             if "$bin" help stress >/dev/null 2>&1; then
                 phase stress 1.3.239 stress --driver nvidia --profile "$profile" --out "$out/stress"
             else
-                echo "| stress | (this binary has no \`rtconf stress\`) | not run | | | | | | | | | |" >>"$readme"
+                echo "| stress | (this binary has no \`rtconf stress\`) | not run | | | | | | | | | | | |" >>"$readme"
             fi
             ;;
         *) echo "nvidia-full-run: unknown phase $p" >&2; exit 2 ;;
