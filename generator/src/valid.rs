@@ -485,13 +485,15 @@ pub fn resolve(
         .into_iter()
         .filter(|q| q.contains(QueueFlags::COMPUTE_BIT))
         .collect();
+    // An NV pipeline has no stack-size state (vkCreateRayTracingPipelinesNV takes no dynamic states).
+    let dynamic_stack = raw.dynamic_stack && command != CommandId::TraceRaysNv;
     let command_buffer = CommandBufferState {
         pool_queue: if families.is_empty() {
             CommandBufferState::default().pool_queue
         } else {
             pick(&families, raw.queue_sel)
         },
-        stack_size_set: raw.dynamic_stack,
+        stack_size_set: dynamic_stack,
         ..Default::default()
     };
 
@@ -502,7 +504,7 @@ pub fn resolve(
         groups,
         flags,
         max_recursion_depth,
-        dynamic_stack_size: raw.dynamic_stack,
+        dynamic_stack_size: dynamic_stack,
         launch,
         tables,
         sbt_tail: raw.tail as u64 * lim.stride_align,

@@ -54,6 +54,15 @@ pub fn flaws(case: &Case) -> Vec<Flaw> {
             }
         }
     }
+    // vkCreateRayTracingPipelinesNV takes no dynamic states: such a pipeline cannot exist.
+    if let Some(p) = case.as_trace().and_then(|t| t.world.pipeline.as_ref()) {
+        if p.api == crate::world::PipelineApi::Nv && p.dynamic_stack_size {
+            out.push(Flaw {
+                at: "world.pipeline.dynamic_stack_size".into(),
+                problem: "an NV pipeline (vkCreateRayTracingPipelinesNV) has no dynamic states, so no dynamic stack size".into(),
+            });
+        }
+    }
     let groups = case
         .as_trace()
         .map(|t| t.world.pipeline.as_ref().map(|p| p.groups.len()));

@@ -130,3 +130,19 @@ fn a_parse_error_says_file_line_column_path_and_problem_once() {
         "the position is said once: {e}"
     );
 }
+
+#[test]
+fn an_nv_pipeline_with_a_dynamic_stack_size_is_an_error_of_the_case() {
+    // vkCreateRayTracingPipelinesNV takes no dynamic states: no such pipeline can be made, so a
+    // verdict on it (09458, 08608) would judge a world no driver can be handed.
+    const NV: &str = "cases/nvidia-h200/vkCmdTraceRaysNV-None-08114-121-0.yaml";
+    let text = edited(
+        &committed(NV),
+        "    api: nv\n",
+        "    api: nv\n    dynamic_stack_size: true\n",
+    );
+    let e = Case::read("nv.yaml", &text).unwrap_err();
+    assert_eq!(e.at, "world.pipeline.dynamic_stack_size", "{e}");
+    assert!(e.problem.contains("no dynamic states"), "{e}");
+    assert!(Case::read("nv.yaml", &committed(NV)).is_ok());
+}

@@ -394,6 +394,15 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
             add_hit_ray(&mut plan, kind, HandleRef::Group(g));
             keep_recursion(&mut plan);
         }
+        Mutation::DynamicStackSizeNotSet | Mutation::StaticStackSizeSet
+            if cmd == CommandId::TraceRaysNv =>
+        {
+            // 09458 and 08608's stack size concern the KHR pipeline's stack-size state, which an NV
+            // pipeline does not have (its create info takes no dynamic states).
+            return Err(unsupported(
+                "an NV pipeline has no stack-size state, dynamic or static".into(),
+            ));
+        }
         Mutation::DynamicStackSizeNotSet => {
             plan.dynamic_stack_size = true;
             plan.command_buffer.stack_size_set = false;
