@@ -94,8 +94,64 @@ pub struct NotRunnable {
     pub reads: Vec<String>,
 }
 
+/// The deepest nesting of flow collections (`[...]`, `{...}`) a YAML input may have. The YAML
+/// scanner's time grows with the square of this nesting, and no case, triage or profile file needs
+/// more than a few levels.
+pub const MAX_FLOW_NESTING: usize = 64;
+
+/// The line and column (from 1) where flow collections first nest deeper than `limit`, outside quoted
+/// scalars and comments; None when they never do.
+pub fn flow_nesting_past(text: &str, limit: usize) -> Option<(usize, usize)> {
+    let (mut depth, mut line, mut col) = (0usize, 1usize, 0usize);
+    let (mut single, mut double, mut comment, mut escaped) = (false, false, false, false);
+    let mut prev = '\n';
+    for c in text.chars() {
+        col += 1;
+        if c == '\n' {
+            (line, col, comment) = (line + 1, 0, false);
+            prev = c;
+            continue;
+        }
+        if comment {
+            continue;
+        }
+        if double {
+            double = escaped || c != '"';
+            escaped = !escaped && c == '\\';
+        } else if single {
+            single = c != '\'';
+        } else {
+            match c {
+                '"' => double = true,
+                '\'' => single = true,
+                '#' if prev.is_whitespace() => comment = true,
+                '[' | '{' => {
+                    depth += 1;
+                    if depth > limit {
+                        return Some((line, col));
+                    }
+                }
+                ']' | '}' => depth = depth.saturating_sub(1),
+                _ => {}
+            }
+        }
+        prev = c;
+    }
+    None
+}
+
 /// Parses any serde type from YAML, reporting the line and column of what is wrong.
 pub fn parse_yaml<T: serde::de::DeserializeOwned>(path: &str, text: &str) -> Result<T, CaseError> {
+    if let Some(location) = flow_nesting_past(text, MAX_FLOW_NESTING) {
+        return Err(CaseError {
+            path: path.to_string(),
+            location: Some(location),
+            at: String::new(),
+            problem: format!(
+                "flow collections ([...] or {{...}}) nested deeper than {MAX_FLOW_NESTING} levels"
+            ),
+        });
+    }
     serde_yaml::from_str(text).map_err(|e| {
         // serde_yaml says where only what it read: a second document gets no line, so find it.
         let location = e

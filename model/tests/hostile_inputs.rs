@@ -266,3 +266,27 @@ fn a_sparse_image_reads_what_was_written_last_and_zero_elsewhere() {
     pieces.write(u64::MAX - 2, &[7, 7]);
     assert_eq!(pieces, img);
 }
+
+#[test]
+fn flow_collections_nested_past_the_limit_are_refused_at_once_with_their_place() {
+    // The YAML scanner's time grows with the square of flow nesting on a line (50,000 levels took
+    // half a minute): the readers refuse such input before it reaches the scanner.
+    let deep = format!("name: x\nworld: {}\n", "{a: ".repeat(50_000));
+    let started = std::time::Instant::now();
+    let e = model::Case::from_yaml("deep.yaml", &deep).unwrap_err();
+    assert!(
+        started.elapsed().as_secs_f64() < 1.0,
+        "{:?}",
+        started.elapsed()
+    );
+    let limit = model::case::MAX_FLOW_NESTING;
+    assert_eq!(e.location, Some((2, 8 + 4 * limit)), "{e}");
+    assert!(e.problem.contains("nested deeper than"), "{e}");
+    // Brackets inside quoted scalars and comments are text, not nesting.
+    let quoted = format!("a: '{0}'\nb: \"{0}\" # {0}\n", "[".repeat(2 * limit));
+    assert_eq!(model::case::flow_nesting_past(&quoted, limit), None);
+    assert_eq!(
+        model::case::flow_nesting_past(&"[".repeat(limit), limit),
+        None
+    );
+}

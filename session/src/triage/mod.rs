@@ -382,7 +382,7 @@ impl Triage {
             let entry = w.into_entry(&file).map_err(|problem| {
                 SessionError::Case(model::case::CaseError {
                     path: path.to_string(),
-                    location: None,
+                    location: model::locate::locate(text, &format!("entries[{i}]")),
                     at: format!("entries[{i}]"),
                     problem: problem.to_string(),
                 })
@@ -394,7 +394,7 @@ impl Triage {
             if !ids.insert(e.id()) {
                 return Err(SessionError::Case(model::case::CaseError {
                     path: path.to_string(),
-                    location: None,
+                    location: model::locate::locate(text, &format!("entries[{i}]")),
                     at: format!("entries[{i}]"),
                     problem: format!(
                         "{} is written twice (give the second a `cases:` or `when:` that tells them apart)",

@@ -222,6 +222,12 @@ fn entries_state_one_observation_evidence_and_no_twin() {
         + &entry(&format!("layer-silent: {V}"), "layer-gap").replace("entries:\n", "");
     let err = Triage::from_yaml("t.yaml", &twice).unwrap_err().to_string();
     assert!(err.contains("entries[1]") && err.contains("twice"), "{err}");
+    // Refused after parsing, still located: the line and column of the entry at fault.
+    let second = twice.match_indices("  - ").nth(1).map(|(i, _)| i).unwrap();
+    let line = twice[..second].matches('\n').count() + 1;
+    assert!(err.starts_with(&format!("t.yaml:{line}:")), "{err}");
+    let err = Triage::from_yaml("t.yaml", &bare).unwrap_err().to_string();
+    assert!(err.starts_with("t.yaml:2:"), "{err}");
     let unknown = format!("entries:\n  - layer-silent: {V}\n    kind: layer-gap\n    reason: r\n    evidence: e\n    case: x\n");
     let err = Triage::from_yaml("t.yaml", &unknown)
         .unwrap_err()
