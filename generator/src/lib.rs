@@ -7,6 +7,7 @@
 //! [`shrink_failure`] minimises a failing trace case and writes it as YAML.
 
 pub mod accel;
+pub mod aim;
 pub mod mutation;
 pub mod mutation_io;
 pub mod plan;

@@ -2,12 +2,12 @@
 //! them into a plan whose every rule holds (no filtering): records each ray reaches hold a group of
 //! the matching kind or zero, strides and offsets come from the profile's alignments and limits.
 
+use crate::aim;
 use crate::plan::{device_state, queue_families, round_up, IndirectPlan, Limits, Plan, TablePlan};
 use model::flags::{PipelineCreate, QueueFlags};
-use model::semantics::hit_record;
+use model::scene::Ray;
 use model::world::{
-    CommandBufferState, GeneralStage, GeometryKind, HandleRef, Instance, Launch, RayTarget,
-    ShaderGroup, TraceRay,
+    CommandBufferState, GeneralStage, GeometryKind, HandleRef, Launch, ShaderGroup,
 };
 use model::CommandId;
 use model::{DeviceProfile, Table};
@@ -204,12 +204,14 @@ pub fn resolve(
             ShaderGroup::ProceduralHit {
                 closest_hit,
                 any_hit,
+                any_hit_rule: Default::default(),
                 intersection: true,
             }
         } else {
             ShaderGroup::TrianglesHit {
                 closest_hit,
                 any_hit,
+                any_hit_rule: Default::default(),
             }
         });
     }
@@ -218,45 +220,34 @@ pub fn resolve(
     }));
     let gi = GroupIndex::of(&groups);
 
-    // Scene and rays: targets are resolved from the instances that exist.
-    let instances: Vec<Instance> = raw
-        .instances
-        .iter()
-        .map(|(geoms, off)| Instance {
-            // One bottom-level structure holds geometries of one type (triangles or AABBs), so the
-            // first draw decides the kind of every geometry of the instance.
-            geometries: {
-                let kind = if geoms.first() == Some(&true) {
-                    GeometryKind::Aabbs
-                } else {
-                    GeometryKind::Triangles
-                };
-                vec![kind; geoms.len()]
-            },
-            sbt_record_offset: *off,
-            mask: 0xff,
-            cluster: false,
-        })
-        .collect();
-    let mut targets = vec![RayTarget::Nothing];
-    for (i, inst) in instances.iter().enumerate() {
-        for g in 0..inst.geometries.len() {
-            targets.push(RayTarget::Geometry {
-                instance: i as u32,
-                geometry: g as u32,
-            });
-        }
+    // Scene and rays: aimed instances (one bottom level of one geometry kind each: a bottom level
+    // holds geometries of one type, so the first draw decides) and rays aimed at their geometries or
+    // beside them.
+    let mut launch = Launch::default();
+    let mut targets: Vec<Option<(u32, u32)>> = vec![None];
+    for (geoms, off) in &raw.instances {
+        let kind = if geoms.first() == Some(&true) {
+            GeometryKind::Aabbs
+        } else {
+            GeometryKind::Triangles
+        };
+        let i = aim::add_instance(&mut launch, &vec![kind; geoms.len()], *off, aim::AIMED_MASK);
+        targets.extend((0..geoms.len() as u32).map(|g| Some((i, g))));
     }
-    let rays: Vec<TraceRay> = raw
+    launch.rays = raw
         .rays
         .iter()
-        .map(|&(t, miss_index, sbt_offset, sbt_stride)| TraceRay {
-            target: pick(&targets, t),
-            sbt_offset,
-            sbt_stride,
-            miss_index,
-            cull_mask: 0xff,
-            ray_flags: 0,
+        .map(|&(t, miss_index, sbt_offset, sbt_stride)| {
+            let ray = match pick(&targets, t) {
+                Some((i, g)) => aim::ray_at(i, g, aim::AIMED_MASK),
+                None => aim::ray_beside(aim::AIMED_MASK),
+            };
+            Ray {
+                miss_index,
+                sbt_offset,
+                sbt_stride,
+                ..ray
+            }
         })
         .collect();
     let callables: Vec<u32> = if gi.callable.is_empty() {
@@ -265,23 +256,21 @@ pub fn resolve(
         raw.callables.clone()
     };
 
-    // Which records the rays reach, and from which geometry kinds.
+    // Which records the rays may reach (the model's reach, over every ray), and from which geometry
+    // kinds; every ray's miss record counts as reached (a superset of the misses the tracer allows).
     let mut hit_reach: BTreeMap<u64, (bool, bool)> = BTreeMap::new();
-    let mut miss_reach: Vec<u64> = vec![];
-    for r in &rays {
-        match r.target {
-            RayTarget::Geometry { instance, geometry } => {
-                let inst = &instances[instance as usize];
-                let idx = hit_record(inst.sbt_record_offset, geometry, r.sbt_offset, r.sbt_stride);
-                let e = hit_reach.entry(idx).or_default();
-                match inst.geometries[geometry as usize] {
-                    GeometryKind::Triangles => e.0 = true,
-                    GeometryKind::Aabbs => e.1 = true,
-                }
-            }
-            RayTarget::Nothing => miss_reach.push(r.miss_index as u64),
+    for (idx, kind) in model::semantics::launch_hit_reach(&launch, None) {
+        let e = hit_reach.entry(idx).or_default();
+        match kind {
+            GeometryKind::Triangles => e.0 = true,
+            GeometryKind::Aabbs => e.1 = true,
         }
     }
+    let miss_reach: Vec<u64> = launch
+        .rays
+        .iter()
+        .map(|r| model::semantics::miss_record(r.miss_index))
+        .collect();
 
     // NO_NULL_* flags are requested by the draw and kept only where the pipeline can be created with
     // them (the shaders they require exist) and where the records can avoid zero.
@@ -356,20 +345,6 @@ pub fn resolve(
         hit_records.push(h);
     }
 
-    // A ray at an AABB whose hit record is a zero group is never reported (no intersection shader):
-    // it misses, so it reads a miss record as well.
-    for r in &rays {
-        if let RayTarget::Geometry { instance, geometry } = r.target {
-            let inst = &instances[instance as usize];
-            let idx = hit_record(inst.sbt_record_offset, geometry, r.sbt_offset, r.sbt_stride);
-            if inst.geometries[geometry as usize] == GeometryKind::Aabbs
-                && hit_records.get(idx as usize) == Some(&HandleRef::Zero)
-            {
-                miss_reach.push(r.miss_index as u64);
-            }
-        }
-    }
-
     // Miss records.
     let miss_reached_n = miss_reach.iter().max().map_or(0, |m| m + 1);
     let miss_n = if miss_reached_n > 0 || (raw.keep_idle[0] && !gi.miss.is_empty()) {
@@ -430,12 +405,8 @@ pub fn resolve(
     }
 
     // Recursion: within the pipeline's maximum, which is within the device's.
-    let mut launch = Launch {
-        instances,
-        rays,
-        callables,
-        extra_recursion: raw.extra_recursion,
-    };
+    launch.callables = callables;
+    launch.extra_recursion = raw.extra_recursion;
     let max_dev = lim.max_recursion.min(u32::MAX as u64) as u32;
     if launch.recursion_depth() > max_dev {
         launch.extra_recursion = 0;

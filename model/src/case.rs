@@ -39,6 +39,45 @@ pub struct TraceBody {
     pub call: Call,
 }
 
+impl TraceBody {
+    /// What the launch's scene and rays leave undefined (`Scene::undefined`), with paths in the case
+    /// file (`world.launch.scene.instances[2].transform`, `world.launch.rays[3].tmin`).
+    pub fn scene_problems(&self) -> Vec<crate::scene::Problem> {
+        let launch = &self.world.launch;
+        let rays = launch.ray_list();
+        launch
+            .scene
+            .undefined(&rays)
+            .into_iter()
+            .map(|mut p| {
+                p.path = match p.path.strip_prefix("rays[") {
+                    Some(rest) => {
+                        let (index, tail) = rest.split_once(']').unwrap_or((rest, ""));
+                        match index.parse::<usize>() {
+                            Ok(i) if i < launch.rays.len() => {
+                                format!("world.launch.rays[{i}]{tail}")
+                            }
+                            Ok(i) => {
+                                let field = tail.trim_start_matches('.');
+                                let ray = i - launch.rays.len();
+                                p.message = format!("camera ray {ray}: {}", p.message);
+                                match field {
+                                    "origin" => "world.launch.camera.eye".into(),
+                                    "" | "direction" => "world.launch.camera".into(),
+                                    f => format!("world.launch.camera.{f}"),
+                                }
+                            }
+                            Err(_) => format!("world.launch.{}", p.path),
+                        }
+                    }
+                    None => format!("world.launch.{}", p.path),
+                };
+                p
+            })
+            .collect()
+    }
+}
+
 /// An acceleration structure build call and the world it is made in.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AccelBody {
@@ -75,11 +114,54 @@ pub struct CaseError {
     pub problem: String,
 }
 
-/// Why a valid case must not be handed to a driver: what it would read that is undefined.
+/// Why a valid case must not be handed to a driver: what its scene or rays leave undefined, and what
+/// its launch would read that is undefined.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("the valid case's launch has undefined reads: {}", reads.join("; "))]
+#[error("{}", self.describe())]
 pub struct NotRunnable {
+    /// Undefined things of the scene and rays (`Scene::undefined`), their paths in the case file.
+    pub scene: Vec<crate::scene::Problem>,
     pub reads: Vec<String>,
+}
+
+impl NotRunnable {
+    fn describe(&self) -> String {
+        let mut parts = Vec::new();
+        if !self.scene.is_empty() {
+            parts.push(format!(
+                "the valid case's scene is undefined: {}",
+                self.scene
+                    .iter()
+                    .map(|p| p.to_string())
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            ));
+        }
+        if !self.reads.is_empty() {
+            parts.push(format!(
+                "the valid case's launch has undefined reads: {}",
+                self.reads.join("; ")
+            ));
+        }
+        parts.join("; ")
+    }
+
+    /// Each problem as `file:line:col: path: problem` (line and column located in the case file's
+    /// `text`), then the undefined reads.
+    pub fn located(&self, file: &str, text: &str) -> Vec<String> {
+        let mut out: Vec<String> = self
+            .scene
+            .iter()
+            .map(|p| {
+                let at = crate::locate::locate(text, &p.path)
+                    .map(|(l, c)| format!(":{l}:{c}"))
+                    .unwrap_or_default();
+                format!("{file}{at}: {}: {}", p.path, p.message)
+            })
+            .collect();
+        out.extend(self.reads.iter().map(|r| format!("{file}: {r}")));
+        out
+    }
 }
 
 /// Parses any serde type from YAML, reporting the line and column of what is wrong.
@@ -240,6 +322,14 @@ impl Case {
     pub fn runnable(&self, profile: &DeviceProfile) -> Result<(), NotRunnable> {
         match &self.body {
             Body::Trace(t) if self.intent == Intent::Valid => {
+                let scene = t.scene_problems();
+                if !scene.is_empty() {
+                    // The reads of an undefined scene are not computed: the tracer refuses it.
+                    return Err(NotRunnable {
+                        scene,
+                        reads: vec![],
+                    });
+                }
                 let reads = crate::semantics::undefined_reads(
                     crate::semantics::handle_size(profile),
                     &t.world,
@@ -248,7 +338,10 @@ impl Case {
                 if reads.is_empty() {
                     Ok(())
                 } else {
-                    Err(NotRunnable { reads })
+                    Err(NotRunnable {
+                        scene: vec![],
+                        reads,
+                    })
                 }
             }
             _ => Ok(()),

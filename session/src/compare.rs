@@ -49,6 +49,9 @@ pub struct CaseReport {
     /// For cases run as valid: whether what the device produced is what the model expects.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub output_matches: Option<bool>,
+    /// For valid trace cases: the rendered output judged per ray (counts, worst errors, histograms).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rendered: Option<model::rendered::RenderedResult>,
     /// What went wrong or what triage entry applied.
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub detail: String,
@@ -66,6 +69,7 @@ impl CaseReport {
             layer: vec![],
             layer_other: vec![],
             output_matches: None,
+            rendered: None,
             detail: String::new(),
             millis,
         }
@@ -178,12 +182,13 @@ pub fn compare(
             ));
         }
         match &case.body {
-            Body::Trace(t) => {
-                if let Some(expected) = model::semantics::expected_launch(&t.world, &t.call) {
-                    let ok = compare_words(obs.words(), &expected.words, &mut problems);
-                    report.output_matches = ok;
-                }
+            Body::Trace(t) if extra.is_empty() => {
+                let before = problems.len();
+                let rendered = crate::rendered::compare_records(t, obs.words(), &mut problems);
+                report.output_matches = rendered.as_ref().map(|_| problems.len() == before);
+                report.rendered = rendered;
             }
+            Body::Trace(_) => {}
             Body::Accel(a) if extra.is_empty() => {
                 let ok = compare_rays(case, a, obs.traced(), triage, &mut problems, &mut triaged);
                 report.output_matches = Some(ok);
@@ -195,35 +200,21 @@ pub fn compare(
             problems.push(format!("the model does not report the target {t}"));
         }
     }
-    conclude(report, problems, triaged)
-}
-
-/// The launch's words against the model's; Some(whether they match) when words were read back.
-fn compare_words(
-    got: Option<&[u32]>,
-    expected: &[u32],
-    problems: &mut Vec<String>,
-) -> Option<bool> {
-    let Some(words) = got else {
-        problems.push("no output was read back".into());
-        return None;
-    };
-    let ok = words == expected;
-    if !ok {
-        let first = words.iter().zip(expected).position(|(a, b)| a != b);
-        problems.push(match first {
-            Some(i) => format!(
-                "output word {i}: driver 0x{:08x}, model 0x{:08x}",
-                words[i], expected[i]
-            ),
-            None => format!(
-                "output has {} words, model expects {}",
-                words.len(),
-                expected.len()
-            ),
-        });
+    let warnings = report
+        .rendered
+        .as_ref()
+        .map(|r| (r.warnings, r.first_warnings.clone()));
+    let mut report = conclude(report, problems, triaged);
+    // Warnings (the spec's "should") are shown beside the outcome, never failed.
+    if let Some((n, first)) = warnings.filter(|(n, _)| *n > 0) {
+        let w = format!("{n} warnings; first: {}", first.join(" | "));
+        report.detail = if report.detail.is_empty() {
+            w
+        } else {
+            format!("{}; {w}", report.detail)
+        };
     }
-    Some(ok)
+    report
 }
 
 /// The rays traced at what the device built against the model's primitives: a mismatch is a failure

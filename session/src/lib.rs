@@ -9,6 +9,7 @@
 pub mod compare;
 pub mod error;
 pub mod plan;
+pub mod rendered;
 pub mod replay;
 pub mod report;
 pub mod run;

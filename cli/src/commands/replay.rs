@@ -52,7 +52,23 @@ pub fn run(a: ReplayArgs) -> super::Exit {
     println!("intent:  {:?}", r.case.intent);
     match &r.observation {
         Some(obs) => println!("status:  {:?}", obs.status),
-        None => println!("status:  not run"),
+        None => {
+            println!("status:  not run");
+            // What keeps it from the driver, located in the case file.
+            if let Some(t) = r.case.as_trace() {
+                let problems = t.scene_problems();
+                if !problems.is_empty() {
+                    let text = std::fs::read_to_string(&a.case).unwrap_or_default();
+                    let why = model::NotRunnable {
+                        scene: problems,
+                        reads: vec![],
+                    };
+                    for line in why.located(&a.case.display().to_string(), &text) {
+                        println!("         {line}");
+                    }
+                }
+            }
+        }
     }
     if let Some(a) = r.case.as_accel() {
         println!("sizes:   {:?}", a.world.sizes);

@@ -278,12 +278,7 @@ fn build_and_trace(
             dst
         } else {
             // One instance (full mask, record offset 0, identity transform) of the built structure.
-            let one = model::world::Instance {
-                geometries: vec![],
-                sbt_record_offset: 0,
-                mask: 0xff,
-                cluster: false,
-            };
+            let one = model::scene::SceneInstance::of(0);
             let ib = instance_buffer(dev, &[one], &[dst_addr], build_input())?;
             let g = [vk::AccelerationStructureGeometryKHR::default()
                 .geometry_type(vk::GeometryTypeKHR::INSTANCES)

@@ -1,6 +1,6 @@
 //! The trace path: the world realised on the device for its enabled state, the command buffer put in
 //! the case's state, the call recorded with the layer's messages collected (dropped unless the case is
-//! run as valid), and a valid launch submitted and its output words read back.
+//! run as valid), and a valid launch submitted and its ray records read back.
 
 use super::{failure, Executor, MAX_OUTPUT_WORDS};
 use crate::error::HarnessError;
@@ -12,7 +12,8 @@ use crate::vk::memory::Allocation;
 use ash::vk;
 use model::call::{Address, Call, StridedRegion};
 use model::flags::QueueFlags;
-use model::world::{CommandBufferLevel, CommandBufferLifecycle, PipelineApi, RayTarget};
+use model::tracer::record::RayRecord;
+use model::world::{CommandBufferLevel, CommandBufferLifecycle, PipelineApi};
 use std::time::Duration;
 
 pub(super) fn trace(ctx: &mut Executor, case: &model::TraceBody, run_valid: bool) -> Observation {
@@ -123,16 +124,19 @@ fn run(
             "secondary command buffers inside a render pass are not realised yet".into(),
         ));
     }
-    let trace = !world.launch.rays.is_empty();
+    let trace = world.launch.traces();
     let dims = case.call.dimensions(world);
-    let words = dims
+    let ids = dims
         .map(|d| d.iter().map(|&x| x as usize).product::<usize>())
         .unwrap_or(0);
-    if valid && words > MAX_OUTPUT_WORDS {
+    if valid && ids.saturating_mul(RayRecord::WORDS) > MAX_OUTPUT_WORDS {
         return Err(HarnessError::Unsupported(format!(
-            "a launch of {words} IDs is larger than the harness reads back"
+            "a launch of {ids} IDs is larger than the harness reads back"
         )));
     }
+    // Records for every launch ID the harness reads back (an invalid case is never submitted).
+    let ids = ids.min(MAX_OUTPUT_WORDS / RayRecord::WORDS);
+    let words = ids * RayRecord::WORDS;
     let pipeline = world.pipeline.as_ref();
     // The scene and descriptor layout follow the pipeline's API (an NV pipeline reads an NV structure).
     let api = pipeline.map_or(
@@ -155,10 +159,11 @@ fn run(
         )?);
     }
     *buffers = cache.case_buffers(world, pipeline.map(|p| (p, trace)))?;
-    let tlas = if trace {
-        Some(cache.scene(&world.launch.instances, api)?)
+    let (tlas, spheres) = if trace {
+        let (t, s) = cache.scene(&world.launch.scene, api)?;
+        (Some(t), Some(s))
     } else {
-        None
+        (None, None)
     };
     let layouts = cache.layouts(trace, api)?;
     let (vk_pipeline, stack_size) = match pipeline {
@@ -174,38 +179,29 @@ fn run(
         None
     };
     let launch = &world.launch;
-    cache.io_buffers(
-        words.min(MAX_OUTPUT_WORDS),
-        launch.rays.len(),
-        launch.callables.len(),
-    )?;
+    let ray_list = if trace { launch.ray_list() } else { vec![] };
+    cache.io_buffers(words, ray_list.len(), launch.callables.len())?;
     let (out, rays, calls) = (
         cache.output.as_ref().expect("made above"),
         cache.rays.as_ref().expect("made above"),
         cache.callables.as_ref().expect("made above"),
     );
-    // Output pre-filled with NOT_RUN; rays header (count, capacity, extra recursion) and records; callables.
-    let fill: Vec<u8> = std::iter::repeat_n(model::semantics::NOT_RUN.to_ne_bytes(), words)
+    // Records pre-filled (outcome NOT_RUN); rays header (count, capacity in launch IDs, extra
+    // recursion) and the rays as they are (origin and tmin, direction and tmax, SBT parameters, cull
+    // mask, flags); callables.
+    let fill: Vec<u8> = std::iter::repeat_n(RayRecord::PREFILL, ids)
         .flatten()
+        .flat_map(|w| w.to_ne_bytes())
         .collect();
     out.write(0, &fill);
-    let mut ray_bytes: Vec<u8> = Vec::with_capacity(16 + launch.rays.len() * RAY_RECORD_SIZE);
-    for v in [
-        launch.rays.len() as u32,
-        words.min(MAX_OUTPUT_WORDS) as u32,
-        launch.extra_recursion,
-        0,
-    ] {
+    let mut ray_bytes: Vec<u8> = Vec::with_capacity(16 + ray_list.len() * RAY_RECORD_SIZE);
+    for v in [ray_list.len() as u32, ids as u32, launch.extra_recursion, 0] {
         ray_bytes.extend_from_slice(&v.to_ne_bytes());
     }
-    for r in &launch.rays {
-        let (x, y) = match r.target {
-            RayTarget::Nothing => (-1000.0f32, -1000.0f32),
-            RayTarget::Geometry { instance, geometry } => {
-                (2.0 * geometry as f32, 4.0 * instance as f32)
-            }
-        };
-        for f in [x, y, -1.0, 1.0, 0.0, 0.0, 1.0, 0.0] {
+    for r in &ray_list {
+        let [ox, oy, oz] = r.origin;
+        let [dx, dy, dz] = r.direction;
+        for f in [ox, oy, oz, r.tmin, dx, dy, dz, r.tmax] {
             ray_bytes.extend_from_slice(&f32::to_ne_bytes(f));
         }
         for v in [
@@ -213,7 +209,7 @@ fn run(
             r.sbt_stride,
             r.miss_index,
             r.cull_mask,
-            r.ray_flags,
+            r.flags.0,
             0,
             0,
             0,
@@ -245,12 +241,21 @@ fn run(
         )
         .map_err(|r| HarnessError::Failed(format!("vkAllocateDescriptorSets: {r:?}")))?[0]
     };
-    let (out_info, rays_info, calls_info) =
-        (whole(out.buffer), whole(rays.buffer), whole(calls.buffer));
+    let spheres = spheres.unwrap_or(cache.no_spheres.as_ref().expect("made above").buffer);
+    // The records binding covers exactly the launch's records: the any-hit and intersection shaders
+    // bound their writes by its length.
+    let out_info = [vk::DescriptorBufferInfo {
+        buffer: out.buffer,
+        offset: 0,
+        range: (words.max(RayRecord::WORDS) * 4) as u64,
+    }];
+    let (rays_info, calls_info, spheres_info) =
+        (whole(rays.buffer), whole(calls.buffer), whole(spheres));
     let mut writes = vec![
         storage_write(set, 1, &out_info),
         storage_write(set, 2, &rays_info),
         storage_write(set, 3, &calls_info),
+        storage_write(set, 4, &spheres_info),
     ];
     let tl_khr = [match tlas {
         Some(Tlas::Khr(t)) => t,

@@ -103,8 +103,9 @@ impl DeviceCache {
     }
 
     /// Layouts for the raygen variant: with the scene at binding 0 (`trace`, a KHR or NV acceleration
-    /// structure by `api`) or without. Binding 1 is the output, 2 the rays, 3 the callable indices; the
-    /// closest-hit reads the scene and the rays to trace its ray again.
+    /// structure by `api`) or without. Binding 1 is the records (written by the raygen, counted into by
+    /// the any-hit and intersection shaders), 2 the rays, 3 the callable indices, 4 the spheres the
+    /// intersection shader reports; the closest-hit reads the scene and the rays to trace its ray again.
     pub(crate) fn layouts(
         &mut self,
         trace: bool,
@@ -126,7 +127,14 @@ impl DeviceCache {
                 .descriptor_count(1)
                 .stage_flags(stages)
         };
-        let mut bindings = vec![storage(1, raygen), storage(2, traced), storage(3, raygen)];
+        let any = vk::ShaderStageFlags::ANY_HIT_KHR;
+        let isect = vk::ShaderStageFlags::INTERSECTION_KHR;
+        let mut bindings = vec![
+            storage(1, raygen | any | isect),
+            storage(2, traced),
+            storage(3, raygen),
+            storage(4, isect),
+        ];
         if trace {
             let ty = match api {
                 PipelineApi::Khr => vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
@@ -230,12 +238,18 @@ impl DeviceCache {
         } else {
             ShaderKind::ClosestHitPlain
         };
-        // (group index, stage flag, module) per stage, and per group (type, [general, closest, any, intersection]).
-        let mut stage_list: Vec<(u32, vk::ShaderStageFlags, vk::ShaderModule)> = Vec::new();
+        // ([group index, any-hit rule], stage flag, module) per stage, and per group (type, [general,
+        // closest, any, intersection]).
+        let mut stage_list: Vec<([u32; 2], vk::ShaderStageFlags, vk::ShaderModule)> = Vec::new();
         let mut groups: Vec<(vk::RayTracingShaderGroupTypeKHR, [u32; 4])> = Vec::new();
         let unused = vk::SHADER_UNUSED_KHR;
         for (g, group) in p.groups.iter().enumerate() {
             let g = g as u32;
+            let rule = match group {
+                ShaderGroup::TrianglesHit { any_hit_rule, .. }
+                | ShaderGroup::ProceduralHit { any_hit_rule, .. } => any_hit_rule.code(),
+                ShaderGroup::General { .. } => 0,
+            };
             let mut add = |this: &mut Self,
                            kind: ShaderKind,
                            stage: vk::ShaderStageFlags|
@@ -245,7 +259,7 @@ impl DeviceCache {
                     Some(&(_, m)) => m,
                     None => this.module(kind, api)?,
                 };
-                stage_list.push((g, stage, m));
+                stage_list.push(([g, rule], stage, m));
                 Ok(stage_list.len() as u32 - 1)
             };
             let info = match group {
@@ -266,6 +280,7 @@ impl DeviceCache {
                 ShaderGroup::TrianglesHit {
                     closest_hit,
                     any_hit,
+                    ..
                 }
                 | ShaderGroup::ProceduralHit {
                     closest_hit,
@@ -304,12 +319,20 @@ impl DeviceCache {
             };
             groups.push(info);
         }
-        let group_values: Vec<u32> = stage_list.iter().map(|(g, _, _)| *g).collect();
-        let entry = [vk::SpecializationMapEntry {
-            constant_id: 0,
-            offset: 0,
-            size: 4,
-        }];
+        let group_values: Vec<[u32; 2]> = stage_list.iter().map(|(g, _, _)| *g).collect();
+        // Constant 0: the group index; 1: the any-hit rule (only the any-hit shader declares it).
+        let entry = [
+            vk::SpecializationMapEntry {
+                constant_id: 0,
+                offset: 0,
+                size: 4,
+            },
+            vk::SpecializationMapEntry {
+                constant_id: 1,
+                offset: 4,
+                size: 4,
+            },
+        ];
         let specs: Vec<vk::SpecializationInfo> = group_values
             .iter()
             .map(|v| {
@@ -380,9 +403,9 @@ impl DeviceCache {
             group_infos!(groups, vk::RayTracingShaderGroupCreateInfoKHR);
         let dynamic = [vk::DynamicState::RAY_TRACING_PIPELINE_STACK_SIZE_KHR];
         let dyn_info = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic);
-        // The payload is `Payload { uint word, depth, ray; }` (12 bytes); the shaders declare no hit attributes.
+        // The payload is twelve words (see `shaders/raygen.rgen`); the hit attribute is a vec2.
         let iface = vk::RayTracingPipelineInterfaceCreateInfoKHR::default()
-            .max_pipeline_ray_payload_size(12)
+            .max_pipeline_ray_payload_size(48)
             .max_pipeline_ray_hit_attribute_size(8);
         let mut info = vk::RayTracingPipelineCreateInfoKHR::default()
             .flags(flags)
