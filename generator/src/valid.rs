@@ -4,6 +4,7 @@
 
 use crate::aim;
 use crate::plan::{device_state, queue_families, round_up, IndirectPlan, Limits, Plan, TablePlan};
+use crate::scenes::{self, SceneDraw};
 use model::flags::{PipelineCreate, QueueFlags};
 use model::scene::Ray;
 use model::world::{
@@ -191,6 +192,7 @@ pub fn resolve(
     lim: &Limits,
     command: CommandId,
     dims: DimensionRange,
+    rendered: Option<&SceneDraw>,
 ) -> Plan {
     // Pipeline: raygen, miss, hit, callable groups.
     let mut groups = vec![ShaderGroup::General {
@@ -215,6 +217,33 @@ pub fn resolve(
             }
         });
     }
+    if let Some(d) = rendered {
+        // A rendered scene is seen through hit groups with closest-hit shaders of its kind (and the
+        // draw's any-hit rule), and a miss shader.
+        if raw.miss_groups == 0 {
+            groups.insert(
+                1,
+                ShaderGroup::General {
+                    stage: GeneralStage::Miss,
+                },
+            );
+        }
+        let rule = scenes::any_hit_rule(d);
+        groups.push(if scenes::is_procedural(d) {
+            ShaderGroup::ProceduralHit {
+                closest_hit: true,
+                any_hit: rule.is_some(),
+                any_hit_rule: rule.unwrap_or_default(),
+                intersection: true,
+            }
+        } else {
+            ShaderGroup::TrianglesHit {
+                closest_hit: true,
+                any_hit: rule.is_some(),
+                any_hit_rule: rule.unwrap_or_default(),
+            }
+        });
+    }
     groups.extend((0..raw.callable_groups).map(|_| ShaderGroup::General {
         stage: GeneralStage::Callable,
     }));
@@ -223,33 +252,49 @@ pub fn resolve(
     // Scene and rays: aimed instances (one bottom level of one geometry kind each: a bottom level
     // holds geometries of one type, so the first draw decides) and rays aimed at their geometries or
     // beside them.
+    // A rendered case traces its scene instead.
     let mut launch = Launch::default();
+    let mut rendered_dims = None;
+    if let Some(d) = rendered {
+        let (l, dims) = scenes::realise(d);
+        launch = l;
+        rendered_dims = Some(dims);
+    }
     let mut targets: Vec<Option<(u32, u32)>> = vec![None];
-    for (geoms, off) in &raw.instances {
+    for (geoms, off) in raw.instances.iter().filter(|_| rendered.is_none()) {
         let kind = if geoms.first() == Some(&true) {
             GeometryKind::Aabbs
         } else {
             GeometryKind::Triangles
         };
-        let i = aim::add_instance(&mut launch, &vec![kind; geoms.len()], *off, aim::AIMED_MASK);
-        targets.extend((0..geoms.len() as u32).map(|g| Some((i, g))));
+        // SPV_NV_ray_tracing has no geometry index, so the intersection shader of an NV pipeline
+        // finds its sphere only in a procedural bottom level of one geometry.
+        let n = if command.is_nv() && kind == GeometryKind::Aabbs {
+            1
+        } else {
+            geoms.len()
+        };
+        let i = aim::add_instance(&mut launch, &vec![kind; n], *off, aim::AIMED_MASK);
+        targets.extend((0..n as u32).map(|g| Some((i, g))));
     }
-    launch.rays = raw
-        .rays
-        .iter()
-        .map(|&(t, miss_index, sbt_offset, sbt_stride)| {
-            let ray = match pick(&targets, t) {
-                Some((i, g)) => aim::ray_at(i, g, aim::AIMED_MASK),
-                None => aim::ray_beside(aim::AIMED_MASK),
-            };
-            Ray {
-                miss_index,
-                sbt_offset,
-                sbt_stride,
-                ..ray
-            }
-        })
-        .collect();
+    if rendered.is_none() {
+        launch.rays = raw
+            .rays
+            .iter()
+            .map(|&(t, miss_index, sbt_offset, sbt_stride)| {
+                let ray = match pick(&targets, t) {
+                    Some((i, g)) => aim::ray_at(i, g, aim::AIMED_MASK),
+                    None => aim::ray_beside(aim::AIMED_MASK),
+                };
+                Ray {
+                    miss_index,
+                    sbt_offset,
+                    sbt_stride,
+                    ..ray
+                }
+            })
+            .collect();
+    }
     let callables: Vec<u32> = if gi.callable.is_empty() {
         vec![]
     } else {
@@ -266,11 +311,14 @@ pub fn resolve(
             GeometryKind::Aabbs => e.1 = true,
         }
     }
-    let miss_reach: Vec<u64> = launch
+    let mut miss_reach: Vec<u64> = launch
         .rays
         .iter()
         .map(|r| model::semantics::miss_record(r.miss_index))
         .collect();
+    if let Some(c) = &launch.camera {
+        miss_reach.push(model::semantics::miss_record(c.miss_index));
+    }
 
     // NO_NULL_* flags are requested by the draw and kept only where the pipeline can be created with
     // them (the shaders they require exist) and where the records can avoid zero.
@@ -413,6 +461,7 @@ pub fn resolve(
     }
     if launch.recursion_depth() > max_dev {
         launch.rays.clear();
+        launch.camera = None;
         launch.callables.clear();
     }
     let max_recursion_depth = (launch.recursion_depth() + raw.spare_depth).min(max_dev);
@@ -444,9 +493,10 @@ pub fn resolve(
         }
     });
 
-    let dims = match dims {
-        DimensionRange::Small => [raw.dims[0].1 % 5, raw.dims[1].1 % 5, raw.dims[2].1 % 5],
-        DimensionRange::Limits => limit_dims(lim, &raw.dims),
+    let dims = match (rendered_dims, dims) {
+        (Some(d), _) => d,
+        (None, DimensionRange::Small) => [raw.dims[0].1 % 5, raw.dims[1].1 % 5, raw.dims[2].1 % 5],
+        (None, DimensionRange::Limits) => limit_dims(lim, &raw.dims),
     };
 
     let families: Vec<QueueFlags> = queue_families(profile)
