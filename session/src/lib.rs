@@ -8,6 +8,7 @@
 
 pub mod compare;
 pub mod error;
+pub mod pictures;
 pub mod plan;
 pub mod rendered;
 pub mod replay;

@@ -34,3 +34,72 @@ pub(crate) fn compare_records(
         }
     }
 }
+
+/// Median, 99th percentile and maximum of one error histogram.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct Quantiles {
+    pub count: u64,
+    pub median: Option<f64>,
+    pub p99: Option<f64>,
+    pub max: Option<f64>,
+}
+
+impl Quantiles {
+    fn of(h: &model::tracer::summary::Histogram) -> Quantiles {
+        Quantiles {
+            count: h.count,
+            median: h.median(),
+            p99: h.p99(),
+            max: (h.count > 0).then_some(h.max),
+        }
+    }
+}
+
+/// The rendered output of one command's cases in a run (`summary.json`'s `rendered`).
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct RenderedTotals {
+    pub cases: u64,
+    pub rays: u64,
+    pub req: u64,
+    pub vary: u64,
+    /// Share of launch IDs whose allowed set had a VARY part.
+    pub vary_share: f64,
+    /// What the driver chose where the spec let it.
+    pub vary_hit: u64,
+    pub vary_miss: u64,
+    pub warnings: u64,
+    pub failures: u64,
+    /// Share of ray/primitive tests that needed exact arithmetic.
+    pub exact_share: f64,
+    pub t_error_ulps: Quantiles,
+    pub t_error_rel: Quantiles,
+    pub bary_error_abs: Quantiles,
+    pub bary_error_ulps: Quantiles,
+    #[serde(skip)]
+    summary: model::tracer::summary::Summary,
+    #[serde(skip)]
+    pairs: (u64, u64),
+}
+
+impl RenderedTotals {
+    /// Adds one case's result.
+    pub fn add(&mut self, r: &RenderedResult) {
+        self.cases += 1;
+        self.rays += r.rays;
+        self.req += r.req;
+        self.vary += r.vary;
+        self.vary_hit += r.vary_hit;
+        self.vary_miss += r.vary_miss;
+        self.warnings += r.warnings;
+        self.failures += r.failures;
+        self.pairs.0 += r.pair_tests;
+        self.pairs.1 += r.exact_evaluations;
+        self.summary.merge(&r.summary);
+        self.vary_share = self.vary as f64 / self.rays.max(1) as f64;
+        self.exact_share = self.pairs.1 as f64 / self.pairs.0.max(1) as f64;
+        self.t_error_ulps = Quantiles::of(&self.summary.t_error_ulps);
+        self.t_error_rel = Quantiles::of(&self.summary.t_error_rel);
+        self.bary_error_abs = Quantiles::of(&self.summary.bary_error_abs);
+        self.bary_error_ulps = Quantiles::of(&self.summary.bary_error_ulps);
+    }
+}

@@ -34,6 +34,9 @@ pub struct Summary {
     /// Wall time of the run, in seconds.
     pub seconds: f64,
     pub vuids: BTreeMap<String, VuidTally>,
+    /// Per trace command: the rendered output judged per ray (counts, VARY share, error quantiles).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub rendered: BTreeMap<String, crate::rendered::RenderedTotals>,
 }
 
 /// The reports of `results.jsonl`, read one line at a time.
@@ -62,6 +65,12 @@ pub(crate) fn summarise(
     };
     for r in reports(path)? {
         s.cases += 1;
+        if let Some(x) = &r.rendered {
+            s.rendered
+                .entry(r.command.vk_name().to_string())
+                .or_default()
+                .add(x);
+        }
         match r.outcome {
             Outcome::Pass => s.passed += 1,
             Outcome::Fail => s.failed += 1,

@@ -237,7 +237,9 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
     };
 
     let specs = plan(&config.scope, &rules, &profile);
-    progress.planned((specs.len() * config.count) as u64);
+    let count_of =
+        |p: &crate::plan::PlannedSpec| p.count.map_or(config.count, |n| n.max(config.count));
+    progress.planned(specs.iter().map(count_of).sum::<usize>() as u64);
     let mut not_expressible = Vec::new();
     let mut gen_errors = Vec::new();
     let mut chunk: Vec<Case> = Vec::with_capacity(CHUNK);
@@ -255,7 +257,8 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
             dispatch.run(&mut chunk, &mut sink);
         }
         family = Some(this);
-        for range in slices(config.count) {
+        let count = count_of(planned);
+        for range in slices(count) {
             let len = range.len();
             let cases = match generator::generate_range(
                 &profile,
@@ -268,12 +271,12 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
                 Ok(c) => c,
                 Err(e @ generator::GenError::Unsupported(_)) => {
                     not_expressible.push(format!("{}: {e}", planned.label()));
-                    progress.advance(config.count as u64);
+                    progress.advance(count as u64);
                     break;
                 }
                 Err(e) => {
                     gen_errors.push(format!("{}: {e}", planned.label()));
-                    progress.advance(config.count as u64);
+                    progress.advance(count as u64);
                     break;
                 }
             };
@@ -355,6 +358,12 @@ impl Dispatch<'_> {
             let case = &requests[resp.index.min(requests.len() - 1)].case;
             let report = self.judging.judge(case, &resp);
             sink.write(case, &report);
+            crate::pictures::for_failure(
+                &sink.out.join("failures"),
+                case,
+                &resp.observation,
+                &report,
+            );
             self.progress.advance(1);
         });
     }
