@@ -39,7 +39,16 @@ pub fn per_spec() -> usize {
     }
 }
 
+/// The model's verdict on a generated case, which must first be a case: no name resolving to nothing,
+/// no group the pipeline lacks (`model::integrity`), since `rtconf run` refuses such a case unjudged.
 pub fn judge(profile: &DeviceProfile, case: &Case) -> model::Verdict {
+    let flaws = model::integrity::flaws(case);
+    assert!(
+        flaws.is_empty(),
+        "{} has errors of its own: {flaws:?}\n{}",
+        case.name,
+        case.to_yaml()
+    );
     model::validate(rules(), profile, case)
 }
 

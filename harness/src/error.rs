@@ -11,6 +11,8 @@ pub enum HarnessError {
     LoaderMissing(String),
     #[error("the driver manifest (ICD json) `{0}` does not exist; install lavapipe with `{SETUP_COMMAND}`, or give the path of an existing ICD json")]
     IcdMissing(String),
+    #[error("the driver manifest (ICD json) `{path}` {problem}")]
+    Manifest { path: String, problem: String },
     #[error("the Vulkan layer `{0}` is not installed; install it with `{SETUP_COMMAND}`")]
     LayerMissing(String),
     #[error("the driver `{0}` offers no Vulkan device; check the ICD json and `{SETUP_COMMAND}`")]
@@ -31,6 +33,9 @@ pub enum HarnessError {
     /// that does not fit).
     #[error("{0}")]
     Failed(String),
+    /// A creation or allocation the driver refused for want of memory.
+    #[error("{0}")]
+    OutOfMemory(String),
     /// A submission did not finish in time; the device is not used again.
     #[error("TIMEOUT: {0}")]
     Timeout(String),
@@ -49,6 +54,17 @@ impl HarnessError {
 
     pub(crate) fn failed(what: impl std::fmt::Display) -> HarnessError {
         HarnessError::Failed(what.to_string())
+    }
+}
+
+/// The error of a creation or allocation named `what`: out of memory is its own error, which is not a
+/// crash.
+pub(crate) fn oom_or(what: String, result: ash::vk::Result) -> HarnessError {
+    match result {
+        ash::vk::Result::ERROR_OUT_OF_DEVICE_MEMORY | ash::vk::Result::ERROR_OUT_OF_HOST_MEMORY => {
+            HarnessError::OutOfMemory(format!("{what}: {result:?}"))
+        }
+        result => HarnessError::Vulkan { what, result },
     }
 }
 

@@ -7,6 +7,7 @@
 //! build), [`worker`] (worker processes), [`observe`] (what came back), [`probe`] (device profiles).
 
 pub(crate) mod accel_check;
+pub mod driver_check;
 pub mod error;
 pub(crate) mod execute;
 pub mod observe;
@@ -16,6 +17,7 @@ pub(crate) mod shaders;
 pub(crate) mod vk;
 pub mod worker;
 
+pub use driver_check::{check_driver, CheckedDriver};
 pub use error::HarnessError;
 pub use execute::{Execution, Executor};
 pub use observe::{Observation, Output, Status, TraceCheck};

@@ -18,6 +18,10 @@ pub enum Status {
     Crash { message: String },
     /// The case ran past its time limit.
     Timeout { seconds: f64 },
+    /// The driver ran out of memory realising the case (`ERROR_OUT_OF_DEVICE_MEMORY`,
+    /// `ERROR_OUT_OF_HOST_MEMORY` from a creation or allocation): the call was never made, so this is
+    /// neither a crash nor a verdict; the session decides whose fault it is.
+    OutOfMemory { message: String },
 }
 
 /// What each ray of a traced check hit: `(instance, geometry, primitive)`, or None for a miss.
@@ -100,6 +104,12 @@ impl Observation {
     pub fn unsupported(reason: impl Into<String>) -> Observation {
         Observation::with_status(Status::Unsupported {
             reason: reason.into(),
+        })
+    }
+
+    pub fn out_of_memory(message: impl Into<String>) -> Observation {
+        Observation::with_status(Status::OutOfMemory {
+            message: message.into(),
         })
     }
 

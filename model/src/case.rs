@@ -105,20 +105,32 @@ pub struct Case {
     pub body: Body,
 }
 
-/// A case file that could not be read: the line and what is wrong.
+/// A case file that could not be read, or that is not a case (see [`crate::integrity`]): the file, the
+/// line and column, the YAML path of what is wrong, and what is: `file:line:col: path: problem`.
 #[derive(Debug, thiserror::Error)]
-#[error("{path}{}: {problem}", location.map(|(l, c)| format!(":{l}:{c}")).unwrap_or_default())]
+#[error(
+    "{path}{}: {}{problem}",
+    location.map(|(l, c)| format!(":{l}:{c}")).unwrap_or_default(),
+    if at.is_empty() { String::new() } else { format!("{at}: ") }
+)]
 pub struct CaseError {
     pub path: String,
     pub location: Option<(usize, usize)>,
+    /// The YAML path of the value at fault (`world.buffers[0].contents[1].handles[0]`); empty when the
+    /// text itself does not parse there.
+    pub at: String,
     pub problem: String,
 }
 
-/// Why a valid case must not be handed to a driver: what its scene or rays leave undefined, and what
-/// its launch would read that is undefined.
+/// Why a case must not be handed to a driver: what a valid case's scene or rays leave undefined,
+/// what its launch would read that is undefined, or a build run as valid the model gives no meaning to
+/// check the device against. Each is the case's fault, never the driver's.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("{}", self.describe())]
 pub struct NotRunnable {
+    /// The YAML path of what makes it so (`call.miss`, a range record of `world.buffers`, the first
+    /// undefined thing of the scene).
+    pub at: String,
     /// Undefined things of the scene and rays (`Scene::undefined`), their paths in the case file.
     pub scene: Vec<crate::scene::Problem>,
     pub reads: Vec<String>,
@@ -137,12 +149,7 @@ impl NotRunnable {
                     .join("; ")
             ));
         }
-        if !self.reads.is_empty() {
-            parts.push(format!(
-                "the valid case's launch has undefined reads: {}",
-                self.reads.join("; ")
-            ));
-        }
+        parts.extend(self.reads.iter().cloned());
         parts.join("; ")
     }
 
@@ -166,11 +173,66 @@ impl NotRunnable {
 
 /// Parses any serde type from YAML, reporting the line and column of what is wrong.
 pub fn parse_yaml<T: serde::de::DeserializeOwned>(path: &str, text: &str) -> Result<T, CaseError> {
-    serde_yaml::from_str(text).map_err(|e| CaseError {
-        path: path.to_string(),
-        location: e.location().map(|l| (l.line(), l.column())),
-        problem: e.to_string(),
+    serde_yaml::from_str(text).map_err(|e| {
+        // serde_yaml says where only what it read: a second document gets no line, so find it.
+        let location = e
+            .location()
+            .map(|l| (l.line(), l.column()))
+            .or_else(|| second_document(text).map(|line| (line, 1)));
+        let (at, problem) = split_message(&e.to_string());
+        CaseError {
+            path: path.to_string(),
+            location,
+            at,
+            problem,
+        }
     })
+}
+
+/// serde_yaml's message `path: problem at line L column C` as (path, problem): the position is said
+/// once, before them.
+fn split_message(message: &str) -> (String, String) {
+    let message = match message.rfind(" at line ") {
+        Some(i) if message[i..].contains(" column ") => &message[..i],
+        _ => message,
+    };
+    match message.split_once(": ") {
+        Some((path, rest))
+            if !path.is_empty()
+                && path
+                    .chars()
+                    .all(|c| c.is_alphanumeric() || "_-.[]".contains(c)) =>
+        {
+            (path.to_string(), rest.to_string())
+        }
+        _ => (String::new(), message.to_string()),
+    }
+}
+
+/// The line (from 1) where a second YAML document starts: a `---` after content, or the first content
+/// after a `...` end marker.
+fn second_document(text: &str) -> Option<usize> {
+    let mut content = false;
+    let mut ended = false;
+    for (i, line) in text.lines().enumerate() {
+        let starts_document =
+            line == "---" || line.starts_with("--- ") || line.starts_with("---\t");
+        let blank = line.trim().is_empty() || line.trim_start().starts_with('#');
+        if starts_document && (content || ended) {
+            return Some(i + 1);
+        }
+        if line == "..." || line.starts_with("... ") {
+            ended = content;
+            continue;
+        }
+        if !blank && !starts_document && !line.starts_with('%') {
+            if ended {
+                return Some(i + 1);
+            }
+            content = true;
+        }
+    }
+    None
 }
 
 impl Intent {
@@ -257,6 +319,25 @@ impl Case {
         parse_yaml(path, text)
     }
 
+    /// Reads a case file as every command that takes one does: parsed ([`Case::from_yaml`]), then
+    /// refused with the first of its own errors ([`crate::integrity::flaws`]), located in the file.
+    pub fn read(path: &str, text: &str) -> Result<Case, CaseError> {
+        let case = Case::from_yaml(path, text)?;
+        let flaws = crate::integrity::flaws(&case);
+        match flaws.first() {
+            None => Ok(case),
+            Some(f) => Err(CaseError {
+                path: path.to_string(),
+                location: crate::locate::locate(text, &f.at),
+                at: f.at.clone(),
+                problem: match flaws.len() {
+                    1 => f.problem.clone(),
+                    n => format!("{} (and {} more error(s) of the case)", f.problem, n - 1),
+                },
+            }),
+        }
+    }
+
     pub fn to_yaml(&self) -> String {
         serde_yaml::to_string(self).expect("a case always serialises")
     }
@@ -316,9 +397,10 @@ impl Case {
     }
 
     /// The undefined-reads gate: a valid case never hands undefined behaviour to a driver. A valid trace
-    /// case whose launch reads outside its tables (or reads a record nothing wrote) is not runnable;
-    /// every path that gives a case to a driver (run, replay, tests) asks this first. Invalid cases are
-    /// never submitted, and a build reads only what its rules cover, so both are runnable.
+    /// case whose launch reads outside its tables (or reads a record nothing wrote) is not runnable, nor
+    /// is a build run as valid whose primitives the model cannot build (they are what the device's
+    /// build is checked against); every path that gives a case to a driver (run, replay, tests) asks
+    /// this first. Invalid cases are never submitted, so they are runnable.
     pub fn runnable(&self, profile: &DeviceProfile) -> Result<(), NotRunnable> {
         match &self.body {
             Body::Trace(t) if self.intent == Intent::Valid => {
@@ -326,6 +408,7 @@ impl Case {
                 if !scene.is_empty() {
                     // The reads of an undefined scene are not computed: the tracer refuses it.
                     return Err(NotRunnable {
+                        at: scene[0].path.clone(),
                         scene,
                         reads: vec![],
                     });
@@ -339,10 +422,35 @@ impl Case {
                     Ok(())
                 } else {
                     Err(NotRunnable {
+                        at: "call".into(),
                         scene: vec![],
-                        reads,
+                        reads: reads
+                            .into_iter()
+                            .map(|r| format!("the valid launch has an undefined read: {r}"))
+                            .collect(),
                     })
                 }
+            }
+            Body::Accel(a) if self.runs_as_valid(profile) => {
+                let mem = a.world.memory();
+                for i in 0..a.call.infos.len() {
+                    let built = crate::accel::indirect_ranges(&mem, &a.call, i).and_then(|r| {
+                        crate::accel::build_primitives(&mem, &a.call.infos[i], &r).map(|_| r)
+                    });
+                    if let Err(e) = built {
+                        let at = crate::accel::largest_range_record(&a.world, &a.call, i)
+                            .filter(|_| e.problem.contains("more than the model builds"))
+                            .unwrap_or_else(|| format!("call.infos[{i}]"));
+                        return Err(NotRunnable {
+                            at,
+                            scene: vec![],
+                            reads: vec![format!(
+                                "the model gives the build no meaning to check the device against: {e}"
+                            )],
+                        });
+                    }
+                }
+                Ok(())
             }
             _ => Ok(()),
         }

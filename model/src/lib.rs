@@ -8,12 +8,14 @@ pub mod call;
 pub mod case;
 pub mod command;
 pub mod flags;
+pub mod integrity;
 pub mod locate;
 pub mod profile;
 pub mod rendered;
 pub mod resources;
 pub mod rules;
 pub mod semantics;
+pub mod stress;
 pub mod verdict;
 pub mod world;
 

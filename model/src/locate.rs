@@ -1,178 +1,246 @@
-//! Where a value sits in a YAML file: a dotted path (`world.launch.scene.instances[2].transform`)
-//! resolved to the line and column of its node, by walking the document with serde_yaml's own parser
-//! and stopping with an error at the node (serde_yaml attaches the node's position to it).
+//! Where a value stands in a YAML file: the line and column of a YAML path
+//! (`world.buffers[0].contents[1].handles[0]`), for errors found after the file was read (a name that
+//! resolves to nothing, a group the pipeline lacks), so they are located like parse errors.
+//!
+//! The file is read again with a seed that walks down the path and stops at its value with an error:
+//! serde_yaml puts the position of the value it was reading on every error, so that position is where
+//! the value stands. Tags (`!shader-records`, `!group`) are transparent to the path.
 
-use serde::de::{DeserializeSeed, Deserializer, EnumAccess, Error, MapAccess, SeqAccess, Visitor};
+use serde::de::{self, DeserializeSeed, IgnoredAny, MapAccess, SeqAccess, Visitor};
 
-/// The segments of a path: `a.b[2].c` → `a`, `b`, `[2]`, `c`.
-fn segments(path: &str) -> Vec<String> {
+/// One step of a YAML path.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Step {
+    Key(String),
+    Index(usize),
+}
+
+/// Parses `a.b[2].c` into steps (a key runs up to the next `.` or `[`).
+pub fn steps(path: &str) -> Vec<Step> {
     let mut out = Vec::new();
-    for part in path.split('.') {
+    for part in path.split('.').filter(|p| !p.is_empty()) {
         let mut rest = part;
-        while let Some(open) = rest.find('[') {
-            if open > 0 {
-                out.push(rest[..open].to_string());
+        if let Some(i) = rest.find('[') {
+            if i > 0 {
+                out.push(Step::Key(rest[..i].to_string()));
             }
-            let close = rest[open..].find(']').map_or(rest.len(), |c| open + c + 1);
-            out.push(rest[open..close].to_string());
-            rest = &rest[close..];
-        }
-        if !rest.is_empty() {
-            out.push(rest.to_string());
+            rest = &rest[i..];
+            while let Some(r) = rest.strip_prefix('[') {
+                let Some(end) = r.find(']') else { break };
+                if let Ok(n) = r[..end].parse() {
+                    out.push(Step::Index(n));
+                }
+                rest = &r[end + 1..];
+            }
+        } else {
+            out.push(Step::Key(rest.to_string()));
         }
     }
     out
 }
 
-/// The 1-based line and column of the node at `path` in `text`, None when the path names no node (or
-/// the text is not YAML).
+/// The message of the error that marks the value found.
+const FOUND: &str = "\u{0}rtconf-locate-found";
+
+/// The line and column (from 1) of the value at `path` in `text`; where the path leads past what the
+/// file holds (a field left to its default), the position of the deepest value on the way.
 pub fn locate(text: &str, path: &str) -> Option<(usize, usize)> {
-    let target = segments(path);
+    let mut steps = steps(path);
+    loop {
+        if let Some(at) = locate_steps(text, &steps) {
+            return Some(at);
+        }
+        steps.pop()?;
+    }
+}
+
+fn locate_steps(text: &str, steps: &[Step]) -> Option<(usize, usize)> {
     let de = serde_yaml::Deserializer::from_str(text);
-    match (Find {
-        target: &target,
-        depth: 0,
-    })
-    .deserialize(de)
-    {
-        Err(e) if e.to_string().contains(MARK) => e.location().map(|l| (l.line(), l.column())),
+    match (Seek { steps }).deserialize(de) {
+        Err(e) if e.to_string().contains(FOUND) => e.location().map(|l| (l.line(), l.column())),
         _ => None,
     }
 }
 
-const MARK: &str = "rtconf-locate: found";
-
-struct Find<'a> {
-    target: &'a [String],
-    depth: usize,
+/// Walks down `steps`; errors with [`FOUND`] at the value they lead to.
+#[derive(Clone, Copy)]
+struct Seek<'p> {
+    steps: &'p [Step],
 }
 
-impl<'de> DeserializeSeed<'de> for Find<'_> {
+impl<'de> DeserializeSeed<'de> for Seek<'_> {
     type Value = ();
-    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
-        if self.depth == self.target.len() {
-            return d.deserialize_any(Stop);
-        }
+    fn deserialize<D: de::Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
         d.deserialize_any(self)
     }
 }
 
-impl<'de> Visitor<'de> for Find<'_> {
+impl<'de> Visitor<'de> for Seek<'_> {
     type Value = ();
+
     fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        write!(f, "any YAML node")
+        f.write_str("any YAML value")
     }
-    fn visit_map<A: MapAccess<'de>>(self, mut m: A) -> Result<(), A::Error> {
-        while let Some(k) = m.next_key::<serde_yaml::Value>()? {
-            let key = match &k {
-                serde_yaml::Value::String(s) => s.clone(),
-                other => serde_yaml::to_string(other)
-                    .unwrap_or_default()
-                    .trim()
-                    .to_string(),
-            };
-            if key == self.target[self.depth] {
-                m.next_value_seed(Find {
-                    target: self.target,
-                    depth: self.depth + 1,
-                })?;
-            } else {
-                m.next_value::<serde::de::IgnoredAny>()?;
+
+    fn visit_bool<E: de::Error>(self, _: bool) -> Result<(), E> {
+        self.scalar()
+    }
+    fn visit_i64<E: de::Error>(self, _: i64) -> Result<(), E> {
+        self.scalar()
+    }
+    fn visit_u64<E: de::Error>(self, _: u64) -> Result<(), E> {
+        self.scalar()
+    }
+    fn visit_i128<E: de::Error>(self, _: i128) -> Result<(), E> {
+        self.scalar()
+    }
+    fn visit_u128<E: de::Error>(self, _: u128) -> Result<(), E> {
+        self.scalar()
+    }
+    fn visit_f64<E: de::Error>(self, _: f64) -> Result<(), E> {
+        self.scalar()
+    }
+    fn visit_str<E: de::Error>(self, _: &str) -> Result<(), E> {
+        self.scalar()
+    }
+    fn visit_unit<E: de::Error>(self) -> Result<(), E> {
+        self.scalar()
+    }
+    fn visit_none<E: de::Error>(self) -> Result<(), E> {
+        self.scalar()
+    }
+    fn visit_some<D: de::Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+        self.deserialize(d)
+    }
+
+    fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
+        let Some((Step::Key(want), rest)) = self.steps.split_first() else {
+            return self.here();
+        };
+        while let Some(key) = map.next_key::<KeyText>()? {
+            if key.0.as_deref() == Some(want.as_str()) {
+                return map.next_value_seed(Seek { steps: rest });
             }
+            map.next_value::<IgnoredAny>()?;
         }
         Ok(())
     }
-    fn visit_seq<A: SeqAccess<'de>>(self, mut s: A) -> Result<(), A::Error> {
-        let mut i = 0usize;
-        loop {
-            let more = if format!("[{i}]") == self.target[self.depth] {
-                s.next_element_seed(Find {
-                    target: self.target,
-                    depth: self.depth + 1,
-                })?
-                .is_some()
-            } else {
-                s.next_element::<serde::de::IgnoredAny>()?.is_some()
-            };
-            if !more {
+
+    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
+        let Some((Step::Index(want), rest)) = self.steps.split_first() else {
+            return self.here();
+        };
+        let mut i = 0;
+        while i < *want {
+            if seq.next_element::<IgnoredAny>()?.is_none() {
                 return Ok(());
             }
             i += 1;
         }
+        seq.next_element_seed(Seek { steps: rest }).map(|_| ())
     }
-    fn visit_enum<A: EnumAccess<'de>>(self, e: A) -> Result<(), A::Error> {
-        use serde::de::VariantAccess;
-        let (_, v): (serde_yaml::Value, _) = e.variant()?;
-        v.newtype_variant_seed(self)
-    }
-    fn visit_str<E: Error>(self, _: &str) -> Result<(), E> {
-        Ok(())
-    }
-    fn visit_f64<E: Error>(self, _: f64) -> Result<(), E> {
-        Ok(())
-    }
-    fn visit_u64<E: Error>(self, _: u64) -> Result<(), E> {
-        Ok(())
-    }
-    fn visit_i64<E: Error>(self, _: i64) -> Result<(), E> {
-        Ok(())
-    }
-    fn visit_bool<E: Error>(self, _: bool) -> Result<(), E> {
-        Ok(())
-    }
-    fn visit_unit<E: Error>(self) -> Result<(), E> {
-        Ok(())
+
+    fn visit_enum<A: de::EnumAccess<'de>>(self, data: A) -> Result<(), A::Error> {
+        if self.steps.is_empty() {
+            return Err(de::Error::custom(FOUND));
+        }
+        let (_, variant) = data.variant::<IgnoredAny>()?;
+        de::VariantAccess::newtype_variant_seed(variant, self)
     }
 }
 
-/// Rejects whatever node it is given, so the error carries that node's position.
-struct Stop;
+impl Seek<'_> {
+    fn here<E: de::Error>(self) -> Result<(), E> {
+        if self.steps.is_empty() {
+            Err(E::custom(FOUND))
+        } else {
+            Ok(())
+        }
+    }
+    fn scalar<E: de::Error>(self) -> Result<(), E> {
+        self.here()
+    }
+}
 
-impl<'de> Visitor<'de> for Stop {
-    type Value = ();
-    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        write!(f, "nothing")
-    }
-    fn visit_map<A: MapAccess<'de>>(self, _: A) -> Result<(), A::Error> {
-        Err(A::Error::custom(MARK))
-    }
-    fn visit_seq<A: SeqAccess<'de>>(self, _: A) -> Result<(), A::Error> {
-        Err(A::Error::custom(MARK))
-    }
-    fn visit_enum<A: EnumAccess<'de>>(self, _: A) -> Result<(), A::Error> {
-        Err(A::Error::custom(MARK))
-    }
-    fn visit_str<E: Error>(self, _: &str) -> Result<(), E> {
-        Err(E::custom(MARK))
-    }
-    fn visit_f64<E: Error>(self, _: f64) -> Result<(), E> {
-        Err(E::custom(MARK))
-    }
-    fn visit_u64<E: Error>(self, _: u64) -> Result<(), E> {
-        Err(E::custom(MARK))
-    }
-    fn visit_i64<E: Error>(self, _: i64) -> Result<(), E> {
-        Err(E::custom(MARK))
-    }
-    fn visit_bool<E: Error>(self, _: bool) -> Result<(), E> {
-        Err(E::custom(MARK))
-    }
-    fn visit_unit<E: Error>(self) -> Result<(), E> {
-        Err(E::custom(MARK))
+/// A mapping key as text (None for a key that is not a scalar).
+struct KeyText(Option<String>);
+
+impl<'de> de::Deserialize<'de> for KeyText {
+    fn deserialize<D: de::Deserializer<'de>>(d: D) -> Result<KeyText, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = KeyText;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a mapping key")
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<KeyText, E> {
+                Ok(KeyText(Some(v.to_string())))
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<KeyText, E> {
+                Ok(KeyText(Some(v.to_string())))
+            }
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<KeyText, E> {
+                Ok(KeyText(Some(v.to_string())))
+            }
+            fn visit_bool<E: de::Error>(self, v: bool) -> Result<KeyText, E> {
+                Ok(KeyText(Some(v.to_string())))
+            }
+            fn visit_f64<E: de::Error>(self, _: f64) -> Result<KeyText, E> {
+                Ok(KeyText(None))
+            }
+            fn visit_unit<E: de::Error>(self) -> Result<KeyText, E> {
+                Ok(KeyText(None))
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut m: A) -> Result<KeyText, A::Error> {
+                while m.next_entry::<IgnoredAny, IgnoredAny>()?.is_some() {}
+                Ok(KeyText(None))
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut s: A) -> Result<KeyText, A::Error> {
+                while s.next_element::<IgnoredAny>()?.is_some() {}
+                Ok(KeyText(None))
+            }
+        }
+        d.deserialize_any(V)
     }
 }
 
 #[cfg(test)]
 mod tests {
-    use super::locate;
+    use super::*;
+
+    const TEXT: &str = "name: t\nworld:\n  buffers:\n    - name: sbt\n      contents:\n        - !shader-records { offset: 0, stride: 32, handles: [!group 0, !group 99] }\n    - name: b\n      size: 4\ncall:\n  raygen: { address: { buffer: nosuch, offset: 0 } }\n";
 
     #[test]
-    fn paths_resolve_to_their_nodes() {
-        let text = "a:\n  b: [1, 2, {c: 3}]\n  d: !tag\n    e: 5\n    f:\n      - 1\n      - 7\n";
-        assert_eq!(locate(text, "a.b[2].c"), Some((2, 17)));
-        assert_eq!(locate(text, "a.d.f[1]"), Some((7, 9)));
-        assert_eq!(locate(text, "a.d"), Some((3, 6)));
-        assert_eq!(locate(text, "a.x"), None);
-        assert_eq!(locate(": :", "a"), None);
+    fn paths_lead_to_the_line_and_column_of_their_value() {
+        assert_eq!(
+            locate(TEXT, "world.buffers[0].contents[0].handles[1]"),
+            Some((6, 72))
+        );
+        assert_eq!(locate(TEXT, "world.buffers[1].size"), Some((8, 13)));
+        assert_eq!(locate(TEXT, "call.raygen.address.buffer"), Some((10, 32)));
+        assert_eq!(locate(TEXT, "name"), Some((1, 7)));
+    }
+
+    #[test]
+    fn a_path_past_the_file_stops_at_its_deepest_value() {
+        assert_eq!(
+            locate(TEXT, "world.buffers[1].usage"),
+            locate(TEXT, "world.buffers[1]")
+        );
+        assert_eq!(locate(TEXT, "nothing.here"), locate(TEXT, ""));
+    }
+
+    #[test]
+    fn paths_parse_keys_and_indices() {
+        assert_eq!(
+            steps("a.b[2][3].c"),
+            [
+                Step::Key("a".into()),
+                Step::Key("b".into()),
+                Step::Index(2),
+                Step::Index(3),
+                Step::Key("c".into())
+            ]
+        );
     }
 }

@@ -151,14 +151,15 @@ fn judge_nv(allowed: &AllowedOutcomes, record: &RayRecord) -> RayJudgement {
 pub fn judge_records(body: &TraceBody, words: &[u32]) -> Result<LaunchJudgement, String> {
     let expected = expected_launch(&body.world, &body.call)
         .ok_or("the model cannot state the launch's expected records")?;
-    let ids: usize = expected.dimensions.iter().map(|&d| d as usize).product();
-    if words.len() != ids * RayRecord::WORDS {
+    let invocations = expected.invocations();
+    if words.len() as u64 != invocations.saturating_mul(RayRecord::WORDS as u64) {
         return Err(format!(
-            "{} record words read back, the launch has {ids} IDs of {} words",
+            "{} record words read back, the launch has {invocations} IDs of {} words",
             words.len(),
             RayRecord::WORDS
         ));
     }
+    let ids = words.len() / RayRecord::WORDS;
     let nv = matches!(body.call, Call::TraceRaysNv(_));
     let mut result = RenderedResult {
         distinct_rays: expected.stats.rays,

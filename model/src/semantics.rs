@@ -25,26 +25,31 @@ pub fn hit_record(instance_offset: u32, geometry: u32, sbt_offset: u32, sbt_stri
         + (sbt_offset & 0xF) as u64
 }
 
+/// `base + stride * index`: where a record starts, or None past u64::MAX (where no buffer reaches).
+fn at_record(base: u64, stride: u64, index: u64) -> Option<u64> {
+    stride.checked_mul(index)?.checked_add(base)
+}
+
 /// The handle a table's record holds: (buffer, offset) resolved through the call's region or NV table.
 pub fn record_handle(world: &World, call: &Call, table: Table, index: u64) -> Option<HandleRef> {
     match call {
         Call::TraceRaysNv(_) => {
             let t = call.nv_table(table)?;
             let stride = if table == Table::Raygen { 0 } else { t.stride };
-            world.handle_at(t.buffer.as_deref()?, t.offset + stride * index)
+            world.handle_at(t.buffer.as_deref()?, at_record(t.offset, stride, index)?)
         }
         _ => {
             let r = call.region(table)?;
             let (b, off) = r.address.buffer()?;
-            world.handle_at(b, off + r.stride * index)
+            world.handle_at(b, at_record(off, r.stride, index)?)
         }
     }
 }
 
-/// The number of launch IDs of a call, when its dimensions are known.
+/// The number of launch IDs of a call (saturating at usize::MAX), when its dimensions are known.
 pub fn launch_ids(world: &World, call: &Call) -> Option<usize> {
     call.dimensions(world)
-        .map(|d| d.iter().map(|&x| x as usize).product())
+        .map(|d| d.iter().map(|&x| x as usize).fold(1, usize::saturating_mul))
 }
 
 /// The rays a call traces: the first `min(launch IDs, rays)` of the launch's list (all of them when
@@ -399,12 +404,17 @@ pub fn undefined_reads(handle_size: u64, world: &World, call: &Call) -> Vec<Stri
                     continue;
                 };
                 let stride = if table == Table::Raygen { 0 } else { t.stride };
-                let end = t.offset + stride * index + handle_size;
+                let end =
+                    at_record(t.offset, stride, index).and_then(|a| a.checked_add(handle_size));
                 match t.buffer.as_deref().and_then(|b| world.buffer(b)) {
-                    None => out.push(format!("{table:?} record {index} is read but the table has no buffer")),
-                    Some(b) if end > b.size => out.push(format!(
-                        "{table:?} record {index} ends at byte {end}, past the end of `{}` ({} bytes)",
-                        b.name, b.size
+                    None => out.push(format!(
+                        "{table:?} record {index} is read but the table has no buffer"
+                    )),
+                    Some(b) if end.is_none_or(|end| end > b.size) => out.push(format!(
+                        "{table:?} record {index} ends at byte {}, past the end of `{}` ({} bytes)",
+                        end.map_or("past u64::MAX".into(), |e| e.to_string()),
+                        b.name,
+                        b.size
                     )),
                     Some(_) => {}
                 }
@@ -417,12 +427,19 @@ pub fn undefined_reads(handle_size: u64, world: &World, call: &Call) -> Vec<Stri
                     out.push(format!(
                         "{table:?} record {index} is read but the region's address is null"
                     ));
-                } else if r.stride * index + handle_size > r.size {
-                    out.push(format!(
-                        "{table:?} record {index} ends at byte {} of the region, past its size {}",
-                        r.stride * index + handle_size,
-                        r.size
-                    ));
+                } else {
+                    let end =
+                        at_record(0, r.stride, index).and_then(|a| a.checked_add(handle_size));
+                    match end {
+                        Some(end) if end <= r.size => {}
+                        Some(end) => out.push(format!(
+                            "{table:?} record {index} ends at byte {end} of the region, past its size {}",
+                            r.size
+                        )),
+                        None => out.push(format!(
+                            "{table:?} record {index} ends past byte u64::MAX of the region"
+                        )),
+                    }
                 }
             }
         }
@@ -447,6 +464,15 @@ impl ExpectedLaunch {
     /// The ray index launch ID `id` traces, None when the launch traces no ray.
     pub fn ray_of(&self, id: usize) -> Option<usize> {
         (!self.rays.is_empty()).then(|| id % self.rays.len())
+    }
+
+    /// The number of launch IDs (saturating at u64::MAX): the model holds one outcome set per ray,
+    /// never one per launch ID (an indirect command may state 2^96 invocations).
+    pub fn invocations(&self) -> u64 {
+        self.dimensions
+            .iter()
+            .map(|&d| d as u64)
+            .fold(1, u64::saturating_mul)
     }
 }
 

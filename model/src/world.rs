@@ -340,7 +340,7 @@ impl Launch {
         if !self.traces() && self.callables.is_empty() {
             0
         } else {
-            1 + self.extra_recursion
+            self.extra_recursion.saturating_add(1)
         }
     }
 

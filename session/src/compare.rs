@@ -22,12 +22,20 @@ pub enum Outcome {
     Unsupported,
     Crash,
     Timeout,
+    /// The case is at fault, not the driver: it is not a case (a name resolving to nothing, a group
+    /// the pipeline lacks), it is not runnable, the model disagrees with its intent, or it asks for
+    /// more memory than the driver gives within the profile's limits. Never run where that is known
+    /// first; the detail says where in the case (a YAML path) and what.
+    CaseError,
 }
 
 impl Outcome {
     /// Whether the outcome makes a run fail (the exit status) and its case worth keeping.
     pub fn is_unexpected(self) -> bool {
-        matches!(self, Outcome::Fail | Outcome::Crash | Outcome::Timeout)
+        matches!(
+            self,
+            Outcome::Fail | Outcome::Crash | Outcome::Timeout | Outcome::CaseError
+        )
     }
 }
 
@@ -76,12 +84,26 @@ impl CaseReport {
     }
 }
 
-/// The report of a valid case that is not run because it is not runnable (undefined reads the driver
-/// may crash on): a generator or case-file bug, reported as a failure.
+/// The report of a case that is not run because it is not runnable (undefined reads the driver may
+/// crash on, a build the model gives no meaning): an error of the case (a generator or case-file bug).
 pub(crate) fn not_runnable(case: &Case, why: &model::NotRunnable) -> CaseReport {
+    case_error(case, &why.at, &format!("not run: {why}"))
+}
+
+/// The report of a case the profile says the device cannot realise: `at` is the YAML path of what.
+pub(crate) fn not_realisable(case: &Case, at: &str, why: &str) -> CaseReport {
     CaseReport {
-        outcome: Outcome::Fail,
-        detail: format!("not run: {why}"),
+        outcome: Outcome::Unsupported,
+        detail: format!("{at}: {why}"),
+        ..CaseReport::new(case, 0.0)
+    }
+}
+
+/// The report of a case that is at fault: `at` is the YAML path of what is wrong.
+pub(crate) fn case_error(case: &Case, at: &str, problem: &str) -> CaseReport {
+    CaseReport {
+        outcome: Outcome::CaseError,
+        detail: format!("{at}: {problem}"),
         ..CaseReport::new(case, 0.0)
     }
 }
@@ -127,6 +149,15 @@ pub fn compare(
     report.layer = layer.clone();
     report.layer_other = layer_other;
     match &obs.status {
+        Status::OutOfMemory { message } => {
+            // The profile's limits allow the case's buffers (the gate checked): the case asks for
+            // more memory at once than the driver gives, which is the case's to change.
+            report.outcome = Outcome::CaseError;
+            report.detail = format!(
+                "world.buffers: not realised: the driver ran out of memory ({message}) for buffers within the profile's limits"
+            );
+            return report;
+        }
         Status::Unsupported { reason } => {
             report.outcome = Outcome::Unsupported;
             report.detail = reason.clone();
@@ -146,6 +177,8 @@ pub fn compare(
     }
     let mut problems = Vec::new();
     let mut triaged = Vec::new();
+    // Where the model disagrees with the case's own intent, the case (or its generator) is wrong.
+    let mut of_the_case = Vec::new();
     let m: BTreeSet<&String> = model.iter().collect();
     let l: BTreeSet<&String> = layer.iter().collect();
     for v in m.symmetric_difference(&l) {
@@ -166,8 +199,8 @@ pub fn compare(
         };
         let extra: Vec<&String> = model.iter().filter(|v| !unavoidable.contains(v)).collect();
         if !extra.is_empty() {
-            problems.push(format!(
-                "the model judges this valid-by-construction case invalid: {}",
+            of_the_case.push(format!(
+                "intent: the model judges this valid-by-construction case invalid: {}",
                 extra
                     .iter()
                     .map(|s| s.as_str())
@@ -197,8 +230,18 @@ pub fn compare(
         }
     } else if let Some(t) = &report.target {
         if !m.contains(t) {
-            problems.push(format!("the model does not report the target {t}"));
+            of_the_case.push(format!("intent: the model does not report the target {t}"));
         }
+    }
+    if !of_the_case.is_empty() {
+        report.outcome = Outcome::CaseError;
+        report.detail = of_the_case
+            .into_iter()
+            .chain(problems)
+            .chain(triaged)
+            .collect::<Vec<_>>()
+            .join("; ");
+        return report;
     }
     let warnings = report
         .rendered

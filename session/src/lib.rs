@@ -1,19 +1,22 @@
 //! rtconf's run session: where the model and the device meet. A run plans its specs, generates cases
-//! a chunk at a time, gates them ([`model::Case::runnable`]), dispatches them to worker processes
+//! a chunk at a time, gates them (the case's own errors, [`model::Case::runnable`], the profile's limits), dispatches them to worker processes
 //! ([`harness::run_in_workers`]), judges each result once ([`run::Judging`]), compares it with the
 //! observation ([`compare`]) against the triage files, and streams `results.jsonl`; then the summary,
-//! the JUnit report and shrunk regressions. A replay does the same for one case in this process.
+//! the JUnit report and shrunk regressions. A replay does the same for one case, through one worker process.
 //!
 //! The command line, the tests and the benches call this crate instead of copying its pieces.
 
 pub mod compare;
 pub mod error;
+pub(crate) mod gate;
+pub mod outdir;
 pub mod pictures;
 pub mod plan;
 pub mod rendered;
 pub mod replay;
 pub mod report;
 pub mod run;
+pub mod select;
 pub(crate) mod shrink;
 pub mod sources;
 pub mod triage;

@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 /// Launches larger than this many IDs get no pictures.
 const MAX_PIXELS: usize = 1 << 22;
 
-type Rgb = [u8; 3];
+use plot::Rgb;
 
 /// A colour per primitive, bright enough to tell from a miss.
 pub fn false_colour(p: &PrimitiveRef) -> Rgb {
@@ -73,13 +73,11 @@ fn diff_colour(j: &IdJudgement) -> Rgb {
 }
 
 fn write_png(path: &Path, width: u32, height: u32, pixels: &[Rgb]) -> std::io::Result<()> {
-    let file = std::io::BufWriter::new(std::fs::File::create(path)?);
-    let mut e = png::Encoder::new(file, width, height);
-    e.set_color(png::ColorType::Rgb);
-    e.set_depth(png::BitDepth::Eight);
-    let mut w = e.write_header().map_err(std::io::Error::other)?;
-    let data: Vec<u8> = pixels.iter().flatten().copied().collect();
-    w.write_image_data(&data).map_err(std::io::Error::other)
+    let mut image = plot::Image::new(width, height, [0, 0, 0]);
+    for (i, c) in pixels.iter().enumerate() {
+        image.set((i % width as usize) as i32, (i / width as usize) as i32, *c);
+    }
+    image.write_png(path)
 }
 
 /// Writes the three pictures of a rendered case's records into `dir` (as `NAME.expected.png`, …);

@@ -1,10 +1,11 @@
-//! Replaying one case in this process, as a run would judge it: the gate, the execution on the driver,
-//! the model's verdict on the case as it ran, and the comparison against the same triage files.
+//! Replaying one case as a run would: the gate, the execution on the driver in a worker process (so a
+//! driver that kills or hangs it gives `crash` or `timeout`, with its message, as in a run), the model's
+//! verdict on the case as it ran, and the comparison against the same triage files.
 
 use crate::error::SessionError;
 use crate::run::{Judging, Ran};
 use crate::sources;
-use harness::{Driver, Executor, TraceCheck};
+use harness::{Driver, TraceCheck};
 use model::{Case, RuleSet};
 use std::path::PathBuf;
 
@@ -18,6 +19,8 @@ pub struct ReplayConfig {
     pub profile: Option<String>,
     /// How a build's traced check traces its rays.
     pub check: TraceCheck,
+    /// Seconds the case may take in its worker (0: a run's default, 60).
+    pub timeout: u64,
 }
 
 /// Everything a replay found, for printing.
@@ -29,27 +32,46 @@ pub struct Replayed {
     pub deviation: Option<String>,
 }
 
-/// Reads a case file (any command) with a located error.
+/// Reads a case file (any command) with a located error: one that does not parse, or that is not a
+/// case ([`Case::read`]: a name resolving to nothing, a group the pipeline lacks).
 pub fn read_case(path: &std::path::Path) -> Result<Case, SessionError> {
     let shown = path.display().to_string();
     let text = std::fs::read_to_string(path).map_err(|e| SessionError::io(&shown, e))?;
-    Ok(Case::from_yaml(&shown, &text)?)
+    Ok(Case::read(&shown, &text)?)
+}
+
+/// A case report's detail (`path: problem`, as an error of the case gives it) as a located error of the
+/// case file: `file:line:col: path: problem` (the line and column from [`model::locate`]).
+pub fn located(file: &std::path::Path, detail: &str) -> String {
+    let shown = file.display().to_string();
+    let text = std::fs::read_to_string(file).unwrap_or_default();
+    let at = detail.split_once(": ").map_or("", |(at, _)| at);
+    match model::locate::locate(&text, at) {
+        Some((l, c)) => format!("{shown}:{l}:{c}: {detail}"),
+        None => format!("{shown}: {detail}"),
+    }
 }
 
 /// Replays `case`: see the module documentation.
 pub fn replay(case: &Case, config: &ReplayConfig) -> Result<Replayed, SessionError> {
     let set = sources::load_sources(&config.from)?;
     let rules = RuleSet::from_vuids(&set);
-    let profile = sources::profile_for(config.profile.as_deref().unwrap_or(&case.profile))?;
     let driver = Driver::parse(&config.driver);
+    harness::check_driver(&driver)?;
+    let profile = sources::profile_for(config.profile.as_deref().unwrap_or(&case.profile))?;
     let triage = sources::triage_for(&[], set.version.as_deref(), &driver)?;
     let judging = Judging {
         rules: &rules,
         profile: &profile,
         triage: &triage,
     };
-    let mut executor = Executor::new(driver)?;
-    let ran = judging.run_here(&mut executor, case, config.check);
+    std::env::set_var(harness::worker::DRIVER_ENV, &config.driver);
+    let timeout = std::time::Duration::from_secs(if config.timeout == 0 {
+        60
+    } else {
+        config.timeout
+    });
+    let ran = judging.run_in_worker(case, config.check, timeout);
     let deviation = match (
         ran.case.as_accel(),
         ran.observation.as_ref().and_then(|o| o.traced()),

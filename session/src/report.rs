@@ -29,6 +29,8 @@ pub struct Summary {
     pub unsupported: usize,
     pub crashes: usize,
     pub timeouts: usize,
+    /// Cases at fault themselves (`case-error`): not run, or disagreeing with the model about their intent.
+    pub case_errors: usize,
     /// Peak resident memory of the runner process itself (workers excluded), in KiB (Linux).
     pub runner_peak_rss_kib: Option<u64>,
     /// Wall time of the run, in seconds.
@@ -78,10 +80,11 @@ pub(crate) fn summarise(
             Outcome::Unsupported => s.unsupported += 1,
             Outcome::Crash => s.crashes += 1,
             Outcome::Timeout => s.timeouts += 1,
+            Outcome::CaseError => s.case_errors += 1,
         }
         if matches!(
             r.outcome,
-            Outcome::Unsupported | Outcome::Crash | Outcome::Timeout
+            Outcome::Unsupported | Outcome::Crash | Outcome::Timeout | Outcome::CaseError
         ) {
             continue;
         }
@@ -111,7 +114,7 @@ pub(crate) fn write_junit(results: &Path, out: &Path, s: &Summary) -> Result<(),
     let io = |e: std::io::Error| SessionError::io(out.display().to_string(), e);
     let mut w = std::io::BufWriter::new(std::fs::File::create(out).map_err(io)?);
     let name = xml_escape(&format!("rtconf on {}", s.driver));
-    let errors = s.crashes + s.timeouts;
+    let errors = s.crashes + s.timeouts + s.case_errors;
     let head = format!(
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites name=\"{name}\" tests=\"{}\" failures=\"{}\" errors=\"{errors}\">\n  <testsuite name=\"{name}\" tests=\"{}\" failures=\"{}\" errors=\"{errors}\" skipped=\"{}\">\n",
         s.cases, s.failed, s.cases, s.failed, s.unsupported
@@ -130,7 +133,7 @@ pub(crate) fn write_junit(results: &Path, out: &Path, s: &Summary) -> Result<(),
             Outcome::Pass | Outcome::Triaged => "/>\n".to_string(),
             Outcome::Unsupported => format!("><skipped message=\"{msg}\"/></testcase>\n"),
             Outcome::Fail => format!("><failure message=\"{msg}\"/></testcase>\n"),
-            Outcome::Crash | Outcome::Timeout => {
+            Outcome::Crash | Outcome::Timeout | Outcome::CaseError => {
                 format!("><error message=\"{:?}: {msg}\"/></testcase>\n", r.outcome)
             }
         };

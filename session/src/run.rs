@@ -3,17 +3,16 @@
 //! with what the device reported, compared with what the device did, and streamed to `results.jsonl`
 //! as it completes; then `summary.json`, `junit.xml`, and shrunk regressions when asked.
 
-use crate::compare::{as_run, compare, not_runnable, CaseReport, Outcome};
+use crate::compare::{as_run, compare, CaseReport, Outcome};
 use crate::error::SessionError;
 use crate::plan::{plan, Scope};
-use crate::report::{reports, summarise, write_junit, Summary};
+use crate::report::{summarise, write_junit, Summary};
 use crate::sources;
 use crate::triage::Triage;
 use harness::{Driver, Execution, Request, Response};
 use model::{Case, DeviceProfile, RuleSet};
-use std::collections::BTreeSet;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Duration;
 
 /// Everything a run is asked to do.
@@ -48,6 +47,8 @@ pub trait Progress {
     fn planned(&self, cases: u64);
     /// `n` more cases are done (run, skipped, or not generated).
     fn advance(&self, n: u64);
+    /// What each `--vuid` pattern expanded to, before anything is generated.
+    fn selected(&self, _expanded: &[crate::select::Expanded]) {}
 }
 
 /// A progress display that shows nothing.
@@ -71,11 +72,13 @@ pub struct RunOutcome {
 }
 
 impl RunOutcome {
-    /// The exit status of the run: non-zero for any fail, crash, timeout or generator error.
+    /// The exit status of the run: non-zero for any fail, crash, timeout, case error or generator error,
+    /// and for a run that made no case.
     pub fn exit_code(&self) -> i32 {
         let s = &self.summary;
-        let unexpected = s.failed + s.crashes + s.timeouts;
-        if unexpected > 0 || !self.gen_errors.is_empty() {
+        let unexpected = s.failed + s.crashes + s.timeouts + s.case_errors;
+        // A run that made no case checked nothing: never a pass.
+        if unexpected > 0 || !self.gen_errors.is_empty() || s.cases == 0 {
             1
         } else {
             0
@@ -131,12 +134,12 @@ impl Judging<'_> {
         case: &Case,
         check: harness::TraceCheck,
     ) -> Ran {
-        if let Err(why) = case.runnable(self.profile) {
+        if let Some(report) = crate::gate::gate(case, self) {
             return Ran {
                 case: case.clone(),
                 verdict: model::validate(self.rules, self.profile, case),
                 observation: None,
-                report: not_runnable(case, &why),
+                report,
             };
         }
         let exec = Execution {
@@ -165,27 +168,86 @@ impl Judging<'_> {
     }
 }
 
+impl Judging<'_> {
+    /// Runs one case in a worker process (`rtconf worker`, the driver named by
+    /// [`harness::worker::DRIVER_ENV`]) as a run does, and judges it: the gate, the execution, the
+    /// verdict on the case as it ran, the comparison. A driver that kills or hangs the worker gives the
+    /// case's `crash` or `timeout`, as in a run.
+    pub fn run_in_worker(&self, case: &Case, check: harness::TraceCheck, timeout: Duration) -> Ran {
+        if let Some(report) = crate::gate::gate(case, self) {
+            return Ran {
+                case: case.clone(),
+                verdict: model::validate(self.rules, self.profile, case),
+                observation: None,
+                report,
+            };
+        }
+        let request = Request {
+            index: 0,
+            execution: Execution {
+                check,
+                ..Execution::for_case(case, self.profile)
+            },
+            case: case.clone(),
+        };
+        let mut response = None;
+        harness::run_in_workers(std::slice::from_ref(&request), 1, timeout, |r| {
+            response = Some(r)
+        });
+        let resp = response.unwrap_or_else(|| Response {
+            index: 0,
+            name: case.name.clone(),
+            observation: harness::Observation::crash("the worker gave no result"),
+            millis: 0.0,
+        });
+        let ran = as_run(case, &resp.observation).into_owned();
+        let verdict = self.rules.judge(self.profile, &ran.body);
+        let report = compare(
+            &ran,
+            self.profile,
+            &verdict,
+            &resp.observation,
+            self.triage,
+            resp.millis,
+        );
+        Ran {
+            case: ran,
+            observation: Some(resp.observation),
+            verdict,
+            report,
+        }
+    }
+}
+
 /// Where a run writes: `results.jsonl` (appended and flushed per case) and `failures/`.
 struct Sink {
     out: PathBuf,
     results_path: PathBuf,
     results: std::fs::File,
-    error: Option<std::io::Error>,
+    /// The first write that failed: the file and the error.
+    error: Option<(PathBuf, std::io::Error)>,
 }
 
 impl Sink {
+    /// Writes a case's failure file (whole or not at all) and then its line; the first error is kept
+    /// and ends the run.
     fn write(&mut self, case: &Case, report: &CaseReport) {
+        // After a failed write nothing more is written: a later line must not follow a torn one.
+        if self.error.is_some() {
+            return;
+        }
         if report.outcome != Outcome::Pass && report.outcome != Outcome::Unsupported {
-            let _ = std::fs::write(
-                self.out
-                    .join("failures")
-                    .join(format!("{}.yaml", case.name)),
-                case.to_yaml(),
-            );
+            let path = self
+                .out
+                .join("failures")
+                .join(format!("{}.yaml", case.name));
+            if let Err(e) = crate::outdir::write_atomically(&path, case.to_yaml().as_bytes()) {
+                self.error.get_or_insert((path, e));
+            }
         }
         let line = serde_json::to_string(report).unwrap_or_default();
         if let Err(e) = writeln!(self.results, "{line}").and_then(|_| self.results.flush()) {
-            self.error.get_or_insert(e);
+            self.error.get_or_insert((self.results_path.clone(), e));
         }
     }
 }
@@ -195,29 +257,43 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
     let started = std::time::Instant::now();
     let set = sources::load_sources(&config.from)?;
     let rules = RuleSet::from_vuids(&set);
+    // The driver first: a path that is not a driver is never taken for a profile's name.
+    let driver = Driver::parse(&config.driver);
+    harness::check_driver(&driver)?;
     let profile_name = config
         .profile
         .clone()
         .unwrap_or_else(|| sources::default_profile_name(&config.driver));
     let profile = sources::profile_for(&profile_name)?;
-    let driver = Driver::parse(&config.driver);
-    if !driver.icd_path().exists() {
-        return Err(SessionError::NoDriver {
-            driver: config.driver.clone(),
-            path: driver.icd_path().display().to_string(),
-        });
-    }
     let triage = sources::triage_for(&config.triage, set.version.as_deref(), &driver)?;
-    let failures = config.out.join("failures");
-    std::fs::create_dir_all(&failures)
-        .map_err(|e| SessionError::io(failures.display().to_string(), e))?;
-    let results_path = config.out.join("results.jsonl");
-    let done = if config.resume {
-        done_cases(&results_path)
-    } else {
-        let _ = std::fs::remove_file(&results_path);
-        BTreeSet::new()
+    let params = crate::outdir::RunParameters {
+        driver: config.driver.clone(),
+        profile: profile_name.clone(),
+        command: config
+            .scope
+            .commands
+            .iter()
+            .map(|c| c.vk_name().to_string())
+            .collect(),
+        vuid: config.scope.vuids.clone(),
+        valid_only: config.scope.valid_only,
+        seed: config.scope.seed,
+        count: config.count,
+        rendered: config.scope.rendered,
+        from: config
+            .from
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect(),
+        registry: set.version.clone(),
+        triage: config
+            .triage
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect(),
     };
+    let done = crate::outdir::prepare(&config.out, &params, config.resume)?;
+    let results_path = config.out.join("results.jsonl");
     let results = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
@@ -236,7 +312,18 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         triage: &triage,
     };
 
-    let specs = plan(&config.scope, &rules, &profile);
+    let mut scope = config.scope.clone();
+    if !scope.vuids.is_empty() {
+        let mut known: Vec<String> = rules.rows.iter().map(|r| r.vuid.clone()).collect();
+        known.sort();
+        known.dedup();
+        let expanded = crate::select::expand_vuids(&scope.vuids, &known)?;
+        progress.selected(&expanded);
+        scope.vuids = expanded.into_iter().flat_map(|e| e.vuids).collect();
+        scope.vuids.sort();
+        scope.vuids.dedup();
+    }
+    let specs = plan(&scope, &rules, &profile);
     let count_of =
         |p: &crate::plan::PlannedSpec| p.count.map_or(config.count, |n| n.max(config.count));
     progress.planned(specs.iter().map(count_of).sum::<usize>() as u64);
@@ -250,7 +337,7 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         progress,
     };
     let mut family = None;
-    for planned in &specs {
+    'specs: for planned in &specs {
         // A chunk holds cases of one command family, in the plan's order.
         let this = planned.spec.command.is_trace();
         if family.is_some_and(|f| f != this) && !chunk.is_empty() {
@@ -283,12 +370,16 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
             // Indices no build plan fits give no case: counted done.
             progress.advance((len - cases.len()) as u64);
             for c in cases {
+                // A write that failed (a full disk) ends the run: nothing more could be kept.
+                if sink.error.is_some() {
+                    break 'specs;
+                }
                 if done.contains(&c.name) {
                     progress.advance(1);
                     continue;
                 }
-                if let Err(why) = c.runnable(&profile) {
-                    sink.write(&c, &not_runnable(&c, &why));
+                if let Some(report) = crate::gate::gate(&c, &judging) {
+                    sink.write(&c, &report);
                     progress.advance(1);
                     continue;
                 }
@@ -302,8 +393,14 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
     if !chunk.is_empty() {
         dispatch.run(&mut chunk, &mut sink);
     }
-    if let Some(e) = sink.error.take() {
-        return Err(SessionError::io(sink.results_path.display().to_string(), e));
+    if let Some((path, e)) = sink.error.take() {
+        return Err(SessionError::io(
+            format!(
+                "{} (resume with --resume once there is room)",
+                path.display()
+            ),
+            e,
+        ));
     }
     let mut summary = summarise(
         &results_path,
@@ -374,14 +471,6 @@ fn slices(count: usize) -> impl Iterator<Item = std::ops::Range<usize>> {
     (0..count)
         .step_by(CHUNK)
         .map(move |start| start..(start + CHUNK).min(count))
-}
-
-/// The cases a killed run already wrote.
-fn done_cases(results: &Path) -> BTreeSet<String> {
-    match reports(results) {
-        Ok(r) => r.map(|r| r.case).collect(),
-        Err(_) => BTreeSet::new(),
-    }
 }
 
 /// `VmHWM` of this process from /proc (None elsewhere).

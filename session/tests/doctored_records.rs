@@ -215,10 +215,11 @@ fn planted_faults_in_the_records_are_caught_and_the_true_records_pass() {
     let dir = tempfile::tempdir().unwrap();
     let written = session::pictures::write(dir.path(), "doctored", case.as_trace().unwrap(), &w);
     assert_eq!(written.len(), 3, "{written:?}");
-    let decoder =
-        png::Decoder::new(std::fs::File::open(dir.path().join("doctored.diff.png")).unwrap());
+    let decoder = png::Decoder::new(std::io::BufReader::new(
+        std::fs::File::open(dir.path().join("doctored.diff.png")).unwrap(),
+    ));
     let mut reader = decoder.read_info().unwrap();
-    let mut buf = vec![0; reader.output_buffer_size()];
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
     let info = reader.next_frame(&mut buf).unwrap();
     assert_eq!((info.width, info.height), (4, 2));
     assert_eq!(&buf[0..3], &[255, 0, 0], "launch ID 0 is the fault");

@@ -127,6 +127,16 @@ pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
     (line, column)
 }
 
+/// `s` as quoted in an error message: at most 80 characters, with `…` where it was cut, so that an
+/// error about a huge value stays readable.
+pub fn excerpt(s: &str) -> std::borrow::Cow<'_, str> {
+    const MAX: usize = 80;
+    match s.char_indices().nth(MAX) {
+        None => s.into(),
+        Some((cut, _)) => format!("{}…", &s[..cut]).into(),
+    }
+}
+
 /// Read a whole file as UTF-8, with errors naming the path.
 pub fn read_to_string(path: &std::path::Path) -> Result<String, RegistryError> {
     let bytes = std::fs::read(path).map_err(|e| RegistryError::io(path, e))?;

@@ -3,7 +3,7 @@
 //! text (a VUID alone on its line) — detected automatically, yielding the VUIDs each page
 //! defines and the page's C prototype.
 
-use crate::error::{read_to_string, RegistryError};
+use crate::error::{excerpt, read_to_string, RegistryError};
 use crate::vuid::{
     normalize_markdown, normalize_plain, split_vuid, Condition, VuidRecord, VuidSet,
 };
@@ -81,7 +81,12 @@ pub fn parse(text: &str, origin: &str) -> Result<(ManPage, VuidSet), RegistryErr
             ));
         }
         let rec = VuidRecord::new(&id, Condition::Always, norm).ok_or_else(|| {
-            RegistryError::at_offset(origin, text, off, format!("`{id}` is not a VUID"))
+            RegistryError::at_offset(
+                origin,
+                text,
+                off,
+                format!("`{}` is not a VUID", excerpt(&id)),
+            )
         })?;
         records.push(rec);
     }
@@ -115,6 +120,10 @@ fn page_name(text: &str, format: ManPageFormat) -> Option<String> {
     }
 }
 
+/// The longest text a prototype's line may hold before the name (`VKAPI_ATTR VkResult VKAPI_CALL` is
+/// 30 bytes); longer is prose, and the bound keeps the search linear in the page.
+const MAX_RETURN_TYPE_LEN: usize = 128;
+
 /// The C prototype of `name`: the line holding `name(` through the closing `);`
 /// (or `typedef struct name {` through `} name;`).
 fn prototype(text: &str, name: &str, origin: &str) -> Result<String, RegistryError> {
@@ -123,13 +132,19 @@ fn prototype(text: &str, name: &str, origin: &str) -> Result<String, RegistryErr
     }
     let call = format!("{name}(");
     let mut search = 0;
+    // the start of the line holding the current candidate, found from the previous candidate on
+    let (mut line_start, mut scanned) = (0, 0);
     while let Some(p) = text[search..].find(&call) {
         let at = search + p;
         search = at + call.len();
-        let line_start = text[..at].rfind('\n').map_or(0, |i| i + 1);
+        if let Some(nl) = text[scanned..at].rfind('\n') {
+            line_start = scanned + nl + 1;
+        }
+        scanned = at;
         let before = text[line_start..at].trim();
         // a return type must precede the name on its line (skips prose mentions)
         if before.is_empty()
+            || before.len() > MAX_RETURN_TYPE_LEN
             || !before
                 .bytes()
                 .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'*' || b == b' ')

@@ -4,7 +4,7 @@
 //! The fast path deserialises into borrowed structures; when that fails on the *shape* of the
 //! document the input is re-read as a generic value to name the JSON path of the problem.
 
-use crate::error::{line_col, read_to_string, Location, RegistryError};
+use crate::error::{excerpt, line_col, read_to_string, Location, RegistryError};
 use crate::vuid::{normalize_html, Condition, VuidRecord, VuidSet};
 use serde::Deserialize;
 use std::borrow::Cow;
@@ -73,7 +73,10 @@ pub fn parse(text: &str, origin: &str) -> Result<VuidSet, RegistryError> {
                             text,
                             origin,
                             &format!("$.validation.{}", scope.0),
-                            &format!("bad condition key `{key}` at offset {off}: {msg}"),
+                            &format!(
+                                "bad condition key `{}` at offset {off}: {msg}",
+                                excerpt(key)
+                            ),
                         )
                     })?;
                     cond_cache.insert(key, c.clone());
@@ -98,7 +101,7 @@ pub fn parse(text: &str, origin: &str) -> Result<VuidSet, RegistryError> {
                             text,
                             origin,
                             &format!("$.validation.{}.{}[{i}].vuid", scope.0, key),
-                            &format!("`{}` is not a VUID", e.vuid),
+                            &format!("`{}` is not a VUID", excerpt(&e.vuid)),
                         )
                     })?;
                 records.push(rec);

@@ -82,6 +82,7 @@ impl Condition {
         let mut p = CondParser {
             s: s.as_bytes(),
             pos: 0,
+            depth: 0,
         };
         let c = p.or()?;
         p.skip_ws();
@@ -146,9 +147,15 @@ impl fmt::Display for Condition {
     }
 }
 
+/// How deeply `(` and `!` may nest in a condition: the registry's own conditions nest a few levels;
+/// the limit keeps the recursive parser (and the recursive drop of the tree) off the stack's end.
+pub const MAX_CONDITION_DEPTH: usize = 64;
+
 struct CondParser<'a> {
     s: &'a [u8],
     pos: usize,
+    /// `(` and `!` open around the current position.
+    depth: usize,
 }
 
 impl CondParser<'_> {
@@ -185,16 +192,32 @@ impl CondParser<'_> {
             Condition::All(flatten(items, false))
         })
     }
+    /// Enters one more level of `(` or `!` at the current position.
+    fn descend(&mut self) -> Result<(), (usize, String)> {
+        self.depth += 1;
+        if self.depth > MAX_CONDITION_DEPTH {
+            return Err((
+                self.pos,
+                format!("condition nests `(` and `!` deeper than {MAX_CONDITION_DEPTH} levels"),
+            ));
+        }
+        Ok(())
+    }
     fn unary(&mut self) -> Result<Condition, (usize, String)> {
         match self.peek() {
             Some(b'!') => {
+                self.descend()?;
                 self.pos += 1;
-                Ok(Condition::Not(Box::new(self.unary()?)))
+                let c = Condition::Not(Box::new(self.unary()?));
+                self.depth -= 1;
+                Ok(c)
             }
             Some(b'(') => {
+                self.descend()?;
                 let open = self.pos;
                 self.pos += 1;
                 let c = self.or()?;
+                self.depth -= 1;
                 if self.peek() != Some(b')') {
                     return Err((open, "unclosed `(` in condition".into()));
                 }
@@ -408,7 +431,7 @@ pub fn normalize_html(s: &str) -> String {
         s: String::with_capacity(s.len()),
         space: false,
     };
-    run(s, Mode::Html, &mut out);
+    run(s, Mode::Html, &mut out, 0);
     out.s
 }
 
@@ -419,7 +442,7 @@ pub fn normalize_markdown(s: &str) -> String {
         s: String::with_capacity(s.len()),
         space: false,
     };
-    run(s, Mode::Markdown, &mut out);
+    run(s, Mode::Markdown, &mut out, 0);
     out.s
 }
 
@@ -433,7 +456,16 @@ pub fn normalize_plain(s: &str) -> String {
     out.s
 }
 
-fn run(s: &str, mode: Mode, out: &mut Out) {
+/// Links nested deeper than this inside link texts are copied as text (each level recurses).
+const MAX_LINK_NESTING: usize = 8;
+/// A link's text or target longer than this is not a link: the bound keeps scanning for the
+/// closing `]` or `)` from every `[` linear in the input. Real man pages stay far below it.
+const MAX_LINK_SPAN: usize = 4096;
+/// An HTML tag longer than this is text, for the same reason.
+const MAX_TAG_LEN: usize = 4096;
+
+/// Normalises `s` into `out`; `link_depth` is how many link texts enclose it.
+fn run(s: &str, mode: Mode, out: &mut Out, link_depth: usize) {
     let b = s.as_bytes();
     let mut i = 0;
     let mut in_code = false;
@@ -487,9 +519,9 @@ fn run(s: &str, mode: Mode, out: &mut Out) {
                 // emphasis markers (`**must**`, `*n*`); literal asterisks are escaped in Markdown
                 i += 1;
             }
-            b'[' if mode == Mode::Markdown && !in_code => {
+            b'[' if mode == Mode::Markdown && !in_code && link_depth < MAX_LINK_NESTING => {
                 if let Some((text_end, link_end)) = md_link(b, i) {
-                    run(&s[i + 1..text_end], mode, out);
+                    run(&s[i + 1..text_end], mode, out, link_depth + 1);
                     i = link_end;
                 } else {
                     out.push('[');
@@ -537,7 +569,7 @@ fn tag_len(b: &[u8]) -> Option<usize> {
         return None;
     }
     let mut quote = 0u8;
-    for (k, &c) in b.iter().enumerate().skip(1) {
+    for (k, &c) in b.iter().enumerate().take(MAX_TAG_LEN).skip(1) {
         if quote != 0 {
             if c == quote {
                 quote = 0;
@@ -593,6 +625,9 @@ fn md_link(b: &[u8], i: usize) -> Option<(usize, usize)> {
     let mut k = i;
     let mut code = false;
     let close = loop {
+        if k - i > MAX_LINK_SPAN {
+            return None;
+        }
         let c = *b.get(k)?;
         match c {
             b'`' => code = !code,
@@ -613,7 +648,12 @@ fn md_link(b: &[u8], i: usize) -> Option<(usize, usize)> {
     }
     let mut k = close + 2;
     let mut depth = 1usize;
+    // whether the target so far holds a `"` (a title, in which spaces are allowed)
+    let mut quoted = false;
     while let Some(&c) = b.get(k) {
+        if k - close > MAX_LINK_SPAN {
+            return None;
+        }
         match c {
             b'(' => depth += 1,
             b')' => {
@@ -622,7 +662,8 @@ fn md_link(b: &[u8], i: usize) -> Option<(usize, usize)> {
                     return Some((close, k + 1));
                 }
             }
-            b' ' | b'\n' if depth == 1 && !b[close + 2..k].contains(&b'"') => return None,
+            b'"' => quoted = true,
+            b' ' | b'\n' if depth == 1 && !quoted => return None,
             _ => {}
         }
         k += 1;
@@ -650,6 +691,44 @@ mod tests {
         assert_eq!(Condition::parse("core").unwrap(), Condition::Always);
         assert!(Condition::parse("(A,B").is_err());
         assert!(Condition::parse("A+").is_err());
+    }
+
+    #[test]
+    fn conditions_nested_past_the_limit_are_refused_where_they_go_too_deep() {
+        let d = MAX_CONDITION_DEPTH;
+        let at_limit = format!("{}A{}", "(".repeat(d), ")".repeat(d));
+        assert_eq!(
+            Condition::parse(&at_limit).unwrap(),
+            Condition::Ext("A".into())
+        );
+        let deep = format!("{}A{}", "(".repeat(100_000), ")".repeat(100_000));
+        let (off, msg) = Condition::parse(&deep).unwrap_err();
+        assert_eq!(off, d);
+        assert!(msg.contains("deeper than 64"), "{msg}");
+        let nots = "!".repeat(100_000) + "A";
+        assert_eq!(Condition::parse(&nots).unwrap_err().0, d);
+        // depth counts what is open, not how many groups there are
+        let siblings = vec!["(A)"; 1000].join("+");
+        assert!(Condition::parse(&siblings).is_ok());
+    }
+
+    #[test]
+    fn long_or_deeply_nested_links_are_text() {
+        assert_eq!(
+            normalize_markdown("see [the text](#target) here"),
+            "see the text here"
+        );
+        let long = format!("[{}](#t)", "a".repeat(MAX_LINK_SPAN + 1));
+        assert!(normalize_markdown(&long).starts_with("[aaa"));
+        // links nested past the limit keep their inner markup as text
+        let n = MAX_LINK_NESTING + 2;
+        let nested = format!("{}x{}", "[".repeat(n), "](#t)".repeat(n));
+        let out = normalize_markdown(&nested);
+        assert!(out.starts_with("[[x](#t)](#t)"), "{out}");
+        let deep = format!("{}x{}", "[".repeat(10_000), "](#t)".repeat(10_000));
+        assert!(normalize_markdown(&deep).contains('x'));
+        let unclosed = "[a".repeat(5_000);
+        assert_eq!(normalize_markdown(&unclosed), unclosed);
     }
 
     #[test]

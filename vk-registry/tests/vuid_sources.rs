@@ -207,6 +207,35 @@ fn truncated_man_pages_give_located_errors() {
 }
 
 #[test]
+fn prototypes_are_found_past_long_prose_lines_and_conditions_too_deep_are_located() {
+    let html = common::fixture_text("toy_html.md");
+    let (want, _) = manpage::parse(&html, "toy_html.md").unwrap();
+    // a prose line mentioning the command many times, before the prototype
+    let prose = "word ".repeat(40) + &"vkCmdToyDispatch( ".repeat(20_000) + "\n";
+    let at = html.find("```c++").unwrap();
+    let text = format!("{}{prose}{}", &html[..at], &html[at..]);
+    let (page, _) = manpage::parse(&text, "long-prose.md").unwrap();
+    assert_eq!(page.prototype, want.prototype);
+    assert!(
+        page.prototype.starts_with("void vkCmdToyDispatch("),
+        "{}",
+        page.prototype
+    );
+    // a condition key nested far too deep is refused at its JSON path, the key shortened
+    let key = format!("{}VK_KHR_a{}", "(".repeat(20_000), ")".repeat(20_000));
+    let json = format!(
+        r#"{{"validation":{{"vkCmdX":{{"{key}":[{{"vuid":"VUID-vkCmdX-a-1","text":"t"}}]}}}}}}"#
+    );
+    let e = validusage::parse(&json, "deep.json").unwrap_err();
+    assert_eq!(
+        e.location(),
+        Some(&Location::JsonPath("$.validation.vkCmdX".into()))
+    );
+    assert!(e.to_string().contains("deeper than"), "{e}");
+    assert!(e.to_string().len() < 300, "{e}");
+}
+
+#[test]
 fn garbled_json_gives_line_column_or_json_path() {
     let text = common::fixture_text("validusage_1_3.json");
     // truncated

@@ -51,6 +51,15 @@ pub fn run(a: CheckArgs) -> super::Exit {
                 continue;
             }
         };
+        // A case the model cannot hand to a driver is the case's error, located in its file.
+        if let Err(why) = case.runnable(&profile) {
+            eprintln!(
+                "rtconf: {}",
+                session::replay::located(path, &format!("{}: {why}", why.at))
+            );
+            errors += 1;
+            continue;
+        }
         let verdict = model::validate(&rules, &profile, &case);
         let vuids: Vec<String> = verdict.vuids().into_iter().map(String::from).collect();
         let expected = case.expected_vuids();

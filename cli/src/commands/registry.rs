@@ -59,6 +59,9 @@ pub fn run(c: RegistryCommand) -> super::Exit {
             json,
         } => {
             let set = session::sources::load_sources(&from)?;
+            if let Some(c) = command.as_deref() {
+                session::select::known_scope(c, set.records.iter().map(|r| r.scope.as_str()))?;
+            }
             let text = if json {
                 vk_registry::report::vuids_json(&set, command.as_deref())
             } else {
@@ -69,6 +72,14 @@ pub fn run(c: RegistryCommand) -> super::Exit {
         RegistryCommand::Diff { a, b, command } => {
             let sa = vk_registry::source::load_vuids(&a).map_err(registry_error)?;
             let sb = vk_registry::source::load_vuids(&b).map_err(registry_error)?;
+            if let Some(c) = command.as_deref() {
+                let scopes = sa
+                    .records
+                    .iter()
+                    .chain(&sb.records)
+                    .map(|r| r.scope.as_str());
+                session::select::known_scope(c, scopes)?;
+            }
             print(&vk_registry::report::diff(&sa, &sb, command.as_deref()))
         }
         RegistryCommand::Show { name, from } => {

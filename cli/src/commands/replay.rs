@@ -20,6 +20,9 @@ pub struct ReplayArgs {
     /// ray tracing pipeline).
     #[arg(long, value_enum, default_value = "auto")]
     check: CheckArg,
+    /// Seconds the case may take in its worker process (at least 1).
+    #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..))]
+    timeout: u64,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -40,6 +43,7 @@ pub fn run(a: ReplayArgs) -> super::Exit {
             CheckArg::RayQuery => TraceCheck::RayQuery,
             CheckArg::Pipeline => TraceCheck::Pipeline,
         },
+        timeout: a.timeout,
     };
     let replayed = session::replay(&case, &config)?;
     let r = &replayed.ran;
@@ -60,6 +64,7 @@ pub fn run(a: ReplayArgs) -> super::Exit {
                 if !problems.is_empty() {
                     let text = std::fs::read_to_string(&a.case).unwrap_or_default();
                     let why = model::NotRunnable {
+                        at: problems[0].path.clone(),
                         scene: problems,
                         reads: vec![],
                     };
@@ -73,12 +78,13 @@ pub fn run(a: ReplayArgs) -> super::Exit {
     if let Some(a) = r.case.as_accel() {
         println!("sizes:   {:?}", a.world.sizes);
     }
+    let model: Vec<&str> = r.verdict.vuids().into_iter().collect();
     println!(
         "model:   {}",
-        if r.report.model.is_empty() {
+        if model.is_empty() {
             "valid".into()
         } else {
-            r.report.model.join(", ")
+            model.join(", ")
         }
     );
     for v in &r.verdict.violations {
@@ -105,7 +111,15 @@ pub fn run(a: ReplayArgs) -> super::Exit {
             print_traced(body, t, replayed.deviation.as_deref());
         }
     }
-    Ok(print_outcome(&r.report))
+    let code = print_outcome(&r.report);
+    if r.report.outcome == Outcome::CaseError {
+        eprintln!(
+            "rtconf: {}",
+            session::replay::located(&a.case, &r.report.detail)
+        );
+        return Ok(2);
+    }
+    Ok(code)
 }
 
 /// A build's traced check: what each ray hit, the mismatches with the model, and what explains them.

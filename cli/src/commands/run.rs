@@ -18,25 +18,27 @@ pub struct RunArgs {
     /// command vkCmdBuildAccelerationStructuresIndirectKHR runs only when named.
     #[arg(long)]
     command: Vec<String>,
-    /// Only these VUIDs' invalid cases (repeatable; default: every executable VUID with a mutation).
+    /// Only these VUIDs' invalid cases (repeatable; default: every executable VUID with a mutation): a
+    /// full id, a glob (`VUID-vkCmdTraceRaysIndirectKHR-*`) or a short id (`03686`, `stride-03686`).
+    /// A name that matches no VUID is an error.
     #[arg(long)]
     vuid: Vec<String>,
     /// Only valid cases (with read-back); no invalid ones.
     #[arg(long, conflicts_with = "vuid")]
     valid_only: bool,
-    /// Cases per VUID and valid cases per command.
-    #[arg(long, default_value_t = 4)]
-    count: usize,
+    /// Cases per VUID and valid cases per command (at least 1).
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u64).range(1..))]
+    count: u64,
     /// Rendered-scene cases per trace command (at least; a larger --count wins; 0: none).
     #[arg(long, default_value_t = session::plan::DEFAULT_RENDERED)]
     rendered: usize,
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Worker processes.
-    #[arg(long, default_value_t = 2)]
-    jobs: usize,
-    /// Seconds a case may take.
-    #[arg(long, default_value_t = 60)]
+    /// Worker processes (at least 1).
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(1..))]
+    jobs: u64,
+    /// Seconds a case may take (at least 1).
+    #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..))]
     timeout: u64,
     #[arg(long, default_value = "out/run")]
     out: PathBuf,
@@ -63,6 +65,14 @@ impl session::Progress for Bar {
     }
     fn advance(&self, n: u64) {
         self.0.inc(n);
+    }
+    fn selected(&self, expanded: &[session::select::Expanded]) {
+        for e in expanded {
+            if e.vuids.len() != 1 || e.vuids[0] != e.pattern {
+                self.0
+                    .suspend(|| eprintln!("--vuid {}: {} VUID(s)", e.pattern, e.vuids.len()));
+            }
+        }
     }
 }
 
@@ -92,8 +102,8 @@ pub fn run(a: RunArgs) -> super::Exit {
             seed: a.seed,
             rendered: a.rendered,
         },
-        count: a.count,
-        jobs: a.jobs,
+        count: a.count as usize,
+        jobs: a.jobs as usize,
         timeout: a.timeout,
         out: a.out,
         shrink: a.shrink,
@@ -121,6 +131,11 @@ pub fn run(a: RunArgs) -> super::Exit {
     for e in &outcome.gen_errors {
         eprintln!("rtconf: could not generate {e}");
     }
+    if outcome.summary.cases == 0 {
+        eprintln!(
+            "rtconf: the run made no case: nothing was checked (the VUIDs selected have no executable mutation on this profile, or --count made none)"
+        );
+    }
     Ok(outcome.exit_code())
 }
 
@@ -137,8 +152,8 @@ fn print_summary(s: &Summary, out: &Path) {
     }
     println!();
     println!(
-        "{} cases on {} (profile {}): {} passed, {} failed, {} triaged, {} unsupported, {} crashes, {} timeouts",
-        s.cases, s.driver, s.profile, s.passed, s.failed, s.triaged, s.unsupported, s.crashes, s.timeouts
+        "{} cases on {} (profile {}): {} passed, {} failed, {} triaged, {} unsupported, {} crashes, {} timeouts, {} case errors",
+        s.cases, s.driver, s.profile, s.passed, s.failed, s.triaged, s.unsupported, s.crashes, s.timeouts, s.case_errors
     );
     println!(
         "{:.1} s, {:.0} cases/s, runner peak RSS {} KiB",

@@ -286,6 +286,7 @@ pub(crate) fn execute(
 fn failure(e: HarnessError) -> Observation {
     match e {
         HarnessError::Unsupported(reason) => Observation::unsupported(reason),
+        HarnessError::OutOfMemory(s) => Observation::out_of_memory(s),
         e => Observation::crash(format!("failed: {e}")),
     }
 }

@@ -116,6 +116,7 @@ fn failure(e: HarnessError) -> Observation {
         HarnessError::Unsupported(s) => Observation::unsupported(s),
         HarnessError::Timeout(_) => Observation::with_status(Status::Timeout { seconds: 0.0 }),
         HarnessError::Failed(s) => Observation::crash(s),
+        HarnessError::OutOfMemory(s) => Observation::out_of_memory(s),
         e => Observation::crash(e.to_string()),
     }
 }

@@ -346,8 +346,12 @@ pub(crate) fn realise(
                 }
                 continue;
             }
-            let bytes = case.world.image(&b.name, &r).expect("buffer of the world");
-            a.write(0, &bytes);
+            // The buffer is zeroed: only what the contents write is copied.
+            if let Some(image) = case.world.image(&b.name, &r) {
+                for (at, bytes) in image.runs() {
+                    a.write(at, bytes);
+                }
+            }
         }
         Ok(())
     })();

@@ -167,7 +167,13 @@ impl DeviceCache {
                                     .get(*n as usize * hs..(*n as usize + 1) * hs)
                                     .map_or(vec![0; hs], |s| s.to_vec()),
                             };
-                            a.write(offset + i as u64 * stride, &bytes);
+                            // A record past u64::MAX lies past the end of the buffer.
+                            let at = (i as u64)
+                                .checked_mul(*stride)
+                                .and_then(|d| d.checked_add(*offset));
+                            if let Some(at) = at {
+                                a.write(at, &bytes);
+                            }
                         }
                     }
                     Contents::TraceRaysIndirectCommand {

@@ -245,6 +245,15 @@ impl VkInstance {
         })
     }
 
+    /// The name the physical device reports.
+    pub(crate) fn device_name(&self) -> String {
+        // SAFETY: plain query.
+        let p = unsafe { self.instance.get_physical_device_properties(self.physical) };
+        p.device_name_as_c_str()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    }
+
     /// The device extensions the physical device exposes.
     pub(crate) fn device_extensions(&self) -> BTreeSet<String> {
         // SAFETY: plain query.

@@ -58,8 +58,12 @@ fn allocate(dev: &VkDevice, size: u64, memory_type: u32) -> Result<vk::DeviceMem
         ai = ai.push_next(&mut flags_info);
     }
     // SAFETY: valid allocate info.
-    unsafe { dev.device.allocate_memory(&ai, None) }
-        .map_err(|r| HarnessError::Failed(format!("vkAllocateMemory({size}) failed: {r:?}")))
+    unsafe { dev.device.allocate_memory(&ai, None) }.map_err(|r| {
+        match crate::error::oom_or(format!("vkAllocateMemory({size})"), r) {
+            e @ HarnessError::OutOfMemory(_) => e,
+            _ => HarnessError::Failed(format!("vkAllocateMemory({size}) failed: {r:?}")),
+        }
+    })
 }
 
 fn address_of(dev: &VkDevice, b: vk::Buffer) -> u64 {
@@ -87,7 +91,8 @@ pub(crate) fn create_buffer(
         .usage(usage)
         .flags(flags);
     // SAFETY: valid create info.
-    unsafe { dev.device.create_buffer(&info, None) }.map_err(vkfail("vkCreateBuffer"))
+    unsafe { dev.device.create_buffer(&info, None) }
+        .map_err(|r| crate::error::oom_or(format!("vkCreateBuffer({size} bytes)"), r))
 }
 
 impl Allocation {
@@ -341,7 +346,7 @@ impl Allocation {
 
     /// Copies `bytes` to `offset`, cutting what would fall past the end of the buffer or onto unbound pages.
     pub(crate) fn write(&self, offset: u64, bytes: &[u8]) {
-        let end = (offset + bytes.len() as u64).min(self.size);
+        let end = offset.saturating_add(bytes.len() as u64).min(self.size);
         for p in &self.pieces {
             let (lo, hi) = (offset.max(p.at), end.min(p.at + p.len));
             if lo >= hi {

@@ -121,7 +121,7 @@ pub fn deviation(case: &AccelBody, device_hits: &Hits) -> Option<String> {
     // allocations, so the cast reads zeros there (degenerate triangles that nothing hits).
     let mut padded = case.world.clone();
     for b in &mut padded.buffers {
-        b.size += 4096;
+        b.size = b.size.saturating_add(4096);
     }
     let padded_mem = padded.memory();
     // Each candidate: its name and what the cast reports per ray at the structure it builds (with

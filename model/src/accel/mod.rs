@@ -15,7 +15,8 @@ pub use call::{
 };
 pub use rules::{AccelPredicate, Compiled};
 pub use semantics::{
-    build_primitives, direct_build, indirect_build, indirect_ranges, BuiltPrimitive, Shape,
+    build_primitives, direct_build, indirect_build, indirect_ranges, largest_range_record,
+    BuiltPrimitive, Shape,
 };
 pub use world::{
     AccelerationStructure, AsType, BuildBuffer, BuildContents, BuildSizes, BuildWorld, RangeInfo,

@@ -62,7 +62,7 @@ pub fn indirect_ranges(
                 .range_address(i, j)
                 .ok_or_else(|| err(format!("pIndirectDeviceAddresses[{i}]"), "missing"))?;
             mem.read(&a, RangeInfo::SIZE)
-                .map(RangeInfo::from_bytes)
+                .map(|b| RangeInfo::from_bytes(&b))
                 .ok_or_else(|| {
                     err(
                         format!("range record {j} of pInfos[{i}]"),
@@ -71,6 +71,40 @@ pub fn indirect_ranges(
                 })
         })
         .collect()
+}
+
+/// The YAML path (`world.buffers[1].contents[0].ranges[0]`) of the range record of info `i` that states
+/// the most primitives, where a `ranges` write of the world put it.
+pub fn largest_range_record(world: &BuildWorld, call: &BuildIndirect, i: usize) -> Option<String> {
+    let n = call.infos.get(i).map_or(0, |g| g.geometries.len());
+    let mem = world.memory();
+    let largest = (0..n)
+        .filter_map(|j| {
+            let a = call.range_address(i, j)?;
+            let count = mem
+                .read(&a, RangeInfo::SIZE)
+                .map(|b| RangeInfo::from_bytes(&b))?;
+            Some((count.primitive_count, a))
+        })
+        .max_by_key(|(count, _)| *count)?;
+    let (name, at) = largest.1.buffer()?;
+    let b = world.buffers.iter().position(|b| b.name == name)?;
+    world.buffers[b]
+        .contents
+        .iter()
+        .enumerate()
+        .rev()
+        .find_map(|(c, w)| match w {
+            super::world::BuildContents::Ranges {
+                offset,
+                stride,
+                ranges,
+            } => (0..ranges.len()).find_map(|k| {
+                let start = (k as u64).checked_mul(*stride)?.checked_add(*offset)?;
+                (start == at).then(|| format!("world.buffers[{b}].contents[{c}].ranges[{k}]"))
+            }),
+            _ => None,
+        })
 }
 
 fn read_vertex(
@@ -121,7 +155,7 @@ pub fn read_instance(mem: &Memory, a: &Address, ctx: &str) -> Result<InstanceRec
         *t = f32::from_bits(w(4 * k));
     }
     let (w0, w1) = (w(48), w(52));
-    let r = u64::from_le_bytes(b[56..64].try_into().expect("8 bytes"));
+    let r = u64::from_le_bytes([b[56], b[57], b[58], b[59], b[60], b[61], b[62], b[63]]);
     Ok(InstanceRecord {
         transform,
         custom_index: w0 & 0xff_ffff,
@@ -169,10 +203,30 @@ pub fn range_indices(
     if *index_type == IndexType::None {
         return Ok(vec![]);
     }
+    if range.primitive_count as u64 > MOST_PRIMITIVES_BUILT {
+        return Err(err(
+            ctx.into(),
+            "states more primitives than the model reads indices of",
+        ));
+    }
     let base = offset(index_data, range.primitive_offset as u64);
     (0..3 * range.primitive_count as u64)
         .map(|k| read_index(mem, *index_type, &offset(&base, k * index_type.size()), ctx))
         .collect()
+}
+
+/// The most primitives the model builds for one info: a range states its count (up to u32::MAX, and
+/// at stride 0 every primitive reads the same bytes), and the model never allocates from a stated count.
+/// A build of more has no meaning in the model (a [`ReadError`]: no traced check, no update comparison)
+/// and is judged by its rules alone; the checks trace a ray per primitive, far fewer than this.
+pub const MOST_PRIMITIVES_BUILT: u64 = 1 << 20;
+
+/// `base + index * stride` in bytes, or an error when it passes u64::MAX (no buffer reaches there).
+fn element(base: u64, index: u64, stride: u64, ctx: &str) -> Result<u64, ReadError> {
+    index
+        .checked_mul(stride)
+        .and_then(|d| d.checked_add(base))
+        .ok_or_else(|| err(ctx.into(), "lies past the end of the address space"))
 }
 
 /// The primitives one build info builds from its ranges (one per geometry, in geometry order).
@@ -181,6 +235,20 @@ pub fn build_primitives(
     info: &BuildGeometryInfo,
     ranges: &[RangeInfo],
 ) -> Result<Vec<BuiltPrimitive>, ReadError> {
+    let stated: u64 = info
+        .geometries
+        .iter()
+        .zip(ranges)
+        .map(|(_, r)| r.primitive_count as u64)
+        .sum();
+    if stated > MOST_PRIMITIVES_BUILT {
+        return Err(err(
+            "pInfos".into(),
+            &format!(
+                "the ranges state {stated} primitives, more than the model builds ({MOST_PRIMITIVES_BUILT})"
+            ),
+        ));
+    }
     let mut out = Vec::new();
     for (g, (geom, range)) in info.geometries.iter().zip(ranges).enumerate() {
         let ctx = format!("pGeometries[{g}]");
@@ -212,13 +280,12 @@ pub fn build_primitives(
                     for (k, v) in tri.iter_mut().enumerate() {
                         let a = if *index_type == IndexType::None {
                             let n = range.first_vertex as u64 + 3 * p as u64 + k as u64;
-                            offset(
-                                vertex_data,
-                                range.primitive_offset as u64 + n * vertex_stride,
-                            )
+                            let at =
+                                element(range.primitive_offset as u64, n, *vertex_stride, &ctx)?;
+                            offset(vertex_data, at)
                         } else {
                             let n = indices[3 * p as usize + k] as u64 + range.first_vertex as u64;
-                            offset(vertex_data, n * vertex_stride)
+                            offset(vertex_data, element(0, n, *vertex_stride, &ctx)?)
                         };
                         let raw = read_vertex(mem, *vertex_format, &a, &ctx)?;
                         active &= !raw[0].is_nan();
@@ -234,7 +301,8 @@ pub fn build_primitives(
             }
             GeometryData::Aabbs { data, stride } => {
                 for p in 0..range.primitive_count {
-                    let a = offset(data, range.primitive_offset as u64 + p as u64 * stride);
+                    let at = element(range.primitive_offset as u64, p as u64, *stride, &ctx)?;
+                    let a = offset(data, at);
                     let mut f = [0.0f32; 6];
                     for (k, v) in f.iter_mut().enumerate() {
                         *v = mem

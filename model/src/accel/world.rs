@@ -240,7 +240,10 @@ pub trait AddressResolver {
     fn address(&self, a: &Address) -> u64 {
         match a {
             Address::Raw(v) => *v,
-            Address::InBuffer { buffer, offset } => self.buffer(buffer).map_or(0, |b| b + offset),
+            // An offset past the address space wraps as the device's address arithmetic would.
+            Address::InBuffer { buffer, offset } => {
+                self.buffer(buffer).map_or(0, |b| b.wrapping_add(*offset))
+            }
         }
     }
 }
@@ -357,17 +360,11 @@ impl BuildWorld {
         self.structures.iter().find(|s| s.name == name)
     }
 
-    /// The bytes of a buffer: zero (the harness zeroes every buffer) overwritten by its contents in order.
-    pub fn image(&self, name: &str, resolve: &dyn AddressResolver) -> Option<Vec<u8>> {
+    /// The bytes of a buffer: zero (the harness zeroes every buffer) overwritten by its contents in order,
+    /// kept as the ranges written ([`SparseImage`]): the model never allocates from a stated size.
+    pub fn image(&self, name: &str, resolve: &dyn AddressResolver) -> Option<SparseImage> {
         let b = self.buffer(name)?;
-        let mut bytes = vec![0u8; b.size as usize];
-        let mut put = |off: u64, data: &[u8]| {
-            let off = off as usize;
-            if off < bytes.len() {
-                let n = data.len().min(bytes.len() - off);
-                bytes[off..off + n].copy_from_slice(&data[..n]);
-            }
-        };
+        let mut image = SparseImage::new(b.size);
         for c in &b.contents {
             match c {
                 BuildContents::Ranges {
@@ -376,38 +373,48 @@ impl BuildWorld {
                     ranges,
                 } => {
                     for (j, r) in ranges.iter().enumerate() {
-                        put(offset + j as u64 * stride, &r.to_bytes());
+                        // A record whose offset passes u64::MAX lies past the end of every buffer.
+                        let Some(at) = (j as u64)
+                            .checked_mul(*stride)
+                            .and_then(|d| offset.checked_add(d))
+                        else {
+                            break;
+                        };
+                        image.write(at, &r.to_bytes());
                     }
                 }
                 BuildContents::Floats { offset, values } => {
                     let d: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
-                    put(*offset, &d);
+                    image.write(*offset, &d);
                 }
                 BuildContents::Halves { offset, values } => {
                     let d: Vec<u8> = values
                         .iter()
                         .flat_map(|v| f32_to_half(*v).to_le_bytes())
                         .collect();
-                    put(*offset, &d);
+                    image.write(*offset, &d);
                 }
-                BuildContents::U32s { offset, values } => put(
+                BuildContents::U32s { offset, values } => image.write(
                     *offset,
                     &values
                         .iter()
                         .flat_map(|v| v.to_le_bytes())
                         .collect::<Vec<u8>>(),
                 ),
-                BuildContents::U16s { offset, values } => put(
+                BuildContents::U16s { offset, values } => image.write(
                     *offset,
                     &values
                         .iter()
                         .flat_map(|v| v.to_le_bytes())
                         .collect::<Vec<u8>>(),
                 ),
-                BuildContents::U8s { offset, values } => put(*offset, values),
+                BuildContents::U8s { offset, values } => image.write(*offset, values),
                 BuildContents::Instances { offset, instances } => {
                     for (k, inst) in instances.iter().enumerate() {
-                        put(offset + 64 * k as u64, &instance_bytes(inst, resolve));
+                        let Some(at) = offset.checked_add(64 * k as u64) else {
+                            break;
+                        };
+                        image.write(at, &instance_bytes(inst, resolve));
                     }
                 }
                 BuildContents::Pointers { offset, targets } => {
@@ -415,11 +422,11 @@ impl BuildWorld {
                         .iter()
                         .flat_map(|a| resolve.address(a).to_le_bytes())
                         .collect();
-                    put(*offset, &d);
+                    image.write(*offset, &d);
                 }
             }
         }
-        Some(bytes)
+        Some(image)
     }
 
     /// The model's memory image of every buffer, with synthetic addresses.
@@ -462,23 +469,103 @@ pub fn instance_bytes(inst: &InstanceRecord, resolve: &dyn AddressResolver) -> [
     b
 }
 
+/// The bytes of one buffer as its contents wrote them: the written runs only, so a buffer may state any
+/// size (u64::MAX, 100 GB) and the model holds no more than what its contents write. Bytes that no
+/// write covers read as zero.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct SparseImage {
+    size: u64,
+    /// Written runs by start offset; they never overlap and never pass `size`.
+    runs: std::collections::BTreeMap<u64, Vec<u8>>,
+}
+
+impl SparseImage {
+    /// The image of a buffer of `size` bytes, all zero.
+    pub fn new(size: u64) -> SparseImage {
+        SparseImage {
+            size,
+            runs: Default::default(),
+        }
+    }
+
+    pub fn size(&self) -> u64 {
+        self.size
+    }
+
+    /// Writes `data` at `offset`, cutting what falls past the end; later writes win where they overlap.
+    pub fn write(&mut self, offset: u64, data: &[u8]) {
+        if offset >= self.size || data.is_empty() {
+            return;
+        }
+        let n = (data.len() as u64).min(self.size - offset);
+        let end = offset + n;
+        // Cut every run that overlaps [offset, end) down to the parts outside it.
+        let overlapping: Vec<u64> = self
+            .runs
+            .range(..end)
+            .filter(|(at, run)| **at + run.len() as u64 > offset)
+            .map(|(at, _)| *at)
+            .collect();
+        for at in overlapping {
+            let run = self.runs.remove(&at).unwrap_or_default();
+            let run_end = at + run.len() as u64;
+            if at < offset {
+                self.runs.insert(at, run[..(offset - at) as usize].to_vec());
+            }
+            if run_end > end {
+                self.runs.insert(end, run[(end - at) as usize..].to_vec());
+            }
+        }
+        self.runs.insert(offset, data[..n as usize].to_vec());
+    }
+
+    /// `len` bytes at `offset` (zero where nothing was written), or None when they pass the end.
+    pub fn read(&self, offset: u64, len: u64) -> Option<Vec<u8>> {
+        let end = offset.checked_add(len)?;
+        if end > self.size {
+            return None;
+        }
+        // Reads are of one record or value (at most a few dozen bytes), never of a stated size.
+        let mut out = vec![0u8; usize::try_from(len).ok()?];
+        let first = self
+            .runs
+            .range(..offset)
+            .next_back()
+            .map_or(offset, |(at, _)| *at);
+        for (at, run) in self.runs.range(first..end) {
+            let (lo, hi) = ((*at).max(offset), (at + run.len() as u64).min(end));
+            if lo < hi {
+                out[(lo - offset) as usize..(hi - offset) as usize]
+                    .copy_from_slice(&run[(lo - at) as usize..(hi - at) as usize]);
+            }
+        }
+        Some(out)
+    }
+
+    /// The written runs, by offset: what a harness copies into a zeroed buffer.
+    pub fn runs(&self) -> impl Iterator<Item = (u64, &[u8])> {
+        self.runs.iter().map(|(at, run)| (*at, run.as_slice()))
+    }
+}
+
 /// The model's memory: the image of every buffer, read at symbolic addresses.
 pub struct Memory<'w> {
     pub world: &'w BuildWorld,
-    images: Vec<Vec<u8>>,
+    images: Vec<SparseImage>,
 }
+
+/// The longest read the model makes at once (an instance record); longer reads are refused.
+const LONGEST_READ: u64 = 64;
 
 impl Memory<'_> {
     /// `len` bytes at `address`, or None when they do not lie inside one buffer of the world.
-    pub fn read(&self, address: &Address, len: u64) -> Option<&[u8]> {
+    pub fn read(&self, address: &Address, len: u64) -> Option<Vec<u8>> {
         let (name, off) = address.buffer()?;
         let k = self.world.buffers.iter().position(|b| b.name == name)?;
-        let img = &self.images[k];
-        let end = off.checked_add(len)?;
-        if end as usize > img.len() {
+        if len > LONGEST_READ {
             return None;
         }
-        Some(&img[off as usize..end as usize])
+        self.images[k].read(off, len)
     }
 
     pub fn u32_at(&self, a: &Address) -> Option<u32> {
@@ -487,7 +574,7 @@ impl Memory<'_> {
     }
     pub fn u64_at(&self, a: &Address) -> Option<u64> {
         self.read(a, 8)
-            .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")))
+            .map(|b| u64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]))
     }
     pub fn f32_at(&self, a: &Address) -> Option<f32> {
         self.u32_at(a).map(f32::from_bits)
@@ -508,9 +595,10 @@ impl Memory<'_> {
 pub fn offset(a: &Address, delta: u64) -> Address {
     match a {
         Address::Raw(v) => Address::Raw(v.wrapping_add(delta)),
+        // Past u64::MAX the address stays past the end of its buffer.
         Address::InBuffer { buffer, offset } => Address::InBuffer {
             buffer: buffer.clone(),
-            offset: offset + delta,
+            offset: offset.saturating_add(delta),
         },
     }
 }

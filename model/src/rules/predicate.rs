@@ -432,7 +432,8 @@ impl Predicate {
             }
             Predicate::LaunchInvocationsAtMost(op) => {
                 if let (Some(d), Some(m)) = (call.dimensions(world), op.value(cx)) {
-                    let v = d.iter().map(|&x| x as u64).product::<u64>();
+                    // Three u32 dimensions may pass u64::MAX together; past it, the count is past any limit.
+                    let v = d.iter().map(|&x| x as u64).fold(1u64, u64::saturating_mul);
                     if v > m {
                         push(fail(
                             "indirect command",

@@ -155,11 +155,28 @@ impl<'a> Parser<'a> {
                     return Err(self.err_at(pos, format!("{}: offset without extnumber", v.name)))
                 }
             };
-            let x = 1_000_000_000 + (n - 1) * 1000 + off;
-            v.value = Some(if neg { -x } else { x });
+            // the extension enum scheme: 1000000000 + (extnumber - 1) * 1000 + offset, negated by dir="-"
+            let x = n
+                .checked_sub(1)
+                .and_then(|b| b.checked_mul(1000))
+                .and_then(|b| b.checked_add(1_000_000_000))
+                .and_then(|b| b.checked_add(off))
+                .and_then(|x| if neg { x.checked_neg() } else { Some(x) })
+                .ok_or_else(|| {
+                    self.err_at(
+                        pos,
+                        format!(
+                            "{}: extnumber {n} and offset {off} give a value out of range",
+                            v.name
+                        ),
+                    )
+                })?;
+            v.value = Some(x);
         } else if neg {
             if let Some(x) = v.value {
-                v.value = Some(-x);
+                v.value = Some(x.checked_neg().ok_or_else(|| {
+                    self.err_at(pos, format!("{}: value {x} cannot be negated", v.name))
+                })?);
             }
         }
         Ok((has.then_some(v), extends, offset.is_some(), api))
@@ -218,8 +235,15 @@ impl<'a> Parser<'a> {
     }
 
     pub(super) fn condition(&self, s: &str, pos: usize) -> Result<Condition, RegistryError> {
-        Condition::parse(s)
-            .map_err(|(off, msg)| self.err_at(pos, format!("bad depends `{s}` (at {off}): {msg}")))
+        Condition::parse(s).map_err(|(off, msg)| {
+            self.err_at(
+                pos,
+                format!(
+                    "bad depends `{}` (at {off}): {msg}",
+                    crate::error::excerpt(s)
+                ),
+            )
+        })
     }
 
     /// A `<require>`/`<remove>` block. Enum values it adds are queued when `apply` is set.

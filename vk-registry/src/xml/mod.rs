@@ -592,5 +592,35 @@ mod tests {
         assert_eq!(parse_int_literal("(~0ULL)"), Some(-1));
         assert_eq!(parse_int_literal("-1"), Some(-1));
         assert_eq!(parse_int_literal("1000.0F"), None);
+        // past i64: no value, never an overflow
+        assert_eq!(parse_int_literal("--9223372036854775808"), None);
+        assert_eq!(parse_int_literal("9223372036854775808"), None);
+    }
+
+    #[test]
+    fn extension_enum_values_out_of_range_are_located_errors() {
+        let doc = |attrs: &str| {
+            format!(
+                "<registry><enums name=\"VkResult\" type=\"enum\"/>\n<extensions>\n<extension name=\"VK_KHR_x\" number=\"1\" supported=\"vulkan\">\n\
+                 <require>\n<enum {attrs} extends=\"VkResult\" name=\"VK_X\"/>\n</require>\n</extension>\n\
+                 </extensions>\n</registry>\n"
+            )
+        };
+        let ok = Registry::parse(&doc("offset=\"3\" dir=\"-\"")).unwrap();
+        assert_eq!(ok.enum_value("VK_X"), Some(-1_000_000_003));
+        for attrs in [
+            "offset=\"9223372036854775807\"",
+            "offset=\"0\" extnumber=\"9223372036854775807\"",
+            "offset=\"0\" extnumber=\"-9223372036854775808\"",
+            "value=\"(~9223372036854775807LL)\" dir=\"-\"",
+        ] {
+            let e = Registry::parse(&doc(attrs)).unwrap_err();
+            assert_eq!(
+                e.location(),
+                Some(&crate::error::Location::LineCol { line: 5, column: 1 }),
+                "{attrs}: {e}"
+            );
+            assert!(e.to_string().contains("VK_X"), "{attrs}: {e}");
+        }
     }
 }

@@ -66,7 +66,7 @@ pub fn parse_int_literal(s: &str) -> Option<i64> {
     } else {
         num.parse::<i64>().ok()?
     };
-    let v = if neg { -v } else { v };
+    let v = if neg { v.checked_neg()? } else { v };
     if neg_bits {
         if wide {
             Some(!v)

@@ -614,7 +614,7 @@ fn check_range_records(cx: &AccelContext, out: &mut Out) {
                 push(out, ctx, "lies outside every buffer of the world");
                 continue;
             };
-            let r = RangeInfo::from_bytes(bytes);
+            let r = RangeInfo::from_bytes(&bytes);
             let (what, m) = match &g.data {
                 GeometryData::Triangles {
                     index_type: IndexType::None,

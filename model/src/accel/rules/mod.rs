@@ -426,7 +426,12 @@ fn not_contiguous(b: &BuildBuffer) -> bool {
 type Span<'a> = (&'a str, u64, u64);
 
 fn overlaps(a: Span, b: Span) -> bool {
-    a.0 == b.0 && a.2 > 0 && b.2 > 0 && a.1 < b.1 + b.2 && b.1 < a.1 + a.2
+    // A span that would pass u64::MAX ends there (no buffer reaches further).
+    a.0 == b.0
+        && a.2 > 0
+        && b.2 > 0
+        && a.1 < b.1.saturating_add(b.2)
+        && b.1 < a.1.saturating_add(a.2)
 }
 
 fn scratch_size(cx: &AccelContext, i: usize) -> Option<u64> {

@@ -224,7 +224,7 @@ impl ResourceRule {
                                 r.at(),
                                 format!(
                                     "accesses bytes [{o}, {}) of a {len}-byte descriptor range",
-                                    o + n
+                                    o.saturating_add(n)
                                 ),
                             );
                         }

@@ -1,0 +1,137 @@
+//! Case files on the command line: errors of the case (a group the pipeline lacks, a dangling buffer
+//! name, a build of u32::MAX primitives) exit 2 from `check` and `replay` with `file:line:col: path:
+//! problem`; `check` reads build cases; `replay` runs the case in a worker process (a worker that dies
+//! is the case's crash, as in a run); a buffer no device of the profile can hold is unsupported, not a
+//! crash.
+
+mod common;
+use common::*;
+
+#[test]
+fn a_group_the_pipeline_lacks_is_an_error_of_the_case_in_check_and_replay() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = edited(
+        &committed(HAND),
+        "handles: [!group 3]",
+        "handles: [!group 99]",
+    );
+    let path = write(dir.path(), "group99.yaml", &text);
+    let want = format!(
+        "{path}:{}: world.buffers[0].contents[2].handles[0]: the handle of group 99",
+        line_col(&text, "!group 99")
+    );
+    for args in [vec!["check", &path], vec!["replay", &path]] {
+        let r = rtconf(&args);
+        assert_eq!(r.code, 2, "{args:?}: {}", r.all());
+        assert!(r.stderr.contains(&want), "{args:?}: {}", r.all());
+        assert!(!r.stdout.contains("Fail"), "{args:?}: {}", r.all());
+    }
+}
+
+#[test]
+fn a_dangling_buffer_name_is_an_error_of_the_case_in_check_and_replay() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = edited(
+        &committed(HAND),
+        "indirect_address: { buffer: indirect",
+        "indirect_address: { buffer: nosuch",
+    );
+    let path = write(dir.path(), "dangling.yaml", &text);
+    let want = format!(
+        "{path}:{}: call.indirect_address.buffer: names buffer `nosuch`",
+        line_col(&text, "nosuch")
+    );
+    for args in [vec!["check", &path], vec!["replay", &path]] {
+        let r = rtconf(&args);
+        assert_eq!(r.code, 2, "{args:?}: {}", r.all());
+        assert!(r.stderr.contains(&want), "{args:?}: {}", r.all());
+    }
+}
+
+#[test]
+fn a_build_of_u32_max_primitives_is_an_error_of_the_case_in_check_and_replay() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = committed("cases/build/aabbs-valid.yaml")
+        .replace("primitive_count: 1\n", "primitive_count: 4294967295\n")
+        .replace("  - - 1\n", "  - - 4294967295\n");
+    let path = write(dir.path(), "huge-count.yaml", &text);
+    let want = format!(
+        "{path}:{}: world.buffers[1].contents[0].ranges[0]: ",
+        line_col(&text, "primitive_count: 4294967295")
+    );
+    for args in [vec!["check", &path], vec!["replay", &path]] {
+        let r = rtconf(&args);
+        assert_eq!(r.code, 2, "{args:?}: {}", r.all());
+        assert!(r.stderr.contains(&want), "{args:?}: {}", r.all());
+        assert!(
+            r.stderr.contains("the model gives the build no meaning"),
+            "{}",
+            r.all()
+        );
+        assert!(!r.stdout.contains("outcome: Fail"), "{args:?}: {}", r.all());
+    }
+}
+
+#[test]
+fn check_reads_build_cases() {
+    let dir = root().join("cases/build");
+    let mut paths: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path().display().to_string())
+        .filter(|p| p.ends_with(".yaml"))
+        .collect();
+    paths.sort();
+    assert!(paths.len() > 10);
+    let mut args = vec!["check", "--json"];
+    args.extend(paths.iter().map(String::as_str));
+    let r = rtconf(&args);
+    assert_eq!(r.code, 0, "{}", r.all());
+    let results: Vec<serde_json::Value> = serde_json::from_str(&r.stdout).unwrap();
+    assert_eq!(results.len(), paths.len());
+    assert!(results.iter().all(|v| v["agrees"] == true), "{}", r.stdout);
+    // Every committed build case violates at least lavapipe's missing indirect build.
+    assert!(results
+        .iter()
+        .all(|v| v["vuids"].as_array().is_some_and(|a| !a.is_empty())));
+}
+
+#[test]
+fn replay_runs_the_case_in_a_worker_so_a_dying_driver_is_the_case_s_crash() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = edited(
+        &committed(HAND),
+        "name: hand-made-valid",
+        "name: fault-abort-replay",
+    );
+    let path = write(dir.path(), "abort.yaml", &text);
+    let r = rtconf_with(&["replay", &path], &[("RTCONF_WORKER_FAULTS", "1")]);
+    assert_eq!(r.code, 1, "{}", r.all());
+    assert!(
+        r.stdout.contains("outcome: Crash the worker died"),
+        "{}",
+        r.all()
+    );
+    // The same case, named otherwise, passes through the same worker path.
+    let r = rtconf(&["replay", HAND]);
+    assert_eq!(r.code, 0, "{}", r.all());
+    assert!(r.stdout.contains("outcome: Pass"), "{}", r.all());
+}
+
+#[test]
+fn a_buffer_of_u64_max_bytes_is_unsupported_by_the_profile_not_a_crash() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = edited(
+        &committed(HAND),
+        "size: 64\n",
+        "size: 18446744073709551615\n",
+    );
+    let path = write(dir.path(), "huge.yaml", &text);
+    let r = rtconf(&["replay", &path]);
+    assert_eq!(r.code, 1, "{}", r.all());
+    assert!(
+        r.stdout.contains("outcome: Unsupported world.buffers[1].size: buffer `indirect` of 18446744073709551615 bytes is larger than the profile's maxBufferSize"),
+        "{}",
+        r.all()
+    );
+    assert!(!r.stdout.contains("Crash"), "{}", r.all());
+}

@@ -1,0 +1,111 @@
+//! The driver is checked once, up front, by `run` and `replay`: a missing manifest, a manifest that is
+//! not JSON, one whose library does not exist or is not a shared object each exit 2 naming the file and
+//! what is wrong — not 139 "crash" results, `ERROR_OUT_OF_HOST_MEMORY`, or a missing profile.
+
+mod common;
+use common::*;
+
+fn both(driver: &str) -> [Ran; 2] {
+    let out = tempfile::tempdir().unwrap();
+    let out = out.path().display().to_string();
+    [
+        rtconf(&[
+            "run",
+            "--driver",
+            driver,
+            "--profile",
+            "lavapipe",
+            "--count",
+            "1",
+            "--out",
+            &out,
+        ]),
+        rtconf(&["replay", HAND, "--driver", driver]),
+    ]
+}
+
+#[test]
+fn a_missing_manifest_is_named_before_any_profile() {
+    for r in both("/missing/path") {
+        assert_eq!(r.code, 2, "{}", r.all());
+        assert!(
+            r.stderr.contains("`/missing/path` does not exist"),
+            "{}",
+            r.all()
+        );
+        assert!(!r.stderr.contains("profile"), "{}", r.all());
+    }
+    // Without --profile the driver's path used to be taken for a profile's name.
+    let out = tempfile::tempdir().unwrap();
+    let r = rtconf(&[
+        "run",
+        "--driver",
+        "/missing/path",
+        "--out",
+        &out.path().display().to_string(),
+    ]);
+    assert_eq!(r.code, 2, "{}", r.all());
+    assert!(
+        r.stderr.contains("`/missing/path` does not exist"),
+        "{}",
+        r.all()
+    );
+}
+
+#[test]
+fn a_manifest_naming_a_missing_library_is_named_with_the_library() {
+    let dir = tempfile::tempdir().unwrap();
+    let icd = write(
+        dir.path(),
+        "missing-lib.json",
+        r#"{"file_format_version": "1.0.0", "ICD": {"library_path": "/nonexistent/libvulkan_x.so", "api_version": "1.3.0"}}"#,
+    );
+    for r in both(&icd) {
+        assert_eq!(r.code, 2, "{}", r.all());
+        assert!(
+            r.stderr.contains(&format!(
+                "`{icd}` names the library /nonexistent/libvulkan_x.so, which does not exist"
+            )),
+            "{}",
+            r.all()
+        );
+    }
+}
+
+#[test]
+fn a_garbled_manifest_is_named_with_where_it_stops_being_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let icd = write(dir.path(), "garbled.json", "{\"ICD\": {\"library_path\": ");
+    for r in both(&icd) {
+        assert_eq!(r.code, 2, "{}", r.all());
+        assert!(
+            r.stderr.contains(&format!("`{icd}` is not JSON")),
+            "{}",
+            r.all()
+        );
+        assert!(r.stderr.contains("line 1 column"), "{}", r.all());
+    }
+}
+
+#[test]
+fn a_manifest_naming_a_file_that_is_not_a_library_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let lib = write(dir.path(), "libfake.so", "not a shared object");
+    let icd = write(
+        dir.path(),
+        "fake.json",
+        &format!(
+            r#"{{"file_format_version": "1.0.0", "ICD": {{"library_path": "{lib}", "api_version": "1.3.0"}}}}"#
+        ),
+    );
+    for r in both(&icd) {
+        assert_eq!(r.code, 2, "{}", r.all());
+        assert!(r.stderr.contains("is not a shared object"), "{}", r.all());
+    }
+}
+
+#[test]
+fn lavapipe_passes_the_check() {
+    let r = rtconf(&["replay", HAND, "--driver", "lavapipe"]);
+    assert_eq!(r.code, 0, "{}", r.all());
+}

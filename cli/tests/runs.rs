@@ -1,0 +1,334 @@
+//! `rtconf run` end to end on lavapipe: names that match nothing and bad flag values are refused (a
+//! CI job must never read "0 cases" as a pass), a new run into an `--out` starts clean, and a run stopped
+//! by `kill -9` or a full disk and then resumed has exactly the results of an uninterrupted run.
+
+mod common;
+use common::*;
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+/// A run's results, case by case, without the timings.
+fn results(out: &Path) -> BTreeMap<String, serde_json::Value> {
+    let text = std::fs::read_to_string(out.join("results.jsonl")).unwrap();
+    let mut by_case = BTreeMap::new();
+    for line in text.lines() {
+        let mut v: serde_json::Value =
+            serde_json::from_str(line).unwrap_or_else(|e| panic!("a torn line `{line}`: {e}"));
+        v.as_object_mut().unwrap().remove("millis");
+        let name = v["case"].as_str().unwrap().to_string();
+        assert!(by_case.insert(name.clone(), v).is_none(), "{name} twice");
+    }
+    by_case
+}
+
+fn out_arg(dir: &Path) -> String {
+    dir.display().to_string()
+}
+
+/// The run the resume tests stop and continue: 260 cases on lavapipe, one worker.
+const SELECTION: [&str; 6] = [
+    "--vuid",
+    "VUID-vkCmdTraceRaysIndirectKHR-*",
+    "--count",
+    "4",
+    "--jobs",
+    "1",
+];
+
+fn run_into(out: &Path, extra: &[&str]) -> Ran {
+    let o = out_arg(out);
+    let mut args = vec!["run", "--out", &o];
+    args.extend(SELECTION);
+    args.extend(extra);
+    rtconf(&args)
+}
+
+#[test]
+fn a_vuid_that_matches_nothing_is_an_error_naming_the_nearest() {
+    let out = tempfile::tempdir().unwrap();
+    let o = out_arg(out.path());
+    for typo in [
+        "VUID-vkCmdTraceRaysIndirectKHR-stride-03868",
+        "VUID-vkCmdTraceRaysIndirectKHR-strde-*",
+        "99999",
+    ] {
+        let r = rtconf(&["run", "--vuid", typo, "--out", &o]);
+        assert_eq!(r.code, 2, "{typo}: {}", r.all());
+        assert!(
+            r.stderr
+                .contains(&format!("--vuid `{typo}` matches no VUID")),
+            "{}",
+            r.all()
+        );
+        assert!(r.stderr.contains("nearest: VUID-"), "{}", r.all());
+    }
+}
+
+#[test]
+fn globs_and_short_ids_expand_to_the_matching_vuids_and_say_how_many() {
+    let out = tempfile::tempdir().unwrap();
+    let o = out_arg(out.path());
+    let r = rtconf(&["run", "--vuid", "03686", "--count", "2", "--out", &o]);
+    assert_eq!(r.code, 0, "{}", r.all());
+    assert!(r.stderr.contains("--vuid 03686: 2 VUID(s)"), "{}", r.all());
+    let got = results(out.path());
+    assert_eq!(got.len(), 4, "2 VUIDs × 2 cases: {got:?}");
+    assert!(got.values().all(|v| v["target"]
+        .as_str()
+        .is_some_and(|t| t.ends_with("-stride-03686"))));
+    let r = rtconf(&[
+        "run",
+        "--vuid",
+        "VUID-vkCmdTraceRaysKHR-stride-*",
+        "--count",
+        "1",
+        "--out",
+        &o,
+    ]);
+    assert_eq!(r.code, 0, "{}", r.all());
+    assert!(
+        r.stderr
+            .contains("--vuid VUID-vkCmdTraceRaysKHR-stride-*: "),
+        "{}",
+        r.all()
+    );
+    assert!(results(out.path()).len() >= 3);
+}
+
+#[test]
+fn unknown_command_names_are_errors_in_run_coverage_and_registry() {
+    let out = tempfile::tempdir().unwrap();
+    let o = out_arg(out.path());
+    for args in [
+        vec!["run", "--command", "vkCmdBogus", "--out", &o],
+        vec!["coverage", "--command", "vkCmdBogus"],
+        vec!["registry", "vuids", "--command", "vkCmdBogus"],
+    ] {
+        let r = rtconf(&args);
+        assert_eq!(r.code, 2, "{args:?}: {}", r.all());
+        assert!(r.stderr.contains("`vkCmdBogus`"), "{args:?}: {}", r.all());
+        assert!(r.stdout.trim().is_empty(), "{args:?}: {}", r.all());
+    }
+    let r = rtconf(&["registry", "vuids", "--command", "vkCmdTraceRaysNV"]);
+    assert_eq!(r.code, 0, "{}", r.all());
+    assert!(r.stdout.lines().count() > 50, "{}", r.all());
+}
+
+#[test]
+fn jobs_timeout_and_count_of_zero_are_refused() {
+    let out = tempfile::tempdir().unwrap();
+    let o = out_arg(out.path());
+    for (flag, value) in [("--jobs", "0"), ("--timeout", "0"), ("--count", "0")] {
+        let r = rtconf(&["run", flag, value, "--out", &o]);
+        assert_eq!(r.code, 2, "{flag}: {}", r.all());
+        assert!(
+            r.stderr.contains(flag) && r.stderr.contains("0 is not in 1.."),
+            "{}",
+            r.all()
+        );
+    }
+    let r = rtconf(&["replay", HAND, "--timeout", "0"]);
+    assert_eq!(r.code, 2, "{}", r.all());
+}
+
+#[test]
+fn a_run_that_makes_no_case_exits_non_zero() {
+    // Lavapipe has no VK_NV_ray_tracing: every spec of the NV command is inexpressible.
+    let out = tempfile::tempdir().unwrap();
+    let r = rtconf(&[
+        "run",
+        "--command",
+        "vkCmdTraceRaysNV",
+        "--count",
+        "1",
+        "--out",
+        &out_arg(out.path()),
+    ]);
+    assert_eq!(r.code, 1, "{}", r.all());
+    assert!(r.stdout.contains("0 cases on lavapipe"), "{}", r.all());
+    assert!(r.stderr.contains("the run made no case"), "{}", r.all());
+}
+
+#[test]
+fn a_second_run_into_the_same_out_starts_clean() {
+    let out = tempfile::tempdir().unwrap();
+    let o = out_arg(out.path());
+    let first = rtconf(&[
+        "run",
+        "--vuid",
+        "VUID-vkCmdTraceRaysKHR-stride-*",
+        "--count",
+        "1",
+        "--out",
+        &o,
+    ]);
+    assert_eq!(first.code, 0, "{}", first.all());
+    // What the first run left, and a failure file of a case the second run does not make.
+    std::fs::write(
+        out.path().join("failures/first-run-only.yaml"),
+        "name: first-run-only\n",
+    )
+    .unwrap();
+    let second = rtconf(&["run", "--vuid", "03686", "--count", "1", "--out", &o]);
+    assert_eq!(second.code, 0, "{}", second.all());
+    assert!(!out.path().join("failures/first-run-only.yaml").exists());
+    let got = results(out.path());
+    assert_eq!(got.len(), 2, "only the second run's cases: {got:?}");
+    let failures: Vec<String> = std::fs::read_dir(out.path().join("failures"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(
+        failures
+            .iter()
+            .all(|f| got.contains_key(f.trim_end_matches(".yaml"))),
+        "{failures:?}"
+    );
+}
+
+#[test]
+fn a_resume_with_another_seed_or_count_is_refused_naming_the_parameter() {
+    let out = tempfile::tempdir().unwrap();
+    let o = out_arg(out.path());
+    let r = rtconf(&["run", "--vuid", "03686", "--count", "1", "--out", &o]);
+    assert_eq!(r.code, 0, "{}", r.all());
+    for (flag, value, was) in [("--seed", "7", "1"), ("--count", "3", "1")] {
+        let mut args = vec![
+            "run", "--vuid", "03686", "--out", &o, "--resume", flag, value,
+        ];
+        if flag != "--count" {
+            args.extend(["--count", "1"]);
+        }
+        let r = rtconf(&args);
+        assert_eq!(r.code, 2, "{flag}: {}", r.all());
+        assert!(
+            r.stderr.contains(&format!("--resume with {flag} {value}"))
+                && r.stderr.contains(&format!("started with {flag} {was}")),
+            "{}",
+            r.all()
+        );
+    }
+    assert_eq!(
+        results(out.path()).len(),
+        2,
+        "the refused resumes added nothing"
+    );
+    let r = rtconf(&[
+        "run", "--vuid", "03686", "--count", "1", "--out", &o, "--resume",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.all());
+    assert_eq!(results(out.path()).len(), 2);
+}
+
+#[test]
+fn kill_9_then_resume_gives_the_uninterrupted_run_case_for_case() {
+    let whole = tempfile::tempdir().unwrap();
+    let r = run_into(whole.path(), &[]);
+    assert_eq!(r.code, 0, "{}", r.all());
+    let expected = results(whole.path());
+    assert!(expected.len() > 200, "{}", expected.len());
+
+    let cut = tempfile::tempdir().unwrap();
+    let o = out_arg(cut.path());
+    let mut args = vec!["run".to_string(), "--out".into(), o.clone()];
+    args.extend(SELECTION.iter().map(|s| s.to_string()));
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_rtconf"))
+        .args(&args)
+        .current_dir(root())
+        .env("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let started = Instant::now();
+    let lines = |p: &Path| {
+        std::fs::read_to_string(p.join("results.jsonl"))
+            .map(|t| t.lines().count())
+            .unwrap_or(0)
+    };
+    while lines(cut.path()) < 60 && started.elapsed() < Duration::from_secs(120) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // SAFETY: kill(2) on the pid of the child this test started.
+    unsafe { libc_kill(child.id() as i32) };
+    let status = child.wait().unwrap();
+    assert!(!status.success(), "killed mid-way: {status:?}");
+    let partial = lines(cut.path());
+    assert!(partial >= 60 && partial < expected.len(), "{partial}");
+
+    let r = run_into(cut.path(), &["--resume"]);
+    assert_eq!(r.code, 0, "{}", r.all());
+    assert_eq!(results(cut.path()), expected);
+}
+
+extern "C" {
+    fn kill(pid: i32, sig: i32) -> i32;
+}
+
+/// SIGKILL, as `kill -9` sends it.
+unsafe fn libc_kill(pid: i32) {
+    assert_eq!(kill(pid, 9), 0);
+}
+
+#[test]
+fn a_full_disk_stops_the_run_and_a_resume_repairs_its_torn_line() {
+    let whole = tempfile::tempdir().unwrap();
+    let r = run_into(whole.path(), &[]);
+    assert_eq!(r.code, 0, "{}", r.all());
+    let expected = results(whole.path());
+
+    // A tmpfs of 48 KiB: room for run.json and part of the results and failure files.
+    let disk = tempfile::tempdir().unwrap();
+    let mounted = std::process::Command::new("mount")
+        .args(["-t", "tmpfs", "-o", "size=48k", "tmpfs"])
+        .arg(disk.path())
+        .status()
+        .unwrap();
+    assert!(mounted.success(), "mount a tmpfs (the tests run as root)");
+    struct Unmount<'a>(&'a Path);
+    impl Drop for Unmount<'_> {
+        fn drop(&mut self) {
+            let _ = std::process::Command::new("umount").arg(self.0).status();
+        }
+    }
+    let _unmount = Unmount(disk.path());
+    let full = run_into(disk.path(), &[]);
+    assert_ne!(full.code, 0, "{}", full.all());
+    assert!(
+        full.stderr.contains("No space left on device"),
+        "{}",
+        full.all()
+    );
+    let failures = disk.path().join("failures");
+    for e in std::fs::read_dir(&failures).unwrap() {
+        let p = e.unwrap().path();
+        let len = std::fs::metadata(&p).unwrap().len();
+        let name = p.file_name().unwrap().to_string_lossy().into_owned();
+        assert!(
+            len > 0 && !name.ends_with(".tmp"),
+            "{name}: {len} bytes left"
+        );
+    }
+    // Move the stopped run to a disk with room, and resume it there.
+    let moved = tempfile::tempdir().unwrap();
+    let copied = std::process::Command::new("cp")
+        .arg("-a")
+        .arg(format!("{}/.", disk.path().display()))
+        .arg(moved.path())
+        .status()
+        .unwrap();
+    assert!(copied.success());
+    // The disk filled in the middle of a line (where it filled in a failure file instead, tear the
+    // last line as a full disk would have).
+    let path = moved.path().join("results.jsonl");
+    let text = std::fs::read_to_string(&path).unwrap();
+    if text.ends_with('\n') {
+        let last = text.lines().last().unwrap();
+        std::fs::write(&path, &text[..text.len() - last.len() / 2 - 1]).unwrap();
+    }
+    assert!(!std::fs::read_to_string(&path).unwrap().ends_with('\n'));
+    let r = run_into(moved.path(), &["--resume"]);
+    assert_eq!(r.code, 0, "{}", r.all());
+    assert_eq!(results(moved.path()), expected);
+}

@@ -1,0 +1,76 @@
+//! What stands between a case and a driver, asked by every path that hands one over (run, replay, the
+//! lavapipe tests through `Judging::run_here`): the case's own errors ([`model::integrity`]), its
+//! undefined reads or a build the model gives no meaning ([`model::Case::runnable`]), buffers larger
+//! than the profile's device can create or back, and — for a trace case run as valid — a verdict that
+//! is not empty. Each is reported without running the case: `case-error` where the case is at fault,
+//! `unsupported` where the profile says the device cannot hold it.
+
+use crate::compare::{case_error, not_realisable, not_runnable, CaseReport};
+use crate::run::Judging;
+use model::{Body, Case, DeviceProfile};
+
+/// The report of a case that must not reach the driver, or None when it may.
+pub(crate) fn gate(case: &Case, judging: &Judging) -> Option<CaseReport> {
+    if let Some(f) = model::integrity::flaws(case).first() {
+        return Some(case_error(case, &f.at, &f.problem));
+    }
+    if let Err(why) = case.runnable(judging.profile) {
+        return Some(not_runnable(case, &why));
+    }
+    if let Some((at, why)) = too_large(case, judging.profile) {
+        return Some(not_realisable(case, &at, &why));
+    }
+    if case.as_trace().is_some() && case.runs_as_valid(judging.profile) {
+        let verdict = judging.rules.judge(judging.profile, &case.body);
+        if !verdict.is_valid() {
+            let vuids: Vec<&str> = verdict.vuids().into_iter().collect();
+            return Some(case_error(
+                case,
+                "intent",
+                &format!(
+                    "not run: the model judges this valid case invalid: {}",
+                    vuids.join(", ")
+                ),
+            ));
+        }
+    }
+    None
+}
+
+/// The first buffer the profile's device cannot hold: a non-sparse buffer past `maxBufferSize` or
+/// `maxMemoryAllocationSize` (it is bound to one allocation), a sparse one past
+/// `sparseAddressSpaceSize`. The path of its size and why.
+fn too_large(case: &Case, profile: &DeviceProfile) -> Option<(String, String)> {
+    let buffers: Vec<(&str, u64, bool)> = match &case.body {
+        Body::Trace(t) => t
+            .world
+            .buffers
+            .iter()
+            .map(|b| (b.name.as_str(), b.size, b.is_sparse()))
+            .collect(),
+        Body::Accel(a) => a
+            .world
+            .buffers
+            .iter()
+            .map(|b| (b.name.as_str(), b.size, b.is_sparse()))
+            .collect(),
+    };
+    for (i, (name, size, sparse)) in buffers.into_iter().enumerate() {
+        let limits: &[&str] = if sparse {
+            &["maxBufferSize", "sparseAddressSpaceSize"]
+        } else {
+            &["maxBufferSize", "maxMemoryAllocationSize"]
+        };
+        for limit in limits {
+            if let Some(max) = profile.limit(limit).filter(|max| size > *max) {
+                return Some((
+                    format!("world.buffers[{i}].size"),
+                    format!(
+                        "buffer `{name}` of {size} bytes is larger than the profile's {limit} ({max}): the device cannot hold it"
+                    ),
+                ));
+            }
+        }
+    }
+    None
+}

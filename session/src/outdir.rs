@@ -1,0 +1,342 @@
+//! A run's output directory: a new run starts it clean (the files of an earlier run into the same
+//! `--out` are removed, never mixed in); a resumed run must have been started with the same parameters
+//! (`run.json`), and first repairs what a stop left (a torn last line of `results.jsonl`, half-written
+//! failure files). Failure files are written whole or not at all (a temporary file, then a rename).
+
+use crate::compare::CaseReport;
+use crate::error::SessionError;
+use std::collections::BTreeSet;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// What makes a run the run it is: the parameters that decide which cases it makes and how it judges
+/// them (not `--jobs`, `--timeout`, `--shrink`, which a resume may change). Field names are the
+/// command line's flags.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct RunParameters {
+    pub driver: String,
+    pub profile: String,
+    /// `--command`, as given (empty: the default commands).
+    pub command: Vec<String>,
+    /// `--vuid`, as given.
+    pub vuid: Vec<String>,
+    pub valid_only: bool,
+    pub seed: u64,
+    pub count: usize,
+    /// `--rendered`: rendered-scene cases per trace command.
+    #[serde(default)]
+    pub rendered: usize,
+    /// `--from`, as given.
+    pub from: Vec<String>,
+    /// The registry version the rules were read from.
+    pub registry: Option<String>,
+    /// `--triage`, as given.
+    pub triage: Vec<String>,
+}
+
+/// The files a run writes into its directory (besides `failures/`).
+const RUN_FILES: [&str; 4] = ["results.jsonl", "summary.json", "junit.xml", "run.json"];
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> SessionError + '_ {
+    move |e| SessionError::io(path.display().to_string(), e)
+}
+
+/// Makes `out` ready for a run with `params` and returns the cases already done (empty unless
+/// `resume`). A new run removes the files an earlier run left; a resumed one refuses parameters that
+/// differ from `run.json`'s, naming the first that does.
+pub fn prepare(
+    out: &Path,
+    params: &RunParameters,
+    resume: bool,
+) -> Result<BTreeSet<String>, SessionError> {
+    let failures = out.join("failures");
+    std::fs::create_dir_all(&failures).map_err(io(&failures))?;
+    let results = out.join("results.jsonl");
+    let run_json = out.join("run.json");
+    if resume && run_json.exists() {
+        let text = std::fs::read_to_string(&run_json).map_err(io(&run_json))?;
+        let before: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
+            SessionError::Usage(format!(
+                "{}: {e}; start the run again without --resume",
+                run_json.display()
+            ))
+        })?;
+        differing(&before, params).map_or(Ok(()), |(flag, was, now)| {
+            Err(SessionError::Usage(format!(
+                "--resume with {flag} {now}, but the run in {} was started with {flag} {was}; resume with the same {flag}, or start again without --resume",
+                out.display()
+            )))
+        })?;
+        clear_partial_failures(&failures)?;
+        repair_results(&results)?;
+        return Ok(done_cases(&results));
+    }
+    if resume && results.exists() {
+        return Err(SessionError::Usage(format!(
+            "--resume: {} has results but no run.json, so which run they belong to is unknown; start again without --resume",
+            out.display()
+        )));
+    }
+    for f in RUN_FILES {
+        let p = out.join(f);
+        match std::fs::remove_file(&p) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(io(&p)(e)),
+            _ => {}
+        }
+    }
+    for e in std::fs::read_dir(&failures).map_err(io(&failures))? {
+        let p = e.map_err(io(&failures))?.path();
+        if p.is_file() {
+            std::fs::remove_file(&p).map_err(io(&p))?;
+        }
+    }
+    let text = serde_json::to_string_pretty(params).unwrap_or_default() + "\n";
+    write_atomically(&run_json, text.as_bytes()).map_err(io(&run_json))?;
+    Ok(BTreeSet::new())
+}
+
+/// The first parameter whose value differs: its flag, the value in `run.json`, the value now.
+fn differing(before: &serde_json::Value, now: &RunParameters) -> Option<(String, String, String)> {
+    let now = serde_json::to_value(now).ok()?;
+    let now = now.as_object()?;
+    for (k, v) in now {
+        let was = before.get(k).cloned().unwrap_or(serde_json::Value::Null);
+        if &was != v {
+            let show = |v: &serde_json::Value| match v {
+                serde_json::Value::String(s) => s.clone(),
+                serde_json::Value::Null => "(none)".into(),
+                other => other.to_string(),
+            };
+            return Some((format!("--{}", k.replace('_', "-")), show(&was), show(v)));
+        }
+    }
+    None
+}
+
+/// Cuts `results.jsonl` after its last complete line that is a case's report: a stop in the middle of
+/// a write (a kill, a full disk) leaves a torn last line, and a resumed run must append after a whole
+/// one. Returns the bytes dropped.
+pub fn repair_results(path: &Path) -> Result<u64, SessionError> {
+    let bytes = match std::fs::read(path) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
+        Err(e) => return Err(io(path)(e)),
+    };
+    let mut keep = 0usize;
+    let mut at = 0usize;
+    for line in bytes.split_inclusive(|&b| b == b'\n') {
+        at += line.len();
+        let whole = line.ends_with(b"\n");
+        let parses = std::str::from_utf8(line)
+            .ok()
+            .is_some_and(|l| serde_json::from_str::<CaseReport>(l.trim_end()).is_ok());
+        if whole && parses {
+            keep = at;
+        } else if whole && line.iter().all(|b| b.is_ascii_whitespace()) {
+            continue;
+        }
+    }
+    let dropped = (bytes.len() - keep) as u64;
+    if dropped > 0 {
+        let f = std::fs::OpenOptions::new()
+            .write(true)
+            .open(path)
+            .map_err(io(path))?;
+        f.set_len(keep as u64).map_err(io(path))?;
+        f.sync_all().map_err(io(path))?;
+    }
+    Ok(dropped)
+}
+
+/// Removes what a stopped run may have left in `failures/`: temporary files and empty case files.
+fn clear_partial_failures(failures: &Path) -> Result<(), SessionError> {
+    for e in std::fs::read_dir(failures).map_err(io(failures))? {
+        let p = e.map_err(io(failures))?.path();
+        let name = p
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let empty = std::fs::metadata(&p).is_ok_and(|m| m.is_file() && m.len() == 0);
+        if name.ends_with(".tmp") || empty {
+            std::fs::remove_file(&p).map_err(io(&p))?;
+        }
+    }
+    Ok(())
+}
+
+/// The cases `results.jsonl` holds.
+fn done_cases(results: &Path) -> BTreeSet<String> {
+    match crate::report::reports(results) {
+        Ok(r) => r.map(|r| r.case).collect(),
+        Err(_) => BTreeSet::new(),
+    }
+}
+
+/// Writes `bytes` to `path` whole or not at all: into `.NAME.tmp` beside it, synced, then renamed over
+/// it; on any error the temporary file is removed and `path` is untouched.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp: PathBuf = path.with_file_name(format!(".{name}.tmp"));
+    let written = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    written
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params() -> RunParameters {
+        RunParameters {
+            driver: "lavapipe".into(),
+            profile: "lavapipe".into(),
+            command: vec![],
+            vuid: vec![],
+            valid_only: false,
+            seed: 1,
+            count: 4,
+            rendered: 0,
+            from: vec![],
+            registry: Some("1.3.239".into()),
+            triage: vec![],
+        }
+    }
+
+    const LINE: &str = r#"{"case":"a","command":"vkCmdTraceRaysKHR","target":null,"outcome":"pass","model":[],"layer":[],"millis":1.0}"#;
+
+    #[test]
+    fn a_torn_last_line_is_cut_and_whole_lines_are_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("results.jsonl");
+        let torn = &LINE[..40];
+        std::fs::write(&p, format!("{LINE}\n{LINE}\n{torn}")).unwrap();
+        assert_eq!(repair_results(&p).unwrap(), torn.len() as u64);
+        assert_eq!(
+            std::fs::read_to_string(&p).unwrap(),
+            format!("{LINE}\n{LINE}\n")
+        );
+        assert_eq!(repair_results(&p).unwrap(), 0, "a whole file is left alone");
+        // A last line that ends but is not a report (written half, then a newline) goes too.
+        std::fs::write(&p, format!("{LINE}\n{torn}\n")).unwrap();
+        repair_results(&p).unwrap();
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), format!("{LINE}\n"));
+    }
+
+    #[test]
+    fn a_new_run_removes_what_an_earlier_run_left() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path();
+        std::fs::create_dir_all(out.join("failures")).unwrap();
+        for f in [
+            "results.jsonl",
+            "summary.json",
+            "junit.xml",
+            "failures/old-case.yaml",
+        ] {
+            std::fs::write(out.join(f), "x").unwrap();
+        }
+        std::fs::write(out.join("keep.txt"), "not the run's").unwrap();
+        assert!(prepare(out, &params(), false).unwrap().is_empty());
+        assert!(!out.join("results.jsonl").exists());
+        assert!(!out.join("failures/old-case.yaml").exists());
+        assert!(
+            out.join("keep.txt").exists(),
+            "only the run's own files are removed"
+        );
+        let stored: RunParameters =
+            serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
+        assert_eq!(stored, params());
+    }
+
+    #[test]
+    fn a_resume_with_other_parameters_is_refused_naming_the_parameter() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path();
+        prepare(out, &params(), false).unwrap();
+        std::fs::write(out.join("results.jsonl"), format!("{LINE}\n")).unwrap();
+        let e = prepare(
+            out,
+            &RunParameters {
+                seed: 2,
+                ..params()
+            },
+            true,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("--resume with --seed 2") && e.contains("started with --seed 1"),
+            "{e}"
+        );
+        let e = prepare(
+            out,
+            &RunParameters {
+                count: 9,
+                ..params()
+            },
+            true,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("--count 9") && e.contains("--count 4"), "{e}");
+        let e = prepare(
+            out,
+            &RunParameters {
+                valid_only: true,
+                ..params()
+            },
+            true,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("--valid-only"), "{e}");
+        let done = prepare(out, &params(), true).unwrap();
+        assert_eq!(done.into_iter().collect::<Vec<_>>(), ["a"]);
+    }
+
+    #[test]
+    fn a_resume_clears_empty_and_temporary_failure_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path();
+        prepare(out, &params(), false).unwrap();
+        std::fs::write(out.join("failures/empty.yaml"), "").unwrap();
+        std::fs::write(out.join("failures/.half.yaml.tmp"), "name: ha").unwrap();
+        std::fs::write(out.join("failures/whole.yaml"), "name: whole").unwrap();
+        prepare(out, &params(), true).unwrap();
+        assert!(!out.join("failures/empty.yaml").exists());
+        assert!(!out.join("failures/.half.yaml.tmp").exists());
+        assert!(out.join("failures/whole.yaml").exists());
+    }
+
+    #[test]
+    fn results_without_run_json_are_not_resumed() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("results.jsonl"), format!("{LINE}\n")).unwrap();
+        let e = prepare(dir.path(), &params(), true)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no run.json"), "{e}");
+    }
+
+    #[test]
+    fn an_atomic_write_that_fails_leaves_no_file() {
+        // /dev/full accepts the open and refuses the bytes: the rename target is never made.
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("case.yaml");
+        std::os::unix::fs::symlink("/dev/full", dir.path().join(".case.yaml.tmp")).unwrap();
+        assert!(write_atomically(&target, b"name: x\n").is_err());
+        assert!(!target.exists());
+        write_atomically(&target, b"name: x\n").unwrap();
+        assert_eq!(std::fs::read_to_string(&target).unwrap(), "name: x\n");
+    }
+}
