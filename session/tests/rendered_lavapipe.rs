@@ -58,3 +58,27 @@ fn every_scene_family_renders_and_keeps_every_required_outcome() {
     }
     let _ = scenes::ANY_HIT_RULES;
 }
+
+#[test]
+fn lavapipe_hits_both_triangles_of_a_shared_edge() {
+    let _one = DEVICE.lock().unwrap_or_else(|e| e.into_inner());
+    let mut lvp = Lavapipe::new();
+    let case = common::committed("rendered/lavapipe-double-hit-shared-edge.yaml");
+    let ran = lvp.run(&case, TraceCheck::Auto);
+    // FIXME(lavapipe, Mesa 25.0.7): a driver that reports one of the two triangles passes.
+    assert_eq!(ran.report.outcome, Outcome::Fail, "{}", ran.report.detail);
+    assert!(
+        ran.report
+            .detail
+            .contains("double hit on a SharedEdge: instance 0 geometry 0 primitive 0 and instance 0 geometry 0 primitive 1"),
+        "{}",
+        ran.report.detail
+    );
+    // The same ray beside the edge: one triangle, and lavapipe agrees.
+    let mut beside = case.clone();
+    common::world(&mut beside).launch.rays[0].origin = [0.25, -0.25, -1.0];
+    let ran = lvp.run(&beside, TraceCheck::Auto);
+    assert_eq!(ran.report.outcome, Outcome::Pass, "{}", ran.report.detail);
+    let r = ran.report.rendered.as_ref().unwrap();
+    assert_eq!((r.rays, r.failures, r.req), (1, 0, 1));
+}
