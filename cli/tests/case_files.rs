@@ -68,7 +68,7 @@ fn a_build_of_u32_max_primitives_is_an_error_of_the_case_in_check_and_replay() {
             "{}",
             r.all()
         );
-        assert!(!r.stdout.contains("outcome: Fail"), "{args:?}: {}", r.all());
+        assert!(!r.stdout.contains("outcome: fail"), "{args:?}: {}", r.all());
     }
 }
 
@@ -107,14 +107,14 @@ fn replay_runs_the_case_in_a_worker_so_a_dying_driver_is_the_case_s_crash() {
     let r = rtconf_with(&["replay", &path], &[("RTCONF_WORKER_FAULTS", "1")]);
     assert_eq!(r.code, 1, "{}", r.all());
     assert!(
-        r.stdout.contains("outcome: Crash the worker died"),
+        r.stdout.contains("outcome: crash — the worker died"),
         "{}",
         r.all()
     );
     // The same case, named otherwise, passes through the same worker path.
     let r = rtconf(&["replay", HAND]);
     assert_eq!(r.code, 0, "{}", r.all());
-    assert!(r.stdout.contains("outcome: Pass"), "{}", r.all());
+    assert!(r.stdout.contains("outcome: pass"), "{}", r.all());
 }
 
 #[test]
@@ -129,7 +129,7 @@ fn a_buffer_of_u64_max_bytes_is_unsupported_by_the_profile_not_a_crash() {
     let r = rtconf(&["replay", &path]);
     assert_eq!(r.code, 1, "{}", r.all());
     assert!(
-        r.stdout.contains("outcome: Unsupported world.buffers[1].size: buffer `indirect` of 18446744073709551615 bytes is larger than the profile's maxBufferSize"),
+        r.stdout.contains("outcome: unsupported — world.buffers[1].size: buffer `indirect` of 18446744073709551615 bytes is larger than the profile's maxBufferSize"),
         "{}",
         r.all()
     );

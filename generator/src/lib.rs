@@ -17,7 +17,7 @@ pub mod resources;
 pub mod scenes;
 pub mod valid;
 
-pub use mutation::{mutations_for, Mutation, NullHit};
+pub use mutation::{mutations_for, unmutated, Mutation, NullHit};
 pub use plan::Limits;
 pub use valid::DimensionRange;
 

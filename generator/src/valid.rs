@@ -426,7 +426,10 @@ pub fn resolve(
     }
 
     let mut flags = PipelineCreate::empty();
+    // NO_NULL_MISS needs a non-zero handle at the miss region's address (03511: record 0, reached or
+    // not) and, so that no valid launch executes a null miss shader under it, at every reached record.
     if no_null_miss
+        && miss_records.first().is_some_and(|h| *h != HandleRef::Zero)
         && !miss_reach
             .iter()
             .any(|&i| miss_records.get(i as usize) == Some(&HandleRef::Zero))

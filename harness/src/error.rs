@@ -3,7 +3,7 @@
 /// The command that installs lavapipe, the loader, the validation layer and glslang.
 pub const SETUP_COMMAND: &str = "bash scripts/setup.sh";
 
-/// What went wrong before or while talking to a driver. [`HarnessError::Unsupported`] is not a failure:
+/// What went wrong before or while talking to a driver. [`HarnessError::NotRealised`] is not a failure:
 /// the device or the harness cannot realise the case, and the reason names what is missing.
 #[derive(Debug, Clone, thiserror::Error)]
 pub enum HarnessError {
@@ -26,9 +26,15 @@ pub enum HarnessError {
     Shader(String),
     #[error("{0}")]
     Io(String),
-    /// The device or the harness cannot realise the case (the reason names what is missing).
-    #[error("unsupported: {0}")]
-    Unsupported(String),
+    /// The device lacks what the case needs: `lack` names the property, as its profile records it.
+    #[error("unsupported: {reason}")]
+    DeviceLacks {
+        lack: crate::observe::DeviceLack,
+        reason: String,
+    },
+    /// The harness cannot realise the case on this device (the reason names what it lacks).
+    #[error("not realised: {0}")]
+    NotRealised(String),
     /// Realising or running the case failed (not a Vulkan call's result: a missing object, a readback
     /// that does not fit).
     #[error("{0}")]
@@ -48,8 +54,18 @@ impl HarnessError {
         move |result| HarnessError::Vulkan { what, result }
     }
 
-    pub(crate) fn unsupported<T>(why: impl Into<String>) -> Result<T, HarnessError> {
-        Err(HarnessError::Unsupported(why.into()))
+    pub(crate) fn not_realised<T>(why: impl Into<String>) -> Result<T, HarnessError> {
+        Err(HarnessError::NotRealised(why.into()))
+    }
+
+    pub(crate) fn lacks(
+        lack: crate::observe::DeviceLack,
+        reason: impl Into<String>,
+    ) -> HarnessError {
+        HarnessError::DeviceLacks {
+            lack,
+            reason: reason.into(),
+        }
     }
 
     pub(crate) fn failed(what: impl std::fmt::Display) -> HarnessError {

@@ -2,7 +2,8 @@
 //! under the validation layer, records (and, for cases run as valid, submits) the call, and reports one
 //! [`Observation`] per case: what the layer said and what the device produced. It judges nothing.
 //!
-//! Layout: [`vk`] (Vulkan plumbing), [`shaders`] (the one shader path), [`realise`] (worlds on the
+//! Layout: [`plan`] (what a case makes and records, as data: realised here, exported as C, printed by
+//! replay), [`vk`] (Vulkan plumbing), [`shaders`] (the one shader path), [`realise`] (worlds on the
 //! device), [`execute`] (one [`Executor`] for every command), [`accel_check`] (the traced check of a
 //! build), [`worker`] (worker processes), [`observe`] (what came back), [`probe`] (device profiles).
 
@@ -11,6 +12,7 @@ pub mod driver_check;
 pub mod error;
 pub(crate) mod execute;
 pub mod observe;
+pub mod plan;
 pub mod probe;
 pub(crate) mod realise;
 pub(crate) mod shaders;
@@ -20,9 +22,9 @@ pub mod worker;
 pub use driver_check::{check_driver, CheckedDriver};
 pub use error::HarnessError;
 pub use execute::{Execution, Executor};
-pub use observe::{Observation, Output, Status, TraceCheck};
+pub use observe::{Observation, Output, RunningOn, Status, TraceCheck};
 pub use probe::probe;
-pub use vk::{Driver, LayerMessage, VALIDATION_LAYER};
+pub use vk::{select_layer, validation_layer, Driver, LayerInfo, LayerMessage, VALIDATION_LAYER};
 
 /// The GLSL the harness makes of a resource state's accesses, stage by stage, and its compilation: for
 /// tests that template every stage.

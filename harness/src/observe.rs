@@ -12,8 +12,11 @@ use model::accel::BuildSizes;
 pub enum Status {
     /// Recorded (and, for cases run as valid, submitted and read back).
     Ran,
-    /// The device or the harness cannot realise the case; the reason names what is missing.
-    Unsupported { reason: String },
+    /// The device lacks what the case needs: `lacks` names the property, which the session checks
+    /// against the device's profile.
+    Unsupported { reason: String, lacks: DeviceLack },
+    /// The harness cannot realise the case on this device; the reason names what it lacks.
+    NotRealised { reason: String },
     /// The driver, the layer or the worker process failed.
     Crash { message: String },
     /// The case ran past its time limit.
@@ -22,6 +25,33 @@ pub enum Status {
     /// `ERROR_OUT_OF_HOST_MEMORY` from a creation or allocation): the call was never made, so this is
     /// neither a crash nor a verdict; the session decides whose fault it is.
     OutOfMemory { message: String },
+}
+
+/// A property of the device that a case needs and the device lacks, in the terms of its profile.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DeviceLack {
+    /// A feature (member name, `protectedMemory`).
+    Feature(String),
+    /// A device extension.
+    Extension(String),
+    /// No queue family has any of these capabilities (`VK_QUEUE_VIDEO_DECODE_BIT_KHR`).
+    QueueFamilyWithAny(Vec<String>),
+    /// Every queue family has this capability, so none lacks it (`VK_QUEUE_COMPUTE_BIT`).
+    QueueFamilyWithout(String),
+}
+
+impl std::fmt::Display for DeviceLack {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            DeviceLack::Feature(n) => write!(f, "feature {n}"),
+            DeviceLack::Extension(n) => write!(f, "extension {n}"),
+            DeviceLack::QueueFamilyWithAny(q) => {
+                write!(f, "a queue family with {}", q.join(" or "))
+            }
+            DeviceLack::QueueFamilyWithout(q) => write!(f, "a queue family without {q}"),
+        }
+    }
 }
 
 /// What each ray of a traced check hit: `(instance, geometry, primitive)`, or None for a miss.
@@ -63,6 +93,19 @@ pub struct IndirectBuild {
     pub layer_vuids: Vec<String>,
 }
 
+/// What ran a case: the device, its driver and the validation layer, as their properties say.
+#[derive(Debug, Clone, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub struct RunningOn {
+    /// `deviceName`, with `vendorID` and `deviceID`.
+    pub device: String,
+    /// The device's Vulkan version (`1.3.289`).
+    pub api_version: String,
+    /// `driverName` and `driverInfo` of VkPhysicalDeviceDriverProperties, and `driverVersion`.
+    pub driver: String,
+    /// The layer's name, spec version and implementation version, when it is loaded.
+    pub layer: Option<String>,
+}
+
 /// What the device produced for a case.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -101,8 +144,16 @@ impl Observation {
         }
     }
 
-    pub fn unsupported(reason: impl Into<String>) -> Observation {
+    /// The device lacks `lacks` (see [`Status::Unsupported`]).
+    pub fn unsupported(lacks: DeviceLack, reason: impl Into<String>) -> Observation {
         Observation::with_status(Status::Unsupported {
+            reason: reason.into(),
+            lacks,
+        })
+    }
+
+    pub fn not_realised(reason: impl Into<String>) -> Observation {
+        Observation::with_status(Status::NotRealised {
             reason: reason.into(),
         })
     }

@@ -87,6 +87,14 @@ const FORMAT_FEATURE_NAMES: &[(vk::FormatFeatureFlags, &str)] = &[
         "VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_LINEAR_BIT",
     ),
     (
+        vk::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_MINMAX,
+        "VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_MINMAX_BIT",
+    ),
+    (
+        vk::FormatFeatureFlags::SAMPLED_IMAGE_FILTER_CUBIC_EXT,
+        "VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_CUBIC_BIT_EXT",
+    ),
+    (
         vk::FormatFeatureFlags::TRANSFER_SRC,
         "VK_FORMAT_FEATURE_TRANSFER_SRC_BIT",
     ),

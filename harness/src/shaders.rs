@@ -14,8 +14,8 @@ use std::sync::Mutex;
 include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
 
 /// Shader kinds: one SPIR-V module each per API, specialised per group by constant 0 (the group index).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub(crate) enum ShaderKind {
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+pub enum ShaderKind {
     /// Raygen that traces into the scene at binding 0.
     RaygenTrace,
     /// Raygen without a scene binding (the case traces no rays).
@@ -35,7 +35,8 @@ pub(crate) enum ShaderKind {
 pub use model::world::PipelineApi as ShaderApi;
 
 impl ShaderKind {
-    pub(crate) fn output_name(self) -> &'static str {
+    /// The name of the kind's SPIR-V (`raygen_trace`).
+    pub fn output_name(self) -> &'static str {
         match self {
             ShaderKind::RaygenTrace => "raygen_trace",
             ShaderKind::RaygenPlain => "raygen_plain",

@@ -122,8 +122,9 @@ pub fn worker_main() -> i32 {
     0
 }
 
-/// Environment variable that turns on fault injection for the pool's own tests: a case named
-/// `fault-abort…` aborts the worker and one named `fault-hang…` never answers.
+/// Environment variable that turns on fault injection for the pool's and the runner's own tests: a case
+/// named `fault-abort…` aborts the worker, one named `fault-hang…` never answers, and one named
+/// `fault-flaky…` aborts the worker and runs normally by turns (across the workers of one runner).
 pub const FAULTS_ENV: &str = "RTCONF_WORKER_FAULTS";
 
 fn inject_fault(name: &str) {
@@ -132,6 +133,19 @@ fn inject_fault(name: &str) {
     }
     if name.starts_with("fault-abort") {
         std::process::abort();
+    }
+    if name.starts_with("fault-flaky") {
+        // The turn is a marker file of the runner (the workers' parent) and the case: absent, the
+        // worker makes it and dies; present, it removes it and runs the case.
+        let marker = std::env::temp_dir().join(format!(
+            "rtconf-fault-flaky-{}-{}",
+            std::os::unix::process::parent_id(),
+            name.replace('/', "_")
+        ));
+        if std::fs::remove_file(&marker).is_err() {
+            let _ = std::fs::write(&marker, b"");
+            std::process::abort();
+        }
     }
     if name.starts_with("fault-hang") {
         loop {

@@ -105,7 +105,7 @@ fn indirect_address_not_a_multiple_of_four_is_reported() {
 }
 
 #[test]
-fn a_missing_feature_is_unsupported_with_its_name() {
+fn a_missing_extension_is_unsupported_naming_what_the_device_lacks() {
     let mut ctx = executor();
     let mut case = valid_case();
     world(&mut case)
@@ -117,10 +117,14 @@ fn a_missing_feature_is_unsupported_with_its_name() {
         .extensions
         .insert("VK_NV_ray_tracing".into());
     let obs = execute(&case, &mut ctx);
-    let Status::Unsupported { reason } = &obs.status else {
+    let Status::Unsupported { reason, lacks } = &obs.status else {
         panic!("{obs:?}")
     };
     assert!(reason.contains("VK_NV_ray_tracing"), "{reason}");
+    assert_eq!(
+        lacks,
+        &harness::observe::DeviceLack::Extension("VK_NV_ray_tracing".into())
+    );
 }
 
 #[test]
@@ -186,12 +190,12 @@ fn a_dynamic_stack_size_gets_the_pipelines_default_and_runs() {
 }
 
 #[test]
-fn a_non_sparse_unbound_buffer_is_unsupported_naming_02600() {
+fn a_non_sparse_unbound_buffer_is_not_realised_naming_02600() {
     let mut ctx = executor();
     let mut case = valid_case();
     world(&mut case).buffers[1].memory = MemoryBinding::Unbound;
     let obs = execute(&case, &mut ctx);
-    let Status::Unsupported { reason } = &obs.status else {
+    let Status::NotRealised { reason } = &obs.status else {
         panic!("{obs:?}")
     };
     assert!(
@@ -228,19 +232,19 @@ fn a_sparse_table_scattered_over_two_memory_objects_runs_as_expected() {
     match &obs.status {
         Status::Ran => check(&mut ctx, &case, &[]),
         // A driver whose sparse block is larger than half the buffer cannot scatter it: it says so.
-        Status::Unsupported { reason } => assert!(reason.contains("sparse block"), "{reason}"),
+        Status::NotRealised { reason } => assert!(reason.contains("sparse block"), "{reason}"),
         other => panic!("{other:?}"),
     }
 }
 
 #[test]
-fn a_sparse_buffer_without_the_feature_enabled_is_unsupported_naming_00915() {
+fn a_sparse_buffer_without_the_feature_enabled_is_not_realised_naming_00915() {
     let mut ctx = executor();
     let mut case = valid_case();
     sparse(&mut case, 0, MemoryBinding::Whole);
     world(&mut case).device.features.remove("sparseBinding");
     let obs = execute(&case, &mut ctx);
-    let Status::Unsupported { reason } = &obs.status else {
+    let Status::NotRealised { reason } = &obs.status else {
         panic!("{obs:?}")
     };
     assert!(

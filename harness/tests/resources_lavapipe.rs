@@ -119,7 +119,7 @@ fn push_constants_unset_after_a_case_that_pushed() {
 }
 
 #[test]
-fn families_not_realised_are_unsupported_with_a_reason() {
+fn families_the_harness_does_not_realise_say_so() {
     let mut ctx = executor();
     for (name, why) in [
         (
@@ -130,7 +130,7 @@ fn families_not_realised_are_unsupported_with_a_reason() {
     ] {
         let obs = execute(&case(name), &mut ctx);
         match &obs.status {
-            Status::Unsupported { reason } => assert!(reason.contains(why), "{name}: {reason}"),
+            Status::NotRealised { reason } => assert!(reason.contains(why), "{name}: {reason}"),
             other => panic!("{name}: {other:?}"),
         }
     }

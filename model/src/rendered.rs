@@ -277,3 +277,50 @@ fn note(result: &mut RenderedResult, id: usize, ray: Option<&crate::scene::Ray>,
         }
     }
 }
+
+/// The named deviation that every failure of a judged launch is, when there is one: a watertight
+/// group (a shared edge, a closed fan's vertex) hit twice — `double-hit-shared-edge`,
+/// `double-hit-closed-fan`, or `double-hit-shared-edge-and-closed-fan` when both occur. None when the
+/// launch has no failure or any failure is something else. The triage's `output` entries name
+/// deviations by these keys.
+pub fn deviation(j: &LaunchJudgement) -> Option<String> {
+    let mut shapes = std::collections::BTreeSet::new();
+    let mut any = false;
+    for id in &j.ids {
+        if !matches!(id.verdict, RayVerdict::Fail(_)) {
+            continue;
+        }
+        any = true;
+        let judgement = id.judgement.as_ref()?;
+        for f in &judgement.findings {
+            let RayVerdict::Fail(text) = f else {
+                continue;
+            };
+            let shape = double_hit_shape(text)?;
+            shapes.insert(shape);
+        }
+    }
+    if !any || shapes.is_empty() {
+        return None;
+    }
+    Some(format!(
+        "double-hit-{}",
+        shapes.into_iter().collect::<Vec<_>>().join("-and-")
+    ))
+}
+
+/// The watertight shape a failure text names, when it is a double hit (the judge's wording,
+/// `crate::tracer::judge`).
+fn double_hit_shape(text: &str) -> Option<&'static str> {
+    let rest = text.strip_prefix("double hit on a ")?;
+    if rest.starts_with(&format!(
+        "{:?}:",
+        crate::tracer::WatertightShape::SharedEdge
+    )) {
+        Some("shared-edge")
+    } else if rest.starts_with(&format!("{:?}:", crate::tracer::WatertightShape::ClosedFan)) {
+        Some("closed-fan")
+    } else {
+        None
+    }
+}

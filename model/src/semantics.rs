@@ -386,6 +386,27 @@ pub fn records_read(world: &World, call: &Call) -> Vec<(Table, u64)> {
     out
 }
 
+/// The recursion depth the launch reaches (see [`crate::world::Launch::recursion_depth`]): 0 when it
+/// traces no ray or runs no invocation, 1 when raygen traces, and 1 + `extra_recursion` only when some
+/// ray can run a closest-hit shader — the one shader that traces again: some hit record a traced ray
+/// can reach ([`reached_hit_records`]) holds a group with a closest-hit shader. A launch whose rays
+/// reach only zero groups or hit groups without closest-hit (or nothing) stops at depth 1.
+pub fn recursion_depth(world: &World, call: &Call) -> u32 {
+    let launch = &world.launch;
+    if !launch.traces() || launch_ids(world, call) == Some(0) {
+        return 0;
+    }
+    let closest_hit_runs = reached_hit_records(world, call).iter().any(|&(index, _)| {
+        let h = hit_shaders(world, call, index);
+        !h.zero_group && h.closest_hit
+    });
+    if closest_hit_runs {
+        launch.recursion_depth()
+    } else {
+        1
+    }
+}
+
 /// The size of a shader group handle on a device: the profile's `shaderGroupHandleSize`, or 32, the
 /// value the specification requires of every device with ray tracing pipelines.
 pub fn handle_size(profile: &crate::DeviceProfile) -> u64 {

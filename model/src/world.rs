@@ -322,7 +322,8 @@ pub struct Launch {
     /// Callable shader records executed by each launch (`executeCallableEXT` indices).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub callables: Vec<u32>,
-    /// Deepest recursion a shader call is made from (1: raygen traces; 2: closest-hit traces again).
+    /// How many more times each closest-hit shader traces again (the harness's closest-hit traces the
+    /// same ray while its depth is at most this): 0, raygen's traces only.
     #[serde(default, skip_serializing_if = "is_default")]
     pub extra_recursion: u32,
     /// The scene references a cluster acceleration structure (VK_NV_cluster_acceleration_structure).
@@ -335,12 +336,16 @@ fn scene_is_empty(s: &Scene) -> bool {
 }
 
 impl Launch {
-    /// The recursion depth of the deepest shader call: raygen's `traceRayEXT` is depth 1.
+    /// The deepest recursion depth the launch's shaders can reach (the specification's "Ray Tracing"
+    /// chapter: shaders invoked from the API have depth 0, each shader a pipeline trace ray instruction
+    /// executes one more than its invoker; callable shaders add none): 1 when raygen traces, 1 +
+    /// `extra_recursion` when closest-hit shaders trace again. What a launch reaches is
+    /// [`crate::semantics::recursion_depth`], which also asks whether a closest-hit runs.
     pub fn recursion_depth(&self) -> u32 {
-        if !self.traces() && self.callables.is_empty() {
+        if !self.traces() {
             0
         } else {
-            self.extra_recursion.saturating_add(1)
+            1u32.saturating_add(self.extra_recursion)
         }
     }
 

@@ -2,8 +2,8 @@
 //! the model's VUIDs, the layer's VUIDs, the output check (the launch's words for a trace call, the
 //! rays traced at what was built for a build), and the outcome against the triage files.
 
-use crate::triage::Triage;
-use harness::observe::{Observation, Status, TracedBuild};
+use crate::triage::{CaseFacts, Triage, TriageMatch};
+use harness::observe::{DeviceLack, Observation, Status, TracedBuild};
 use model::accel::check::{deviation, ExpectedRay};
 use model::rules::modelled_scope;
 use model::{Body, Case, CommandId, DeviceProfile, Verdict};
@@ -19,7 +19,10 @@ pub enum Outcome {
     Fail,
     /// They disagree exactly as a triage entry says.
     Triaged,
+    /// The device lacks what the case needs, as its profile says.
     Unsupported,
+    /// The harness cannot realise the case on this device, though the device has what it needs.
+    NotRealised,
     Crash,
     Timeout,
     /// The case is at fault, not the driver: it is not a case (a name resolving to nothing, a group
@@ -63,6 +66,10 @@ pub struct CaseReport {
     /// What went wrong or what triage entry applied.
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub detail: String,
+    /// The disagreements triage entries explained, each with its entry (empty unless triaged).
+    /// (Written `matched`: a results line's `triage` is the applied entries, see `results::ResultLine`.)
+    #[serde(default, rename = "matched", skip_serializing_if = "Vec::is_empty")]
+    pub triage: Vec<TriageMatch>,
     pub millis: f64,
 }
 
@@ -79,6 +86,7 @@ impl CaseReport {
             output_matches: None,
             rendered: None,
             detail: String::new(),
+            triage: vec![],
             millis,
         }
     }
@@ -158,8 +166,21 @@ pub fn compare(
             );
             return report;
         }
-        Status::Unsupported { reason } => {
-            report.outcome = Outcome::Unsupported;
+        Status::Unsupported { reason, lacks } => {
+            if profile_lacks(profile, lacks) {
+                report.outcome = Outcome::Unsupported;
+                report.detail = reason.clone();
+            } else {
+                report.outcome = Outcome::NotRealised;
+                report.detail = format!(
+                    "the harness says the device lacks {lacks}, but profile {} has it: {reason}",
+                    profile.name
+                );
+            }
+            return report;
+        }
+        Status::NotRealised { reason } => {
+            report.outcome = Outcome::NotRealised;
             report.detail = reason.clone();
             return report;
         }
@@ -179,19 +200,41 @@ pub fn compare(
     let mut triaged = Vec::new();
     // Where the model disagrees with the case's own intent, the case (or its generator) is wrong.
     let mut of_the_case = Vec::new();
-    let m: BTreeSet<&String> = model.iter().collect();
-    let l: BTreeSet<&String> = layer.iter().collect();
-    for v in m.symmetric_difference(&l) {
-        let side = if m.contains(v) {
-            "model only"
-        } else {
-            "layer only"
-        };
-        match triage.covers(v) {
-            Some(t) => triaged.push(format!("{v} ({side}; triaged {}: {})", t.kind, t.reason)),
-            None => problems.push(format!("{v}: {side}")),
-        }
+    let target = report.target.clone();
+    let model_problems: Vec<(String, String)> = verdict
+        .violations
+        .iter()
+        .map(|v| (v.vuid.clone(), v.problem.clone()))
+        .collect();
+    let facts = CaseFacts {
+        name: &case.name,
+        command: case.command(),
+        target: target.as_deref(),
+        model: &model,
+        layer: &layer,
+        layer_other: &report.layer_other,
+        problems: &model_problems,
+    };
+    let explained = triage.explain(&facts);
+    for u in &explained.unexplained {
+        problems.push(match &u.note {
+            Some(n) => format!("{}: {} ({n})", u.vuid, u.side),
+            None => format!("{}: {}", u.vuid, u.side),
+        });
     }
+    for (m, reason) in explained.matched {
+        triaged.push(format!(
+            "{}{} ({}; triaged {}: {reason})",
+            m.vuid,
+            m.layer_vuid
+                .as_deref()
+                .map_or(String::new(), |w| format!(" as {w}")),
+            m.observed,
+            m.kind.name()
+        ));
+        report.triage.push(m);
+    }
+    let m: BTreeSet<&String> = model.iter().collect();
     if valid {
         let unavoidable = match case.body {
             Body::Trace(_) => vec![],
@@ -216,15 +259,23 @@ pub fn compare(
         }
         match &case.body {
             Body::Trace(t) if extra.is_empty() => {
-                let before = problems.len();
-                let rendered = crate::rendered::compare_records(t, obs.words(), &mut problems);
-                report.output_matches = rendered.as_ref().map(|_| problems.len() == before);
+                let (rendered, matched) = crate::rendered::compare_records(
+                    &facts,
+                    triage,
+                    t,
+                    obs.words(),
+                    &mut problems,
+                    &mut triaged,
+                );
+                report.output_matches = rendered.as_ref().map(|r| r.failures == 0);
                 report.rendered = rendered;
+                report.triage.extend(matched);
             }
             Body::Trace(_) => {}
             Body::Accel(a) if extra.is_empty() => {
-                let ok = compare_rays(case, a, obs.traced(), triage, &mut problems, &mut triaged);
-                report.output_matches = Some(ok);
+                let ok = compare_rays(&facts, a, obs.traced(), triage, &mut problems, &mut triaged);
+                report.output_matches = Some(ok.0);
+                report.triage.extend(ok.1);
             }
             Body::Accel(_) => {}
         }
@@ -260,21 +311,37 @@ pub fn compare(
     report
 }
 
+/// Whether the device's profile confirms that it lacks `lack`.
+pub fn profile_lacks(profile: &DeviceProfile, lack: &DeviceLack) -> bool {
+    match lack {
+        DeviceLack::Feature(f) => !profile.has_feature(f),
+        DeviceLack::Extension(e) => !profile.has_extension(e),
+        DeviceLack::QueueFamilyWithAny(flags) => !profile
+            .queue_families
+            .iter()
+            .any(|fam| flags.iter().any(|f| fam.contains(f))),
+        DeviceLack::QueueFamilyWithout(flag) => {
+            profile.queue_families.iter().all(|fam| fam.contains(flag))
+        }
+    }
+}
+
 /// The rays traced at what the device built against the model's primitives: a mismatch is a failure
 /// unless the triage names the deviation that explains it; the direct and the real indirect build must
 /// draw no layer message and must trace alike. Returns whether everything matched.
 fn compare_rays(
-    case: &Case,
+    case: &CaseFacts,
     body: &model::AccelBody,
     traced: Option<&TracedBuild>,
     triage: &Triage,
     problems: &mut Vec<String>,
     triaged: &mut Vec<String>,
-) -> bool {
+) -> (bool, Option<TriageMatch>) {
     let Some(traced) = traced else {
         problems.push("no traced check of the build came back".into());
-        return false;
+        return (false, None);
     };
+    let mut matched = None;
     if !traced.direct_layer_vuids.is_empty() {
         problems.push(format!(
             "the layer reported {} for the equivalent direct build",
@@ -302,20 +369,22 @@ fn compare_rays(
     }
     if let Some(first) = mismatches.first() {
         let key = format!(
-            "output:{}:{}",
-            case.command(),
+            "{}:{}",
+            case.command,
             deviation(body, &traced.hits).unwrap_or_else(|| "rays".into())
         );
         let n = traced.hits.len();
-        match triage.covers(&key) {
-            Some(t) => triaged.push(format!(
-                "{key} ({} of {n} rays, first {first}; triaged {}: {})",
-                mismatches.len(),
-                t.kind,
-                t.reason
-            )),
+        match triage.explain_output(case, &key) {
+            Some((m, reason)) => {
+                triaged.push(format!(
+                    "output {key} ({} of {n} rays, first {first}; triaged {}: {reason})",
+                    mismatches.len(),
+                    m.kind.name(),
+                ));
+                matched = Some(m);
+            }
             None => problems.push(format!(
-                "{key}: {} of {n} rays disagree with the model's primitives, first {first}",
+                "output {key}: {} of {n} rays disagree with the model's primitives, first {first}",
                 mismatches.len()
             )),
         }
@@ -325,7 +394,10 @@ fn compare_rays(
             "the real indirect build traces differently from the direct build: {first}"
         ));
     }
-    mismatches.is_empty() && indirect_vs_direct.is_empty()
+    (
+        mismatches.is_empty() && indirect_vs_direct.is_empty(),
+        matched,
+    )
 }
 
 /// The rays whose device hit is not the model's, as a person reads them.

@@ -6,24 +6,33 @@
 //!
 //! The command line, the tests and the benches call this crate instead of copying its pieces.
 
+pub mod baseline;
 pub mod compare;
+pub mod details;
 pub mod error;
+pub mod export;
 pub(crate) mod gate;
+pub mod html;
+pub mod merge;
+pub mod names;
 pub mod outdir;
 pub mod pictures;
 pub mod plan;
 pub mod rendered;
 pub mod replay;
 pub mod report;
+pub mod results;
 pub mod run;
 pub mod select;
 pub(crate) mod shrink;
 pub mod sources;
 pub mod triage;
 
+pub use baseline::{Expectations, Status};
 pub use compare::{compare, CaseReport, Outcome};
 pub use error::SessionError;
 pub use plan::Scope;
 pub use replay::{replay, ReplayConfig, Replayed};
-pub use run::{run, Progress, RunConfig, RunOutcome};
+pub use run::{list, run, Progress, RunConfig, RunOutcome};
+pub use select::{Selection, Shard};
 pub use triage::Triage;

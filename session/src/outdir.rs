@@ -32,10 +32,29 @@ pub struct RunParameters {
     pub registry: Option<String>,
     /// `--triage`, as given.
     pub triage: Vec<String>,
+    /// `--cases`, `--shard`, `--baseline`, `--skips`, `--flakes`, as given.
+    pub cases: Option<String>,
+    pub shard: Option<String>,
+    pub baseline: Option<String>,
+    pub skips: Option<String>,
+    pub flakes: Option<String>,
 }
 
-/// The files a run writes into its directory (besides `failures/`).
-const RUN_FILES: [&str; 4] = ["results.jsonl", "summary.json", "junit.xml", "run.json"];
+/// The files a run writes into its directory (besides its folders).
+const RUN_FILES: [&str; 5] = [
+    "results.jsonl",
+    "summary.json",
+    "junit.xml",
+    "run.json",
+    "caselist.txt",
+];
+
+/// The folders a run writes into its directory: the case files it keeps, their details, the report.
+fn run_folders() -> impl Iterator<Item = &'static str> {
+    crate::details::CASE_FOLDERS
+        .into_iter()
+        .chain(["details", "report"])
+}
 
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> SessionError + '_ {
     move |e| SessionError::io(path.display().to_string(), e)
@@ -67,7 +86,12 @@ pub fn prepare(
                 out.display()
             )))
         })?;
-        clear_partial_failures(&failures)?;
+        for folder in run_folders() {
+            let dir = out.join(folder);
+            if dir.is_dir() {
+                clear_partial_failures(&dir)?;
+            }
+        }
         repair_results(&results)?;
         return Ok(done_cases(&results));
     }
@@ -84,12 +108,14 @@ pub fn prepare(
             _ => {}
         }
     }
-    for e in std::fs::read_dir(&failures).map_err(io(&failures))? {
-        let p = e.map_err(io(&failures))?.path();
-        if p.is_file() {
-            std::fs::remove_file(&p).map_err(io(&p))?;
+    for folder in run_folders() {
+        let dir = out.join(folder);
+        match std::fs::remove_dir_all(&dir) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(io(&dir)(e)),
+            _ => {}
         }
     }
+    std::fs::create_dir_all(&failures).map_err(io(&failures))?;
     let text = serde_json::to_string_pretty(params).unwrap_or_default() + "\n";
     write_atomically(&run_json, text.as_bytes()).map_err(io(&run_json))?;
     Ok(BTreeSet::new())
@@ -148,7 +174,7 @@ pub fn repair_results(path: &Path) -> Result<u64, SessionError> {
     Ok(dropped)
 }
 
-/// Removes what a stopped run may have left in `failures/`: temporary files and empty case files.
+/// Removes what a stopped run may have left in one of its folders: temporary files and empty files.
 fn clear_partial_failures(failures: &Path) -> Result<(), SessionError> {
     for e in std::fs::read_dir(failures).map_err(io(failures))? {
         let p = e.map_err(io(failures))?.path();
@@ -209,6 +235,11 @@ mod tests {
             from: vec![],
             registry: Some("1.3.239".into()),
             triage: vec![],
+            cases: None,
+            shard: None,
+            baseline: None,
+            skips: None,
+            flakes: None,
         }
     }
 

@@ -1,8 +1,8 @@
-//! Pictures of a failing rendered case, written beside its YAML in `failures/`: `NAME.expected.png`
+//! Pictures of a failing rendered case, written beside its YAML in `failures/`: `NAME-expected.png`
 //! (what the model allows per launch ID: black where a miss is required, the primitive's false colour
-//! where one hit is, checkered where the spec leaves a choice), `NAME.actual.png` (what the driver
+//! where one hit is, checkered where the spec leaves a choice), `NAME-actual.png` (what the driver
 //! wrote: the committed primitive's false colour, black for a miss, dark blue where no shader wrote,
-//! magenta where the launch ID never ran) and `NAME.diff.png` (red where a launch ID breaks what the
+//! magenta where the launch ID never ran) and `NAME-diff.png` (red where a launch ID breaks what the
 //! spec requires, yellow for a warning, elsewhere the t error as a heat map from black to white at its
 //! bound). Launch IDs run x fastest; the depth layers stack downwards.
 
@@ -80,7 +80,7 @@ fn write_png(path: &Path, width: u32, height: u32, pixels: &[Rgb]) -> std::io::R
     image.write_png(path)
 }
 
-/// Writes the three pictures of a rendered case's records into `dir` (as `NAME.expected.png`, …);
+/// Writes the three pictures of a rendered case's records into `dir` (as `NAME-expected.png`, …);
 /// the paths written, none when the launch is empty, too large, or the records cannot be judged.
 pub fn write(dir: &Path, name: &str, body: &TraceBody, words: &[u32]) -> Vec<PathBuf> {
     let Ok(j) = judge_records(body, words) else {
@@ -105,7 +105,7 @@ pub fn write(dir: &Path, name: &str, body: &TraceBody, words: &[u32]) -> Vec<Pat
     }
     let mut out = Vec::new();
     for (what, pixels) in [("expected", expected), ("actual", actual), ("diff", diff)] {
-        let path = dir.join(format!("{name}.{what}.png"));
+        let path = dir.join(format!("{name}-{what}.png"));
         if write_png(&path, width as u32, height as u32, &pixels).is_ok() {
             out.push(path);
         }

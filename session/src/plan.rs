@@ -102,12 +102,7 @@ pub fn plan(scope: &Scope, rules: &RuleSet, profile: &DeviceProfile) -> Vec<Plan
             if !scope.vuids.is_empty() && !scope.vuids.contains(&row.vuid) {
                 continue;
             }
-            let mutation = if command.is_trace() {
-                generator::mutations_for(&row.vuid).is_some()
-            } else {
-                generator::accel::mutation_for(&row.vuid).is_some()
-            };
-            if mutation {
+            if has_mutation(command, &row.vuid) {
                 specs.push(CaseSpec::violate(command, &row.vuid));
             }
         }
@@ -121,4 +116,43 @@ pub fn plan(scope: &Scope, rules: &RuleSet, profile: &DeviceProfile) -> Vec<Plan
         })
     };
     seeded(trace).chain(seeded(build)).collect()
+}
+
+/// Whether the generator has a mutation that violates `vuid` in a call of `command`.
+pub fn has_mutation(command: CommandId, vuid: &str) -> bool {
+    if command.is_trace() {
+        generator::mutations_for(vuid).is_some()
+    } else {
+        generator::accel::mutation_for(vuid).is_some()
+    }
+}
+
+/// The executable rows no run can test: for a command, the rows that apply to it whose VUID no
+/// mutation violates (a run plans no invalid case for them), as (command, VUID, why no mutation is
+/// written, where the generator says).
+pub fn untested(
+    rules: &RuleSet,
+    command: Option<CommandId>,
+) -> Vec<(CommandId, String, Option<&'static str>)> {
+    let mut out = Vec::new();
+    for c in CommandId::ALL
+        .into_iter()
+        .filter(|c| command.is_none_or(|x| x == *c))
+    {
+        for row in rules
+            .rows
+            .iter()
+            .filter(|r| r.status == Status::Executable && applies_to(&r.scope, c))
+        {
+            if !has_mutation(c, &row.vuid) {
+                let why = if c.is_trace() {
+                    generator::unmutated(&row.vuid)
+                } else {
+                    generator::accel::unmutated(&row.vuid)
+                };
+                out.push((c, row.vuid.clone(), why));
+            }
+        }
+    }
+    out
 }

@@ -1,42 +1,63 @@
 //! The rendered-output half of a comparison (`model::rendered`): a valid trace case's records judged
 //! per ray, each failure a problem of the case, the numbers kept in its report.
 
+use crate::triage::{CaseFacts, Triage, TriageMatch};
 use model::rendered::{judge_records, RenderedResult};
 use model::TraceBody;
 
 /// The output part of [`crate::compare::compare`] for a valid trace case: the records judged, each
-/// failure a problem; the warnings come back to be shown beside the outcome.
+/// failure a problem — unless every failure is one named deviation ([`model::rendered::deviation`])
+/// that a triage `output` entry explains (key `<command>:<deviation>`): then it is triaged, and the
+/// entry comes back. The warnings come back (in the result) to be shown beside the outcome.
 pub(crate) fn compare_records(
+    case: &CaseFacts,
+    triage: &Triage,
     body: &TraceBody,
     words: Option<&[u32]>,
     problems: &mut Vec<String>,
-) -> Option<RenderedResult> {
+    triaged: &mut Vec<String>,
+) -> (Option<RenderedResult>, Option<TriageMatch>) {
     let Some(words) = words else {
         problems.push("no output was read back".into());
-        return None;
+        return (None, None);
     };
     match judge_records(body, words) {
         Ok(j) => {
-            let r = j.result;
+            let mut matched = None;
+            let r = &j.result;
             if r.failures > 0 {
-                problems.push(format!(
+                let what = format!(
                     "{} of {} launch IDs break what the spec requires; first: {}",
                     r.failures,
                     r.rays,
                     r.first_failures.join(" | ")
-                ));
+                );
+                let explained = model::rendered::deviation(&j).and_then(|d| {
+                    let key = format!("{}:{d}", case.command.vk_name());
+                    triage.explain_output(case, &key).map(|m| (key, m))
+                });
+                match explained {
+                    Some((key, (m, reason))) => {
+                        triaged.push(format!(
+                            "output {key} ({what}; triaged {}: {reason})",
+                            m.kind.name()
+                        ));
+                        matched = Some(m);
+                    }
+                    None => problems.push(what),
+                }
             }
-            Some(r)
+            (Some(j.result), matched)
         }
         Err(e) => {
             problems.push(e);
-            None
+            (None, None)
         }
     }
 }
 
 /// Median, 99th percentile and maximum of one error histogram.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Quantiles {
     pub count: u64,
     pub median: Option<f64>,
@@ -56,7 +77,7 @@ impl Quantiles {
 }
 
 /// The rendered output of one command's cases in a run (`summary.json`'s `rendered`).
-#[derive(Debug, Clone, Default, serde::Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RenderedTotals {
     pub cases: u64,
     pub rays: u64,

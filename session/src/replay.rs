@@ -5,7 +5,7 @@
 use crate::error::SessionError;
 use crate::run::{Judging, Ran};
 use crate::sources;
-use harness::{Driver, TraceCheck};
+use harness::{Driver, Executor, TraceCheck};
 use model::{Case, RuleSet};
 use std::path::PathBuf;
 
@@ -30,6 +30,11 @@ pub struct Replayed {
     pub ran: Ran,
     /// For a build whose rays disagree: the named deviation that explains them, if one does.
     pub deviation: Option<String>,
+    /// The device, driver and layer it ran on.
+    pub running_on: harness::RunningOn,
+    /// What the harness made and recorded for it (None when the gate kept it from the driver or the
+    /// harness cannot realise it).
+    pub plan: Option<harness::plan::CallPlan>,
 }
 
 /// Reads a case file (any command) with a located error: one that does not parse, or that is not a
@@ -54,17 +59,21 @@ pub fn located(file: &std::path::Path, detail: &str) -> String {
 
 /// Replays `case`: see the module documentation.
 pub fn replay(case: &Case, config: &ReplayConfig) -> Result<Replayed, SessionError> {
-    let set = sources::load_sources(&config.from)?;
+    let layer = harness::validation_layer()?;
+    let set = sources::registry_for_layer(&config.from, Some(&layer))?;
     let rules = RuleSet::from_vuids(&set);
     let driver = Driver::parse(&config.driver);
     harness::check_driver(&driver)?;
     let profile = sources::profile_for(config.profile.as_deref().unwrap_or(&case.profile))?;
-    let triage = sources::triage_for(&[], set.version.as_deref(), &driver)?;
+    let triage = sources::triage_for(&[], Some(&layer.version), &driver)?;
     let judging = Judging {
         rules: &rules,
         profile: &profile,
         triage: &triage,
     };
+    // What it runs on comes from an instance of this process (as the driver check makes one); the
+    // case itself runs in a worker process, so a driver that dies or hangs gives a crash or timeout.
+    let running_on = Executor::new(driver)?.running_on();
     std::env::set_var(harness::worker::DRIVER_ENV, &config.driver);
     let timeout = std::time::Duration::from_secs(if config.timeout == 0 {
         60
@@ -72,6 +81,13 @@ pub fn replay(case: &Case, config: &ReplayConfig) -> Result<Replayed, SessionErr
         config.timeout
     });
     let ran = judging.run_in_worker(case, config.check, timeout);
+    let plan = ran.observation.as_ref().and_then(|_| {
+        let exec = harness::Execution {
+            check: config.check,
+            ..harness::Execution::for_case(case, &profile)
+        };
+        harness::plan::CallPlan::of(case, &exec).ok()
+    });
     let deviation = match (
         ran.case.as_accel(),
         ran.observation.as_ref().and_then(|o| o.traced()),
@@ -79,5 +95,10 @@ pub fn replay(case: &Case, config: &ReplayConfig) -> Result<Replayed, SessionErr
         (Some(a), Some(t)) => model::accel::check::deviation(a, &t.hits),
         _ => None,
     };
-    Ok(Replayed { ran, deviation })
+    Ok(Replayed {
+        ran,
+        deviation,
+        running_on,
+        plan,
+    })
 }

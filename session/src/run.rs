@@ -1,16 +1,22 @@
 //! A conformance run: the plan's cases generated a chunk at a time, each gated (a valid case never
 //! hands undefined behaviour to a driver), dispatched to worker processes, judged once by the model
 //! with what the device reported, compared with what the device did, and streamed to `results.jsonl`
-//! as it completes; then `summary.json`, `junit.xml`, and shrunk regressions when asked.
+//! as it completes (failing cases run again to tell a flake, each with its status against the
+//! baseline); then `summary.json`, `junit.xml`, the HTML report, and shrunk regressions when asked.
 
+use crate::baseline::{Expectations, Status};
 use crate::compare::{as_run, compare, CaseReport, Outcome};
+use crate::details::{keep, CaseDetails};
 use crate::error::SessionError;
 use crate::plan::{plan, Scope};
-use crate::report::{summarise, write_junit, Summary};
+use crate::report::{judge_triage, reports, summarise, write_junit, RunIdentity, Summary};
+use crate::results::{applied_triage, ResultLine};
+use crate::select::Selection;
 use crate::sources;
 use crate::triage::Triage;
 use harness::{Driver, Execution, Request, Response};
-use model::{Case, DeviceProfile, RuleSet};
+use model::{Case, DeviceProfile, RuleSet, Verdict};
+use std::collections::BTreeSet;
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -39,6 +45,13 @@ pub struct RunConfig {
     pub from: Vec<PathBuf>,
     /// Triage files (empty: the driver's and the layer version's, where present).
     pub triage: Vec<PathBuf>,
+    /// A validation layer build to use instead of the one the loader finds (a manifest directory or
+    /// an unpacked package root, see [`harness::select_layer`]).
+    pub layer: Option<PathBuf>,
+    /// Stale triage entries fail the run (they are always reported).
+    pub strict: bool,
+    /// Which cases run (a case folder, a shard, the baseline, skips and flakes, retries).
+    pub selection: Selection,
 }
 
 /// How far a run has come, for a progress display.
@@ -47,8 +60,10 @@ pub trait Progress {
     fn planned(&self, cases: u64);
     /// `n` more cases are done (run, skipped, or not generated).
     fn advance(&self, n: u64);
+    /// A case got its status (after any retries).
+    fn status(&self, _status: Status) {}
     /// What each `--vuid` pattern expanded to, before anything is generated.
-    fn selected(&self, _expanded: &[crate::select::Expanded]) {}
+    fn selected(&self, _expanded: &[crate::names::Expanded]) {}
 }
 
 /// A progress display that shows nothing.
@@ -63,22 +78,33 @@ impl Progress for Quiet {
 #[derive(Debug)]
 pub struct RunOutcome {
     pub summary: Summary,
+    /// Stale triage entries fail the run.
+    pub strict: bool,
+    /// Things the reader must know about how the run was judged (a registry of another version than
+    /// the layer's, no triage file for the layer's version).
+    pub warnings: Vec<String>,
     /// Specs the generator cannot make on this profile (a feature or queue the device lacks).
     pub not_expressible: Vec<String>,
     /// Specs the generator failed on: a failure of the run.
     pub gen_errors: Vec<String>,
     /// One line per shrunk (or no longer failing) case.
     pub shrunk: Vec<String>,
+    /// Where the HTML report went, or why it could not be written.
+    pub report: Result<PathBuf, String>,
 }
 
 impl RunOutcome {
-    /// The exit status of the run: non-zero for any fail, crash, timeout, case error or generator error,
-    /// and for a run that made no case.
+    /// The exit status of the run: non-zero for any status that is a failure (fail, crash, timeout,
+    /// case error, unexpected pass, missing), a generator error, and a run that made no case.
     pub fn exit_code(&self) -> i32 {
-        let s = &self.summary;
-        let unexpected = s.failed + s.crashes + s.timeouts + s.case_errors;
-        // A run that made no case checked nothing: never a pass.
-        if unexpected > 0 || !self.gen_errors.is_empty() || s.cases == 0 {
+        // A run that made no case checked nothing: never a pass; under --strict a stale triage entry
+        // fails it too.
+        let stale = self.strict && !self.summary.triage.stale.is_empty();
+        if self.summary.unexpected() > 0
+            || !self.gen_errors.is_empty()
+            || self.summary.cases == 0
+            || stale
+        {
             1
         } else {
             0
@@ -97,19 +123,30 @@ pub struct Judging<'a> {
 }
 
 impl Judging<'_> {
+    /// The VUIDs the device makes unavoidable for builds, which the layer's validation continues past.
+    fn profile_unavoidable(&self) -> Vec<String> {
+        model::accel::unavoidable(self.profile)
+    }
+
     /// The one judgement of a case: the model's verdict on the case as it ran (a build with the sizes
     /// the device reported), compared with the observation.
     pub fn judge(&self, case: &Case, resp: &Response) -> CaseReport {
+        self.judge_with_verdict(case, resp).0
+    }
+
+    /// [`Judging::judge`], with the verdict it compared.
+    pub fn judge_with_verdict(&self, case: &Case, resp: &Response) -> (CaseReport, Verdict) {
         let ran = as_run(case, &resp.observation);
         let verdict = self.rules.judge(self.profile, &ran.body);
-        compare(
+        let report = compare(
             &ran,
             self.profile,
             &verdict,
             &resp.observation,
             self.triage,
             resp.millis,
-        )
+        );
+        (report, verdict)
     }
 }
 
@@ -125,7 +162,7 @@ pub struct Ran {
 }
 
 impl Judging<'_> {
-    /// Runs one case on `executor` and judges it: the gate ([`Case::runnable`]), the execution (for
+    /// Runs one case on `executor` and judges it: the gate (the case's own errors, [`Case::runnable`]), the execution (for
     /// real when the case runs as valid; a build's rays traced as `check` says), the verdict on the
     /// case as it ran, and the comparison.
     pub fn run_here(
@@ -219,43 +256,209 @@ impl Judging<'_> {
     }
 }
 
-/// Where a run writes: `results.jsonl` (appended and flushed per case) and `failures/`.
-struct Sink {
+/// Where a run writes: `results.jsonl` (appended and flushed per case), the case files of the cases that
+/// did not pass and their details.
+struct Sink<'a> {
     out: PathBuf,
     results_path: PathBuf,
     results: std::fs::File,
     /// The first write that failed: the file and the error.
     error: Option<(PathBuf, std::io::Error)>,
+    expectations: &'a Expectations,
+    triage: &'a Triage,
+    progress: &'a dyn Progress,
 }
 
-impl Sink {
-    /// Writes a case's failure file (whole or not at all) and then its line; the first error is kept
-    /// and ends the run.
-    fn write(&mut self, case: &Case, report: &CaseReport) {
+impl Sink<'_> {
+    /// Writes a case's line: its report, its status against the baseline from every attempt's outcome
+    /// (`attempts` empty when it ran once), and the triage entries that applied. The case's files are
+    /// written whole or not at all, and before its line; the first error is kept and ends the run.
+    fn write(
+        &mut self,
+        case: &Case,
+        report: &CaseReport,
+        details: &CaseDetails,
+        attempts: Vec<Outcome>,
+    ) {
         // After a failed write nothing more is written: a later line must not follow a torn one.
         if self.error.is_some() {
             return;
         }
-        if report.outcome != Outcome::Pass && report.outcome != Outcome::Unsupported {
-            let path = self
-                .out
-                .join("failures")
-                .join(format!("{}.yaml", case.name));
-            if let Err(e) = crate::outdir::write_atomically(&path, case.to_yaml().as_bytes()) {
-                self.error.get_or_insert((path, e));
-            }
+        let once = [report.outcome];
+        let status = self.expectations.status(
+            report,
+            if attempts.is_empty() {
+                &once
+            } else {
+                &attempts
+            },
+        );
+        if let Err(e) = keep(&self.out, case, report, status, details) {
+            self.error.get_or_insert(e);
+            return;
         }
-        let line = serde_json::to_string(report).unwrap_or_default();
-        if let Err(e) = writeln!(self.results, "{line}").and_then(|_| self.results.flush()) {
+        self.progress.status(status);
+        let line = ResultLine {
+            report: report.clone(),
+            status,
+            attempts,
+            triage: applied_triage(report, self.triage),
+        };
+        let text = serde_json::to_string(&line).unwrap_or_default();
+        if let Err(e) = writeln!(self.results, "{text}").and_then(|_| self.results.flush()) {
             self.error.get_or_insert((self.results_path.clone(), e));
         }
     }
 }
 
+/// The cases of a run, one at a time, as `each` receives them: read from the case folder or generated
+/// spec by spec, then kept to the shard and off the skips list. Returns what could not be generated.
+struct Planned {
+    /// The names of every case handed to `each`, in order (`caselist.txt`).
+    caselist: Vec<String>,
+    /// Cases of the shard the skips list kept back.
+    skipped: usize,
+    not_expressible: Vec<String>,
+    gen_errors: Vec<String>,
+}
+
+fn each_case(
+    config: &RunConfig,
+    rules: &RuleSet,
+    profile: &DeviceProfile,
+    profile_name: &str,
+    expectations: &Expectations,
+    progress: &dyn Progress,
+    each: &mut dyn FnMut(Case),
+) -> Result<Planned, SessionError> {
+    let mut planned = Planned {
+        caselist: Vec::new(),
+        skipped: 0,
+        not_expressible: Vec::new(),
+        gen_errors: Vec::new(),
+    };
+    let shard = config.selection.shard;
+    let mut offer = |c: Case, planned: &mut Planned| {
+        if shard.is_some_and(|s| !s.holds(&c.name)) {
+            progress.advance(1);
+            return;
+        }
+        if expectations.skips(&c.name, c.intent.target()) {
+            planned.skipped += 1;
+            progress.advance(1);
+            return;
+        }
+        planned.caselist.push(c.name.clone());
+        each(c);
+    };
+    if let Some(dir) = &config.selection.cases {
+        let mut cases = crate::select::read_case_folder(dir)?;
+        // Chunks hold one command family: the trace cases first, then the builds, each in file order.
+        cases.sort_by_key(|c| !c.command().is_trace());
+        progress.planned(cases.len() as u64);
+        for c in cases {
+            offer(c, &mut planned);
+        }
+        return Ok(planned);
+    }
+    let mut scope = config.scope.clone();
+    if !scope.vuids.is_empty() {
+        let mut known: Vec<String> = rules.rows.iter().map(|r| r.vuid.clone()).collect();
+        known.sort();
+        known.dedup();
+        let expanded = crate::names::expand_vuids(&scope.vuids, &known)?;
+        progress.selected(&expanded);
+        scope.vuids = expanded.into_iter().flat_map(|e| e.vuids).collect();
+        scope.vuids.sort();
+        scope.vuids.dedup();
+    }
+    let specs = plan(&scope, rules, profile);
+    // A spec's own count (the rendered scenes') is a floor under the run's.
+    let count_of =
+        |p: &crate::plan::PlannedSpec| p.count.map_or(config.count, |n| n.max(config.count));
+    progress.planned(specs.iter().map(count_of).sum::<usize>() as u64);
+    for p in &specs {
+        let count = count_of(p);
+        for range in slices(count) {
+            let len = range.len();
+            let cases = match generator::generate_range(
+                profile,
+                profile_name,
+                rules,
+                &p.spec,
+                range,
+                p.seed,
+            ) {
+                Ok(c) => c,
+                Err(e @ generator::GenError::Unsupported(_)) => {
+                    planned.not_expressible.push(format!("{}: {e}", p.label()));
+                    progress.advance(count as u64);
+                    break;
+                }
+                Err(e) => {
+                    planned.gen_errors.push(format!("{}: {e}", p.label()));
+                    progress.advance(count as u64);
+                    break;
+                }
+            };
+            // Indices no build plan fits give no case: counted done.
+            progress.advance((len - cases.len()) as u64);
+            for c in cases {
+                offer(c, &mut planned);
+            }
+        }
+    }
+    Ok(planned)
+}
+
+/// The cases a run would make (after the shard and the skips list), without a driver.
+pub fn list(config: &RunConfig) -> Result<Vec<Case>, SessionError> {
+    let set = sources::load_sources(&config.from)?;
+    let rules = RuleSet::from_vuids(&set);
+    let profile_name = config
+        .profile
+        .clone()
+        .unwrap_or_else(|| sources::default_profile_name(&config.driver));
+    let profile = sources::profile_for(&profile_name)?;
+    let expectations = config.selection.expectations()?;
+    let mut cases = Vec::new();
+    let planned = each_case(
+        config,
+        &rules,
+        &profile,
+        &profile_name,
+        &expectations,
+        &Quiet,
+        &mut |c| cases.push(c),
+    )?;
+    if let Some(e) = planned.gen_errors.first() {
+        return Err(SessionError::Usage(format!("could not generate {e}")));
+    }
+    Ok(cases)
+}
+
 /// Runs the configured conformance run; see the module documentation.
 pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, SessionError> {
     let started = std::time::Instant::now();
-    let set = sources::load_sources(&config.from)?;
+    if config.strict && (!config.scope.vuids.is_empty() || config.scope.valid_only) {
+        return Err(SessionError::Usage(
+            "--strict judges stale triage entries, which needs a full run of the commands (no --vuid, no --valid-only)"
+                .into(),
+        ));
+    }
+    if let Some(dir) = &config.layer {
+        harness::select_layer(dir)?;
+    }
+    let layer = harness::validation_layer()?;
+    let set = sources::registry_for_layer(&config.from, Some(&layer))?;
+    let mut warnings = Vec::new();
+    if set.version.as_deref() != Some(layer.version.as_str()) {
+        warnings.push(format!(
+            "the model judges with registry {} but the validation layer is {}: VUIDs either side lacks show as disagreements",
+            set.version.as_deref().unwrap_or("of unknown version"),
+            layer.version
+        ));
+    }
     let rules = RuleSet::from_vuids(&set);
     // The driver first: a path that is not a driver is never taken for a profile's name.
     let driver = Driver::parse(&config.driver);
@@ -265,7 +468,19 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         .clone()
         .unwrap_or_else(|| sources::default_profile_name(&config.driver));
     let profile = sources::profile_for(&profile_name)?;
-    let triage = sources::triage_for(&config.triage, set.version.as_deref(), &driver)?;
+    let triage = sources::triage_for(&config.triage, Some(&layer.version), &driver)?;
+    if config.triage.is_empty()
+        && !triage
+            .files
+            .iter()
+            .any(|f| f.ends_with(&format!("layer-{}.yaml", layer.version)))
+    {
+        warnings.push(format!(
+            "no triage/layer-{}.yaml: every disagreement with this layer is a failure",
+            layer.version
+        ));
+    }
+    let expectations = config.selection.expectations()?;
     let params = crate::outdir::RunParameters {
         driver: config.driver.clone(),
         profile: profile_name.clone(),
@@ -291,6 +506,27 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
             .iter()
             .map(|p| p.display().to_string())
             .collect(),
+        cases: config
+            .selection
+            .cases
+            .as_ref()
+            .map(|p| p.display().to_string()),
+        shard: config.selection.shard.map(|s| s.to_string()),
+        baseline: config
+            .selection
+            .baseline
+            .as_ref()
+            .map(|p| p.display().to_string()),
+        skips: config
+            .selection
+            .skips
+            .as_ref()
+            .map(|p| p.display().to_string()),
+        flakes: config
+            .selection
+            .flakes
+            .as_ref()
+            .map(|p| p.display().to_string()),
     };
     let done = crate::outdir::prepare(&config.out, &params, config.resume)?;
     let results_path = config.out.join("results.jsonl");
@@ -304,6 +540,9 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         results_path: results_path.clone(),
         results,
         error: None,
+        expectations: &expectations,
+        triage: &triage,
+        progress,
     };
     std::env::set_var(harness::worker::DRIVER_ENV, &config.driver);
     let judging = Judging {
@@ -311,87 +550,87 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         profile: &profile,
         triage: &triage,
     };
-
-    let mut scope = config.scope.clone();
-    if !scope.vuids.is_empty() {
-        let mut known: Vec<String> = rules.rows.iter().map(|r| r.vuid.clone()).collect();
-        known.sort();
-        known.dedup();
-        let expanded = crate::select::expand_vuids(&scope.vuids, &known)?;
-        progress.selected(&expanded);
-        scope.vuids = expanded.into_iter().flat_map(|e| e.vuids).collect();
-        scope.vuids.sort();
-        scope.vuids.dedup();
-    }
-    let specs = plan(&scope, &rules, &profile);
-    let count_of =
-        |p: &crate::plan::PlannedSpec| p.count.map_or(config.count, |n| n.max(config.count));
-    progress.planned(specs.iter().map(count_of).sum::<usize>() as u64);
-    let mut not_expressible = Vec::new();
-    let mut gen_errors = Vec::new();
-    let mut chunk: Vec<Case> = Vec::with_capacity(CHUNK);
     let dispatch = Dispatch {
         jobs: config.jobs,
         timeout: Duration::from_secs(config.timeout),
+        retries: config.selection.retries,
         judging: &judging,
         progress,
     };
+    let mut chunk: Vec<Case> = Vec::with_capacity(CHUNK);
     let mut family = None;
-    'specs: for planned in &specs {
-        // A chunk holds cases of one command family, in the plan's order.
-        let this = planned.spec.command.is_trace();
-        if family.is_some_and(|f| f != this) && !chunk.is_empty() {
-            dispatch.run(&mut chunk, &mut sink);
-        }
-        family = Some(this);
-        let count = count_of(planned);
-        for range in slices(count) {
-            let len = range.len();
-            let cases = match generator::generate_range(
-                &profile,
-                &profile_name,
-                &rules,
-                &planned.spec,
-                range,
-                planned.seed,
-            ) {
-                Ok(c) => c,
-                Err(e @ generator::GenError::Unsupported(_)) => {
-                    not_expressible.push(format!("{}: {e}", planned.label()));
-                    progress.advance(count as u64);
-                    break;
-                }
-                Err(e) => {
-                    gen_errors.push(format!("{}: {e}", planned.label()));
-                    progress.advance(count as u64);
-                    break;
-                }
-            };
-            // Indices no build plan fits give no case: counted done.
-            progress.advance((len - cases.len()) as u64);
-            for c in cases {
-                // A write that failed (a full disk) ends the run: nothing more could be kept.
-                if sink.error.is_some() {
-                    break 'specs;
-                }
-                if done.contains(&c.name) {
-                    progress.advance(1);
-                    continue;
-                }
-                if let Some(report) = crate::gate::gate(&c, &judging) {
-                    sink.write(&c, &report);
-                    progress.advance(1);
-                    continue;
-                }
-                chunk.push(c);
-                if chunk.len() == CHUNK {
-                    dispatch.run(&mut chunk, &mut sink);
-                }
+    let planned = each_case(
+        config,
+        &rules,
+        &profile,
+        &profile_name,
+        &expectations,
+        progress,
+        &mut |c: Case| {
+            // A write that failed (a full disk) ends the run: nothing more could be kept.
+            if sink.error.is_some() {
+                return;
             }
-        }
-    }
+            if done.contains(&c.name) {
+                progress.advance(1);
+                return;
+            }
+            if let Some(report) = crate::gate::gate(&c, &judging) {
+                let details = CaseDetails {
+                    violations: model::validate(&rules, &profile, &c).violations,
+                    layer_messages: vec![],
+                };
+                sink.write(&c, &report, &details, vec![]);
+                progress.advance(1);
+                return;
+            }
+            // A chunk holds cases of one command family, in the plan's order.
+            let this = c.command().is_trace();
+            if family.is_some_and(|f| f != this) && !chunk.is_empty() {
+                dispatch.run(&mut chunk, &mut sink);
+            }
+            family = Some(this);
+            chunk.push(c);
+            if chunk.len() == CHUNK {
+                dispatch.run(&mut chunk, &mut sink);
+            }
+        },
+    )?;
     if !chunk.is_empty() {
         dispatch.run(&mut chunk, &mut sink);
+    }
+    let full = config.scope.vuids.is_empty()
+        && !config.scope.valid_only
+        && config.selection.is_whole_plan();
+    if full {
+        // Entries the generated cases left unused get their own evidence run: the reproducing cases
+        // they name (of this profile and a command whose cases ran), so an entry is stale only when its
+        // own case no longer disagrees as it says.
+        let lines: Vec<CaseReport> = reports(&results_path)
+            .map(|r| r.collect())
+            .unwrap_or_default();
+        let ran: BTreeSet<model::CommandId> = lines.iter().map(|r| r.command).collect();
+        let used: BTreeSet<String> = lines
+            .iter()
+            .flat_map(|r| r.triage.iter().map(|m| m.entry.clone()))
+            .collect();
+        let written: BTreeSet<&str> = lines.iter().map(|r| r.case.as_str()).collect();
+        let mut evidence = crate::triage::evidence_cases(&triage, &used, &ran, &profile_name);
+        evidence.retain(|c| !written.contains(c.name.as_str()));
+        for c in evidence {
+            if let Some(report) = crate::gate::gate(&c, &judging) {
+                let details = CaseDetails {
+                    violations: model::validate(&rules, &profile, &c).violations,
+                    layer_messages: vec![],
+                };
+                sink.write(&c, &report, &details, vec![]);
+                continue;
+            }
+            chunk.push(c);
+        }
+        if !chunk.is_empty() {
+            dispatch.run(&mut chunk, &mut sink);
+        }
     }
     if let Some((path, e)) = sink.error.take() {
         return Err(SessionError::io(
@@ -402,21 +641,32 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
             e,
         ));
     }
-    let mut summary = summarise(
-        &results_path,
-        &config.driver,
-        &profile_name,
-        set.version.clone(),
-    )?;
+    let caselist_path = config.out.join("caselist.txt");
+    std::fs::write(
+        &caselist_path,
+        planned
+            .caselist
+            .iter()
+            .map(|n| format!("{n}\n"))
+            .collect::<String>(),
+    )
+    .map_err(|e| SessionError::io(caselist_path.display().to_string(), e))?;
+    let who = RunIdentity {
+        driver: config.driver.clone(),
+        profile: profile_name.clone(),
+        registry: set.version.clone(),
+        shard: config.selection.shard.map(|s| s.to_string()),
+    };
+    let mut summary = summarise(&results_path, Some(&planned.caselist), &who)?;
+    summary.skipped = planned.skipped;
+    summary.expectations = expectations.files.clone();
+    summary.layer = Some(layer.version.clone());
+    judge_triage(&mut summary, &results_path, &triage, full)?;
     summary.runner_peak_rss_kib = peak_rss_kib();
     summary.seconds = started.elapsed().as_secs_f64();
-    let summary_path = config.out.join("summary.json");
-    std::fs::write(
-        &summary_path,
-        serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n",
-    )
-    .map_err(|e| SessionError::io(summary_path.display().to_string(), e))?;
+    summary.write(&config.out.join("summary.json"))?;
     write_junit(&results_path, &config.out.join("junit.xml"), &summary)?;
+    let report = crate::html::write_report(&config.out).map_err(|e| e.to_string());
     let shrunk = if config.shrink > 0 {
         crate::shrink::shrink_failures(config, &judging, &profile_name, &results_path)
     } else {
@@ -424,9 +674,12 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
     };
     Ok(RunOutcome {
         summary,
-        not_expressible,
-        gen_errors,
+        strict: config.strict,
+        warnings,
+        not_expressible: planned.not_expressible,
+        gen_errors: planned.gen_errors,
         shrunk,
+        report,
     })
 }
 
@@ -434,13 +687,28 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
 struct Dispatch<'a> {
     jobs: usize,
     timeout: Duration,
+    /// Times a failing, crashing or timed-out case is run again (stopping once its outcome changes).
+    retries: usize,
     judging: &'a Judging<'a>,
     progress: &'a dyn Progress,
 }
 
+/// A case held back from `results.jsonl` to be run again: its first report and details, and the
+/// outcome of every attempt so far.
+struct Retried {
+    request: Request,
+    report: CaseReport,
+    details: CaseDetails,
+    attempts: Vec<Outcome>,
+}
+
 impl Dispatch<'_> {
     /// Runs one chunk on a fresh set of workers (which keep their devices and pipelines warm for the
-    /// chunk), judging and writing each result as it arrives.
+    /// chunk), judging and writing each result as it arrives; failing cases are written once their
+    /// retries are done. A case whose recording, validated past the VUIDs the device
+    /// makes unavoidable, killed its worker (a layer whose later checks crash on the call, as 1.3.239's
+    /// core checks do for an update without a source) is recorded once more with validation stopping at
+    /// the first of them, and its report says so.
     fn run(&self, chunk: &mut Vec<Case>, sink: &mut Sink) {
         let requests: Vec<Request> = std::mem::take(chunk)
             .into_iter()
@@ -451,18 +719,97 @@ impl Dispatch<'_> {
                 case,
             })
             .collect();
+        let mut held: Vec<Retried> = Vec::new();
+        let mut revalidate: Vec<Request> = Vec::new();
         harness::run_in_workers(&requests, self.jobs, self.timeout, |resp| {
-            let case = &requests[resp.index.min(requests.len() - 1)].case;
-            let report = self.judging.judge(case, &resp);
-            sink.write(case, &report);
+            let request = &requests[resp.index.min(requests.len() - 1)];
+            if matches!(resp.observation.status, harness::Status::Crash { .. })
+                && !request.execution.continue_past.is_empty()
+            {
+                revalidate.push(Request {
+                    index: revalidate.len(),
+                    case: request.case.clone(),
+                    execution: Execution {
+                        continue_past: vec![],
+                        ..request.execution.clone()
+                    },
+                });
+                return;
+            }
+            let (report, details) = self.judged(&request.case, &resp);
             crate::pictures::for_failure(
                 &sink.out.join("failures"),
-                case,
+                &request.case,
                 &resp.observation,
                 &report,
             );
+            if self.retries > 0 && report.outcome.is_unexpected() {
+                held.push(Retried {
+                    request: request.clone(),
+                    attempts: vec![report.outcome],
+                    report,
+                    details,
+                });
+                return;
+            }
+            sink.write(&request.case, &report, &details, vec![]);
             self.progress.advance(1);
         });
+        if !revalidate.is_empty() {
+            harness::run_in_workers(&revalidate, self.jobs, self.timeout, |resp| {
+                let request = &revalidate[resp.index.min(revalidate.len() - 1)];
+                let (mut report, details) = self.judged(&request.case, &resp);
+                let note = format!(
+                    "recorded with the layer's validation continuing past {} the worker died (the layer's \
+                     later checks or the driver's recording of the call), so it was recorded again with \
+                     validation stopping there",
+                    self.judging.profile_unavoidable().join(", ")
+                );
+                report.detail = if report.detail.is_empty() {
+                    note
+                } else {
+                    format!("{note}; {}", report.detail)
+                };
+                sink.write(&request.case, &report, &details, vec![]);
+                self.progress.advance(1);
+            });
+        }
+        for _ in 0..self.retries {
+            // Run again the cases whose outcome has not changed yet.
+            let again: Vec<Request> = held
+                .iter()
+                .enumerate()
+                .filter(|(_, h)| h.attempts.iter().all(|o| *o == h.attempts[0]))
+                .map(|(k, h)| Request {
+                    index: k,
+                    ..h.request.clone()
+                })
+                .collect();
+            if again.is_empty() {
+                break;
+            }
+            harness::run_in_workers(&again, self.jobs, self.timeout, |resp| {
+                let Some(h) = held.get_mut(resp.index) else {
+                    return;
+                };
+                let (report, _) = self.judged(&h.request.case, &resp);
+                h.attempts.push(report.outcome);
+            });
+        }
+        for h in held {
+            sink.write(&h.request.case, &h.report, &h.details, h.attempts);
+            self.progress.advance(1);
+        }
+    }
+
+    /// The report of one response and what the run keeps of it.
+    fn judged(&self, case: &Case, resp: &Response) -> (CaseReport, CaseDetails) {
+        let (report, verdict) = self.judging.judge_with_verdict(case, resp);
+        let details = CaseDetails {
+            violations: verdict.violations,
+            layer_messages: resp.observation.layer_messages.clone(),
+        };
+        (report, details)
     }
 }
 

@@ -1,192 +1,168 @@
-//! Names given on the command line, resolved before anything runs: a `--vuid` is a full id, a glob
-//! (`VUID-vkCmdTraceRaysIndirectKHR-*`, `*-03686`) or a short id (`03686`, `stride-03686`) that
-//! expands to the matching VUIDs; a `--command` of `rtconf registry` is a scope the registry has. A
-//! name that matches nothing is an error naming the nearest known names, never a run of 0 cases.
+//! Choosing what a run runs: a deterministic shard of the cases by name (`--shard I/N`, for CI farms),
+//! the skips list, and a folder of case files (`--cases DIR`) instead of generated cases.
 
+use crate::baseline::Expectations;
 use crate::error::SessionError;
+use model::Case;
+use std::path::{Path, PathBuf};
 
-/// One `--vuid` and the VUIDs it stands for.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Expanded {
-    pub pattern: String,
-    pub vuids: Vec<String>,
+/// Which cases a run runs and what it expects of them.
+#[derive(Debug, Clone, Default)]
+pub struct Selection {
+    /// Run the case files of this folder instead of generating cases.
+    pub cases: Option<PathBuf>,
+    /// Run only this shard of the cases.
+    pub shard: Option<Shard>,
+    /// Expected failures (see [`crate::baseline`]).
+    pub baseline: Option<PathBuf>,
+    /// Cases not to run.
+    pub skips: Option<PathBuf>,
+    /// Known flaky cases.
+    pub flakes: Option<PathBuf>,
+    /// Times a failing, crashing or timed-out case is run again to tell a flake.
+    pub retries: usize,
 }
 
-/// Expands each pattern against `known` (sorted, unique ids); an error for the first that matches
-/// none.
-pub fn expand_vuids(patterns: &[String], known: &[String]) -> Result<Vec<Expanded>, SessionError> {
-    patterns
-        .iter()
-        .map(|p| {
-            let vuids: Vec<String> = known.iter().filter(|k| matches(p, k)).cloned().collect();
-            if vuids.is_empty() {
-                Err(SessionError::Usage(format!(
-                    "--vuid `{p}` matches no VUID of the rule table{}",
-                    nearest_hint(p, known.iter().map(String::as_str))
-                )))
-            } else {
-                Ok(Expanded {
-                    pattern: p.clone(),
-                    vuids,
-                })
+impl Selection {
+    /// The baseline, skips and flakes files, read.
+    /// Whether every planned case runs (no case folder, no shard, no skips list): only such a run can
+    /// call a triage entry stale.
+    pub fn is_whole_plan(&self) -> bool {
+        self.cases.is_none() && self.shard.is_none() && self.skips.is_none()
+    }
+
+    pub fn expectations(&self) -> Result<Expectations, SessionError> {
+        Expectations::load(
+            self.baseline.as_deref(),
+            self.skips.as_deref(),
+            self.flakes.as_deref(),
+        )
+    }
+}
+
+/// Shard `index` (from 1) of `count`: the cases whose name hashes to it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    pub index: u32,
+    pub count: u32,
+}
+
+impl Shard {
+    /// Parses `I/N` with 1 ≤ I ≤ N.
+    pub fn parse(text: &str) -> Result<Shard, SessionError> {
+        let bad = || {
+            SessionError::Usage(format!(
+                "--shard `{text}`: expected I/N with 1 <= I <= N (`--shard 2/4` runs the second of four shards)"
+            ))
+        };
+        let (i, n) = text.split_once('/').ok_or_else(bad)?;
+        let (index, count) = (
+            i.trim().parse::<u32>().map_err(|_| bad())?,
+            n.trim().parse::<u32>().map_err(|_| bad())?,
+        );
+        if index == 0 || count == 0 || index > count {
+            return Err(bad());
+        }
+        Ok(Shard { index, count })
+    }
+
+    /// Whether the case named `name` belongs to this shard: FNV-1a of the name, modulo the count —
+    /// the same on every machine and for every order the cases come in.
+    pub fn holds(&self, name: &str) -> bool {
+        fnv1a(name.as_bytes()) % self.count as u64 == (self.index - 1) as u64
+    }
+}
+
+impl std::fmt::Display for Shard {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+/// 64-bit FNV-1a.
+fn fnv1a(bytes: &[u8]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for b in bytes {
+        h ^= *b as u64;
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    h
+}
+
+/// The case files under `dir` (every `*.yaml`, in subfolders too), sorted by path.
+fn case_files(dir: &Path) -> Result<Vec<PathBuf>, SessionError> {
+    let mut out = Vec::new();
+    let mut pending = vec![dir.to_path_buf()];
+    while let Some(d) = pending.pop() {
+        let entries =
+            std::fs::read_dir(&d).map_err(|e| SessionError::io(d.display().to_string(), e))?;
+        for entry in entries {
+            let entry = entry.map_err(|e| SessionError::io(d.display().to_string(), e))?;
+            let path = entry.path();
+            if path.is_dir() {
+                pending.push(path);
+            } else if path.extension().is_some_and(|x| x == "yaml" || x == "yml") {
+                out.push(path);
             }
-        })
-        .collect()
-}
-
-/// Whether `pattern` names `id`: a glob (`*` any run, `?` one character) against the whole id, a full
-/// id exactly, or a short id (no `VUID-` prefix) as the id's last dash-separated parts.
-pub fn matches(pattern: &str, id: &str) -> bool {
-    if pattern.contains(['*', '?']) {
-        glob(pattern.as_bytes(), id.as_bytes())
-    } else if pattern.starts_with("VUID-") {
-        pattern == id
-    } else {
-        id.ends_with(pattern) && id[..id.len() - pattern.len()].ends_with('-')
-    }
-}
-
-fn glob(p: &[u8], s: &[u8]) -> bool {
-    // Iterative matching with one backtrack point for the last `*`.
-    let (mut i, mut j) = (0, 0);
-    let mut star: Option<(usize, usize)> = None;
-    while j < s.len() {
-        if i < p.len() && (p[i] == b'?' || p[i] == s[j]) {
-            i += 1;
-            j += 1;
-        } else if i < p.len() && p[i] == b'*' {
-            star = Some((i, j));
-            i += 1;
-        } else if let Some((si, sj)) = star {
-            i = si + 1;
-            j = sj + 1;
-            star = Some((si, sj + 1));
-        } else {
-            return false;
         }
     }
-    p[i..].iter().all(|&c| c == b'*')
+    out.sort();
+    Ok(out)
 }
 
-/// Checks a `--command` of `rtconf registry` against the scopes the registry defines VUIDs for.
-pub fn known_scope<'a>(
-    name: &str,
-    scopes: impl Iterator<Item = &'a str> + Clone,
-) -> Result<(), SessionError> {
-    if scopes.clone().any(|s| s == name) {
-        Ok(())
-    } else {
-        Err(SessionError::Usage(format!(
-            "--command `{name}` is no command or structure the registry defines VUIDs for{}",
-            nearest_hint(name, scopes)
-        )))
+/// Every case of a folder, sorted by path; a file that does not parse is an error with its line, and
+/// two files of one case name are an error (results are kept by name).
+pub fn read_case_folder(dir: &Path) -> Result<Vec<Case>, SessionError> {
+    let files = case_files(dir)?;
+    if files.is_empty() {
+        return Err(SessionError::Usage(format!(
+            "--cases {}: no *.yaml case files there",
+            dir.display()
+        )));
     }
-}
-
-/// `; nearest: A, B, C` with the known names closest to `name` (edit distance), or nothing.
-fn nearest_hint<'a>(name: &str, known: impl Iterator<Item = &'a str>) -> String {
-    let mut scored: Vec<(usize, &str)> = known.map(|k| (distance(name, k), k)).collect();
-    scored.sort();
-    scored.dedup();
-    let near: Vec<&str> = scored.iter().take(3).map(|(_, k)| *k).collect();
-    if near.is_empty() {
-        String::new()
-    } else {
-        format!("; nearest: {}", near.join(", "))
-    }
-}
-
-/// Levenshtein distance between two names, by characters; for short ids the distance to the id's tail
-/// of the same length counts, so `0368` is near `...-stride-03686`.
-fn distance(a: &str, b: &str) -> usize {
-    let a: Vec<char> = a.chars().collect();
-    let b: Vec<char> = b.chars().collect();
-    let full = levenshtein(&a, &b);
-    if b.len() > a.len() && !a.starts_with(&['V', 'U', 'I', 'D', '-']) {
-        full.min(levenshtein(&a, &b[b.len() - a.len()..]))
-    } else {
-        full
-    }
-}
-
-fn levenshtein(a: &[char], b: &[char]) -> usize {
-    let mut row: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.iter().enumerate() {
-        let mut prev = row[0];
-        row[0] = i + 1;
-        for (j, cb) in b.iter().enumerate() {
-            let here = row[j + 1];
-            row[j + 1] = (prev + (ca != cb) as usize).min(row[j] + 1).min(here + 1);
-            prev = here;
+    let mut cases: Vec<Case> = Vec::with_capacity(files.len());
+    let mut seen = std::collections::BTreeMap::new();
+    for f in files {
+        let case = crate::replay::read_case(&f)?;
+        if let Some(first) = seen.insert(case.name.clone(), f.clone()) {
+            return Err(SessionError::Usage(format!(
+                "case name `{}` is used by both {} and {}",
+                case.name,
+                first.display(),
+                f.display()
+            )));
         }
+        cases.push(case);
     }
-    row[b.len()]
+    Ok(cases)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn known() -> Vec<String> {
-        [
-            "VUID-vkCmdTraceRaysIndirectKHR-stride-03686",
-            "VUID-vkCmdTraceRaysIndirectKHR-stride-03694",
-            "VUID-vkCmdTraceRaysKHR-stride-03686x",
-            "VUID-vkCmdTraceRaysNV-None-02700",
-        ]
-        .map(String::from)
-        .to_vec()
+    #[test]
+    fn shards_partition_names_deterministically() {
+        let names: Vec<String> = (0..300).map(|i| format!("case-{i}")).collect();
+        let shards: Vec<Shard> = (1..=3).map(|i| Shard { index: i, count: 3 }).collect();
+        for n in &names {
+            assert_eq!(shards.iter().filter(|s| s.holds(n)).count(), 1, "{n}");
+        }
+        // Roughly balanced, and fixed: FNV-1a, not a per-process hash.
+        for s in &shards {
+            let k = names.iter().filter(|n| s.holds(n)).count();
+            assert!((60..=140).contains(&k), "shard {s} holds {k}");
+        }
+        assert_eq!(fnv1a(b""), 0xcbf2_9ce4_8422_2325);
+        assert_eq!(fnv1a(b"a"), 0xaf63_dc4c_8601_ec8c);
     }
 
     #[test]
-    fn full_ids_globs_and_short_ids_expand() {
-        let k = known();
-        let e = expand_vuids(
-            &[
-                "VUID-vkCmdTraceRaysNV-None-02700".into(),
-                "VUID-vkCmdTraceRaysIndirectKHR-*".into(),
-                "03686".into(),
-                "stride-03694".into(),
-                "*-0369?".into(),
-            ],
-            &k,
-        )
-        .unwrap();
-        let n: Vec<usize> = e.iter().map(|x| x.vuids.len()).collect();
-        assert_eq!(n, [1, 2, 1, 1, 1]);
-        assert_eq!(e[2].vuids, ["VUID-vkCmdTraceRaysIndirectKHR-stride-03686"]);
-    }
-
-    #[test]
-    fn a_name_that_matches_nothing_is_an_error_with_the_nearest_names() {
-        let e = expand_vuids(
-            &["VUID-vkCmdTraceRaysIndirectKHR-stride-03868".into()],
-            &known(),
-        )
-        .unwrap_err()
-        .to_string();
-        assert!(e.contains("matches no VUID"), "{e}");
-        assert!(
-            e.contains("nearest: VUID-vkCmdTraceRaysIndirectKHR-stride-03686"),
-            "{e}"
-        );
-        let e = expand_vuids(&["0368".into()], &known())
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("nearest: VUID-vkCmdTraceRaysIndirectKHR-stride-03686"),
-            "{e}"
-        );
-        assert!(expand_vuids(&["VUID-x-*-99999".into()], &known()).is_err());
-    }
-
-    #[test]
-    fn unknown_scopes_are_errors_with_the_nearest_scopes() {
-        let scopes = ["vkCmdTraceRaysKHR", "vkCmdTraceRaysNV"];
-        assert!(known_scope("vkCmdTraceRaysNV", scopes.iter().copied()).is_ok());
-        let e = known_scope("vkCmdBogus", scopes.iter().copied())
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("`vkCmdBogus`") && e.contains("nearest: "), "{e}");
+    fn shard_arguments_parse_or_say_the_form() {
+        assert_eq!(Shard::parse("2/4").unwrap(), Shard { index: 2, count: 4 });
+        for bad in ["0/3", "4/3", "3", "a/b", "1/0"] {
+            let e = Shard::parse(bad).unwrap_err().to_string();
+            assert!(e.contains("expected I/N"), "{bad}: {e}");
+        }
     }
 }

@@ -80,8 +80,45 @@ pub fn default_profile_name(driver: &str) -> String {
     }
 }
 
+/// The registry a run judges with when no source is named: the installed one if it is of the layer's
+/// version, else `target/registry/<layer version>/usr/share/vulkan/registry` (what
+/// `scripts/fetch-registry.sh` unpacks), so the model's VUIDs are the layer's. An explicit `--from`
+/// is used as given.
+pub fn registry_for_layer(
+    from: &[PathBuf],
+    layer: Option<&harness::LayerInfo>,
+) -> Result<vk_registry::vuid::VuidSet, SessionError> {
+    let installed = load_sources(from)?;
+    let Some(layer) = layer else {
+        return Ok(installed);
+    };
+    if !from.is_empty() || installed.version.as_deref() == Some(layer.version.as_str()) {
+        return Ok(installed);
+    }
+    let fetched = repo_dir()
+        .join("target/registry")
+        .join(&layer.version)
+        .join("usr/share/vulkan/registry");
+    if fetched.join("validusage.json").is_file() {
+        return load_sources(&[fetched]);
+    }
+    Err(SessionError::Registry {
+        problem: format!(
+            "the validation layer is {} but the installed registry is {}; the model must judge with the \
+             registry of the layer's version",
+            layer.version,
+            installed.version.as_deref().unwrap_or("of unknown version")
+        ),
+        hint: format!(
+            "\n(unpack it with `bash scripts/fetch-registry.sh` into {}, or name it with --from)",
+            fetched.display()
+        ),
+    })
+}
+
 /// The triage files of a run: the named ones, or `triage/<driver>.yaml` and
-/// `triage/layer-<registry version>.yaml` where present (the same for a run and a replay).
+/// `triage/layer-<layer version>.yaml` where present (the same for a run and a replay); the layer's
+/// version is its own (`vkEnumerateInstanceLayerProperties`), not the registry's.
 pub fn triage_for(
     named: &[PathBuf],
     layer_version: Option<&str>,

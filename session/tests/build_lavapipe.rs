@@ -118,6 +118,10 @@ fn invalid_builds_under_the_layer_agree_with_the_model_or_are_known_layer_gaps()
     for case in generator::accel::generate(&lvp.profile, &lvp.rules, 7, 3)
         .into_iter()
         .filter(|c| !c.name.ends_with("-valid"))
+        // Validated past 03650 in this process, an update without a source crashes the 1.3.239 layer's
+        // core checks (triage/layer-1.3.239.yaml, pInfos-04630); a run records it in a worker and again
+        // with validation stopping at 03650 (session/tests/build_states.rs covers the states).
+        .filter(|c| !c.name.ends_with("-pInfos-04630"))
     {
         let ran = lvp.run(&case, TraceCheck::Auto);
         let model::Intent::Violates { vuid, .. } = &case.intent else {

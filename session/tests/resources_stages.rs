@@ -119,13 +119,13 @@ fn an_unknown_format_read_in_any_bound_stage_draws_its_rule() {
 }
 
 #[test]
-fn accesses_in_a_stage_the_pipeline_lacks_are_unsupported() {
+fn accesses_in_a_stage_the_pipeline_lacks_are_not_realised() {
     // The committed cases' pipelines have no any-hit shader.
     let mut c = case("vkCmdTraceRaysIndirectKHR-OpTypeImage-07028-4-0");
     move_to_stage(&mut world(&mut c).resources, Stage::AnyHit);
     let obs = Lavapipe::new().observe(&c);
     match &obs.status {
-        Status::Unsupported { reason } => assert!(reason.contains("AnyHit"), "{reason}"),
+        Status::NotRealised { reason } => assert!(reason.contains("AnyHit"), "{reason}"),
         other => panic!("{other:?}"),
     }
 }

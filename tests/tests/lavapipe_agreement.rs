@@ -24,7 +24,9 @@ impl Lavapipe {
     fn new() -> Lavapipe {
         std::env::set_var("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json");
         let rules = installed_rules();
-        let triage = session::sources::triage_for(&[], rules.version.as_deref(), &Driver::Lavapipe)
+        let layer =
+            harness::validation_layer().expect("the validation layer: `bash scripts/setup.sh`");
+        let triage = session::sources::triage_for(&[], Some(&layer.version), &Driver::Lavapipe)
             .expect("triage files parse");
         let executor = Executor::new(Driver::Lavapipe)
             .expect("lavapipe and the validation layer: run `bash scripts/setup.sh`");

@@ -43,17 +43,43 @@ pub fn vuids_json(set: &VuidSet, command: Option<&str>) -> String {
     s
 }
 
+/// What [`diff_with`] compares.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct DiffOptions<'a> {
+    /// Only this command's VUIDs.
+    pub command: Option<&'a str>,
+    /// Leave out VUIDs whose normalised text is the same and only their condition differs.
+    pub ignore_conditions: bool,
+}
+
 /// The differences from `a` to `b`: VUIDs added (only in `b`), removed (only in `a`), and
 /// those whose normalised text or condition changed.
 pub fn diff(a: &VuidSet, b: &VuidSet, command: Option<&str>) -> String {
+    diff_with(
+        a,
+        b,
+        &DiffOptions {
+            command,
+            ignore_conditions: false,
+        },
+    )
+}
+
+/// [`diff`] with options; with `ignore_conditions` the header says how many condition-only changes
+/// were left out.
+pub fn diff_with(a: &VuidSet, b: &VuidSet, options: &DiffOptions) -> String {
+    let command = options.command;
     let left: Vec<&VuidRecord> = selected(a, command).collect();
     let right: Vec<&VuidRecord> = selected(b, command).collect();
+    let mut condition_only = 0usize;
     let (mut added, mut removed, mut changed) = (Vec::new(), Vec::new(), Vec::new());
     let (mut i, mut j) = (0, 0);
     while i < left.len() || j < right.len() {
         match (left.get(i), right.get(j)) {
             (Some(l), Some(r)) if l.id == r.id => {
-                if l.text != r.text || l.condition != r.condition {
+                if l.text == r.text && l.condition != r.condition && options.ignore_conditions {
+                    condition_only += 1;
+                } else if l.text != r.text || l.condition != r.condition {
                     changed.push((*l, *r));
                 }
                 i += 1;
@@ -89,10 +115,15 @@ pub fn diff(a: &VuidSet, b: &VuidSet, command: Option<&str>) -> String {
     let _ = writeln!(out, "+++ {}{}", b.origin, ver(b));
     let _ = writeln!(
         out,
-        "added: {}, removed: {}, changed: {}",
+        "added: {}, removed: {}, changed: {}{}",
         added.len(),
         removed.len(),
-        changed.len()
+        changed.len(),
+        if options.ignore_conditions {
+            format!(" ({condition_only} changed in their condition only, left out)")
+        } else {
+            String::new()
+        }
     );
     if !added.is_empty() {
         let _ = writeln!(out, "\nadded:");
@@ -110,7 +141,7 @@ pub fn diff(a: &VuidSet, b: &VuidSet, command: Option<&str>) -> String {
         let _ = writeln!(out, "\nchanged:");
         for (l, r) in &changed {
             let _ = writeln!(out, "~ {}", l.id);
-            if l.condition != r.condition {
+            if l.condition != r.condition && !options.ignore_conditions {
                 let _ = writeln!(out, "    condition - {}", l.condition);
                 let _ = writeln!(out, "    condition + {}", r.condition);
             }

@@ -391,3 +391,34 @@ fn reports() {
     assert_eq!(d, expected);
     assert!(report::diff(&a, &a, None).contains("added: 0, removed: 0, changed: 0"));
 }
+
+#[test]
+fn diff_can_leave_out_condition_only_changes() {
+    let a = old_schema();
+    let b = new_schema();
+    // `a` with one VUID's condition taken from `b`, its text unchanged.
+    let mut c = a.clone();
+    let id = "VUID-vkCmdToyDispatch-stride-00001";
+    let k = c.records.iter().position(|r| r.id == id).unwrap();
+    c.records[k].condition = b.get(id).unwrap().condition.clone();
+    assert_ne!(c.records[k].condition, a.get(id).unwrap().condition);
+    let all = report::diff(&a, &c, None);
+    assert!(all.contains("added: 0, removed: 0, changed: 1\n"), "{all}");
+    assert!(all.contains("    condition + core\n"), "{all}");
+    let options = report::DiffOptions {
+        command: None,
+        ignore_conditions: true,
+    };
+    let text_only = report::diff_with(&a, &c, &options);
+    assert!(
+        text_only.contains(
+            "added: 0, removed: 0, changed: 0 (1 changed in their condition only, left out)\n"
+        ),
+        "{text_only}"
+    );
+    assert!(!text_only.contains(id), "{text_only}");
+    // A change of text is still listed, without its condition lines.
+    let both = report::diff_with(&a, &b, &options);
+    assert!(both.contains(&format!("~ {id}\n    text - ")), "{both}");
+    assert!(!both.contains("condition -"), "{both}");
+}

@@ -11,6 +11,7 @@ pub struct CheckArgs {
     /// Registry sources for the rules (default: the installed registry).
     #[arg(long = "from")]
     from: Vec<PathBuf>,
+    /// Print the verdicts as JSON.
     #[arg(long)]
     json: bool,
 }

@@ -13,8 +13,13 @@ pub struct CoverageArgs {
     /// Only this command (and, for the KHR trace commands, the structures they take).
     #[arg(long)]
     command: Option<String>,
+    /// Print the rows as JSON.
     #[arg(long)]
     json: bool,
+    /// Device profiles to check the executable rows against (repeatable; default: every committed
+    /// profile): a row comparing against a limit a profile lacks is listed (not judged there).
+    #[arg(long)]
+    profile: Vec<String>,
 }
 
 /// Coverage rows and the VUIDs of the sources that have no row (which must be none).
@@ -41,6 +46,28 @@ pub fn run(a: CoverageArgs) -> super::Exit {
     let set = session::sources::load_sources(&a.from)?;
     let command = a.command.as_deref().map(super::command_id).transpose()?;
     let (rows, missing) = compute(&set, command);
+    let rules = RuleSet::from_vuids(&set);
+    let untested = session::plan::untested(&rules, command);
+    let profiles: Vec<String> = if a.profile.is_empty() {
+        committed_profiles()
+    } else {
+        a.profile.clone()
+    };
+    let mut unjudged = Vec::new();
+    for name in &profiles {
+        let p = session::sources::profile_for(name)?;
+        for (vuid, limits) in rules.unjudged_on(&p) {
+            if rules
+                .row(&vuid)
+                .is_some_and(|r| command.is_none_or(|c| model::rules::applies_to(&r.scope, c)))
+            {
+                unjudged.push(format!(
+                    "{vuid} on {name}: the profile lacks {}",
+                    limits.join(", ")
+                ));
+            }
+        }
+    }
     if a.json {
         println!(
             "{}",
@@ -48,6 +75,24 @@ pub fn run(a: CoverageArgs) -> super::Exit {
         );
     } else {
         print_table(&rows);
+    }
+    for u in &unjudged {
+        eprintln!("rtconf: not judged: {u}");
+    }
+    let mut status = 0;
+    let (said, unsaid): (Vec<_>, Vec<_>) = untested.iter().partition(|(_, _, why)| why.is_some());
+    for (c, v, why) in &said {
+        eprintln!("rtconf: untested: {v} ({c}): {}", why.unwrap_or_default());
+    }
+    if !unsaid.is_empty() {
+        eprintln!(
+            "rtconf: {} executable rows have no mutation and no reason why, so no run tests them:",
+            unsaid.len()
+        );
+        for (c, v, _) in &unsaid {
+            eprintln!("  {v} ({c})");
+        }
+        status = 1;
     }
     if !missing.is_empty() {
         eprintln!(
@@ -57,9 +102,28 @@ pub fn run(a: CoverageArgs) -> super::Exit {
         for m in &missing {
             eprintln!("  {m}");
         }
-        return Ok(1);
+        status = 1;
     }
-    Ok(0)
+    Ok(status)
+}
+
+/// The short names of the committed profiles (`profiles/*.json`).
+fn committed_profiles() -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(session::sources::profiles_dir())
+        .map(|d| {
+            d.filter_map(|e| e.ok())
+                .filter_map(|e| {
+                    let p = e.path();
+                    if p.extension()? != "json" {
+                        return None;
+                    }
+                    Some(p.file_stem()?.to_string_lossy().into_owned())
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    names.sort();
+    names
 }
 
 fn print_table(rows: &[CoverageRow]) {

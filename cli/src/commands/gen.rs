@@ -19,12 +19,16 @@ pub struct GenArgs {
     /// The command (a VUID that names one decides it; default vkCmdTraceRaysIndirectKHR).
     #[arg(long)]
     command: Option<String>,
+    /// How many cases to write.
     #[arg(long, default_value_t = 10)]
     count: usize,
+    /// The seed; the same seed writes the same cases.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// The folder the case files go to.
     #[arg(long)]
     out: PathBuf,
+    /// Registry sources for the rules (default: the installed registry).
     #[arg(long = "from")]
     from: Vec<PathBuf>,
 }

@@ -3,10 +3,13 @@
 
 mod check;
 mod coverage;
+mod export;
 mod gen;
+mod merge;
 mod probe;
 mod registry;
 mod replay;
+mod report;
 mod run;
 
 use clap::{Parser, Subcommand};
@@ -16,7 +19,8 @@ use session::SessionError;
 #[command(
     name = "rtconf",
     version,
-    about = "Conformance suite for Vulkan ray tracing: model, generator, harness"
+    about = "Conformance suite for Vulkan ray tracing: model, generator, harness",
+    after_help = EXIT_CODES
 )]
 struct Cli {
     #[command(subcommand)]
@@ -36,14 +40,31 @@ enum Command {
     Gen(gen::GenArgs),
     /// Capture a real device's profile (Vulkan Profiles JSON).
     Probe(probe::ProbeArgs),
-    /// A conformance run: generated cases on a driver under the validation layer, compared with the model.
-    Run(run::RunArgs),
+    /// A conformance run: generated cases (or a folder of case files) on a driver under the validation
+    /// layer, compared with the model, judged against a baseline.
+    #[command(after_help = EXIT_CODES)]
+    Run(Box<run::RunArgs>),
+    /// Merge the run folders of a sharded run into one (results, summary, JUnit, report).
+    #[command(after_help = EXIT_CODES)]
+    Merge(merge::MergeArgs),
+    /// Write the HTML report of a run folder (DIR/report/index.html).
+    Report(report::ReportArgs),
     /// One case on a driver with the full comparison.
+    #[command(after_help = EXIT_CODES)]
     Replay(replay::ReplayArgs),
+    /// Write a case as a standalone C program (repro.c) for a bug report.
+    Export(export::ExportArgs),
     /// (internal) Run cases read from stdin; used by `run`'s worker processes.
     #[command(hide = true)]
     Worker,
 }
+
+/// The exit statuses every subcommand follows, for `--help`.
+const EXIT_CODES: &str = "Exit status:\n  \
+    0  done, and nothing unexpected (run, merge: no case has status fail, crash, timeout, unexpected-pass\n     \
+    or missing; replay: the case passed or is triaged; check: every verdict is the case's intent)\n  \
+    1  unexpected results (those statuses, a generator error, a disagreeing verdict, a failing replay)\n  \
+    2  the command could not do its work: bad arguments or input files, a missing driver, layer or registry";
 
 /// What a subcommand gives back: its exit status, or the error that stopped it.
 type Exit = Result<i32, SessionError>;
@@ -61,8 +82,11 @@ pub fn main() -> i32 {
         Command::Check(a) => check::run(a),
         Command::Gen(a) => gen::run(a),
         Command::Probe(a) => probe::run(a),
-        Command::Run(a) => run::run(a),
+        Command::Run(a) => run::run(*a),
+        Command::Merge(a) => merge::run(a),
+        Command::Report(a) => report::run(a),
         Command::Replay(a) => replay::run(a),
+        Command::Export(a) => export::run(a),
         Command::Worker => Ok(harness::worker::worker_main()),
     };
     match result {

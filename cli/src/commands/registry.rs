@@ -14,15 +14,23 @@ pub enum RegistryCommand {
         /// Only this command's VUIDs.
         #[arg(long)]
         command: Option<String>,
+        /// Print the records (text, condition, origin) as JSON.
         #[arg(long)]
         json: bool,
     },
     /// VUIDs added, removed and changed between two sources.
     Diff {
+        /// The older source: a registry directory, a validusage.json or a man page.
         a: PathBuf,
+        /// The newer source.
         b: PathBuf,
+        /// Only this command's VUIDs.
         #[arg(long)]
         command: Option<String>,
+        /// Leave out VUIDs whose text is unchanged and only their condition (the extensions and
+        /// versions they depend on) differs.
+        #[arg(long)]
+        ignore_conditions: bool,
     },
     /// A command, structure or enum of vk.xml with its attributes.
     Show {
@@ -60,7 +68,7 @@ pub fn run(c: RegistryCommand) -> super::Exit {
         } => {
             let set = session::sources::load_sources(&from)?;
             if let Some(c) = command.as_deref() {
-                session::select::known_scope(c, set.records.iter().map(|r| r.scope.as_str()))?;
+                session::names::known_scope(c, set.records.iter().map(|r| r.scope.as_str()))?;
             }
             let text = if json {
                 vk_registry::report::vuids_json(&set, command.as_deref())
@@ -69,7 +77,12 @@ pub fn run(c: RegistryCommand) -> super::Exit {
             };
             print(&text)
         }
-        RegistryCommand::Diff { a, b, command } => {
+        RegistryCommand::Diff {
+            a,
+            b,
+            command,
+            ignore_conditions,
+        } => {
             let sa = vk_registry::source::load_vuids(&a).map_err(registry_error)?;
             let sb = vk_registry::source::load_vuids(&b).map_err(registry_error)?;
             if let Some(c) = command.as_deref() {
@@ -78,9 +91,13 @@ pub fn run(c: RegistryCommand) -> super::Exit {
                     .iter()
                     .chain(&sb.records)
                     .map(|r| r.scope.as_str());
-                session::select::known_scope(c, scopes)?;
+                session::names::known_scope(c, scopes)?;
             }
-            print(&vk_registry::report::diff(&sa, &sb, command.as_deref()))
+            let options = vk_registry::report::DiffOptions {
+                command: command.as_deref(),
+                ignore_conditions,
+            };
+            print(&vk_registry::report::diff_with(&sa, &sb, &options))
         }
         RegistryCommand::Show { name, from } => {
             let dir =

@@ -1,16 +1,21 @@
 //! `rtconf replay CASE.yaml`: one case (any command) on a driver, in this process, with the full
-//! comparison printed: the model's violations, the layer's messages, the output check, the outcome.
+//! comparison printed: the device, driver and layer that ran it, the call sequence, the model's
+//! violations, the layer's messages in full, the output check, the outcome (or all of it as JSON).
 
 use clap::Args;
+use harness::observe::{Hits, Status, TracedBuild};
 use harness::TraceCheck;
 use session::Outcome;
 use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct ReplayArgs {
+    /// The case file (YAML) of any command.
     case: PathBuf,
+    /// lavapipe, nvidia, or the path of an ICD manifest.
     #[arg(long, default_value = "lavapipe")]
     driver: String,
+    /// Registry sources for the rules (default: the installed registry).
     #[arg(long = "from")]
     from: Vec<PathBuf>,
     /// The device profile the model judges with (default: the case's own).
@@ -20,6 +25,9 @@ pub struct ReplayArgs {
     /// ray tracing pipeline).
     #[arg(long, value_enum, default_value = "auto")]
     check: CheckArg,
+    /// Print what the replay found as one JSON object instead.
+    #[arg(long)]
+    json: bool,
     /// Seconds the case may take in its worker process (at least 1).
     #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..))]
     timeout: u64,
@@ -30,6 +38,25 @@ enum CheckArg {
     Auto,
     RayQuery,
     Pipeline,
+}
+
+/// What `--json` prints.
+#[derive(serde::Serialize)]
+struct ReplayJson<'a> {
+    case: &'a str,
+    command: &'a str,
+    running_on: &'a harness::RunningOn,
+    /// The raw outcome against the model and the triage files.
+    outcome: Outcome,
+    detail: &'a str,
+    /// The VUIDs the model says the case as it ran violates.
+    model: &'a [String],
+    /// Every VUID of the layer's errors during the call (all scopes).
+    layer_vuids: Vec<String>,
+    layer_messages: Vec<harness::LayerMessage>,
+    output_matches: Option<bool>,
+    /// The call sequence.
+    calls: Vec<String>,
 }
 
 pub fn run(a: ReplayArgs) -> super::Exit {
@@ -47,17 +74,58 @@ pub fn run(a: ReplayArgs) -> super::Exit {
     };
     let replayed = session::replay(&case, &config)?;
     let r = &replayed.ran;
-    let build = r.case.as_accel().is_some();
-    println!(
-        "case:    {}{}",
-        r.case.name,
-        if build { " (build)" } else { "" }
-    );
-    println!("intent:  {:?}", r.case.intent);
+    let calls = replayed
+        .plan
+        .as_ref()
+        .map(|p| p.describe())
+        .unwrap_or_default();
+    if a.json {
+        let json = ReplayJson {
+            case: &r.case.name,
+            command: r.case.command().vk_name(),
+            running_on: &replayed.running_on,
+            outcome: r.report.outcome,
+            detail: &r.report.detail,
+            model: &r.report.model,
+            layer_vuids: r
+                .observation
+                .as_ref()
+                .map(|o| o.layer_vuids.clone())
+                .unwrap_or_default(),
+            layer_messages: r
+                .observation
+                .as_ref()
+                .map(|o| o.layer_messages.clone())
+                .unwrap_or_default(),
+            output_matches: r.report.output_matches,
+            calls,
+        };
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&json).unwrap_or_default()
+        );
+        return Ok(exit_status(&r.report));
+    }
+    println!("case:    {} ({})", r.case.name, r.case.command().vk_name());
+    println!("intent:  {}", intent(&r.case.intent));
+    let on = &replayed.running_on;
+    println!("device:  {}, Vulkan {}", on.device, on.api_version);
+    println!("driver:  {}", on.driver);
+    println!("layer:   {}", on.layer.as_deref().unwrap_or("not loaded"));
+    if !calls.is_empty() {
+        println!("calls:");
+        for c in &calls {
+            println!("  {c}");
+        }
+    } else if r.case.as_trace().is_some() {
+        println!(
+            "calls:   not listed (the call plan does not yet describe rendered-scene trace cases)"
+        );
+    }
     match &r.observation {
-        Some(obs) => println!("status:  {:?}", obs.status),
+        Some(obs) => println!("status:  {}", status(&obs.status)),
         None => {
-            println!("status:  not run");
+            println!("status:  not run (the gate kept it from the driver; the outcome says why)");
             // What keeps it from the driver, located in the case file.
             if let Some(t) = r.case.as_trace() {
                 let problems = t.scene_problems();
@@ -76,7 +144,12 @@ pub fn run(a: ReplayArgs) -> super::Exit {
         }
     }
     if let Some(a) = r.case.as_accel() {
-        println!("sizes:   {:?}", a.world.sizes);
+        for (i, s) in a.world.sizes.iter().enumerate() {
+            println!(
+                "sizes:   info {i}: structure {} bytes, build scratch {}, update scratch {}",
+                s.structure, s.build_scratch, s.update_scratch
+            );
+        }
     }
     let model: Vec<&str> = r.verdict.vuids().into_iter().collect();
     println!(
@@ -100,53 +173,82 @@ pub fn run(a: ReplayArgs) -> super::Exit {
             }
         );
         for m in &obs.layer_messages {
-            println!(
-                "         [{}] {}: {}",
-                m.severity,
-                m.id,
-                m.text.chars().take(300).collect::<String>()
-            );
+            println!("         [{}] {}", m.severity, m.id);
+            for line in m.text.lines() {
+                println!("           {line}");
+            }
         }
         if let (Some(body), Some(t)) = (r.case.as_accel(), obs.traced()) {
             print_traced(body, t, replayed.deviation.as_deref());
         }
     }
-    let code = print_outcome(&r.report);
+    print_outcome(&r.report);
     if r.report.outcome == Outcome::CaseError {
         eprintln!(
             "rtconf: {}",
             session::replay::located(&a.case, &r.report.detail)
         );
-        return Ok(2);
     }
-    Ok(code)
+    Ok(exit_status(&r.report))
+}
+
+/// An intent as a person reads it.
+fn intent(i: &model::Intent) -> String {
+    match i {
+        model::Intent::Valid => "valid".into(),
+        model::Intent::Violates { vuid, also } if also.is_empty() => format!("violates {vuid}"),
+        model::Intent::Violates { vuid, also } => {
+            format!("violates {vuid} (and, unavoidably, {})", also.join(", "))
+        }
+    }
+}
+
+/// How a run ended, as a person reads it.
+fn status(s: &Status) -> String {
+    match s {
+        Status::Ran => "ran".into(),
+        Status::Unsupported { reason, lacks } => {
+            format!("unsupported (the device lacks {lacks}): {reason}")
+        }
+        Status::NotRealised { reason } => format!("not realised: {reason}"),
+        Status::Crash { message } => format!("crash: {message}"),
+        Status::Timeout { seconds } => format!("timeout after {seconds:.1} s"),
+        Status::OutOfMemory { message } => format!("out of device memory: {message}"),
+    }
+}
+
+/// What a ray hit.
+fn hit(h: &Option<(u32, u32, u32)>) -> String {
+    h.map_or("miss".into(), |(i, g, p)| {
+        format!("instance {i} geometry {g} primitive {p}")
+    })
 }
 
 /// A build's traced check: what each ray hit, the mismatches with the model, and what explains them.
-fn print_traced(
-    body: &model::AccelBody,
-    t: &harness::observe::TracedBuild,
-    deviation: Option<&str>,
-) {
+fn print_traced(body: &model::AccelBody, t: &TracedBuild, deviation: Option<&str>) {
     println!(
         "check:   {} ray(s) traced with {}",
         t.hits.len(),
         match t.check {
-            TraceCheck::Pipeline => "pipeline",
-            _ => "ray-query",
+            TraceCheck::Pipeline => "a ray tracing pipeline",
+            _ => "ray query",
         }
     );
-    for (k, h) in t.hits.iter().enumerate() {
-        println!(
-            "         ray {k}: {}",
-            h.map_or("miss".into(), |(i, g, p)| format!(
-                "instance {i} geometry {g} primitive {p}"
-            ))
-        );
-    }
     let rays = model::accel::check::check_rays(body).unwrap_or_default();
-    for m in session::compare::ray_mismatches(&rays, &t.hits) {
-        println!("         MISMATCH {m}");
+    for (k, h) in t.hits.iter().enumerate() {
+        let from = rays
+            .get(k)
+            .map(|r| format!(" from ({}, {}, {})", r.origin[0], r.origin[1], r.origin[2]))
+            .unwrap_or_default();
+        let expected = rays.get(k).map(|r| &r.hit);
+        match expected {
+            Some(e) if e != h => println!(
+                "         ray {k}{from}: {}; MISMATCH, the model expects {}",
+                hit(h),
+                hit(e)
+            ),
+            _ => println!("         ray {k}{from}: {}", hit(h)),
+        }
     }
     if let Some(d) = deviation {
         println!("         the device's hits are exactly those of the build under `{d}`");
@@ -158,14 +260,17 @@ fn print_traced(
         );
     }
     if let Some(ind) = &t.indirect {
-        let differ = t.hits.iter().zip(&ind.hits).filter(|(d, i)| d != i).count();
+        let differ = differing(&t.hits, &ind.hits);
         println!("indirect: ran for real; {differ} ray(s) differ from the direct build");
     }
 }
 
-/// Prints the end of a replay's report (output check and outcome) and returns the exit status:
-/// 0 when the case passed or disagreed only as the triage files say.
-fn print_outcome(report: &session::CaseReport) -> i32 {
+fn differing(a: &Hits, b: &Hits) -> usize {
+    a.iter().zip(b).filter(|(d, i)| d != i).count()
+}
+
+/// Prints the end of a replay's report: the output check and the outcome.
+fn print_outcome(report: &session::CaseReport) {
     if let Some(ok) = report.output_matches {
         println!(
             "output:  {}",
@@ -176,9 +281,22 @@ fn print_outcome(report: &session::CaseReport) -> i32 {
             }
         );
     }
-    println!("outcome: {:?} {}", report.outcome, report.detail);
+    println!(
+        "outcome: {}{}",
+        session::report::outcome_name(report.outcome),
+        if report.detail.is_empty() {
+            String::new()
+        } else {
+            format!(" — {}", report.detail)
+        }
+    );
+}
+
+/// 0 when the case passed or disagreed only as the triage files say; 2 when the case is at fault.
+fn exit_status(report: &session::CaseReport) -> i32 {
     match report.outcome {
         Outcome::Pass | Outcome::Triaged => 0,
+        Outcome::CaseError => 2,
         _ => 1,
     }
 }

@@ -1,9 +1,11 @@
 //! `rtconf run`: the arguments of a conformance run, a progress bar while `session::run` works, and the
-//! per-VUID agreement table and totals at the end. `--command vkCmdBuildAccelerationStructuresIndirectKHR`
-//! runs build cases the same way.
+//! summary at the end (the per-VUID table and the specs the profile cannot express only with
+//! `--verbose`; both are always in the report). `--command vkCmdBuildAccelerationStructuresIndirectKHR`
+//! runs build cases the same way; `--cases DIR` runs a folder of case files; `--list` only lists.
 
 use clap::Args;
 use session::report::Summary;
+use session::Status;
 use std::path::{Path, PathBuf};
 
 #[derive(Args)]
@@ -11,7 +13,8 @@ pub struct RunArgs {
     /// lavapipe, nvidia, or the path of an ICD manifest.
     #[arg(long, default_value = "lavapipe")]
     driver: String,
-    /// The device profile cases are generated from (default: the driver's name; nvidia → nvidia-h100).
+    /// The device profile cases are generated from and judged with (default: the driver's name;
+    /// nvidia → nvidia-h100).
     #[arg(long)]
     profile: Option<String>,
     /// Commands to run (repeatable; default: every trace command the profile supports). The build
@@ -26,20 +29,47 @@ pub struct RunArgs {
     /// Only valid cases (with read-back); no invalid ones.
     #[arg(long, conflicts_with = "vuid")]
     valid_only: bool,
+    /// Run the case files (*.yaml, subfolders too) of this folder instead of generated cases: a folder
+    /// of regressions, or the failures/ of an earlier run.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["command", "vuid", "valid_only"])]
+    cases: Option<PathBuf>,
+    /// Print the names of the cases the run would make (after --shard and --skips) and stop.
+    #[arg(long)]
+    list: bool,
     /// Cases per VUID and valid cases per command (at least 1).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u64).range(1..))]
     count: u64,
     /// Rendered-scene cases per trace command (at least; a larger --count wins; 0: none).
     #[arg(long, default_value_t = session::plan::DEFAULT_RENDERED)]
     rendered: usize,
+    /// The run's seed: spec i of a command family draws its cases from seed + i.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Run only shard I of N (1 ≤ I ≤ N): the cases whose name hashes to it, the same on every machine.
+    /// Merge the shards' folders with `rtconf merge`.
+    #[arg(long, value_name = "I/N")]
+    shard: Option<String>,
+    /// Expected failures, one `CASE-OR-VUID,STATUS` per line (STATUS: fail, crash or timeout).
+    #[arg(long, value_name = "FILE")]
+    baseline: Option<PathBuf>,
+    /// Cases not to run: one regular expression per line, matched in the case name and target VUID.
+    #[arg(long, value_name = "FILE")]
+    skips: Option<PathBuf>,
+    /// Known flaky cases: one regular expression per line; a failing case that matches is a flake.
+    #[arg(long, value_name = "FILE")]
+    flakes: Option<PathBuf>,
+    /// Run failing, crashing and timed-out cases again up to N times; one whose outcome changes is a
+    /// flake.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    retries: usize,
     /// Worker processes (at least 1).
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(1..))]
     jobs: u64,
     /// Seconds a case may take (at least 1).
     #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..))]
     timeout: u64,
+    /// The run folder: results.jsonl, summary.json, junit.xml, report/index.html, failures/, triaged/,
+    /// unsupported/, details/, caselist.txt.
     #[arg(long, default_value = "out/run")]
     out: PathBuf,
     /// Shrink up to this many failing cases to minimal ones in cases/regressions/ (in this process).
@@ -51,25 +81,53 @@ pub struct RunArgs {
     /// Registry sources for the rules (default: the installed registry, the layer's own version).
     #[arg(long = "from")]
     from: Vec<PathBuf>,
-    /// Triage files (default: triage/layer-<registry version>.yaml and triage/<driver>.yaml, where present).
+    /// Triage files (default: triage/layer-<the layer's version>.yaml and triage/<driver>.yaml, where present).
     #[arg(long)]
     triage: Vec<PathBuf>,
+    /// The validation layer build to use: a directory with its manifest, or an unpacked package root
+    /// (default: the one the loader finds, or VK_LAYER_PATH). Its reported version picks the triage
+    /// file and the registry.
+    #[arg(long)]
+    layer: Option<PathBuf>,
+    /// Fail the run when a triage entry about a command that ran explained nothing (a stale entry).
+    #[arg(long)]
+    strict: bool,
+    /// Also print the per-VUID agreement table and the specs the profile cannot express.
+    #[arg(long, short)]
+    verbose: bool,
 }
 
-/// The progress bar on a terminal (hidden elsewhere).
-struct Bar(indicatif::ProgressBar);
+/// The progress bar on a terminal (hidden elsewhere), with the unexpected statuses so far.
+struct Bar {
+    bar: indicatif::ProgressBar,
+    unexpected: std::sync::atomic::AtomicU64,
+    flakes: std::sync::atomic::AtomicU64,
+}
 
 impl session::Progress for Bar {
     fn planned(&self, cases: u64) {
-        self.0.set_length(cases);
+        self.bar.set_length(cases);
     }
     fn advance(&self, n: u64) {
-        self.0.inc(n);
+        self.bar.inc(n);
     }
-    fn selected(&self, expanded: &[session::select::Expanded]) {
+    fn status(&self, status: Status) {
+        use std::sync::atomic::Ordering::Relaxed;
+        if status.is_failure() {
+            self.unexpected.fetch_add(1, Relaxed);
+        }
+        if status == Status::Flake {
+            self.flakes.fetch_add(1, Relaxed);
+        }
+        let (u, f) = (self.unexpected.load(Relaxed), self.flakes.load(Relaxed));
+        if u + f > 0 {
+            self.bar.set_message(format!("{u} unexpected, {f} flaky"));
+        }
+    }
+    fn selected(&self, expanded: &[session::names::Expanded]) {
         for e in expanded {
             if e.vuids.len() != 1 || e.vuids[0] != e.pattern {
-                self.0
+                self.bar
                     .suspend(|| eprintln!("--vuid {}: {} VUID(s)", e.pattern, e.vuids.len()));
             }
         }
@@ -77,17 +135,22 @@ impl session::Progress for Bar {
 }
 
 fn bar() -> Bar {
-    if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+    let bar = if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
         let b = indicatif::ProgressBar::new(0);
         b.set_style(
             indicatif::ProgressStyle::with_template(
-                "{bar:40} {pos}/{len} cases {elapsed_precise} {msg}",
+                "{bar:40} {pos}/{len} cases {elapsed_precise} (eta {eta}) {msg}",
             )
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
         );
-        Bar(b)
+        b
     } else {
-        Bar(indicatif::ProgressBar::hidden())
+        indicatif::ProgressBar::hidden()
+    };
+    Bar {
+        bar,
+        unexpected: 0.into(),
+        flakes: 0.into(),
     }
 }
 
@@ -110,27 +173,64 @@ pub fn run(a: RunArgs) -> super::Exit {
         resume: a.resume,
         from: a.from,
         triage: a.triage,
+        layer: a.layer,
+        strict: a.strict,
+        selection: session::Selection {
+            cases: a.cases,
+            shard: a.shard.as_deref().map(session::Shard::parse).transpose()?,
+            baseline: a.baseline,
+            skips: a.skips,
+            flakes: a.flakes,
+            retries: a.retries,
+        },
     };
+    if a.list {
+        let mut out = std::io::stdout().lock();
+        for c in session::list(&config)? {
+            // A closed pipe (`| head`) ends the listing quietly.
+            if std::io::Write::write_all(&mut out, format!("{}\n", c.name).as_bytes()).is_err() {
+                break;
+            }
+        }
+        return Ok(0);
+    }
     let bar = bar();
     let outcome = session::run(&config, &bar)?;
-    bar.0.finish_and_clear();
+    bar.bar.finish_and_clear();
     for line in &outcome.shrunk {
         println!("{line}");
     }
-    print_summary(&outcome.summary, &config.out);
-    if !outcome.not_expressible.is_empty() {
-        println!(
-            "{} specs are not expressible on profile {}:",
-            outcome.not_expressible.len(),
-            outcome.summary.profile
-        );
-        for e in &outcome.not_expressible {
-            println!("  {e}");
+    for w in &outcome.warnings {
+        eprintln!("rtconf: warning: {w}");
+    }
+    if a.verbose {
+        print_vuid_table(&outcome.summary);
+        if !outcome.not_expressible.is_empty() {
+            println!(
+                "{} specs are not expressible on profile {}:",
+                outcome.not_expressible.len(),
+                outcome.summary.profile
+            );
+            for e in &outcome.not_expressible {
+                println!("  {e}");
+            }
+            println!();
         }
     }
     for e in &outcome.gen_errors {
         eprintln!("rtconf: could not generate {e}");
     }
+    print_unexpected(&config.out);
+    if let Err(e) = &outcome.report {
+        eprintln!("rtconf: the HTML report could not be written: {e}");
+    }
+    print_triage(&outcome.summary, config.strict);
+    print_summary(
+        &outcome.summary,
+        &config.out,
+        outcome.not_expressible.len(),
+        a.verbose,
+    );
     if outcome.summary.cases == 0 {
         eprintln!(
             "rtconf: the run made no case: nothing was checked (the VUIDs selected have no executable mutation on this profile, or --count made none)"
@@ -139,7 +239,8 @@ pub fn run(a: RunArgs) -> super::Exit {
     Ok(outcome.exit_code())
 }
 
-fn print_summary(s: &Summary, out: &Path) {
+/// The per-VUID agreement table (with `--verbose`).
+pub fn print_vuid_table(s: &Summary) {
     println!(
         "{:<78} {:>6} {:>6} {:>6} {:>6}",
         "VUID", "cases", "model", "layer", "agree"
@@ -151,12 +252,85 @@ fn print_summary(s: &Summary, out: &Path) {
         );
     }
     println!();
+}
+
+/// The cases whose status fails the run (at most 20), each with the command that replays it.
+fn print_unexpected(out: &Path) {
+    let Ok(lines) = session::results::read_lines(&out.join("results.jsonl")) else {
+        return;
+    };
+    let bad: Vec<session::results::ResultLine> = lines.filter(|l| l.status.is_failure()).collect();
+    if bad.is_empty() {
+        return;
+    }
+    println!("unexpected results:");
+    for l in bad.iter().take(20) {
+        let replay = session::details::case_path(out, &l.report, l.status)
+            .map(|p| format!("  (rtconf replay {})", p.display()))
+            .unwrap_or_default();
+        println!("  {:<15} {}{replay}", l.status.name(), l.report.case);
+    }
+    if bad.len() > 20 {
+        println!("  … and {} more (see the report)", bad.len() - 20);
+    }
+    println!();
+}
+
+/// The run's summary: the statuses against the baseline, the raw outcomes, the time, the files; it is
+/// what the console ends with.
+pub fn print_summary(s: &Summary, out: &Path, not_expressible: usize, verbose: bool) {
+    let statuses: Vec<String> = Status::ALL
+        .iter()
+        .filter(|st| s.count(**st) > 0 || matches!(st, Status::Pass | Status::Fail))
+        .map(|st| format!("{} {}", s.count(*st), st.name()))
+        .collect();
     println!(
-        "{} cases on {} (profile {}): {} passed, {} failed, {} triaged, {} unsupported, {} crashes, {} timeouts, {} case errors",
-        s.cases, s.driver, s.profile, s.passed, s.failed, s.triaged, s.unsupported, s.crashes, s.timeouts, s.case_errors
+        "{} cases on {} (profile {}, layer {}, registry {}{}){}",
+        s.cases,
+        s.driver,
+        s.profile,
+        s.layer.as_deref().unwrap_or("?"),
+        s.registry.as_deref().unwrap_or("?"),
+        s.shard
+            .as_deref()
+            .map(|x| format!(", shard {x}"))
+            .unwrap_or_default(),
+        if s.expectations.is_empty() {
+            String::new()
+        } else {
+            format!(" against {}", s.expectations.join(", "))
+        }
     );
+    println!("status:  {}", statuses.join(", "));
     println!(
-        "{:.1} s, {:.0} cases/s, runner peak RSS {} KiB",
+        "outcome: {} pass, {} fail, {} triaged, {} unsupported, {} not-realised, {} crash, {} timeout, {} case-error{}{}",
+        s.passed,
+        s.failed,
+        s.triaged,
+        s.unsupported,
+        s.not_realised,
+        s.crashes,
+        s.timeouts,
+        s.case_errors,
+        if s.skipped > 0 {
+            format!("; {} skipped by the skips list", s.skipped)
+        } else {
+            String::new()
+        },
+        if s.retries > 0 {
+            format!("; {} retries", s.retries)
+        } else {
+            String::new()
+        }
+    );
+    if not_expressible > 0 && !verbose {
+        println!(
+            "{not_expressible} specs are not expressible on profile {} (listed with --verbose)",
+            s.profile
+        );
+    }
+    println!(
+        "time:    {:.1} s, {:.0} cases/s, runner peak RSS {} KiB",
         s.seconds,
         s.cases as f64 / s.seconds.max(1e-9),
         s.runner_peak_rss_kib.map_or("?".into(), |k| k.to_string())
@@ -186,9 +360,60 @@ fn print_summary(s: &Summary, out: &Path) {
         );
     }
     println!(
-        "results: {0}/results.jsonl, summary: {0}/summary.json, junit: {0}/junit.xml, failing cases: {0}/failures/",
+        "files:   {0}/report/index.html, {0}/results.jsonl, {0}/summary.json, {0}/junit.xml",
         out.display()
     );
+    println!(
+        "verdict: {}",
+        if s.unexpected() == 0 {
+            "as expected".to_string()
+        } else {
+            format!("{} unexpected result(s)", s.unexpected())
+        }
+    );
+}
+
+/// The disagreements the triage explained, by kind and direction, and its stale entries.
+fn print_triage(s: &Summary, strict: bool) {
+    if !s.triaged_by.is_empty() {
+        println!("triaged disagreements by kind and direction:");
+        for (k, n) in &s.triaged_by {
+            println!("  {k:<40} {n:>6}");
+        }
+    }
+    let t = &s.triage;
+    if t.stale.is_empty() {
+        println!(
+            "triage: {} entries in {} file(s), none stale",
+            t.entries,
+            t.files.len()
+        );
+        println!();
+        return;
+    }
+    if !t.stale_judged {
+        println!(
+            "triage: {} of {} entries not exercised by this partial run (stale only in a whole run)",
+            t.stale.len(),
+            t.entries
+        );
+        println!();
+        return;
+    }
+    let what = if strict {
+        "STALE (an error under --strict)"
+    } else {
+        "stale"
+    };
+    println!(
+        "triage: {} of {} entries explained nothing, {what}:",
+        t.stale.len(),
+        t.entries
+    );
+    for id in &t.stale {
+        println!("  {id}");
+    }
+    println!();
 }
 
 fn num(x: Option<f64>) -> String {

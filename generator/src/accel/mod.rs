@@ -535,6 +535,7 @@ pub const MUTATIONS: &[&str] = &[
     "renderpass",
     "videocoding",
     "commandBuffer-03649",
+    "commandBuffer-09547",
     "infoCount-arraylength",
     "dstAccelerationStructure-03698",
     "dstAccelerationStructure-03702",
@@ -544,6 +545,135 @@ pub const MUTATIONS: &[&str] = &[
     "pInfos-03403",
     "None-03407",
 ];
+
+/// The executable build rows no mutation targets, each with why (by VUID tail): the coverage report
+/// lists them as untested with the reason; a row with neither a mutation nor a reason is its error.
+pub const UNMUTATED: &[(&str, &str)] = &[
+    (
+        "dstAccelerationStructure-03701",
+        "drawn as a co-violation by the pInfos-03403 cases (an update whose source is another info's destination)",
+    ),
+    (
+        "dstAccelerationStructure-03706",
+        "needs a destination overlapping a structure an instance references; the build plans realise no such aliasing yet",
+    ),
+    (
+        "pInfos-03663",
+        "an update making inactive primitives active needs the source's earlier build on the device, which the harness does not realise",
+    ),
+    (
+        "pInfos-03664",
+        "an update making active primitives inactive needs the source's earlier build on the device, which the harness does not realise",
+    ),
+    (
+        "pInfos-03668",
+        "needs an update whose source and destination alias memory without being the same structure; no build plan places them so yet",
+    ),
+    (
+        "pInfos-03672",
+        "the update-scratch range needs an update the device can size; the build-scratch twin pInfos-03671 has its mutation",
+    ),
+    (
+        "pInfos-03708",
+        "a source structure on a buffer with no memory: the destination's twin pInfos-03707 has its mutation, the source's is not written yet",
+    ),
+    (
+        "pInfos-03709",
+        "needs a top-level build whose instances reference a structure on unbound memory; not written yet",
+    ),
+    (
+        "pInfos-03717",
+        "arrays of instance pointers are not planned by the build generator",
+    ),
+    (
+        "pInfos-03758",
+        "a mismatch with the source's last build is judged by the model, but the layer sees the device, where the harness does not replay that build",
+    ),
+    (
+        "pInfos-03759",
+        "a mismatch with the source's last build is judged by the model, but the layer sees the device, where the harness does not replay that build",
+    ),
+    (
+        "pInfos-03760",
+        "a mismatch with the source's last build is judged by the model, but the layer sees the device, where the harness does not replay that build",
+    ),
+    (
+        "pInfos-03761",
+        "a mismatch with the source's last build is judged by the model, but the layer sees the device, where the harness does not replay that build",
+    ),
+    (
+        "pInfos-03762",
+        "a mismatch with the source's last build is judged by the model, but the layer sees the device, where the harness does not replay that build",
+    ),
+    (
+        "pInfos-03763",
+        "a mismatch with the source's last build is judged by the model, but the layer sees the device, where the harness does not replay that build",
+    ),
+    (
+        "pInfos-03764",
+        "a mismatch with the source's last build is judged by the model, but the layer sees the device, where the harness does not replay that build",
+    ),
+    (
+        "pInfos-03765",
+        "a mismatch with the source's last build is judged by the model, but the layer sees the device, where the harness does not replay that build",
+    ),
+    (
+        "pInfos-03766",
+        "a mismatch with the source's last build is judged by the model, but the layer sees the device, where the harness does not replay that build",
+    ),
+    (
+        "pInfos-03767",
+        "a mismatch with the source's last build is judged by the model, but the layer sees the device, where the harness does not replay that build",
+    ),
+    (
+        "pInfos-03768",
+        "a mismatch with the source's last build is judged by the model, but the layer sees the device, where the harness does not replay that build",
+    ),
+    (
+        "primitiveCount-03769",
+        "a mismatch with the source's last build is judged by the model, but the layer sees the device, where the harness does not replay that build",
+    ),
+    (
+        "firstVertex-03770",
+        "a mismatch with the source's last build is judged by the model, but the layer sees the device, where the harness does not replay that build",
+    ),
+    (
+        "pInfos-03803",
+        "a non-sparse buffer is bound whole or not at all, and an unbound one's address is itself invalid to query (VUID-VkBufferDeviceAddressInfo-buffer-02600); the pIndirectDeviceAddresses-03645 cases show it is not realisable",
+    ),
+    (
+        "pInfos-03805",
+        "a non-sparse buffer is bound whole or not at all, and an unbound one's address is itself invalid to query (VUID-VkBufferDeviceAddressInfo-buffer-02600)",
+    ),
+    (
+        "pInfos-03807",
+        "a non-sparse buffer is bound whole or not at all, and an unbound one's address is itself invalid to query (VUID-VkBufferDeviceAddressInfo-buffer-02600)",
+    ),
+    (
+        "pInfos-03809",
+        "a non-sparse buffer is bound whole or not at all, and an unbound one's address is itself invalid to query (VUID-VkBufferDeviceAddressInfo-buffer-02600)",
+    ),
+    (
+        "pInfos-03812",
+        "a non-sparse buffer is bound whole or not at all, and an unbound one's address is itself invalid to query (VUID-VkBufferDeviceAddressInfo-buffer-02600)",
+    ),
+    (
+        "pInfos-03814",
+        "a non-sparse buffer is bound whole or not at all, and an unbound one's address is itself invalid to query (VUID-VkBufferDeviceAddressInfo-buffer-02600)",
+    ),
+    (
+        "srcAccelerationStructure-04629",
+        "a non-null handle that is not a valid structure cannot be made without handing the driver a dangling handle",
+    ),
+];
+
+/// Why no mutation targets a build VUID, if the generator says why.
+pub fn unmutated(vuid_name: &str) -> Option<&'static str> {
+    UNMUTATED
+        .iter()
+        .find(|(t, _)| vuid(t) == vuid_name)
+        .map(|(_, why)| *why)
+}
 
 /// Deterministic cases: for each plan drawn from `seed`, the valid case and every mutation that fits,
 /// each mutation judged with `rules`.

@@ -235,18 +235,30 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
             }
         }
         Mutation::RecursionTooDeep => {
-            if !plan.launch.traces() && plan.launch.callables.is_empty() {
+            // Only traced rays deepen the recursion (callables add none), and closest-hit shaders
+            // trace again only where a ray runs one: the depth is the one the launch reaches.
+            if !plan.launch.traces() {
                 let h = miss_handle(&mut plan);
                 add_miss_ray(&mut plan, h);
             }
             ensure_launch(&mut plan);
-            let depth = plan.launch.recursion_depth();
+            let (world, call) = realize(&plan, lim);
+            let depth = model::semantics::recursion_depth(&world, &call).max(1);
             plan.max_recursion_depth = if knob % 2 == 0 { depth - 1 } else { 0 };
         }
-        Mutation::NullMissReached => {
+        Mutation::NullMissAtRegionAddress => {
+            // 03511 speaks of the handle at pMissShaderBindingTable->deviceAddress (record 0), whether
+            // or not a ray misses: a zero group there, or (knob 1) no miss table at all.
             plan.flags
                 .insert(PipelineCreate::RAY_TRACING_NO_NULL_MISS_SHADERS_BIT_KHR);
-            add_miss_ray(&mut plan, HandleRef::Zero);
+            // No miss table at all only where no ray is traced (a traced ray may miss, and would read
+            // a miss record outside any region).
+            if knob % 2 == 1 && !plan.launch.traces() {
+                plan.tables[Table::Miss as usize].records.clear();
+            } else {
+                ensure_used(&mut plan, Table::Miss);
+                plan.tables[Table::Miss as usize].records[0] = HandleRef::Zero;
+            }
             keep_recursion(&mut plan);
         }
         Mutation::NullHitReached(kind) => {
@@ -443,7 +455,12 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
             plan.command_buffer.pool_queue = q;
             plan.command_buffer.in_video_coding = true;
         }
-        Mutation::NoPipelineBound => {
+        Mutation::NoPipelineBound | Mutation::NoPipelineBoundWithShaderObject => {
+            if m == Mutation::NoPipelineBoundWithShaderObject {
+                plan.device.features.insert("shaderObject".into());
+            } else {
+                plan.device.features.remove("shaderObject");
+            }
             // With nothing bound no handle can have been queried from the bound pipeline; a launch
             // with a zero dimension reads no record, so 03429 cannot apply.
             plan.command_buffer.pipeline_bound = false;

@@ -58,7 +58,8 @@ pub enum Mutation {
     ForeignHandle,
     /// Shader calls deeper than the pipeline's maximum recursion depth.
     RecursionTooDeep,
-    NullMissReached,
+    /// NO_NULL_MISS pipeline with a zero handle (or no table) at the miss region's address.
+    NullMissAtRegionAddress,
     NullHitReached(NullHit),
     /// NO_NULL_CLOSEST_HIT / NO_NULL_INTERSECTION pipeline with the hit table's address zero.
     NullHitTableWithNoNullFlag(NullHit),
@@ -73,6 +74,8 @@ pub enum Mutation {
     InsideRenderPass,
     InsideVideoCoding,
     NoPipelineBound,
+    /// No pipeline bound on a device with shaderObject enabled (08607 holds only there).
+    NoPipelineBoundWithShaderObject,
     /// Launch dimension `i` above its limit.
     DimensionAboveLimit(u8),
     /// width × height × depth above maxRayDispatchInvocationCount.
@@ -93,6 +96,17 @@ fn tables_by_tag(tag: &str, tags: [&str; 4]) -> Option<Table> {
     tags.iter().position(|t| *t == tag).map(|i| Table::ALL[i])
 }
 
+/// Why no mutation targets an executable trace VUID, if the generator says why.
+pub fn unmutated(vuid: &str) -> Option<&'static str> {
+    let tag = vuid.rsplit('-').next()?;
+    match tag {
+        "10577" | "10578" | "10579" => Some(
+            "cluster acceleration structures (VK_NV_cluster_acceleration_structure) are not realised: no captured device has them",
+        ),
+        _ => None,
+    }
+}
+
 /// The mutation that violates `vuid`, if one is written.
 pub fn mutations_for(vuid: &str) -> Option<Mutation> {
     // Resource-access rules have their own mutations.
@@ -106,9 +120,12 @@ pub fn mutations_for(vuid: &str) -> Option<Mutation> {
     let nv = scope == "vkCmdTraceRaysNV";
     let common = |tag: &str| -> Option<Mutation> {
         Some(match tag {
-            "02700" => Mutation::NoPipelineBound,
-            "02859" => Mutation::StaticStackSizeSet,
-            "02701" => Mutation::DynamicStackSizeNotSet,
+            // The same rules under their newer VUIDs (08606/08607: a pipeline is bound; 08608: no
+            // dynamic state set that the pipeline has static; 09458: a dynamic stack size was set).
+            "02700" | "08606" => Mutation::NoPipelineBound,
+            "08607" => Mutation::NoPipelineBoundWithShaderObject,
+            "02859" | "08608" => Mutation::StaticStackSizeSet,
+            "02701" | "09458" => Mutation::DynamicStackSizeNotSet,
             "03429" => Mutation::ForeignHandle,
             "02707" => Mutation::ProtectedResource,
             "03635" | "04624" => Mutation::ProtectedCommandBuffer,
@@ -157,7 +174,7 @@ pub fn mutations_for(vuid: &str) -> Option<Mutation> {
                 "03636" => Mutation::IndirectCommandPastEnd,
                 "03637" => Mutation::DisableFeature("rayTracingPipelineTraceRaysIndirect"),
                 "04951" => Mutation::MotionPipelineWithoutFeature,
-                "03511" => Mutation::NullMissReached,
+                "03511" => Mutation::NullMissAtRegionAddress,
                 "03512" => Mutation::NullHitReached(NullHit::AnyHit),
                 "03513" => Mutation::NullHitReached(NullHit::ClosestHit),
                 "03514" => Mutation::NullHitReached(NullHit::Intersection),
@@ -223,6 +240,9 @@ pub fn supported(m: Mutation, profile: &DeviceProfile, command: CommandId) -> Re
             if !profile.has_extension("VK_NV_ray_tracing_motion_blur") =>
         {
             unsupported("no VK_NV_ray_tracing_motion_blur")
+        }
+        Mutation::NoPipelineBoundWithShaderObject if !profile.has_feature("shaderObject") => {
+            unsupported("shaderObject is not supported, and 08607 holds only with it enabled")
         }
         Mutation::ProtectedResource | Mutation::ProtectedCommandBuffer
             if !profile.has_feature("protectedMemory") =>

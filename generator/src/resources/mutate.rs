@@ -632,12 +632,23 @@ pub fn mutate(
             access_mut(st).push(a);
         }
         "09600" => {
-            let mut a = sampled_x(st, &sampled, ViewType::TwoD, nearest.clone(), Op::Sample);
-            a.op = Op::Fetch;
-            st.images.iter_mut().find(|i| i.name == "x").unwrap().layout = [
+            // The VUID lists sampled, storage and QCOM images and input attachments, not combined image
+            // samplers: a storage image written GENERAL while the image is in another layout.
+            let f = first(
+                formats_with(profile, Usage::Optimal, &["STORAGE_IMAGE_BIT"], &[]),
+                "for storage images",
+            )?;
+            let a = plain_y(
+                st,
+                DescriptorType::StorageImage,
+                &f,
                 ImageLayout::General,
-                ImageLayout::TransferDstOptimal,
+                Op::Read,
+            );
+            st.images.iter_mut().find(|i| i.name == "y").unwrap().layout = [
                 ImageLayout::Undefined,
+                ImageLayout::TransferDstOptimal,
+                ImageLayout::ShaderReadOnlyOptimal,
             ][knob as usize % 3];
             access_mut(st).push(a);
         }

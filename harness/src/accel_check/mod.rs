@@ -10,16 +10,17 @@ mod set;
 
 use crate::error::HarnessError;
 use crate::observe::{error_ids, Hits, IndirectBuild, TraceCheck, TracedBuild};
+use crate::plan::build::BuildPlan;
+use crate::plan::check::{CheckPlan, BLAS_TRIANGLE, TOP_LEVEL_BLAS};
 use crate::realise::accel::{device_for, indirect_args, realise, vk_geometries, vk_info, Realised};
 use crate::realise::scene::{instance_buffer, sized_structure};
 use crate::vk::commands::{memory_barrier, Commands};
 use crate::vk::memory::Allocation;
 use crate::vk::{VkDevice, VkInstance};
 use ash::vk;
-use model::accel::call::{BuildGeometryInfo, GeometryData};
-use model::accel::check::{expected_rays, ExpectedRay};
-use model::accel::semantics::Shape;
-use model::accel::{AsType, BuiltPrimitive};
+use model::accel::call::GeometryData;
+use model::accel::check::ExpectedRay;
+use model::accel::AsType;
 use model::{AccelBody, Case};
 use std::sync::Arc;
 
@@ -75,7 +76,7 @@ fn resolve_check(dev: &VkDevice, check: TraceCheck) -> Result<TraceCheck, Harnes
         TraceCheck::Pipeline if pipeline => Ok(TraceCheck::Pipeline),
         TraceCheck::Auto if query => Ok(TraceCheck::RayQuery),
         TraceCheck::Auto if pipeline => Ok(TraceCheck::Pipeline),
-        _ => HarnessError::unsupported(format!(
+        _ => HarnessError::not_realised(format!(
             "the traced check ({check:?}) needs rayQuery or rayTracingPipeline"
         )),
     }
@@ -90,27 +91,26 @@ pub(crate) fn direct_and_trace(
     dev: &VkDevice,
     cmds: &Commands,
     case: &AccelBody,
+    plan: &BuildPlan,
     r: &Realised,
     check: TraceCheck,
 ) -> Result<TracedBuild, HarnessError> {
     let check = resolve_check(dev, check)?;
     if case.call.infos.len() != 1 {
-        return HarnessError::unsupported("the traced check handles one build info");
+        return HarnessError::not_realised("the traced check handles one build info");
     }
     let accel = accel_of(dev)?;
     let info = &case.call.infos[0];
     let top = info.ty == AsType::TopLevel;
-    let (ranges, prims) = first_build(case)?;
+    let check_plan = CheckPlan::of(case)?;
+    let ranges = check_plan.ranges.clone();
     let mut extra: Vec<Allocation> = Vec::new();
     let result =
         (|| -> Result<TracedBuild, HarnessError> {
             // Top-level cases reference the BLAS: build it first (one triangle at the origin).
             if top {
-                let tri: Vec<u8> = [-0.5f32, -0.5, 0.0, 0.5, -0.5, 0.0, 0.0, 0.5, 0.0]
-                    .iter()
-                    .flat_map(|f| f.to_le_bytes())
-                    .collect();
-                let (blas, _) = r.structures.get(generator_blas()).copied().ok_or_else(|| {
+                let tri: Vec<u8> = BLAS_TRIANGLE.iter().flat_map(|f| f.to_le_bytes()).collect();
+                let (blas, _) = r.structures.get(TOP_LEVEL_BLAS).copied().ok_or_else(|| {
                     HarnessError::Failed("the top-level case has no `blas` structure".into())
                 })?;
                 let vb = Allocation::filled(dev, &tri, 64, build_input(), 256)?;
@@ -157,19 +157,20 @@ pub(crate) fn direct_and_trace(
                 extra.push(vb);
                 extra.push(scratch);
             }
-            let rays = expected_rays(&prims, top);
-            let boxes = box_table(info, &prims);
+            let rays = &check_plan.rays;
+            let boxes = &check_plan.boxes;
             let (hits, direct) = build_and_trace(
                 inst,
                 dev,
                 cmds,
                 case,
+                plan,
                 r,
                 &ranges,
                 BuildPath::Direct,
                 check,
-                &rays,
-                &boxes,
+                rays,
+                boxes,
             )?;
             let indirect = if dev.has_feature("accelerationStructureIndirectBuild") {
                 let (hits, layer_vuids) = build_and_trace(
@@ -177,12 +178,13 @@ pub(crate) fn direct_and_trace(
                     dev,
                     cmds,
                     case,
+                    plan,
                     r,
                     &ranges,
                     BuildPath::Indirect,
                     check,
-                    &rays,
-                    &boxes,
+                    rays,
+                    boxes,
                 )?;
                 Some(IndirectBuild { hits, layer_vuids })
             } else {
@@ -209,6 +211,7 @@ fn build_and_trace(
     dev: &VkDevice,
     cmds: &Commands,
     case: &AccelBody,
+    plan: &BuildPlan,
     r: &Realised,
     ranges: &[model::accel::RangeInfo],
     path: BuildPath,
@@ -222,13 +225,13 @@ fn build_and_trace(
     let mut extra: Vec<Allocation> = Vec::new();
     let mut extra_as: Vec<vk::AccelerationStructureKHR> = Vec::new();
     let result = (|| -> Result<(Hits, Vec<String>), HarnessError> {
-        let geoms = vk_geometries(info, r)
-            .ok_or_else(|| HarnessError::Unsupported("geometry type not realised".into()))?;
+        let geoms = vk_geometries(&plan.infos[0], r)
+            .ok_or_else(|| HarnessError::NotRealised("geometry type not realised".into()))?;
         inst.collector.clear();
         cmds.begin(dev)?;
         match path {
             BuildPath::Direct => {
-                let vi = vk_info(info, &geoms, r);
+                let vi = vk_info(&plan.infos[0], &geoms, r);
                 let vranges: Vec<vk::AccelerationStructureBuildRangeInfoKHR> = ranges
                     .iter()
                     .map(|x| vk::AccelerationStructureBuildRangeInfoKHR {
@@ -243,7 +246,7 @@ fn build_and_trace(
             }
             BuildPath::Indirect => {
                 let all = [geoms.clone()];
-                let (infos, addrs, maxima) = indirect_args(case, r, &all);
+                let (infos, addrs, maxima) = indirect_args(plan, r, &all);
                 // The range records are read by the build as indirect data.
                 // SAFETY: recording a valid indirect build on a device with accelerationStructureIndirectBuild.
                 unsafe {
@@ -260,7 +263,7 @@ fn build_and_trace(
                         cmds.cb,
                         &infos,
                         &addrs,
-                        &case.call.indirect_strides,
+                        &plan.indirect_strides,
                         &maxima,
                     );
                 }
@@ -326,30 +329,6 @@ fn build_and_trace(
     result
 }
 
-fn generator_blas() -> &'static str {
-    "blas"
-}
-
-/// Per-geometry base indices (8 slots) and the boxes of every AABB primitive, as floats.
-fn box_table(info: &BuildGeometryInfo, prims: &[BuiltPrimitive]) -> Vec<u8> {
-    let mut base = [0u32; 8];
-    let mut boxes: Vec<f32> = Vec::new();
-    let mut n = 0u32;
-    for (g, slot) in base.iter_mut().enumerate().take(info.geometries.len()) {
-        *slot = n;
-        for p in prims.iter().filter(|p| p.geometry == g as u32) {
-            if let Shape::Aabb { min, max } = &p.shape {
-                boxes.extend([min[0], min[1], min[2], 0.0, max[0], max[1], max[2], 0.0]);
-                n += 1;
-            }
-        }
-    }
-    let mut bytes: Vec<u8> = base.iter().flat_map(|b| b.to_le_bytes()).collect();
-    bytes.extend(boxes.iter().flat_map(|f| f.to_le_bytes()));
-    bytes.resize(bytes.len().max(64), 0);
-    bytes
-}
-
 /// What the device built for a case, seen through arbitrary rays: the case's first info built directly
 /// with the ranges the model reads from memory, then one ray (+z, t in [0, 100]) from each origin. For
 /// writing down what a driver built where no named deviation explains it.
@@ -364,8 +343,9 @@ pub(crate) fn probe_rays(
         .ok_or_else(|| HarnessError::Failed("probing needs a build case".into()))?;
     let dev = device_for(inst, case, check)?;
     let check = resolve_check(&dev, check)?;
+    let plan = BuildPlan::of(case)?;
     let cmds = Commands::new(&dev)?;
-    let r = match realise(&dev, case, cmds.fence) {
+    let r = match realise(&dev, &plan, cmds.fence) {
         Ok(r) => r,
         Err(e) => {
             cmds.destroy(&dev);
@@ -379,28 +359,21 @@ pub(crate) fn probe_rays(
             .first()
             .ok_or_else(|| HarnessError::Failed("no build info".into()))?;
         if info.ty != AsType::BottomLevel {
-            return HarnessError::unsupported("probing handles bottom-level builds");
+            return HarnessError::not_realised("probing handles bottom-level builds");
         }
-        let (ranges, prims) = first_build(case)?;
-        let rays: Vec<ExpectedRay> = origins
-            .iter()
-            .map(|o| ExpectedRay {
-                origin: *o,
-                hit: None,
-            })
-            .collect();
-        let boxes = box_table(info, &prims);
+        let probe = CheckPlan::probe(case, origins)?;
         let (hits, _) = build_and_trace(
             inst,
             &dev,
             &cmds,
             case,
+            &plan,
             &r,
-            &ranges,
+            &probe.ranges,
             BuildPath::Direct,
             check,
-            &rays,
-            &boxes,
+            &probe.rays,
+            &probe.boxes,
         )?;
         Ok(hits)
     })();
@@ -422,19 +395,7 @@ fn accel_of(dev: &VkDevice) -> Result<&ash::khr::acceleration_structure::Device,
         .ok_or_else(|| HarnessError::Failed("no acceleration structure extension".into()))
 }
 
-/// The ranges the case's first info reads from memory and the primitives the model builds from them.
-fn first_build(
-    case: &AccelBody,
-) -> Result<(Vec<model::accel::RangeInfo>, Vec<BuiltPrimitive>), HarnessError> {
-    let info = case
-        .call
-        .infos
-        .first()
-        .ok_or_else(|| HarnessError::Failed("no build info".into()))?;
-    let mem = case.world.memory();
-    let ranges =
-        model::accel::indirect_ranges(&mem, &case.call, 0).map_err(HarnessError::failed)?;
-    let prims =
-        model::accel::build_primitives(&mem, info, &ranges).map_err(HarnessError::failed)?;
-    Ok((ranges, prims))
+/// The SPIR-V of the ray query check's compute shader.
+pub(crate) fn ray_query_spirv() -> Result<Vec<u32>, HarnessError> {
+    ray_query::compile_trace_shader()
 }

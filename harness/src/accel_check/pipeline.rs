@@ -90,7 +90,7 @@ pub(super) fn trace_pipeline(
         return Ok(vec![]);
     }
     let rt = dev.rt.as_ref().ok_or_else(|| {
-        HarnessError::Unsupported("the pipeline check needs VK_KHR_ray_tracing_pipeline".into())
+        HarnessError::NotRealised("the pipeline check needs VK_KHR_ray_tracing_pipeline".into())
     })?;
     let code = pipeline_shaders()?;
     let d = &dev.device;

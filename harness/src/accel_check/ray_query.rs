@@ -44,7 +44,7 @@ void main() {
 }
 "#;
 
-fn compile_trace_shader() -> Result<Vec<u32>, HarnessError> {
+pub(super) fn compile_trace_shader() -> Result<Vec<u32>, HarnessError> {
     shaders::compile_glsl("the ray query check", "comp", TRACE_COMP, &[])
 }
 

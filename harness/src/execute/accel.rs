@@ -5,226 +5,230 @@
 
 use crate::accel_check::direct_and_trace;
 use crate::error::{vkfail, HarnessError};
-use crate::observe::{Observation, Output, TraceCheck};
+use crate::observe::{Observation, Output};
+use crate::plan::build::BuildPlan;
+use crate::plan::Step;
 use crate::realise::accel::{
-    device_for, device_sizes, indirect_args, realise, vk_geometries, Realised,
+    device_for, device_sizes, indirect_args, last_build_geometries, realise, vk_as_type,
+    vk_geometries, Realised,
 };
 use crate::vk::commands::{begin_render_pass, Commands};
 use crate::vk::{LayerMessage, VkDevice, VkInstance};
 use ash::vk;
 use model::accel::call::BuildMode;
+use model::accel::world::AddressResolver;
 use model::accel::BuildSizes;
 use model::{AccelBody, Case};
 use std::sync::Arc;
 
-/// Why the case's command buffer state cannot be realised on this device, if it cannot: protected
-/// command buffers, video coding scopes, pools of a queue family without compute, and recording between
-/// suspended render pass instances. Every other state (primary or secondary, initial, recording,
-/// executable or invalid, inside a render pass or not) is realised by [`record_indirect`].
-fn unrealisable_state(inst: &VkInstance, case: &AccelBody) -> Option<String> {
+/// Why the case's command buffer state cannot be realised for a build, if it cannot: what
+/// [`super::unrealisable_command_buffer`] says for every command, and recording between suspended render
+/// pass instances. Every other state (primary or secondary, initial, recording, executable or invalid,
+/// inside a render pass or not) is realised by [`record_indirect`].
+fn unrealisable_state(inst: &VkInstance, case: &AccelBody) -> Option<HarnessError> {
     let cbs = &case.world.command_buffer;
-    // SAFETY: plain query.
-    let families = unsafe {
-        inst.instance
-            .get_physical_device_queue_family_properties(inst.physical)
-    };
-    let any = |f: vk::QueueFlags| families.iter().any(|p| p.queue_flags.intersects(f));
-    let protected_memory = inst
-        .device_features()
-        .iter()
-        .any(|(k, on)| *on && k.ends_with("::protectedMemory"));
-    if cbs.protected {
-        return Some(format!(
-            "a protected command buffer comes from a pool created with VK_COMMAND_POOL_CREATE_PROTECTED_BIT, \
-             which needs the protectedMemory feature (VUID-VkCommandPoolCreateInfo-flags-02860) and a queue \
-             created with VK_DEVICE_QUEUE_CREATE_PROTECTED_BIT; {}",
-            if protected_memory {
-                "the harness's device creates no protected queue"
-            } else {
-                "the device lacks protectedMemory"
-            }
-        ));
+    if let Some(e) = super::unrealisable_command_buffer(inst, cbs) {
+        return Some(e);
     }
-    if cbs.in_video_coding {
-        let video = vk::QueueFlags::VIDEO_DECODE_KHR | vk::QueueFlags::VIDEO_ENCODE_KHR;
-        return Some(if any(video) {
-            "a video coding scope needs a video session (VK_KHR_video_queue) on a video queue; the harness \
-             creates neither"
-                .into()
-        } else {
-            "a video coding scope (vkCmdBeginVideoCodingKHR) needs a queue family with video decode or encode; \
-             the device has none"
-                .into()
-        });
-    }
-    if !cbs
-        .pool_queue
-        .contains(model::flags::QueueFlags::COMPUTE_BIT)
-    {
-        let without_compute = families
-            .iter()
-            .any(|p| !p.queue_flags.contains(vk::QueueFlags::COMPUTE));
-        return Some(if without_compute {
-            "a pool of a queue family without compute needs the device created with a queue of that family \
-             (VUID-vkCreateCommandPool-queueFamilyIndex-01937); the harness's device has its compute family only"
-                .into()
-        } else {
-            format!(
-                "a pool of a queue family without VK_QUEUE_COMPUTE_BIT needs such a family; every one of the \
-                 device's {} queue famil{} has compute",
-                families.len(),
-                if families.len() == 1 { "y" } else { "ies" }
-            )
-        });
-    }
-    if case.world.command_buffer.between_suspended_render_passes {
-        return Some(
+    if cbs.between_suspended_render_passes {
+        return Some(HarnessError::NotRealised(
             "recording between suspended render pass instances (dynamic rendering) is not realised for builds"
                 .into(),
-        );
+        ));
     }
     None
 }
 
-/// Puts the case's command buffer into its state: primary or secondary (a secondary inside a render pass
-/// continues the empty render pass through its inheritance), begun unless initial, inside the empty
-/// render pass when asked (a primary begins it inline), ended when executable, and submitted once with
-/// ONE_TIME_SUBMIT when invalid. Returns the command buffer the call is recorded into.
-fn enter_state(
+/// Repeats, for the layer's state, the last build the model's world says each structure had: a direct
+/// build of it with that build's type, flags and geometries, recorded (not aborted, never submitted)
+/// before the case's call, so update rules that compare with the source's last build (03667,
+/// 03758-03770) see on the device what the model sees. The layer tracks builds as they are recorded;
+/// what it says of these builds is not the case's and is dropped.
+fn replay_last_builds(
+    inst: &VkInstance,
     dev: &VkDevice,
-    cmds: &mut Commands,
+    cmds: &Commands,
     case: &AccelBody,
-) -> Result<vk::CommandBuffer, HarnessError> {
-    use model::world::{CommandBufferLevel, CommandBufferLifecycle};
-    let cbs = &case.world.command_buffer;
-    let d = &dev.device;
-    let secondary = cbs.level == CommandBufferLevel::Secondary;
-    let cb = if secondary { cmds.secondary } else { cmds.cb };
-    let rp = if cbs.in_render_pass {
-        Some(cmds.render_pass(dev)?)
-    } else {
-        None
+    r: &Realised,
+) -> Result<(), HarnessError> {
+    let Some(accel) = dev.accel.as_ref() else {
+        return Ok(());
     };
-    // SAFETY: the command buffers are idle; everything named is alive.
-    unsafe {
-        d.reset_command_buffer(cb, vk::CommandBufferResetFlags::empty())
-            .map_err(vkfail("vkResetCommandBuffer"))?;
-        if cbs.lifecycle == CommandBufferLifecycle::Initial {
-            return Ok(cb);
-        }
-        let mut inherit = vk::CommandBufferInheritanceInfo::default();
-        let mut flags = vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT;
-        if let (true, Some((pass, fb))) = (secondary, rp) {
-            inherit = inherit.render_pass(pass).subpass(0).framebuffer(fb);
-            flags |= vk::CommandBufferUsageFlags::RENDER_PASS_CONTINUE;
-        }
-        let mut begin = vk::CommandBufferBeginInfo::default().flags(flags);
-        if secondary {
-            begin = begin.inheritance_info(&inherit);
-        }
-        d.begin_command_buffer(cb, &begin)
-            .map_err(vkfail("vkBeginCommandBuffer"))?;
-        let primary_pass = rp.filter(|_| !secondary);
-        if let Some(pass) = primary_pass {
-            begin_render_pass(d, cb, pass, vk::SubpassContents::INLINE);
-        }
-        match cbs.lifecycle {
-            CommandBufferLifecycle::Executable | CommandBufferLifecycle::Invalid => {
-                if primary_pass.is_some() {
-                    d.cmd_end_render_pass(cb);
-                }
-                d.end_command_buffer(cb)
-                    .map_err(vkfail("vkEndCommandBuffer"))?;
-            }
-            _ => {}
-        }
-        if cbs.lifecycle == CommandBufferLifecycle::Invalid {
-            // A ONE_TIME_SUBMIT buffer moves to the invalid state once its submission completes; a
-            // secondary one is executed once from the primary.
-            let submit_cb = if secondary {
-                d.reset_command_buffer(cmds.cb, vk::CommandBufferResetFlags::empty())
-                    .map_err(vkfail("vkResetCommandBuffer"))?;
-                d.begin_command_buffer(
-                    cmds.cb,
-                    &vk::CommandBufferBeginInfo::default()
-                        .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
-                )
+    let Some(data) = r.buffers.values().map(|a| a.address).next() else {
+        return Ok(());
+    };
+    let scratch = case
+        .call
+        .infos
+        .first()
+        .map_or(data, |i| r.address(&i.scratch));
+    let d = &dev.device;
+    for s in &case.world.structures {
+        let (Some(lb), Some(&(handle, _))) = (&s.last_build, r.structures.get(&s.name)) else {
+            continue;
+        };
+        let Some((geoms, ranges)) = last_build_geometries(lb, data) else {
+            continue;
+        };
+        let info = vk::AccelerationStructureBuildGeometryInfoKHR::default()
+            .ty(vk_as_type(lb.ty))
+            .flags(vk::BuildAccelerationStructureFlagsKHR::from_raw(lb.flags.0))
+            .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
+            .dst_acceleration_structure(handle)
+            .geometries(&geoms)
+            .scratch_data(vk::DeviceOrHostAddressKHR {
+                device_address: scratch,
+            });
+        inst.collector.set_abort(false);
+        // SAFETY: recorded into an idle command buffer that is reset right after, never submitted.
+        unsafe {
+            d.reset_command_buffer(cmds.cb, vk::CommandBufferResetFlags::empty())
+                .map_err(vkfail("vkResetCommandBuffer"))?;
+            d.begin_command_buffer(cmds.cb, &vk::CommandBufferBeginInfo::default())
                 .map_err(vkfail("vkBeginCommandBuffer"))?;
-                if let Some(pass) = rp {
-                    begin_render_pass(
-                        d,
-                        cmds.cb,
-                        pass,
-                        vk::SubpassContents::SECONDARY_COMMAND_BUFFERS,
-                    );
-                    d.cmd_execute_commands(cmds.cb, &[cb]);
-                    d.cmd_end_render_pass(cmds.cb);
-                } else {
-                    d.cmd_execute_commands(cmds.cb, &[cb]);
-                }
-                d.end_command_buffer(cmds.cb)
-                    .map_err(vkfail("vkEndCommandBuffer"))?;
-                cmds.cb
-            } else {
-                cb
-            };
-            cmds.submit_and_wait(dev, submit_cb)?;
+            accel.cmd_build_acceleration_structures(cmds.cb, &[info], &[&ranges]);
+            let _ = d.end_command_buffer(cmds.cb);
+            d.reset_command_buffer(cmds.cb, vk::CommandBufferResetFlags::empty())
+                .map_err(vkfail("vkResetCommandBuffer"))?;
         }
     }
-    Ok(cb)
+    inst.collector.clear();
+    Ok(())
 }
 
-/// Records the indirect call under the layer (dropped by the messenger, never submitted) into a command
-/// buffer in the case's state and returns the layer's messages.
+/// Records the plan's steps: the command buffer put into the case's state (primary or secondary — a
+/// secondary inside a render pass continues the empty render pass through its inheritance — begun
+/// unless initial, inside the empty render pass when asked, ended when executable, and submitted once
+/// with ONE_TIME_SUBMIT when invalid), then the indirect call under the layer (dropped by the
+/// messenger, never submitted). Returns the layer's messages for the call.
 fn record_indirect(
     inst: &VkInstance,
     dev: &VkDevice,
     cmds: &mut Commands,
-    case: &AccelBody,
+    plan: &BuildPlan,
     r: &Realised,
+    continue_past: &[String],
 ) -> Result<Vec<LayerMessage>, HarnessError> {
-    use model::world::{CommandBufferLevel, CommandBufferLifecycle};
+    use model::world::CommandBufferLevel;
     let accel = dev
         .accel
         .as_ref()
-        .ok_or_else(|| HarnessError::Unsupported("no VK_KHR_acceleration_structure".into()))?;
-    let geoms: Vec<Vec<vk::AccelerationStructureGeometryKHR>> = case
-        .call
+        .ok_or_else(|| HarnessError::NotRealised("no VK_KHR_acceleration_structure".into()))?;
+    let geoms: Vec<Vec<vk::AccelerationStructureGeometryKHR>> = plan
         .infos
         .iter()
         .map(|i| vk_geometries(i, r))
         .collect::<Option<_>>()
-        .ok_or_else(|| HarnessError::Unsupported("geometry type not realised".into()))?;
-    let (infos, addrs, maxima) = indirect_args(case, r, &geoms);
-    let cb = enter_state(dev, cmds, case)?;
-    inst.collector.clear();
-    inst.collector.set_abort(true);
-    // SAFETY: with the messenger returning VK_TRUE the layer drops an invalid call (one recorded into a
-    // command buffer that is not recording included).
-    unsafe {
-        accel.cmd_build_acceleration_structures_indirect(
-            cb,
-            &infos,
-            &addrs,
-            &case.call.indirect_strides,
-            &maxima,
-        )
+        .ok_or_else(|| HarnessError::NotRealised("geometry type not realised".into()))?;
+    let (infos, addrs, maxima) = indirect_args(plan, r, &geoms);
+    let secondary = plan.level == CommandBufferLevel::Secondary;
+    let cb = if secondary { cmds.secondary } else { cmds.cb };
+    let rp = if plan.in_render_pass {
+        Some(cmds.render_pass(dev)?)
+    } else {
+        None
     };
-    inst.collector.set_abort(false);
-    let msgs = inst.collector.take();
-    let cbs = &case.world.command_buffer;
-    // SAFETY: ending what was begun (never submitted); the buffers are reset before their next use.
-    unsafe {
-        if cbs.lifecycle == CommandBufferLifecycle::Recording {
-            if cbs.in_render_pass && cbs.level == CommandBufferLevel::Primary {
-                dev.device.cmd_end_render_pass(cb);
+    let d = &dev.device;
+    let mut msgs = Vec::new();
+    let mut called = false;
+    for step in &plan.steps {
+        // SAFETY: the command buffers are idle; everything named is alive. With the messenger returning
+        // VK_TRUE the layer drops an invalid call (one recorded into a command buffer that is not
+        // recording included).
+        unsafe {
+            match step {
+                Step::Reset { .. } => d
+                    .reset_command_buffer(cb, vk::CommandBufferResetFlags::empty())
+                    .map_err(vkfail("vkResetCommandBuffer"))?,
+                Step::Begin {
+                    continue_render_pass,
+                    ..
+                } => {
+                    let mut inherit = vk::CommandBufferInheritanceInfo::default();
+                    let mut flags = vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT;
+                    if let (true, Some((pass, fb))) = (*continue_render_pass, rp) {
+                        inherit = inherit.render_pass(pass).subpass(0).framebuffer(fb);
+                        flags |= vk::CommandBufferUsageFlags::RENDER_PASS_CONTINUE;
+                    }
+                    let mut begin = vk::CommandBufferBeginInfo::default().flags(flags);
+                    if secondary {
+                        begin = begin.inheritance_info(&inherit);
+                    }
+                    d.begin_command_buffer(cb, &begin)
+                        .map_err(vkfail("vkBeginCommandBuffer"))?;
+                }
+                Step::BeginRenderPass => {
+                    if let Some(pass) = rp {
+                        begin_render_pass(d, cb, pass, vk::SubpassContents::INLINE);
+                    }
+                }
+                Step::EndRenderPass => d.cmd_end_render_pass(cb),
+                // After the call a recording buffer is ended only to be reset.
+                Step::End if called => {
+                    let _ = d.end_command_buffer(cb);
+                }
+                Step::End => d
+                    .end_command_buffer(cb)
+                    .map_err(vkfail("vkEndCommandBuffer"))?,
+                Step::SubmitToInvalidate => {
+                    // A ONE_TIME_SUBMIT buffer moves to the invalid state once its submission completes;
+                    // a secondary one is executed once from the primary.
+                    let submit_cb = if secondary {
+                        d.reset_command_buffer(cmds.cb, vk::CommandBufferResetFlags::empty())
+                            .map_err(vkfail("vkResetCommandBuffer"))?;
+                        d.begin_command_buffer(
+                            cmds.cb,
+                            &vk::CommandBufferBeginInfo::default()
+                                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+                        )
+                        .map_err(vkfail("vkBeginCommandBuffer"))?;
+                        if let Some(pass) = rp {
+                            begin_render_pass(
+                                d,
+                                cmds.cb,
+                                pass,
+                                vk::SubpassContents::SECONDARY_COMMAND_BUFFERS,
+                            );
+                            d.cmd_execute_commands(cmds.cb, &[cb]);
+                            d.cmd_end_render_pass(cmds.cb);
+                        } else {
+                            d.cmd_execute_commands(cmds.cb, &[cb]);
+                        }
+                        d.end_command_buffer(cmds.cb)
+                            .map_err(vkfail("vkEndCommandBuffer"))?;
+                        cmds.cb
+                    } else {
+                        cb
+                    };
+                    cmds.submit_and_wait(dev, submit_cb)?;
+                }
+                Step::Call { .. } => {
+                    inst.collector.clear();
+                    inst.collector.set_abort(true);
+                    // Past the `continue_past` VUIDs the layer goes on validating; a call it finds
+                    // nothing else wrong with is recorded by the driver (never submitted: the command
+                    // buffers are reset before their next use).
+                    inst.collector.set_continue_past(continue_past);
+                    accel.cmd_build_acceleration_structures_indirect(
+                        cb,
+                        &infos,
+                        &addrs,
+                        &plan.indirect_strides,
+                        &maxima,
+                    );
+                    inst.collector.set_abort(false);
+                    inst.collector.set_continue_past(&[]);
+                    msgs = inst.collector.take();
+                    called = true;
+                }
+                _ => {}
             }
-            let _ = dev.device.end_command_buffer(cb);
         }
+    }
+    // SAFETY: never submitted (or waited for); the buffers are reset before their next use.
+    unsafe {
         for b in [cmds.cb, cmds.secondary] {
-            let _ = dev
-                .device
-                .reset_command_buffer(b, vk::CommandBufferResetFlags::empty());
+            let _ = d.reset_command_buffer(b, vk::CommandBufferResetFlags::empty());
         }
     }
     Ok(msgs)
@@ -233,26 +237,26 @@ fn record_indirect(
 /// Runs one build case: the indirect call recorded under the layer, the sizes the device reports, and
 /// for a case run as valid (`run_valid`), the direct build traced with the model's rays (and, where the
 /// device has accelerationStructureIndirectBuild, the indirect build for real, traced the same).
-pub(crate) fn execute(
-    inst: &Arc<VkInstance>,
-    case: &Case,
-    run_valid: bool,
-    check: TraceCheck,
-) -> Observation {
+pub(crate) fn execute(inst: &Arc<VkInstance>, case: &Case, exec: &super::Execution) -> Observation {
+    let (run_valid, check) = (exec.run_valid, exec.check);
     let Some(body) = case.as_accel() else {
         return Observation::crash(format!("{} is not a build case", case.name));
     };
     let mut obs = Observation::with_status(crate::observe::Status::Ran);
-    if let Some(why) = unrealisable_state(inst, body) {
-        return Observation::unsupported(why);
+    if let Some(e) = unrealisable_state(inst, body) {
+        return failure(e);
     }
+    let plan = match BuildPlan::of(body) {
+        Ok(p) => p,
+        Err(e) => return failure(e),
+    };
     let dev = match device_for(inst, body, check) {
         Ok(d) => d,
         Err(e) => return failure(e),
     };
     let result = (|| -> Result<(), HarnessError> {
         let mut cmds = Commands::new(&dev)?;
-        let r = match realise(&dev, body, cmds.fence) {
+        let r = match realise(&dev, &plan, cmds.fence) {
             Ok(r) => r,
             Err(e) => {
                 cmds.destroy(&dev);
@@ -260,13 +264,14 @@ pub(crate) fn execute(
             }
         };
         let out = (|| -> Result<(), HarnessError> {
-            if let Some(s) = device_sizes(&dev, body, &r) {
+            if let Some(s) = device_sizes(&dev, &plan, &r) {
                 obs.device_sizes = s;
             }
-            let messages = record_indirect(inst, &dev, &mut cmds, body, &r)?;
+            replay_last_builds(inst, &dev, &cmds, body, &r)?;
+            let messages = record_indirect(inst, &dev, &mut cmds, &plan, &r, &exec.continue_past)?;
             obs.set_messages(messages);
             if run_valid && fits_device_sizes(body, &obs.device_sizes) {
-                let traced = direct_and_trace(inst, &dev, &cmds, body, &r, check)?;
+                let traced = direct_and_trace(inst, &dev, &cmds, body, &plan, &r, check)?;
                 obs.output = Some(Output::Rays(traced));
             }
             Ok(())
@@ -285,7 +290,8 @@ pub(crate) fn execute(
 /// lacks; anything else is a failure of the driver or the harness.
 fn failure(e: HarnessError) -> Observation {
     match e {
-        HarnessError::Unsupported(reason) => Observation::unsupported(reason),
+        HarnessError::NotRealised(reason) => Observation::not_realised(reason),
+        HarnessError::DeviceLacks { lack, reason } => Observation::unsupported(lack, reason),
         HarnessError::OutOfMemory(s) => Observation::out_of_memory(s),
         e => Observation::crash(format!("failed: {e}")),
     }

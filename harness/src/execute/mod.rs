@@ -21,7 +21,7 @@ use std::time::Duration;
 pub const MAX_OUTPUT_WORDS: usize = 1 << 24;
 
 /// How the harness is asked to run a case.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Execution {
     /// Run the case for real: submit it and read the output back (trace), build it directly and trace
     /// what was built (build). Otherwise the call is only recorded under the layer, which drops it.
@@ -29,6 +29,12 @@ pub struct Execution {
     /// How a build's traced check traces its rays.
     #[serde(default)]
     pub check: TraceCheck,
+    /// VUIDs the layer's validation of the recorded call continues past (the messenger does not abort
+    /// the call for them): the ones the device makes unavoidable, so the layer's later checks still
+    /// run. A call the layer then finds nothing else wrong with reaches the driver's recording of it —
+    /// recorded, never submitted, as every invalid call the layer does not catch.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub continue_past: Vec<String>,
 }
 
 impl Execution {
@@ -38,6 +44,10 @@ impl Execution {
         Execution {
             run_valid: case.runs_as_valid(profile),
             check: TraceCheck::Auto,
+            continue_past: match case.body {
+                model::Body::Accel(_) => model::accel::unavoidable(profile),
+                model::Body::Trace(_) => vec![],
+            },
         }
     }
 }
@@ -64,6 +74,11 @@ impl Executor {
         &self.inst.driver
     }
 
+    /// The device, driver and layer that run this executor's cases.
+    pub fn running_on(&self) -> crate::observe::RunningOn {
+        self.inst.running_on()
+    }
+
     fn device_key(world: &World) -> String {
         serde_json::to_string(&world.device).unwrap_or_default()
     }
@@ -74,7 +89,7 @@ impl Executor {
         if case.as_trace().is_some() {
             self.execute_trace(case, exec.run_valid)
         } else {
-            accel::execute(&self.inst, case, exec.run_valid, exec.check)
+            accel::execute(&self.inst, case, exec)
         }
     }
 
@@ -109,11 +124,95 @@ impl Executor {
     }
 }
 
+use crate::observe::DeviceLack;
+use ash::vk;
+
+/// Why a command buffer state cannot be realised on this device for any command, if it cannot: a
+/// protected command buffer, a video coding scope, a pool of a queue family without compute. What the
+/// device lacks is said as a [`DeviceLack`] (the session checks it against the profile); what the
+/// harness does not do, as not realised.
+pub(crate) fn unrealisable_command_buffer(
+    inst: &VkInstance,
+    cbs: &model::world::CommandBufferState,
+) -> Option<HarnessError> {
+    // SAFETY: plain query.
+    let families = unsafe {
+        inst.instance
+            .get_physical_device_queue_family_properties(inst.physical)
+    };
+    let any = |f: vk::QueueFlags| families.iter().any(|p| p.queue_flags.intersects(f));
+    let protected_memory = inst
+        .device_features()
+        .iter()
+        .any(|(k, on)| *on && k.ends_with("::protectedMemory"));
+    if cbs.protected {
+        let why = "a protected command buffer comes from a pool created with VK_COMMAND_POOL_CREATE_PROTECTED_BIT, \
+             which needs the protectedMemory feature (VUID-VkCommandPoolCreateInfo-flags-02860) and a queue \
+             created with VK_DEVICE_QUEUE_CREATE_PROTECTED_BIT";
+        return Some(if protected_memory {
+            HarnessError::NotRealised(format!(
+                "{why}; the harness's device creates no protected queue"
+            ))
+        } else {
+            HarnessError::lacks(
+                DeviceLack::Feature("protectedMemory".into()),
+                format!("{why}; the device lacks protectedMemory"),
+            )
+        });
+    }
+    if cbs.in_video_coding {
+        let video = vk::QueueFlags::VIDEO_DECODE_KHR | vk::QueueFlags::VIDEO_ENCODE_KHR;
+        return Some(if any(video) {
+            HarnessError::NotRealised(
+                "a video coding scope needs a video session (VK_KHR_video_queue) on a video queue; the harness \
+                 creates neither"
+                    .into(),
+            )
+        } else {
+            HarnessError::lacks(
+                DeviceLack::QueueFamilyWithAny(vec![
+                    "VK_QUEUE_VIDEO_DECODE_BIT_KHR".into(),
+                    "VK_QUEUE_VIDEO_ENCODE_BIT_KHR".into(),
+                ]),
+                "a video coding scope (vkCmdBeginVideoCodingKHR) needs a queue family with video decode or \
+                 encode; the device has none",
+            )
+        });
+    }
+    if !cbs
+        .pool_queue
+        .contains(model::flags::QueueFlags::COMPUTE_BIT)
+    {
+        let without_compute = families
+            .iter()
+            .any(|p| !p.queue_flags.contains(vk::QueueFlags::COMPUTE));
+        return Some(if without_compute {
+            HarnessError::NotRealised(
+                "a pool of a queue family without compute needs the device created with a queue of that family \
+                 (VUID-vkCreateCommandPool-queueFamilyIndex-01937); the harness's device has its compute family only"
+                    .into(),
+            )
+        } else {
+            HarnessError::lacks(
+                DeviceLack::QueueFamilyWithout("VK_QUEUE_COMPUTE_BIT".into()),
+                format!(
+                    "a pool of a queue family without VK_QUEUE_COMPUTE_BIT needs such a family; every one of the \
+                     device's {} queue famil{} has compute",
+                    families.len(),
+                    if families.len() == 1 { "y" } else { "ies" }
+                ),
+            )
+        });
+    }
+    None
+}
+
 /// An error of the trace path as an observation: unsupported with its reason, a timeout, or a crash
 /// with the error's message.
 fn failure(e: HarnessError) -> Observation {
     match e {
-        HarnessError::Unsupported(s) => Observation::unsupported(s),
+        HarnessError::NotRealised(s) => Observation::not_realised(s),
+        HarnessError::DeviceLacks { lack, reason } => Observation::unsupported(lack, reason),
         HarnessError::Timeout(_) => Observation::with_status(Status::Timeout { seconds: 0.0 }),
         HarnessError::Failed(s) => Observation::crash(s),
         HarnessError::OutOfMemory(s) => Observation::out_of_memory(s),

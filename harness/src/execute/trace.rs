@@ -20,7 +20,7 @@ pub(super) fn trace(ctx: &mut Executor, case: &model::TraceBody, run_valid: bool
     // Resource states are realised by `crate::realise::resources`; what it cannot realise is unsupported
     // (running without it would show the layer a call that violates nothing).
     if let Some(why) = crate::realise::resources::unsupported(&case.world) {
-        return Observation::unsupported(why);
+        return Observation::not_realised(why);
     }
     let timeout = ctx.gpu_timeout;
     let collector = ctx.inst.collector.clone();
@@ -99,28 +99,32 @@ fn run(
     let cbs = &world.command_buffer;
     let nv_call = matches!(case.call, Call::TraceRaysNv(_));
     if nv_call && cache.dev.nv.is_none() {
-        return Err(HarnessError::Unsupported(
+        return Err(HarnessError::NotRealised(
             "the case does not enable VK_NV_ray_tracing, so vkCmdTraceRaysNV cannot be called"
                 .into(),
         ));
     }
     if !nv_call && cache.dev.rt.is_none() {
-        return Err(HarnessError::Unsupported(
+        return Err(HarnessError::NotRealised(
             "the case does not enable VK_KHR_ray_tracing_pipeline, so vkCmdTraceRays*KHR cannot be called".into(),
         ));
     }
+    // What the device lacks (checked against its profile) before what the harness does not realise.
+    if let Some(e) = super::unrealisable_command_buffer(&cache.dev.inst, cbs) {
+        return Err(e);
+    }
     if cbs.in_video_coding || cbs.protected || cbs.lifecycle == CommandBufferLifecycle::Invalid {
-        return Err(HarnessError::Unsupported(
+        return Err(HarnessError::NotRealised(
             "video coding scopes, protected and invalid command buffers are not realised by the harness yet".into(),
         ));
     }
     if !cbs.pool_queue.contains(QueueFlags::COMPUTE_BIT) {
-        return Err(HarnessError::Unsupported(
+        return Err(HarnessError::NotRealised(
             "a command pool for a queue family without compute is not realised yet".into(),
         ));
     }
     if cbs.level == CommandBufferLevel::Secondary && cbs.in_render_pass {
-        return Err(HarnessError::Unsupported(
+        return Err(HarnessError::NotRealised(
             "secondary command buffers inside a render pass are not realised yet".into(),
         ));
     }
@@ -130,7 +134,7 @@ fn run(
         .map(|d| d.iter().map(|&x| x as usize).product::<usize>())
         .unwrap_or(0);
     if valid && ids.saturating_mul(RayRecord::WORDS) > MAX_OUTPUT_WORDS {
-        return Err(HarnessError::Unsupported(format!(
+        return Err(HarnessError::NotRealised(format!(
             "a launch of {ids} IDs is larger than the harness reads back"
         )));
     }
@@ -158,7 +162,10 @@ fn run(
             harness_set,
         )?);
     }
-    *buffers = cache.case_buffers(world, pipeline.map(|p| (p, trace)))?;
+    *buffers = cache.case_buffers(
+        &crate::plan::trace::buffer_plans(world),
+        pipeline.map(|p| (p, trace)),
+    )?;
     let (tlas, spheres) = if trace {
         let (t, s) = cache.scene(&world.launch.scene, api)?;
         (Some(t), Some(s))
@@ -296,7 +303,7 @@ fn run(
                 .find(|(n, _)| n == buffer)
                 .map(|(_, a)| a.address + offset)
                 .ok_or_else(|| {
-                    HarnessError::Unsupported(format!(
+                    HarnessError::NotRealised(format!(
                         "the call names buffer `{buffer}`, which the world lacks"
                     ))
                 }),
@@ -310,7 +317,7 @@ fn run(
                 .find(|(b, _)| b == n)
                 .map(|(_, a)| a.buffer)
                 .ok_or_else(|| {
-                    HarnessError::Unsupported(format!(
+                    HarnessError::NotRealised(format!(
                         "the call names buffer `{n}`, which the world lacks"
                     ))
                 }),

@@ -1,14 +1,15 @@
-//! A build case's world on the device: its buffers at 4096-aligned addresses with the model's memory
-//! image written through the device's addresses (sparse buffers bound with `vkQueueBindSparse`),
-//! its acceleration structures at their buffer ranges, the Vulkan form of its build infos, and the
-//! sizes the device reports for them.
+//! A build case's world on the device, from its plan ([`BuildPlan`]): its buffers at 4096-aligned
+//! addresses with the model's memory image written through the device's addresses (sparse buffers
+//! bound with `vkQueueBindSparse`), its acceleration structures at their buffer ranges, the Vulkan form
+//! of its build infos, and the sizes the device reports for them.
 
 use crate::error::{vkfail, HarnessError};
 use crate::observe::TraceCheck;
+use crate::plan::build::{BuildInfoPlan, BuildPlan, GeometryDataPlan};
 use crate::vk::memory::Allocation;
 use crate::vk::{VkDevice, VkInstance};
 use ash::vk;
-use model::accel::call::{BuildGeometryInfo, BuildMode, GeometryData, IndexType, VertexFormat};
+use model::accel::call::{IndexType, VertexFormat};
 use model::accel::world::AddressResolver;
 use model::accel::{AsType, BuildSizes};
 use model::call::BUFFER_PLACEMENT_ALIGNMENT;
@@ -77,93 +78,150 @@ fn vk_type(t: AsType) -> vk::AccelerationStructureTypeKHR {
     }
 }
 
-/// The Vulkan geometries of an info (None for geometry types the harness does not realise).
+/// What the last build of a structure was, as the Vulkan structures of a direct build that repeats it
+/// for the layer's state (type, flags, and per geometry its type, flags, vertex format, maximum vertex,
+/// index type, transform and primitive count): geometry data at `data`, an address of one of the
+/// case's buffers (the build is recorded, never submitted). None for geometry types not realised.
+pub(crate) fn last_build_geometries(
+    lb: &model::accel::world::LastBuild,
+    data: u64,
+) -> Option<(
+    Vec<vk::AccelerationStructureGeometryKHR<'static>>,
+    Vec<vk::AccelerationStructureBuildRangeInfoKHR>,
+)> {
+    use model::accel::call::GeometryType;
+    let a = vk::DeviceOrHostAddressConstKHR {
+        device_address: data,
+    };
+    let mut geoms = Vec::new();
+    let mut ranges = Vec::new();
+    for g in &lb.geometries {
+        let (ty, d) = match g.geometry_type {
+            GeometryType::Triangles => (
+                vk::GeometryTypeKHR::TRIANGLES,
+                vk::AccelerationStructureGeometryDataKHR {
+                    triangles: vk::AccelerationStructureGeometryTrianglesDataKHR::default()
+                        .vertex_format(vk_format(
+                            g.vertex_format.unwrap_or(VertexFormat::R32g32b32Sfloat),
+                        ))
+                        .vertex_data(a)
+                        .vertex_stride(12)
+                        .max_vertex(g.max_vertex)
+                        .index_type(vk_index(g.index_type.unwrap_or(IndexType::None)))
+                        .index_data(a)
+                        .transform_data(vk::DeviceOrHostAddressConstKHR {
+                            device_address: if g.has_transform { data } else { 0 },
+                        }),
+                },
+            ),
+            GeometryType::Aabbs => (
+                vk::GeometryTypeKHR::AABBS,
+                vk::AccelerationStructureGeometryDataKHR {
+                    aabbs: vk::AccelerationStructureGeometryAabbsDataKHR::default()
+                        .data(a)
+                        .stride(24),
+                },
+            ),
+            GeometryType::Instances => (
+                vk::GeometryTypeKHR::INSTANCES,
+                vk::AccelerationStructureGeometryDataKHR {
+                    instances: vk::AccelerationStructureGeometryInstancesDataKHR::default().data(a),
+                },
+            ),
+            _ => return None,
+        };
+        geoms.push(
+            vk::AccelerationStructureGeometryKHR::default()
+                .geometry_type(ty)
+                .geometry(d)
+                .flags(vk::GeometryFlagsKHR::from_raw(g.flags.0)),
+        );
+        ranges.push(vk::AccelerationStructureBuildRangeInfoKHR {
+            primitive_count: g.range.primitive_count,
+            primitive_offset: g.range.primitive_offset,
+            first_vertex: g.range.first_vertex,
+            transform_offset: g.range.transform_offset,
+        });
+    }
+    Some((geoms, ranges))
+}
+
+/// The Vulkan type of a structure type.
+pub(crate) fn vk_as_type(t: AsType) -> vk::AccelerationStructureTypeKHR {
+    vk_type(t)
+}
+
+/// The Vulkan geometries of an info's plan (None for geometry types the harness does not realise).
 pub(crate) fn vk_geometries(
-    info: &BuildGeometryInfo,
+    info: &BuildInfoPlan,
     r: &Realised,
 ) -> Option<Vec<vk::AccelerationStructureGeometryKHR<'static>>> {
-    info.geometries
-        .iter()
-        .map(|g| {
-            let a = |x: &model::call::Address| vk::DeviceOrHostAddressConstKHR {
-                device_address: r.address(x),
-            };
-            let (ty, data) = match &g.data {
-                GeometryData::Triangles {
-                    vertex_format,
-                    vertex_data,
-                    vertex_stride,
-                    max_vertex,
-                    index_type,
-                    index_data,
-                    transform_data,
-                    motion_vertex_data: None,
-                    opacity_micromap: None,
-                } => (
-                    vk::GeometryTypeKHR::TRIANGLES,
-                    vk::AccelerationStructureGeometryDataKHR {
+    let a = |x: &model::call::Address| vk::DeviceOrHostAddressConstKHR {
+        device_address: r.address(x),
+    };
+    Some(
+        info.geometries
+            .as_ref()?
+            .iter()
+            .map(|g| {
+                let data = match &g.data {
+                    GeometryDataPlan::Triangles {
+                        vertex_format,
+                        vertex_data,
+                        vertex_stride,
+                        max_vertex,
+                        index_type,
+                        index_data,
+                        transform_data,
+                    } => vk::AccelerationStructureGeometryDataKHR {
                         triangles: vk::AccelerationStructureGeometryTrianglesDataKHR::default()
-                            .vertex_format(vk_format(*vertex_format))
+                            .vertex_format(vk::Format::from_raw(*vertex_format))
                             .vertex_data(a(vertex_data))
                             .vertex_stride(*vertex_stride)
                             .max_vertex(*max_vertex)
-                            .index_type(vk_index(*index_type))
+                            .index_type(vk::IndexType::from_raw(*index_type))
                             .index_data(a(index_data))
                             .transform_data(a(transform_data)),
                     },
-                ),
-                GeometryData::Aabbs { data, stride } => (
-                    vk::GeometryTypeKHR::AABBS,
-                    vk::AccelerationStructureGeometryDataKHR {
-                        aabbs: vk::AccelerationStructureGeometryAabbsDataKHR::default()
-                            .data(a(data))
-                            .stride(*stride),
-                    },
-                ),
-                GeometryData::Instances {
-                    array_of_pointers,
-                    data,
-                } => (
-                    vk::GeometryTypeKHR::INSTANCES,
-                    vk::AccelerationStructureGeometryDataKHR {
+                    GeometryDataPlan::Aabbs { data, stride } => {
+                        vk::AccelerationStructureGeometryDataKHR {
+                            aabbs: vk::AccelerationStructureGeometryAabbsDataKHR::default()
+                                .data(a(data))
+                                .stride(*stride),
+                        }
+                    }
+                    GeometryDataPlan::Instances {
+                        array_of_pointers,
+                        data,
+                    } => vk::AccelerationStructureGeometryDataKHR {
                         instances: vk::AccelerationStructureGeometryInstancesDataKHR::default()
                             .array_of_pointers(*array_of_pointers)
                             .data(a(data)),
                     },
-                ),
-                _ => return None,
-            };
-            Some(
+                };
                 vk::AccelerationStructureGeometryKHR::default()
-                    .geometry_type(ty)
+                    .geometry_type(vk::GeometryTypeKHR::from_raw(g.ty))
                     .geometry(data)
-                    .flags(vk::GeometryFlagsKHR::from_raw(g.flags.0)),
-            )
-        })
-        .collect()
+                    .flags(vk::GeometryFlagsKHR::from_raw(g.flags))
+            })
+            .collect(),
+    )
 }
 
 pub(crate) fn vk_info<'a>(
-    info: &BuildGeometryInfo,
+    info: &BuildInfoPlan,
     geoms: &'a [vk::AccelerationStructureGeometryKHR<'static>],
     r: &Realised,
 ) -> vk::AccelerationStructureBuildGeometryInfoKHR<'a> {
-    let mode = match info.mode {
-        BuildMode::Build => vk::BuildAccelerationStructureModeKHR::BUILD,
-        BuildMode::Update => vk::BuildAccelerationStructureModeKHR::UPDATE,
-        BuildMode::Other(v) => vk::BuildAccelerationStructureModeKHR::from_raw(v as i32),
-    };
     let handle = |n: &Option<String>| {
         n.as_ref()
             .and_then(|n| r.structures.get(n))
             .map_or(vk::AccelerationStructureKHR::null(), |s| s.0)
     };
     vk::AccelerationStructureBuildGeometryInfoKHR::default()
-        .ty(vk_type(info.ty))
-        .flags(vk::BuildAccelerationStructureFlagsKHR::from_raw(
-            info.flags.0,
-        ))
-        .mode(mode)
+        .ty(vk::AccelerationStructureTypeKHR::from_raw(info.ty))
+        .flags(vk::BuildAccelerationStructureFlagsKHR::from_raw(info.flags))
+        .mode(vk::BuildAccelerationStructureModeKHR::from_raw(info.mode))
         .src_acceleration_structure(handle(&info.src))
         .dst_acceleration_structure(handle(&info.dst))
         .geometries(geoms)
@@ -195,26 +253,6 @@ pub(crate) fn device_for(
     VkDevice::new(inst.clone(), &ext, &feat)
 }
 
-/// Whether any address of the call (indirect records, scratch, geometry data) lies in buffer `name`.
-fn addressed(case: &AccelBody, name: &str) -> bool {
-    let is = |a: &model::call::Address| a.buffer().is_some_and(|(b, _)| b == name);
-    case.call.indirect_addresses.iter().any(is)
-        || case.call.infos.iter().any(|i| {
-            is(&i.scratch)
-                || i.geometries.iter().any(|g| match &g.data {
-                    GeometryData::Triangles {
-                        vertex_data,
-                        index_data,
-                        transform_data,
-                        ..
-                    } => is(vertex_data) || is(index_data) || is(transform_data),
-                    GeometryData::Aabbs { data, .. } => is(data),
-                    GeometryData::Instances { data, .. } => is(data),
-                    _ => false,
-                })
-        })
-}
-
 /// Creates the case's buffers and structures and writes the memory image. Memory follows each buffer's
 /// binding: wholly bound buffers get one allocation; sparse buffers are bound with `vkQueueBindSparse`
 /// (whole: one memory object, scattered: two, unbound: none) waiting on `fence`; a non-sparse unbound
@@ -224,12 +262,12 @@ fn addressed(case: &AccelBody, name: &str) -> bool {
 /// address of a non-sparse unbound buffer (VUID-VkBufferDeviceAddressInfo-buffer-02600).
 pub(crate) fn realise(
     dev: &VkDevice,
-    case: &AccelBody,
+    plan: &BuildPlan,
     fence: vk::Fence,
 ) -> Result<Realised, HarnessError> {
     use model::world::MemoryBinding;
     let accel = dev.accel.as_ref().ok_or_else(|| {
-        HarnessError::Unsupported("the case does not enable VK_KHR_acceleration_structure".into())
+        HarnessError::NotRealised("the case does not enable VK_KHR_acceleration_structure".into())
     })?;
     let mut r = Realised {
         buffers: BTreeMap::new(),
@@ -237,13 +275,12 @@ pub(crate) fn realise(
         structures: BTreeMap::new(),
     };
     let made = (|| -> Result<(), HarnessError> {
-        for b in &case.world.buffers {
-            let usage = vk::BufferUsageFlags::from_raw(b.usage.0 as u32)
-                | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-            let flags = vk::BufferCreateFlags::from_raw(b.flags.0 as u32);
-            if b.is_sparse() {
+        for b in &plan.buffers {
+            let usage = vk::BufferUsageFlags::from_raw(b.usage);
+            let flags = vk::BufferCreateFlags::from_raw(b.flags);
+            if b.sparse {
                 if !dev.has_feature("sparseBinding") || !dev.sparse_binding {
-                    return Err(HarnessError::Unsupported(format!(
+                    return Err(HarnessError::NotRealised(format!(
                         "buffer `{}` is sparse: creating it needs the sparseBinding feature and \
                          binding it a queue with VK_QUEUE_SPARSE_BINDING_BIT (the case's device has {})",
                         b.name,
@@ -270,7 +307,7 @@ pub(crate) fn realise(
                     r.buffers.insert(b.name.clone(), a);
                 }
                 MemoryBinding::Scattered => {
-                    return Err(HarnessError::Unsupported(format!(
+                    return Err(HarnessError::NotRealised(format!(
                         "buffer `{}` is not sparse, so it cannot be bound to several memory objects \
                          (vkBindBufferMemory binds a non-sparse buffer to one, completely and contiguously); the \
                          one realisable non-contiguous non-sparse buffer is an unbound one, whose device address \
@@ -278,8 +315,8 @@ pub(crate) fn realise(
                         b.name
                     )))
                 }
-                MemoryBinding::Unbound if addressed(case, &b.name) || !b.contents.is_empty() => {
-                    return Err(HarnessError::Unsupported(format!(
+                MemoryBinding::Unbound if b.addressed || b.written => {
+                    return Err(HarnessError::NotRealised(format!(
                         "buffer `{}` is not sparse and has no memory bound, yet the call reads \
                          it by device address: vkGetBufferDeviceAddress on it is itself invalid \
                          (VUID-VkBufferDeviceAddressInfo-buffer-02600: a non-sparse buffer must be bound \
@@ -299,7 +336,7 @@ pub(crate) fn realise(
                 }
             }
         }
-        for s in &case.world.structures {
+        for s in &plan.structures {
             let (buffer, bound) = match (r.buffers.get(&s.buffer), r.bare.get(&s.buffer)) {
                 (Some(a), _) => (a.buffer, a.memory_count() > 0),
                 (None, Some(b)) => (*b, false),
@@ -314,7 +351,7 @@ pub(crate) fn realise(
                 .buffer(buffer)
                 .offset(s.offset)
                 .size(s.size)
-                .ty(vk_type(s.ty));
+                .ty(vk::AccelerationStructureTypeKHR::from_raw(s.ty));
             // SAFETY: the buffer lives as long as the structure.
             let h = unsafe { accel.create_acceleration_structure(&info, None) }
                 .map_err(vkfail("vkCreateAccelerationStructureKHR"))?;
@@ -333,13 +370,13 @@ pub(crate) fn realise(
             };
             r.structures.insert(s.name.clone(), (h, addr));
         }
-        for b in &case.world.buffers {
+        for b in &plan.buffers {
             let Some(a) = r.buffers.get(&b.name) else {
                 continue;
             };
             if a.memory_count() == 0 {
-                if !b.contents.is_empty() {
-                    return Err(HarnessError::Unsupported(format!(
+                if b.written {
+                    return Err(HarnessError::NotRealised(format!(
                         "buffer `{}` has no memory bound, so its contents cannot be written",
                         b.name
                     )));
@@ -347,10 +384,8 @@ pub(crate) fn realise(
                 continue;
             }
             // The buffer is zeroed: only what the contents write is copied.
-            if let Some(image) = case.world.image(&b.name, &r) {
-                for (at, bytes) in image.runs() {
-                    a.write(at, bytes);
-                }
+            for (at, bytes) in b.image_at(&r).runs() {
+                a.write(at, bytes);
             }
         }
         Ok(())
@@ -367,14 +402,13 @@ pub(crate) fn realise(
 /// The sizes the device reports for each info of the call with its maxima.
 pub(crate) fn device_sizes(
     dev: &VkDevice,
-    case: &AccelBody,
+    plan: &BuildPlan,
     r: &Realised,
 ) -> Option<Vec<BuildSizes>> {
     let accel = dev.accel.as_ref()?;
-    case.call
-        .infos
+    plan.infos
         .iter()
-        .zip(&case.call.max_primitive_counts)
+        .zip(&plan.max_primitive_counts)
         .map(|(info, max)| {
             let geoms = vk_geometries(info, r)?;
             let vi = vk_info(info, &geoms, r);
@@ -403,7 +437,7 @@ pub(crate) fn device_sizes(
 /// The Vulkan form of the case's indirect call: infos (with their geometries kept alive), addresses,
 /// strides and maxima.
 pub(crate) fn indirect_args<'a>(
-    case: &'a AccelBody,
+    plan: &'a BuildPlan,
     r: &Realised,
     geoms: &'a [Vec<vk::AccelerationStructureGeometryKHR<'static>>],
 ) -> (
@@ -411,21 +445,18 @@ pub(crate) fn indirect_args<'a>(
     Vec<u64>,
     Vec<&'a [u32]>,
 ) {
-    let infos = case
-        .call
+    let infos = plan
         .infos
         .iter()
         .zip(geoms)
         .map(|(i, g)| vk_info(i, g, r))
         .collect();
-    let addrs = case
-        .call
+    let addrs = plan
         .indirect_addresses
         .iter()
         .map(|a| r.address(a))
         .collect();
-    let maxima = case
-        .call
+    let maxima = plan
         .max_primitive_counts
         .iter()
         .map(|v| v.as_slice())

@@ -1,19 +1,21 @@
-//! A trace world's buffers on the device: placed at 4096-aligned addresses, bound as the world says
-//! (whole, sparse in pieces, or not at all), with their contents written (shader group handles of the
-//! bound or a foreign pipeline, indirect commands).
+//! A trace world's buffers on the device, from their plan ([`BufferPlan`]): placed at 4096-aligned
+//! addresses, bound as the world says (whole, sparse in pieces, or not at all), with their writes
+//! made (shader group handles of the bound or a foreign pipeline, indirect commands).
 
 use super::DeviceCache;
 use crate::error::HarnessError;
+use crate::plan::trace::{BufferPlan, BufferWrite};
 use crate::vk::memory::{Allocation, SparsePlan};
 use ash::vk;
 use model::call::BUFFER_PLACEMENT_ALIGNMENT;
-use model::world::{Contents, HandleRef, Pipeline, PipelineApi, World};
+use model::world::{HandleRef, Pipeline, PipelineApi};
 
 impl DeviceCache {
     /// Why a sparse buffer cannot be made validly here, if it cannot: the features its flags need must be
     /// enabled (VUID-VkBufferCreateInfo-flags-00915/00916/00917) and the harness's queue must bind sparse.
-    fn check_sparse(&self, b: &model::world::Buffer) -> Result<(), HarnessError> {
+    fn check_sparse(&self, b: &BufferPlan) -> Result<(), HarnessError> {
         use model::flags::BufferCreate;
+        let flags = BufferCreate(b.flags as u64);
         let needs = [
             (
                 BufferCreate::SPARSE_BINDING_BIT,
@@ -32,21 +34,21 @@ impl DeviceCache {
             ),
         ];
         for (flag, feature, vuid) in needs {
-            if b.flags.contains(flag) && !self.dev.has_feature(feature) {
-                return Err(HarnessError::Unsupported(format!(
+            if flags.contains(flag) && !self.dev.has_feature(feature) {
+                return Err(HarnessError::NotRealised(format!(
                     "buffer `{}` is sparse but the case does not enable {feature}, so creating it is invalid ({vuid})",
                     b.name
                 )));
             }
         }
-        if !b.flags.contains(BufferCreate::SPARSE_BINDING_BIT) {
-            return Err(HarnessError::Unsupported(format!(
+        if !flags.contains(BufferCreate::SPARSE_BINDING_BIT) {
+            return Err(HarnessError::NotRealised(format!(
                 "buffer `{}` has sparse residency/aliasing flags without SPARSE_BINDING (VUID-VkBufferCreateInfo-flags-00918)",
                 b.name
             )));
         }
         if !self.dev.sparse_binding {
-            return Err(HarnessError::Unsupported(format!(
+            return Err(HarnessError::NotRealised(format!(
                 "buffer `{}` is sparse but the device lacks sparseBinding or its compute queue family has no \
                  VK_QUEUE_SPARSE_BINDING_BIT, so vkQueueBindSparse cannot bind it",
                 b.name
@@ -60,11 +62,11 @@ impl DeviceCache {
     /// Creates the case's buffers with their contents; returns them by name.
     pub(crate) fn case_buffers(
         &mut self,
-        world: &World,
+        buffers: &[BufferPlan],
         pipeline: Option<(&Pipeline, bool)>,
     ) -> Result<Vec<(String, Allocation)>, HarnessError> {
         let mut out: Vec<(String, Allocation)> = Vec::new();
-        let r = self.case_buffers_into(world, pipeline, &mut out);
+        let r = self.case_buffers_into(buffers, pipeline, &mut out);
         if let Err(e) = r {
             for (_, a) in out {
                 a.destroy(&self.dev);
@@ -76,7 +78,7 @@ impl DeviceCache {
 
     fn case_buffers_into(
         &mut self,
-        world: &World,
+        buffers: &[BufferPlan],
         pipeline: Option<(&Pipeline, bool)>,
         out: &mut Vec<(String, Allocation)>,
     ) -> Result<(), HarnessError> {
@@ -85,8 +87,16 @@ impl DeviceCache {
             Some((p, _)) if p.api == PipelineApi::Nv => self.dev.limits.nv_handle_size,
             _ => self.dev.limits.handle_size,
         } as usize;
-        let needs_foreign = world.buffers.iter().any(|b| {
-            b.contents.iter().any(|c| matches!(c, Contents::ShaderRecords { handles, .. } if handles.iter().any(|h| matches!(h, HandleRef::Foreign(_)))))
+        let needs_foreign = buffers.iter().any(|b| {
+            b.writes.iter().any(|w| {
+                matches!(
+                    w,
+                    BufferWrite::Handle {
+                        handle: HandleRef::Foreign(_),
+                        ..
+                    }
+                )
+            })
         });
         let own: Vec<u8> = match pipeline {
             Some((p, trace)) => self.pipeline(p, trace, false)?.handles.clone(),
@@ -95,7 +105,7 @@ impl DeviceCache {
         let foreign: Vec<u8> = match (pipeline, needs_foreign) {
             (Some((p, trace)), true) => self.pipeline(p, trace, true)?.handles.clone(),
             (None, true) => {
-                return Err(HarnessError::Unsupported(
+                return Err(HarnessError::NotRealised(
                     "foreign handles need a pipeline description to copy".into(),
                 ))
             }
@@ -103,24 +113,21 @@ impl DeviceCache {
         };
         // KHR calls name buffers by device address; vkCmdTraceRaysNV names them by handle and needs none.
         let wants_address = pipeline.is_none_or(|(p, _)| p.api == PipelineApi::Khr);
-        if !self.dev.has_feature("bufferDeviceAddress")
-            && wants_address
-            && !world.buffers.is_empty()
-        {
-            return Err(HarnessError::Unsupported(
+        if !self.dev.has_feature("bufferDeviceAddress") && wants_address && !buffers.is_empty() {
+            return Err(HarnessError::NotRealised(
                 "the case does not enable bufferDeviceAddress, so the harness cannot give its buffers addresses".into(),
             ));
         }
-        for b in &world.buffers {
-            let usage = vk::BufferUsageFlags::from_raw(b.usage.0 as u32);
-            let flags = vk::BufferCreateFlags::from_raw(b.flags.0 as u32);
+        for b in buffers {
+            let usage = vk::BufferUsageFlags::from_raw(b.usage);
+            let flags = vk::BufferCreateFlags::from_raw(b.flags);
             if b.size == 0 {
-                return Err(HarnessError::Unsupported(format!(
+                return Err(HarnessError::NotRealised(format!(
                     "buffer `{}` has size 0, which cannot be created",
                     b.name
                 )));
             }
-            let a = if b.is_sparse() {
+            let a = if b.sparse {
                 let plan = match b.memory {
                     MemoryBinding::Whole => SparsePlan::One,
                     MemoryBinding::Unbound => SparsePlan::Unbound,
@@ -132,7 +139,7 @@ impl DeviceCache {
                 match b.memory {
                     MemoryBinding::Whole => {}
                     MemoryBinding::Unbound => {
-                        return Err(HarnessError::Unsupported(format!(
+                        return Err(HarnessError::NotRealised(format!(
                             "buffer `{}` is not sparse and has no memory bound: vkGetBufferDeviceAddress on it is \
                              itself invalid (VUID-VkBufferDeviceAddressInfo-buffer-02600: a non-sparse buffer must be \
                              bound completely and contiguously to a single VkDeviceMemory object), so the harness \
@@ -141,7 +148,7 @@ impl DeviceCache {
                         )))
                     }
                     MemoryBinding::Scattered => {
-                        return Err(HarnessError::Unsupported(format!(
+                        return Err(HarnessError::NotRealised(format!(
                             "buffer `{}` is not sparse, so it cannot be bound to several memory objects \
                              (vkBindBufferMemory binds one; VUID-VkBufferDeviceAddressInfo-buffer-02600)",
                             b.name
@@ -150,44 +157,21 @@ impl DeviceCache {
                 }
                 Allocation::new(&self.dev, b.size, usage, flags, BUFFER_PLACEMENT_ALIGNMENT)?
             };
-            for c in &b.contents {
-                match c {
-                    Contents::ShaderRecords {
-                        offset,
-                        stride,
-                        handles,
-                    } => {
-                        for (i, h) in handles.iter().enumerate() {
-                            let bytes: Vec<u8> = match h {
-                                HandleRef::Zero => vec![0; hs],
-                                HandleRef::Group(n) => own
-                                    .get(*n as usize * hs..(*n as usize + 1) * hs)
-                                    .map_or(vec![0; hs], |s| s.to_vec()),
-                                HandleRef::Foreign(n) => foreign
-                                    .get(*n as usize * hs..(*n as usize + 1) * hs)
-                                    .map_or(vec![0; hs], |s| s.to_vec()),
-                            };
-                            // A record past u64::MAX lies past the end of the buffer.
-                            let at = (i as u64)
-                                .checked_mul(*stride)
-                                .and_then(|d| d.checked_add(*offset));
-                            if let Some(at) = at {
-                                a.write(at, &bytes);
-                            }
-                        }
-                    }
-                    Contents::TraceRaysIndirectCommand {
-                        offset,
-                        width,
-                        height,
-                        depth,
-                    } => {
-                        let mut bytes = Vec::with_capacity(12);
-                        for v in [width, height, depth] {
-                            bytes.extend_from_slice(&v.to_ne_bytes());
-                        }
+            for w in &b.writes {
+                match w {
+                    BufferWrite::Handle { offset, handle } => {
+                        let bytes: Vec<u8> = match handle {
+                            HandleRef::Zero => vec![0; hs],
+                            HandleRef::Group(n) => own
+                                .get(*n as usize * hs..(*n as usize + 1) * hs)
+                                .map_or(vec![0; hs], |s| s.to_vec()),
+                            HandleRef::Foreign(n) => foreign
+                                .get(*n as usize * hs..(*n as usize + 1) * hs)
+                                .map_or(vec![0; hs], |s| s.to_vec()),
+                        };
                         a.write(*offset, &bytes);
                     }
+                    BufferWrite::Bytes { offset, bytes } => a.write(*offset, bytes),
                 }
             }
             out.push((b.name.clone(), a));

@@ -51,7 +51,7 @@ pub(crate) struct DeviceCache {
 }
 
 /// The ray data the raygen shader reads: std430 `Ray` (64 bytes) after a 16-byte header.
-pub(crate) const RAY_RECORD_SIZE: usize = 64;
+pub(crate) use crate::plan::trace::RAY_RECORD_SIZE;
 
 impl Drop for DeviceCache {
     fn drop(&mut self) {

@@ -217,12 +217,12 @@ impl DeviceCache {
         let api = p.api;
         match api {
             PipelineApi::Khr if self.dev.rt.is_none() => {
-                return Err(HarnessError::Unsupported(
+                return Err(HarnessError::NotRealised(
                     "the case does not enable VK_KHR_ray_tracing_pipeline, so no ray tracing pipeline can be made".into(),
                 ))
             }
             PipelineApi::Nv if self.dev.nv.is_none() => {
-                return Err(HarnessError::Unsupported(
+                return Err(HarnessError::NotRealised(
                     "the case does not enable VK_NV_ray_tracing, so no NV ray tracing pipeline can be made".into(),
                 ))
             }
@@ -303,7 +303,7 @@ impl DeviceCache {
                             add(self, ShaderKind::Intersection, vk::ShaderStageFlags::INTERSECTION_KHR)?
                         }
                         ShaderGroup::ProceduralHit { intersection: false, .. } => {
-                            return Err(HarnessError::Unsupported(format!(
+                            return Err(HarnessError::NotRealised(format!(
                                 "group {g} is procedural without an intersection shader, which no valid pipeline has"
                             )))
                         }

@@ -299,21 +299,21 @@ impl DeviceCache {
         built.buffers.push(spheres);
         if api == PipelineApi::Nv {
             let Some(nv) = self.dev.nv.clone() else {
-                return Err(HarnessError::Unsupported(
+                return Err(HarnessError::NotRealised(
                     "the case traces rays but does not enable VK_NV_ray_tracing".into(),
                 ));
             };
             return self.build_nv_scene_into(&nv, scene, built);
         }
         let Some(accel) = self.dev.accel.clone() else {
-            return Err(HarnessError::Unsupported(
+            return Err(HarnessError::NotRealised(
                 "the case traces rays but does not enable VK_KHR_acceleration_structure".into(),
             ));
         };
         if !self.dev.has_feature("accelerationStructure")
             || !self.dev.has_feature("bufferDeviceAddress")
         {
-            return Err(HarnessError::Unsupported(
+            return Err(HarnessError::NotRealised(
                 "the case traces rays but does not enable accelerationStructure and bufferDeviceAddress".into(),
             ));
         }
@@ -567,7 +567,7 @@ impl DeviceCache {
                     dev.memory_type(object.memory_type_bits, vk::MemoryPropertyFlags::empty())
                 })
                 .ok_or_else(|| {
-                    HarnessError::Unsupported(
+                    HarnessError::NotRealised(
                         "no memory type for an NV acceleration structure".into(),
                     )
                 })?;

@@ -94,9 +94,15 @@ impl Commands {
                 .map_err(vkfail("vkResetFences"))
         }
     }
+    /// Makes a build's writes visible to later builds and to the shaders that trace the result: the
+    /// compute stage only when rayQuery is enabled (acceleration structure reads from other shader
+    /// stages need it, VUID-vkCmdPipelineBarrier-dstAccessMask-06257), the ray tracing stage with
+    /// ray tracing pipelines.
     pub(crate) fn barrier(&self, dev: &VkDevice) {
-        let mut dst = vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR
-            | vk::PipelineStageFlags::COMPUTE_SHADER;
+        let mut dst = vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR;
+        if dev.has_feature("rayQuery") {
+            dst |= vk::PipelineStageFlags::COMPUTE_SHADER;
+        }
         if dev.has_feature("rayTracingPipeline") {
             dst |= vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR;
         }

@@ -56,7 +56,7 @@ fn feature_chain(
             })
             .collect();
         if candidates.is_empty() {
-            return Err(HarnessError::Unsupported(format!(
+            return Err(HarnessError::NotRealised(format!(
                 "unknown device feature `{name}`"
             )));
         }
@@ -69,7 +69,7 @@ fn feature_chain(
                 .iter()
                 .map(|s| s.extension.map_or_else(|| s.name.to_string(), String::from))
                 .collect();
-            return Err(HarnessError::Unsupported(format!(
+            return Err(HarnessError::NotRealised(format!(
                 "feature `{name}` needs one of [{}] enabled on a device that has it",
                 needs.join(", ")
             )));
@@ -85,11 +85,12 @@ fn feature_chain(
         let i = chain.position(s.name).unwrap_or_else(|| chain.push(s));
         layout::set_bool(s.members, EXTENSIBLE_HEADER, chain.bytes_mut(i), member);
     }
-    if !missing.is_empty() {
-        return Err(HarnessError::Unsupported(format!(
-            "the device lacks feature(s): {}",
-            missing.join(", ")
-        )));
+    if let Some(first) = missing.first() {
+        let member = first.rsplit("::").next().unwrap_or(first).to_string();
+        return Err(HarnessError::lacks(
+            crate::observe::DeviceLack::Feature(member),
+            format!("the device lacks feature(s): {}", missing.join(", ")),
+        ));
     }
     Ok((core, chain))
 }
@@ -136,12 +137,12 @@ impl VkDevice {
             .iter()
             .filter(|e| !available.contains(*e))
             .collect();
-        if !missing.is_empty() {
+        if let Some(first) = missing.first() {
             let names: Vec<&str> = missing.iter().map(|s| s.as_str()).collect();
-            return Err(HarnessError::Unsupported(format!(
-                "the device lacks extension(s): {}",
-                names.join(", ")
-            )));
+            return Err(HarnessError::lacks(
+                crate::observe::DeviceLack::Extension(first.to_string()),
+                format!("the device lacks extension(s): {}", names.join(", ")),
+            ));
         }
         let supported = inst.device_features();
         let (core, mut chain) = feature_chain(&inst, extensions, features, &supported)?;
@@ -154,8 +155,9 @@ impl VkDevice {
             .iter()
             .position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE))
         else {
-            return Err(HarnessError::Unsupported(
-                "no queue family with VK_QUEUE_COMPUTE_BIT".into(),
+            return Err(HarnessError::lacks(
+                crate::observe::DeviceLack::QueueFamilyWithAny(vec!["VK_QUEUE_COMPUTE_BIT".into()]),
+                "no queue family with VK_QUEUE_COMPUTE_BIT",
             ));
         };
         let priorities = [1.0f32];

@@ -57,6 +57,81 @@ impl Driver {
     }
 }
 
+/// The validation layer as the loader lists it (`vkEnumerateInstanceLayerProperties`): the API version
+/// it was built for (`specVersion`, `1.3.239`), which names its VUIDs' registry, and its own
+/// implementation version.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct LayerInfo {
+    /// `major.minor.patch` of `specVersion`.
+    pub version: String,
+    pub implementation_version: u32,
+    pub description: String,
+}
+
+/// The validation layer the loader finds (honouring `VK_LAYER_PATH`); reads only the layer's manifest.
+pub fn validation_layer() -> Result<LayerInfo, HarnessError> {
+    // SAFETY: loading the system loader library; failure is reported, not unwound.
+    let entry =
+        unsafe { ash::Entry::load() }.map_err(|e| HarnessError::LoaderMissing(e.to_string()))?;
+    // SAFETY: plain query.
+    let layers = unsafe { entry.enumerate_instance_layer_properties() }
+        .map_err(HarnessError::vk("vkEnumerateInstanceLayerProperties"))?;
+    let layer = layers
+        .iter()
+        .find(|l| {
+            l.layer_name_as_c_str()
+                .is_ok_and(|n| n.to_bytes() == VALIDATION_LAYER.as_bytes())
+        })
+        .ok_or_else(|| HarnessError::LayerMissing(VALIDATION_LAYER.into()))?;
+    let v = layer.spec_version;
+    Ok(LayerInfo {
+        version: format!(
+            "{}.{}.{}",
+            vk::api_version_major(v),
+            vk::api_version_minor(v),
+            vk::api_version_patch(v)
+        ),
+        implementation_version: layer.implementation_version,
+        description: layer
+            .description_as_c_str()
+            .map(|d| d.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+    })
+}
+
+/// Selects the validation layer build in `dir` for this process's loader and the workers it starts: a
+/// directory holding the layer's manifest (`VkLayer_khronos_validation.json`), or an unpacked package
+/// root (`dir/usr/share/vulkan/explicit_layer.d`), whose library directory
+/// (`dir/usr/lib/x86_64-linux-gnu`) goes first on `LD_LIBRARY_PATH` (the manifest names the library
+/// without a path, and the layer may need that directory's libstdc++).
+pub fn select_layer(dir: &std::path::Path) -> Result<(), HarnessError> {
+    let unpacked = dir.join("usr/share/vulkan/explicit_layer.d");
+    let manifests = if unpacked.is_dir() {
+        unpacked
+    } else {
+        dir.to_path_buf()
+    };
+    if !manifests.join("VkLayer_khronos_validation.json").is_file() {
+        return Err(HarnessError::LayerMissing(format!(
+            "{VALIDATION_LAYER} (no VkLayer_khronos_validation.json in {} or {})",
+            dir.display(),
+            manifests.display()
+        )));
+    }
+    std::env::set_var("VK_LAYER_PATH", &manifests);
+    let lib = dir.join("usr/lib/x86_64-linux-gnu");
+    if lib.is_dir() {
+        let old = std::env::var("LD_LIBRARY_PATH").unwrap_or_default();
+        let joined = if old.is_empty() {
+            lib.display().to_string()
+        } else {
+            format!("{}:{old}", lib.display())
+        };
+        std::env::set_var("LD_LIBRARY_PATH", joined);
+    }
+    Ok(())
+}
+
 /// One message of the validation layer.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct LayerMessage {
@@ -73,6 +148,11 @@ pub(crate) struct Collector {
     messages: Mutex<Vec<LayerMessage>>,
     /// While set, the callback returns VK_TRUE so the layer drops the call instead of passing it on.
     abort: AtomicBool,
+    /// Message ids the callback returns VK_FALSE for even while `abort` is set, so the layer's later
+    /// checks of the call still run: the layer stops validating a call at the first validation object
+    /// (parameter checks, object lifetimes, core checks…) whose check the callback aborted, so a VUID the
+    /// device makes unavoidable (reported in the parameter checks) would hide every core check.
+    continue_past: Mutex<BTreeSet<String>>,
 }
 
 impl Collector {
@@ -87,6 +167,11 @@ impl Collector {
     }
     pub(crate) fn set_abort(&self, abort: bool) {
         self.abort.store(abort, Ordering::SeqCst);
+    }
+    /// The message ids the layer's validation continues past (see [`Collector::continue_past`]).
+    pub(crate) fn set_continue_past(&self, ids: &[String]) {
+        *self.continue_past.lock().unwrap_or_else(|e| e.into_inner()) =
+            ids.iter().cloned().collect();
     }
 }
 
@@ -121,6 +206,11 @@ unsafe extern "system" fn messenger_callback(
     } else {
         "verbose"
     };
+    let continues = collector
+        .continue_past
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .contains(&id);
     collector
         .messages
         .lock()
@@ -130,7 +220,7 @@ unsafe extern "system" fn messenger_callback(
             id,
             text: message,
         });
-    if collector.abort.load(Ordering::SeqCst) {
+    if collector.abort.load(Ordering::SeqCst) && !continues {
         vk::TRUE
     } else {
         vk::FALSE
@@ -177,6 +267,31 @@ impl VkInstance {
                 return Err(HarnessError::LayerMissing(VALIDATION_LAYER.into()));
             }
         }
+        // Every message of every case, however often it repeats: newer layers stop reporting a message
+        // id after `duplicate_message_limit` (10 by default since the VK_EXT_layer_settings layers) per
+        // instance, so a worker's later cases would miss VUIDs its earlier cases drew, and a call whose
+        // aborting message went silent would be validated further and passed on. Older layers read the
+        // limit from the environment (0 there means unlimited, but a settings file may set one).
+        std::env::set_var("VK_LAYER_DUPLICATE_MESSAGE_LIMIT", "1000000000");
+        std::env::set_var("VK_LAYER_ENABLE_MESSAGE_LIMIT", "false");
+        let settings_ext = validation
+            && unsafe { entry.enumerate_instance_extension_properties(Some(layer.as_c_str())) }
+                .unwrap_or_default()
+                .iter()
+                .any(|e| {
+                    e.extension_name_as_c_str()
+                        .is_ok_and(|n| n == ash::ext::layer_settings::NAME)
+                });
+        let limit_off: [vk::Bool32; 1] = [vk::FALSE];
+        let limit_key = CString::new("enable_message_limit").expect("no NUL");
+        let mut setting = [vk::LayerSettingEXT::default()
+            .layer_name(layer.as_c_str())
+            .setting_name(limit_key.as_c_str())
+            .ty(vk::LayerSettingTypeEXT::BOOL32)
+            .values(structs::as_bytes(&limit_off))];
+        // `values` counts bytes; the setting holds one VkBool32.
+        setting[0].value_count = 1;
+        let mut settings = vk::LayerSettingsCreateInfoEXT::default().settings(&setting);
         let app_name = CString::new("rtconf").expect("no NUL");
         let app = vk::ApplicationInfo::default()
             .application_name(&app_name)
@@ -186,15 +301,21 @@ impl VkInstance {
         } else {
             vec![]
         };
-        let ext_ptrs = if validation {
+        let mut ext_ptrs = if validation {
             vec![ash::ext::debug_utils::NAME.as_ptr()]
         } else {
             vec![]
         };
-        let info = vk::InstanceCreateInfo::default()
+        if settings_ext {
+            ext_ptrs.push(ash::ext::layer_settings::NAME.as_ptr());
+        }
+        let mut info = vk::InstanceCreateInfo::default()
             .application_info(&app)
             .enabled_layer_names(&layer_ptrs)
             .enabled_extension_names(&ext_ptrs);
+        if settings_ext {
+            info = info.push_next(&mut settings);
+        }
         // SAFETY: valid create info whose pointers outlive the call.
         let instance = unsafe { entry.create_instance(&info, None) }
             .map_err(HarnessError::vk("vkCreateInstance"))?;
@@ -243,6 +364,58 @@ impl VkInstance {
             physical,
             api_version,
         })
+    }
+
+    /// What runs cases: the physical device, its driver and the validation layer.
+    pub(crate) fn running_on(&self) -> crate::observe::RunningOn {
+        let version = |v: u32| {
+            format!(
+                "{}.{}.{}",
+                vk::api_version_major(v),
+                vk::api_version_minor(v),
+                vk::api_version_patch(v)
+            )
+        };
+        let mut driver = vk::PhysicalDeviceDriverProperties::default();
+        let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver);
+        // SAFETY: plain query; the driver properties are core in Vulkan 1.2.
+        unsafe {
+            self.instance
+                .get_physical_device_properties2(self.physical, &mut p2)
+        };
+        let p = p2.properties;
+        let text = |c: Result<&CStr, _>| {
+            c.map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        };
+        let name = text(p.device_name_as_c_str());
+        let layer = self.debug.as_ref().and_then(|_| {
+            // SAFETY: plain query.
+            let layers = unsafe { self._entry.enumerate_instance_layer_properties() }.ok()?;
+            let l = layers.iter().find(|l| {
+                l.layer_name_as_c_str()
+                    .is_ok_and(|n| n.to_bytes() == VALIDATION_LAYER.as_bytes())
+            })?;
+            Some(format!(
+                "{VALIDATION_LAYER} {} (implementation {})",
+                version(l.spec_version),
+                l.implementation_version
+            ))
+        });
+        crate::observe::RunningOn {
+            device: format!(
+                "{name} (vendor {:#06x}, device {:#06x})",
+                p.vendor_id, p.device_id
+            ),
+            api_version: version(p.api_version),
+            driver: format!(
+                "{} {} (driver version {:#010x})",
+                text(driver.driver_name_as_c_str()),
+                text(driver.driver_info_as_c_str()),
+                p.driver_version
+            ),
+            layer,
+        }
     }
 
     /// The name the physical device reports.

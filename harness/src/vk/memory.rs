@@ -131,7 +131,7 @@ impl Allocation {
         let Some((mt, coherent)) = host_memory_type(dev, req.memory_type_bits) else {
             // SAFETY: destroying what we created.
             unsafe { d.destroy_buffer(buffer, None) };
-            return Err(HarnessError::Unsupported(
+            return Err(HarnessError::NotRealised(
                 "no host-visible memory type for a buffer".into(),
             ));
         };
@@ -165,7 +165,7 @@ impl Allocation {
             let delta = align - address % align;
             if delta % req.alignment.max(1) != 0 {
                 cleanup(buffer);
-                return Err(HarnessError::Unsupported(format!(
+                return Err(HarnessError::NotRealised(format!(
                     "cannot place a buffer at a {align}-aligned device address (memory at {address:#x}, alignment {})",
                     req.alignment
                 )));
@@ -191,7 +191,7 @@ impl Allocation {
             address = address_of(dev, buffer);
             if address % align != 0 {
                 cleanup(buffer);
-                return Err(HarnessError::Unsupported(format!(
+                return Err(HarnessError::NotRealised(format!(
                     "the driver placed a buffer at {address:#x}, not a multiple of {align}"
                 )));
             }
@@ -266,7 +266,7 @@ impl Allocation {
             SparsePlan::Unbound => vec![],
             SparsePlan::One => vec![(0, blocks * block)],
             SparsePlan::Two if blocks < 2 => {
-                return Err(HarnessError::Unsupported(format!(
+                return Err(HarnessError::NotRealised(format!(
                     "a sparse buffer of {} bytes is one sparse block ({block} bytes) here, so its pages cannot be \
                      scattered over two memory objects",
                     self.size
@@ -276,7 +276,7 @@ impl Allocation {
         };
         if !ranges.is_empty() {
             let Some((mt, coherent)) = host_memory_type(dev, req.memory_type_bits) else {
-                return Err(HarnessError::Unsupported(
+                return Err(HarnessError::NotRealised(
                     "no host-visible memory type for a sparse buffer (the harness writes its contents from the host)".into(),
                 ));
             };
@@ -331,7 +331,7 @@ impl Allocation {
         self.address = address_of(dev, self.buffer);
         if dev.has_feature("bufferDeviceAddress") && self.address % BUFFER_PLACEMENT_ALIGNMENT != 0
         {
-            return Err(HarnessError::Unsupported(format!(
+            return Err(HarnessError::NotRealised(format!(
                 "the driver placed a sparse buffer at {:#x}, not a multiple of {BUFFER_PLACEMENT_ALIGNMENT}",
                 self.address
             )));

@@ -15,5 +15,7 @@ pub(crate) mod structs;
 pub(crate) mod tables;
 
 pub(crate) use device::VkDevice;
+pub use instance::{
+    select_layer, validation_layer, Driver, LayerInfo, LayerMessage, VALIDATION_LAYER,
+};
 pub(crate) use instance::{Collector, VkInstance};
-pub use instance::{Driver, LayerMessage, VALIDATION_LAYER};

@@ -9,7 +9,7 @@ use super::world::{AsType, RangeInfo};
 use crate::case::AccelBody;
 
 /// One ray per built primitive: origin above the primitive, direction +z, and what it must report.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct ExpectedRay {
     pub origin: [f32; 3],
     /// (instance, geometry, primitive) when it must hit; None when it must miss.

@@ -475,7 +475,8 @@ pub fn instance_bytes(inst: &InstanceRecord, resolve: &dyn AddressResolver) -> [
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct SparseImage {
     size: u64,
-    /// Written runs by start offset; they never overlap and never pass `size`.
+    /// Written runs by start offset; they never overlap, never touch (touching runs are one) and
+    /// never pass `size`.
     runs: std::collections::BTreeMap<u64, Vec<u8>>,
 }
 
@@ -516,7 +517,20 @@ impl SparseImage {
                 self.runs.insert(end, run[(end - at) as usize..].to_vec());
             }
         }
-        self.runs.insert(offset, data[..n as usize].to_vec());
+        // Runs that touch the new one join it, so equal contents have one representation.
+        let mut start = offset;
+        let mut run = data[..n as usize].to_vec();
+        if let Some((&at, before)) = self.runs.range(..offset).next_back() {
+            if at + before.len() as u64 == offset {
+                let mut joined = self.runs.remove(&at).unwrap_or_default();
+                joined.extend_from_slice(&run);
+                (start, run) = (at, joined);
+            }
+        }
+        if let Some(after) = self.runs.remove(&end) {
+            run.extend_from_slice(&after);
+        }
+        self.runs.insert(start, run);
     }
 
     /// `len` bytes at `offset` (zero where nothing was written), or None when they pass the end.

@@ -50,17 +50,41 @@ pub enum DescriptorType {
 }
 
 impl DescriptorType {
-    /// Whether a descriptor of this type identifies an image subresource (the types `-09600` names).
-    pub fn has_image_layout(self) -> bool {
-        matches!(
-            self,
-            DescriptorType::CombinedImageSampler
-                | DescriptorType::SampledImage
-                | DescriptorType::StorageImage
-                | DescriptorType::InputAttachment
-                | DescriptorType::SampleWeightImageQcom
-                | DescriptorType::BlockMatchImageQcom
-        )
+    /// The type a `VK_DESCRIPTOR_TYPE_*` name stands for, if it is one these rules speak of.
+    pub fn from_vk_name(name: &str) -> Option<DescriptorType> {
+        use DescriptorType as D;
+        Some(match name.strip_prefix("VK_DESCRIPTOR_TYPE_")? {
+            "SAMPLER" => D::Sampler,
+            "COMBINED_IMAGE_SAMPLER" => D::CombinedImageSampler,
+            "SAMPLED_IMAGE" => D::SampledImage,
+            "STORAGE_IMAGE" => D::StorageImage,
+            "UNIFORM_TEXEL_BUFFER" => D::UniformTexelBuffer,
+            "STORAGE_TEXEL_BUFFER" => D::StorageTexelBuffer,
+            "UNIFORM_BUFFER" => D::UniformBuffer,
+            "STORAGE_BUFFER" => D::StorageBuffer,
+            "INPUT_ATTACHMENT" => D::InputAttachment,
+            "SAMPLE_WEIGHT_IMAGE_QCOM" => D::SampleWeightImageQcom,
+            "BLOCK_MATCH_IMAGE_QCOM" => D::BlockMatchImageQcom,
+            "TENSOR_ARM" => D::TensorArm,
+            _ => return None,
+        })
+    }
+
+    /// The descriptor types a VUID text names (`VK_DESCRIPTOR_TYPE_*`), in the order written.
+    pub fn named_in(text: &str) -> Vec<DescriptorType> {
+        let mut out = Vec::new();
+        for (at, _) in text.match_indices("VK_DESCRIPTOR_TYPE_") {
+            let name: String = text[at..]
+                .chars()
+                .take_while(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || *c == '_')
+                .collect();
+            if let Some(t) = DescriptorType::from_vk_name(&name) {
+                if !out.contains(&t) {
+                    out.push(t);
+                }
+            }
+        }
+        out
     }
 }
 

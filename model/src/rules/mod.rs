@@ -77,8 +77,8 @@ fn hand_rule(scope: &str, tag: &str) -> Option<Predicate> {
         "03429" => Predicate::HandlesFromBoundPipeline,
         // VUID-…-maxPipelineRayRecursionDepth-03679 (KHR), -maxRecursionDepth-03625 (NV).
         "03679" | "03625" => Predicate::RecursionWithinPipelineLimit,
-        // VUID-…-flags-03511: miss records reached are not zero under NO_NULL_MISS.
-        "03511" => Predicate::NoNullMissReached,
+        // VUID-…-flags-03511: the handle at the miss region's address is not zero under NO_NULL_MISS.
+        "03511" => Predicate::NoNullMissAtRegionAddress,
         // VUID-…-flags-03512/03513/03514: hit records reached are not zero under NO_NULL_*.
         "03512" => Predicate::NoNullHitReached(NullHitKind::AnyHit),
         "03513" => Predicate::NoNullHitReached(NullHitKind::ClosestHit),
@@ -100,10 +100,14 @@ fn hand_rule(scope: &str, tag: &str) -> Option<Predicate> {
             F::RAY_TRACING_ALLOW_MOTION_BIT_NV,
             "rayTracingMotionBlurPipelineTraceRaysIndirect".into(),
         ),
-        // VUID-…-None-02700 / -None-08606: a pipeline is bound.
-        // (-None-08607: with shaderObject enabled, a pipeline or shader objects; ray tracing stages have
-        // no shader objects, so a pipeline must be bound.)
-        "02700" | "08606" | "08607" => Predicate::PipelineBound,
+        // VUID-…-None-02700: a pipeline is bound.
+        "02700" => Predicate::PipelineBound,
+        // VUID-…-None-08606: "If the shaderObject feature is not enabled, a valid pipeline must be bound".
+        "08606" => Predicate::PipelineBoundWhenShaderObject(false),
+        // VUID-…-None-08607: "If the shaderObject feature is enabled, either a valid pipeline … or … shader
+        // objects": ray tracing stages have no shader objects, so a pipeline must be bound — but only where
+        // the feature is enabled.
+        "08607" => Predicate::PipelineBoundWhenShaderObject(true),
         _ => return None,
     })
 }
@@ -219,6 +223,19 @@ impl RuleSet {
             .iter()
             .filter(|r| command.is_none_or(|c| applies_to(&r.scope, c)))
             .map(Row::coverage)
+            .collect()
+    }
+
+    /// The executable rows a device cannot have judged because its profile lacks a limit they compare
+    /// against, with the missing limits: such a row is reported, not silently dropped.
+    pub fn unjudged_on(&self, profile: &DeviceProfile) -> Vec<(String, Vec<String>)> {
+        self.rows
+            .iter()
+            .filter(|r| r.status == Status::Executable)
+            .filter_map(|r| {
+                let missing = r.predicate.as_ref()?.missing_limits(profile);
+                (!missing.is_empty()).then(|| (r.vuid.clone(), missing))
+            })
             .collect()
     }
 

@@ -58,10 +58,13 @@ pub enum Predicate {
     /// A feature or command-buffer state rule, the same for every command.
     State(StatePredicate),
     PipelineBound,
+    /// A pipeline is bound, judged only where the `shaderObject` feature is enabled (`true`, 08607) or
+    /// not enabled (`false`, 08606): each VUID's text opens with that condition.
+    PipelineBoundWhenShaderObject(bool),
     /// Hand rules that read the launch: see each variant's VUID in `hand.rs`.
     HandlesFromBoundPipeline,
     RecursionWithinPipelineLimit,
-    NoNullMissReached,
+    NoNullMissAtRegionAddress,
     NoNullHitReached(NullHitKind),
     HitGroupTypeMatchesGeometry(GeometryKind),
     DynamicStackSizeSet,
@@ -191,7 +194,35 @@ impl Operand {
     }
 }
 
+impl Operand {
+    /// The device limits the operand names that `profile` lacks.
+    fn missing_limits(&self, profile: &crate::profile::DeviceProfile, out: &mut Vec<String>) {
+        match self {
+            Operand::Limit(name) if profile.limit(name).is_none() => out.push(name.clone()),
+            Operand::Product(ops) => ops.iter().for_each(|o| o.missing_limits(profile, out)),
+            _ => {}
+        }
+    }
+}
+
 impl Predicate {
+    /// The device limits the predicate compares against that `profile` does not record: on that
+    /// device the row is not judged ([`Predicate::for_device`] drops it), which a coverage report says.
+    pub fn missing_limits(&self, profile: &crate::profile::DeviceProfile) -> Vec<String> {
+        let mut out = Vec::new();
+        match self {
+            Predicate::MultipleOf(_, o)
+            | Predicate::AtMost(_, o)
+            | Predicate::LessThan(_, o)
+            | Predicate::Equal(_, o)
+            | Predicate::RangeInOneBuffer(_, o)
+            | Predicate::LaunchDimensionAtMost(_, o)
+            | Predicate::LaunchInvocationsAtMost(o) => o.missing_limits(profile, &mut out),
+            _ => {}
+        }
+        out
+    }
+
     /// The predicate for one device: limits looked up once (so judging a call does no string work), or
     /// None when the rule cannot apply there (a limit the profile lacks, `protectedNoFault` supported).
     pub fn for_device(&self, profile: &crate::profile::DeviceProfile) -> Option<Predicate> {
@@ -383,12 +414,17 @@ impl Predicate {
                         continue;
                     };
                     if matches!(self, Predicate::RegionInOneBuffer) {
-                        if off.saturating_add(r.size) > b.size {
+                        let end = off.saturating_add(r.size);
+                        if end > b.size {
+                            let over = end - b.size;
                             push(fail(
                                 format!("{ctx}->size"),
                                 format!(
-                                    "[{off}, {off}+{}) passes the end of `{}` ({} bytes)",
-                                    r.size, b.name, b.size
+                                    "[{off}, {off}+{}) passes the end of `{}` ({} bytes) by {over} byte{}",
+                                    r.size,
+                                    b.name,
+                                    b.size,
+                                    if over == 1 { "" } else { "s" }
                                 ),
                             ));
                         }
@@ -450,6 +486,13 @@ impl Predicate {
                     push(fail("commandBuffer", "no ray tracing pipeline is bound"));
                 }
             }
+            Predicate::PipelineBoundWhenShaderObject(enabled) => {
+                if world.device.feature("shaderObject") == *enabled
+                    && world.bound_pipeline().is_none()
+                {
+                    push(fail("commandBuffer", "no ray tracing pipeline is bound"));
+                }
+            }
             Predicate::HandlesFromBoundPipeline => {
                 for (table, index) in reached_records(cx) {
                     if let Some(HandleRef::Foreign(g)) = record_handle(world, call, table, index) {
@@ -462,8 +505,8 @@ impl Predicate {
             }
             Predicate::RecursionWithinPipelineLimit => {
                 if let Some(pl) = world.bound_pipeline() {
-                    let depth = world.launch.recursion_depth();
-                    if depth > pl.max_recursion_depth && launches_anything(cx) {
+                    let depth = crate::semantics::recursion_depth(world, call);
+                    if depth > pl.max_recursion_depth {
                         push(fail(
                             "world.launch",
                             format!(
@@ -474,7 +517,11 @@ impl Predicate {
                     }
                 }
             }
-            Predicate::NoNullMissReached => {
+            Predicate::NoNullMissAtRegionAddress => {
+                // 03511: "the shader group handle identified by pMissShaderBindingTable->deviceAddress
+                // must not be zero" — the handle at the region's address (record 0), whether a ray
+                // misses or not (unlike 03512-03514, which speak of entries accessed). A region whose
+                // address is zero identifies no handle a miss could run, which the flag rules out too.
                 let Some(pl) = world.bound_pipeline() else {
                     return;
                 };
@@ -484,15 +531,19 @@ impl Predicate {
                 {
                     return;
                 }
-                for (table, index) in reached_records(cx) {
-                    if table == Table::Miss
-                        && record_handle(world, call, table, index) == Some(HandleRef::Zero)
-                    {
-                        push(fail(
-                            format!("miss record {index}"),
-                            "is a zero group but the pipeline has NO_NULL_MISS_SHADERS",
-                        ));
-                    }
+                let Some(region) = call.region(Table::Miss) else {
+                    return;
+                };
+                if region.address.is_null() {
+                    push(fail(
+                        "pMissShaderBindingTable->deviceAddress",
+                        "is zero but the pipeline has NO_NULL_MISS_SHADERS",
+                    ));
+                } else if record_handle(world, call, Table::Miss, 0) == Some(HandleRef::Zero) {
+                    push(fail(
+                        "pMissShaderBindingTable->deviceAddress",
+                        "holds a zero group but the pipeline has NO_NULL_MISS_SHADERS",
+                    ));
                 }
             }
             Predicate::NoNullHitReached(kind) => {

@@ -178,8 +178,12 @@ fn shapes() -> &'static [(Regex, Builder)] {
                 build_only(c)?;
                 Some(Predicate::Accel(AccelPredicate::InfoCountPositive))
             }),
-            (r"^(?:If the `?shaderObject`? feature is not enabled, )?[Aa] valid pipeline must be bound to the pipeline bind point used by this command$", |_, _| {
-                Some(Predicate::PipelineBound)
+            (r"^(?P<so>If the `?shaderObject`? feature is not enabled, )?[Aa] valid pipeline must be bound to the pipeline bind point used by this command$", |_, m| {
+                Some(if m.name("so").is_some() {
+                    Predicate::PipelineBoundWhenShaderObject(false)
+                } else {
+                    Predicate::PipelineBound
+                })
             }),
             (r"^If (?P<b>\S+) is not VK_NULL_HANDLE, (?P<b2>\S+) must be a valid `?VkBuffer`? handle$", |c, m| {
                 match nv_buffer_param(c, &m["b"])? {

@@ -21,12 +21,14 @@ pub struct Lavapipe {
 
 impl Lavapipe {
     pub fn new() -> Lavapipe {
-        let set = session::sources::load_sources(&[]).expect("the installed registry");
+        let layer = harness::validation_layer().expect("the validation layer (scripts/setup.sh)");
+        let set = session::sources::registry_for_layer(&[], Some(&layer))
+            .expect("the registry of the layer's version");
         let driver = Driver::Lavapipe;
         Lavapipe {
             rules: RuleSet::from_vuids(&set),
             profile: session::sources::profile_for("lavapipe").expect("profiles/lavapipe.json"),
-            triage: session::sources::triage_for(&[], set.version.as_deref(), &driver)
+            triage: session::sources::triage_for(&[], Some(&layer.version), &driver)
                 .expect("the triage files"),
             executor: Executor::new(driver)
                 .expect("lavapipe and the layer are installed by scripts/setup.sh"),
@@ -93,11 +95,19 @@ pub fn deviation(case: &Case, hits: &Hits) -> Option<String> {
     model::accel::check::deviation(case.as_accel().expect("a build case"), hits)
 }
 
-/// The reason of an unsupported case.
+/// The reason of a case the device cannot run (its profile confirms what it lacks).
 pub fn unsupported(ran: &Ran) -> String {
     match status(ran) {
-        Status::Unsupported { reason } => reason.clone(),
+        Status::Unsupported { reason, .. } => reason.clone(),
         other => panic!("{}: not unsupported: {other:?}", ran.case.name),
+    }
+}
+
+/// The reason of a case the harness does not realise.
+pub fn not_realised(ran: &Ran) -> String {
+    match status(ran) {
+        Status::NotRealised { reason } => reason.clone(),
+        other => panic!("{}: not `not realised`: {other:?}", ran.case.name),
     }
 }
 

@@ -229,7 +229,7 @@ pub fn stage_glsl(
         let set = a.set + 1;
         let (ty, count) = binding_of(st, a);
         if a.element >= count {
-            return Err(HarnessError::Unsupported(format!("access {i} indexes element {} of a binding of {count}: GLSL refuses a constant index out of bounds", a.element)));
+            return Err(HarnessError::NotRealised(format!("access {i} indexes element {} of a binding of {count}: GLSL refuses a constant index out of bounds", a.element)));
         }
         let arr = if count > 1 {
             format!("[{count}]")
@@ -255,7 +255,7 @@ pub fn stage_glsl(
                     Some(DescriptorType::UniformBuffer) => false,
                     None => a.op == Op::Store,
                     Some(t) => {
-                        return Err(HarnessError::Unsupported(format!(
+                        return Err(HarnessError::NotRealised(format!(
                             "access {i} loads or stores through a {t:?} binding"
                         )))
                     }
@@ -276,7 +276,7 @@ pub fn stage_glsl(
                     }
                 } else {
                     if a.op == Op::Store {
-                        return Err(HarnessError::Unsupported(format!(
+                        return Err(HarnessError::NotRealised(format!(
                             "access {i} stores to a uniform buffer"
                         )));
                     }
@@ -296,7 +296,7 @@ pub fn stage_glsl(
             _ => {}
         }
         let Some(t) = a.image else {
-            return Err(HarnessError::Unsupported(format!(
+            return Err(HarnessError::NotRealised(format!(
                 "access {i} ({:?}) names no OpTypeImage",
                 a.op
             )));
@@ -320,7 +320,7 @@ pub fn stage_glsl(
                     (Some(DescriptorType::UniformTexelBuffer), _) if t.dim == Dim::Buffer => true,
                     (None, Some(_)) => false,
                     (Some(other), _) => {
-                        return Err(HarnessError::Unsupported(format!(
+                        return Err(HarnessError::NotRealised(format!(
                             "access {i} samples or fetches through a {other:?} binding"
                         )))
                     }
@@ -347,7 +347,7 @@ pub fn stage_glsl(
                         }
                         None if a.op == Op::Fetch => format!("{name}{idx}"),
                         None => {
-                            return Err(HarnessError::Unsupported(format!(
+                            return Err(HarnessError::NotRealised(format!(
                                 "access {i} samples a sampled image with no sampler"
                             )))
                         }
@@ -355,7 +355,7 @@ pub fn stage_glsl(
                 };
                 let e = if a.op == Op::Fetch {
                     if a.dref || t.dim == Dim::Cube {
-                        return Err(HarnessError::Unsupported(format!("access {i} fetches from a cube or depth-compare image, which GLSL cannot")));
+                        return Err(HarnessError::NotRealised(format!("access {i} fetches from a cube or depth-compare image, which GLSL cannot")));
                     }
                     if t.dim == Dim::Buffer {
                         format!("texelFetch({sampler_expr}, 0).x")
@@ -369,7 +369,7 @@ pub fn stage_glsl(
                     }
                 } else {
                     if t.dim == Dim::Buffer {
-                        return Err(HarnessError::Unsupported(format!(
+                        return Err(HarnessError::NotRealised(format!(
                             "access {i} samples a buffer"
                         )));
                     }
@@ -407,7 +407,7 @@ pub fn stage_glsl(
                     Some(DescriptorType::StorageTexelBuffer) if buffer => {}
                     None => {}
                     Some(other) => {
-                        return Err(HarnessError::Unsupported(format!(
+                        return Err(HarnessError::NotRealised(format!(
                             "access {i} ({:?}) goes through a {other:?} binding",
                             a.op
                         )))
@@ -415,7 +415,7 @@ pub fn stage_glsl(
                 }
                 let fmt = if a.op == Op::Atomic {
                     if t.format_unknown {
-                        return Err(HarnessError::Unsupported(format!("access {i}: GLSL image atomics need an r32 format qualifier, not Unknown")));
+                        return Err(HarnessError::NotRealised(format!("access {i}: GLSL image atomics need an r32 format qualifier, not Unknown")));
                     }
                     Some(match t.sampled_type {
                         Numeric::Float => "r32f",
@@ -426,12 +426,12 @@ pub fn stage_glsl(
                     None
                 } else {
                     let f = view_format(st, a).ok_or_else(|| {
-                        HarnessError::Unsupported(format!(
+                        HarnessError::NotRealised(format!(
                             "access {i}: no view format to declare the image with"
                         ))
                     })?;
                     Some(glsl_format(&f).ok_or_else(|| {
-                        HarnessError::Unsupported(format!(
+                        HarnessError::NotRealised(format!(
                             "access {i}: format {f} has no GLSL image format qualifier"
                         ))
                     })?)
@@ -469,7 +469,7 @@ pub fn stage_glsl(
                     _ => {
                         let k = a.texel_components.unwrap_or(4);
                         if !(1..=4).contains(&k) {
-                            return Err(HarnessError::Unsupported(format!(
+                            return Err(HarnessError::NotRealised(format!(
                                 "access {i} writes a texel of {k} components"
                             )));
                         }
@@ -512,7 +512,7 @@ pub fn stage_glsl(
                 }
             }
             other => {
-                return Err(HarnessError::Unsupported(format!(
+                return Err(HarnessError::NotRealised(format!(
                     "access {i}: {other:?} is not realised"
                 )))
             }
@@ -520,7 +520,7 @@ pub fn stage_glsl(
     }
     if let Some([off, size]) = stage.and_then(|s| s.push_constants) {
         if off % 4 != 0 || size == 0 {
-            return Err(HarnessError::Unsupported(format!(
+            return Err(HarnessError::NotRealised(format!(
                 "push constant bytes [{off}, +{size}) are not whole words"
             )));
         }
@@ -538,10 +538,10 @@ pub fn stage_glsl(
     body.push_str(sink(which));
     let main = "void main() {\n";
     let at = base.find(main).ok_or_else(|| {
-        HarnessError::Unsupported("the stage's source has no `void main() {`".into())
+        HarnessError::NotRealised("the stage's source has no `void main() {`".into())
     })?;
     let version = base.find("#version 460\n").ok_or_else(|| {
-        HarnessError::Unsupported("the stage's source has no #version line".into())
+        HarnessError::NotRealised("the stage's source has no #version line".into())
     })? + "#version 460\n".len();
     Ok((
         format!(

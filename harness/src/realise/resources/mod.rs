@@ -48,7 +48,7 @@ use model::world::World;
 use std::collections::HashMap;
 
 fn unsup<T>(s: impl Into<String>) -> Result<T, HarnessError> {
-    Err(HarnessError::Unsupported(s.into()))
+    Err(HarnessError::NotRealised(s.into()))
 }
 
 /// The ray tracing stages every realised binding and push constant range is visible to.
@@ -72,7 +72,7 @@ pub(crate) fn unsupported(world: &World) -> Option<String> {
         || st.pipeline_descriptor_buffer
         || st.descriptor_memory_not_resident
     {
-        return Some("descriptor buffers (VK_EXT_descriptor_buffer) are not realised: the captured lavapipe lacks the extension".into());
+        return Some("descriptor buffers (VK_EXT_descriptor_buffer) are not realised by the harness: its resource path binds descriptor sets only (whether the device has the extension or not)".into());
     }
     if !st.tensors.is_empty() || !st.tensor_views.is_empty() {
         return Some(
@@ -101,7 +101,7 @@ pub(crate) fn unsupported(world: &World) -> Option<String> {
             || s.cubic_weights != CubicWeights::CatmullRom
     }) || st.image_views.iter().any(|v| v.ycbcr_conversion)
     {
-        return Some("cubic filtering, QCOM image processing and YCbCr conversion samplers/views are not realised: lavapipe lacks those extensions".into());
+        return Some("cubic filtering, QCOM image processing and YCbCr conversion samplers/views are not realised by the harness (it creates neither such samplers nor conversions, whether the device has the extensions or not)".into());
     }
     if let Some(p) = world.pipeline.as_ref() {
         for s in st

@@ -43,7 +43,7 @@ fn vk_format(name: &str) -> Result<vk::Format, HarnessError> {
         .map(vk::Format::from_raw)
         .find(|f| format!("{f:?}") == n)
         .ok_or_else(|| {
-            HarnessError::Unsupported(format!("format {name} is unknown to the harness"))
+            HarnessError::NotRealised(format!("format {name} is unknown to the harness"))
         })
 }
 
@@ -153,8 +153,8 @@ impl Realised {
         for &stage in &templated {
             let (glsl, narrow) =
                 stage_glsl(st, stage, stage_source(stage).0).map_err(|e| match e {
-                    HarnessError::Unsupported(why) => {
-                        HarnessError::Unsupported(format!("{stage:?} stage: {why}"))
+                    HarnessError::NotRealised(why) => {
+                        HarnessError::NotRealised(format!("{stage:?} stage: {why}"))
                     }
                     e => e,
                 })?;
@@ -189,7 +189,7 @@ impl Realised {
                 let mut sl = vec![harness_set];
                 for s in &p.sets {
                     sl.push(*self.set_layouts.get(s).ok_or_else(|| {
-                        HarnessError::Unsupported(format!(
+                        HarnessError::NotRealised(format!(
                             "pipeline layout `{}` names set layout `{s}`, which the state lacks",
                             p.name
                         ))
@@ -217,7 +217,7 @@ impl Realised {
             match st.pipeline_layout.as_deref() {
                 Some(n) => {
                     self.harness_layout = *self.pipeline_layouts.get(n).ok_or_else(|| {
-                        HarnessError::Unsupported(format!(
+                        HarnessError::NotRealised(format!(
                             "the pipeline's layout `{n}` is not in the state"
                         ))
                     })?;
@@ -365,10 +365,18 @@ impl Realised {
                 if views.iter().any(|v| v.format != img.format) {
                     flags |= vk::ImageCreateFlags::MUTABLE_FORMAT;
                 }
+                // The usage its descriptors need, and the one its layout needs to be entered validly.
                 let usage = image_usage
                     .get(img.name.as_str())
                     .copied()
-                    .unwrap_or(vk::ImageUsageFlags::SAMPLED);
+                    .unwrap_or(vk::ImageUsageFlags::SAMPLED)
+                    | match img.layout {
+                        ImageLayout::TransferDstOptimal => vk::ImageUsageFlags::TRANSFER_DST,
+                        ImageLayout::ShaderReadOnlyOptimal | ImageLayout::ReadOnlyOptimal => {
+                            vk::ImageUsageFlags::SAMPLED
+                        }
+                        _ => vk::ImageUsageFlags::empty(),
+                    };
                 let info = vk::ImageCreateInfo::default()
                     .flags(flags)
                     .image_type(ty)
@@ -569,7 +577,7 @@ impl Realised {
                         .dst_array_element(w.element)
                         .descriptor_type(ty);
                     let wrong = || {
-                        HarnessError::Unsupported(format!("set `{}` binding {} ({:?}) is written with {:?}, which a write of that type cannot carry", s.name, w.binding, b.ty, w.descriptor))
+                        HarnessError::NotRealised(format!("set `{}` binding {} ({:?}) is written with {:?}, which a write of that type cannot carry", s.name, w.binding, b.ty, w.descriptor))
                     };
                     match (&w.descriptor, b.ty) {
                         (
@@ -582,9 +590,9 @@ impl Realised {
                             | DescriptorType::SampledImage
                             | DescriptorType::StorageImage,
                         ) => {
-                            let v = *self.views.get(view).ok_or_else(|| HarnessError::Unsupported(format!("descriptor names view `{view}`, which the state lacks (destroyed views are not realised)")))?;
+                            let v = *self.views.get(view).ok_or_else(|| HarnessError::NotRealised(format!("descriptor names view `{view}`, which the state lacks (destroyed views are not realised)")))?;
                             let smp = match (b.ty, sampler) {
-                                (DescriptorType::CombinedImageSampler, Some(n)) => *self.samplers.get(n).ok_or_else(|| HarnessError::Unsupported(format!("descriptor names sampler `{n}`, which the state lacks")))?,
+                                (DescriptorType::CombinedImageSampler, Some(n)) => *self.samplers.get(n).ok_or_else(|| HarnessError::NotRealised(format!("descriptor names sampler `{n}`, which the state lacks")))?,
                                 (DescriptorType::CombinedImageSampler, None) => return unsup("a combined image sampler written without a sampler (immutable samplers are not modelled)"),
                                 _ => vk::Sampler::null(),
                             };
@@ -597,7 +605,7 @@ impl Realised {
                         }
                         (Descriptor::Sampler { sampler }, DescriptorType::Sampler) => {
                             let smp = *self.samplers.get(sampler).ok_or_else(|| {
-                                HarnessError::Unsupported(format!(
+                                HarnessError::NotRealised(format!(
                                     "descriptor names sampler `{sampler}`, which the state lacks"
                                 ))
                             })?;
@@ -612,7 +620,7 @@ impl Realised {
                             DescriptorType::UniformTexelBuffer | DescriptorType::StorageTexelBuffer,
                         ) => {
                             let v = [*self.buffer_views.get(view).ok_or_else(|| {
-                                HarnessError::Unsupported(format!(
+                                HarnessError::NotRealised(format!(
                                     "descriptor names buffer view `{view}`, which the state lacks"
                                 ))
                             })?];
@@ -659,13 +667,13 @@ impl Realised {
             // Binds and pushes, recorded by `record_binds`.
             for b in &st.bound_sets {
                 let layout = *self.pipeline_layouts.get(&b.layout).ok_or_else(|| {
-                    HarnessError::Unsupported(format!(
+                    HarnessError::NotRealised(format!(
                         "a set is bound with layout `{}`, which the state lacks",
                         b.layout
                     ))
                 })?;
                 let set = *self.sets.get(&b.descriptor_set).ok_or_else(|| {
-                    HarnessError::Unsupported(format!(
+                    HarnessError::NotRealised(format!(
                         "descriptor set `{}` is bound but the state lacks it",
                         b.descriptor_set
                     ))
@@ -674,7 +682,7 @@ impl Realised {
             }
             for p in &st.pushes {
                 let layout = *self.pipeline_layouts.get(&p.layout).ok_or_else(|| {
-                    HarnessError::Unsupported(format!(
+                    HarnessError::NotRealised(format!(
                         "constants are pushed with layout `{}`, which the state lacks",
                         p.layout
                     ))

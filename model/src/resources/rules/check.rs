@@ -683,14 +683,14 @@ impl ResourceRule {
                     }
                 }
             }
-            R::LayoutMatches => {
+            R::LayoutMatches { types } => {
                 for r in resolve(rs) {
                     let (Some(Descriptor::Image { layout, .. }), Some(i), Some(b)) =
                         (r.descriptor, r.image, r.binding)
                     else {
                         continue;
                     };
-                    if b.ty.has_image_layout() && i.layout != *layout {
+                    if types.contains(&b.ty) && i.layout != *layout {
                         fail(
                             r.at(),
                             format!(

@@ -124,8 +124,12 @@ pub enum ResourceRule {
     /// 07753: the format's numeric class matches the `Sampled Type` (`buffer_views`: the wording that
     /// includes buffer views).
     NumericTypeMatches { buffer_views: bool },
-    /// 09600: accessed image descriptors' subresources are in the layout they were written with.
-    LayoutMatches,
+    /// 09600: the subresources of an accessed descriptor of one of `types` (the types the VUID text
+    /// lists: sampled, storage and QCOM images and input attachments — not combined image samplers)
+    /// are in the layout the descriptor was written with.
+    LayoutMatches {
+        types: Vec<crate::resources::DescriptorType>,
+    },
     /// 10068: array indices are below the binding's descriptor count.
     ArrayIndexInRange,
     /// 09900: tensors accessed were created with SHADER usage.
@@ -425,7 +429,12 @@ pub fn rule_for(r: &VuidRecord) -> Option<Entry> {
             },
             None,
         ),
-        "09600" => (R::LayoutMatches, None),
+        "09600" => (
+            R::LayoutMatches {
+                types: crate::resources::DescriptorType::named_in(t),
+            },
+            None,
+        ),
         "10068" => (R::ArrayIndexInRange, None),
         "09900" => (R::TensorShaderUsage, Some("VK_ARM_tensors")),
         "09905" => (R::TensorRank, Some("VK_ARM_tensors")),

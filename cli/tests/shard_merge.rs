@@ -1,0 +1,186 @@
+//! Sharding for CI farms on lavapipe: `rtconf run --shard 1/3`, `2/3` and `3/3` of a generated run,
+//! then `rtconf merge`, equal the unsharded run case for case (outcome, status, VUIDs, output, detail),
+//! with the same totals, a case list that is the union of the shards', and the merged JUnit and report;
+//! a shard left out shows as missing cases.
+
+#[path = "common/folders.rs"]
+mod common;
+
+use common::{fresh_dir, results, rtconf, summary, text};
+use serde_json::Value;
+use std::path::Path;
+
+/// The run arguments every run of this test shares: three VUIDs of both KHR trace commands.
+const SCOPE: &[&str] = &[
+    "--count",
+    "3",
+    "--seed",
+    "7",
+    "--vuid",
+    "VUID-vkCmdTraceRaysIndirectKHR-stride-03686",
+    "--vuid",
+    "VUID-vkCmdTraceRaysKHR-None-02700",
+    "--vuid",
+    "VUID-VkStridedDeviceAddressRegionKHR-size-04631",
+];
+
+fn run(out: &Path, shard: Option<&str>) {
+    let mut args = vec!["run", "--out", out.to_str().unwrap()];
+    args.extend_from_slice(SCOPE);
+    if let Some(s) = shard {
+        args.extend_from_slice(&["--shard", s]);
+    }
+    let o = rtconf(&args, &[]);
+    assert!(o.status.success(), "{}", text(&o));
+}
+
+/// A result line without its timing, for comparing runs.
+fn untimed(v: &Value) -> Value {
+    let mut v = v.clone();
+    v.as_object_mut().unwrap().remove("millis");
+    v
+}
+
+fn caselist(run: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_to_string(run.join("caselist.txt"))
+        .unwrap()
+        .lines()
+        .map(String::from)
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn three_shards_merged_equal_the_unsharded_run_case_for_case() {
+    let dir = fresh_dir("shard-merge");
+    let whole = dir.join("whole");
+    run(&whole, None);
+    let shards: Vec<_> = (1..=3).map(|i| dir.join(format!("shard-{i}"))).collect();
+    for (i, s) in shards.iter().enumerate() {
+        run(s, Some(&format!("{}/3", i + 1)));
+        assert_eq!(summary(s)["shard"], format!("{}/3", i + 1));
+    }
+    let expected = results(&whole);
+    assert!(expected.len() >= 12, "{} cases", expected.len());
+    // Every shard holds some cases, and no case is in two.
+    let per_shard: Vec<_> = shards.iter().map(|s| results(s)).collect();
+    assert!(per_shard.iter().all(|r| !r.is_empty()), "an empty shard");
+    assert_eq!(
+        per_shard.iter().map(|r| r.len()).sum::<usize>(),
+        expected.len()
+    );
+
+    let merged = dir.join("merged");
+    let mut args = vec!["merge", "--out", merged.to_str().unwrap()];
+    args.extend(shards.iter().map(|s| s.to_str().unwrap()));
+    let o = rtconf(&args, &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    let got = results(&merged);
+    assert_eq!(
+        got.keys().collect::<Vec<_>>(),
+        expected.keys().collect::<Vec<_>>()
+    );
+    for (name, line) in &expected {
+        assert_eq!(untimed(&got[name]), untimed(line), "case {name}");
+    }
+    let (a, b) = (summary(&whole), summary(&merged));
+    for key in [
+        "cases",
+        "passed",
+        "failed",
+        "triaged",
+        "unsupported",
+        "crashes",
+        "timeouts",
+        "statuses",
+        "vuids",
+        "registry",
+        "driver",
+        "profile",
+    ] {
+        assert_eq!(a[key], b[key], "summary {key}");
+    }
+    assert!(b.get("shard").is_none(), "{b}");
+    assert_eq!(caselist(&merged), caselist(&whole));
+    let junit = std::fs::read_to_string(merged.join("junit.xml")).unwrap();
+    assert_eq!(junit.matches("<testcase ").count(), expected.len());
+    assert!(merged.join("report/index.html").is_file());
+    for folder in ["triaged", "details"] {
+        let n = |d: &Path| std::fs::read_dir(d.join(folder)).map_or(0, |r| r.count());
+        assert_eq!(n(&merged), n(&whole), "{folder}/");
+    }
+
+    // Without the third shard the merge says so and fails.
+    let partial = dir.join("partial");
+    let o = rtconf(
+        &[
+            "merge",
+            "--out",
+            partial.to_str().unwrap(),
+            shards[0].to_str().unwrap(),
+            shards[1].to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("shard(s) 3/3 of 3 are not among the inputs"),
+        "{}",
+        text(&o)
+    );
+    // Missing cases are counted against the case lists of the shards merged: none here, since each
+    // shard's list holds only its own cases; a shard that stopped early leaves some.
+    let cut = dir.join("shard-3-cut");
+    std::fs::create_dir_all(&cut).unwrap();
+    for f in ["summary.json", "caselist.txt"] {
+        std::fs::copy(shards[2].join(f), cut.join(f)).unwrap();
+    }
+    let lines = std::fs::read_to_string(shards[2].join("results.jsonl")).unwrap();
+    let kept: Vec<&str> = lines.lines().skip(1).collect();
+    std::fs::write(cut.join("results.jsonl"), kept.join("\n") + "\n").unwrap();
+    let dropped: Value = serde_json::from_str(lines.lines().next().unwrap()).unwrap();
+    let o = rtconf(
+        &[
+            "merge",
+            "--out",
+            partial.to_str().unwrap(),
+            shards[0].to_str().unwrap(),
+            shards[1].to_str().unwrap(),
+            cut.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    let s = summary(&partial);
+    assert_eq!(s["missing"], serde_json::json!([dropped["case"]]));
+    assert_eq!(s["statuses"]["missing"], 1);
+    let junit = std::fs::read_to_string(partial.join("junit.xml")).unwrap();
+    assert!(junit.contains("<error type=\"missing\""), "{junit}");
+}
+
+#[test]
+fn list_prints_the_cases_of_a_shard() {
+    let mut args = vec!["run", "--list"];
+    args.extend_from_slice(SCOPE);
+    let all = rtconf(&args, &[]);
+    assert!(all.status.success(), "{}", text(&all));
+    let all: Vec<String> = String::from_utf8_lossy(&all.stdout)
+        .lines()
+        .map(String::from)
+        .collect();
+    assert!(all.len() >= 12, "{all:?}");
+    let mut union = Vec::new();
+    for i in 1..=3 {
+        let mut a = args.clone();
+        let shard = format!("{i}/3");
+        a.extend_from_slice(&["--shard", &shard]);
+        let o = rtconf(&a, &[]);
+        assert!(o.status.success(), "{}", text(&o));
+        union.extend(String::from_utf8_lossy(&o.stdout).lines().map(String::from));
+    }
+    union.sort();
+    let mut sorted = all.clone();
+    sorted.sort();
+    assert_eq!(union, sorted);
+}

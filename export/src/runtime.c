@@ -1,0 +1,518 @@
+/* ---- What every rtconf reproducer shares: the instance with the validation layer and a messenger
+ * that collects its messages (and, while asked, makes the layer drop the call), the device, buffers
+ * placed at aligned device addresses in host-visible memory, one-shot command buffers. The case's
+ * own objects and commands follow in main(). ---- */
+#include <vulkan/vulkan.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Helpers a case does not use are not warned about. */
+#if defined(__GNUC__)
+#define HELPER static __attribute__((unused))
+#else
+#define HELPER static
+#endif
+
+#define MAX_MESSAGES 512
+struct message {
+    char severity[8];
+    char id[192];
+    char *text;
+};
+static struct message messages[MAX_MESSAGES];
+static int message_count;
+/* While set, the messenger returns VK_TRUE: the layer drops the call instead of passing it on. */
+static int drop_calls;
+
+static VkInstance instance;
+static VkDebugUtilsMessengerEXT messenger;
+static VkPhysicalDevice physical;
+static VkPhysicalDeviceProperties device_properties;
+static VkPhysicalDeviceMemoryProperties memory_properties;
+static VkDevice device;
+static VkQueue queue;
+static uint32_t queue_family;
+static VkCommandPool pool;
+static VkCommandBuffer primary, secondary;
+static VkFence fence;
+static int buffer_device_address; /* the case enables bufferDeviceAddress */
+
+HELPER void fail(const char *what, VkResult result) {
+    fprintf(stderr, "rtconf reproducer: %s failed: VkResult %d\n", what, (int)result);
+    exit(2);
+}
+
+#define CHECK(call)                                  \
+    do {                                             \
+        VkResult check_result_ = (call);             \
+        if (check_result_ != VK_SUCCESS)             \
+            fail(#call, check_result_);              \
+    } while (0)
+
+HELPER void step(const char *what) { printf("  %s\n", what); }
+
+static VKAPI_ATTR VkBool32 VKAPI_CALL on_message(VkDebugUtilsMessageSeverityFlagBitsEXT severity,
+                                                 VkDebugUtilsMessageTypeFlagsEXT types,
+                                                 const VkDebugUtilsMessengerCallbackDataEXT *data,
+                                                 void *user) {
+    (void)types;
+    (void)user;
+    if (message_count < MAX_MESSAGES) {
+        struct message *m = &messages[message_count++];
+        const char *s = (severity & VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT)     ? "error"
+                        : (severity & VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT) ? "warning"
+                        : (severity & VK_DEBUG_UTILS_MESSAGE_SEVERITY_INFO_BIT_EXT)    ? "info"
+                                                                                        : "verbose";
+        snprintf(m->severity, sizeof m->severity, "%s", s);
+        snprintf(m->id, sizeof m->id, "%s", data && data->pMessageIdName ? data->pMessageIdName : "");
+        const char *text = data && data->pMessage ? data->pMessage : "";
+        m->text = malloc(strlen(text) + 1);
+        if (m->text)
+            strcpy(m->text, text);
+    }
+    return drop_calls ? VK_TRUE : VK_FALSE;
+}
+
+HELPER void clear_messages(void) {
+    for (int i = 0; i < message_count; i++)
+        free(messages[i].text);
+    message_count = 0;
+}
+
+HELPER const char *version_text(uint32_t v) {
+    static char text[4][32];
+    static int next;
+    char *t = text[next++ % 4];
+    snprintf(t, 32, "%u.%u.%u", VK_API_VERSION_MAJOR(v), VK_API_VERSION_MINOR(v), VK_API_VERSION_PATCH(v));
+    return t;
+}
+
+/* Creates the instance (with the validation layer and a messenger when it is installed; `need_layer`:
+ * the case cannot be judged without it), picks the first device and prints what runs the case. */
+HELPER void start(int need_layer) {
+    uint32_t n = 0;
+    vkEnumerateInstanceLayerProperties(&n, NULL);
+    VkLayerProperties *layers = calloc(n ? n : 1, sizeof *layers);
+    vkEnumerateInstanceLayerProperties(&n, layers);
+    int layer = -1;
+    for (uint32_t i = 0; i < n; i++)
+        if (strcmp(layers[i].layerName, "VK_LAYER_KHRONOS_validation") == 0)
+            layer = (int)i;
+    if (layer < 0) {
+        if (need_layer) {
+            fprintf(stderr, "rtconf reproducer: VK_LAYER_KHRONOS_validation is not installed; this case is "
+                            "judged by the layer (Debian: apt-get install vulkan-validationlayers)\n");
+            exit(2);
+        }
+        printf("layer:   VK_LAYER_KHRONOS_validation is not installed (running without it)\n");
+    } else {
+        printf("layer:   VK_LAYER_KHRONOS_validation %s (implementation %u)\n",
+               version_text(layers[layer].specVersion), layers[layer].implementationVersion);
+    }
+    const char *layer_names[] = {"VK_LAYER_KHRONOS_validation"};
+    const char *extension_names[] = {VK_EXT_DEBUG_UTILS_EXTENSION_NAME};
+    VkApplicationInfo app = {VK_STRUCTURE_TYPE_APPLICATION_INFO};
+    app.pApplicationName = "rtconf";
+    app.apiVersion = VK_API_VERSION_1_3;
+    VkInstanceCreateInfo info = {VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
+    info.pApplicationInfo = &app;
+    info.enabledLayerCount = layer >= 0 ? 1 : 0;
+    info.ppEnabledLayerNames = layer_names;
+    info.enabledExtensionCount = layer >= 0 ? 1 : 0;
+    info.ppEnabledExtensionNames = extension_names;
+    CHECK(vkCreateInstance(&info, NULL, &instance));
+    free(layers);
+    if (layer >= 0) {
+        VkDebugUtilsMessengerCreateInfoEXT m = {VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
+        m.messageSeverity =
+            VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT;
+        m.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT |
+                        VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
+        m.pfnUserCallback = on_message;
+        PFN_vkCreateDebugUtilsMessengerEXT create =
+            (PFN_vkCreateDebugUtilsMessengerEXT)vkGetInstanceProcAddr(instance, "vkCreateDebugUtilsMessengerEXT");
+        if (!create)
+            fail("vkGetInstanceProcAddr(vkCreateDebugUtilsMessengerEXT)", VK_ERROR_EXTENSION_NOT_PRESENT);
+        CHECK(create(instance, &m, NULL, &messenger));
+    }
+    uint32_t count = 1;
+    VkResult r = vkEnumeratePhysicalDevices(instance, &count, &physical);
+    if ((r != VK_SUCCESS && r != VK_INCOMPLETE) || count == 0) {
+        fprintf(stderr, "rtconf reproducer: no Vulkan device (VK_DRIVER_FILES selects the driver's ICD json)\n");
+        exit(2);
+    }
+    VkPhysicalDeviceDriverProperties driver = {VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
+    VkPhysicalDeviceProperties2 p2 = {VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2, &driver};
+    vkGetPhysicalDeviceProperties2(physical, &p2);
+    device_properties = p2.properties;
+    printf("device:  %s (vendor 0x%04x, device 0x%04x), Vulkan %s\n", device_properties.deviceName,
+           device_properties.vendorID, device_properties.deviceID, version_text(device_properties.apiVersion));
+    printf("driver:  %s %s (driver version 0x%08x)\n", driver.driverName, driver.driverInfo,
+           device_properties.driverVersion);
+    if (device_properties.apiVersion < VK_API_VERSION_1_3) {
+        fprintf(stderr, "rtconf reproducer: the device offers Vulkan %s; the case's device is made as on Vulkan 1.3\n",
+                version_text(device_properties.apiVersion));
+        exit(2);
+    }
+    vkGetPhysicalDeviceMemoryProperties(physical, &memory_properties);
+    uint32_t families = 0;
+    vkGetPhysicalDeviceQueueFamilyProperties(physical, &families, NULL);
+    VkQueueFamilyProperties *props = calloc(families ? families : 1, sizeof *props);
+    vkGetPhysicalDeviceQueueFamilyProperties(physical, &families, props);
+    queue_family = UINT32_MAX;
+    for (uint32_t i = 0; i < families && queue_family == UINT32_MAX; i++)
+        if (props[i].queueFlags & VK_QUEUE_COMPUTE_BIT)
+            queue_family = i;
+    free(props);
+    if (queue_family == UINT32_MAX) {
+        fprintf(stderr, "rtconf reproducer: no queue family with VK_QUEUE_COMPUTE_BIT\n");
+        exit(2);
+    }
+}
+
+/* Whether the device exposes an extension. */
+HELPER int has_extension(const char *name) {
+    uint32_t n = 0;
+    vkEnumerateDeviceExtensionProperties(physical, NULL, &n, NULL);
+    VkExtensionProperties *e = calloc(n ? n : 1, sizeof *e);
+    vkEnumerateDeviceExtensionProperties(physical, NULL, &n, e);
+    int found = 0;
+    for (uint32_t i = 0; i < n; i++)
+        found |= strcmp(e[i].extensionName, name) == 0;
+    free(e);
+    return found;
+}
+
+/* Device functions of extensions, loaded once the device exists (NULL where the case does not enable
+ * the extension). */
+static PFN_vkCreateAccelerationStructureKHR pvkCreateAccelerationStructureKHR;
+static PFN_vkGetAccelerationStructureBuildSizesKHR pvkGetAccelerationStructureBuildSizesKHR;
+static PFN_vkGetAccelerationStructureDeviceAddressKHR pvkGetAccelerationStructureDeviceAddressKHR;
+static PFN_vkCmdBuildAccelerationStructuresKHR pvkCmdBuildAccelerationStructuresKHR;
+static PFN_vkCmdBuildAccelerationStructuresIndirectKHR pvkCmdBuildAccelerationStructuresIndirectKHR;
+static PFN_vkCreateRayTracingPipelinesKHR pvkCreateRayTracingPipelinesKHR;
+static PFN_vkGetRayTracingShaderGroupHandlesKHR pvkGetRayTracingShaderGroupHandlesKHR;
+static PFN_vkGetRayTracingShaderGroupStackSizeKHR pvkGetRayTracingShaderGroupStackSizeKHR;
+static PFN_vkCmdSetRayTracingPipelineStackSizeKHR pvkCmdSetRayTracingPipelineStackSizeKHR;
+static PFN_vkCmdTraceRaysKHR pvkCmdTraceRaysKHR;
+static PFN_vkCmdTraceRaysIndirectKHR pvkCmdTraceRaysIndirectKHR;
+
+#define LOAD(name) p##name = (PFN_##name)vkGetDeviceProcAddr(device, #name)
+
+/* Creates the device with exactly the case's extensions and features, its queue, a command pool with a
+ * primary and a secondary command buffer, and a fence. */
+HELPER void make_device(const char *const *extensions, uint32_t extension_count, const void *features,
+                        const VkPhysicalDeviceFeatures *core) {
+    float priority = 1.0f;
+    VkDeviceQueueCreateInfo q = {VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
+    q.queueFamilyIndex = queue_family;
+    q.queueCount = 1;
+    q.pQueuePriorities = &priority;
+    VkDeviceCreateInfo info = {VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+    info.pNext = features;
+    info.queueCreateInfoCount = 1;
+    info.pQueueCreateInfos = &q;
+    info.enabledExtensionCount = extension_count;
+    info.ppEnabledExtensionNames = extensions;
+    info.pEnabledFeatures = core;
+    CHECK(vkCreateDevice(physical, &info, NULL, &device));
+    vkGetDeviceQueue(device, queue_family, 0, &queue);
+    LOAD(vkCreateAccelerationStructureKHR);
+    LOAD(vkGetAccelerationStructureBuildSizesKHR);
+    LOAD(vkGetAccelerationStructureDeviceAddressKHR);
+    LOAD(vkCmdBuildAccelerationStructuresKHR);
+    LOAD(vkCmdBuildAccelerationStructuresIndirectKHR);
+    LOAD(vkCreateRayTracingPipelinesKHR);
+    LOAD(vkGetRayTracingShaderGroupHandlesKHR);
+    LOAD(vkGetRayTracingShaderGroupStackSizeKHR);
+    LOAD(vkCmdSetRayTracingPipelineStackSizeKHR);
+    LOAD(vkCmdTraceRaysKHR);
+    LOAD(vkCmdTraceRaysIndirectKHR);
+    VkCommandPoolCreateInfo p = {VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
+    p.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
+    p.queueFamilyIndex = queue_family;
+    CHECK(vkCreateCommandPool(device, &p, NULL, &pool));
+    VkCommandBufferAllocateInfo a = {VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+    a.commandPool = pool;
+    a.commandBufferCount = 1;
+    a.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+    CHECK(vkAllocateCommandBuffers(device, &a, &primary));
+    a.level = VK_COMMAND_BUFFER_LEVEL_SECONDARY;
+    CHECK(vkAllocateCommandBuffers(device, &a, &secondary));
+    VkFenceCreateInfo f = {VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+    CHECK(vkCreateFence(device, &f, NULL, &fence));
+}
+
+/* A buffer in host-visible memory, mapped, at a device address that is a multiple of `align`. */
+struct buffer {
+    VkBuffer buffer;
+    VkDeviceMemory memory;
+    VkDeviceAddress address;
+    VkDeviceSize size;
+    uint8_t *map;
+    int coherent;
+};
+
+HELPER uint32_t host_memory_type(uint32_t bits, int *coherent) {
+    VkMemoryPropertyFlags visible = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT;
+    for (int pass = 0; pass < 2; pass++) {
+        VkMemoryPropertyFlags want = pass == 0 ? visible | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT : visible;
+        for (uint32_t i = 0; i < memory_properties.memoryTypeCount; i++)
+            if ((bits & (1u << i)) && (memory_properties.memoryTypes[i].propertyFlags & want) == want) {
+                *coherent = pass == 0;
+                return i;
+            }
+    }
+    fprintf(stderr, "rtconf reproducer: no host-visible memory type for a buffer\n");
+    exit(2);
+}
+
+HELPER VkDeviceAddress buffer_address(VkBuffer b) {
+    if (!buffer_device_address)
+        return 0;
+    VkBufferDeviceAddressInfo info = {VK_STRUCTURE_TYPE_BUFFER_DEVICE_ADDRESS_INFO};
+    info.buffer = b;
+    return vkGetBufferDeviceAddress(device, &info);
+}
+
+HELPER VkBuffer create_buffer(VkDeviceSize size, VkBufferUsageFlags usage, VkBufferCreateFlags flags) {
+    VkBufferCreateInfo info = {VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
+    info.size = size ? size : 1;
+    info.usage = usage;
+    info.flags = flags;
+    VkBuffer b;
+    CHECK(vkCreateBuffer(device, &info, NULL, &b));
+    return b;
+}
+
+HELPER struct buffer make_buffer(VkDeviceSize size, VkBufferUsageFlags usage, VkBufferCreateFlags flags,
+                                 VkDeviceSize align) {
+    struct buffer b = {0};
+    b.size = size;
+    b.buffer = create_buffer(size, usage, flags);
+    VkMemoryRequirements req;
+    vkGetBufferMemoryRequirements(device, b.buffer, &req);
+    uint32_t type = host_memory_type(req.memoryTypeBits, &b.coherent);
+    VkMemoryAllocateFlagsInfo address_flags = {VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_FLAGS_INFO};
+    address_flags.flags = VK_MEMORY_ALLOCATE_DEVICE_ADDRESS_BIT;
+    VkMemoryAllocateInfo alloc = {VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+    alloc.pNext = buffer_device_address ? &address_flags : NULL;
+    alloc.allocationSize = req.size + (align > 1 ? align : 0);
+    alloc.memoryTypeIndex = type;
+    CHECK(vkAllocateMemory(device, &alloc, NULL, &b.memory));
+    CHECK(vkBindBufferMemory(device, b.buffer, b.memory, 0));
+    b.address = buffer_address(b.buffer);
+    VkDeviceSize offset = 0;
+    if (buffer_device_address && align > 1 && b.address % align != 0) {
+        /* An identical buffer bound at the offset that aligns its address. */
+        VkDeviceSize delta = align - b.address % align;
+        if (delta % (req.alignment ? req.alignment : 1) != 0) {
+            fprintf(stderr, "rtconf reproducer: cannot place a buffer at a %llu-aligned address\n",
+                    (unsigned long long)align);
+            exit(2);
+        }
+        vkDestroyBuffer(device, b.buffer, NULL);
+        b.buffer = create_buffer(size, usage, flags);
+        CHECK(vkBindBufferMemory(device, b.buffer, b.memory, delta));
+        offset = delta;
+        b.address = buffer_address(b.buffer);
+    }
+    void *map;
+    CHECK(vkMapMemory(device, b.memory, 0, VK_WHOLE_SIZE, 0, &map));
+    b.map = (uint8_t *)map + offset;
+    return b;
+}
+
+HELPER void flush(const struct buffer *b) {
+    if (b->coherent)
+        return;
+    VkMappedMemoryRange r = {VK_STRUCTURE_TYPE_MAPPED_MEMORY_RANGE};
+    r.memory = b->memory;
+    r.size = VK_WHOLE_SIZE;
+    vkFlushMappedMemoryRanges(device, 1, &r);
+}
+
+/* Writes bytes at `offset`, cut at the buffer's end (as the harness writes a case's contents). */
+HELPER void write_bytes(struct buffer *b, VkDeviceSize offset, const void *bytes, size_t n) {
+    if (offset >= b->size)
+        return;
+    if (offset + n > b->size)
+        n = (size_t)(b->size - offset);
+    memcpy(b->map + offset, bytes, n);
+    flush(b);
+}
+
+/* A memory image: the buffer zeroed, then its first `n` bytes (none: only zeroed; the runs a case
+   writes further on follow with write_bytes). */
+HELPER void write_image(struct buffer *b, const void *bytes, size_t n) {
+    memset(b->map, 0, (size_t)b->size);
+    if (n)
+        write_bytes(b, 0, bytes, n);
+    else
+        flush(b);
+}
+
+HELPER void write_u64(struct buffer *b, VkDeviceSize offset, uint64_t value, size_t n) {
+    uint8_t le[8];
+    for (int i = 0; i < 8; i++)
+        le[i] = (uint8_t)(value >> (8 * i));
+    write_bytes(b, offset, le, n);
+}
+
+HELPER const uint32_t *read_words(const struct buffer *b) {
+    if (!b->coherent) {
+        VkMappedMemoryRange r = {VK_STRUCTURE_TYPE_MAPPED_MEMORY_RANGE};
+        r.memory = b->memory;
+        r.size = VK_WHOLE_SIZE;
+        vkInvalidateMappedMemoryRanges(device, 1, &r);
+    }
+    return (const uint32_t *)b->map;
+}
+
+HELPER void begin_one_time(VkCommandBuffer cb) {
+    CHECK(vkResetCommandBuffer(cb, 0));
+    VkCommandBufferBeginInfo begin = {VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+    begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+    CHECK(vkBeginCommandBuffer(cb, &begin));
+}
+
+HELPER void submit_and_wait(VkCommandBuffer cb) {
+    VkSubmitInfo submit = {VK_STRUCTURE_TYPE_SUBMIT_INFO};
+    submit.commandBufferCount = 1;
+    submit.pCommandBuffers = &cb;
+    CHECK(vkQueueSubmit(queue, 1, &submit, fence));
+    CHECK(vkWaitForFences(device, 1, &fence, VK_TRUE, 60ull * 1000 * 1000 * 1000));
+    CHECK(vkResetFences(device, 1, &fence));
+}
+
+HELPER void memory_barrier(VkCommandBuffer cb, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
+                           VkPipelineStageFlags dst_stage, VkAccessFlags dst_access) {
+    VkMemoryBarrier b = {VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    b.srcAccessMask = src_access;
+    b.dstAccessMask = dst_access;
+    vkCmdPipelineBarrier(cb, src_stage, dst_stage, 0, 1, &b, 0, NULL, 0, NULL);
+}
+
+/* An empty render pass and its 1x1 framebuffer, for calls recorded inside one. */
+static VkRenderPass render_pass;
+static VkFramebuffer framebuffer;
+HELPER void make_render_pass(void) {
+    VkSubpassDescription sub = {0};
+    sub.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS;
+    VkRenderPassCreateInfo rp = {VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO};
+    rp.subpassCount = 1;
+    rp.pSubpasses = &sub;
+    CHECK(vkCreateRenderPass(device, &rp, NULL, &render_pass));
+    VkFramebufferCreateInfo fb = {VK_STRUCTURE_TYPE_FRAMEBUFFER_CREATE_INFO};
+    fb.renderPass = render_pass;
+    fb.width = 1;
+    fb.height = 1;
+    fb.layers = 1;
+    CHECK(vkCreateFramebuffer(device, &fb, NULL, &framebuffer));
+}
+
+HELPER void begin_render_pass(VkCommandBuffer cb, VkSubpassContents contents) {
+    VkRenderPassBeginInfo begin = {VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO};
+    begin.renderPass = render_pass;
+    begin.framebuffer = framebuffer;
+    begin.renderArea.extent.width = 1;
+    begin.renderArea.extent.height = 1;
+    vkCmdBeginRenderPass(cb, &begin, contents);
+}
+
+/* Prints every message of the layer in full, then the sorted unique ids of its errors on one line, and
+ * returns how many of those ids are not among `expected` plus how many of `expected` are missing. */
+HELPER int report_layer(const char *const *expected, int expected_count) {
+    for (int i = 0; i < message_count; i++)
+        printf("  [%s] %s\n    %s\n", messages[i].severity, messages[i].id, messages[i].text);
+    const char *ids[MAX_MESSAGES];
+    int n = 0;
+    for (int i = 0; i < message_count; i++) {
+        if (strcmp(messages[i].severity, "error") != 0 || messages[i].id[0] == 0)
+            continue;
+        int seen = 0;
+        for (int k = 0; k < n; k++)
+            seen |= strcmp(ids[k], messages[i].id) == 0;
+        if (!seen)
+            ids[n++] = messages[i].id;
+    }
+    for (int i = 1; i < n; i++)
+        for (int k = i; k > 0 && strcmp(ids[k - 1], ids[k]) > 0; k--) {
+            const char *t = ids[k];
+            ids[k] = ids[k - 1];
+            ids[k - 1] = t;
+        }
+    printf("layer reported: ");
+    for (int i = 0; i < n; i++)
+        printf("%s%s", i ? ", " : "", ids[i]);
+    printf("%s\n", n ? "" : "nothing");
+    int differ = 0;
+    for (int i = 0; i < n; i++) {
+        int found = 0;
+        for (int k = 0; k < expected_count; k++)
+            found |= strcmp(ids[i], expected[k]) == 0;
+        if (!found) {
+            printf("  layer only: %s\n", ids[i]);
+            differ++;
+        }
+    }
+    for (int k = 0; k < expected_count; k++) {
+        int found = 0;
+        for (int i = 0; i < n; i++)
+            found |= strcmp(ids[i], expected[k]) == 0;
+        if (!found) {
+            printf("  model only: %s\n", expected[k]);
+            differ++;
+        }
+    }
+    return differ;
+}
+
+/* The spec's default pipeline stack size ("Ray Tracing Pipeline Stack"): raygen + min(1, depth) x
+ * max(closest hit, miss, intersection + any hit) + max(0, depth - 1) x max(closest hit, miss) + 2 x
+ * callable, each the largest stack size of its kind (general stages count in all three general kinds). */
+HELPER uint32_t default_stack_size(VkPipeline pipeline, const VkRayTracingShaderGroupCreateInfoKHR *groups,
+                                   uint32_t count, uint32_t depth) {
+    VkDeviceSize raygen = 0, miss = 0, callable = 0, closest = 0, any = 0, isect = 0;
+#define MAX_OF(a, b) ((a) > (b) ? (a) : (b))
+    for (uint32_t g = 0; g < count; g++) {
+        if (groups[g].type == VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR &&
+            groups[g].generalShader != VK_SHADER_UNUSED_KHR) {
+            VkDeviceSize s = pvkGetRayTracingShaderGroupStackSizeKHR(device, pipeline, g, VK_SHADER_GROUP_SHADER_GENERAL_KHR);
+            raygen = MAX_OF(raygen, s);
+            miss = MAX_OF(miss, s);
+            callable = MAX_OF(callable, s);
+        }
+        if (groups[g].closestHitShader != VK_SHADER_UNUSED_KHR)
+            closest = MAX_OF(closest, pvkGetRayTracingShaderGroupStackSizeKHR(device, pipeline, g,
+                                                                               VK_SHADER_GROUP_SHADER_CLOSEST_HIT_KHR));
+        if (groups[g].anyHitShader != VK_SHADER_UNUSED_KHR)
+            any = MAX_OF(any, pvkGetRayTracingShaderGroupStackSizeKHR(device, pipeline, g, VK_SHADER_GROUP_SHADER_ANY_HIT_KHR));
+        if (groups[g].intersectionShader != VK_SHADER_UNUSED_KHR)
+            isect = MAX_OF(isect, pvkGetRayTracingShaderGroupStackSizeKHR(device, pipeline, g,
+                                                                           VK_SHADER_GROUP_SHADER_INTERSECTION_KHR));
+    }
+    VkDeviceSize d = depth;
+    VkDeviceSize total = raygen + (d < 1 ? d : 1) * MAX_OF(MAX_OF(closest, miss), isect + any) +
+                         (d > 1 ? d - 1 : 0) * MAX_OF(closest, miss) + 2 * callable;
+#undef MAX_OF
+    return total > UINT32_MAX ? UINT32_MAX : (uint32_t)total;
+}
+
+/* The 64 bytes of a VkAccelerationStructureInstanceKHR: identity transform, custom index 0, the mask,
+ * the shader binding table record offset, no flags, the reference. */
+HELPER void instance_record(uint8_t *out, uint8_t mask, uint32_t sbt_record_offset, uint64_t reference) {
+    VkAccelerationStructureInstanceKHR r;
+    memset(&r, 0, sizeof r);
+    r.transform.matrix[0][0] = r.transform.matrix[1][1] = r.transform.matrix[2][2] = 1.0f;
+    r.instanceCustomIndex = 0;
+    r.mask = mask;
+    r.instanceShaderBindingTableRecordOffset = sbt_record_offset & 0xFFFFFF;
+    r.flags = 0;
+    r.accelerationStructureReference = reference;
+    memcpy(out, &r, sizeof r);
+}
+
+/* ---- The case. ---- */

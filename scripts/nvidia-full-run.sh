@@ -1,0 +1,145 @@
+#!/usr/bin/env bash
+# The whole NVIDIA run, repeatable from a clean checkout by anyone with such a machine.
+#
+# Two halves, because the NVIDIA machine has no network, no Vulkan loader, layer or compiler:
+#
+#   here (Debian 12 with Rust, apt and network; the checkout's root):
+#     bash scripts/nvidia-full-run.sh --prepare
+#       builds target/release/rtconf and gathers the bundle (.gl/ and .gl-1.4.309/, scripts/nvidia-bundle.sh);
+#       copy the checkout with those two folders to the NVIDIA machine.
+#
+#   there (the NVIDIA machine, as root, in the copied checkout):
+#     bash scripts/nvidia-full-run.sh --out DIR [--count N] [--valid-count N] [--commit SHA]
+#                                     [--phases LIST] [--phase-timeout S] [--tar FILE]
+#       probe   rtconf probe of the live device into profiles/nvidia-h200.json (every run below uses it)
+#       trace   the trace commands the profile supports, valid and invalid cases, layer 1.3.239
+#       build   vkCmdBuildAccelerationStructuresIndirectKHR, layer 1.3.239
+#       render  valid cases only, --valid-count per command (rendered scenes judged by the tracer), 1.3.239
+#       trace-1.4.309, build-1.4.309   the same under trixie's 1.4.309 layer and its own registry
+#       stress  rtconf stress (the numerical stress families), when the binary has that command
+#     Default: every phase, in that order. Each phase writes DIR/PHASE/ (the run folder) and DIR/PHASE.log;
+#     a phase that fails or runs past --phase-timeout is recorded with its exit status and the next one
+#     runs. DIR/README.md gets one row per phase: the command, the exit status, the counts from
+#     summary.json. --tar packs DIR into one file (for machines that hand back few files).
+#
+# The commit is the checkout's (git rev-parse HEAD) unless --commit names it (a copy without .git).
+set -uo pipefail
+
+repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$repo_root"
+
+out="" count=4 valid_count=100 commit="" tar_file="" phase_timeout=300
+phases="probe trace build render trace-1.4.309 build-1.4.309 stress"
+prepare=0
+while [[ $# -gt 0 ]]; do
+    case "$1" in
+        --prepare) prepare=1; shift ;;
+        --out) out=$2; shift 2 ;;
+        --count) count=$2; shift 2 ;;
+        --valid-count) valid_count=$2; shift 2 ;;
+        --commit) commit=$2; shift 2 ;;
+        --phases) phases=$2; shift 2 ;;
+        --phase-timeout) phase_timeout=$2; shift 2 ;;
+        --tar) tar_file=$2; shift 2 ;;
+        -h|--help) sed -n '2,29p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        *) echo "nvidia-full-run: unknown argument $1 (see --help)" >&2; exit 2 ;;
+    esac
+done
+
+if [[ $prepare -eq 1 ]]; then
+    set -e
+    cargo build --release -p rtconf-cli --bin rtconf
+    bash scripts/nvidia-bundle.sh
+    echo "nvidia-full-run: ready; carry .gl and .gl-1.4.309 with the checkout, then run with --out there"
+    exit 0
+fi
+
+[[ -n "$out" ]] || { echo "nvidia-full-run: --out DIR (or --prepare; see --help)" >&2; exit 2; }
+[[ -n "$commit" ]] || commit=$(git rev-parse HEAD 2>/dev/null || echo unknown)
+mkdir -p "$out"
+out=$(realpath "$out")
+readme="$out/README.md"
+profile=nvidia-h200
+bin="$repo_root/.gl/bin/rtconf"
+[[ -x "$bin" ]] || bin="$repo_root/target/release/rtconf"
+
+{
+    echo "# NVIDIA run of rtconf"
+    echo
+    echo "- commit: \`$commit\`"
+    echo "- started: $(date -u +%Y-%m-%dT%H:%M:%SZ)"
+    echo "- host: $(uname -srm); $(getconf GNU_LIBC_VERSION 2>/dev/null)"
+    if command -v nvidia-smi >/dev/null; then
+        echo "- GPU: $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null | head -1)"
+    fi
+    echo "- script: \`bash scripts/nvidia-full-run.sh --out DIR --count $count --valid-count $valid_count --phases '$phases'\`"
+    echo
+    echo "| phase | command | exit | seconds | cases | pass | triaged | unsupported | fail | crash | timeout | case-error |"
+    echo "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+} >"$readme"
+
+# One row of the README from a run folder's summary.json (python3 where there is one).
+row() {
+    local phase=$1 cmd=$2 rc=$3 secs=$4 summary="$out/$1/summary.json"
+    local counts="| | | | | | | |"
+    if [[ -s "$summary" ]] && command -v python3 >/dev/null; then
+        counts=$(python3 - "$summary" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+keys = ["cases", "passed", "triaged", "unsupported", "failed", "crashes", "timeouts", "case_errors"]
+print("| " + " | ".join(str(s.get(k, "")) for k in keys) + " |")
+PY
+)
+    fi
+    echo "| $phase | \`$cmd\` | $rc | $secs $counts" >>"$readme"
+}
+
+# Runs one phase through scripts/nvidia-run.sh under a time limit and records it.
+phase() {
+    local name=$1 layer=$2
+    shift 2
+    local started=$SECONDS
+    echo "nvidia-full-run: $name: rtconf $*" >&2
+    timeout --kill-after=10 "$phase_timeout" bash scripts/nvidia-run.sh --layer "$layer" -- "$@" \
+        >"$out/$name.log" 2>&1
+    local rc=$?
+    row "$name" "rtconf $* (layer $layer)" "$rc" "$((SECONDS - started))"
+    tail -5 "$out/$name.log" >&2
+}
+
+run_args=(--driver nvidia --profile "$profile" --jobs "$(nproc 2>/dev/null || echo 4)")
+for p in $phases; do
+    case "$p" in
+        probe)
+            phase probe 1.3.239 probe --driver nvidia --out "profiles/$profile.json"
+            cp -f "profiles/$profile.json" "$out/$profile.json" 2>/dev/null || true
+            ;;
+        trace) phase trace 1.3.239 run "${run_args[@]}" --count "$count" --out "$out/trace" ;;
+        build)
+            phase build 1.3.239 run "${run_args[@]}" --command vkCmdBuildAccelerationStructuresIndirectKHR \
+                --count "$count" --out "$out/build"
+            ;;
+        render) phase render 1.3.239 run "${run_args[@]}" --valid-only --count "$valid_count" --out "$out/render" ;;
+        trace-1.4.309) phase trace-1.4.309 1.4.309 run "${run_args[@]}" --count "$count" --out "$out/trace-1.4.309" ;;
+        build-1.4.309)
+            phase build-1.4.309 1.4.309 run "${run_args[@]}" --command vkCmdBuildAccelerationStructuresIndirectKHR \
+                --count "$count" --out "$out/build-1.4.309"
+            ;;
+        stress)
+            if "$bin" help stress >/dev/null 2>&1; then
+                phase stress 1.3.239 stress --driver nvidia --profile "$profile" --out "$out/stress"
+            else
+                echo "| stress | (this binary has no \`rtconf stress\`) | not run | | | | | | | | | |" >>"$readme"
+            fi
+            ;;
+        *) echo "nvidia-full-run: unknown phase $p" >&2; exit 2 ;;
+    esac
+done
+echo >>"$readme"
+echo "- finished: $(date -u +%Y-%m-%dT%H:%M:%SZ)" >>"$readme"
+
+if [[ -n "$tar_file" ]]; then
+    tar -C "$(dirname "$out")" -czf "$tar_file" "$(basename "$out")"
+    echo "nvidia-full-run: packed $out into $tar_file ($(du -h "$tar_file" | cut -f1))" >&2
+fi
+cat "$readme"

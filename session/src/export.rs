@@ -1,0 +1,85 @@
+//! `rtconf export`: a case's plan written as a standalone C program for a bug report — the model's
+//! verdict and expected output on the case's profile written in, the plan the harness would run
+//! ([`harness::plan::CallPlan`]) as its calls.
+
+use crate::error::SessionError;
+use crate::sources;
+use harness::plan::CallPlan;
+use harness::Execution;
+use model::{Case, RuleSet};
+use std::path::{Path, PathBuf};
+
+/// What an export wrote.
+#[derive(Debug)]
+pub struct Exported {
+    /// `DIR/repro.c`.
+    pub source: PathBuf,
+    /// The command that builds it, run in its folder.
+    pub build_command: &'static str,
+    /// Whether the program runs the call for real (a trace submitted, read back and compared).
+    pub run_valid: bool,
+}
+
+/// Writes `out/repro.c` for `case`, judged with the rules of `from` (empty: the installed registry)
+/// on the profile it names.
+pub fn export(case: &Case, from: &[PathBuf], out: &Path) -> Result<Exported, SessionError> {
+    let set = sources::load_sources(from)?;
+    let rules = RuleSet::from_vuids(&set);
+    let profile = sources::profile_for(&case.profile)?;
+    let verdict = model::validate(&rules, &profile, case);
+    let exec = Execution::for_case(case, &profile);
+    let plan = CallPlan::of(case, &exec)?;
+    // Only build cases reach here (the call plan refuses trace cases), and a build's output check is
+    // the plan's own: no launch words are expected.
+    let expected_words: Option<Vec<u32>> = None;
+    let mut about = vec![
+        format!(
+            "intent: {}",
+            match &case.intent {
+                model::Intent::Valid => "valid".to_string(),
+                model::Intent::Violates { vuid, also } if also.is_empty() =>
+                    format!("violates {vuid}"),
+                model::Intent::Violates { vuid, also } =>
+                    format!("violates {vuid} (and {})", also.join(", ")),
+            }
+        ),
+        format!(
+            "profile: {}, registry {}",
+            case.profile,
+            set.version.as_deref().unwrap_or("?")
+        ),
+    ];
+    if let Some(s) = &case.seed {
+        about.push(format!("seed: {s}"));
+    }
+    if plan.command.is_trace() && !exec.run_valid {
+        about.push("invalid: recorded under the layer, which drops it; never submitted".into());
+    }
+    if !plan.command.is_trace() && exec.run_valid {
+        about.push(
+            "the harness also builds this case directly and traces rays at the result; that check is not part of this program"
+                .into(),
+        );
+    }
+    let expectation = export::Expectation {
+        model_vuids: verdict.vuids().into_iter().map(String::from).collect(),
+        violations: verdict
+            .violations
+            .iter()
+            .map(|v| format!("{} at {}: {}", v.vuid, v.context, v.problem))
+            .collect(),
+        expected_words,
+        about,
+    };
+    let program =
+        export::export(&plan, &expectation).map_err(|e| SessionError::Usage(e.to_string()))?;
+    std::fs::create_dir_all(out).map_err(|e| SessionError::io(out.display().to_string(), e))?;
+    let source = out.join("repro.c");
+    std::fs::write(&source, &program.source)
+        .map_err(|e| SessionError::io(source.display().to_string(), e))?;
+    Ok(Exported {
+        source,
+        build_command: program.build_command,
+        run_valid: exec.run_valid,
+    })
+}

@@ -1,0 +1,98 @@
+//! One line of `results.jsonl`: the raw comparison of a case ([`CaseReport`], flattened), its status
+//! against the baseline, the outcome of every attempt when it was run again, and the triage entries
+//! that applied — and reading such lines back, a line at a time.
+
+use crate::baseline::Status;
+use crate::compare::{CaseReport, Outcome};
+use crate::error::SessionError;
+use crate::triage::Triage;
+use std::io::BufRead;
+use std::path::Path;
+
+/// A triage entry that turned a disagreement into `triaged`.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct AppliedTriage {
+    /// The VUID (or `output:…` key) the case disagreed on.
+    pub key: String,
+    /// Where the disagreement is: `model only`, `layer only` or `output`.
+    pub side: String,
+    pub kind: String,
+    pub reason: String,
+    /// The entry's reproducing case, when it names one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub case: Option<String>,
+}
+
+/// One line of `results.jsonl`.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ResultLine {
+    #[serde(flatten)]
+    pub report: CaseReport,
+    /// The status against the baseline (absent in files of older runs: derived from the outcome).
+    #[serde(default = "unknown_status")]
+    pub status: Status,
+    /// The outcome of each attempt, the first included, when the case was run more than once.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub attempts: Vec<Outcome>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub triage: Vec<AppliedTriage>,
+}
+
+fn unknown_status() -> Status {
+    Status::Missing
+}
+
+impl ResultLine {
+    /// The status an older line without one gets: its outcome, with no baseline.
+    fn settle(mut self) -> ResultLine {
+        if self.status == Status::Missing {
+            self.status = crate::baseline::Expectations::default()
+                .status(&self.report, &[self.report.outcome]);
+        }
+        self
+    }
+}
+
+/// The lines of `results.jsonl`, read one at a time (lines that do not parse are left out).
+pub fn read_lines(path: &Path) -> Result<impl Iterator<Item = ResultLine>, SessionError> {
+    let f =
+        std::fs::File::open(path).map_err(|e| SessionError::io(path.display().to_string(), e))?;
+    Ok(std::io::BufReader::new(f)
+        .lines()
+        .map_while(Result::ok)
+        .filter_map(|l| serde_json::from_str::<ResultLine>(&l).ok())
+        .map(ResultLine::settle))
+}
+
+/// The triage entries that explained a case's disagreements, as the comparison matched them
+/// ([`CaseReport::triage`]): one per disagreement, with the entry's kind, reason and reproducing case.
+pub fn applied_triage(report: &CaseReport, triage: &Triage) -> Vec<AppliedTriage> {
+    report
+        .triage
+        .iter()
+        .map(|m| {
+            let entry = triage.entries.iter().find(|e| e.id() == m.entry);
+            AppliedTriage {
+                key: match &m.layer_vuid {
+                    Some(w) => format!("{} -> {w}", m.vuid),
+                    None => m.vuid.clone(),
+                },
+                side: match m.observed.as_str() {
+                    "layer-silent" => "model only",
+                    "layer-extra" => "layer only",
+                    "layer-renames" => "renamed",
+                    _ => "output",
+                }
+                .into(),
+                kind: m.kind.name().into(),
+                reason: entry.map(|e| e.reason.clone()).unwrap_or_default(),
+                case: entry.and_then(|e| {
+                    e.evidence
+                        .iter()
+                        .find(|ev| ev.starts_with("cases/"))
+                        .cloned()
+                }),
+            }
+        })
+        .collect()
+}
