@@ -216,7 +216,7 @@ fn planted_faults_in_the_records_are_caught_and_the_true_records_pass() {
     let written = session::pictures::write(dir.path(), "doctored", case.as_trace().unwrap(), &w);
     assert_eq!(written.len(), 3, "{written:?}");
     let decoder = png::Decoder::new(std::io::BufReader::new(
-        std::fs::File::open(dir.path().join("doctored.diff.png")).unwrap(),
+        std::fs::File::open(dir.path().join("doctored-diff.png")).unwrap(),
     ));
     let mut reader = decoder.read_info().unwrap();
     let mut buf = vec![0; reader.output_buffer_size().unwrap()];
