@@ -596,7 +596,7 @@ fn io_and_set(e: &mut Emitter, t: &TracePlan) {
         e.line(&format!(
             "for (uint64_t i = 0; i < {}; i++) {{ uint32_t not_run = 0x{:08x}u; write_bytes(&output, i * 4, &not_run, 4); }}",
             t.io.output_words,
-            model::semantics::NOT_RUN
+            model::tracer::record::RayRecord::NOT_RUN
         ));
     }
     e.line("write_bytes(&rays, 0, rays_bytes, sizeof rays_bytes);");

@@ -286,7 +286,7 @@ fn profile_location(loc: &str) -> Option<String> {
 }
 
 /// What `rtconf check` and `rtconf run` compute from a case that was read, on the way to a driver and
-/// back: the undefined-reads gate, the verdict, the expected launch of a trace and its last word, the
+/// back: the undefined-reads gate, the verdict, the expected launch of a trace and the ray of its last launch ID, the
 /// build's primitives and the rays that check the built structure.
 fn judge(case: &Case, profile: &DeviceProfile) {
     let _ = case.runnable(profile);
@@ -295,7 +295,8 @@ fn judge(case: &Case, profile: &DeviceProfile) {
     match &case.body {
         Body::Trace(t) => {
             if let Some(e) = model::semantics::expected_launch(&t.world, &t.call) {
-                let _ = e.word(e.invocations().saturating_sub(1));
+                let last = e.invocations().saturating_sub(1);
+                let _ = e.ray_of(usize::try_from(last).unwrap_or(usize::MAX));
             }
         }
         Body::Accel(a) => {

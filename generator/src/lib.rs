@@ -7,12 +7,14 @@
 //! [`shrink_failure`] minimises a failing trace case and writes it as YAML.
 
 pub mod accel;
+pub mod aim;
 pub mod mutation;
 pub mod mutation_io;
 pub mod plan;
 pub mod profiles;
 pub mod registry;
 pub mod resources;
+pub mod scenes;
 pub mod valid;
 
 pub use mutation::{mutations_for, unmutated, Mutation, NullHit};
@@ -62,6 +64,8 @@ pub struct CaseSpec {
     pub intent: SpecIntent,
     /// How large the launch dimensions of the underlying valid case are.
     pub dimensions: DimensionRange,
+    /// Valid cases only: trace a rendered scene (`scenes`) instead of aimed geometry.
+    pub rendered: bool,
 }
 
 impl CaseSpec {
@@ -70,6 +74,15 @@ impl CaseSpec {
             command,
             intent: SpecIntent::Valid,
             dimensions: DimensionRange::Small,
+            rendered: false,
+        }
+    }
+
+    /// A valid spec whose cases trace rendered scenes (camera, random and edge-aimed rays).
+    pub fn rendered(command: CommandId) -> CaseSpec {
+        CaseSpec {
+            rendered: true,
+            ..CaseSpec::valid(command)
         }
     }
 
@@ -78,6 +91,7 @@ impl CaseSpec {
             command,
             intent: SpecIntent::Violate(vuid.to_string()),
             dimensions: DimensionRange::Small,
+            rendered: false,
         }
     }
 
@@ -180,9 +194,16 @@ pub fn case_strategy(
     let command = spec.command;
     let dims = spec.dimensions;
     match (m, &spec.intent) {
+        (None, _) if spec.rendered => Ok((scenes::draw_strategy(), valid::raw_strategy())
+            .prop_map(move |(draw, raw)| {
+                let plan = valid::resolve(&raw, &profile, &lim, command, dims, Some(&draw));
+                let (world, call) = plan::realize(&plan, &lim);
+                Case::trace("", &profile_name, Intent::Valid, world, call)
+            })
+            .boxed()),
         (None, _) => Ok(valid::raw_strategy()
             .prop_map(move |raw| {
-                let plan = valid::resolve(&raw, &profile, &lim, command, dims);
+                let plan = valid::resolve(&raw, &profile, &lim, command, dims, None);
                 let (world, call) = plan::realize(&plan, &lim);
                 Case::trace("", &profile_name, Intent::Valid, world, call)
             })
@@ -195,7 +216,7 @@ pub fn case_strategy(
                 .new_tree(&mut runner_for(0))
                 .map_err(|e| GenError::Io(e.to_string()))?
                 .current();
-            let probe = valid::resolve(&probe_raw, &profile, &lim, command, dims);
+            let probe = valid::resolve(&probe_raw, &profile, &lim, command, dims, None);
             let target = mutation_io::Target {
                 profile,
                 rules,
@@ -208,7 +229,8 @@ pub fn case_strategy(
             let knob = proptest::prop_oneof![3 => proptest::strategy::Just(0u32), 2 => 0..4u32];
             Ok((valid::raw_strategy(), knob, 0..4u32)
                 .prop_map(move |(raw, knob, pick)| {
-                    let plan = valid::resolve(&raw, &target.profile, &target.lim, command, dims);
+                    let plan =
+                        valid::resolve(&raw, &target.profile, &target.lim, command, dims, None);
                     let mutated = mutation::apply(m, plan, &target.input(knob, pick))
                         .expect("a mutation that applied once applies to every plan");
                     let intent = Intent::Violates {
@@ -258,7 +280,8 @@ pub fn case_name(spec: &CaseSpec, seed: u64, index: usize) -> String {
             } else {
                 ""
             };
-            format!("{}-valid{limits}-{seed}-{index}", spec.command.case_stem())
+            let kind = if spec.rendered { "rendered" } else { "valid" };
+            format!("{}-{kind}{limits}-{seed}-{index}", spec.command.case_stem())
         }
         SpecIntent::Violate(vuid) => format!("{}-{seed}-{index}", short_vuid(vuid)),
     }

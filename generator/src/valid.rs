@@ -2,12 +2,13 @@
 //! them into a plan whose every rule holds (no filtering): records each ray reaches hold a group of
 //! the matching kind or zero, strides and offsets come from the profile's alignments and limits.
 
+use crate::aim;
 use crate::plan::{device_state, queue_families, round_up, IndirectPlan, Limits, Plan, TablePlan};
+use crate::scenes::{self, SceneDraw};
 use model::flags::{PipelineCreate, QueueFlags};
-use model::semantics::hit_record;
+use model::scene::Ray;
 use model::world::{
-    CommandBufferState, GeneralStage, GeometryKind, HandleRef, Instance, Launch, RayTarget,
-    ShaderGroup, TraceRay,
+    CommandBufferState, GeneralStage, GeometryKind, HandleRef, Launch, ShaderGroup,
 };
 use model::CommandId;
 use model::{DeviceProfile, Table};
@@ -191,6 +192,7 @@ pub fn resolve(
     lim: &Limits,
     command: CommandId,
     dims: DimensionRange,
+    rendered: Option<&SceneDraw>,
 ) -> Plan {
     // Pipeline: raygen, miss, hit, callable groups.
     let mut groups = vec![ShaderGroup::General {
@@ -204,12 +206,41 @@ pub fn resolve(
             ShaderGroup::ProceduralHit {
                 closest_hit,
                 any_hit,
+                any_hit_rule: Default::default(),
                 intersection: true,
             }
         } else {
             ShaderGroup::TrianglesHit {
                 closest_hit,
                 any_hit,
+                any_hit_rule: Default::default(),
+            }
+        });
+    }
+    if let Some(d) = rendered {
+        // A rendered scene is seen through hit groups with closest-hit shaders of its kind (and the
+        // draw's any-hit rule), and a miss shader.
+        if raw.miss_groups == 0 {
+            groups.insert(
+                1,
+                ShaderGroup::General {
+                    stage: GeneralStage::Miss,
+                },
+            );
+        }
+        let rule = scenes::any_hit_rule(d);
+        groups.push(if scenes::is_procedural(d) {
+            ShaderGroup::ProceduralHit {
+                closest_hit: true,
+                any_hit: rule.is_some(),
+                any_hit_rule: rule.unwrap_or_default(),
+                intersection: true,
+            }
+        } else {
+            ShaderGroup::TrianglesHit {
+                closest_hit: true,
+                any_hit: rule.is_some(),
+                any_hit_rule: rule.unwrap_or_default(),
             }
         });
     }
@@ -218,69 +249,75 @@ pub fn resolve(
     }));
     let gi = GroupIndex::of(&groups);
 
-    // Scene and rays: targets are resolved from the instances that exist.
-    let instances: Vec<Instance> = raw
-        .instances
-        .iter()
-        .map(|(geoms, off)| Instance {
-            // One bottom-level structure holds geometries of one type (triangles or AABBs), so the
-            // first draw decides the kind of every geometry of the instance.
-            geometries: {
-                let kind = if geoms.first() == Some(&true) {
-                    GeometryKind::Aabbs
-                } else {
-                    GeometryKind::Triangles
-                };
-                vec![kind; geoms.len()]
-            },
-            sbt_record_offset: *off,
-            mask: 0xff,
-            cluster: false,
-        })
-        .collect();
-    let mut targets = vec![RayTarget::Nothing];
-    for (i, inst) in instances.iter().enumerate() {
-        for g in 0..inst.geometries.len() {
-            targets.push(RayTarget::Geometry {
-                instance: i as u32,
-                geometry: g as u32,
-            });
-        }
+    // Scene and rays: aimed instances (one bottom level of one geometry kind each: a bottom level
+    // holds geometries of one type, so the first draw decides) and rays aimed at their geometries or
+    // beside them.
+    // A rendered case traces its scene instead.
+    let mut launch = Launch::default();
+    let mut rendered_dims = None;
+    if let Some(d) = rendered {
+        let (l, dims) = scenes::realise(d);
+        launch = l;
+        rendered_dims = Some(dims);
     }
-    let rays: Vec<TraceRay> = raw
-        .rays
-        .iter()
-        .map(|&(t, miss_index, sbt_offset, sbt_stride)| TraceRay {
-            target: pick(&targets, t),
-            sbt_offset,
-            sbt_stride,
-            miss_index,
-            cull_mask: 0xff,
-            ray_flags: 0,
-        })
-        .collect();
+    let mut targets: Vec<Option<(u32, u32)>> = vec![None];
+    for (geoms, off) in raw.instances.iter().filter(|_| rendered.is_none()) {
+        let kind = if geoms.first() == Some(&true) {
+            GeometryKind::Aabbs
+        } else {
+            GeometryKind::Triangles
+        };
+        // SPV_NV_ray_tracing has no geometry index, so the intersection shader of an NV pipeline
+        // finds its sphere only in a procedural bottom level of one geometry.
+        let n = if command.is_nv() && kind == GeometryKind::Aabbs {
+            1
+        } else {
+            geoms.len()
+        };
+        let i = aim::add_instance(&mut launch, &vec![kind; n], *off, aim::AIMED_MASK);
+        targets.extend((0..n as u32).map(|g| Some((i, g))));
+    }
+    if rendered.is_none() {
+        launch.rays = raw
+            .rays
+            .iter()
+            .map(|&(t, miss_index, sbt_offset, sbt_stride)| {
+                let ray = match pick(&targets, t) {
+                    Some((i, g)) => aim::ray_at(i, g, aim::AIMED_MASK),
+                    None => aim::ray_beside(aim::AIMED_MASK),
+                };
+                Ray {
+                    miss_index,
+                    sbt_offset,
+                    sbt_stride,
+                    ..ray
+                }
+            })
+            .collect();
+    }
     let callables: Vec<u32> = if gi.callable.is_empty() {
         vec![]
     } else {
         raw.callables.clone()
     };
 
-    // Which records the rays reach, and from which geometry kinds.
+    // Which records the rays may reach (the model's reach, over every ray), and from which geometry
+    // kinds; every ray's miss record counts as reached (a superset of the misses the tracer allows).
     let mut hit_reach: BTreeMap<u64, (bool, bool)> = BTreeMap::new();
-    let mut miss_reach: Vec<u64> = vec![];
-    for r in &rays {
-        match r.target {
-            RayTarget::Geometry { instance, geometry } => {
-                let inst = &instances[instance as usize];
-                let idx = hit_record(inst.sbt_record_offset, geometry, r.sbt_offset, r.sbt_stride);
-                let e = hit_reach.entry(idx).or_default();
-                match inst.geometries[geometry as usize] {
-                    GeometryKind::Triangles => e.0 = true,
-                    GeometryKind::Aabbs => e.1 = true,
-                }
-            }
-            RayTarget::Nothing => miss_reach.push(r.miss_index as u64),
+    for (idx, kind) in model::semantics::launch_hit_reach(&launch, None) {
+        let e = hit_reach.entry(idx).or_default();
+        match kind {
+            GeometryKind::Triangles => e.0 = true,
+            GeometryKind::Aabbs => e.1 = true,
         }
+    }
+    let mut miss_reach: Vec<u64> = launch
+        .rays
+        .iter()
+        .map(|r| model::semantics::miss_record(r.miss_index))
+        .collect();
+    if let Some(c) = &launch.camera {
+        miss_reach.push(model::semantics::miss_record(c.miss_index));
     }
 
     // NO_NULL_* flags are requested by the draw and kept only where the pipeline can be created with
@@ -356,20 +393,6 @@ pub fn resolve(
         hit_records.push(h);
     }
 
-    // A ray at an AABB whose hit record is a zero group is never reported (no intersection shader):
-    // it misses, so it reads a miss record as well.
-    for r in &rays {
-        if let RayTarget::Geometry { instance, geometry } = r.target {
-            let inst = &instances[instance as usize];
-            let idx = hit_record(inst.sbt_record_offset, geometry, r.sbt_offset, r.sbt_stride);
-            if inst.geometries[geometry as usize] == GeometryKind::Aabbs
-                && hit_records.get(idx as usize) == Some(&HandleRef::Zero)
-            {
-                miss_reach.push(r.miss_index as u64);
-            }
-        }
-    }
-
     // Miss records.
     let miss_reached_n = miss_reach.iter().max().map_or(0, |m| m + 1);
     let miss_n = if miss_reached_n > 0 || (raw.keep_idle[0] && !gi.miss.is_empty()) {
@@ -433,18 +456,15 @@ pub fn resolve(
     }
 
     // Recursion: within the pipeline's maximum, which is within the device's.
-    let mut launch = Launch {
-        instances,
-        rays,
-        callables,
-        extra_recursion: raw.extra_recursion,
-    };
+    launch.callables = callables;
+    launch.extra_recursion = raw.extra_recursion;
     let max_dev = lim.max_recursion.min(u32::MAX as u64) as u32;
     if launch.recursion_depth() > max_dev {
         launch.extra_recursion = 0;
     }
     if launch.recursion_depth() > max_dev {
         launch.rays.clear();
+        launch.camera = None;
         launch.callables.clear();
     }
     let max_recursion_depth = (launch.recursion_depth() + raw.spare_depth).min(max_dev);
@@ -476,9 +496,10 @@ pub fn resolve(
         }
     });
 
-    let dims = match dims {
-        DimensionRange::Small => [raw.dims[0].1 % 5, raw.dims[1].1 % 5, raw.dims[2].1 % 5],
-        DimensionRange::Limits => limit_dims(lim, &raw.dims),
+    let dims = match (rendered_dims, dims) {
+        (Some(d), _) => d,
+        (None, DimensionRange::Small) => [raw.dims[0].1 % 5, raw.dims[1].1 % 5, raw.dims[2].1 % 5],
+        (None, DimensionRange::Limits) => limit_dims(lim, &raw.dims),
     };
 
     let families: Vec<QueueFlags> = queue_families(profile)

@@ -92,7 +92,7 @@ fn generation_is_deterministic_and_names_carry_the_seed() {
 
 #[test]
 fn valid_cases_cover_the_interesting_shapes() {
-    use model::world::{GeometryKind, HandleRef};
+    use model::world::HandleRef;
     let (name, profile) = common::profiles()
         .into_iter()
         .find(|(n, _)| n == "lavapipe")
@@ -111,11 +111,11 @@ fn valid_cases_cover_the_interesting_shapes() {
     };
     let zero_dim = has(&|c| c.call.dimensions(&c.world).is_some_and(|d| d.contains(&0)));
     let aabb = has(&|c| {
-        c.world
-            .launch
-            .instances
-            .iter()
-            .any(|i| i.geometries.contains(&GeometryKind::Aabbs))
+        c.world.launch.scene.bottom_levels.iter().any(|b| {
+            b.geometries
+                .iter()
+                .any(|g| matches!(g.data, model::scene::GeometryData::Aabbs(_)))
+        })
     });
     let zero_handle = has(&|c| {
         c.world.buffers.iter().any(|b| b.contents.iter().any(|x| matches!(x, model::world::Contents::ShaderRecords { handles, .. } if handles.contains(&HandleRef::Zero))))

@@ -127,6 +127,7 @@ fn shrinking_finds_a_minimal_failing_case_and_writes_it() {
             .unwrap()
             .world
             .launch
+            .scene
             .instances
             .is_empty(),
         "{}",

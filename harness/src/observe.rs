@@ -1,6 +1,6 @@
 //! What the harness saw when it ran a case — one type for every command: the run status, the VUIDs the
 //! validation layer reported while the call was recorded, and what the device produced (the words the
-//! shaders wrote for a trace call; the sizes it asked for and the rays traced at what it built for a
+//! shaders wrote for a trace call: one ray record per launch ID; the sizes it asked for and the rays traced at what it built for a
 //! build). Nothing here is judged: the session compares it with the model.
 
 use crate::vk::LayerMessage;
@@ -110,7 +110,8 @@ pub struct RunningOn {
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Output {
-    /// The output words of a trace call run as valid (one per launch ID, x fastest).
+    /// The ray records of a trace call run as valid: `model::tracer::record::RayRecord::WORDS` words
+    /// per launch ID, x fastest.
     Words(Vec<u32>),
     /// The traced check of a build run as valid.
     Rays(TracedBuild),

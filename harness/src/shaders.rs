@@ -96,10 +96,15 @@ impl ShaderKind {
     }
 }
 
-/// The payload tags the shaders write must be the model's.
-const _: () =
-    assert!(model::semantics::MISS_TAG == 0x0001_0000 && model::semantics::HIT_TAG == 0x0002_0000);
-const _: () = assert!(model::semantics::UNTOUCHED == 0xFFFF_FFFE);
+/// The record layout the shaders write must be the model's (`RECORD_WORDS`, the outcome codes and the
+/// word positions in `shaders/*.r*`).
+const _: () = {
+    use model::tracer::record::RayRecord as R;
+    assert!(R::WORDS == 28 && R::SEEN_SLOTS == 4);
+    assert!(R::MISS == 1 && R::HIT == 2 && R::NO_SHADER == 3 && R::NO_GROUP == 0xFFFF_FFFF);
+    assert!(R::ANY_HIT_COUNT == 10 && R::INTERSECTION_COUNT == 11 && R::SEEN == 12);
+    assert!(R::T == 7 && R::BARYCENTRICS == 8 && R::GEOMETRY_INDEX == 4);
+};
 
 /// The SPIR-V words of a shader kind for a pipeline API.
 pub(crate) fn spirv(kind: ShaderKind, api: ShaderApi) -> Result<Vec<u32>, HarnessError> {

@@ -10,6 +10,7 @@ use harness::{Executor, Status};
 use model::call::Call;
 use model::case::{Case, Intent};
 use model::flags::BufferCreate;
+use model::tracer::record::RayRecord;
 use model::world::MemoryBinding;
 
 /// Gives the miss table stride 40, not a multiple of shaderGroupHandleAlignment (16).
@@ -45,14 +46,7 @@ fn check(ctx: &mut Executor, case: &Case, expect_vuids: &[&str]) {
         case.name, obs.layer_messages
     );
     if matches!(case.intent, Intent::Valid) {
-        let expected = model::semantics::expected_launch(&body(case).world, &body(case).call)
-            .expect("dimensions are known");
-        assert_eq!(
-            obs.words(),
-            Some(expected.words().as_slice()),
-            "{}",
-            case.name
-        );
+        common::assert_records(case, &obs);
     } else {
         assert_eq!(
             obs.words(),
@@ -68,13 +62,21 @@ fn valid_indirect_launch_writes_what_the_model_expects() {
     let mut ctx = executor();
     let case = valid_case();
     check(&mut ctx, &case, &[]);
-    // The expected words themselves: id % 3 == 0 hits group 3, 1 misses into group 1, 2 into group 2.
+    // The records themselves: id % 3 == 0 hits group 3, 1 misses into group 1, 2 into group 2.
     let obs = execute(&case, &mut ctx);
-    let h = model::semantics::HIT_TAG;
-    let m = model::semantics::MISS_TAG;
+    let (h, m) = (RayRecord::HIT, RayRecord::MISS);
     assert_eq!(
-        obs.words().unwrap(),
-        vec![h | 3, m | 1, m | 2, h | 3, m | 1, m | 2, h | 3, m | 1]
+        common::outcomes(&obs),
+        vec![
+            (h, 3),
+            (m, 1),
+            (m, 2),
+            (h, 3),
+            (m, 1),
+            (m, 2),
+            (h, 3),
+            (m, 1)
+        ]
     );
 }
 
@@ -164,15 +166,12 @@ fn callables_and_extra_recursion_run_silently_and_as_the_model_expects() {
         "no layer message at all: {:#?}",
         obs.layer_messages
     );
-    let expected = model::semantics::expected_launch(&body(&case).world, &body(&case).call)
-        .expect("direct dimensions");
-    assert_eq!(obs.words(), Some(expected.words().as_slice()));
-    // The nested traces use their own payload: the outer word is still the first closest-hit's.
-    let h = model::semantics::HIT_TAG;
-    let m = model::semantics::MISS_TAG;
+    common::assert_records(&case, &obs);
+    // The nested traces use their own payload: the outer record is still the first closest-hit's.
+    let (h, m) = (RayRecord::HIT, RayRecord::MISS);
     assert_eq!(
-        obs.words().unwrap(),
-        vec![h | 3, m | 1, m | 2, h | 3, m | 1, m | 2]
+        common::outcomes(&obs),
+        vec![(h, 3), (m, 1), (m, 2), (h, 3), (m, 1), (m, 2)]
     );
 }
 

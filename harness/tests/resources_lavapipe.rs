@@ -29,9 +29,7 @@ fn valid_resource_case_runs_silently_and_writes_the_models_words() {
     let obs = execute(&c, &mut ctx);
     assert_eq!(obs.status, Status::Ran, "{obs:?}");
     assert!(obs.layer_vuids.is_empty(), "{:#?}", obs.layer_messages);
-    let expected = model::semantics::expected_launch(&body(&c).world, &body(&c).call)
-        .expect("dimensions are known");
-    assert_eq!(obs.words(), Some(expected.words().as_slice()));
+    common::assert_records(&c, &obs);
 }
 
 #[test]

@@ -39,6 +39,45 @@ pub struct TraceBody {
     pub call: Call,
 }
 
+impl TraceBody {
+    /// What the launch's scene and rays leave undefined (`Scene::undefined`), with paths in the case
+    /// file (`world.launch.scene.instances[2].transform`, `world.launch.rays[3].tmin`).
+    pub fn scene_problems(&self) -> Vec<crate::scene::Problem> {
+        let launch = &self.world.launch;
+        let rays = launch.ray_list();
+        launch
+            .scene
+            .undefined(&rays)
+            .into_iter()
+            .map(|mut p| {
+                p.path = match p.path.strip_prefix("rays[") {
+                    Some(rest) => {
+                        let (index, tail) = rest.split_once(']').unwrap_or((rest, ""));
+                        match index.parse::<usize>() {
+                            Ok(i) if i < launch.rays.len() => {
+                                format!("world.launch.rays[{i}]{tail}")
+                            }
+                            Ok(i) => {
+                                let field = tail.trim_start_matches('.');
+                                let ray = i - launch.rays.len();
+                                p.message = format!("camera ray {ray}: {}", p.message);
+                                match field {
+                                    "origin" => "world.launch.camera.eye".into(),
+                                    "" | "direction" => "world.launch.camera".into(),
+                                    f => format!("world.launch.camera.{f}"),
+                                }
+                            }
+                            Err(_) => format!("world.launch.{}", p.path),
+                        }
+                    }
+                    None => format!("world.launch.{}", p.path),
+                };
+                p
+            })
+            .collect()
+    }
+}
+
 /// An acceleration structure build call and the world it is made in.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AccelBody {
@@ -83,15 +122,53 @@ pub struct CaseError {
     pub problem: String,
 }
 
-/// Why a case must not be handed to a driver: a valid launch would read what is undefined, or the
-/// model gives a build run as valid no meaning to check the device against. Either is the case's
-/// fault, never the driver's.
+/// Why a case must not be handed to a driver: what a valid case's scene or rays leave undefined,
+/// what its launch would read that is undefined, or a build run as valid the model gives no meaning to
+/// check the device against. Each is the case's fault, never the driver's.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{}", reads.join("; "))]
+#[error("{}", self.describe())]
 pub struct NotRunnable {
-    /// The YAML path of what makes it so (`call.miss`, a range record of `world.buffers`).
+    /// The YAML path of what makes it so (`call.miss`, a range record of `world.buffers`, the first
+    /// undefined thing of the scene).
     pub at: String,
+    /// Undefined things of the scene and rays (`Scene::undefined`), their paths in the case file.
+    pub scene: Vec<crate::scene::Problem>,
     pub reads: Vec<String>,
+}
+
+impl NotRunnable {
+    fn describe(&self) -> String {
+        let mut parts = Vec::new();
+        if !self.scene.is_empty() {
+            parts.push(format!(
+                "the valid case's scene is undefined: {}",
+                self.scene
+                    .iter()
+                    .map(|p| p.to_string())
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            ));
+        }
+        parts.extend(self.reads.iter().cloned());
+        parts.join("; ")
+    }
+
+    /// Each problem as `file:line:col: path: problem` (line and column located in the case file's
+    /// `text`), then the undefined reads.
+    pub fn located(&self, file: &str, text: &str) -> Vec<String> {
+        let mut out: Vec<String> = self
+            .scene
+            .iter()
+            .map(|p| {
+                let at = crate::locate::locate(text, &p.path)
+                    .map(|(l, c)| format!(":{l}:{c}"))
+                    .unwrap_or_default();
+                format!("{file}{at}: {}: {}", p.path, p.message)
+            })
+            .collect();
+        out.extend(self.reads.iter().map(|r| format!("{file}: {r}")));
+        out
+    }
 }
 
 /// The deepest nesting of flow collections (`[...]`, `{...}`) a YAML input may have. The YAML
@@ -383,6 +460,15 @@ impl Case {
     pub fn runnable(&self, profile: &DeviceProfile) -> Result<(), NotRunnable> {
         match &self.body {
             Body::Trace(t) if self.intent == Intent::Valid => {
+                let scene = t.scene_problems();
+                if !scene.is_empty() {
+                    // The reads of an undefined scene are not computed: the tracer refuses it.
+                    return Err(NotRunnable {
+                        at: scene[0].path.clone(),
+                        scene,
+                        reads: vec![],
+                    });
+                }
                 let reads = crate::semantics::undefined_reads(
                     crate::semantics::handle_size(profile),
                     &t.world,
@@ -393,6 +479,7 @@ impl Case {
                 } else {
                     Err(NotRunnable {
                         at: "call".into(),
+                        scene: vec![],
                         reads: reads
                             .into_iter()
                             .map(|r| format!("the valid launch has an undefined read: {r}"))
@@ -412,6 +499,7 @@ impl Case {
                             .unwrap_or_else(|| format!("call.infos[{i}]"));
                         return Err(NotRunnable {
                             at,
+                            scene: vec![],
                             reads: vec![format!(
                                 "the model gives the build no meaning to check the device against: {e}"
                             )],

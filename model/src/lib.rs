@@ -11,6 +11,7 @@ pub mod flags;
 pub mod integrity;
 pub mod locate;
 pub mod profile;
+pub mod rendered;
 pub mod resources;
 pub mod rules;
 pub mod semantics;

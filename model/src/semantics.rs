@@ -1,76 +1,17 @@
-//! What a valid launch does, per launch ID: which shader binding table record each ray reaches and so
-//! which shader group writes the output (semantics.md §6, §7). The harness compares this with the
-//! records the raygen shader wrote.
+//! What a valid launch does, per launch ID: which shader binding table records its ray may reach (the
+//! reference tracer's candidates, semantics.md §6), which it reads, what is undefined, and the set of
+//! records the shaders may write (`crate::tracer::AllowedOutcomes` per traced ray, judged against the
+//! harness's `RayRecord`s in the session).
 
 use crate::call::{Call, Table};
-use crate::world::{GeometryKind, HandleRef, RayTarget, ShaderGroup, World};
-
-/// Output word the harness pre-fills: the launch ID did not run.
-pub const NOT_RUN: u32 = 0xFFFF_FFFF;
-/// Output word when the ray was traced but no shader wrote the payload (zero group, or no closest-hit).
-pub const UNTOUCHED: u32 = 0xFFFF_FFFE;
-/// High half of the output word written by a miss shader of group `g`: `MISS_TAG | g`.
-pub const MISS_TAG: u32 = 0x0001_0000;
-/// High half of the output word written by a closest-hit shader of group `g`: `HIT_TAG | g`.
-pub const HIT_TAG: u32 = 0x0002_0000;
-
-/// The expected output of a valid launch: one word per launch ID, x fastest. Launch ID `id` traces ray
-/// `id % rays`, so the output repeats with the rays' period and is held as one word per ray: the model
-/// never allocates from the stated dimensions (an indirect command may state 2^96 invocations).
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ExpectedLaunch {
-    pub dimensions: [u32; 3],
-    /// The word of each ray; a single [`UNTOUCHED`] when the launch traces none.
-    pub per_ray: Vec<u32>,
-}
-
-/// How a launch's output read back differs from the model's.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum OutputDifference {
-    /// Another number of words than launch IDs.
-    Length { got: u64, expected: u64 },
-    /// The first launch ID whose word is not the model's.
-    Word { id: u64, got: u32, expected: u32 },
-}
-
-impl ExpectedLaunch {
-    /// The number of launch IDs (saturating at u64::MAX).
-    pub fn invocations(&self) -> u64 {
-        self.dimensions
-            .iter()
-            .map(|&d| d as u64)
-            .fold(1, u64::saturating_mul)
-    }
-
-    /// The word launch ID `id` writes.
-    pub fn word(&self, id: u64) -> u32 {
-        self.per_ray[(id % self.per_ray.len() as u64) as usize]
-    }
-
-    /// How `got` (one word per launch ID, as read back) differs from the expected output: its length,
-    /// or the first launch ID whose word is not the model's; None when it is the expected output.
-    pub fn difference(&self, got: &[u32]) -> Option<OutputDifference> {
-        if got.len() as u64 != self.invocations() {
-            return Some(OutputDifference::Length {
-                got: got.len() as u64,
-                expected: self.invocations(),
-            });
-        }
-        got.iter()
-            .enumerate()
-            .find(|(id, w)| **w != self.word(*id as u64))
-            .map(|(id, w)| OutputDifference::Word {
-                id: id as u64,
-                got: *w,
-                expected: self.word(id as u64),
-            })
-    }
-
-    /// Every word, materialised: for launches as small as an output read back from a device.
-    pub fn words(&self) -> Vec<u32> {
-        (0..self.invocations()).map(|id| self.word(id)).collect()
-    }
-}
+use crate::scene::{GeometryData, Ray, RayFlags, Scene};
+use crate::tracer::{
+    trace_ray, AllowedOutcomes, HitShaders, MissShader, PreparedScene, ShaderTable, TracerConfig,
+    TracerStats,
+};
+use crate::world::{GeometryKind, HandleRef, ShaderGroup, World};
+use std::collections::BTreeSet;
+use std::sync::{Arc, Mutex};
 
 /// The miss record a ray reaches (`missIndex & 0xFFFF`, semantics.md §6).
 pub fn miss_record(miss_index: u32) -> u64 {
@@ -105,130 +46,337 @@ pub fn record_handle(world: &World, call: &Call, table: Table, index: u64) -> Op
     }
 }
 
-/// The word the launch writes for a ray, given the handles it reaches.
-fn word_for_ray(world: &World, call: &Call, ray_index: usize) -> u32 {
-    let ray = &world.launch.rays[ray_index];
-    let pipeline = world.bound_pipeline();
-    let group_of = |h: Option<HandleRef>| -> Option<u32> {
-        match h {
-            Some(HandleRef::Group(g)) => Some(g),
-            _ => None,
-        }
+/// The number of launch IDs of a call (saturating at usize::MAX), when its dimensions are known.
+pub fn launch_ids(world: &World, call: &Call) -> Option<usize> {
+    call.dimensions(world)
+        .map(|d| d.iter().map(|&x| x as usize).fold(1, usize::saturating_mul))
+}
+
+/// The rays a call traces: the first `min(launch IDs, rays)` of the launch's list (all of them when
+/// the dimensions are not known).
+pub fn traced_rays(world: &World, call: &Call) -> Vec<Ray> {
+    world.launch.traced_rays(launch_ids(world, call))
+}
+
+/// The (instance, geometry) pairs of a scene one ray may reach a hit record from, whatever the shader
+/// binding table holds: every triangle that may be a candidate after culling (the tracer's candidates),
+/// and every procedural geometry of an instance the ray's mask and flags do not cull (boxes may be
+/// enlarged without bound, so any of them may run its intersection shader).
+pub fn ray_reach(prepared: &PreparedScene, ray: &Ray) -> Vec<(u32, u32, GeometryKind)> {
+    let scene = prepared.scene();
+    let any = |_: u32, _: u32| HitShaders::procedural(0, None);
+    let table = ShaderTable {
+        hit: &any,
+        miss: MissShader {
+            zero_group: false,
+            group: 0,
+        },
     };
-    let miss = |world: &World| -> u32 {
-        match group_of(record_handle(
-            world,
-            call,
-            Table::Miss,
-            miss_record(ray.miss_index),
-        )) {
-            Some(g) => MISS_TAG | g,
-            None => UNTOUCHED,
-        }
-    };
-    let RayTarget::Geometry { instance, geometry } = ray.target else {
-        return miss(world);
-    };
-    let Some(inst) = world.launch.instances.get(instance as usize) else {
-        return miss(world);
-    };
-    if inst.mask as u32 & ray.cull_mask & 0xFF == 0 {
-        return miss(world);
-    }
-    let Some(kind) = inst.geometries.get(geometry as usize) else {
-        return miss(world);
-    };
-    let idx = hit_record(
-        inst.sbt_record_offset,
-        geometry,
-        ray.sbt_offset,
-        ray.sbt_stride,
-    );
-    let group = group_of(record_handle(world, call, Table::Hit, idx));
-    let shader_group = group.and_then(|g| pipeline?.groups.get(g as usize).copied());
-    match (kind, shader_group) {
-        // A procedural primitive is only hit when an intersection shader reports it.
-        (
-            GeometryKind::Aabbs,
-            Some(ShaderGroup::ProceduralHit {
-                intersection: true,
-                closest_hit,
-                ..
-            }),
-        ) => {
-            if closest_hit {
-                HIT_TAG | group.unwrap_or(0)
-            } else {
-                UNTOUCHED
+    let mut out: BTreeSet<(u32, u32, GeometryKind)> = BTreeSet::new();
+    let mut stats = TracerStats::default();
+    if let Ok(allowed) = trace_ray(prepared, ray, &table, &TracerConfig::default(), &mut stats) {
+        for c in &allowed.candidates {
+            if c.kind == crate::tracer::PrimitiveKind::Triangle {
+                out.insert((
+                    c.primitive.instance,
+                    c.primitive.geometry,
+                    GeometryKind::Triangles,
+                ));
             }
         }
-        (GeometryKind::Aabbs, _) => miss(world),
+    }
+    for (i, inst) in scene.instances.iter().enumerate() {
+        let Some(b) = inst.bottom_level else { continue };
+        if inst.mask as u32 & ray.cull_mask & 0xFF == 0 || ray.flags.contains(RayFlags::SKIP_AABBS)
+        {
+            continue;
+        }
+        for (g, geometry) in scene.bottom_levels[b as usize]
+            .geometries
+            .iter()
+            .enumerate()
+        {
+            let GeometryData::Aabbs(a) = &geometry.data else {
+                continue;
+            };
+            if a.boxes.iter().all(|b| b.is_inactive()) {
+                continue;
+            }
+            let opaque = if ray.flags.contains(RayFlags::OPAQUE) {
+                true
+            } else if ray.flags.contains(RayFlags::NO_OPAQUE) {
+                false
+            } else if inst.flags.force_opaque {
+                true
+            } else if inst.flags.force_no_opaque {
+                false
+            } else {
+                geometry.flags.opaque
+            };
+            let culled = (ray.flags.contains(RayFlags::CULL_OPAQUE) && opaque)
+                || (ray.flags.contains(RayFlags::CULL_NO_OPAQUE) && !opaque);
+            if !culled {
+                out.insert((i as u32, g as u32, GeometryKind::Aabbs));
+            }
+        }
+    }
+    out.into_iter().collect()
+}
+
+/// A hash of a scene's content (bit patterns), the key of the prepared-scene memo.
+pub fn scene_key(scene: &Scene) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    // serde_json of the scene would do, but costs an allocation of its whole text; bincode-like by hand.
+    for bl in &scene.bottom_levels {
+        0xB1u8.hash(&mut h);
+        for g in &bl.geometries {
+            (g.flags.opaque, g.flags.no_duplicate_any_hit).hash(&mut h);
+            match &g.data {
+                GeometryData::Triangles(t) => {
+                    1u8.hash(&mut h);
+                    for p in &t.positions {
+                        p.map(f32::to_bits).hash(&mut h);
+                    }
+                    match &t.indices {
+                        Some(crate::scene::Indices::U16(v)) => (16u8, v).hash(&mut h),
+                        Some(crate::scene::Indices::U32(v)) => (32u8, v).hash(&mut h),
+                        None => 0u8.hash(&mut h),
+                    }
+                    if let Some(m) = &t.transform {
+                        m.0.map(|r| r.map(f32::to_bits)).hash(&mut h);
+                    }
+                }
+                GeometryData::Aabbs(a) => {
+                    2u8.hash(&mut h);
+                    for b in &a.boxes {
+                        (b.min.map(f32::to_bits), b.max.map(f32::to_bits)).hash(&mut h);
+                    }
+                    for s in &a.spheres {
+                        (s.center.map(f32::to_bits), s.radius.to_bits()).hash(&mut h);
+                    }
+                }
+            }
+        }
+    }
+    for inst in &scene.instances {
         (
-            GeometryKind::Triangles,
-            Some(ShaderGroup::TrianglesHit {
-                closest_hit: true, ..
-            }),
-        ) => HIT_TAG | group.unwrap_or(0),
-        (GeometryKind::Triangles, _) => UNTOUCHED,
+            inst.bottom_level,
+            inst.transform.0.map(|r| r.map(f32::to_bits)),
+            inst.custom_index,
+            inst.mask,
+            inst.sbt_record_offset,
+        )
+            .hash(&mut h);
+        let f = inst.flags;
+        (
+            f.triangle_facing_cull_disable,
+            f.flip_facing,
+            f.force_opaque,
+            f.force_no_opaque,
+        )
+            .hash(&mut h);
+    }
+    h.finish()
+}
+
+/// The bits of a ray, the key of per-ray memos.
+pub fn ray_key(r: &Ray) -> [u32; 13] {
+    let o = r.origin.map(f32::to_bits);
+    let d = r.direction.map(f32::to_bits);
+    [
+        o[0],
+        o[1],
+        o[2],
+        d[0],
+        d[1],
+        d[2],
+        r.tmin.to_bits(),
+        r.tmax.to_bits(),
+        r.flags.0,
+        r.cull_mask,
+        r.sbt_offset,
+        r.sbt_stride,
+        r.miss_index,
+    ]
+}
+
+/// Prepared scenes by content, shared by every judgement of a case (the generator, the gate, the rules
+/// and the comparison each ask): the last few, so a process that judges cases one after another
+/// prepares each scene once.
+pub fn prepared(scene: &Scene) -> Option<Arc<PreparedScene>> {
+    static MEMO: Mutex<Vec<(u64, Arc<PreparedScene>)>> = Mutex::new(Vec::new());
+    let key = scene_key(scene);
+    let mut memo = MEMO.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(pos) = memo.iter().position(|(k, _)| *k == key) {
+        let hit = memo.remove(pos);
+        let p = hit.1.clone();
+        memo.push(hit);
+        return Some(p);
+    }
+    let p = Arc::new(PreparedScene::new(scene).ok()?);
+    memo.push((key, p.clone()));
+    if memo.len() > 4 {
+        memo.remove(0);
+    }
+    Some(p)
+}
+
+/// The hit records the launch may read, with the kind of geometry each is reached from, sorted: the
+/// union over the traced rays of [`ray_reach`] (shader-independent). Empty when the launch runs no
+/// invocation or its scene is undefined (then the case is refused before anything reads it).
+pub fn reached_hit_records(world: &World, call: &Call) -> Vec<(u64, GeometryKind)> {
+    match launch_ids(world, call) {
+        Some(0) => vec![],
+        ids => launch_hit_reach(&world.launch, ids),
     }
 }
 
-/// Whether the bound pipeline's group `g` is a procedural hit group with an intersection shader: only
-/// then is an AABB ever reported (semantics.md §3, §6: a zero group's intersection never reports).
-fn reports_aabb(world: &World, group: Option<HandleRef>) -> bool {
-    match group {
-        Some(HandleRef::Group(g)) => matches!(
-            world
-                .bound_pipeline()
-                .and_then(|p| p.groups.get(g as usize)),
-            Some(ShaderGroup::ProceduralHit {
-                intersection: true,
-                ..
-            })
-        ),
-        _ => false,
+/// [`reached_hit_records`] of a launch of `ids` launch IDs (None: every ray of the list).
+pub fn launch_hit_reach(
+    launch: &crate::world::Launch,
+    ids: Option<usize>,
+) -> Vec<(u64, GeometryKind)> {
+    let rays = launch.traced_rays(ids);
+    if rays.is_empty() {
+        return vec![];
     }
+    let Some(prepared) = prepared(&launch.scene) else {
+        return vec![];
+    };
+    let scene = &launch.scene;
+    let mut out: BTreeSet<(u64, GeometryKind)> = BTreeSet::new();
+    let mut seen: std::collections::HashSet<[u32; 13]> = std::collections::HashSet::new();
+    for ray in &rays {
+        if !seen.insert(ray_key(ray)) {
+            continue;
+        }
+        for (i, g, kind) in ray_reach(&prepared, ray) {
+            let inst = &scene.instances[i as usize];
+            out.insert((
+                hit_record(inst.sbt_record_offset, g, ray.sbt_offset, ray.sbt_stride),
+                kind,
+            ));
+        }
+    }
+    out.into_iter().collect()
+}
+
+/// The shader group a hit record holds, as the tracer sees it: a zero handle is the zero group; a
+/// handle the pipeline cannot resolve (foreign, unwritten, not a hit group) is treated as zero too —
+/// such a case is invalid and its output never judged.
+pub fn hit_shaders(world: &World, call: &Call, index: u64) -> HitShaders {
+    let group = match record_handle(world, call, Table::Hit, index) {
+        Some(HandleRef::Group(g)) => g,
+        _ => return HitShaders::zero(),
+    };
+    match world
+        .bound_pipeline()
+        .and_then(|p| p.groups.get(group as usize))
+    {
+        Some(ShaderGroup::TrianglesHit {
+            closest_hit,
+            any_hit,
+            any_hit_rule,
+        }) => HitShaders {
+            zero_group: false,
+            closest_hit: *closest_hit,
+            any_hit: any_hit.then_some(*any_hit_rule),
+            intersection: false,
+            group,
+        },
+        Some(ShaderGroup::ProceduralHit {
+            closest_hit,
+            any_hit,
+            any_hit_rule,
+            intersection,
+        }) => HitShaders {
+            zero_group: false,
+            closest_hit: *closest_hit,
+            any_hit: any_hit.then_some(*any_hit_rule),
+            intersection: *intersection,
+            group,
+        },
+        _ => HitShaders::zero(),
+    }
+}
+
+/// The miss shader a miss record holds (unresolvable handles as the zero group, as for hits).
+pub fn miss_shader(world: &World, call: &Call, index: u64) -> MissShader {
+    match record_handle(world, call, Table::Miss, index) {
+        Some(HandleRef::Group(g)) => MissShader {
+            zero_group: false,
+            group: g,
+        },
+        _ => MissShader {
+            zero_group: true,
+            group: 0,
+        },
+    }
+}
+
+/// The outcomes the spec allows for one ray of the launch, with the shader binding table resolved
+/// through the case's records.
+pub fn allowed_for_ray(
+    world: &World,
+    call: &Call,
+    prepared: &PreparedScene,
+    ray: &Ray,
+    stats: &mut TracerStats,
+) -> Option<AllowedOutcomes> {
+    let scene = &world.launch.scene;
+    let hit = |i: u32, g: u32| {
+        let inst = &scene.instances[i as usize];
+        hit_shaders(
+            world,
+            call,
+            hit_record(inst.sbt_record_offset, g, ray.sbt_offset, ray.sbt_stride),
+        )
+    };
+    let table = ShaderTable {
+        hit: &hit,
+        miss: miss_shader(world, call, miss_record(ray.miss_index)),
+    };
+    trace_ray(prepared, ray, &table, &TracerConfig::default(), stats).ok()
 }
 
 /// Every shader binding table record the launch reads, as (table, record index), sorted: the raygen
-/// record, the hit record of each ray that reaches geometry, the miss record of each ray that misses
-/// (including rays at an AABB nothing reports), and the callable records executed. Empty when the
-/// launch runs no invocation.
+/// record, every hit record a possible candidate reaches ([`reached_hit_records`]), the miss record of
+/// each ray a miss is allowed for, and the callable records executed. Empty when the launch runs no
+/// invocation.
 pub fn records_read(world: &World, call: &Call) -> Vec<(Table, u64)> {
-    if call.dimensions(world).is_some_and(|d| d.contains(&0)) {
+    if launch_ids(world, call) == Some(0) {
         return vec![];
     }
     let mut out = vec![(Table::Raygen, 0)];
-    let launch = &world.launch;
-    for ray in &launch.rays {
-        let hit = match ray.target {
-            RayTarget::Geometry { instance, geometry } => launch
-                .instances
-                .get(instance as usize)
-                .filter(|inst| inst.mask as u32 & ray.cull_mask & 0xFF != 0)
-                .and_then(|inst| Some((inst, *inst.geometries.get(geometry as usize)?, geometry))),
-            RayTarget::Nothing => None,
-        };
-        match hit {
-            Some((inst, kind, geometry)) => {
-                let idx = hit_record(
-                    inst.sbt_record_offset,
-                    geometry,
-                    ray.sbt_offset,
-                    ray.sbt_stride,
-                );
-                out.push((Table::Hit, idx));
-                if kind == GeometryKind::Aabbs
-                    && !reports_aabb(world, record_handle(world, call, Table::Hit, idx))
-                {
-                    out.push((Table::Miss, miss_record(ray.miss_index)));
-                }
+    out.extend(
+        reached_hit_records(world, call)
+            .into_iter()
+            .map(|(i, _)| (Table::Hit, i)),
+    );
+    let rays = traced_rays(world, call);
+    if !rays.is_empty() {
+        let mut stats = TracerStats::default();
+        let prepared = prepared(&world.launch.scene);
+        let mut seen: std::collections::HashSet<[u32; 13]> = std::collections::HashSet::new();
+        for ray in &rays {
+            if !seen.insert(ray_key(ray)) {
+                continue;
             }
-            None => out.push((Table::Miss, miss_record(ray.miss_index))),
+            let miss = match &prepared {
+                Some(p) => {
+                    allowed_for_ray(world, call, p, ray, &mut stats).is_none_or(|a| a.miss.allowed)
+                }
+                None => true,
+            };
+            if miss {
+                out.push((Table::Miss, miss_record(ray.miss_index)));
+            }
         }
     }
     out.extend(
-        launch
+        world
+            .launch
             .callables
             .iter()
             .map(|&c| (Table::Callable, c as u64)),
@@ -240,15 +388,18 @@ pub fn records_read(world: &World, call: &Call) -> Vec<(Table, u64)> {
 
 /// The recursion depth the launch reaches (see [`crate::world::Launch::recursion_depth`]): 0 when it
 /// traces no ray or runs no invocation, 1 when raygen traces, and 1 + `extra_recursion` only when some
-/// ray runs a closest-hit shader — the one shader that traces again. A ray that misses, hits a zero
-/// group or a hit group without closest-hit, or reaches an AABB nothing reports, stops at depth 1.
+/// ray can run a closest-hit shader — the one shader that traces again: some hit record a traced ray
+/// can reach ([`reached_hit_records`]) holds a group with a closest-hit shader. A launch whose rays
+/// reach only zero groups or hit groups without closest-hit (or nothing) stops at depth 1.
 pub fn recursion_depth(world: &World, call: &Call) -> u32 {
     let launch = &world.launch;
-    if launch.rays.is_empty() || call.dimensions(world).is_some_and(|d| d.contains(&0)) {
+    if !launch.traces() || launch_ids(world, call) == Some(0) {
         return 0;
     }
-    let closest_hit_runs =
-        (0..launch.rays.len()).any(|i| word_for_ray(world, call, i) & 0xFFFF_0000 == HIT_TAG);
+    let closest_hit_runs = reached_hit_records(world, call).iter().any(|&(index, _)| {
+        let h = hit_shaders(world, call, index);
+        !h.zero_group && h.closest_hit
+    });
     if closest_hit_runs {
         launch.recursion_depth()
     } else {
@@ -317,17 +468,64 @@ pub fn undefined_reads(handle_size: u64, world: &World, call: &Call) -> Vec<Stri
     out
 }
 
-/// The expected output words of a valid call, or None when the dimensions are not known.
+/// What a valid launch may write: its dimensions, and for each traced ray (launch ID `i` traces ray
+/// `i % rays.len()`) the outcomes the spec allows. No rays: every launch ID writes the
+/// [`crate::tracer::record::RayRecord::no_shader`] record.
+#[derive(Debug, Clone)]
+pub struct ExpectedLaunch {
+    pub dimensions: [u32; 3],
+    pub rays: Vec<Ray>,
+    /// `allowed[k]` for `rays[k]`.
+    pub allowed: Vec<AllowedOutcomes>,
+    /// The tracer's counters for the launch's distinct rays (memoised per distinct ray).
+    pub stats: TracerStats,
+}
+
+impl ExpectedLaunch {
+    /// The ray index launch ID `id` traces, None when the launch traces no ray.
+    pub fn ray_of(&self, id: usize) -> Option<usize> {
+        (!self.rays.is_empty()).then(|| id % self.rays.len())
+    }
+
+    /// The number of launch IDs (saturating at u64::MAX): the model holds one outcome set per ray,
+    /// never one per launch ID (an indirect command may state 2^96 invocations).
+    pub fn invocations(&self) -> u64 {
+        self.dimensions
+            .iter()
+            .map(|&d| d as u64)
+            .fold(1, u64::saturating_mul)
+    }
+}
+
+/// The expected output of a valid call, or None when the dimensions are not known or the scene is
+/// undefined.
 pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
-    let dimensions = call.dimensions(world)?;
-    let rays = world.launch.rays.len();
-    let per_ray = if rays == 0 {
-        vec![UNTOUCHED]
-    } else {
-        (0..rays).map(|r| word_for_ray(world, call, r)).collect()
-    };
+    let dims = call.dimensions(world)?;
+    let rays = traced_rays(world, call);
+    let mut stats = TracerStats::default();
+    let mut allowed: Vec<AllowedOutcomes> = Vec::with_capacity(rays.len());
+    if !rays.is_empty() {
+        let prepared = prepared(&world.launch.scene)?;
+        let mut memo: std::collections::HashMap<[u32; 13], usize> =
+            std::collections::HashMap::new();
+        for ray in &rays {
+            let key = ray_key(ray);
+            match memo.get(&key) {
+                Some(&k) => {
+                    let a = allowed[k].clone();
+                    allowed.push(a);
+                }
+                None => {
+                    memo.insert(key, allowed.len());
+                    allowed.push(allowed_for_ray(world, call, &prepared, ray, &mut stats)?);
+                }
+            }
+        }
+    }
     Some(ExpectedLaunch {
-        dimensions,
-        per_ray,
+        dimensions: dims,
+        rays,
+        allowed,
+        stats,
     })
 }

@@ -5,6 +5,8 @@
 //! a buffer plus an offset, shader group handles are group indices. The harness resolves them.
 
 use crate::flags::{BufferCreate, BufferUsage, PipelineCreate, QueueFlags};
+use crate::scene::{Ray, RayFlags, Scene};
+use crate::tracer::AnyHitRule;
 use std::collections::BTreeSet;
 
 /// The device as the case enables it (a subset of what its profile reports).
@@ -116,12 +118,17 @@ pub enum ShaderGroup {
         closest_hit: bool,
         #[serde(default)]
         any_hit: bool,
+        /// What the any-hit shader does with a candidate (when the group has one).
+        #[serde(default, skip_serializing_if = "is_default")]
+        any_hit_rule: AnyHitRule,
     },
     ProceduralHit {
         #[serde(default)]
         closest_hit: bool,
         #[serde(default)]
         any_hit: bool,
+        #[serde(default, skip_serializing_if = "is_default")]
+        any_hit_rule: AnyHitRule,
         intersection: bool,
     },
 }
@@ -219,64 +226,99 @@ impl Default for CommandBufferState {
 }
 
 /// Geometry kind of one geometry of a bottom-level structure.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
 #[serde(rename_all = "kebab-case")]
 pub enum GeometryKind {
     Triangles,
     Aabbs,
 }
 
-/// One instance of the scene's top-level structure; geometry `g` of instance `i` sits at (2g, 4i, 0)
-/// in the harness's layout, so rays can aim at exactly one.
+impl GeometryKind {
+    /// The kind of a scene geometry.
+    pub fn of(data: &crate::scene::GeometryData) -> GeometryKind {
+        match data {
+            crate::scene::GeometryData::Triangles(_) => GeometryKind::Triangles,
+            crate::scene::GeometryData::Aabbs(_) => GeometryKind::Aabbs,
+        }
+    }
+}
+
+/// A pinhole camera: launch-ray `(i, j)` of a `width`×`height` grid (x fastest) starts at `eye` with
+/// direction `forward + x·right + y·up`, `x = 2(i + ½)/width − 1`, `y = 1 − 2(j + ½)/height`, evaluated
+/// in f64 and rounded once to f32 (only additions and multiplications: the same bits on every
+/// machine). The other fields are every camera ray's `traceRayEXT` parameters.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct Instance {
-    pub geometries: Vec<GeometryKind>,
-    /// `instanceShaderBindingTableRecordOffset` (24 bits).
+pub struct Camera {
+    pub eye: [f32; 3],
+    pub forward: [f32; 3],
+    pub right: [f32; 3],
+    pub up: [f32; 3],
+    pub width: u32,
+    pub height: u32,
     #[serde(default)]
-    pub sbt_record_offset: u32,
-    #[serde(default = "full_mask")]
-    pub mask: u8,
-    /// The instance references a cluster acceleration structure (VK_NV_cluster_acceleration_structure).
+    pub tmin: f32,
+    /// `+inf` is allowed (`.inf` in YAML).
+    pub tmax: f32,
     #[serde(default, skip_serializing_if = "is_default")]
-    pub cluster: bool,
-}
-
-/// What a ray traced by the raygen shader aims at.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum RayTarget {
-    /// Nothing: the ray misses.
-    Nothing,
-    /// Geometry `geometry` of instance `instance`.
-    Geometry { instance: u32, geometry: u32 },
-}
-
-/// The parameters of one `traceRayEXT` call in the raygen shader.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct TraceRay {
-    pub target: RayTarget,
-    #[serde(default)]
-    pub sbt_offset: u32,
-    #[serde(default)]
-    pub sbt_stride: u32,
-    #[serde(default)]
-    pub miss_index: u32,
+    pub flags: RayFlags,
     #[serde(default = "full_mask_u32")]
     pub cull_mask: u32,
-    #[serde(default)]
-    pub ray_flags: u32,
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub sbt_offset: u32,
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub sbt_stride: u32,
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub miss_index: u32,
 }
 
-/// What the shaders of a launch do: each launch ID traces ray `id % rays.len()`.
+impl Camera {
+    /// The camera's rays, x fastest.
+    pub fn rays(&self) -> Vec<Ray> {
+        let f = self.forward.map(|x| x as f64);
+        let r = self.right.map(|x| x as f64);
+        let u = self.up.map(|x| x as f64);
+        let (w, h) = (self.width.max(1) as f64, self.height.max(1) as f64);
+        let mut out = Vec::with_capacity(self.width as usize * self.height as usize);
+        for j in 0..self.height {
+            for i in 0..self.width {
+                let x = 2.0 * (i as f64 + 0.5) / w - 1.0;
+                let y = 1.0 - 2.0 * (j as f64 + 0.5) / h;
+                let direction = [0, 1, 2].map(|k| (f[k] + x * r[k] + y * u[k]) as f32);
+                out.push(Ray {
+                    origin: self.eye,
+                    direction,
+                    tmin: self.tmin,
+                    tmax: self.tmax,
+                    flags: self.flags,
+                    cull_mask: self.cull_mask,
+                    sbt_offset: self.sbt_offset,
+                    sbt_stride: self.sbt_stride,
+                    miss_index: self.miss_index,
+                });
+            }
+        }
+        out
+    }
+}
+
+/// What the shaders of a launch do: launch ID `i` (x fastest) traces ray `i % n` of
+/// [`Launch::ray_list`] (the explicit rays, then the camera's) into the scene and writes its
+/// `RayRecord` (`crate::tracer::record`).
 #[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Launch {
-    #[serde(default)]
-    pub instances: Vec<Instance>,
-    #[serde(default)]
-    pub rays: Vec<TraceRay>,
+    /// The bottom levels and the top level's instances.
+    #[serde(default, skip_serializing_if = "scene_is_empty")]
+    pub scene: Scene,
+    /// Explicit rays, uploaded as they are.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub rays: Vec<Ray>,
+    /// Camera rays, after the explicit ones.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<Camera>,
     /// Callable shader records executed by each launch (`executeCallableEXT` indices).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub callables: Vec<u32>,
@@ -284,6 +326,13 @@ pub struct Launch {
     /// same ray while its depth is at most this): 0, raygen's traces only.
     #[serde(default, skip_serializing_if = "is_default")]
     pub extra_recursion: u32,
+    /// The scene references a cluster acceleration structure (VK_NV_cluster_acceleration_structure).
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub cluster_structures: bool,
+}
+
+fn scene_is_empty(s: &Scene) -> bool {
+    s.bottom_levels.is_empty() && s.instances.is_empty()
 }
 
 impl Launch {
@@ -293,10 +342,56 @@ impl Launch {
     /// `extra_recursion` when closest-hit shaders trace again. What a launch reaches is
     /// [`crate::semantics::recursion_depth`], which also asks whether a closest-hit runs.
     pub fn recursion_depth(&self) -> u32 {
-        if self.rays.is_empty() {
+        if !self.traces() {
             0
         } else {
             1u32.saturating_add(self.extra_recursion)
+        }
+    }
+
+    /// Whether any ray is traced (the raygen then has the scene bound).
+    pub fn traces(&self) -> bool {
+        !self.rays.is_empty()
+            || self
+                .camera
+                .as_ref()
+                .is_some_and(|c| c.width > 0 && c.height > 0)
+    }
+
+    /// Every ray of the launch: the explicit ones, then the camera's.
+    pub fn ray_list(&self) -> Vec<Ray> {
+        let mut v = self.rays.clone();
+        if let Some(c) = &self.camera {
+            v.extend(c.rays());
+        }
+        v
+    }
+
+    /// The number of rays in [`Launch::ray_list`].
+    pub fn ray_count(&self) -> usize {
+        self.rays.len()
+            + self
+                .camera
+                .as_ref()
+                .map_or(0, |c| c.width as usize * c.height as usize)
+    }
+
+    /// The rays a launch of `ids` launch IDs traces (the first `min(ids, n)` of the list; all of them
+    /// when the launch size is not known).
+    pub fn traced_rays(&self, ids: Option<usize>) -> Vec<Ray> {
+        let mut v = self.ray_list();
+        if let Some(n) = ids {
+            v.truncate(n);
+        }
+        v
+    }
+
+    /// The path of ray `i` of [`Launch::ray_list`] in a case file.
+    pub fn ray_path(&self, i: usize) -> String {
+        if i < self.rays.len() {
+            format!("world.launch.rays[{i}]")
+        } else {
+            format!("world.launch.camera (ray {})", i - self.rays.len())
         }
     }
 }
@@ -387,9 +482,6 @@ fn is_true(v: &bool) -> bool {
 }
 fn yes() -> bool {
     true
-}
-fn full_mask() -> u8 {
-    0xff
 }
 fn full_mask_u32() -> u32 {
     0xff

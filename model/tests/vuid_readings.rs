@@ -6,7 +6,7 @@
 use model::resources::{DescriptorType, ResourceRule};
 use model::rules::predicate::Predicate;
 use model::rules::RuleSet;
-use model::world::{GeneralStage, HandleRef, RayTarget, ShaderGroup};
+use model::world::{GeneralStage, HandleRef, ShaderGroup};
 use model::{Case, DeviceProfile};
 use std::path::{Path, PathBuf};
 
@@ -53,7 +53,7 @@ fn recursion_depth_counts_closest_hits_that_trace_again_only_where_one_runs() {
     c.as_trace_mut().unwrap().world.launch.extra_recursion = 1;
     assert!(vuids(&rules, &c).contains(&RECURSION.to_string()));
     // Every ray misses: no closest-hit runs, nothing traces again, the depth reached is 1.
-    c.as_trace_mut().unwrap().world.launch.rays[0].target = RayTarget::Nothing;
+    c.as_trace_mut().unwrap().world.launch.rays[0].origin = [-1000.0, -1000.0, -1.0];
     let t = c.as_trace().unwrap();
     assert_eq!(model::semantics::recursion_depth(&t.world, &t.call), 1);
     assert!(!vuids(&rules, &c).contains(&RECURSION.to_string()), "{c:?}");
@@ -64,6 +64,7 @@ fn recursion_depth_counts_closest_hits_that_trace_again_only_where_one_runs() {
     w.pipeline.as_mut().unwrap().groups[3] = ShaderGroup::TrianglesHit {
         closest_hit: false,
         any_hit: false,
+        any_hit_rule: Default::default(),
     };
     assert!(!vuids(&rules, &c).contains(&RECURSION.to_string()));
 }
@@ -75,7 +76,7 @@ fn callables_do_not_deepen_the_recursion() {
     let w = &mut c.as_trace_mut().unwrap().world;
     // No ray is traced; raygen executes a callable; the pipeline allows no recursion at all.
     w.launch.rays.clear();
-    w.launch.instances.clear();
+    w.launch.scene = Default::default();
     w.launch.callables = vec![0];
     let p = w.pipeline.as_mut().unwrap();
     p.groups.push(ShaderGroup::General {

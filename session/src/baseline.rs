@@ -375,6 +375,7 @@ mod tests {
             layer: vec![],
             layer_other: vec![],
             output_matches: None,
+            rendered: None,
             detail: String::new(),
             triage: vec![],
             millis: 1.0,

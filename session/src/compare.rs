@@ -60,6 +60,9 @@ pub struct CaseReport {
     /// For cases run as valid: whether what the device produced is what the model expects.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub output_matches: Option<bool>,
+    /// For valid trace cases: the rendered output judged per ray (counts, worst errors, histograms).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rendered: Option<model::rendered::RenderedResult>,
     /// What went wrong or what triage entry applied.
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub detail: String,
@@ -81,6 +84,7 @@ impl CaseReport {
             layer: vec![],
             layer_other: vec![],
             output_matches: None,
+            rendered: None,
             detail: String::new(),
             triage: vec![],
             millis,
@@ -254,12 +258,20 @@ pub fn compare(
             ));
         }
         match &case.body {
-            Body::Trace(t) => {
-                if let Some(expected) = model::semantics::expected_launch(&t.world, &t.call) {
-                    let ok = compare_words(obs.words(), &expected, &mut problems);
-                    report.output_matches = ok;
-                }
+            Body::Trace(t) if extra.is_empty() => {
+                let (rendered, matched) = crate::rendered::compare_records(
+                    &facts,
+                    triage,
+                    t,
+                    obs.words(),
+                    &mut problems,
+                    &mut triaged,
+                );
+                report.output_matches = rendered.as_ref().map(|r| r.failures == 0);
+                report.rendered = rendered;
+                report.triage.extend(matched);
             }
+            Body::Trace(_) => {}
             Body::Accel(a) if extra.is_empty() => {
                 let ok = compare_rays(&facts, a, obs.traced(), triage, &mut problems, &mut triaged);
                 report.output_matches = Some(ok.0);
@@ -282,7 +294,21 @@ pub fn compare(
             .join("; ");
         return report;
     }
-    conclude(report, problems, triaged)
+    let warnings = report
+        .rendered
+        .as_ref()
+        .map(|r| (r.warnings, r.first_warnings.clone()));
+    let mut report = conclude(report, problems, triaged);
+    // Warnings (the spec's "should") are shown beside the outcome, never failed.
+    if let Some((n, first)) = warnings.filter(|(n, _)| *n > 0) {
+        let w = format!("{n} warnings; first: {}", first.join(" | "));
+        report.detail = if report.detail.is_empty() {
+            w
+        } else {
+            format!("{}; {w}", report.detail)
+        };
+    }
+    report
 }
 
 /// Whether the device's profile confirms that it lacks `lack`.
@@ -296,32 +322,6 @@ pub fn profile_lacks(profile: &DeviceProfile, lack: &DeviceLack) -> bool {
             .any(|fam| flags.iter().any(|f| fam.contains(f))),
         DeviceLack::QueueFamilyWithout(flag) => {
             profile.queue_families.iter().all(|fam| fam.contains(flag))
-        }
-    }
-}
-
-/// The launch's words against the model's; Some(whether they match) when words were read back.
-fn compare_words(
-    got: Option<&[u32]>,
-    expected: &model::semantics::ExpectedLaunch,
-    problems: &mut Vec<String>,
-) -> Option<bool> {
-    let Some(words) = got else {
-        problems.push("no output was read back".into());
-        return None;
-    };
-    use model::semantics::OutputDifference;
-    match expected.difference(words) {
-        None => Some(true),
-        Some(OutputDifference::Word { id, got, expected }) => {
-            problems.push(format!(
-                "output word {id}: driver 0x{got:08x}, model 0x{expected:08x}"
-            ));
-            Some(false)
-        }
-        Some(OutputDifference::Length { got, expected }) => {
-            problems.push(format!("output has {got} words, model expects {expected}"));
-            Some(false)
         }
     }
 }

@@ -23,6 +23,9 @@ pub struct RunParameters {
     pub valid_only: bool,
     pub seed: u64,
     pub count: usize,
+    /// `--rendered`: rendered-scene cases per trace command.
+    #[serde(default)]
+    pub rendered: usize,
     /// `--from`, as given.
     pub from: Vec<String>,
     /// The registry version the rules were read from.
@@ -228,6 +231,7 @@ mod tests {
             valid_only: false,
             seed: 1,
             count: 4,
+            rendered: 0,
             from: vec![],
             registry: Some("1.3.239".into()),
             triage: vec![],

@@ -17,19 +17,29 @@ pub struct Scope {
     pub valid_only: bool,
     /// The run's seed: spec `i` of a command family is generated from `seed + i`.
     pub seed: u64,
+    /// Rendered-scene cases per trace command (at least; a larger `count` wins); 0: none.
+    pub rendered: usize,
 }
+
+/// Rendered-scene cases per trace command a run makes by default.
+pub const DEFAULT_RENDERED: usize = 100;
 
 /// One spec of a run and the seed its cases are drawn from.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct PlannedSpec {
     pub spec: CaseSpec,
     pub seed: u64,
+    /// Cases of this spec, when not the run's count (rendered specs).
+    pub count: Option<usize>,
 }
 
 impl PlannedSpec {
     /// The spec as a person reads it: the command and the VUID it violates, or `valid`.
     pub fn label(&self) -> String {
         match &self.spec.intent {
+            SpecIntent::Valid if self.spec.rendered => {
+                format!("{} rendered", self.spec.command.vk_name())
+            }
             SpecIntent::Valid => format!("{} valid", self.spec.command.vk_name()),
             SpecIntent::Violate(v) => v.clone(),
         }
@@ -52,8 +62,10 @@ pub fn commands(names: &[String]) -> Result<Vec<CommandId>, SessionError> {
 }
 
 /// The specs of a run: per command, one valid spec and one per executable VUID with a mutation; the
-/// trace commands first, then the build. Seeds count within each family (trace specs from `seed`, build
-/// specs from `seed` again), so a spec keeps the seed and the case names earlier runs gave it.
+/// trace commands first, then one rendered-scene spec per trace command (`scope.rendered` cases each,
+/// or the run's count when larger), then the build. Seeds count within each family (trace specs from
+/// `seed`, build specs from `seed` again), so a spec keeps the seed and the case names earlier runs
+/// gave it.
 pub fn plan(scope: &Scope, rules: &RuleSet, profile: &DeviceProfile) -> Vec<PlannedSpec> {
     let commands: Vec<CommandId> = if scope.commands.is_empty() {
         CommandId::TRACE
@@ -65,6 +77,11 @@ pub fn plan(scope: &Scope, rules: &RuleSet, profile: &DeviceProfile) -> Vec<Plan
     };
     let mut trace = Vec::new();
     let mut build = Vec::new();
+    let rendered: Vec<CaseSpec> = commands
+        .iter()
+        .filter(|c| c.is_trace() && scope.vuids.is_empty() && scope.rendered > 0)
+        .map(|&c| CaseSpec::rendered(c))
+        .collect();
     for command in commands {
         let specs = if command.is_trace() {
             &mut trace
@@ -90,8 +107,10 @@ pub fn plan(scope: &Scope, rules: &RuleSet, profile: &DeviceProfile) -> Vec<Plan
             }
         }
     }
+    trace.extend(rendered);
     let seeded = |specs: Vec<CaseSpec>| {
         specs.into_iter().enumerate().map(|(i, spec)| PlannedSpec {
+            count: spec.rendered.then_some(scope.rendered),
             spec,
             seed: scope.seed.wrapping_add(i as u64),
         })

@@ -86,6 +86,9 @@ pub struct Summary {
     /// Wall time of the run, in seconds.
     pub seconds: f64,
     pub vuids: BTreeMap<String, VuidTally>,
+    /// Per trace command: the rendered output judged per ray (counts, VARY share, error quantiles).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub rendered: BTreeMap<String, crate::rendered::RenderedTotals>,
 }
 
 impl Summary {
@@ -164,6 +167,12 @@ pub fn summarise(
             seen.insert(r.case.clone());
         }
         s.cases += 1;
+        if let Some(x) = &r.rendered {
+            s.rendered
+                .entry(r.command.vk_name().to_string())
+                .or_default()
+                .add(x);
+        }
         *s.statuses.entry(line.status).or_default() += 1;
         s.retries += line.attempts.len().saturating_sub(1);
         match r.outcome {

@@ -373,9 +373,13 @@ fn each_case(
         scope.vuids.dedup();
     }
     let specs = plan(&scope, rules, profile);
-    progress.planned((specs.len() * config.count) as u64);
+    // A spec's own count (the rendered scenes') is a floor under the run's.
+    let count_of =
+        |p: &crate::plan::PlannedSpec| p.count.map_or(config.count, |n| n.max(config.count));
+    progress.planned(specs.iter().map(count_of).sum::<usize>() as u64);
     for p in &specs {
-        for range in slices(config.count) {
+        let count = count_of(p);
+        for range in slices(count) {
             let len = range.len();
             let cases = match generator::generate_range(
                 profile,
@@ -388,12 +392,12 @@ fn each_case(
                 Ok(c) => c,
                 Err(e @ generator::GenError::Unsupported(_)) => {
                     planned.not_expressible.push(format!("{}: {e}", p.label()));
-                    progress.advance(config.count as u64);
+                    progress.advance(count as u64);
                     break;
                 }
                 Err(e) => {
                     planned.gen_errors.push(format!("{}: {e}", p.label()));
-                    progress.advance(config.count as u64);
+                    progress.advance(count as u64);
                     break;
                 }
             };
@@ -490,6 +494,7 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         valid_only: config.scope.valid_only,
         seed: config.scope.seed,
         count: config.count,
+        rendered: config.scope.rendered,
         from: config
             .from
             .iter()
@@ -732,6 +737,12 @@ impl Dispatch<'_> {
                 return;
             }
             let (report, details) = self.judged(&request.case, &resp);
+            crate::pictures::for_failure(
+                &sink.out.join("failures"),
+                &request.case,
+                &resp.observation,
+                &report,
+            );
             if self.retries > 0 && report.outcome.is_unexpected() {
                 held.push(Retried {
                     request: request.clone(),

@@ -58,6 +58,7 @@ pub(crate) fn shrink_failures(
             continue;
         }
         let mut spec = match &case.intent {
+            Intent::Valid if name.contains("-rendered-") => CaseSpec::rendered(command),
             Intent::Valid => CaseSpec::valid(command),
             Intent::Violates { vuid, .. } => CaseSpec::violate(command, vuid),
         };

@@ -6,7 +6,8 @@ use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct ExportArgs {
-    /// The case file (YAML): a trace case (KHR, without a resource state) or a build case.
+    /// The case file (YAML): a build case (a trace case is refused with exit 2: the call plan does not
+    /// yet describe rendered scenes).
     case: PathBuf,
     /// The folder repro.c goes to.
     #[arg(long)]

@@ -117,11 +117,30 @@ pub fn run(a: ReplayArgs) -> super::Exit {
         for c in &calls {
             println!("  {c}");
         }
+    } else if r.case.as_trace().is_some() {
+        println!(
+            "calls:   not listed (the call plan does not yet describe rendered-scene trace cases)"
+        );
     }
     match &r.observation {
         Some(obs) => println!("status:  {}", status(&obs.status)),
         None => {
-            println!("status:  not run (the gate kept it from the driver; the outcome says why)")
+            println!("status:  not run (the gate kept it from the driver; the outcome says why)");
+            // What keeps it from the driver, located in the case file.
+            if let Some(t) = r.case.as_trace() {
+                let problems = t.scene_problems();
+                if !problems.is_empty() {
+                    let text = std::fs::read_to_string(&a.case).unwrap_or_default();
+                    let why = model::NotRunnable {
+                        at: problems[0].path.clone(),
+                        scene: problems,
+                        reads: vec![],
+                    };
+                    for line in why.located(&a.case.display().to_string(), &text) {
+                        println!("         {line}");
+                    }
+                }
+            }
         }
     }
     if let Some(a) = r.case.as_accel() {

@@ -39,6 +39,9 @@ pub struct RunArgs {
     /// Cases per VUID and valid cases per command (at least 1).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u64).range(1..))]
     count: u64,
+    /// Rendered-scene cases per trace command (at least; a larger --count wins; 0: none).
+    #[arg(long, default_value_t = session::plan::DEFAULT_RENDERED)]
+    rendered: usize,
     /// The run's seed: spec i of a command family draws its cases from seed + i.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -160,6 +163,7 @@ pub fn run(a: RunArgs) -> super::Exit {
             vuids: a.vuid,
             valid_only: a.valid_only,
             seed: a.seed,
+            rendered: a.rendered,
         },
         count: a.count as usize,
         jobs: a.jobs as usize,
@@ -331,6 +335,30 @@ pub fn print_summary(s: &Summary, out: &Path, not_expressible: usize, verbose: b
         s.cases as f64 / s.seconds.max(1e-9),
         s.runner_peak_rss_kib.map_or("?".into(), |k| k.to_string())
     );
+    for (command, r) in &s.rendered {
+        let q = |x: &session::rendered::Quantiles| {
+            format!(
+                "median {} p99 {} max {}",
+                num(x.median),
+                num(x.p99),
+                num(x.max)
+            )
+        };
+        println!(
+            "rendered {command}: {} cases, {} launch IDs ({} REQ, {} VARY = {:.2} %: {} hit, {} missed), {} failures, {} warnings, exact fallback {:.4} % of pairs",
+            r.cases, r.rays, r.req, r.vary, 100.0 * r.vary_share, r.vary_hit, r.vary_miss, r.failures, r.warnings, 100.0 * r.exact_share
+        );
+        println!(
+            "  t error ulps: {}; relative to bound: {}",
+            q(&r.t_error_ulps),
+            q(&r.t_error_rel)
+        );
+        println!(
+            "  barycentric error abs: {}; ulps: {}",
+            q(&r.bary_error_abs),
+            q(&r.bary_error_ulps)
+        );
+    }
     println!(
         "files:   {0}/report/index.html, {0}/results.jsonl, {0}/summary.json, {0}/junit.xml",
         out.display()
@@ -386,4 +414,8 @@ fn print_triage(s: &Summary, strict: bool) {
         println!("  {id}");
     }
     println!();
+}
+
+fn num(x: Option<f64>) -> String {
+    x.map_or("-".into(), |v| format!("{v:.3e}"))
 }

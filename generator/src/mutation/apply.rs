@@ -51,7 +51,7 @@ fn ensure_launch(plan: &mut Plan) {
     for d in plan.dims.iter_mut() {
         *d = (*d).max(1);
     }
-    let rays = plan.launch.rays.len() as u32;
+    let rays = plan.launch.ray_count() as u32;
     plan.dims[0] = plan.dims[0].max(rays);
 }
 
@@ -60,13 +60,9 @@ fn add_miss_ray(plan: &mut Plan, h: HandleRef) {
     let table = &mut plan.tables[Table::Miss as usize];
     let idx = table.records.len() as u32;
     table.records.push(h);
-    plan.launch.rays.push(TraceRay {
-        target: RayTarget::Nothing,
-        sbt_offset: 0,
-        sbt_stride: 0,
+    plan.launch.rays.push(model::scene::Ray {
         miss_index: idx,
-        cull_mask: 0xff,
-        ray_flags: 0,
+        ..crate::aim::ray_beside(crate::aim::PROBE_MASK)
     });
     ensure_launch(plan);
 }
@@ -76,24 +72,10 @@ fn add_hit_ray(plan: &mut Plan, kind: GeometryKind, h: HandleRef) {
     let table = &mut plan.tables[Table::Hit as usize];
     let idx = table.records.len() as u32;
     table.records.push(h);
-    plan.launch.instances.push(Instance {
-        geometries: vec![kind],
-        sbt_record_offset: idx,
-        mask: 0xff,
-        cluster: false,
-    });
-    let instance = plan.launch.instances.len() as u32 - 1;
-    plan.launch.rays.push(TraceRay {
-        target: RayTarget::Geometry {
-            instance,
-            geometry: 0,
-        },
-        sbt_offset: 0,
-        sbt_stride: 0,
-        miss_index: 0,
-        cull_mask: 0xff,
-        ray_flags: 0,
-    });
+    let instance = crate::aim::add_instance(&mut plan.launch, &[kind], idx, crate::aim::PROBE_MASK);
+    plan.launch
+        .rays
+        .push(crate::aim::ray_at(instance, 0, crate::aim::PROBE_MASK));
     ensure_launch(plan);
 }
 
@@ -255,7 +237,7 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
         Mutation::RecursionTooDeep => {
             // Only traced rays deepen the recursion (callables add none), and closest-hit shaders
             // trace again only where a ray runs one: the depth is the one the launch reaches.
-            if plan.launch.rays.is_empty() {
+            if !plan.launch.traces() {
                 let h = miss_handle(&mut plan);
                 add_miss_ray(&mut plan, h);
             }
@@ -269,13 +251,9 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
             // or not a ray misses: a zero group there, or (knob 1) no miss table at all.
             plan.flags
                 .insert(PipelineCreate::RAY_TRACING_NO_NULL_MISS_SHADERS_BIT_KHR);
-            if knob % 2 == 1
-                && plan
-                    .launch
-                    .rays
-                    .iter()
-                    .all(|r| r.target != RayTarget::Nothing)
-            {
+            // No miss table at all only where no ray is traced (a traced ray may miss, and would read
+            // a miss record outside any region).
+            if knob % 2 == 1 && !plan.launch.traces() {
                 plan.tables[Table::Miss as usize].records.clear();
             } else {
                 ensure_used(&mut plan, Table::Miss);
@@ -335,7 +313,8 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
         Mutation::NullHitTableWithNoNullFlag(kind) => {
             // No ray may reach a hit record once the table is gone: rays that aim at geometry are dropped.
             plan.tables[Table::Hit as usize].records.clear();
-            plan.launch.rays.retain(|r| r.target == RayTarget::Nothing);
+            // (Any ray may reach a box's record: boxes may be enlarged without bound.)
+            plan.launch.scene = Default::default();
             if kind == NullHit::ClosestHit {
                 plan.flags
                     .insert(PipelineCreate::RAY_TRACING_NO_NULL_CLOSEST_HIT_SHADERS_BIT_KHR);
@@ -357,7 +336,7 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
                 PipelineCreate::RAY_TRACING_NO_NULL_CLOSEST_HIT_SHADERS_BIT_KHR
             };
             plan.flags.remove(other);
-            if plan.launch.rays.is_empty() && plan.launch.callables.is_empty() {
+            if !plan.launch.traces() && plan.launch.callables.is_empty() {
                 plan.max_recursion_depth = plan.max_recursion_depth.min(lim.max_recursion as u32);
             }
         }
@@ -381,11 +360,13 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
                         GeometryKind::Triangles => ShaderGroup::ProceduralHit {
                             closest_hit: ch,
                             any_hit: ah,
+                            any_hit_rule: Default::default(),
                             intersection: true,
                         },
                         GeometryKind::Aabbs => ShaderGroup::TrianglesHit {
                             closest_hit: ch,
                             any_hit: ah,
+                            any_hit_rule: Default::default(),
                         },
                     });
                     plan.groups.len() as u32 - 1

@@ -16,8 +16,8 @@ use crate::GenError;
 use model::flags::{BufferCreate, BufferUsage, PipelineCreate, QueueFlags};
 use model::rules::RuleSet;
 use model::world::{
-    CommandBufferLifecycle, Contents, GeneralStage, GeometryKind, HandleRef, Instance,
-    MemoryBinding, RayTarget, ShaderGroup, TraceRay,
+    CommandBufferLifecycle, Contents, GeneralStage, GeometryKind, HandleRef, MemoryBinding,
+    ShaderGroup,
 };
 use model::CommandId;
 use model::{Call, DeviceProfile, Table, World};

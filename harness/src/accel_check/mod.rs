@@ -281,8 +281,8 @@ fn build_and_trace(
             dst
         } else {
             // One instance (full mask, record offset 0, identity transform) of the built structure.
-            let one = crate::plan::scene::instance_record(0xff, 0, dst_addr);
-            let ib = instance_buffer(dev, &one, build_input())?;
+            let one = model::scene::SceneInstance::of(0);
+            let ib = instance_buffer(dev, &[one], &[dst_addr], build_input())?;
             let g = [vk::AccelerationStructureGeometryKHR::default()
                 .geometry_type(vk::GeometryTypeKHR::INSTANCES)
                 .geometry(vk::AccelerationStructureGeometryDataKHR {

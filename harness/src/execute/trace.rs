@@ -1,21 +1,19 @@
-//! The trace path: the case's plan ([`TracePlan`]) realised on the device for its enabled state — the
-//! world's buffers, pipeline and scene, the harness's buffers and descriptor set — and its steps
-//! recorded: the command buffer put in the case's state, the call recorded with the layer's messages
-//! collected (dropped unless the case is run as valid), and a valid launch submitted and its output
-//! words read back.
+//! The trace path: the world realised on the device for its enabled state, the command buffer put in
+//! the case's state, the call recorded with the layer's messages collected (dropped unless the case is
+//! run as valid), and a valid launch submitted and its ray records read back.
 
-use super::{failure, Executor};
+use super::{failure, Executor, MAX_OUTPUT_WORDS};
 use crate::error::HarnessError;
 use crate::observe::{Observation, Output, Status};
-use crate::plan::trace::TracePlan;
-use crate::plan::{Barrier, Step};
-use crate::realise::{DeviceCache, Tlas};
+use crate::realise::{DeviceCache, Tlas, RAY_RECORD_SIZE};
 use crate::vk::commands::{begin_render_pass, memory_barrier};
 use crate::vk::descriptors::{storage_write, structure_write, whole};
 use crate::vk::memory::Allocation;
 use ash::vk;
 use model::call::{Address, Call, StridedRegion};
-use model::world::CommandBufferLevel;
+use model::flags::QueueFlags;
+use model::tracer::record::RayRecord;
+use model::world::{CommandBufferLevel, CommandBufferLifecycle, PipelineApi};
 use std::time::Duration;
 
 pub(super) fn trace(ctx: &mut Executor, case: &model::TraceBody, run_valid: bool) -> Observation {
@@ -98,6 +96,7 @@ fn run(
     collector: &crate::vk::Collector,
 ) -> Result<Observation, HarnessError> {
     let world = &case.world;
+    let cbs = &world.command_buffer;
     let nv_call = matches!(case.call, Call::TraceRaysNv(_));
     if nv_call && cache.dev.nv.is_none() {
         return Err(HarnessError::NotRealised(
@@ -111,16 +110,50 @@ fn run(
         ));
     }
     // What the device lacks (checked against its profile) before what the harness does not realise.
-    if let Some(e) = super::unrealisable_command_buffer(&cache.dev.inst, &world.command_buffer) {
+    if let Some(e) = super::unrealisable_command_buffer(&cache.dev.inst, cbs) {
         return Err(e);
     }
-    let plan = TracePlan::of(case, valid)?;
-    let trace = plan.traces;
-    let api = plan.api;
+    if cbs.in_video_coding || cbs.protected || cbs.lifecycle == CommandBufferLifecycle::Invalid {
+        return Err(HarnessError::NotRealised(
+            "video coding scopes, protected and invalid command buffers are not realised by the harness yet".into(),
+        ));
+    }
+    if !cbs.pool_queue.contains(QueueFlags::COMPUTE_BIT) {
+        return Err(HarnessError::NotRealised(
+            "a command pool for a queue family without compute is not realised yet".into(),
+        ));
+    }
+    if cbs.level == CommandBufferLevel::Secondary && cbs.in_render_pass {
+        return Err(HarnessError::NotRealised(
+            "secondary command buffers inside a render pass are not realised yet".into(),
+        ));
+    }
+    let trace = world.launch.traces();
+    let dims = case.call.dimensions(world);
+    let ids = dims
+        .map(|d| d.iter().map(|&x| x as usize).product::<usize>())
+        .unwrap_or(0);
+    if valid && ids.saturating_mul(RayRecord::WORDS) > MAX_OUTPUT_WORDS {
+        return Err(HarnessError::NotRealised(format!(
+            "a launch of {ids} IDs is larger than the harness reads back"
+        )));
+    }
+    // Records for every launch ID the harness reads back (an invalid case is never submitted).
+    let ids = ids.min(MAX_OUTPUT_WORDS / RayRecord::WORDS);
+    let words = ids * RayRecord::WORDS;
     let pipeline = world.pipeline.as_ref();
+    // The scene and descriptor layout follow the pipeline's API (an NV pipeline reads an NV structure).
+    let api = pipeline.map_or(
+        if nv_call {
+            PipelineApi::Nv
+        } else {
+            PipelineApi::Khr
+        },
+        |p| p.api,
+    );
     // The resource state, and the case's pipeline with its templated raygen, before the shader binding
     // tables are filled with that pipeline's handles.
-    if plan.resources {
+    if !world.resources.is_empty() {
         let harness_set = cache.layouts(trace, api)?.set;
         *res = Some(crate::realise::resources::Realised::new(
             cache,
@@ -129,10 +162,15 @@ fn run(
             harness_set,
         )?);
     }
-    *buffers = cache.case_buffers(&plan.buffers, pipeline.map(|p| (p, trace)))?;
-    let tlas = match &plan.scene {
-        Some(s) => Some(cache.scene(s)?),
-        None => None,
+    *buffers = cache.case_buffers(
+        &crate::plan::trace::buffer_plans(world),
+        pipeline.map(|p| (p, trace)),
+    )?;
+    let (tlas, spheres) = if trace {
+        let (t, s) = cache.scene(&world.launch.scene, api)?;
+        (Some(t), Some(s))
+    } else {
+        (None, None)
     };
     let layouts = cache.layouts(trace, api)?;
     let (vk_pipeline, stack_size) = match pipeline {
@@ -142,33 +180,59 @@ fn run(
         }
         None => (None, 0),
     };
-    let render_pass = if plan.in_render_pass {
+    let render_pass = if cbs.in_render_pass {
         Some(cache.empty_render_pass()?)
     } else {
         None
     };
     let launch = &world.launch;
-    cache.io_buffers(
-        plan.io.output_words,
-        launch.rays.len(),
-        launch.callables.len(),
-    )?;
+    let ray_list = if trace { launch.ray_list() } else { vec![] };
+    cache.io_buffers(words, ray_list.len(), launch.callables.len())?;
     let (out, rays, calls) = (
         cache.output.as_ref().expect("made above"),
         cache.rays.as_ref().expect("made above"),
         cache.callables.as_ref().expect("made above"),
     );
-    if plan.io.fill_output {
-        let fill: Vec<u8> = std::iter::repeat_n(
-            model::semantics::NOT_RUN.to_le_bytes(),
-            plan.io.output_words,
-        )
+    // Records pre-filled (outcome NOT_RUN); rays header (count, capacity in launch IDs, extra
+    // recursion) and the rays as they are (origin and tmin, direction and tmax, SBT parameters, cull
+    // mask, flags); callables.
+    let fill: Vec<u8> = std::iter::repeat_n(RayRecord::PREFILL, ids)
         .flatten()
+        .flat_map(|w| w.to_ne_bytes())
         .collect();
-        out.write(0, &fill);
+    out.write(0, &fill);
+    let mut ray_bytes: Vec<u8> = Vec::with_capacity(16 + ray_list.len() * RAY_RECORD_SIZE);
+    for v in [ray_list.len() as u32, ids as u32, launch.extra_recursion, 0] {
+        ray_bytes.extend_from_slice(&v.to_ne_bytes());
     }
-    rays.write(0, &plan.io.rays);
-    calls.write(0, &plan.io.callables);
+    for r in &ray_list {
+        let [ox, oy, oz] = r.origin;
+        let [dx, dy, dz] = r.direction;
+        for f in [ox, oy, oz, r.tmin, dx, dy, dz, r.tmax] {
+            ray_bytes.extend_from_slice(&f32::to_ne_bytes(f));
+        }
+        for v in [
+            r.sbt_offset,
+            r.sbt_stride,
+            r.miss_index,
+            r.cull_mask,
+            r.flags.0,
+            0,
+            0,
+            0,
+        ] {
+            ray_bytes.extend_from_slice(&v.to_ne_bytes());
+        }
+    }
+    rays.write(0, &ray_bytes);
+    let mut call_bytes: Vec<u8> = Vec::with_capacity(16 + launch.callables.len() * 4);
+    for v in [launch.callables.len() as u32, 0, 0, 0]
+        .iter()
+        .chain(&launch.callables)
+    {
+        call_bytes.extend_from_slice(&v.to_ne_bytes());
+    }
+    calls.write(0, &call_bytes);
 
     let d = &cache.dev.device;
     // Descriptor set.
@@ -184,12 +248,21 @@ fn run(
         )
         .map_err(|r| HarnessError::Failed(format!("vkAllocateDescriptorSets: {r:?}")))?[0]
     };
-    let (out_info, rays_info, calls_info) =
-        (whole(out.buffer), whole(rays.buffer), whole(calls.buffer));
+    let spheres = spheres.unwrap_or(cache.no_spheres.as_ref().expect("made above").buffer);
+    // The records binding covers exactly the launch's records: the any-hit and intersection shaders
+    // bound their writes by its length.
+    let out_info = [vk::DescriptorBufferInfo {
+        buffer: out.buffer,
+        offset: 0,
+        range: (words.max(RayRecord::WORDS) * 4) as u64,
+    }];
+    let (rays_info, calls_info, spheres_info) =
+        (whole(rays.buffer), whole(calls.buffer), whole(spheres));
     let mut writes = vec![
         storage_write(set, 1, &out_info),
         storage_write(set, 2, &rays_info),
         storage_write(set, 3, &calls_info),
+        storage_write(set, 4, &spheres_info),
     ];
     let tl_khr = [match tlas {
         Some(Tlas::Khr(t)) => t,
@@ -250,7 +323,82 @@ fn run(
                 }),
         }
     };
-    // The call's arguments, resolved before recording so only the call's own messages are kept.
+    let secondary = cbs.level == CommandBufferLevel::Secondary;
+    let cb = if secondary {
+        cache.cmds.secondary
+    } else {
+        cache.cmds.cb
+    };
+    let d = &cache.dev.device;
+    // SAFETY: recording into an idle command buffer with live objects.
+    unsafe {
+        if cbs.lifecycle != CommandBufferLifecycle::Initial {
+            let inherit = vk::CommandBufferInheritanceInfo::default();
+            let mut begin = vk::CommandBufferBeginInfo::default()
+                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            if secondary {
+                begin = begin.inheritance_info(&inherit);
+            }
+            d.begin_command_buffer(cb, &begin)
+                .map_err(|r| HarnessError::Failed(format!("vkBeginCommandBuffer: {r:?}")))?;
+            if trace {
+                // The scene was built by an earlier submission: a memory dependency from its build to the
+                // shaders' reads (submission order alone gives only an execution dependency). Recorded
+                // before any render pass begins, where a barrier would need a subpass self-dependency.
+                memory_barrier(
+                    d,
+                    cb,
+                    (
+                        vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR,
+                        vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR,
+                    ),
+                    (
+                        vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
+                        vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR,
+                    ),
+                );
+            }
+            if let Some(r) = res.as_ref() {
+                r.record_transitions(d, cb);
+            }
+            if let Some(p) = vk_pipeline.filter(|_| cbs.pipeline_bound) {
+                d.cmd_bind_pipeline(cb, vk::PipelineBindPoint::RAY_TRACING_KHR, p);
+                if cbs.stack_size_set {
+                    if let Some(rt) = &cache.dev.rt {
+                        // The spec's default stack size for the pipeline (a fixed guess can be too small on
+                        // a real GPU once closest-hit shaders recurse: undefined behaviour, not a test).
+                        let size = if stack_size == 0 { 4096 } else { stack_size };
+                        rt.cmd_set_ray_tracing_pipeline_stack_size(cb, size);
+                    }
+                }
+            }
+            // With a resource state the harness set is bound with the case pipeline's realised layout,
+            // then the case's own binds and pushes follow.
+            let harness_layout = res.as_ref().map_or(layouts.pipeline, |r| r.harness_layout);
+            d.cmd_bind_descriptor_sets(
+                cb,
+                vk::PipelineBindPoint::RAY_TRACING_KHR,
+                harness_layout,
+                0,
+                &[set],
+                &[],
+            );
+            if let Some(r) = res.as_ref() {
+                r.record_binds(d, cb);
+            }
+            if let Some(pass) = render_pass {
+                begin_render_pass(d, cb, pass, vk::SubpassContents::INLINE);
+            }
+            if cbs.lifecycle == CommandBufferLifecycle::Executable {
+                if render_pass.is_some() {
+                    d.cmd_end_render_pass(cb);
+                }
+                d.end_command_buffer(cb)
+                    .map_err(|r| HarnessError::Failed(format!("vkEndCommandBuffer: {r:?}")))?;
+            }
+        }
+    }
+    // The call's arguments, resolved before collecting so only the call's own messages are kept.
     enum Resolved {
         Khr([vk::StridedDeviceAddressRegionKHR; 4], Option<u64>),
         Nv([(vk::Buffer, u64, u64); 4]),
@@ -277,139 +425,62 @@ fn run(
             Resolved::Khr(r, indirect)
         }
     };
-    let secondary = plan.level == CommandBufferLevel::Secondary;
-    let cb = if secondary {
-        cache.cmds.secondary
-    } else {
-        cache.cmds.cb
-    };
-    // With a resource state the harness set is bound with the case pipeline's realised layout, then the
-    // case's own binds and pushes follow.
-    let harness_layout = res.as_ref().map_or(layouts.pipeline, |r| r.harness_layout);
-    let mut obs = Observation::with_status(Status::Ran);
-    for step in &plan.steps {
-        let d = &cache.dev.device;
-        // SAFETY: recording into an idle command buffer with live objects; for valid cases every
-        // parameter of the call is valid, for invalid ones the layer drops it.
-        unsafe {
-            match step {
-                Step::Begin { level, .. } => {
-                    let inherit = vk::CommandBufferInheritanceInfo::default();
-                    let mut begin = vk::CommandBufferBeginInfo::default()
-                        .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
-                    if *level == CommandBufferLevel::Secondary {
-                        begin = begin.inheritance_info(&inherit);
-                    }
-                    d.begin_command_buffer(cb, &begin).map_err(|r| {
-                        HarnessError::Failed(format!("vkBeginCommandBuffer: {r:?}"))
-                    })?;
-                }
-                Step::Barrier(Barrier::SceneBuildToShaders) => memory_barrier(
-                    d,
-                    cb,
-                    (
-                        vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR,
-                        vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR,
-                    ),
-                    (
-                        vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
-                        vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR,
-                    ),
+    collector.clear();
+    collector.set_abort(!valid);
+    // SAFETY: for valid cases every parameter is valid; for invalid ones the layer drops the call.
+    unsafe {
+        match (&case.call, &resolved) {
+            (Call::TraceRays(c), Resolved::Khr([rg, ms, ht, cl], _)) => cache
+                .dev
+                .rt
+                .as_ref()
+                .expect("checked above")
+                .cmd_trace_rays(cb, rg, ms, ht, cl, c.width, c.height, c.depth),
+            (Call::TraceRaysIndirect(_), Resolved::Khr([rg, ms, ht, cl], Some(a))) => cache
+                .dev
+                .rt
+                .as_ref()
+                .expect("checked above")
+                .cmd_trace_rays_indirect(cb, rg, ms, ht, cl, *a),
+            (Call::TraceRaysNv(c), Resolved::Nv([rg, ms, ht, cl])) => cache
+                .dev
+                .nv
+                .as_ref()
+                .expect("checked above")
+                .cmd_trace_rays(
+                    cb, rg.0, rg.1, ms.0, ms.1, ms.2, ht.0, ht.1, ht.2, cl.0, cl.1, cl.2, c.width,
+                    c.height, c.depth,
                 ),
-                Step::Barrier(Barrier::ShaderWritesToHost) => memory_barrier(
-                    d,
-                    cb,
-                    (
-                        vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
-                        vk::AccessFlags::SHADER_WRITE,
-                    ),
-                    (vk::PipelineStageFlags::HOST, vk::AccessFlags::HOST_READ),
-                ),
-                Step::ResourceTransitions => {
-                    if let Some(r) = res.as_ref() {
-                        r.record_transitions(d, cb);
-                    }
-                }
-                Step::BindPipeline => {
-                    if let Some(p) = vk_pipeline {
-                        d.cmd_bind_pipeline(cb, vk::PipelineBindPoint::RAY_TRACING_KHR, p);
-                    }
-                }
-                Step::SetStackSize => {
-                    if let Some(rt) = &cache.dev.rt {
-                        // The spec's default stack size for the pipeline (a fixed guess can be too small
-                        // on a real GPU once closest-hit shaders recurse: undefined behaviour, not a test).
-                        let size = if stack_size == 0 { 4096 } else { stack_size };
-                        rt.cmd_set_ray_tracing_pipeline_stack_size(cb, size);
-                    }
-                }
-                Step::BindHarnessSet => d.cmd_bind_descriptor_sets(
-                    cb,
-                    vk::PipelineBindPoint::RAY_TRACING_KHR,
-                    harness_layout,
-                    0,
-                    &[set],
-                    &[],
-                ),
-                Step::ResourceBinds => {
-                    if let Some(r) = res.as_ref() {
-                        r.record_binds(d, cb);
-                    }
-                }
-                Step::BeginRenderPass => {
-                    if let Some(pass) = render_pass {
-                        begin_render_pass(d, cb, pass, vk::SubpassContents::INLINE);
-                    }
-                }
-                Step::EndRenderPass => d.cmd_end_render_pass(cb),
-                Step::End => d
-                    .end_command_buffer(cb)
-                    .map_err(|r| HarnessError::Failed(format!("vkEndCommandBuffer: {r:?}")))?,
-                Step::Call { dropped } => {
-                    collector.clear();
-                    collector.set_abort(*dropped);
-                    match (&case.call, &resolved) {
-                        (Call::TraceRays(c), Resolved::Khr([rg, ms, ht, cl], _)) => cache
-                            .dev
-                            .rt
-                            .as_ref()
-                            .expect("checked above")
-                            .cmd_trace_rays(cb, rg, ms, ht, cl, c.width, c.height, c.depth),
-                        (Call::TraceRaysIndirect(_), Resolved::Khr([rg, ms, ht, cl], Some(a))) => {
-                            cache
-                                .dev
-                                .rt
-                                .as_ref()
-                                .expect("checked above")
-                                .cmd_trace_rays_indirect(cb, rg, ms, ht, cl, *a)
-                        }
-                        (Call::TraceRaysNv(c), Resolved::Nv([rg, ms, ht, cl])) => cache
-                            .dev
-                            .nv
-                            .as_ref()
-                            .expect("checked above")
-                            .cmd_trace_rays(
-                                cb, rg.0, rg.1, ms.0, ms.1, ms.2, ht.0, ht.1, ht.2, cl.0, cl.1,
-                                cl.2, c.width, c.height, c.depth,
-                            ),
-                        _ => {}
-                    }
-                    collector.set_abort(false);
-                    obs.set_messages(collector.take());
-                }
-                Step::Submit => {
-                    d.end_command_buffer(cb)
-                        .map_err(|r| HarnessError::Failed(format!("vkEndCommandBuffer: {r:?}")))?;
-                    collector.clear();
-                    cache.submit_and_wait(timeout)?;
-                }
-                Step::ReadBack { words } => {
-                    let out = cache.output.as_ref().expect("made above");
-                    obs.output = Some(Output::Words(out.read_u32s(*words)));
-                }
-                Step::Reset { .. } | Step::SubmitToInvalidate => {}
-            }
+            _ => {}
         }
     }
+    collector.set_abort(false);
+    let mut obs = Observation::with_status(Status::Ran);
+    obs.set_messages(collector.take());
+    if !valid
+        || cbs.lifecycle != CommandBufferLifecycle::Recording
+        || secondary
+        || render_pass.is_some()
+    {
+        return Ok(obs);
+    }
+    // SAFETY: ending and submitting a valid recording.
+    unsafe {
+        memory_barrier(
+            d,
+            cb,
+            (
+                vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
+                vk::AccessFlags::SHADER_WRITE,
+            ),
+            (vk::PipelineStageFlags::HOST, vk::AccessFlags::HOST_READ),
+        );
+        d.end_command_buffer(cb)
+            .map_err(|r| HarnessError::Failed(format!("vkEndCommandBuffer: {r:?}")))?;
+    }
+    collector.clear();
+    cache.submit_and_wait(timeout)?;
+    let out = cache.output.as_ref().expect("made above");
+    obs.output = Some(Output::Words(out.read_u32s(words)));
     Ok(obs)
 }

@@ -114,6 +114,7 @@ impl PipelinePlan {
                 ShaderGroup::TrianglesHit {
                     closest_hit,
                     any_hit,
+                    ..
                 }
                 | ShaderGroup::ProceduralHit {
                     closest_hit,

@@ -1,9 +1,9 @@
-//! The scene a trace case's rays see, as a plan: the bytes every bottom-level structure is built from
-//! (geometry `g` of instance `i` is one triangle or box around (2g, 4i, 0), where the rays aim), one
-//! bottom-level structure per instance with geometry, and the top-level structure's instance records.
+//! The scene of a trace case as a plan: the bytes bottom-level structures are built from, the
+//! geometries of each, and the top-level structure's instance records. Not yet made from a case's
+//! rendered scene (the call plan refuses trace cases, [`super::trace::NOT_DESCRIBED`]); the instance
+//! record layout serves the export's C runtime.
 
-use crate::error::HarnessError;
-use model::world::{GeometryKind, Instance, PipelineApi};
+use model::world::{GeometryKind, PipelineApi};
 
 /// One geometry of a bottom-level structure: its kind and where its data starts in the input bytes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -38,71 +38,6 @@ pub const TRIANGLE_VERTICES: u32 = 3;
 pub const VERTEX_STRIDE: u64 = 12;
 pub const AABB_STRIDE: u64 = 24;
 
-impl ScenePlan {
-    /// The scene of a launch's instances. An instance that mixes triangles and boxes is unsupported: one
-    /// bottom-level structure holds one geometry type, so it cannot be built validly.
-    pub fn of(instances: &[Instance], api: PipelineApi) -> Result<ScenePlan, HarnessError> {
-        if let Some(i) = instances
-            .iter()
-            .position(|inst| inst.geometries.windows(2).any(|w| w[0] != w[1]))
-        {
-            return Err(HarnessError::NotRealised(format!(
-                "instance {i} mixes triangle and AABB geometries; one acceleration structure holds one type"
-            )));
-        }
-        let mut input: Vec<u8> = Vec::new();
-        let mut bottoms = Vec::new();
-        let mut plans = Vec::with_capacity(instances.len());
-        for (i, inst) in instances.iter().enumerate() {
-            let mut geometries = Vec::with_capacity(inst.geometries.len());
-            for (g, kind) in inst.geometries.iter().enumerate() {
-                let (cx, cy) = (2.0 * g as f32, 4.0 * i as f32);
-                input.resize(input.len().next_multiple_of(16), 0);
-                geometries.push(GeometryPlan {
-                    kind: *kind,
-                    offset: input.len() as u64,
-                });
-                let floats: &[f32] = match kind {
-                    GeometryKind::Triangles => &[
-                        cx - 0.5,
-                        cy - 0.5,
-                        0.0,
-                        cx + 0.5,
-                        cy - 0.5,
-                        0.0,
-                        cx,
-                        cy + 0.5,
-                        0.0,
-                    ],
-                    GeometryKind::Aabbs => &[cx - 0.5, cy - 0.5, -0.5, cx + 0.5, cy + 0.5, 0.5],
-                };
-                floats
-                    .iter()
-                    .for_each(|f| input.extend_from_slice(&f.to_le_bytes()));
-            }
-            // An instance without geometry is made inactive (reference 0): it keeps its place in the
-            // instance numbering, and no bottom-level structure of zero geometries is built.
-            let bottom = if geometries.is_empty() {
-                None
-            } else {
-                bottoms.push(geometries);
-                Some(bottoms.len() - 1)
-            };
-            plans.push(InstancePlan {
-                mask: inst.mask,
-                sbt_record_offset: inst.sbt_record_offset & 0xFF_FFFF,
-                bottom,
-            });
-        }
-        Ok(ScenePlan {
-            api,
-            input,
-            bottoms,
-            instances: plans,
-        })
-    }
-}
-
 /// The 64 bytes of a `VkAccelerationStructureInstanceKHR` (and the NV record, which has one layout):
 /// the identity transform, custom index 0, `mask`, `sbt_record_offset`, no flags, and `reference` (a
 /// device address or an NV handle).
@@ -123,50 +58,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_scene_places_each_geometry_where_the_rays_aim() {
-        let inst = |g: Vec<GeometryKind>| Instance {
-            geometries: g,
-            sbt_record_offset: 0x1234_5678,
-            mask: 0x0f,
-            cluster: false,
-        };
-        let s = ScenePlan::of(
-            &[
-                inst(vec![GeometryKind::Triangles, GeometryKind::Triangles]),
-                inst(vec![]),
-                inst(vec![GeometryKind::Aabbs]),
-            ],
-            PipelineApi::Khr,
-        )
-        .unwrap();
-        assert_eq!(s.bottoms.len(), 2);
-        assert_eq!(
-            s.instances.iter().map(|i| i.bottom).collect::<Vec<_>>(),
-            vec![Some(0), None, Some(1)]
-        );
-        assert_eq!(s.instances[0].sbt_record_offset, 0x34_5678);
-        let floats = |at: u64, n: usize| -> Vec<f32> {
-            (0..n)
-                .map(|k| {
-                    let o = at as usize + 4 * k;
-                    f32::from_le_bytes(s.input[o..o + 4].try_into().unwrap())
-                })
-                .collect()
-        };
-        // Geometry 1 of instance 0 is centred at (2, 0); the box of instance 2 at (0, 8).
-        let g1 = s.bottoms[0][1];
-        assert_eq!(g1.offset % 16, 0);
-        assert_eq!(
-            floats(g1.offset, 9),
-            [1.5, -0.5, 0.0, 2.5, -0.5, 0.0, 2.0, 0.5, 0.0]
-        );
-        let b = s.bottoms[1][0];
-        assert_eq!(floats(b.offset, 6), [-0.5, 7.5, -0.5, 0.5, 8.5, 0.5]);
-        let mixed = ScenePlan::of(
-            &[inst(vec![GeometryKind::Triangles, GeometryKind::Aabbs])],
-            PipelineApi::Khr,
-        );
-        assert!(matches!(mixed, Err(HarnessError::NotRealised(_))));
+    fn an_instance_record_holds_the_identity_mask_offset_and_reference() {
         let r = instance_record(0xff, 3, 0xdead_beef);
         assert_eq!(&r[0..4], &1.0f32.to_le_bytes());
         assert_eq!(&r[48..56], &[0, 0, 0, 0xff, 3, 0, 0, 0]);

@@ -5,19 +5,20 @@
 
 use super::pipeline::PipelinePlan;
 use super::scene::ScenePlan;
-use super::{step_text, Barrier, Step};
+use super::{step_text, Step};
 use crate::error::HarnessError;
-use crate::execute::MAX_OUTPUT_WORDS;
 use ash::vk;
-use model::call::{Address, Call, NvTable, StridedRegion};
-use model::flags::QueueFlags;
-use model::world::{
-    CommandBufferLevel, CommandBufferLifecycle, Contents, HandleRef, MemoryBinding, PipelineApi,
-    RayTarget, World,
-};
+use model::call::{Address, NvTable, StridedRegion};
+use model::world::{CommandBufferLevel, Contents, HandleRef, MemoryBinding, PipelineApi, World};
 
 /// Bytes of one ray record of the rays buffer (std430 `Ray` after a 16-byte header).
 pub const RAY_RECORD_SIZE: usize = 64;
+
+/// Why [`TracePlan::of`] (and so the call plan, `rtconf export` and replay's call list) refuses every
+/// trace case.
+pub const NOT_DESCRIBED: &str = "the call plan does not yet describe rendered-scene trace cases \
+     (explicit and camera rays into bottom levels and instances, 28-word ray records); the harness runs \
+     them from the case itself, but cannot export or list their calls";
 
 /// A write into one of the world's buffers.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
@@ -200,234 +201,31 @@ fn writes(contents: &[Contents]) -> Vec<BufferWrite> {
     out
 }
 
-/// The rays buffer's bytes: the header, then per ray its origin (aimed at its target, or far off),
-/// direction (+z), table offset and stride, miss index, cull mask and flags.
-fn ray_bytes(world: &World, capacity: usize) -> Vec<u8> {
-    let launch = &world.launch;
-    let mut bytes: Vec<u8> = Vec::with_capacity(16 + launch.rays.len() * RAY_RECORD_SIZE);
-    for v in [
-        launch.rays.len() as u32,
-        capacity as u32,
-        launch.extra_recursion,
-        0,
-    ] {
-        bytes.extend_from_slice(&v.to_le_bytes());
-    }
-    for r in &launch.rays {
-        let (x, y) = match r.target {
-            RayTarget::Nothing => (-1000.0f32, -1000.0f32),
-            RayTarget::Geometry { instance, geometry } => {
-                (2.0 * geometry as f32, 4.0 * instance as f32)
-            }
-        };
-        for f in [x, y, -1.0, 1.0, 0.0, 0.0, 1.0, 0.0] {
-            bytes.extend_from_slice(&f32::to_le_bytes(f));
-        }
-        for v in [
-            r.sbt_offset,
-            r.sbt_stride,
-            r.miss_index,
-            r.cull_mask,
-            r.ray_flags,
-            0,
-            0,
-            0,
-        ] {
-            bytes.extend_from_slice(&v.to_le_bytes());
-        }
-    }
-    bytes
+/// The plans of a world's buffers: their sizes, usage and create flags, memory binding and writes.
+pub fn buffer_plans(world: &World) -> Vec<BufferPlan> {
+    world
+        .buffers
+        .iter()
+        .map(|b| BufferPlan {
+            name: b.name.clone(),
+            size: b.size,
+            usage: b.usage.0 as u32,
+            flags: b.flags.0 as u32,
+            memory: b.memory,
+            sparse: b.is_sparse(),
+            writes: writes(&b.contents),
+        })
+        .collect()
 }
 
 impl TracePlan {
-    /// The plan of a trace case run as valid (`run_valid`: submitted and read back) or only recorded,
-    /// or why the harness cannot realise it.
-    pub fn of(case: &model::TraceBody, run_valid: bool) -> Result<TracePlan, HarnessError> {
-        let world = &case.world;
-        let cbs = &world.command_buffer;
-        if cbs.in_video_coding || cbs.protected || cbs.lifecycle == CommandBufferLifecycle::Invalid
-        {
-            return Err(HarnessError::NotRealised(
-                "video coding scopes, protected and invalid command buffers are not realised by the harness yet".into(),
-            ));
-        }
-        if !cbs.pool_queue.contains(QueueFlags::COMPUTE_BIT) {
-            return Err(HarnessError::NotRealised(
-                "a command pool for a queue family without compute is not realised yet".into(),
-            ));
-        }
-        if cbs.level == CommandBufferLevel::Secondary && cbs.in_render_pass {
-            return Err(HarnessError::NotRealised(
-                "secondary command buffers inside a render pass are not realised yet".into(),
-            ));
-        }
-        let nv_call = matches!(case.call, Call::TraceRaysNv(_));
-        let traces = !world.launch.rays.is_empty();
-        let launch_words = case
-            .call
-            .dimensions(world)
-            .map(|d| d.iter().map(|&x| x as usize).product::<usize>())
-            .unwrap_or(0);
-        if run_valid && launch_words > MAX_OUTPUT_WORDS {
-            return Err(HarnessError::NotRealised(format!(
-                "a launch of {launch_words} IDs is larger than the harness reads back"
-            )));
-        }
-        let capacity = launch_words.min(MAX_OUTPUT_WORDS);
-        // The scene and descriptor layout follow the pipeline's API (an NV pipeline reads an NV structure).
-        let api = world.pipeline.as_ref().map_or(
-            if nv_call {
-                PipelineApi::Nv
-            } else {
-                PipelineApi::Khr
-            },
-            |p| p.api,
-        );
-        let pipeline = world
-            .pipeline
-            .as_ref()
-            .map(|p| PipelinePlan::of(p, traces))
-            .transpose()?;
-        let buffers: Vec<BufferPlan> = world
-            .buffers
-            .iter()
-            .map(|b| BufferPlan {
-                name: b.name.clone(),
-                size: b.size,
-                usage: b.usage.0 as u32,
-                flags: b.flags.0 as u32,
-                memory: b.memory,
-                sparse: b.is_sparse(),
-                writes: writes(&b.contents),
-            })
-            .collect();
-        let foreign_pipeline = buffers.iter().any(|b| {
-            b.writes.iter().any(|w| {
-                matches!(
-                    w,
-                    BufferWrite::Handle {
-                        handle: HandleRef::Foreign(_),
-                        ..
-                    }
-                )
-            })
-        });
-        if foreign_pipeline && pipeline.is_none() {
-            return Err(HarnessError::NotRealised(
-                "foreign handles need a pipeline description to copy".into(),
-            ));
-        }
-        let scene = if traces {
-            Some(ScenePlan::of(&world.launch.instances, api)?)
-        } else {
-            None
-        };
-        let read_back = run_valid
-            && cbs.lifecycle == CommandBufferLifecycle::Recording
-            && cbs.level == CommandBufferLevel::Primary
-            && !cbs.in_render_pass;
-        let callables: Vec<u8> = [world.launch.callables.len() as u32, 0, 0, 0]
-            .iter()
-            .chain(&world.launch.callables)
-            .flat_map(|v| v.to_le_bytes())
-            .collect();
-        let io = IoPlan {
-            output_words: capacity.max(1),
-            fill_output: read_back,
-            rays: ray_bytes(world, capacity),
-            callables,
-        };
-        let mut steps = Vec::new();
-        if cbs.lifecycle != CommandBufferLifecycle::Initial {
-            steps.push(Step::Begin {
-                level: cbs.level,
-                continue_render_pass: false,
-            });
-            if traces {
-                // The scene was built by an earlier submission: a memory dependency from its build to
-                // the shaders' reads (submission order alone gives only an execution dependency).
-                // Recorded before any render pass begins, where a barrier would need a subpass
-                // self-dependency.
-                steps.push(Step::Barrier(Barrier::SceneBuildToShaders));
-            }
-            if !world.resources.is_empty() {
-                steps.push(Step::ResourceTransitions);
-            }
-            if world.pipeline.is_some() && cbs.pipeline_bound {
-                steps.push(Step::BindPipeline);
-                if cbs.stack_size_set {
-                    steps.push(Step::SetStackSize);
-                }
-            }
-            steps.push(Step::BindHarnessSet);
-            if !world.resources.is_empty() {
-                steps.push(Step::ResourceBinds);
-            }
-            if cbs.in_render_pass {
-                steps.push(Step::BeginRenderPass);
-            }
-            if cbs.lifecycle == CommandBufferLifecycle::Executable {
-                if cbs.in_render_pass {
-                    steps.push(Step::EndRenderPass);
-                }
-                steps.push(Step::End);
-            }
-        }
-        steps.push(Step::Call {
-            dropped: !run_valid,
-        });
-        if read_back {
-            steps.push(Step::Barrier(Barrier::ShaderWritesToHost));
-            steps.push(Step::Submit);
-            steps.push(Step::ReadBack {
-                words: launch_words,
-            });
-        }
-        let call = match &case.call {
-            Call::TraceRays(c) => TraceCall::TraceRays {
-                regions: [
-                    c.raygen.clone(),
-                    c.miss.clone(),
-                    c.hit.clone(),
-                    c.callable.clone(),
-                ],
-                dims: [c.width, c.height, c.depth],
-            },
-            Call::TraceRaysIndirect(c) => TraceCall::TraceRaysIndirect {
-                regions: [
-                    c.raygen.clone(),
-                    c.miss.clone(),
-                    c.hit.clone(),
-                    c.callable.clone(),
-                ],
-                indirect: c.indirect_address.clone(),
-            },
-            Call::TraceRaysNv(c) => TraceCall::TraceRaysNv {
-                tables: [
-                    c.raygen.clone(),
-                    c.miss.clone(),
-                    c.hit.clone(),
-                    c.callable.clone(),
-                ],
-                dims: [c.width, c.height, c.depth],
-            },
-        };
-        Ok(TracePlan {
-            api,
-            traces,
-            buffers,
-            pipeline,
-            foreign_pipeline,
-            scene,
-            bindings: harness_bindings(traces, api),
-            io,
-            level: cbs.level,
-            in_render_pass: cbs.in_render_pass,
-            steps,
-            call,
-            resources: !world.resources.is_empty(),
-            launch_words,
-        })
+    /// The plan of a trace case. Not described yet: a trace case's launch traces a rendered scene
+    /// (bottom levels with their geometry, instances with transforms, explicit and camera rays, one
+    /// [`model::tracer::record::RayRecord`] per launch ID), which this plan does not carry; the
+    /// executor realises trace cases from the case itself ([`crate::execute`]), so every trace case
+    /// is refused here with [`NOT_DESCRIBED`].
+    pub fn of(_case: &model::TraceBody, _run_valid: bool) -> Result<TracePlan, HarnessError> {
+        Err(HarnessError::NotRealised(NOT_DESCRIBED.into()))
     }
 
     /// Appends the plan's call sequence, as a person reads it.

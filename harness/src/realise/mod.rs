@@ -1,6 +1,6 @@
 //! Realises a trace case's world on a device: buffers placed at 4096-aligned addresses with their
 //! contents (shader group handles, indirect commands), the ray tracing pipeline with one specialised
-//! stage per group, the scene (one BLAS per instance, a TLAS; KHR or NV structures), the case's resource
+//! stage per group, the scene (one BLAS per bottom level, a TLAS; KHR or NV structures), the case's resource
 //! state, and a build case's buffers and structures ([`accel`]). Pipelines and scenes are cached per
 //! device across cases ([`DeviceCache`]).
 
@@ -27,15 +27,19 @@ pub(crate) struct DeviceCache {
     layouts: HashMap<(bool, bool), Layouts>,
     pipelines: HashMap<String, Result<RealPipeline, HarnessError>>,
     scenes: HashMap<String, Result<Scene, HarnessError>>,
+    /// The keys of `scenes`, oldest first.
+    scene_order: Vec<String>,
     /// The command pool, the primary and secondary buffers cases are recorded into, the fence, and
     /// the empty render pass.
     pub(crate) cmds: Commands,
     pub(crate) descriptor_pool: vk::DescriptorPool,
-    /// Output words and rays, reused and grown as needed.
+    /// Output records and rays, reused and grown as needed.
     pub(crate) output: Option<Allocation>,
     pub(crate) rays: Option<Allocation>,
     /// The callable record indices the raygen executes: a 16-byte header (count) and one u32 each.
     pub(crate) callables: Option<Allocation>,
+    /// The spheres buffer bound when the case builds no scene (the binding is always written).
+    pub(crate) no_spheres: Option<Allocation>,
     /// Set when a submission ended in DEVICE_LOST or a timeout: nothing may be recorded on this device
     /// again, and dropping it neither waits for it nor resets what is pending on it.
     pub(crate) lost: bool,
@@ -95,6 +99,9 @@ impl Drop for DeviceCache {
         if let Some(a) = self.callables.take() {
             a.destroy(&self.dev);
         }
+        if let Some(a) = self.no_spheres.take() {
+            a.destroy(&self.dev);
+        }
     }
 }
 
@@ -106,7 +113,7 @@ impl DeviceCache {
             let cmds = Commands::new(&dev)?;
             let mut sizes = vec![vk::DescriptorPoolSize {
                 ty: vk::DescriptorType::STORAGE_BUFFER,
-                descriptor_count: 6,
+                descriptor_count: 10,
             }];
             if dev.accel.is_some() {
                 sizes.push(vk::DescriptorPoolSize {
@@ -133,11 +140,13 @@ impl DeviceCache {
                 layouts: HashMap::new(),
                 pipelines: HashMap::new(),
                 scenes: HashMap::new(),
+                scene_order: Vec::new(),
                 cmds,
                 descriptor_pool,
                 output: None,
                 rays: None,
                 callables: None,
+                no_spheres: None,
                 lost: false,
                 resource_pipeline: None,
                 dev,
@@ -225,6 +234,9 @@ impl DeviceCache {
                 vk::BufferCreateFlags::empty(),
                 1,
             )?);
+        }
+        if self.no_spheres.is_none() {
+            self.no_spheres = Some(Allocation::filled(&self.dev, &[0u8; 16], 16, usage, 256)?);
         }
         let want_calls = (16 + callables.max(1) * 4) as u64;
         if self.callables.as_ref().is_none_or(|a| a.size < want_calls) {

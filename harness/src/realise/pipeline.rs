@@ -1,6 +1,6 @@
-//! Ray tracing pipelines of a world's description, realised from their plan ([`PipelinePlan`]): the
-//! harness's descriptor layouts, one specialised stage per group (or a case's templated module of that
-//! kind), KHR or NV, cached per device, with the spec's default stack size.
+//! Ray tracing pipelines of a world's description: the harness's descriptor layouts, one specialised
+//! stage per group (or a case's templated module of that kind), KHR or NV, cached per device, with the
+//! spec's default stack size.
 
 use super::DeviceCache;
 
@@ -22,10 +22,9 @@ macro_rules! group_infos {
     };
 }
 use crate::error::{vkfail, HarnessError};
-use crate::plan::pipeline::{PipelinePlan, MAX_HIT_ATTRIBUTE_SIZE, MAX_PAYLOAD_SIZE};
 use crate::shaders::{self, ShaderKind};
 use ash::vk;
-use model::world::{Pipeline, PipelineApi};
+use model::world::{GeneralStage, Pipeline, PipelineApi, ShaderGroup};
 
 /// The descriptor set layout and pipeline layout of one raygen variant.
 #[derive(Clone, Copy)]
@@ -104,8 +103,9 @@ impl DeviceCache {
     }
 
     /// Layouts for the raygen variant: with the scene at binding 0 (`trace`, a KHR or NV acceleration
-    /// structure by `api`) or without. Binding 1 is the output, 2 the rays, 3 the callable indices; the
-    /// closest-hit reads the scene and the rays to trace its ray again.
+    /// structure by `api`) or without. Binding 1 is the records (written by the raygen, counted into by
+    /// the any-hit and intersection shaders), 2 the rays, 3 the callable indices, 4 the spheres the
+    /// intersection shader reports; the closest-hit reads the scene and the rays to trace its ray again.
     pub(crate) fn layouts(
         &mut self,
         trace: bool,
@@ -114,17 +114,40 @@ impl DeviceCache {
         if let Some(l) = self.layouts.get(&(trace, api == PipelineApi::Nv)) {
             return Ok(*l);
         }
-        let bindings: Vec<vk::DescriptorSetLayoutBinding> =
-            crate::plan::trace::harness_bindings(trace, api)
-                .iter()
-                .map(|b| {
-                    vk::DescriptorSetLayoutBinding::default()
-                        .binding(b.binding)
-                        .descriptor_type(vk::DescriptorType::from_raw(b.ty))
-                        .descriptor_count(1)
-                        .stage_flags(vk::ShaderStageFlags::from_raw(b.stages))
-                })
-                .collect();
+        let raygen = vk::ShaderStageFlags::RAYGEN_KHR;
+        let traced = if trace {
+            raygen | vk::ShaderStageFlags::CLOSEST_HIT_KHR
+        } else {
+            raygen
+        };
+        let storage = |binding: u32, stages| {
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(binding)
+                .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                .descriptor_count(1)
+                .stage_flags(stages)
+        };
+        let any = vk::ShaderStageFlags::ANY_HIT_KHR;
+        let isect = vk::ShaderStageFlags::INTERSECTION_KHR;
+        let mut bindings = vec![
+            storage(1, raygen | any | isect),
+            storage(2, traced),
+            storage(3, raygen),
+            storage(4, isect),
+        ];
+        if trace {
+            let ty = match api {
+                PipelineApi::Khr => vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
+                PipelineApi::Nv => vk::DescriptorType::ACCELERATION_STRUCTURE_NV,
+            };
+            bindings.push(
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(0)
+                    .descriptor_type(ty)
+                    .descriptor_count(1)
+                    .stage_flags(traced),
+            );
+        }
         let d = &self.dev.device;
         // SAFETY: valid create infos.
         let set = unsafe {
@@ -205,33 +228,111 @@ impl DeviceCache {
             }
             _ => {}
         }
-        let plan = PipelinePlan::of(p, trace)?;
-        // (group index, stage flag, module) per stage, and per group (type, [general, closest, any, intersection]).
-        let mut stage_list: Vec<(u32, vk::ShaderStageFlags, vk::ShaderModule)> = Vec::new();
-        for st in &plan.stages {
-            // A templated module of this kind replaces the harness's.
-            let m = match modules.iter().find(|(k, _)| *k == st.shader) {
-                Some(&(_, m)) => m,
-                None => self.module(st.shader, api)?,
+        let raygen = if trace {
+            ShaderKind::RaygenTrace
+        } else {
+            ShaderKind::RaygenPlain
+        };
+        let closest = if trace {
+            ShaderKind::ClosestHitTrace
+        } else {
+            ShaderKind::ClosestHitPlain
+        };
+        // ([group index, any-hit rule], stage flag, module) per stage, and per group (type, [general,
+        // closest, any, intersection]).
+        let mut stage_list: Vec<([u32; 2], vk::ShaderStageFlags, vk::ShaderModule)> = Vec::new();
+        let mut groups: Vec<(vk::RayTracingShaderGroupTypeKHR, [u32; 4])> = Vec::new();
+        let unused = vk::SHADER_UNUSED_KHR;
+        for (g, group) in p.groups.iter().enumerate() {
+            let g = g as u32;
+            let rule = match group {
+                ShaderGroup::TrianglesHit { any_hit_rule, .. }
+                | ShaderGroup::ProceduralHit { any_hit_rule, .. } => any_hit_rule.code(),
+                ShaderGroup::General { .. } => 0,
             };
-            stage_list.push((st.group, vk::ShaderStageFlags::from_raw(st.stage), m));
+            let mut add = |this: &mut Self,
+                           kind: ShaderKind,
+                           stage: vk::ShaderStageFlags|
+             -> Result<u32, HarnessError> {
+                // A templated module of this kind replaces the harness's.
+                let m = match modules.iter().find(|(k, _)| *k == kind) {
+                    Some(&(_, m)) => m,
+                    None => this.module(kind, api)?,
+                };
+                stage_list.push(([g, rule], stage, m));
+                Ok(stage_list.len() as u32 - 1)
+            };
+            let info = match group {
+                ShaderGroup::General { stage } => {
+                    let (kind, flag) = match stage {
+                        GeneralStage::Raygen => (raygen, vk::ShaderStageFlags::RAYGEN_KHR),
+                        GeneralStage::Miss => (ShaderKind::Miss, vk::ShaderStageFlags::MISS_KHR),
+                        GeneralStage::Callable => {
+                            (ShaderKind::Callable, vk::ShaderStageFlags::CALLABLE_KHR)
+                        }
+                    };
+                    let s = add(self, kind, flag)?;
+                    (
+                        vk::RayTracingShaderGroupTypeKHR::GENERAL,
+                        [s, unused, unused, unused],
+                    )
+                }
+                ShaderGroup::TrianglesHit {
+                    closest_hit,
+                    any_hit,
+                    ..
+                }
+                | ShaderGroup::ProceduralHit {
+                    closest_hit,
+                    any_hit,
+                    ..
+                } => {
+                    let procedural = matches!(group, ShaderGroup::ProceduralHit { .. });
+                    let ch = if *closest_hit {
+                        add(self, closest, vk::ShaderStageFlags::CLOSEST_HIT_KHR)?
+                    } else {
+                        unused
+                    };
+                    let ah = if *any_hit {
+                        add(self, ShaderKind::AnyHit, vk::ShaderStageFlags::ANY_HIT_KHR)?
+                    } else {
+                        unused
+                    };
+                    let is = match group {
+                        ShaderGroup::ProceduralHit { intersection: true, .. } => {
+                            add(self, ShaderKind::Intersection, vk::ShaderStageFlags::INTERSECTION_KHR)?
+                        }
+                        ShaderGroup::ProceduralHit { intersection: false, .. } => {
+                            return Err(HarnessError::NotRealised(format!(
+                                "group {g} is procedural without an intersection shader, which no valid pipeline has"
+                            )))
+                        }
+                        _ => unused,
+                    };
+                    let ty = if procedural {
+                        vk::RayTracingShaderGroupTypeKHR::PROCEDURAL_HIT_GROUP
+                    } else {
+                        vk::RayTracingShaderGroupTypeKHR::TRIANGLES_HIT_GROUP
+                    };
+                    (ty, [unused, ch, ah, is])
+                }
+            };
+            groups.push(info);
         }
-        let groups: Vec<(vk::RayTracingShaderGroupTypeKHR, [u32; 4])> = plan
-            .groups
-            .iter()
-            .map(|g| {
-                (
-                    vk::RayTracingShaderGroupTypeKHR::from_raw(g.ty.raw()),
-                    [g.general, g.closest_hit, g.any_hit, g.intersection],
-                )
-            })
-            .collect();
-        let group_values: Vec<u32> = stage_list.iter().map(|(g, _, _)| *g).collect();
-        let entry = [vk::SpecializationMapEntry {
-            constant_id: 0,
-            offset: 0,
-            size: 4,
-        }];
+        let group_values: Vec<[u32; 2]> = stage_list.iter().map(|(g, _, _)| *g).collect();
+        // Constant 0: the group index; 1: the any-hit rule (only the any-hit shader declares it).
+        let entry = [
+            vk::SpecializationMapEntry {
+                constant_id: 0,
+                offset: 0,
+                size: 4,
+            },
+            vk::SpecializationMapEntry {
+                constant_id: 1,
+                offset: 4,
+                size: 4,
+            },
+        ];
         let specs: Vec<vk::SpecializationInfo> = group_values
             .iter()
             .map(|v| {
@@ -253,16 +354,20 @@ impl DeviceCache {
                     .specialization_info(spec)
             })
             .collect();
-        let flags = vk::PipelineCreateFlags::from_raw(plan.flags);
+        let flags = vk::PipelineCreateFlags::from_raw(p.flags.0 as u32);
         let hs = self.dev.limits.handle_size as usize;
         let n = p.groups.len();
         if api == PipelineApi::Nv {
             let hs = self.dev.limits.nv_handle_size as usize;
             let nv_groups: Vec<vk::RayTracingShaderGroupCreateInfoNV> =
                 group_infos!(groups, vk::RayTracingShaderGroupCreateInfoNV);
-            // The plan keeps only the NV pipeline flags.
+            // The KHR-only flags (NO_NULL_*, SKIP_*, LIBRARY) are not NV pipeline flags.
             let info = vk::RayTracingPipelineCreateInfoNV::default()
-                .flags(flags)
+                .flags(
+                    flags
+                        & (vk::PipelineCreateFlags::DISABLE_OPTIMIZATION
+                            | vk::PipelineCreateFlags::DEFER_COMPILE_NV),
+                )
                 .stages(&stages)
                 .groups(&nv_groups)
                 .max_recursion_depth(p.max_recursion_depth)
@@ -298,19 +403,20 @@ impl DeviceCache {
             group_infos!(groups, vk::RayTracingShaderGroupCreateInfoKHR);
         let dynamic = [vk::DynamicState::RAY_TRACING_PIPELINE_STACK_SIZE_KHR];
         let dyn_info = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic);
+        // The payload is twelve words (see `shaders/raygen.rgen`); the hit attribute is a vec2.
         let iface = vk::RayTracingPipelineInterfaceCreateInfoKHR::default()
-            .max_pipeline_ray_payload_size(MAX_PAYLOAD_SIZE)
-            .max_pipeline_ray_hit_attribute_size(MAX_HIT_ATTRIBUTE_SIZE);
+            .max_pipeline_ray_payload_size(48)
+            .max_pipeline_ray_hit_attribute_size(8);
         let mut info = vk::RayTracingPipelineCreateInfoKHR::default()
             .flags(flags)
             .stages(&stages)
             .groups(&khr_groups)
             .max_pipeline_ray_recursion_depth(p.max_recursion_depth)
             .layout(layout);
-        if plan.dynamic_stack_size {
+        if p.dynamic_stack_size {
             info = info.dynamic_state(&dyn_info);
         }
-        if plan.library {
+        if flags.contains(vk::PipelineCreateFlags::LIBRARY_KHR) {
             info = info.library_interface(&iface);
         }
         let rt = self.dev.rt.as_ref().expect("checked above");
@@ -326,7 +432,7 @@ impl DeviceCache {
         .map_err(|(_, r)| {
             HarnessError::Failed(format!("vkCreateRayTracingPipelinesKHR failed: {r:?}"))
         })?[0];
-        let library = plan.library;
+        let library = flags.contains(vk::PipelineCreateFlags::LIBRARY_KHR);
         let handles = if library || n == 0 {
             vec![0u8; hs * n]
         } else {

@@ -1,18 +1,19 @@
-//! The scene the rays see, realised from its plan ([`ScenePlan`]): one bottom-level structure per
-//! instance holding its geometries (one triangle or box each, at the positions the rays aim at), a
-//! top-level structure over them, as KHR or as NV acceleration structures, built once and cached per
-//! device.
+//! The scene the rays see: one bottom-level structure per bottom level of the case's
+//! `model::scene::Scene` (triangles from f32 positions with optional u16/u32 indices and 3x4 geometry
+//! transform, or AABBs; OPAQUE and NO_DUPLICATE_ANY_HIT flags), a top-level structure over its
+//! instances (row-major 3x4 transform, custom index, mask, SBT record offset, facing and opacity
+//! flags; an inactive instance references 0), as KHR or NV acceleration structures through one
+//! geometry and instance writer, and the spheres buffer the intersection shader reads. Built once per
+//! content (a hash of the scene) and kept for the next cases on the device.
 
 use super::DeviceCache;
 use crate::error::{vkfail, HarnessError};
-use crate::plan::scene::{
-    instance_record, ScenePlan, AABB_STRIDE, TRIANGLE_VERTICES, VERTEX_STRIDE,
-};
 use crate::vk::commands::{begin_one_time, memory_barrier};
 use crate::vk::memory::Allocation;
 use crate::vk::VkDevice;
 use ash::vk;
-use model::world::{GeometryKind, PipelineApi};
+use model::scene::{GeometryData, GeometryFlags, Indices, InstanceFlags, SceneInstance};
+use model::world::PipelineApi;
 
 /// The top-level structure of a built scene, of the extension the case's pipeline uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -21,14 +22,19 @@ pub(crate) enum Tlas {
     Nv(vk::AccelerationStructureNV),
 }
 
-/// A built scene: BLASes, TLAS and their buffers (and, for NV structures, their memory).
+/// A built scene: BLASes, TLAS and their buffers (and, for NV structures, their memory), and the
+/// spheres buffer of its boxes.
 pub(crate) struct Scene {
     pub(crate) tlas: Tlas,
+    pub(crate) spheres: vk::Buffer,
     structures: Vec<vk::AccelerationStructureKHR>,
     nv_structures: Vec<vk::AccelerationStructureNV>,
     nv_memory: Vec<vk::DeviceMemory>,
     buffers: Vec<Allocation>,
 }
+
+/// How many built scenes a device keeps (the oldest goes first).
+const KEPT_SCENES: usize = 8;
 
 /// An acceleration structure of `ty` sized for `geometries` with `counts` primitives: its storage buffer,
 /// its scratch buffer (aligned to `scratch_align`) and the created, not yet built, structure. The storage
@@ -90,41 +96,214 @@ pub(crate) fn sized_structure(
     Ok((structure, storage, scratch))
 }
 
+/// Where one geometry's data sits in the scene's input buffer.
+#[derive(Debug, Clone, Copy, Default)]
+struct Placed {
+    /// Vertices (triangles) or boxes (AABBs).
+    data: u64,
+    indices: Option<u64>,
+    transform: Option<u64>,
+}
+
+/// The bytes every bottom level is built from and where each geometry's data sits (16-aligned):
+/// positions as three f32 per vertex, indices as u16 or u32, the geometry transform as 12 f32
+/// (row-major), boxes as six f32.
+fn geometry_input(scene: &model::scene::Scene) -> (Vec<u8>, Vec<Vec<Placed>>) {
+    let mut input: Vec<u8> = Vec::new();
+    let at = |input: &mut Vec<u8>, bytes: &[u8]| -> u64 {
+        input.resize(input.len().next_multiple_of(16), 0);
+        let offset = input.len() as u64;
+        input.extend_from_slice(bytes);
+        // At least one byte, so an empty array still has an address inside the buffer.
+        if bytes.is_empty() {
+            input.push(0);
+        }
+        offset
+    };
+    let f32s =
+        |v: &mut dyn Iterator<Item = f32>| -> Vec<u8> { v.flat_map(|x| x.to_ne_bytes()).collect() };
+    let mut placed = Vec::new();
+    for bl in &scene.bottom_levels {
+        let mut per = Vec::new();
+        for g in &bl.geometries {
+            per.push(match &g.data {
+                GeometryData::Triangles(t) => {
+                    let data = at(
+                        &mut input,
+                        &f32s(&mut t.positions.iter().flatten().copied()),
+                    );
+                    let indices = t.indices.as_ref().map(|ix| {
+                        let bytes: Vec<u8> = match ix {
+                            Indices::U16(v) => v.iter().flat_map(|x| x.to_ne_bytes()).collect(),
+                            Indices::U32(v) => v.iter().flat_map(|x| x.to_ne_bytes()).collect(),
+                        };
+                        at(&mut input, &bytes)
+                    });
+                    let transform = t
+                        .transform
+                        .as_ref()
+                        .map(|m| at(&mut input, &f32s(&mut m.0.iter().flatten().copied())));
+                    Placed {
+                        data,
+                        indices,
+                        transform,
+                    }
+                }
+                GeometryData::Aabbs(a) => Placed {
+                    data: at(
+                        &mut input,
+                        &f32s(&mut a.boxes.iter().flat_map(|b| b.min.into_iter().chain(b.max))),
+                    ),
+                    indices: None,
+                    transform: None,
+                },
+            });
+        }
+        placed.push(per);
+    }
+    input.resize(input.len().max(16), 0);
+    (input, placed)
+}
+
+/// The words of the spheres buffer (see `shaders/intersection.rint`): per instance the start of its
+/// bottom level's geometry table, per geometry the start of its spheres, per sphere its centre and
+/// radius as f32 bits.
+fn sphere_words(scene: &model::scene::Scene) -> Vec<u32> {
+    let n = scene.instances.len();
+    let mut words = vec![0u32; n];
+    let mut tables = Vec::with_capacity(scene.bottom_levels.len());
+    for bl in &scene.bottom_levels {
+        tables.push(words.len() as u32);
+        words.extend(std::iter::repeat_n(0, bl.geometries.len()));
+    }
+    for (b, bl) in scene.bottom_levels.iter().enumerate() {
+        for (g, geometry) in bl.geometries.iter().enumerate() {
+            if let GeometryData::Aabbs(a) = &geometry.data {
+                words[tables[b] as usize + g] = words.len() as u32;
+                for s in &a.spheres {
+                    words.extend(s.center.map(f32::to_bits));
+                    words.push(s.radius.to_bits());
+                }
+            }
+        }
+    }
+    for (i, inst) in scene.instances.iter().enumerate() {
+        if let Some(b) = inst.bottom_level {
+            words[i] = tables.get(b as usize).copied().unwrap_or(0);
+        }
+    }
+    words.resize(words.len().max(4), 0);
+    words
+}
+
+fn khr_geometry_flags(f: GeometryFlags) -> vk::GeometryFlagsKHR {
+    let mut out = vk::GeometryFlagsKHR::empty();
+    if f.opaque {
+        out |= vk::GeometryFlagsKHR::OPAQUE;
+    }
+    if f.no_duplicate_any_hit {
+        out |= vk::GeometryFlagsKHR::NO_DUPLICATE_ANY_HIT_INVOCATION;
+    }
+    out
+}
+
+/// The instance flags byte (KHR and NV share the bits).
+fn instance_flags(f: InstanceFlags) -> u8 {
+    let mut out = vk::GeometryInstanceFlagsKHR::empty();
+    if f.triangle_facing_cull_disable {
+        out |= vk::GeometryInstanceFlagsKHR::TRIANGLE_FACING_CULL_DISABLE;
+    }
+    if f.flip_facing {
+        out |= vk::GeometryInstanceFlagsKHR::TRIANGLE_FLIP_FACING;
+    }
+    if f.force_opaque {
+        out |= vk::GeometryInstanceFlagsKHR::FORCE_OPAQUE;
+    }
+    if f.force_no_opaque {
+        out |= vk::GeometryInstanceFlagsKHR::FORCE_NO_OPAQUE;
+    }
+    out.as_raw() as u8
+}
+
+/// Whether a bottom level is realised as a structure: one without geometries is referenced as 0
+/// instead (inactive), which no ray can tell from an empty structure and no driver has to size.
+fn realised(bl: &model::scene::BottomLevel) -> bool {
+    !bl.geometries.is_empty()
+}
+
 impl DeviceCache {
-    /// The scene of a plan (cached).
-    pub(crate) fn scene(&mut self, plan: &ScenePlan) -> Result<Tlas, HarnessError> {
-        let key = serde_json::to_string(plan).unwrap_or_default();
+    /// The built scene for a case's scene (cached by content): its top level and spheres buffer.
+    pub(crate) fn scene(
+        &mut self,
+        scene: &model::scene::Scene,
+        api: PipelineApi,
+    ) -> Result<(Tlas, vk::Buffer), HarnessError> {
+        let key = format!("{api:?}|{:016x}", model::semantics::scene_key(scene));
         if !self.scenes.contains_key(&key) {
-            let built = self.build_scene(plan);
+            // Every earlier case waited for its submission: no kept scene is in use.
+            while self.scene_order.len() >= KEPT_SCENES {
+                let old = self.scene_order.remove(0);
+                if let Some(Ok(s)) = self.scenes.remove(&old) {
+                    self.destroy_scene(s);
+                }
+            }
+            let built = self.build_scene(scene, api);
             self.scenes.insert(key.clone(), built);
+            self.scene_order.push(key.clone());
         }
         match &self.scenes[&key] {
-            Ok(s) => Ok(s.tlas),
+            Ok(s) => Ok((s.tlas, s.spheres)),
             Err(e) => Err(e.clone()),
         }
     }
 
-    fn build_scene(&mut self, plan: &ScenePlan) -> Result<Scene, HarnessError> {
-        let mut scene = Scene {
+    fn build_scene(
+        &mut self,
+        scene: &model::scene::Scene,
+        api: PipelineApi,
+    ) -> Result<Scene, HarnessError> {
+        let mut built = Scene {
             tlas: Tlas::Khr(vk::AccelerationStructureKHR::null()),
+            spheres: vk::Buffer::null(),
             structures: Vec::new(),
             nv_structures: Vec::new(),
             nv_memory: Vec::new(),
             buffers: Vec::new(),
         };
-        if plan.api == PipelineApi::Nv {
+        let result = self.build_scene_into(scene, api, &mut built);
+        match result {
+            Ok(()) => Ok(built),
+            Err(e) => {
+                self.destroy_scene(built);
+                Err(e)
+            }
+        }
+    }
+
+    fn build_scene_into(
+        &mut self,
+        scene: &model::scene::Scene,
+        api: PipelineApi,
+        built: &mut Scene,
+    ) -> Result<(), HarnessError> {
+        let words = sphere_words(scene);
+        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_ne_bytes()).collect();
+        let spheres = Allocation::filled(
+            &self.dev,
+            &bytes,
+            16,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            256,
+        )?;
+        built.spheres = spheres.buffer;
+        built.buffers.push(spheres);
+        if api == PipelineApi::Nv {
             let Some(nv) = self.dev.nv.clone() else {
                 return Err(HarnessError::NotRealised(
                     "the case traces rays but does not enable VK_NV_ray_tracing".into(),
                 ));
             };
-            return match self.build_nv_scene_into(&nv, plan, &mut scene) {
-                Ok(()) => Ok(scene),
-                Err(e) => {
-                    self.destroy_scene(scene);
-                    Err(e)
-                }
-            };
+            return self.build_nv_scene_into(&nv, scene, built);
         }
         let Some(accel) = self.dev.accel.clone() else {
             return Err(HarnessError::NotRealised(
@@ -138,33 +317,28 @@ impl DeviceCache {
                 "the case traces rays but does not enable accelerationStructure and bufferDeviceAddress".into(),
             ));
         }
-        let result = self.build_scene_into(&accel, plan, &mut scene);
-        match result {
-            Ok(()) => Ok(scene),
-            Err(e) => {
-                self.destroy_scene(scene);
-                Err(e)
-            }
-        }
+        self.build_khr_scene_into(&accel, scene, built)
     }
 
-    fn build_scene_into(
+    fn build_khr_scene_into(
         &mut self,
         accel: &ash::khr::acceleration_structure::Device,
-        plan: &ScenePlan,
-        scene: &mut Scene,
+        scene: &model::scene::Scene,
+        built: &mut Scene,
     ) -> Result<(), HarnessError> {
         let dev = &self.dev;
         let input_usage = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
             | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
         let scratch_align = (dev.limits.scratch_alignment as u64).max(256);
         let none = vk::BufferCreateFlags::empty();
-        // Geometry input: one triangle or box per geometry, all in one buffer.
-        let input = &plan.input;
-        let inputs = Allocation::new(dev, input.len().max(16) as u64, input_usage, none, 256)?;
-        inputs.write(0, input);
-        let input_address = inputs.address;
-        scene.buffers.push(inputs);
+        let (input, placed) = geometry_input(scene);
+        let inputs = Allocation::new(dev, input.len() as u64, input_usage, none, 256)?;
+        inputs.write(0, &input);
+        let base = inputs.address;
+        built.buffers.push(inputs);
+        let address = |offset: u64| vk::DeviceOrHostAddressConstKHR {
+            device_address: base + offset,
+        };
 
         let mut blas_addresses = Vec::new();
         let mut builds: Vec<(
@@ -173,37 +347,64 @@ impl DeviceCache {
             vk::AccelerationStructureKHR,
             u64,
         )> = Vec::new();
-        for bottom in &plan.bottoms {
+        for (b, bl) in scene.bottom_levels.iter().enumerate() {
+            if !realised(bl) {
+                blas_addresses.push(0);
+                continue;
+            }
             let mut geoms = Vec::new();
             let mut ranges = Vec::new();
-            for g in bottom {
-                let at = input_address + g.offset;
-                let data = match g.kind {
-                    GeometryKind::Triangles => vk::AccelerationStructureGeometryDataKHR {
-                        triangles: vk::AccelerationStructureGeometryTrianglesDataKHR::default()
-                            .vertex_format(vk::Format::R32G32B32_SFLOAT)
-                            .vertex_data(vk::DeviceOrHostAddressConstKHR { device_address: at })
-                            .vertex_stride(VERTEX_STRIDE)
-                            .max_vertex(TRIANGLE_VERTICES - 1)
-                            .index_type(vk::IndexType::NONE_KHR),
-                    },
-                    GeometryKind::Aabbs => vk::AccelerationStructureGeometryDataKHR {
-                        aabbs: vk::AccelerationStructureGeometryAabbsDataKHR::default()
-                            .data(vk::DeviceOrHostAddressConstKHR { device_address: at })
-                            .stride(AABB_STRIDE),
-                    },
-                };
-                let ty = match g.kind {
-                    GeometryKind::Triangles => vk::GeometryTypeKHR::TRIANGLES,
-                    GeometryKind::Aabbs => vk::GeometryTypeKHR::AABBS,
+            for (g, geometry) in bl.geometries.iter().enumerate() {
+                let at = placed[b][g];
+                let (ty, data, count) = match &geometry.data {
+                    GeometryData::Triangles(t) => {
+                        let (index_type, index_data) = match (&t.indices, at.indices) {
+                            (Some(Indices::U16(_)), Some(o)) => (vk::IndexType::UINT16, address(o)),
+                            (Some(Indices::U32(_)), Some(o)) => (vk::IndexType::UINT32, address(o)),
+                            _ => (
+                                vk::IndexType::NONE_KHR,
+                                vk::DeviceOrHostAddressConstKHR { device_address: 0 },
+                            ),
+                        };
+                        let transform = at.transform.map_or(
+                            vk::DeviceOrHostAddressConstKHR { device_address: 0 },
+                            address,
+                        );
+                        (
+                            vk::GeometryTypeKHR::TRIANGLES,
+                            vk::AccelerationStructureGeometryDataKHR {
+                                triangles:
+                                    vk::AccelerationStructureGeometryTrianglesDataKHR::default()
+                                        .vertex_format(vk::Format::R32G32B32_SFLOAT)
+                                        .vertex_data(address(at.data))
+                                        .vertex_stride(12)
+                                        .max_vertex(t.positions.len().saturating_sub(1) as u32)
+                                        .index_type(index_type)
+                                        .index_data(index_data)
+                                        .transform_data(transform),
+                            },
+                            t.primitive_count() as u32,
+                        )
+                    }
+                    GeometryData::Aabbs(a) => (
+                        vk::GeometryTypeKHR::AABBS,
+                        vk::AccelerationStructureGeometryDataKHR {
+                            aabbs: vk::AccelerationStructureGeometryAabbsDataKHR::default()
+                                .data(address(at.data))
+                                .stride(24),
+                        },
+                        a.boxes.len() as u32,
+                    ),
                 };
                 geoms.push(
                     vk::AccelerationStructureGeometryKHR::default()
                         .geometry_type(ty)
-                        .geometry(data),
+                        .geometry(data)
+                        .flags(khr_geometry_flags(geometry.flags)),
                 );
-                ranges
-                    .push(vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(1));
+                ranges.push(
+                    vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(count),
+                );
             }
             let counts: Vec<u32> = ranges.iter().map(|r| r.primitive_count).collect();
             let (blas, storage, scratch) = sized_structure(
@@ -215,7 +416,7 @@ impl DeviceCache {
                 scratch_align,
                 0,
             )?;
-            scene.structures.push(blas);
+            built.structures.push(blas);
             // SAFETY: valid structure.
             let addr = unsafe {
                 accel.get_acceleration_structure_device_address(
@@ -225,12 +426,19 @@ impl DeviceCache {
             };
             blas_addresses.push(addr);
             builds.push((geoms, ranges, blas, scratch.address));
-            scene.buffers.push(storage);
-            scene.buffers.push(scratch);
+            built.buffers.push(storage);
+            built.buffers.push(scratch);
         }
-        // Instances: an inactive one (no geometry, semantics.md §4) references 0.
-        let records = plan_records(plan, &blas_addresses);
-        let inst_buf = instance_buffer(dev, &records, input_usage)?;
+        let references: Vec<u64> = scene
+            .instances
+            .iter()
+            .map(|i| {
+                i.bottom_level
+                    .and_then(|b| blas_addresses.get(b as usize).copied())
+                    .unwrap_or(0)
+            })
+            .collect();
+        let inst_buf = instance_buffer(dev, &scene.instances, &references, input_usage)?;
         let tlas_geom = [vk::AccelerationStructureGeometryKHR::default()
             .geometry_type(vk::GeometryTypeKHR::INSTANCES)
             .geometry(vk::AccelerationStructureGeometryDataKHR {
@@ -240,8 +448,8 @@ impl DeviceCache {
                     },
                 ),
             })];
-        scene.buffers.push(inst_buf);
-        let tlas_count = [plan.instances.len() as u32];
+        built.buffers.push(inst_buf);
+        let tlas_count = [scene.instances.len() as u32];
         let (tlas, storage, scratch) = sized_structure(
             dev,
             accel,
@@ -251,11 +459,11 @@ impl DeviceCache {
             scratch_align,
             0,
         )?;
-        scene.structures.push(tlas);
-        scene.tlas = Tlas::Khr(tlas);
+        built.structures.push(tlas);
+        built.tlas = Tlas::Khr(tlas);
         let tlas_scratch = scratch.address;
-        scene.buffers.push(storage);
-        scene.buffers.push(scratch);
+        built.buffers.push(storage);
+        built.buffers.push(scratch);
 
         // Record: every BLAS, a barrier, the TLAS; submit and wait.
         let d = &dev.device;
@@ -296,7 +504,7 @@ impl DeviceCache {
                     device_address: tlas_scratch,
                 });
             let range = [vk::AccelerationStructureBuildRangeInfoKHR::default()
-                .primitive_count(plan.instances.len() as u32)];
+                .primitive_count(scene.instances.len() as u32)];
             accel.cmd_build_acceleration_structures(cb, &[info], &[&range]);
             d.end_command_buffer(cb)
                 .map_err(vkfail("vkEndCommandBuffer"))?;
@@ -304,29 +512,29 @@ impl DeviceCache {
         self.submit_and_wait(std::time::Duration::from_secs(60))
     }
 
-    /// The scene as VK_NV_ray_tracing structures: one bottom-level `VkAccelerationStructureNV` per instance
-    /// (its geometries as `VkGeometryNV`, buffer + offset based), a top-level one over
-    /// `VkAccelerationStructureInstanceNV` records, each bound to its own memory, built with
-    /// `vkCmdBuildAccelerationStructureNV` (barrier between the levels), submitted and waited for.
+    /// The scene as VK_NV_ray_tracing structures: one bottom-level `VkAccelerationStructureNV` per
+    /// bottom level (its geometries as `VkGeometryNV`, buffer + offset based, with index and transform
+    /// data where the scene has them), a top-level one over `VkAccelerationStructureInstanceNV` records
+    /// (the KHR layout), each bound to its own memory, built with `vkCmdBuildAccelerationStructureNV`
+    /// (barrier between the levels), submitted and waited for.
     fn build_nv_scene_into(
         &mut self,
         nv: &ash::nv::ray_tracing::Device,
-        plan: &ScenePlan,
-        scene: &mut Scene,
+        scene: &model::scene::Scene,
+        built: &mut Scene,
     ) -> Result<(), HarnessError> {
         let dev = &self.dev;
         let usage = vk::BufferUsageFlags::RAY_TRACING_NV;
         let none = vk::BufferCreateFlags::empty();
-        // Geometry input, as for KHR (offsets 16-aligned; AABBs need 8).
-        let input = &plan.input;
-        let inputs = Allocation::new(dev, input.len().max(16) as u64, usage, none, 256)?;
-        inputs.write(0, input);
+        let (input, placed) = geometry_input(scene);
+        let inputs = Allocation::new(dev, input.len() as u64, usage, none, 256)?;
+        inputs.write(0, &input);
         let input_buffer = inputs.buffer;
-        scene.buffers.push(inputs);
+        built.buffers.push(inputs);
 
         // Creates a structure for `info`, binds it to fresh memory and makes a scratch buffer for its build.
         let make = |info: vk::AccelerationStructureInfoNV,
-                    scene: &mut Scene|
+                    built: &mut Scene|
          -> Result<(vk::AccelerationStructureNV, vk::Buffer), HarnessError> {
             // SAFETY: valid description whose geometry pointers outlive the call.
             let s = unsafe {
@@ -336,7 +544,7 @@ impl DeviceCache {
                 )
             }
             .map_err(vkfail("vkCreateAccelerationStructureNV"))?;
-            scene.nv_structures.push(s);
+            built.nv_structures.push(s);
             let req = |ty| {
                 // SAFETY: valid structure.
                 unsafe {
@@ -369,7 +577,7 @@ impl DeviceCache {
             // SAFETY: valid allocate info.
             let memory = unsafe { dev.device.allocate_memory(&ai, None) }
                 .map_err(vkfail("vkAllocateMemory"))?;
-            scene.nv_memory.push(memory);
+            built.nv_memory.push(memory);
             let bind = [vk::BindAccelerationStructureMemoryInfoNV::default()
                 .acceleration_structure(s)
                 .memory(memory)];
@@ -384,61 +592,92 @@ impl DeviceCache {
                 scratch.alignment.max(256),
             )?;
             let b = scratch_buf.buffer;
-            scene.buffers.push(scratch_buf);
+            built.buffers.push(scratch_buf);
             Ok((s, b))
         };
 
         let mut handles = Vec::new();
         let mut blas_builds: Vec<(Vec<vk::GeometryNV>, vk::AccelerationStructureNV, vk::Buffer)> =
             Vec::new();
-        for bottom in &plan.bottoms {
-            let geoms: Vec<vk::GeometryNV> = bottom
+        for (b, bl) in scene.bottom_levels.iter().enumerate() {
+            if !realised(bl) {
+                handles.push(0u64);
+                continue;
+            }
+            let geoms: Vec<vk::GeometryNV> = bl
+                .geometries
                 .iter()
-                .map(|g| {
-                    let at = g.offset;
+                .enumerate()
+                .map(|(g, geometry)| {
+                    let at = placed[b][g];
                     let mut data = vk::GeometryDataNV::default();
-                    let ty = match g.kind {
-                        GeometryKind::Triangles => {
-                            data.triangles = vk::GeometryTrianglesNV::default()
+                    let ty = match &geometry.data {
+                        GeometryData::Triangles(t) => {
+                            let mut tri = vk::GeometryTrianglesNV::default()
                                 .vertex_data(input_buffer)
-                                .vertex_offset(at)
-                                .vertex_count(TRIANGLE_VERTICES)
-                                .vertex_stride(VERTEX_STRIDE)
+                                .vertex_offset(at.data)
+                                .vertex_count(t.positions.len() as u32)
+                                .vertex_stride(12)
                                 .vertex_format(vk::Format::R32G32B32_SFLOAT)
                                 .index_type(vk::IndexType::NONE_NV);
+                            if let (Some(ix), Some(o)) = (&t.indices, at.indices) {
+                                tri = tri
+                                    .index_data(input_buffer)
+                                    .index_offset(o)
+                                    .index_count(ix.len() as u32)
+                                    .index_type(match ix {
+                                        Indices::U16(_) => vk::IndexType::UINT16,
+                                        Indices::U32(_) => vk::IndexType::UINT32,
+                                    });
+                            }
+                            if let Some(o) = at.transform {
+                                tri = tri.transform_data(input_buffer).transform_offset(o);
+                            }
+                            data.triangles = tri;
                             vk::GeometryTypeNV::TRIANGLES
                         }
-                        GeometryKind::Aabbs => {
+                        GeometryData::Aabbs(a) => {
                             data.aabbs = vk::GeometryAABBNV::default()
                                 .aabb_data(input_buffer)
-                                .num_aab_bs(1)
-                                .stride(AABB_STRIDE as u32)
-                                .offset(at);
+                                .num_aab_bs(a.boxes.len() as u32)
+                                .stride(24)
+                                .offset(at.data);
                             vk::GeometryTypeNV::AABBS
                         }
                     };
-                    vk::GeometryNV::default().geometry_type(ty).geometry(data)
+                    vk::GeometryNV::default()
+                        .geometry_type(ty)
+                        .geometry(data)
+                        .flags(khr_geometry_flags(geometry.flags))
                 })
                 .collect();
             let info = vk::AccelerationStructureInfoNV::default()
                 .ty(vk::AccelerationStructureTypeNV::BOTTOM_LEVEL)
                 .geometries(&geoms);
-            let (blas, scratch) = make(info, scene)?;
+            let (blas, scratch) = make(info, built)?;
             // SAFETY: the structure is bound to memory.
             let handle = unsafe { nv.get_acceleration_structure_handle(blas) }
                 .map_err(vkfail("vkGetAccelerationStructureHandleNV"))?;
             handles.push(handle);
             blas_builds.push((geoms, blas, scratch));
         }
-        let records = plan_records(plan, &handles);
-        let inst_buf = instance_buffer(dev, &records, usage)?;
+        let references: Vec<u64> = scene
+            .instances
+            .iter()
+            .map(|i| {
+                i.bottom_level
+                    .and_then(|b| handles.get(b as usize).copied())
+                    .unwrap_or(0)
+            })
+            .collect();
+        let inst_buf = instance_buffer(dev, &scene.instances, &references, usage)?;
         let inst_buffer = inst_buf.buffer;
-        scene.buffers.push(inst_buf);
+        built.buffers.push(inst_buf);
         let tlas_info = vk::AccelerationStructureInfoNV::default()
             .ty(vk::AccelerationStructureTypeNV::TOP_LEVEL)
-            .instance_count(plan.instances.len() as u32);
-        let (tlas, tlas_scratch) = make(tlas_info, scene)?;
-        scene.tlas = Tlas::Nv(tlas);
+            .instance_count(scene.instances.len() as u32);
+        let (tlas, tlas_scratch) = make(tlas_info, built)?;
+        built.tlas = Tlas::Nv(tlas);
 
         let d = &self.dev.device;
         let cb = self.cmds.cb;
@@ -514,28 +753,41 @@ impl DeviceCache {
     }
 }
 
-/// The instance records of a scene's top-level structure: instance `i` with its mask and shader
-/// binding table offset, referencing the bottom-level structure it names (`references[k]`, a KHR device
-/// address or an NV handle) or 0 when it has none.
-fn plan_records(plan: &ScenePlan, references: &[u64]) -> Vec<u8> {
-    plan.instances
-        .iter()
-        .flat_map(|i| {
-            let reference = i
-                .bottom
-                .and_then(|k| references.get(k))
-                .copied()
-                .unwrap_or(0);
-            instance_record(i.mask, i.sbt_record_offset, reference)
-        })
-        .collect()
-}
-
-/// Instance records (64 bytes each) in a buffer of `usage`.
+/// The instance records of a scene's top-level structure in a buffer of `usage`: each instance's
+/// row-major transform, custom index and mask, SBT record offset and flags, referencing
+/// `references[i]` (a KHR device address or an NV handle; 0 for an inactive instance). KHR and NV
+/// records have one layout.
 pub(crate) fn instance_buffer(
     dev: &VkDevice,
-    records: &[u8],
+    instances: &[SceneInstance],
+    references: &[u64],
     usage: vk::BufferUsageFlags,
 ) -> Result<Allocation, HarnessError> {
-    Allocation::filled(dev, records, 64, usage, 256)
+    let bytes: Vec<u8> = instances
+        .iter()
+        .zip(references)
+        .flat_map(|(inst, reference)| {
+            let m = &inst.transform.0;
+            let mut matrix = [0f32; 12];
+            for (k, x) in m.iter().flatten().enumerate() {
+                matrix[k] = *x;
+            }
+            let record = vk::AccelerationStructureInstanceKHR {
+                transform: vk::TransformMatrixKHR { matrix },
+                instance_custom_index_and_mask: vk::Packed24_8::new(
+                    inst.custom_index & 0xFF_FFFF,
+                    inst.mask,
+                ),
+                instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(
+                    inst.sbt_record_offset & 0xFF_FFFF,
+                    instance_flags(inst.flags),
+                ),
+                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR {
+                    device_handle: *reference,
+                },
+            };
+            crate::vk::structs::as_bytes(&record).to_vec()
+        })
+        .collect();
+    Allocation::filled(dev, &bytes, 64, usage, 256)
 }

@@ -133,3 +133,28 @@ fn lavapipe() -> &'static model::DeviceProfile {
         model::DeviceProfile::from_profiles_json("lavapipe", &text).expect("a profile")
     })
 }
+
+/// A valid case's records judged by the model (`model::rendered`): panics naming the first failures.
+#[allow(dead_code)] // not every test file judges records
+pub fn assert_records(case: &Case, obs: &harness::Observation) -> model::rendered::LaunchJudgement {
+    let words = obs
+        .words()
+        .unwrap_or_else(|| panic!("{}: no records read back: {obs:?}", case.name));
+    let j = model::rendered::judge_records(case.as_trace().expect("a trace case"), words)
+        .unwrap_or_else(|e| panic!("{}: {e}", case.name));
+    assert_eq!(
+        j.result.failures, 0,
+        "{}: {:#?}",
+        case.name, j.result.first_failures
+    );
+    j
+}
+
+/// The (outcome, group) each launch ID's record names.
+#[allow(dead_code)]
+pub fn outcomes(obs: &harness::Observation) -> Vec<(u32, u32)> {
+    let w = obs.words().expect("records");
+    w.chunks(model::tracer::record::RayRecord::WORDS)
+        .map(|r| (r[0], r[1]))
+        .collect()
+}

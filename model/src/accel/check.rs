@@ -98,13 +98,21 @@ const DEVIATIONS: &[(&str, RangeRewrite)] = &[
 /// the cast says hit may miss. Only named when the exact casts fail.
 pub const INACTIVE_TRIANGLE_DROPS: &str = "inactive-triangle-drops-primitives";
 
+/// The twin of [`INACTIVE_TRIANGLE_DROPS`] for AABB geometry: lavapipe (Mesa 25.0.7) keeps a box whose
+/// minimum X is NaN (inactive) in its BVH, and an active box before it in the same geometry becomes
+/// unreachable (`cases/build/lavapipe-inactive-aabb-drops-box.yaml`). The same relaxation: every device
+/// hit must be the cast's; rays the cast says hit may miss. Named where the structure holds an inactive
+/// AABB (and no inactive triangle) and the exact casts fail.
+pub const INACTIVE_AABB_DROPS: &str = "inactive-aabb-drops-primitives";
+
 /// The names (see [`DEVIATIONS`], joined by `|` when several fit) of the deviations that explain a valid
 /// case's ray mismatches exactly: the same rays cast on the CPU at the structure built under the
 /// deviation report precisely what the device reported. Where no deviation explains them exactly and the
 /// built structure holds an inactive triangle, the deviations (none included) that explain them up to
 /// the fewest dropped primitives are named with `+` [`INACTIVE_TRIANGLE_DROPS`] (`inactive-triangle-drops-primitives`
-/// alone for none). None when no deviation explains them, or when a CPU cast cannot decide (a ray
-/// grazing an edge, a non-triangle build).
+/// alone for none; [`INACTIVE_AABB_DROPS`] where the inactive primitive is a box). None when no
+/// deviation explains them, or when a CPU cast cannot decide (a ray grazing an edge or a box's side,
+/// two boxes entered at one t, a top-level build).
 pub fn deviation(case: &AccelBody, device_hits: &Hits) -> Option<String> {
     let info = case.call.infos.first()?;
     if device_hits.is_empty() || case.call.infos.len() != 1 || info.ty != AsType::BottomLevel {
@@ -127,7 +135,7 @@ pub fn deviation(case: &AccelBody, device_hits: &Hits) -> Option<String> {
     // Each candidate: its name and what the cast reports per ray at the structure it builds (with
     // whether that structure holds an inactive triangle). "none" is the model's own build.
     let identity: RangeRewrite = |_, r| r;
-    let candidates: Vec<(&str, Hits, bool)> = std::iter::once(("none", identity))
+    let candidates: Vec<(&str, Hits, Option<&str>)> = std::iter::once(("none", identity))
         .chain(DEVIATIONS.iter().copied())
         .filter_map(|(name, f)| {
             let alt: Vec<RangeInfo> = info
@@ -140,9 +148,23 @@ pub fn deviation(case: &AccelBody, device_hits: &Hits) -> Option<String> {
                 return None;
             }
             let alt_prims = build_primitives(&padded_mem, info, &alt).ok()?;
-            let inactive = alt_prims
-                .iter()
-                .any(|p| !p.active && matches!(p.shape, Shape::Triangle(_)));
+            let inactive_of = |aabb: bool| {
+                alt_prims.iter().any(|p| {
+                    !p.active
+                        && match p.shape {
+                            Shape::Triangle(_) => !aabb,
+                            Shape::Aabb { .. } => aabb,
+                            Shape::Instance(_) => false,
+                        }
+                })
+            };
+            let inactive = if inactive_of(false) {
+                Some(INACTIVE_TRIANGLE_DROPS)
+            } else if inactive_of(true) {
+                Some(INACTIVE_AABB_DROPS)
+            } else {
+                None
+            };
             let hits: Option<Hits> = rays.iter().map(|r| cast(&alt_prims, r.origin)).collect();
             Some((name, hits?, inactive))
         })
@@ -167,30 +189,57 @@ pub fn deviation(case: &AccelBody, device_hits: &Hits) -> Option<String> {
         }
         Some(n)
     };
-    let relaxed: Vec<(&str, usize)> = candidates
+    let relaxed: Vec<(&str, usize, &str)> = candidates
         .iter()
-        .filter(|c| c.2)
-        .filter_map(|(name, hits, _)| Some((*name, drops(hits)?)))
+        .filter_map(|(name, hits, inactive)| Some((*name, drops(hits)?, (*inactive)?)))
         .collect();
     let fewest = relaxed.iter().map(|r| r.1).min();
     let dropped: Vec<String> = relaxed
         .iter()
         .filter(|r| Some(r.1) == fewest)
-        .map(|(name, _)| match *name {
-            "none" => INACTIVE_TRIANGLE_DROPS.to_string(),
-            n => format!("{n}+{INACTIVE_TRIANGLE_DROPS}"),
+        .map(|(name, _, relaxation)| match *name {
+            "none" => relaxation.to_string(),
+            n => format!("{n}+{relaxation}"),
         })
         .collect();
     (!dropped.is_empty()).then(|| dropped.join("|"))
 }
 
-/// What a ray from `origin` along +z (t in [0, 100]) hits among triangle primitives, on the CPU; the
-/// outer None when it cannot be decided (a ray within 1e-4 of an edge, a non-triangle primitive).
+/// What a ray from `origin` along +z (t in [0, 100]) hits among triangle and AABB primitives, on the
+/// CPU; the outer None when it cannot be decided (a ray within 1e-4 of an edge or a box's side, two
+/// boxes entered at one t, an instance). A box is hit as the check's intersection shaders report it:
+/// where the ray's x and y lie in the box, at t = max(min z - origin z, 0).
 fn cast(prims: &[BuiltPrimitive], origin: [f32; 3]) -> Option<Option<(u32, u32, u32)>> {
     let mut best: Option<(f32, (u32, u32, u32))> = None;
+    let mut box_ts: Vec<f32> = Vec::new();
     for p in prims.iter().filter(|p| p.active) {
-        let Shape::Triangle(v) = &p.shape else {
-            return None;
+        let v = match &p.shape {
+            Shape::Triangle(v) => v,
+            Shape::Aabb { min, max } => {
+                let inside = |a: usize| {
+                    let (o, lo, hi) = (origin[a] as f64, min[a] as f64, max[a] as f64);
+                    if o > lo + 1e-4 && o < hi - 1e-4 {
+                        Some(true)
+                    } else if o < lo - 1e-4 || o > hi + 1e-4 {
+                        Some(false)
+                    } else {
+                        None
+                    }
+                };
+                let (in_x, in_y) = (inside(0)?, inside(1)?);
+                if in_x && in_y {
+                    let t = (min[2] - origin[2]).max(0.0);
+                    if box_ts.iter().any(|u| (u - t).abs() < 1e-4) {
+                        return None;
+                    }
+                    box_ts.push(t);
+                    if t <= 100.0 && best.is_none_or(|(bt, _)| t < bt) {
+                        best = Some((t, (0, p.geometry, p.primitive)));
+                    }
+                }
+                continue;
+            }
+            Shape::Instance(_) => return None,
         };
         let (ox, oy) = (origin[0] as f64, origin[1] as f64);
         let x = |i: usize| v[i][0] as f64;

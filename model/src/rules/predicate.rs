@@ -4,10 +4,10 @@
 use super::Context;
 use crate::call::{Call, Param, Table};
 use crate::flags::{BufferUsage, PipelineCreate, QueueFlags};
-use crate::semantics::{hit_record, record_handle};
+use crate::semantics::record_handle;
 use crate::world::{
     CommandBufferLifecycle, CommandBufferState, DeviceState, GeometryKind, HandleRef,
-    MemoryBinding, RayTarget, ShaderGroup,
+    MemoryBinding, ShaderGroup,
 };
 
 /// A number a rule compares against.
@@ -610,10 +610,8 @@ impl Predicate {
                 let Some(pl) = world.bound_pipeline() else {
                     return;
                 };
-                if !pl.allow_cluster_acceleration_structures
-                    && world.launch.instances.iter().any(|i| i.cluster)
-                {
-                    push(fail("world.launch.instances", "the scene holds a cluster acceleration structure but the pipeline does not allow them"));
+                if !pl.allow_cluster_acceleration_structures && world.launch.cluster_structures {
+                    push(fail("world.launch.cluster_structures", "the scene holds a cluster acceleration structure but the pipeline does not allow them"));
                 }
             }
             Predicate::DynamicStackSizeSet => {
@@ -670,40 +668,10 @@ pub fn reached_records(cx: &Context) -> Vec<(Table, u64)> {
     crate::semantics::records_read(cx.world, cx.call)
 }
 
-/// The hit record a ray reaches and the geometry kind it comes from, or None if it misses.
-fn hit_target(cx: &Context, ray: &crate::world::TraceRay) -> Option<(u64, GeometryKind)> {
-    let RayTarget::Geometry { instance, geometry } = ray.target else {
-        return None;
-    };
-    let inst = cx.world.launch.instances.get(instance as usize)?;
-    if inst.mask as u32 & ray.cull_mask & 0xFF == 0 {
-        return None;
-    }
-    let kind = *inst.geometries.get(geometry as usize)?;
-    Some((
-        hit_record(
-            inst.sbt_record_offset,
-            geometry,
-            ray.sbt_offset,
-            ray.sbt_stride,
-        ),
-        kind,
-    ))
-}
-
 /// The hit records the launch reaches, with the kind of geometry each is reached from.
 fn reached_hit_records(cx: &Context) -> Vec<(u64, GeometryKind)> {
     if !launches_anything(cx) {
         return vec![];
     }
-    let mut v: Vec<(u64, GeometryKind)> = cx
-        .world
-        .launch
-        .rays
-        .iter()
-        .filter_map(|r| hit_target(cx, r))
-        .collect();
-    v.sort_by_key(|(i, k)| (*i, *k as u8));
-    v.dedup();
-    v
+    crate::semantics::reached_hit_records(cx.world, cx.call)
 }

@@ -80,10 +80,11 @@ impl Default for TracerConfig {
 }
 
 /// What the any-hit shader of a hit group does (stated by the case, so any-hit semantics are judged).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum AnyHitRule {
     /// Returns: the candidate is confirmed.
+    #[default]
     Accept,
     /// `ignoreIntersectionEXT`: the candidate is dropped.
     Ignore,
@@ -94,6 +95,16 @@ pub enum AnyHitRule {
 }
 
 impl AnyHitRule {
+    /// The value of the any-hit shader's specialisation constant that selects this rule.
+    pub fn code(self) -> u32 {
+        match self {
+            AnyHitRule::Accept => 0,
+            AnyHitRule::Ignore => 1,
+            AnyHitRule::Terminate => 2,
+            AnyHitRule::IgnoreOddPrimitives => 3,
+        }
+    }
+
     /// Whether the shader confirms a candidate of primitive `primitive`.
     pub fn accepts(self, primitive: u32) -> bool {
         match self {

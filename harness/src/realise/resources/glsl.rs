@@ -199,7 +199,7 @@ fn sink(stage: Stage) -> &'static str {
             "    if (acc == 0x9E3779B9u && rays.pad1 == 0x5EEDu) { outp.words[0] = acc; }\n"
         }
         Stage::ClosestHit | Stage::Miss | Stage::AnyHit => {
-            "    if (acc == 0x9E3779B9u && payload.depth == 0x5EEDu) { payload.word = acc; }\n"
+            "    if (acc == 0x9E3779B9u && payload.depth == 0x5EEDu) { payload.outcome = acc; }\n"
         }
         Stage::Callable => "    if (acc == 0x9E3779B9u && data == 0x5EEDu) { data = acc; }\n",
         Stage::Intersection => {

@@ -1,0 +1,151 @@
+//! Rays per second of the reference tracer against lavapipe on the same scenes and rays, measured in
+//! one run: the triangle workloads of `model::tracer::workload` (a 64x64 pinhole camera each) traced
+//! as a vkCmdTraceRaysIndirectKHR launch of the hand-made case on lavapipe (structures, pipeline and
+//! shader table cached after a warm-up, so a pass is record, submit and read back the 28-word
+//! records), and by the model (`expected_launch`: the allowed outcomes of every launch ID, the
+//! prepared scene cached likewise). Each rate is the median of five passes; the ratio is the oracle's
+//! rate over lavapipe's. Also the share of ray/primitive tests that needed the exact fallback, and
+//! whether lavapipe's records pass the judgement.
+//!
+//! `cargo bench -p rtconf-harness --bench render_rays` (lavapipe through `VK_DRIVER_FILES`).
+
+use harness::{Driver, Execution, Executor, Status};
+use model::case::{Case, Intent};
+use model::tracer::workload::standard_workloads;
+use model::world::Contents;
+use std::time::Instant;
+
+/// Launch side: 64x64 launch IDs, one camera ray each.
+const SIDE: u32 = 64;
+const PASSES: usize = 5;
+
+fn hand_case() -> Case {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../cases/hand/trace-indirect-records-32.yaml");
+    let text = std::fs::read_to_string(&path).expect("the hand-made case");
+    Case::from_yaml("hand", &text).expect("the hand-made case parses")
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() {
+    let mut ctx = match Executor::new(Driver::Lavapipe) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("{e}");
+            std::process::exit(1);
+        }
+    };
+    println!(
+        "{:<24} {:>7} {:>7} {:>14} {:>14} {:>8} {:>9} {:>8}",
+        "workload", "prims", "rays", "oracle rays/s", "lvp rays/s", "ratio", "exact %", "judged"
+    );
+    let mut ratios = Vec::new();
+    for w in standard_workloads(SIDE, false) {
+        // The hand case's pipeline has one triangle hit group: the triangle workloads only.
+        let triangles = w.scene.bottom_levels.iter().all(|b| {
+            b.geometries
+                .iter()
+                .all(|g| matches!(g.data, model::scene::GeometryData::Triangles(_)))
+        });
+        if !triangles {
+            continue;
+        }
+        let mut case = hand_case();
+        case.name = format!("bench-{}", w.name);
+        let prims: usize = w
+            .scene
+            .instances
+            .iter()
+            .filter_map(|i| i.bottom_level)
+            .map(|b| {
+                w.scene.bottom_levels[b as usize]
+                    .geometries
+                    .iter()
+                    .map(|g| match &g.data {
+                        model::scene::GeometryData::Triangles(t) => t.primitive_count(),
+                        model::scene::GeometryData::Aabbs(a) => a.boxes.len(),
+                    })
+                    .sum::<usize>()
+            })
+            .sum();
+        let t = case.as_trace_mut().expect("a trace case");
+        t.world.launch.scene = w.scene.clone();
+        t.world.launch.rays = w.rays.clone();
+        for b in &mut t.world.buffers {
+            for c in &mut b.contents {
+                if let Contents::TraceRaysIndirectCommand { width, height, .. } = c {
+                    *width = SIDE;
+                    *height = SIDE;
+                }
+            }
+        }
+        let profile = harness_profile();
+        if let Err(e) = case.runnable(&profile) {
+            eprintln!("{}: not runnable: {e}", case.name);
+            std::process::exit(1);
+        }
+        let exec = Execution {
+            run_valid: case.intent == Intent::Valid,
+            ..Default::default()
+        };
+        let body = case.as_trace().expect("a trace case").clone();
+        let ids = (SIDE * SIDE) as f64;
+        // Warm-up: structures, pipeline and the prepared scene are made once.
+        let warm = ctx.execute(&case, &exec);
+        if warm.status != Status::Ran {
+            eprintln!("{}: {:?}", case.name, warm.status);
+            std::process::exit(1);
+        }
+        let expected = model::semantics::expected_launch(&body.world, &body.call)
+            .expect("the workload's outcomes");
+        let mut lvp = Vec::new();
+        let mut oracle = Vec::new();
+        let mut last = warm;
+        for _ in 0..PASSES {
+            let t = Instant::now();
+            last = ctx.execute(&case, &exec);
+            lvp.push(ids / t.elapsed().as_secs_f64());
+            let t = Instant::now();
+            let e = model::semantics::expected_launch(&body.world, &body.call);
+            oracle.push(ids / t.elapsed().as_secs_f64());
+            assert!(e.is_some());
+        }
+        let judged = match last
+            .words()
+            .map(|w| model::rendered::judge_records(&body, w))
+        {
+            Some(Ok(j)) if j.result.failures == 0 => "pass".to_string(),
+            Some(Ok(j)) => format!("{} fail", j.result.failures),
+            Some(Err(e)) => format!("error: {e}"),
+            None => "no records".into(),
+        };
+        let (o, l) = (median(oracle), median(lvp));
+        ratios.push(o / l);
+        println!(
+            "{:<24} {:>7} {:>7} {:>14.0} {:>14.0} {:>8.2} {:>9.4} {:>8}",
+            w.name,
+            prims,
+            SIDE * SIDE,
+            o,
+            l,
+            o / l,
+            100.0 * expected.stats.exact_share(),
+            judged
+        );
+    }
+    println!(
+        "oracle / lavapipe rays/s: median ratio {:.2} over {} workloads",
+        median(ratios.clone()),
+        ratios.len()
+    );
+}
+
+fn harness_profile() -> model::DeviceProfile {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../profiles/lavapipe.json");
+    let text = std::fs::read_to_string(path).expect("profiles/lavapipe.json");
+    model::DeviceProfile::from_profiles_json("lavapipe", &text).expect("a valid profile")
+}
