@@ -150,7 +150,7 @@ fn regression_inputs_are_judged_or_refused_with_a_location() {
 #[test]
 fn regression_inputs_that_are_not_valid_input_are_refused_where_they_are_wrong() {
     let refused = [
-        ("trace_case", "two-documents.yaml", "47:1"),
+        ("trace_case", "two-documents.yaml", "51:1"),
         ("build_case", "two-documents.yaml", "95:1"),
         ("triage", "two-documents.yaml", "2:1"),
     ];
