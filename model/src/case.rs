@@ -171,13 +171,13 @@ impl NotRunnable {
     }
 }
 
-/// The deepest nesting of flow collections (`[...]`, `{...}`) a YAML input may have. The YAML
-/// scanner's time grows with the square of this nesting, and no case, triage or profile file needs
-/// more than a few levels.
+/// The deepest nesting of flow collections (`[...]`, `{...}`) one line of a YAML input may have. The
+/// YAML scanner's time grows with the square of this nesting, and no case or triage file needs more
+/// than a few levels.
 pub const MAX_FLOW_NESTING: usize = 64;
 
-/// The line and column (from 1) where flow collections first nest deeper than `limit`, outside quoted
-/// scalars and comments; None when they never do.
+/// The line and column (from 1) where flow collections first nest deeper than `limit` on one line,
+/// outside quoted scalars and comments; None when they never do.
 pub fn flow_nesting_past(text: &str, limit: usize) -> Option<(usize, usize)> {
     let (mut depth, mut line, mut col) = (0usize, 1usize, 0usize);
     let (mut single, mut double, mut comment, mut escaped) = (false, false, false, false);
@@ -185,7 +185,9 @@ pub fn flow_nesting_past(text: &str, limit: usize) -> Option<(usize, usize)> {
     for c in text.chars() {
         col += 1;
         if c == '\n' {
-            (line, col, comment) = (line + 1, 0, false);
+            // Counted per line: the scanner's cost grows with the nesting on one line, and a bracket
+            // in a plain scalar of an earlier line (`bytes [61, 65)`) must not count against a later one.
+            (line, col, comment, depth) = (line + 1, 0, false, 0);
             prev = c;
             continue;
         }
@@ -225,7 +227,7 @@ pub fn parse_yaml<T: serde::de::DeserializeOwned>(path: &str, text: &str) -> Res
             location: Some(location),
             at: String::new(),
             problem: format!(
-                "flow collections ([...] or {{...}}) nested deeper than {MAX_FLOW_NESTING} levels"
+                "flow collections ([...] or {{...}}) nested deeper than {MAX_FLOW_NESTING} levels on one line"
             ),
         });
     }

@@ -290,4 +290,7 @@ fn flow_collections_nested_past_the_limit_are_refused_at_once_with_their_place()
         model::case::flow_nesting_past(&"[".repeat(limit), limit),
         None
     );
+    // An unclosed bracket of a plain scalar does not carry over to the next lines.
+    let ranges = "reason: bytes [61, 65) of a range\n".repeat(2 * limit);
+    assert_eq!(model::case::flow_nesting_past(&ranges, limit), None);
 }
