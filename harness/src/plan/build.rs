@@ -140,7 +140,8 @@ impl AddressResolver for NoAddresses {
     }
 }
 
-fn vk_index(t: IndexType) -> vk::IndexType {
+/// `VkIndexType` of an index type.
+pub(crate) fn vk_index(t: IndexType) -> vk::IndexType {
     match t {
         IndexType::None => vk::IndexType::NONE_KHR,
         IndexType::Uint8 => vk::IndexType::UINT8_EXT,
@@ -149,7 +150,8 @@ fn vk_index(t: IndexType) -> vk::IndexType {
     }
 }
 
-fn vk_format(f: VertexFormat) -> vk::Format {
+/// `VkFormat` of a vertex format.
+pub(crate) fn vk_format(f: VertexFormat) -> vk::Format {
     match f {
         VertexFormat::R32g32b32Sfloat => vk::Format::R32G32B32_SFLOAT,
         VertexFormat::R32g32Sfloat => vk::Format::R32G32_SFLOAT,

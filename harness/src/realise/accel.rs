@@ -5,7 +5,9 @@
 
 use crate::error::{vkfail, HarnessError};
 use crate::observe::TraceCheck;
-use crate::plan::build::{BuildInfoPlan, BuildPlan, GeometryDataPlan};
+use crate::plan::build::{
+    vk_format, vk_index, vk_type, BuildInfoPlan, BuildPlan, GeometryDataPlan,
+};
 use crate::vk::memory::Allocation;
 use crate::vk::{VkDevice, VkInstance};
 use ash::vk;
@@ -49,32 +51,6 @@ impl Realised {
             // SAFETY: nothing uses it (callers wait).
             unsafe { dev.device.destroy_buffer(b, None) };
         }
-    }
-}
-
-fn vk_index(t: IndexType) -> vk::IndexType {
-    match t {
-        IndexType::None => vk::IndexType::NONE_KHR,
-        IndexType::Uint8 => vk::IndexType::UINT8_EXT,
-        IndexType::Uint16 => vk::IndexType::UINT16,
-        IndexType::Uint32 => vk::IndexType::UINT32,
-    }
-}
-
-fn vk_format(f: VertexFormat) -> vk::Format {
-    match f {
-        VertexFormat::R32g32b32Sfloat => vk::Format::R32G32B32_SFLOAT,
-        VertexFormat::R32g32Sfloat => vk::Format::R32G32_SFLOAT,
-        VertexFormat::R16g16b16a16Sfloat => vk::Format::R16G16B16A16_SFLOAT,
-        VertexFormat::R16g16Sfloat => vk::Format::R16G16_SFLOAT,
-    }
-}
-
-fn vk_type(t: AsType) -> vk::AccelerationStructureTypeKHR {
-    match t {
-        AsType::TopLevel => vk::AccelerationStructureTypeKHR::TOP_LEVEL,
-        AsType::BottomLevel => vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL,
-        AsType::Generic => vk::AccelerationStructureTypeKHR::GENERIC,
     }
 }
 
