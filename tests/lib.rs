@@ -50,3 +50,19 @@ pub fn profile_names() -> Vec<String> {
     v.sort();
     v
 }
+
+/// The 1.4.309 registry from trixie (`target/registry/1.4.309`), fetched with
+/// scripts/fetch-registry.sh when missing.
+pub fn registry_1_4_309() -> PathBuf {
+    let dest = repo().join("target/registry/1.4.309");
+    let reg = dest.join("usr/share/vulkan/registry");
+    if !reg.join("validusage.json").exists() {
+        let status = std::process::Command::new("bash")
+            .arg(repo().join("scripts/fetch-registry.sh"))
+            .arg(&dest)
+            .status()
+            .expect("running scripts/fetch-registry.sh");
+        assert!(status.success(), "scripts/fetch-registry.sh failed");
+    }
+    reg
+}

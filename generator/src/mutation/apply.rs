@@ -424,9 +424,15 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
                 CommandBufferLifecycle::Initial,
                 CommandBufferLifecycle::Invalid,
             ][knob as usize % 3];
-            // Nothing is bound in a command buffer that was never begun: the pipeline rule fires too.
+            // Nothing is bound in a command buffer that was never begun: the pipeline rule fires too,
+            // 08607 where shaderObject is enabled, 08606 (02700 in older registries) where it is not.
             if plan.command_buffer.lifecycle == CommandBufferLifecycle::Initial {
-                for tag in ["02700", "08606", "08607"] {
+                let tags: &[&str] = if plan.device.features.contains("shaderObject") {
+                    &["08607"]
+                } else {
+                    &["02700", "08606"]
+                };
+                for tag in tags {
                     also.extend(registry_vuid(input.rules, cmd.vk_name(), tag));
                 }
             }
