@@ -16,12 +16,14 @@
 #       build   vkCmdBuildAccelerationStructuresIndirectKHR, layer 1.3.239
 #       render  valid cases only, --valid-count per command (rendered scenes judged by the tracer), 1.3.239
 #       trace-1.4.309, build-1.4.309   the same under trixie's 1.4.309 layer and its own registry
+#       findings  the driver findings kept under cases/nvidia-h200/ (and their reduced variants), 3 tries each
 #       stress  rtconf stress (the numerical stress families), when the binary has that command
 #     Default: every phase, in that order. Each phase writes DIR/PHASE/ (the run folder) and DIR/PHASE.log;
 #     a phase that fails or runs past --phase-timeout is recorded with its exit status and the next one
 #     runs. DIR/README.md gets one row per phase: the command, the exit status, the counts from
 #     summary.json. --tar packs DIR into one file (for machines that hand back few files).
 #
+# The run phases take baselines/nvidia-h200.csv: the known driver findings are expected crashes there.
 # The commit is the checkout's (git rev-parse HEAD) unless --commit names it (a copy without .git).
 set -uo pipefail
 
@@ -29,7 +31,7 @@ repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$repo_root"
 
 out="" count=4 valid_count=100 commit="" tar_file="" phase_timeout=300
-phases="probe trace build render trace-1.4.309 build-1.4.309 stress"
+phases="probe trace build render trace-1.4.309 build-1.4.309 findings stress"
 prepare=0
 while [[ $# -gt 0 ]]; do
     case "$1" in
@@ -41,7 +43,7 @@ while [[ $# -gt 0 ]]; do
         --phases) phases=$2; shift 2 ;;
         --phase-timeout) phase_timeout=$2; shift 2 ;;
         --tar) tar_file=$2; shift 2 ;;
-        -h|--help) sed -n '2,29p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        -h|--help) sed -n '2,31p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "nvidia-full-run: unknown argument $1 (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -108,7 +110,8 @@ phase() {
     tail -5 "$out/$name.log" >&2
 }
 
-run_args=(--driver nvidia --profile "$profile" --jobs "$(nproc 2>/dev/null || echo 4)")
+run_args=(--driver nvidia --profile "$profile" --jobs "$(nproc 2>/dev/null || echo 4)"
+          --baseline baselines/nvidia-h200.csv)
 for p in $phases; do
     case "$p" in
         probe)
@@ -125,6 +128,12 @@ for p in $phases; do
         build-1.4.309)
             phase build-1.4.309 1.4.309 run "${run_args[@]}" --command vkCmdBuildAccelerationStructuresIndirectKHR \
                 --count "$count" --out "$out/build-1.4.309"
+            ;;
+        findings)
+            # The kept driver findings and their reduced variants (cases/nvidia-h200/), each run three
+            # times: a finding that does not repeat shows as a flake.
+            phase findings 1.3.239 run --driver nvidia --profile "$profile" --jobs 1 --retries 2 \
+                --cases cases/nvidia-h200 --out "$out/findings"
             ;;
         stress)
             if "$bin" help stress >/dev/null 2>&1; then
