@@ -43,7 +43,7 @@ while [[ $# -gt 0 ]]; do
         --phases) phases=$2; shift 2 ;;
         --phase-timeout) phase_timeout=$2; shift 2 ;;
         --tar) tar_file=$2; shift 2 ;;
-        -h|--help) sed -n '2,31p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        -h|--help) sed -n '2,27p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "nvidia-full-run: unknown argument $1 (see --help)" >&2; exit 2 ;;
     esac
 done
