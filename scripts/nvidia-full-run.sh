@@ -89,7 +89,8 @@ row() {
 import json, sys
 s = json.load(open(sys.argv[1]))
 keys = ["cases", "passed", "triaged", "unsupported", "not_realised", "failed", "crashes", "timeouts", "case_errors"]
-stale = len((s.get("triage") or {}).get("stale") or [])
+t = s.get("triage") or {}
+stale = len(t.get("stale") or []) if t.get("stale_judged") else "partial run"
 print("| " + " | ".join(str(s.get(k, "")) for k in keys) + f" | {stale} |")
 PY
 )

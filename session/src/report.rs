@@ -34,8 +34,13 @@ pub struct TriageUse {
     pub entries: usize,
     /// Per entry id, the disagreements it explained.
     pub used: BTreeMap<String, usize>,
-    /// Entries about a command whose cases ran that explained nothing.
+    /// Entries about a command whose cases ran that explained nothing, although cases with their VUIDs
+    /// ran.
     pub stale: Vec<String>,
+    /// Entries about a command whose cases ran that explained nothing because no case that ran
+    /// involved their VUIDs (the profile cannot express them, or their cases were not realised).
+    #[serde(default)]
+    pub unexercised: Vec<String>,
     /// Whether the stale list is a verdict: only a run of every spec of its commands can say an entry
     /// is not needed (a `--vuid` or `--valid-only` run leaves most entries unexercised).
     pub stale_judged: bool,
@@ -232,6 +237,7 @@ pub(crate) fn judge_triage(
     full: bool,
 ) -> Result<(), SessionError> {
     let mut ran: BTreeSet<CommandId> = BTreeSet::new();
+    let mut exercised: BTreeSet<String> = BTreeSet::new();
     for line in read_lines(path)? {
         let r = &line.report;
         if !matches!(
@@ -243,12 +249,16 @@ pub(crate) fn judge_triage(
                 | Outcome::CaseError
         ) {
             ran.insert(r.command);
+            exercised.extend(r.target.iter().cloned());
+            exercised.extend(r.model.iter().cloned());
+            exercised.extend(r.layer.iter().cloned());
         }
     }
     s.triage.files = triage.files.clone();
     s.triage.entries = triage.entries.len();
     let used: BTreeSet<String> = s.triage.used.keys().cloned().collect();
-    s.triage.stale = crate::triage::stale(triage, &used, &ran);
+    s.triage.stale = crate::triage::stale(triage, &used, &ran, &exercised);
+    s.triage.unexercised = crate::triage::unexercised(triage, &used, &ran, &exercised);
     s.triage.stale_judged = full;
     Ok(())
 }

@@ -17,7 +17,9 @@ fn check(rules: &RuleSet, registry: &str) -> usize {
             let spec = CaseSpec::for_vuid(&vuid, command);
             let cases = generate(&profile, &name, rules, &spec, 24, 7).expect("generated");
             for case in cases {
-                let Some(trace) = case.as_trace() else { continue };
+                let Some(trace) = case.as_trace() else {
+                    continue;
+                };
                 let expected: BTreeSet<String> = case.expected_vuids().into_iter().collect();
                 let got: BTreeSet<String> = rules
                     .judge(&profile, &case.body)
@@ -29,7 +31,8 @@ fn check(rules: &RuleSet, registry: &str) -> usize {
                 if trace.world.command_buffer.lifecycle == CommandBufferLifecycle::Initial {
                     initial += 1;
                     assert!(
-                        got.iter().any(|v| v.ends_with("-02700") || v.ends_with("-08606")),
+                        got.iter()
+                            .any(|v| v.ends_with("-02700") || v.ends_with("-08606")),
                         "{registry} {name} {}: {got:?}",
                         case.name
                     );
@@ -46,5 +49,8 @@ fn recording_cases_declare_exactly_what_the_model_reports() {
     let set = vk_registry::source::load_vuids(&rtconf_tests::registry_1_4_309())
         .expect("the 1.4.309 registry");
     let newer = check(&RuleSet::from_vuids(&set), "1.4.309");
-    assert!(installed > 0 && newer > 0, "{installed} / {newer} never-begun cases");
+    assert!(
+        installed > 0 && newer > 0,
+        "{installed} / {newer} never-begun cases"
+    );
 }

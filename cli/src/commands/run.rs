@@ -382,36 +382,41 @@ fn print_triage(s: &Summary, strict: bool) {
         }
     }
     let t = &s.triage;
+    if !t.stale_judged {
+        println!(
+            "triage: {} of {} entries not exercised by this partial run (stale only in a whole run)",
+            t.stale.len() + t.unexercised.len(),
+            t.entries
+        );
+        println!();
+        return;
+    }
     if t.stale.is_empty() {
         println!(
             "triage: {} entries in {} file(s), none stale",
             t.entries,
             t.files.len()
         );
-        println!();
-        return;
-    }
-    if !t.stale_judged {
+    } else {
+        let what = if strict {
+            "STALE (an error under --strict)"
+        } else {
+            "stale"
+        };
         println!(
-            "triage: {} of {} entries not exercised by this partial run (stale only in a whole run)",
+            "triage: {} of {} entries explained nothing although cases with their VUIDs ran, {what}:",
             t.stale.len(),
             t.entries
         );
-        println!();
-        return;
+        for id in &t.stale {
+            println!("  {id}");
+        }
     }
-    let what = if strict {
-        "STALE (an error under --strict)"
-    } else {
-        "stale"
-    };
-    println!(
-        "triage: {} of {} entries explained nothing, {what}:",
-        t.stale.len(),
-        t.entries
-    );
-    for id in &t.stale {
-        println!("  {id}");
+    if !t.unexercised.is_empty() {
+        println!(
+            "triage: {} entries not exercised: no case that ran involved their VUIDs (summary.json lists them)",
+            t.unexercised.len()
+        );
     }
     println!();
 }

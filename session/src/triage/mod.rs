@@ -8,7 +8,7 @@
 mod explain;
 mod pattern;
 
-pub use explain::{stale, CaseFacts, Explanation, TriageMatch, Unexplained};
+pub use explain::{stale, unexercised, CaseFacts, Explanation, TriageMatch, Unexplained};
 pub use pattern::Pattern;
 
 use crate::error::SessionError;
@@ -37,6 +37,17 @@ impl Observed {
             Observed::LayerExtra(_) => "layer-extra",
             Observed::LayerRenames { .. } => "layer-renames",
             Observed::Output(_) => "output",
+        }
+    }
+
+    /// Whether a case of the run involved what the entry speaks of: one of its VUID patterns matches
+    /// a VUID of `exercised`. Always true for `output` entries (their keys are deviations, not VUIDs).
+    pub fn touches(&self, exercised: &BTreeSet<String>) -> bool {
+        let any = |p: &Pattern| exercised.iter().any(|v| p.matches(v));
+        match self {
+            Observed::LayerSilent(p) | Observed::LayerExtra(p) => any(p),
+            Observed::LayerRenames { model, layer } => any(model) || any(layer),
+            Observed::Output(_) => true,
         }
     }
 

@@ -265,12 +265,13 @@ fn entries_no_case_used_are_stale_for_the_commands_that_ran() {
     let t = triage(&yaml);
     let ran: BTreeSet<CommandId> = [CommandId::TraceRaysIndirect].into();
     let none = BTreeSet::new();
+    let exercised: BTreeSet<String> = [V.to_string()].into();
     assert_eq!(
-        stale(&t, &none, &ran),
+        stale(&t, &none, &ran, &exercised),
         vec![format!("test.yaml: layer-silent {V}")]
     );
     let used: BTreeSet<String> = [t.entries[0].id()].into();
-    assert!(stale(&t, &used, &ran).is_empty());
+    assert!(stale(&t, &used, &ran, &exercised).is_empty());
     assert_eq!(t.entries[1].commands, [CommandId::TraceRaysNv].into());
 }
 
@@ -339,4 +340,21 @@ fn a_rename_pairs_with_an_id_outside_the_modelled_scopes() {
     };
     assert_eq!(facts(&other).matched.len(), 1);
     assert_eq!(facts(&[]).unexplained.len(), 1, "the layer said nothing");
+}
+
+#[test]
+fn an_entry_whose_vuids_no_case_involved_is_unexercised_not_stale() {
+    let t = triage(&entry(&format!("layer-silent: {V}"), "layer-gap"));
+    let ran: BTreeSet<CommandId> = [CommandId::TraceRaysIndirect].into();
+    let none = BTreeSet::new();
+    let other: BTreeSet<String> = ["VUID-vkCmdTraceRaysIndirectKHR-None-02697".to_string()].into();
+    assert!(stale(&t, &none, &ran, &other).is_empty());
+    assert_eq!(
+        unexercised(&t, &none, &ran, &other),
+        vec![format!("test.yaml: layer-silent {V}")]
+    );
+    // Once a case with its VUID ran, the same entry explaining nothing is stale.
+    let with_v: BTreeSet<String> = [V.to_string()].into();
+    assert_eq!(stale(&t, &none, &ran, &with_v).len(), 1);
+    assert!(unexercised(&t, &none, &ran, &with_v).is_empty());
 }
