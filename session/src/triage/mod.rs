@@ -40,13 +40,14 @@ impl Observed {
         }
     }
 
-    /// Whether a case of the run involved what the entry speaks of: one of its VUID patterns matches
-    /// a VUID of `exercised`. Always true for `output` entries (their keys are deviations, not VUIDs).
+    /// Whether a case of the run involved what the entry speaks of: its VUID pattern (for a rename,
+    /// the model's) matches a VUID of `exercised`. Always true for `output` entries (their keys are deviations, not VUIDs).
     pub fn touches(&self, exercised: &BTreeSet<String>) -> bool {
         let any = |p: &Pattern| exercised.iter().any(|v| p.matches(v));
         match self {
             Observed::LayerSilent(p) | Observed::LayerExtra(p) => any(p),
-            Observed::LayerRenames { model, layer } => any(model) || any(layer),
+            // The situation is a case on the model's VUID; the layer's VUID alone is another case.
+            Observed::LayerRenames { model, .. } => any(model),
             Observed::Output(_) => true,
         }
     }
