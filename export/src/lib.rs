@@ -7,6 +7,7 @@
 
 mod build;
 mod c;
+mod records;
 mod trace;
 
 use c::Emitter;
@@ -22,8 +23,8 @@ pub struct Expectation {
     pub model_vuids: Vec<String>,
     /// Each violation as `VUID at path: problem`, for the reader.
     pub violations: Vec<String>,
-    /// The words a valid launch writes (trace cases run as valid).
-    pub expected_words: Option<Vec<u32>>,
+    /// What the model allows each ray of a valid launch (trace cases run as valid and read back).
+    pub launch: Option<model::semantics::ExpectedLaunch>,
     /// How the case came about (its intent, seed, file), for the program's header.
     pub about: Vec<String>,
 }

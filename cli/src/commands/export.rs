@@ -1,13 +1,20 @@
 //! `rtconf export CASE.yaml --out DIR`: the case as a standalone C program (`DIR/repro.c`) for a bug
 //! report, and the one-line command that builds it.
+//!
+//! A trace case's program builds its scene (bottom and top levels from the plan's bytes), pipeline
+//! (SPIR-V embedded) and shader binding tables and records the plan's steps: an invalid case's call
+//! under the validation layer, which drops it (it prints the layer's VUIDs beside the model's and
+//! exits 0 when they agree); a valid one submitted, its ray records read back and judged per launch
+//! ID against the model's expectation embedded as tables (exit 1 on a REQ violation; `./repro
+//! --records FILE` also writes the records). A build case records its build under the layer.
 
 use clap::Args;
 use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct ExportArgs {
-    /// The case file (YAML): a build case (a trace case is refused with exit 2: the call plan does not
-    /// yet describe rendered scenes).
+    /// The case file (YAML) of a trace or build case. Refused with exit 2 and the reason: cases with a
+    /// resource state, sparse or partly bound buffers, and vkCmdTraceRaysNV cases.
     case: PathBuf,
     /// The folder repro.c goes to.
     #[arg(long)]
@@ -30,7 +37,7 @@ pub fn run(a: ExportArgs) -> super::Exit {
     println!(
         "run:   ./repro   ({})",
         if exported.run_valid {
-            "runs the call for real and compares its output with the model's"
+            "runs the call for real and judges its records per launch ID against the model's; --records FILE writes them"
         } else {
             "records the call under the validation layer, which drops it, and prints the VUIDs reported"
         }
