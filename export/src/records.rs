@@ -80,7 +80,10 @@ pub(crate) fn tables(e: &mut Emitter, launch: &ExpectedLaunch) {
         for g in &a.watertight {
             groups.push(format!("{{{}, {}}}", members.len(), g.members.len()));
             for m in &g.members {
-                members.push(format!("{{{}, {}, {}}}", m.instance, m.geometry, m.primitive));
+                members.push(format!(
+                    "{{{}, {}, {}}}",
+                    m.instance, m.geometry, m.primitive
+                ));
             }
         }
         let max = |m: Option<u32>| m.map_or("UNBOUNDED".to_string(), |v| v.to_string());
@@ -102,7 +105,9 @@ pub(crate) fn tables(e: &mut Emitter, launch: &ExpectedLaunch) {
             a.watertight.len()
         ));
     }
-    e.line("/* What the model allows each distinct ray (model::semantics::expected_launch), judged as");
+    e.line(
+        "/* What the model allows each distinct ray (model::semantics::expected_launch), judged as",
+    );
     e.line(" * model::tracer::judge judges: launch ID i traces ray i % ray_rule_count. */");
     let table = |e: &mut Emitter, ty: &str, name: &str, rows: &[String], empty: &str| {
         e.line(&format!(

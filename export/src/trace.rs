@@ -68,8 +68,10 @@ pub(crate) fn emit(
     }
     c::bytes(e, "rays_bytes", &t.io.rays);
     c::bytes(e, "callables_bytes", &t.io.callables);
-    e.line("/* The record every launch ID starts from (outcome NOT_RUN, group none, slots none). */");
-    c::words(e, "record_prefill", &RayRecord::PREFILL);
+    if t.io.fill_output {
+        e.line("/* The record every launch ID starts from (outcome NOT_RUN, group none, slots none). */");
+        c::words(e, "record_prefill", &RayRecord::PREFILL);
+    }
     match &t.scene {
         Some(s) => {
             c::bytes(e, "scene_input", &s.input);
@@ -395,7 +397,10 @@ fn scene(e: &mut Emitter, t: &TracePlan) {
             .iter()
             .map(|g| g.primitive_count.to_string())
             .collect();
-        e.line(&format!("uint32_t counts[{n}] = {{{}}};", counts.join(", ")));
+        e.line(&format!(
+            "uint32_t counts[{n}] = {{{}}};",
+            counts.join(", ")
+        ));
         for (j, g) in bl.geometries.iter().enumerate() {
             e.line(&format!(
                 "g[{j}].sType = VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_KHR; g[{j}].flags = {};",
@@ -408,7 +413,9 @@ fn scene(e: &mut Emitter, t: &TracePlan) {
                     indices,
                     transform,
                 } => {
-                    e.line(&format!("g[{j}].geometryType = VK_GEOMETRY_TYPE_TRIANGLES_KHR;"));
+                    e.line(&format!(
+                        "g[{j}].geometryType = VK_GEOMETRY_TYPE_TRIANGLES_KHR;"
+                    ));
                     e.line(&format!("g[{j}].geometry.triangles.sType = VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_TRIANGLES_DATA_KHR;"));
                     e.line(&format!(
                         "g[{j}].geometry.triangles.vertexFormat = VK_FORMAT_R32G32B32_SFLOAT;"
@@ -432,7 +439,9 @@ fn scene(e: &mut Emitter, t: &TracePlan) {
                     }
                 }
                 GeometryDataPlan::Aabbs { boxes, .. } => {
-                    e.line(&format!("g[{j}].geometryType = VK_GEOMETRY_TYPE_AABBS_KHR;"));
+                    e.line(&format!(
+                        "g[{j}].geometryType = VK_GEOMETRY_TYPE_AABBS_KHR;"
+                    ));
                     e.line(&format!("g[{j}].geometry.aabbs.sType = VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_AABBS_DATA_KHR;"));
                     e.line(&format!(
                         "g[{j}].geometry.aabbs.data.deviceAddress = input.address + {boxes}; g[{j}].geometry.aabbs.stride = {AABB_STRIDE};"
@@ -486,9 +495,13 @@ fn scene(e: &mut Emitter, t: &TracePlan) {
     ));
     e.line("uint8_t records[sizeof instance_records];");
     e.line("memcpy(records, instance_records, sizeof records);");
-    e.line(&format!(
-        "for (int i = 0; i < {n}; i++) if (instance_bottom[i] >= 0) memcpy(records + 64 * i + 56, &bottom_addresses[instance_bottom[i]], 8);"
-    ));
+    if n > 0 {
+        e.line(&format!(
+            "for (int i = 0; i < {n}; i++) if (instance_bottom[i] >= 0) memcpy(records + 64 * i + 56, &bottom_addresses[instance_bottom[i]], 8);"
+        ));
+    } else {
+        e.line("(void)instance_bottom;");
+    }
     e.line("struct buffer instances = make_buffer(sizeof records, build_input, 0, 256);");
     e.line("write_bytes(&instances, 0, records, sizeof records);");
     e.line("memory_barrier(primary, VK_PIPELINE_STAGE_ACCELERATION_STRUCTURE_BUILD_BIT_KHR, VK_ACCESS_ACCELERATION_STRUCTURE_WRITE_BIT_KHR,");

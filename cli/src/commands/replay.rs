@@ -79,12 +79,16 @@ pub fn run(a: ReplayArgs) -> super::Exit {
     let replayed = session::replay(&case, &config)?;
     let r = &replayed.ran;
     if let Some(path) = &a.records {
-        let words = r.observation.as_ref().and_then(|o| o.words()).ok_or_else(|| {
-            session::SessionError::Usage(format!(
-                "--records: {} read no ray records back (only a trace case run as valid does)",
-                r.case.name
-            ))
-        })?;
+        let words = r
+            .observation
+            .as_ref()
+            .and_then(|o| o.words())
+            .ok_or_else(|| {
+                session::SessionError::Usage(format!(
+                    "--records: {} read no ray records back (only a trace case run as valid does)",
+                    r.case.name
+                ))
+            })?;
         let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
         std::fs::write(path, bytes)
             .map_err(|e| session::SessionError::io(path.display().to_string(), e))?;

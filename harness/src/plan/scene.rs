@@ -220,7 +220,10 @@ impl ScenePlan {
                             boxes: at(
                                 &mut input,
                                 &f32s(
-                                    &mut a.boxes.iter().flat_map(|b| b.min.into_iter().chain(b.max)),
+                                    &mut a
+                                        .boxes
+                                        .iter()
+                                        .flat_map(|b| b.min.into_iter().chain(b.max)),
                                 ),
                             ),
                             count: a.boxes.len() as u32,
@@ -285,7 +288,8 @@ pub fn instance_record(i: &InstancePlan, reference: u64) -> [u8; INSTANCE_SIZE] 
     for (k, v) in i.transform.iter().enumerate() {
         b[k * 4..k * 4 + 4].copy_from_slice(&v.to_le_bytes());
     }
-    b[48..52].copy_from_slice(&((i.custom_index & 0xFF_FFFF) | (i.mask as u32) << 24).to_le_bytes());
+    b[48..52]
+        .copy_from_slice(&((i.custom_index & 0xFF_FFFF) | (i.mask as u32) << 24).to_le_bytes());
     b[52..56].copy_from_slice(
         &((i.sbt_record_offset & 0xFF_FFFF) | (i.flags as u32) << 24).to_le_bytes(),
     );

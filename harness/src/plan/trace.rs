@@ -6,10 +6,10 @@
 
 use super::pipeline::PipelinePlan;
 use super::scene::ScenePlan;
+use super::Barrier;
 use super::{step_text, Step};
 use crate::error::HarnessError;
 use ash::vk;
-use super::Barrier;
 use model::call::{Address, Call, NvTable, StridedRegion};
 use model::flags::QueueFlags;
 use model::tracer::record::RayRecord;
@@ -237,11 +237,17 @@ fn describe_scene(s: &ScenePlan, out: &mut Vec<String>) {
         "vkCreateBuffer scene input ({} bytes), instances ({} records of 64 bytes){}",
         s.input.len(),
         s.instances.len(),
-        if khr { "; vkCreateAccelerationStructureKHR per structure" } else { "; vkCreateAccelerationStructureNV per structure" }
+        if khr {
+            "; vkCreateAccelerationStructureKHR per structure"
+        } else {
+            "; vkCreateAccelerationStructureNV per structure"
+        }
     ));
     for (b, bl) in s.bottoms.iter().enumerate() {
         if !bl.built() {
-            out.push(format!("  bottom level {b}: no geometries, not built (referenced as 0)"));
+            out.push(format!(
+                "  bottom level {b}: no geometries, not built (referenced as 0)"
+            ));
             continue;
         }
         let geoms: Vec<String> = bl
@@ -270,7 +276,11 @@ fn describe_scene(s: &ScenePlan, out: &mut Vec<String>) {
                             Some((_, _, bits)) => format!(", u{bits} indices"),
                             None => String::new(),
                         },
-                        if transform.is_some() { ", 3x4 transform" } else { "" },
+                        if transform.is_some() {
+                            ", 3x4 transform"
+                        } else {
+                            ""
+                        },
                     ),
                     GeometryDataPlan::Aabbs { .. } => format!("{} AABBs{flags}", g.primitive_count),
                 }
@@ -294,7 +304,12 @@ fn ray_bytes(world: &World, capacity: usize) -> Vec<u8> {
         vec![]
     };
     let mut bytes: Vec<u8> = Vec::with_capacity(16 + rays.len() * RAY_RECORD_SIZE);
-    for v in [rays.len() as u32, capacity as u32, launch.extra_recursion, 0] {
+    for v in [
+        rays.len() as u32,
+        capacity as u32,
+        launch.extra_recursion,
+        0,
+    ] {
         bytes.extend_from_slice(&v.to_le_bytes());
     }
     for r in &rays {
@@ -346,7 +361,11 @@ impl TracePlan {
         let launch_ids = case
             .call
             .dimensions(world)
-            .map(|d| d.iter().map(|&x| x as usize).fold(1usize, usize::saturating_mul))
+            .map(|d| {
+                d.iter()
+                    .map(|&x| x as usize)
+                    .fold(1usize, usize::saturating_mul)
+            })
             .unwrap_or(0);
         if run_valid && launch_ids.saturating_mul(RayRecord::WORDS) > MAX_OUTPUT_WORDS {
             return Err(HarnessError::NotRealised(format!(

@@ -8,11 +8,11 @@
 
 use super::DeviceCache;
 use crate::error::{vkfail, HarnessError};
+use crate::plan::scene::{GeometryDataPlan, InstancePlan, ScenePlan, AABB_STRIDE, VERTEX_STRIDE};
 use crate::vk::commands::{begin_one_time, memory_barrier};
 use crate::vk::memory::Allocation;
 use crate::vk::VkDevice;
 use ash::vk;
-use crate::plan::scene::{GeometryDataPlan, InstancePlan, ScenePlan, AABB_STRIDE, VERTEX_STRIDE};
 use model::scene::SceneInstance;
 use model::world::PipelineApi;
 
