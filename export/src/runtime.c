@@ -93,6 +93,11 @@ HELPER const char *version_text(uint32_t v) {
 /* Creates the instance (with the validation layer and a messenger when it is installed; `need_layer`:
  * the case cannot be judged without it), picks the first device and prints what runs the case. */
 HELPER void start(int need_layer) {
+    const uint32_t one = 1;
+    if (*(const uint8_t *)&one != 1) {
+        fprintf(stderr, "rtconf reproducer: the embedded data is little-endian; this host is not\n");
+        exit(2);
+    }
     uint32_t n = 0;
     vkEnumerateInstanceLayerProperties(&n, NULL);
     VkLayerProperties *layers = calloc(n ? n : 1, sizeof *layers);

@@ -66,7 +66,7 @@ pub(crate) fn emit(
             }
         }
     }
-    c::bytes(e, "rays_bytes", &t.io.rays);
+    c::le_words(e, "rays_bytes", &t.io.rays);
     c::bytes(e, "callables_bytes", &t.io.callables);
     if t.io.fill_output {
         e.line("/* The record every launch ID starts from (outcome NOT_RUN, group none, slots none). */");
@@ -74,7 +74,7 @@ pub(crate) fn emit(
     }
     match &t.scene {
         Some(s) => {
-            c::bytes(e, "scene_input", &s.input);
+            c::le_words(e, "scene_input", &s.input);
             c::bytes(e, "instance_records", &s.instance_bytes(&|_| 0));
             c::words(e, "sphere_words", &s.spheres);
         }
