@@ -284,6 +284,130 @@ fn rendered_trace_cases_run_as_c_and_their_records_are_replays() {
     );
 }
 
+/// The launch IDs the program's judge printed a failure for.
+fn failing_ids(stdout: &str) -> BTreeSet<usize> {
+    stdout
+        .lines()
+        .filter_map(|l| l.strip_prefix("  launch ID "))
+        .filter_map(|l| l.split([' ', ':']).next()?.parse().ok())
+        .collect()
+}
+
+#[test]
+fn the_programs_judge_is_the_models_on_doctored_records() {
+    let dir = fresh_dir("export-c-judge");
+    let cases = rendered_cases(CommandId::TraceRays, 11, 4096, &dir.join("cases"));
+    let mut judged = 0;
+    for case in &cases {
+        let name = case.file_stem().unwrap().to_str().unwrap().to_string();
+        let records = dir.join(format!("{name}.bin"));
+        let r = replay(case, Some(&records));
+        if r["outcome"] != "pass" {
+            continue;
+        }
+        let good = words(&records);
+        let hits: Vec<usize> = (0..good.len() / 28)
+            .filter(|&i| good[i * 28] == 2)
+            .collect();
+        let misses: Vec<usize> = (0..good.len() / 28)
+            .filter(|&i| good[i * 28] == 1)
+            .collect();
+        let (Some(&hit), Some(&miss)) = (hits.first(), misses.first()) else {
+            continue;
+        };
+        let out = dir.join(&name);
+        export_build(case, &out);
+        let yaml = std::fs::read_to_string(case).unwrap();
+        let model_case = model::Case::read(&name, &yaml).unwrap();
+        let body = model_case.as_trace().unwrap();
+        let bump = |w: u32, by: f32| (f32::from_bits(w) * by).to_bits();
+        type Edit = (&'static str, usize, Box<dyn Fn(&mut [u32])>);
+        let edits: Vec<Edit> = vec![
+            ("as recorded", hit, Box::new(|_: &mut [u32]| {})),
+            ("not run", hit, Box::new(|w: &mut [u32]| w[0] = 0xFFFF_FFFF)),
+            ("another instance", hit, Box::new(|w: &mut [u32]| w[2] += 1)),
+            (
+                "another primitive",
+                hit,
+                Box::new(|w: &mut [u32]| w[5] += 7),
+            ),
+            ("custom index", hit, Box::new(|w: &mut [u32]| w[3] ^= 1)),
+            ("hit group", hit, Box::new(|w: &mut [u32]| w[1] += 1)),
+            ("hit kind", hit, Box::new(|w: &mut [u32]| w[6] ^= 1)),
+            (
+                "t far off",
+                hit,
+                Box::new(move |w: &mut [u32]| w[7] = bump(w[7], 1.5)),
+            ),
+            ("t one ulp", hit, Box::new(|w: &mut [u32]| w[7] += 1)),
+            (
+                "barycentric",
+                hit,
+                Box::new(move |w: &mut [u32]| w[8] = (f32::from_bits(w[8]) + 0.25).to_bits()),
+            ),
+            ("any-hit count", hit, Box::new(|w: &mut [u32]| w[10] = 1000)),
+            ("miss group", miss, Box::new(|w: &mut [u32]| w[1] += 1)),
+            (
+                "miss as no shader",
+                miss,
+                Box::new(|w: &mut [u32]| w[0] = 3),
+            ),
+            ("miss as a hit", miss, Box::new(|w: &mut [u32]| w[0] = 2)),
+            ("no outcome", miss, Box::new(|w: &mut [u32]| w[0] = 7)),
+        ];
+        let mut differing = 0;
+        for (what, id, edit) in &edits {
+            let mut w = good.clone();
+            edit(&mut w[id * 28..id * 28 + 28]);
+            let file = out.join("doctored.bin");
+            let bytes: Vec<u8> = w.iter().flat_map(|x| x.to_le_bytes()).collect();
+            std::fs::write(&file, bytes).unwrap();
+            let run = Command::new(out.join("repro"))
+                .args(["--judge", "doctored.bin"])
+                .current_dir(&out)
+                .output()
+                .unwrap();
+            let stdout = String::from_utf8_lossy(&run.stdout).into_owned();
+            let model_fails: BTreeSet<usize> = model::rendered::judge_records(body, &w)
+                .unwrap()
+                .ids
+                .iter()
+                .enumerate()
+                .filter(|(_, j)| matches!(j.verdict, model::tracer::judge::RayVerdict::Fail(_)))
+                .map(|(i, _)| i)
+                .collect();
+            assert_eq!(
+                failing_ids(&stdout),
+                model_fails,
+                "{name}: {what} at launch ID {id}\n{stdout}"
+            );
+            assert_eq!(
+                run.status.code(),
+                Some(if model_fails.is_empty() { 0 } else { 1 }),
+                "{name}: {what}\n{stdout}"
+            );
+            differing += !model_fails.is_empty() as usize;
+        }
+        assert!(differing >= 10, "{name}: {differing} edits the model fails");
+        // A file that is not this launch's records.
+        std::fs::write(out.join("short.bin"), [0u8; 12]).unwrap();
+        let run = Command::new(out.join("repro"))
+            .args(["--judge", "short.bin"])
+            .current_dir(&out)
+            .output()
+            .unwrap();
+        assert_eq!(run.status.code(), Some(2), "{}", text(&run));
+        judged += 1;
+        if judged == 2 {
+            break;
+        }
+    }
+    assert!(
+        judged >= 1,
+        "a rendered case with hits and misses to doctor"
+    );
+}
+
 #[test]
 fn invalid_and_build_cases_report_the_layers_vuids_as_replay_does() {
     let dir = fresh_dir("export-c");
@@ -375,7 +499,7 @@ fn the_nvidia_device_lost_cases_export_to_c_that_compiles() {
         let out = dir.join(name);
         export_build(&case, &out);
         let source = std::fs::read_to_string(out.join("repro.c")).unwrap();
-        assert!(source.contains("judge_records(&rules"), "{name}");
+        assert!(source.contains("judge_records(&launch_rules"), "{name}");
         assert!(
             source.contains("pvkCmdBuildAccelerationStructuresKHR(primary"),
             "{name}"

@@ -128,7 +128,7 @@ pub(crate) fn tables(e: &mut Emitter, launch: &ExpectedLaunch) {
     table(e, "watertight_rule", "watertight_rules", &groups, "{0}");
     table(e, "primitive_ref", "watertight_members", &members, "{0}");
     e.line(&format!(
-        "static const uint32_t ray_rule_count = {};",
+        "static const struct launch_rules launch_rules = {{ray_rules, {}, candidate_rules, report_rules, watertight_rules, watertight_members}};",
         rules.len()
     ));
 }

@@ -730,6 +730,39 @@ HELPER uint64_t judge_records(const struct launch_rules *l, const uint32_t *word
     return failed;
 }
 
+/* Judges the records in `path` (little-endian words, RECORD_WORDS per launch ID, as --records writes
+ * them) instead of running anything: 0 when every launch ID is the model's, 1 when one is not, 2 when
+ * the file is not a launch of `ids` records. */
+HELPER int judge_file(const struct launch_rules *l, const char *path, uint64_t ids) {
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        fprintf(stderr, "rtconf reproducer: cannot read %s\n", path);
+        return 2;
+    }
+    size_t want = (size_t)ids * RECORD_WORDS;
+    uint32_t *w = calloc(want ? want : 1, 4);
+    if (!w) {
+        fprintf(stderr, "rtconf reproducer: out of memory\n");
+        return 2;
+    }
+    size_t got = fread(w, 4, want, f);
+    int more = fgetc(f) != EOF;
+    fclose(f);
+    if (got != want || more) {
+        fprintf(stderr, "rtconf reproducer: %s does not hold %llu records of %d words\n", path,
+                (unsigned long long)ids, RECORD_WORDS);
+        free(w);
+        return 2;
+    }
+    uint64_t failed = judge_records(l, w, ids);
+    free(w);
+    if (failed)
+        printf("output:  DIFFERS from the model at %llu launch ID(s)\n", (unsigned long long)failed);
+    else
+        printf("output:  matches the model (%llu launch IDs)\n", (unsigned long long)ids);
+    return failed ? 1 : 0;
+}
+
 /* Writes the records read back to `path` (little-endian words), for comparing with rtconf's own run. */
 HELPER void save_records(const char *path, const uint32_t *words, uint64_t count) {
     FILE *f = fopen(path, "wb");

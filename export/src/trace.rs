@@ -86,9 +86,19 @@ pub(crate) fn emit(
     }
     e.line("");
     e.open("int main(int argc, char **argv) {");
-    e.line("/* ./repro [--records FILE]: FILE receives the records read back (little-endian words). */");
+    e.line(
+        "/* ./repro [--records FILE]: FILE receives the records read back (little-endian words).",
+    );
+    e.line(" * ./repro --judge FILE: judges the records in FILE against the model's tables, runs nothing. */");
     e.line("const char *records_path = argc > 2 && strcmp(argv[1], \"--records\") == 0 ? argv[2] : NULL;");
     e.line("(void)records_path;");
+    if launch.is_some() {
+        e.line("if (argc > 2 && strcmp(argv[1], \"--judge\") == 0)");
+        e.line(&format!(
+            "    return judge_file(&launch_rules, argv[2], {}ull);",
+            t.io.records
+        ));
+    }
     emit_expectation(e, plan, expect);
     if launch.is_some() {
         e.line(&format!(
@@ -694,9 +704,8 @@ fn steps(
                 e.open("{");
                 e.line("const uint32_t *got = read_words(&output);");
                 e.line(&format!("if (records_path) save_records(records_path, got, {words}ull);"));
-                e.line("struct launch_rules rules = {ray_rules, ray_rule_count, candidate_rules, report_rules, watertight_rules, watertight_members};");
                 e.line(&format!(
-                    "uint64_t failed = judge_records(&rules, got, {}ull);",
+                    "uint64_t failed = judge_records(&launch_rules, got, {}ull);",
                     words / RayRecord::WORDS
                 ));
                 e.line("output_ok = failed == 0;");
