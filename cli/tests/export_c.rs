@@ -512,6 +512,65 @@ fn the_nvidia_device_lost_cases_export_to_c_that_compiles() {
 }
 
 #[test]
+fn every_generated_khr_trace_case_exports_to_c_that_compiles_or_is_refused_with_the_reason() {
+    let dir = fresh_dir("export-c-generated");
+    let set = session::sources::load_sources(&[]).expect("the installed registry");
+    let rules = model::RuleSet::from_vuids(&set);
+    let profile = session::sources::profile_for("lavapipe").expect("lavapipe's profile");
+    let (mut compiled, mut refused) = (0, 0);
+    for command in [CommandId::TraceRays, CommandId::TraceRaysIndirect] {
+        let mut specs = vec![generator::CaseSpec::valid(command)];
+        for row in rules.rows.iter().filter(|r| {
+            r.status == model::rules::Status::Executable
+                && model::rules::applies_to(&r.scope, command)
+        }) {
+            if generator::mutations_for(&row.vuid).is_some() {
+                specs.push(generator::CaseSpec::violate(command, &row.vuid));
+            }
+        }
+        for (i, spec) in specs.iter().enumerate() {
+            let Ok(cases) =
+                generator::generate(&profile, "lavapipe", &rules, spec, 1, 100 + i as u64)
+            else {
+                continue;
+            };
+            for c in cases {
+                let case = dir.join(format!("{}.yaml", c.name));
+                std::fs::write(&case, c.to_yaml()).unwrap();
+                let out = dir.join(&c.name);
+                let o = rtconf(
+                    &[
+                        "export",
+                        case.to_str().unwrap(),
+                        "--out",
+                        out.to_str().unwrap(),
+                    ],
+                    &[],
+                );
+                if o.status.code() == Some(2) {
+                    let why = String::from_utf8_lossy(&o.stderr);
+                    assert!(
+                        why.contains("resource states (descriptors, images, samplers, push constants) are not exported yet")
+                            || why.contains("is sparse or not bound whole"),
+                        "{}: {}",
+                        c.name,
+                        text(&o)
+                    );
+                    refused += 1;
+                    continue;
+                }
+                assert!(o.status.success(), "{}: {}", c.name, text(&o));
+                compile(&out);
+                compiled += 1;
+            }
+        }
+    }
+    eprintln!("{compiled} exported and compiled, {refused} refused");
+    assert!(compiled >= 60, "{compiled} compiled");
+    assert!(refused < compiled, "{refused} refused");
+}
+
+#[test]
 fn cases_the_writer_does_not_handle_are_refused_with_the_reason() {
     let dir = fresh_dir("export-refused");
     // A case with a resource state (descriptors, samplers).
