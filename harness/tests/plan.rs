@@ -225,7 +225,9 @@ fn check_trace_plan(case: &Case, exec: &Execution) -> Result<TracePlan, String> 
 }
 
 /// What the harness refuses to realise, and so the plan refuses: the reasons it may give.
-const REFUSALS: [&str; 5] = [
+const REFUSALS: [&str; 7] = [
+    "cannot be called",
+    "the case traces rays but does not enable",
     "video coding scopes, protected and invalid command buffers are not realised",
     "a command pool for a queue family without compute is not realised",
     "secondary command buffers inside a render pass are not realised",

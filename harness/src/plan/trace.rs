@@ -358,6 +358,25 @@ impl TracePlan {
         }
         let nv_call = matches!(case.call, Call::TraceRaysNv(_));
         let traces = world.launch.traces();
+        // What the case's device (exactly its extensions and features) cannot do, as the realisation
+        // says it.
+        let has_extension = |x: &str| world.device.extensions.contains(x);
+        let has_feature = |n: &str| {
+            world
+                .device
+                .features
+                .iter()
+                .any(|f| f == n || f.rsplit("::").next() == Some(n))
+        };
+        let not_realised = |why: &str| Err(HarnessError::NotRealised(why.into()));
+        if nv_call && !has_extension("VK_NV_ray_tracing") {
+            return not_realised(
+                "the case does not enable VK_NV_ray_tracing, so vkCmdTraceRaysNV cannot be called",
+            );
+        }
+        if !nv_call && !has_extension("VK_KHR_ray_tracing_pipeline") {
+            return not_realised("the case does not enable VK_KHR_ray_tracing_pipeline, so vkCmdTraceRays*KHR cannot be called");
+        }
         let launch_ids = case
             .call
             .dimensions(world)
@@ -383,11 +402,41 @@ impl TracePlan {
             },
             |p| p.api,
         );
+        match world.pipeline.as_ref().map(|p| p.api) {
+            Some(PipelineApi::Khr) if !has_extension("VK_KHR_ray_tracing_pipeline") => {
+                return not_realised("the case does not enable VK_KHR_ray_tracing_pipeline, so no ray tracing pipeline can be made");
+            }
+            Some(PipelineApi::Nv) if !has_extension("VK_NV_ray_tracing") => {
+                return not_realised("the case does not enable VK_NV_ray_tracing, so no NV ray tracing pipeline can be made");
+            }
+            _ => {}
+        }
         let pipeline = world
             .pipeline
             .as_ref()
             .map(|p| PipelinePlan::of(p, traces))
             .transpose()?;
+        if traces {
+            match api {
+                PipelineApi::Nv if !has_extension("VK_NV_ray_tracing") => {
+                    return not_realised(
+                        "the case traces rays but does not enable VK_NV_ray_tracing",
+                    );
+                }
+                PipelineApi::Khr if !has_extension("VK_KHR_acceleration_structure") => {
+                    return not_realised(
+                        "the case traces rays but does not enable VK_KHR_acceleration_structure",
+                    );
+                }
+                PipelineApi::Khr
+                    if !has_feature("accelerationStructure")
+                        || !has_feature("bufferDeviceAddress") =>
+                {
+                    return not_realised("the case traces rays but does not enable accelerationStructure and bufferDeviceAddress");
+                }
+                _ => {}
+            }
+        }
         let buffers = buffer_plans(world);
         let foreign_pipeline = buffers.iter().any(|b| {
             b.writes.iter().any(|w| {
