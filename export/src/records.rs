@@ -132,3 +132,18 @@ pub(crate) fn tables(e: &mut Emitter, launch: &ExpectedLaunch) {
         rules.len()
     ));
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn doubles_are_exact_c_literals() {
+        assert_eq!(double(f64::INFINITY), "INFINITY");
+        assert_eq!(double(f64::NEG_INFINITY), "-INFINITY");
+        assert_eq!(double(0.1), "0.1");
+        let x = 1.0f64 + f64::EPSILON;
+        assert_eq!(double(x).parse::<f64>().unwrap(), x);
+        assert_eq!(double(-2.0), "-2.0");
+    }
+}

@@ -42,6 +42,11 @@ static int buffer_device_address; /* the case enables bufferDeviceAddress */
 
 HELPER void fail(const char *what, VkResult result) {
     fprintf(stderr, "rtconf reproducer: %s failed: VkResult %d\n", what, (int)result);
+    if (result == VK_ERROR_DEVICE_LOST) {
+        /* The driver lost the device on what the case gives it: the driver's failure, not the program's. */
+        printf("verdict: the driver lost the device (VK_ERROR_DEVICE_LOST) in %s\n", what);
+        exit(1);
+    }
     exit(2);
 }
 
