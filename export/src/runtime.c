@@ -600,11 +600,10 @@ HELPER int judge_record(const struct launch_rules *l, uint64_t id, const uint32_
     }
     uint32_t any = w[10], isect = w[11];
     if (any < r->any_min || (r->any_max != UNBOUNDED && any > r->any_max))
-        RECORD_FAIL("%u any-hit invocations outside [%u, %s]", any, r->any_min,
-                    r->any_max == UNBOUNDED ? "unbounded" : "its maximum");
+        RECORD_FAIL("%u any-hit invocations outside [%u, %u] (%u: unbounded)", any, r->any_min, r->any_max, UNBOUNDED);
     if (isect < r->isect_min || (r->isect_max != UNBOUNDED && isect > r->isect_max))
-        RECORD_FAIL("%u intersection invocations outside [%u, %s]", isect, r->isect_min,
-                    r->isect_max == UNBOUNDED ? "unbounded" : "its maximum");
+        RECORD_FAIL("%u intersection invocations outside [%u, %u] (%u: unbounded)", isect, r->isect_min, r->isect_max,
+                    UNBOUNDED);
     uint32_t seen = any < SEEN_SLOTS ? any : SEEN_SLOTS;
     for (uint32_t s = 0; s < seen; s++) {
         const uint32_t *slot = &w[12 + 4 * s];

@@ -6,7 +6,8 @@
 //! under the validation layer, which drops it (it prints the layer's VUIDs beside the model's and
 //! exits 0 when they agree); a valid one submitted, its ray records read back and judged per launch
 //! ID against the model's expectation embedded as tables (exit 1 on a REQ violation; `./repro
-//! --records FILE` also writes the records). A build case records its build under the layer.
+//! --records FILE` also writes the records, `./repro --judge FILE` judges a records file and runs
+//! nothing). A build case records its build under the layer.
 
 use clap::Args;
 use std::path::PathBuf;
