@@ -12,7 +12,21 @@
 use clap::Args;
 use std::path::PathBuf;
 
+/// What `rtconf export --help` says the program does.
+const PROGRAM: &str = "\
+The program (build: cd DIR && cc repro.c -lvulkan -o repro) makes the case's device, buffers, pipeline \
+(SPIR-V embedded), shader binding tables and, for a trace case, its scene from the plan's bytes, then \
+records the harness's steps under the validation layer.
+  invalid case:  the layer drops the call; prints the layer's VUIDs beside the model's, exit 0 when they agree.
+  valid trace:   submits the launch, reads its ray records back and judges each launch ID against the \
+model's expectation embedded as tables; exit 1 on a REQ violation, naming the launch IDs.
+  ./repro --records FILE   also writes the records read back (as `rtconf replay --records FILE`)
+  ./repro --judge FILE     judges a records file against the tables and runs nothing
+Exit status of the program: 0 agrees with the model, 1 does not (a lost device included), 2 cannot run.
+Not exported (exit 2 with the reason): resource states, sparse or partly bound buffers, vkCmdTraceRaysNV.";
+
 #[derive(Args)]
+#[command(after_help = PROGRAM)]
 pub struct ExportArgs {
     /// The case file (YAML) of a trace or build case. Refused with exit 2 and the reason: cases with a
     /// resource state, sparse or partly bound buffers, and vkCmdTraceRaysNV cases.
