@@ -103,6 +103,21 @@ pub(crate) fn words(e: &mut Emitter, name: &str, data: &[u32]) {
     e.line("};");
 }
 
+/// `static const uint32_t NAME[] = {…};` holding `data` as little-endian words (zero-padded to a
+/// multiple of 4 bytes): a third of the text of [`bytes`] for large arrays, copied as bytes by a
+/// little-endian host.
+pub(crate) fn le_words(e: &mut Emitter, name: &str, data: &[u8]) {
+    let words: Vec<u32> = data
+        .chunks(4)
+        .map(|c| {
+            let mut b = [0u8; 4];
+            b[..c.len()].copy_from_slice(c);
+            u32::from_le_bytes(b)
+        })
+        .collect();
+    self::words(e, name, &words);
+}
+
 /// A bit mask as a number with its flag names in a comment.
 pub(crate) fn flags(bits: u32, names: &[(&str, u64)]) -> String {
     let mut seen = 0u64;
@@ -157,6 +172,12 @@ mod tests {
         );
         assert_eq!(flags(0, &[("A", 1)]), "0x0u");
         assert_eq!(trimmed(&[1, 0, 2, 0, 0]), &[1, 0, 2]);
+        let mut e = Emitter::default();
+        le_words(&mut e, "w", &[1, 2, 3, 4, 5]);
+        assert_eq!(
+            e.finish(),
+            "static const uint32_t w[2] = {\n    0x04030201, 0x00000005,\n};\n"
+        );
         let bufs = vec!["sbt".to_string()];
         assert_eq!(
             address(

@@ -7,6 +7,7 @@
 
 mod build;
 mod c;
+mod records;
 mod trace;
 
 use c::Emitter;
@@ -22,8 +23,8 @@ pub struct Expectation {
     pub model_vuids: Vec<String>,
     /// Each violation as `VUID at path: problem`, for the reader.
     pub violations: Vec<String>,
-    /// The words a valid launch writes (trace cases run as valid).
-    pub expected_words: Option<Vec<u32>>,
+    /// What the model allows each ray of a valid launch (trace cases run as valid and read back).
+    pub launch: Option<model::semantics::ExpectedLaunch>,
     /// How the case came about (its intent, seed, file), for the program's header.
     pub about: Vec<String>,
 }
@@ -86,8 +87,9 @@ fn header(e: &mut Emitter, plan: &CallPlan, expect: &Expectation) {
     e.line(" *");
     e.line(" * It makes the case's objects and records its commands as rtconf's harness does, under the");
     e.line(" * Khronos validation layer, and prints what the model expects, the layer's messages in full,");
-    e.line(" * and (for a launch run for real) whether the output is the model's. Exit status: 0 when the");
-    e.line(" * driver and the layer do what the model expects, 1 when they do not, 2 when it cannot run.");
+    e.line(" * and (for a launch run for real) each launch ID's record judged against what the model allows");
+    e.line(" * its ray. Exit status: 0 when the driver and the layer do what the model expects, 1 when they");
+    e.line(" * do not (the device lost included), 2 when it cannot run.");
     e.line(" *");
     e.line(" * The call sequence:");
     for l in plan.describe() {

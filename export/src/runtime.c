@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <math.h>
 
 /* Helpers a case does not use are not warned about. */
 #if defined(__GNUC__)
@@ -41,6 +42,11 @@ static int buffer_device_address; /* the case enables bufferDeviceAddress */
 
 HELPER void fail(const char *what, VkResult result) {
     fprintf(stderr, "rtconf reproducer: %s failed: VkResult %d\n", what, (int)result);
+    if (result == VK_ERROR_DEVICE_LOST) {
+        /* The driver lost the device on what the case gives it: the driver's failure, not the program's. */
+        printf("verdict: the driver lost the device (VK_ERROR_DEVICE_LOST) in %s\n", what);
+        exit(1);
+    }
     exit(2);
 }
 
@@ -92,6 +98,11 @@ HELPER const char *version_text(uint32_t v) {
 /* Creates the instance (with the validation layer and a messenger when it is installed; `need_layer`:
  * the case cannot be judged without it), picks the first device and prints what runs the case. */
 HELPER void start(int need_layer) {
+    const uint32_t one = 1;
+    if (*(const uint8_t *)&one != 1) {
+        fprintf(stderr, "rtconf reproducer: the embedded data is little-endian; this host is not\n");
+        exit(2);
+    }
     uint32_t n = 0;
     vkEnumerateInstanceLayerProperties(&n, NULL);
     VkLayerProperties *layers = calloc(n ? n : 1, sizeof *layers);
@@ -501,18 +512,269 @@ HELPER uint32_t default_stack_size(VkPipeline pipeline, const VkRayTracingShader
     return total > UINT32_MAX ? UINT32_MAX : (uint32_t)total;
 }
 
-/* The 64 bytes of a VkAccelerationStructureInstanceKHR: identity transform, custom index 0, the mask,
- * the shader binding table record offset, no flags, the reference. */
-HELPER void instance_record(uint8_t *out, uint8_t mask, uint32_t sbt_record_offset, uint64_t reference) {
-    VkAccelerationStructureInstanceKHR r;
-    memset(&r, 0, sizeof r);
-    r.transform.matrix[0][0] = r.transform.matrix[1][1] = r.transform.matrix[2][2] = 1.0f;
-    r.instanceCustomIndex = 0;
-    r.mask = mask;
-    r.instanceShaderBindingTableRecordOffset = sbt_record_offset & 0xFFFFFF;
-    r.flags = 0;
-    r.accelerationStructureReference = reference;
-    memcpy(out, &r, sizeof r);
+/* ---- A valid launch's ray records (model/src/tracer/record.rs: 28 words per launch ID) judged against
+ * the model's tables, as model::tracer::judge judges them. ---- */
+#define RECORD_WORDS 28
+#define SEEN_SLOTS 4
+#define OUTCOME_NOT_RUN 0xFFFFFFFFu
+#define OUTCOME_MISS 1u
+#define OUTCOME_HIT 2u
+#define OUTCOME_NO_SHADER 3u
+#define NO_GROUP 0xFFFFFFFFu
+#define UNBOUNDED 0xFFFFFFFFu
+
+/* What one distinct ray may do. */
+struct ray_rule {
+    uint8_t miss_allowed, miss_zero_group;
+    uint32_t miss_group;
+    uint8_t no_shader_allowed, skip_closest_hit, vary;
+    uint32_t any_min, any_max, isect_min, isect_max;
+    uint32_t first_candidate, candidates, first_group, groups;
+};
+/* A primitive that may become a candidate of the ray. */
+struct candidate_rule {
+    uint32_t instance, geometry, primitive;
+    uint8_t committable, runs_any_hit, no_duplicate, runs_closest_hit;
+    uint32_t group, custom_index, first_report, reports;
+};
+/* One hit a candidate may be committed as: its hit kind, t interval and barycentric intervals. */
+struct report_rule {
+    uint32_t hit_kind;
+    double t_lo, t_hi;
+    int bary;
+    double b_lo, b_hi, c_lo, c_hi;
+};
+/* A shared edge or closed fan: its members must not both be hit. */
+struct watertight_rule {
+    uint32_t first_member, members;
+};
+struct primitive_ref {
+    uint32_t instance, geometry, primitive;
+};
+struct launch_rules {
+    const struct ray_rule *rays;
+    uint32_t ray_count;
+    const struct candidate_rule *candidates;
+    const struct report_rule *reports;
+    const struct watertight_rule *groups;
+    const struct primitive_ref *members;
+};
+
+HELPER float word_float(uint32_t w) {
+    float f;
+    memcpy(&f, &w, 4);
+    return f;
+}
+
+HELPER int in_interval(double x, double lo, double hi) { return lo <= x && x <= hi; }
+
+HELPER const struct candidate_rule *find_candidate(const struct launch_rules *l, const struct ray_rule *r,
+                                                   uint32_t instance, uint32_t geometry, uint32_t primitive) {
+    for (uint32_t i = 0; i < r->candidates; i++) {
+        const struct candidate_rule *c = &l->candidates[r->first_candidate + i];
+        if (c->instance == instance && c->geometry == geometry && c->primitive == primitive)
+            return c;
+    }
+    return NULL;
+}
+
+#define RECORD_FAIL(...)                                                                          \
+    do {                                                                                          \
+        fails++;                                                                                  \
+        if (print) {                                                                              \
+            printf("  launch ID %llu (ray %u): ", (unsigned long long)id, ray);                   \
+            printf(__VA_ARGS__);                                                                  \
+            printf("\n");                                                                         \
+        }                                                                                         \
+    } while (0)
+
+/* Judges one launch ID's record `w` against the rule of its ray; prints each REQ violation when
+ * `print`; returns how many it found. */
+HELPER int judge_record(const struct launch_rules *l, uint64_t id, const uint32_t *w, int print) {
+    int fails = 0;
+    uint32_t ray = (uint32_t)(id % l->ray_count);
+    const struct ray_rule *r = &l->rays[ray];
+    if (w[0] == OUTCOME_NOT_RUN) {
+        RECORD_FAIL("the launch ID did not run");
+        return fails;
+    }
+    uint32_t any = w[10], isect = w[11];
+    if (any < r->any_min || (r->any_max != UNBOUNDED && any > r->any_max))
+        RECORD_FAIL("%u any-hit invocations outside [%u, %u] (%u: unbounded)", any, r->any_min, r->any_max, UNBOUNDED);
+    if (isect < r->isect_min || (r->isect_max != UNBOUNDED && isect > r->isect_max))
+        RECORD_FAIL("%u intersection invocations outside [%u, %u] (%u: unbounded)", isect, r->isect_min, r->isect_max,
+                    UNBOUNDED);
+    uint32_t seen = any < SEEN_SLOTS ? any : SEEN_SLOTS;
+    for (uint32_t s = 0; s < seen; s++) {
+        const uint32_t *slot = &w[12 + 4 * s];
+        float t = word_float(slot[3]);
+        const struct candidate_rule *c = find_candidate(l, r, slot[0], slot[1], slot[2]);
+        if (!c) {
+            RECORD_FAIL("any-hit ran for instance %u geometry %u primitive %u, which cannot be a candidate", slot[0],
+                        slot[1], slot[2]);
+            continue;
+        }
+        if (!c->runs_any_hit) {
+            RECORD_FAIL("any-hit ran for instance %u geometry %u primitive %u, whose candidate is opaque or has no "
+                        "any-hit shader",
+                        slot[0], slot[1], slot[2]);
+            continue;
+        }
+        int within = 0;
+        for (uint32_t k = 0; k < c->reports; k++) {
+            const struct report_rule *rep = &l->reports[c->first_report + k];
+            within |= in_interval(t, rep->t_lo, rep->t_hi);
+        }
+        if (!within)
+            RECORD_FAIL("any-hit saw instance %u geometry %u primitive %u at t = %.9g outside its bound", slot[0],
+                        slot[1], slot[2], t);
+        for (uint32_t p = 0; p < s && c->no_duplicate; p++)
+            if (memcmp(&w[12 + 4 * p], slot, 12) == 0) {
+                RECORD_FAIL("any-hit ran twice for instance %u geometry %u primitive %u with NO_DUPLICATE_ANY_HIT",
+                            slot[0], slot[1], slot[2]);
+                break;
+            }
+    }
+    for (uint32_t g = 0; g < r->groups; g++) {
+        const struct watertight_rule *group = &l->groups[r->first_group + g];
+        uint32_t hit = 0;
+        for (uint32_t m = 0; m < group->members; m++) {
+            const struct primitive_ref *p = &l->members[group->first_member + m];
+            int found = 0;
+            for (uint32_t s = 0; s < seen; s++)
+                found |= w[12 + 4 * s] == p->instance && w[13 + 4 * s] == p->geometry && w[14 + 4 * s] == p->primitive;
+            hit += (uint32_t)found;
+        }
+        if (hit >= 2)
+            RECORD_FAIL("double hit on a watertight group: %u of its triangles were seen", hit);
+    }
+    switch (w[0]) {
+    case OUTCOME_MISS:
+        if (!r->miss_allowed)
+            RECORD_FAIL("missed, but a candidate must be hit");
+        if (r->miss_zero_group)
+            RECORD_FAIL("a miss shader ran, but the miss record is a zero group");
+        else if (w[1] != r->miss_group)
+            RECORD_FAIL("miss group %d, expected %u", (int)w[1], r->miss_group);
+        break;
+    case OUTCOME_NO_SHADER:
+        if (!r->no_shader_allowed)
+            RECORD_FAIL("neither a miss nor a closest-hit shader ran, but one must");
+        break;
+    case OUTCOME_HIT: {
+        if (r->skip_closest_hit)
+            RECORD_FAIL("closest-hit ran despite SkipClosestHitShader");
+        const struct candidate_rule *c = find_candidate(l, r, w[2], w[4], w[5]);
+        if (!c) {
+            RECORD_FAIL("committed instance %u geometry %u primitive %u, which cannot be a candidate", w[2], w[4], w[5]);
+            break;
+        }
+        if (!c->committable)
+            RECORD_FAIL("committed instance %u geometry %u primitive %u, which cannot be the committed hit", w[2], w[4],
+                        w[5]);
+        if (!c->runs_closest_hit)
+            RECORD_FAIL("closest-hit ran for a hit group without one");
+        else if (w[1] != c->group)
+            RECORD_FAIL("hit group %d, expected %u", (int)w[1], c->group);
+        if (w[3] != c->custom_index)
+            RECORD_FAIL("InstanceCustomIndex %u, expected %u", w[3], c->custom_index);
+        const struct report_rule *rep = NULL;
+        for (uint32_t k = 0; k < c->reports && !rep; k++)
+            if (l->reports[c->first_report + k].hit_kind == w[6])
+                rep = &l->reports[c->first_report + k];
+        if (!rep) {
+            RECORD_FAIL("HitKind 0x%x, which no report of the candidate has", w[6]);
+            break;
+        }
+        float t = word_float(w[7]);
+        if (!in_interval(t, rep->t_lo, rep->t_hi))
+            RECORD_FAIL("t = %.9g outside [%.17g, %.17g]", t, rep->t_lo, rep->t_hi);
+        if (rep->bary) {
+            float b = word_float(w[8]), c2 = word_float(w[9]);
+            if (!in_interval(b, rep->b_lo, rep->b_hi))
+                RECORD_FAIL("barycentric b = %.9g outside [%.17g, %.17g]", b, rep->b_lo, rep->b_hi);
+            if (!in_interval(c2, rep->c_lo, rep->c_hi))
+                RECORD_FAIL("barycentric c = %.9g outside [%.17g, %.17g]", c2, rep->c_lo, rep->c_hi);
+        }
+        break;
+    }
+    default:
+        RECORD_FAIL("word 0 (outcome) holds 0x%x, which names no outcome", w[0]);
+    }
+    return fails;
+}
+
+/* Judges every launch ID's record; prints the failures of the first ones and a summary line; returns
+ * how many launch IDs violate a REQ rule. A launch that traces no ray must leave every record
+ * "no shader". */
+HELPER uint64_t judge_records(const struct launch_rules *l, const uint32_t *words, uint64_t ids) {
+    uint64_t failed = 0, vary = 0;
+    for (uint64_t id = 0; id < ids; id++) {
+        const uint32_t *w = &words[id * RECORD_WORDS];
+        int print = failed < 20;
+        int fails;
+        if (l->ray_count == 0) {
+            uint32_t want[RECORD_WORDS];
+            for (int k = 0; k < RECORD_WORDS; k++)
+                want[k] = k == 0 ? OUTCOME_NO_SHADER : (k == 1 || k >= 12) ? 0xFFFFFFFFu : 0u;
+            fails = memcmp(w, want, sizeof want) != 0;
+            if (fails && print)
+                printf("  launch ID %llu: the launch traces no ray, so its record must be \"no shader\"\n",
+                       (unsigned long long)id);
+        } else {
+            vary += l->rays[id % l->ray_count].vary;
+            fails = judge_record(l, id, w, print);
+        }
+        failed += fails > 0;
+    }
+    if (failed > 20)
+        printf("  ... and %llu more launch IDs\n", (unsigned long long)(failed - 20));
+    printf("records: %llu launch IDs judged (%llu REQ, %llu VARY), %llu violate the model\n", (unsigned long long)ids,
+           (unsigned long long)(ids - vary), (unsigned long long)vary, (unsigned long long)failed);
+    return failed;
+}
+
+/* Judges the records in `path` (little-endian words, RECORD_WORDS per launch ID, as --records writes
+ * them) instead of running anything: 0 when every launch ID is the model's, 1 when one is not, 2 when
+ * the file is not a launch of `ids` records. */
+HELPER int judge_file(const struct launch_rules *l, const char *path, uint64_t ids) {
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        fprintf(stderr, "rtconf reproducer: cannot read %s\n", path);
+        return 2;
+    }
+    size_t want = (size_t)ids * RECORD_WORDS;
+    uint32_t *w = calloc(want ? want : 1, 4);
+    if (!w) {
+        fprintf(stderr, "rtconf reproducer: out of memory\n");
+        return 2;
+    }
+    size_t got = fread(w, 4, want, f);
+    int more = fgetc(f) != EOF;
+    fclose(f);
+    if (got != want || more) {
+        fprintf(stderr, "rtconf reproducer: %s does not hold %llu records of %d words\n", path,
+                (unsigned long long)ids, RECORD_WORDS);
+        free(w);
+        return 2;
+    }
+    uint64_t failed = judge_records(l, w, ids);
+    free(w);
+    if (failed)
+        printf("output:  DIFFERS from the model at %llu launch ID(s)\n", (unsigned long long)failed);
+    else
+        printf("output:  matches the model (%llu launch IDs)\n", (unsigned long long)ids);
+    return failed ? 1 : 0;
+}
+
+/* Writes the records read back to `path` (little-endian words), for comparing with rtconf's own run. */
+HELPER void save_records(const char *path, const uint32_t *words, uint64_t count) {
+    FILE *f = fopen(path, "wb");
+    if (!f || fwrite(words, 4, (size_t)count, f) != (size_t)count) {
+        fprintf(stderr, "rtconf reproducer: cannot write %s\n", path);
+        exit(2);
+    }
+    fclose(f);
 }
 
 /* ---- The case. ---- */

@@ -1,15 +1,20 @@
 //! The call plan against the model it is made from, with no device: every committed build case's
 //! memory images, laid out from the plan with any addresses, are the model's own images with those
-//! addresses. The call plan does not describe trace cases (rendered scenes) yet: every committed trace
-//! case is refused with that reason, and the buffer plans the trace executor realises write its shader
-//! records and indirect commands where the world says.
+//! addresses; every committed trace case and every trace case a run of the committed profiles
+//! generates (lavapipe's, and the H200's with its vkCmdTraceRaysNV cases) is described — its scene
+//! (bottom levels, instance records, spheres), rays and records as the model states them, its steps
+//! around exactly one call, its call list naming the scene's builds — and the buffer plans write
+//! shader records and indirect commands where the world says.
 
-use harness::plan::trace::{buffer_plans, BufferWrite, NOT_DESCRIBED};
+use harness::plan::scene::{GeometryDataPlan, ScenePlan};
+use harness::plan::trace::{buffer_plans, BufferWrite, TracePlan, RAY_RECORD_SIZE};
 use harness::plan::{CallPlan, PlanBody, Step};
 use harness::Execution;
 use model::accel::world::{AddressResolver, SyntheticAddresses};
+use model::tracer::record::RayRecord;
 use model::world::Contents;
 use model::Case;
+use std::collections::BTreeMap;
 use std::path::Path;
 
 fn committed(folder: &str) -> Vec<Case> {
@@ -83,27 +88,272 @@ fn build_plans_lay_out_the_models_memory_images_at_any_addresses() {
     assert!(relocated > 0, "some committed case holds device addresses");
 }
 
+/// Checks a trace case's plan against its case; returns it.
+fn check_trace_plan(case: &Case, exec: &Execution) -> Result<TracePlan, String> {
+    let body = case.as_trace().expect("a trace case");
+    let plan = match CallPlan::of(case, exec) {
+        Ok(p) => p,
+        Err(harness::HarnessError::NotRealised(why)) => return Err(why),
+        Err(e) => panic!("{}: {e}", case.name),
+    };
+    let PlanBody::Trace(t) = &plan.body else {
+        panic!("{}: not a trace plan", case.name)
+    };
+    let world = &body.world;
+    assert_eq!(t.traces, world.launch.traces(), "{}", case.name);
+    let rays = if t.traces {
+        world.launch.ray_list()
+    } else {
+        vec![]
+    };
+    let header: Vec<u32> = t.io.rays[..16]
+        .chunks(4)
+        .map(|b| u32::from_le_bytes(b.try_into().unwrap()))
+        .collect();
+    assert_eq!(header[0] as usize, rays.len(), "{}", case.name);
+    assert_eq!(header[1] as usize, t.io.records, "{}", case.name);
+    assert_eq!(
+        t.io.rays.len(),
+        16 + rays.len() * RAY_RECORD_SIZE,
+        "{}",
+        case.name
+    );
+    for (k, r) in rays.iter().enumerate().take(64) {
+        let at = 16 + k * RAY_RECORD_SIZE;
+        let f = |i: usize| {
+            f32::from_le_bytes(t.io.rays[at + 4 * i..at + 4 * i + 4].try_into().unwrap())
+        };
+        assert_eq!(
+            [f(0), f(1), f(2), f(3), f(4), f(5), f(6), f(7)].map(f32::to_bits),
+            [
+                r.origin[0],
+                r.origin[1],
+                r.origin[2],
+                r.tmin,
+                r.direction[0],
+                r.direction[1],
+                r.direction[2],
+                r.tmax
+            ]
+            .map(f32::to_bits),
+            "{}: ray {k}",
+            case.name
+        );
+    }
+    let ids = body.call.dimensions(world).map_or(0, |d| {
+        d.iter()
+            .map(|&x| x as usize)
+            .fold(1usize, usize::saturating_mul)
+    });
+    assert_eq!(t.launch_ids, ids, "{}", case.name);
+    assert_eq!(
+        t.io.output_words,
+        (t.io.records * RayRecord::WORDS).max(RayRecord::WORDS)
+    );
+    let calls = t
+        .steps
+        .iter()
+        .filter(|s| matches!(s, Step::Call { .. }))
+        .count();
+    assert_eq!(calls, 1, "{}: one call", case.name);
+    let read_back = t.steps.iter().find_map(|s| match s {
+        Step::ReadBack { words } => Some(*words),
+        _ => None,
+    });
+    if let Some(words) = read_back {
+        assert!(exec.run_valid, "{}", case.name);
+        assert_eq!(words, ids * RayRecord::WORDS, "{}", case.name);
+    }
+    match &t.scene {
+        None => assert!(!t.traces, "{}", case.name),
+        Some(s) => {
+            let scene = &world.launch.scene;
+            assert_eq!(*s, ScenePlan::of(scene, t.api), "{}", case.name);
+            assert_eq!(s.bottoms.len(), scene.bottom_levels.len());
+            assert_eq!(s.instances.len(), scene.instances.len());
+            for (bl, model_bl) in s.bottoms.iter().zip(&scene.bottom_levels) {
+                for (g, m) in bl.geometries.iter().zip(&model_bl.geometries) {
+                    // The positions (or boxes) at the plan's offset are the model's.
+                    let (offset, floats): (u64, Vec<f32>) = match (&g.data, &m.data) {
+                        (
+                            GeometryDataPlan::Triangles { vertices, .. },
+                            model::scene::GeometryData::Triangles(tri),
+                        ) => (*vertices, tri.positions.iter().flatten().copied().collect()),
+                        (
+                            GeometryDataPlan::Aabbs { boxes, .. },
+                            model::scene::GeometryData::Aabbs(a),
+                        ) => (
+                            *boxes,
+                            a.boxes
+                                .iter()
+                                .flat_map(|b| b.min.into_iter().chain(b.max))
+                                .collect(),
+                        ),
+                        _ => panic!("{}: a geometry of another kind", case.name),
+                    };
+                    let bytes: Vec<u8> = floats.iter().flat_map(|x| x.to_le_bytes()).collect();
+                    let o = offset as usize;
+                    assert_eq!(&s.input[o..o + bytes.len()], &bytes[..], "{}", case.name);
+                }
+            }
+            for (i, (p, m)) in s.instances.iter().zip(&scene.instances).enumerate() {
+                assert_eq!(p.mask, m.mask, "{}: instance {i}", case.name);
+                assert_eq!(p.custom_index, m.custom_index & 0xFF_FFFF);
+                assert_eq!(p.sbt_record_offset, m.sbt_record_offset & 0xFF_FFFF);
+                if p.bottom.is_some() {
+                    assert_eq!(p.bottom.map(|b| b as u32), m.bottom_level);
+                }
+            }
+            let lines = plan.describe();
+            assert!(
+                lines.iter().any(|l| l.contains(": top level of")),
+                "{}: the call list names the scene's builds: {lines:#?}",
+                case.name
+            );
+            assert_eq!(
+                lines
+                    .iter()
+                    .filter(|l| l.contains(": bottom level "))
+                    .count(),
+                s.built_bottoms(),
+                "{}",
+                case.name
+            );
+        }
+    }
+    Ok(t.clone())
+}
+
+/// What the harness refuses to realise, and so the plan refuses: the reasons it may give.
+const REFUSALS: [&str; 7] = [
+    "cannot be called",
+    "the case traces rays but does not enable",
+    "video coding scopes, protected and invalid command buffers are not realised",
+    "a command pool for a queue family without compute is not realised",
+    "secondary command buffers inside a render pass are not realised",
+    "is larger than the harness reads back",
+    "procedural without an intersection shader",
+];
+
 #[test]
-fn trace_cases_are_refused_by_the_call_plan_and_their_buffers_written_where_the_world_says() {
+fn committed_trace_cases_are_described_by_the_call_plan() {
+    let mut cases = committed("hand");
+    cases.extend(committed("edge"));
+    cases.extend(committed("rendered"));
+    cases.extend(committed("nvidia-h200"));
+    let mut described = 0;
+    for case in &cases {
+        let exec = Execution {
+            run_valid: case.intent == model::Intent::Valid,
+            ..Default::default()
+        };
+        match check_trace_plan(case, &exec) {
+            Ok(_) => described += 1,
+            Err(why) => assert!(
+                REFUSALS.iter().any(|r| why.contains(r)),
+                "{}: refused: {why}",
+                case.name
+            ),
+        }
+    }
+    assert!(
+        described >= cases.len() - 2,
+        "{described} of {}",
+        cases.len()
+    );
+}
+
+#[test]
+fn every_generated_trace_case_of_the_committed_profiles_is_planned() {
+    let set = vk_registry::source::load_union(&[std::path::PathBuf::from(
+        vk_registry::source::DEFAULT_REGISTRY_DIR,
+    )])
+    .expect("the installed registry");
+    let rules = model::RuleSet::from_vuids(&set);
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../profiles");
+    let mut totals: BTreeMap<String, (usize, usize)> = BTreeMap::new();
+    let mut refused: BTreeMap<String, usize> = BTreeMap::new();
+    let mut nv_planned = 0;
+    let (mut not_generated, mut kept_from_drivers) = (0, 0);
+    for name in ["lavapipe", "nvidia-h200"] {
+        let text = std::fs::read_to_string(dir.join(format!("{name}.json"))).unwrap();
+        let profile = model::DeviceProfile::from_profiles_json(name, &text).unwrap();
+        for command in model::CommandId::TRACE {
+            if command.is_nv() && !profile.has_extension("VK_NV_ray_tracing") {
+                continue;
+            }
+            let mut specs = vec![
+                (generator::CaseSpec::valid(command), 5),
+                (generator::CaseSpec::rendered(command), 20),
+            ];
+            for row in rules.rows.iter().filter(|r| {
+                r.status == model::rules::Status::Executable
+                    && model::rules::applies_to(&r.scope, command)
+            }) {
+                if generator::mutations_for(&row.vuid).is_some() {
+                    specs.push((generator::CaseSpec::violate(command, &row.vuid), 3));
+                }
+            }
+            for (i, (spec, count)) in specs.iter().enumerate() {
+                let Ok(cases) =
+                    generator::generate(&profile, name, &rules, spec, *count, 7 + i as u64)
+                else {
+                    // A VUID this profile cannot express (the generator says so): no case.
+                    not_generated += 1;
+                    continue;
+                };
+                for case in &cases {
+                    if case.runnable(&profile).is_err() {
+                        kept_from_drivers += 1;
+                        continue;
+                    }
+                    let exec = Execution::for_case(case, &profile);
+                    let key = format!("{name} {}", command.vk_name());
+                    let entry = totals.entry(key).or_default();
+                    match check_trace_plan(case, &exec) {
+                        Ok(t) => {
+                            entry.0 += 1;
+                            if t.api == model::world::PipelineApi::Nv {
+                                nv_planned += 1;
+                            }
+                        }
+                        Err(why) => {
+                            entry.1 += 1;
+                            assert!(
+                                REFUSALS.iter().any(|r| why.contains(r)),
+                                "{}: refused: {why}",
+                                case.name
+                            );
+                            *refused.entry(why).or_default() += 1;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    eprintln!("described, refused per profile and command: {totals:#?}");
+    eprintln!("refusals: {refused:#?}");
+    eprintln!(
+        "specs the profile cannot express: {not_generated}; cases kept from drivers: {kept_from_drivers}"
+    );
+    let (ok, no): (usize, usize) = totals
+        .values()
+        .fold((0, 0), |(a, b), (x, y)| (a + x, b + y));
+    assert!(ok > 1000, "{ok} trace cases described");
+    assert!(no * 20 < ok, "{no} refused of {}", ok + no);
+    assert!(nv_planned > 20, "{nv_planned} NV cases planned");
+    for (key, (ok, _)) in &totals {
+        assert!(*ok > 0, "{key}: no case described");
+    }
+}
+
+#[test]
+fn trace_buffers_are_written_where_the_world_says() {
     let mut cases = committed("hand");
     cases.extend(committed("edge"));
     cases.extend(committed("rendered"));
     for case in &cases {
         let body = case.as_trace().expect("a trace case");
-        let exec = Execution {
-            run_valid: case.intent == model::Intent::Valid,
-            ..Default::default()
-        };
-        match CallPlan::of(case, &exec) {
-            Err(harness::HarnessError::NotRealised(why)) => {
-                assert_eq!(why, NOT_DESCRIBED, "{}", case.name);
-                assert!(
-                    why.contains("does not yet describe rendered-scene trace cases"),
-                    "{why}"
-                );
-            }
-            other => panic!("{}: {other:?}", case.name),
-        }
         let buffers = buffer_plans(&body.world);
         assert_eq!(buffers.len(), body.world.buffers.len(), "{}", case.name);
         for (b, world) in buffers.iter().zip(&body.world.buffers) {

@@ -1,6 +1,6 @@
 //! `rtconf export`: a case's plan written as a standalone C program for a bug report — the model's
-//! verdict and expected output on the case's profile written in, the plan the harness would run
-//! ([`harness::plan::CallPlan`]) as its calls.
+//! verdict and, for a valid trace case, what it allows each ray's record, on the case's profile
+//! written in, the plan the harness would run ([`harness::plan::CallPlan`]) as its calls.
 
 use crate::error::SessionError;
 use crate::sources;
@@ -29,9 +29,20 @@ pub fn export(case: &Case, from: &[PathBuf], out: &Path) -> Result<Exported, Ses
     let verdict = model::validate(&rules, &profile, case);
     let exec = Execution::for_case(case, &profile);
     let plan = CallPlan::of(case, &exec)?;
-    // Only build cases reach here (the call plan refuses trace cases), and a build's output check is
-    // the plan's own: no launch words are expected.
-    let expected_words: Option<Vec<u32>> = None;
+    // A valid trace case's records are judged per launch ID against what the model allows each ray;
+    // a build's output check is the plan's own.
+    let launch = match case.as_trace() {
+        Some(t) if exec.run_valid => {
+            if let Err(why) = case.runnable(&profile) {
+                return Err(SessionError::Usage(format!(
+                    "{} is kept from drivers (its scene or reads are undefined), so it is not exported: {why}",
+                    case.name
+                )));
+            }
+            model::semantics::expected_launch(&t.world, &t.call)
+        }
+        _ => None,
+    };
     let mut about = vec![
         format!(
             "intent: {}",
@@ -68,7 +79,7 @@ pub fn export(case: &Case, from: &[PathBuf], out: &Path) -> Result<Exported, Ses
             .iter()
             .map(|v| format!("{} at {}: {}", v.vuid, v.context, v.problem))
             .collect(),
-        expected_words,
+        launch,
         about,
     };
     let program =

@@ -1,13 +1,35 @@
 //! `rtconf export CASE.yaml --out DIR`: the case as a standalone C program (`DIR/repro.c`) for a bug
 //! report, and the one-line command that builds it.
+//!
+//! A trace case's program builds its scene (bottom and top levels from the plan's bytes), pipeline
+//! (SPIR-V embedded) and shader binding tables and records the plan's steps: an invalid case's call
+//! under the validation layer, which drops it (it prints the layer's VUIDs beside the model's and
+//! exits 0 when they agree); a valid one submitted, its ray records read back and judged per launch
+//! ID against the model's expectation embedded as tables (exit 1 on a REQ violation; `./repro
+//! --records FILE` also writes the records, `./repro --judge FILE` judges a records file and runs
+//! nothing). A build case records its build under the layer.
 
 use clap::Args;
 use std::path::PathBuf;
 
+/// What `rtconf export --help` says the program does.
+const PROGRAM: &str = "\
+The program (build: cd DIR && cc repro.c -lvulkan -o repro) makes the case's device, buffers, pipeline \
+(SPIR-V embedded), shader binding tables and, for a trace case, its scene from the plan's bytes, then \
+records the harness's steps under the validation layer.
+  invalid case:  the layer drops the call; prints the layer's VUIDs beside the model's, exit 0 when they agree.
+  valid trace:   submits the launch, reads its ray records back and judges each launch ID against the \
+model's expectation embedded as tables; exit 1 on a REQ violation, naming the launch IDs.
+  ./repro --records FILE   also writes the records read back (as `rtconf replay --records FILE`)
+  ./repro --judge FILE     judges a records file against the tables and runs nothing
+Exit status of the program: 0 agrees with the model, 1 does not (a lost device included), 2 cannot run.
+Not exported (exit 2 with the reason): resource states, sparse or partly bound buffers, vkCmdTraceRaysNV.";
+
 #[derive(Args)]
+#[command(after_help = PROGRAM)]
 pub struct ExportArgs {
-    /// The case file (YAML): a build case (a trace case is refused with exit 2: the call plan does not
-    /// yet describe rendered scenes).
+    /// The case file (YAML) of a trace or build case. Refused with exit 2 and the reason: cases with a
+    /// resource state, sparse or partly bound buffers, and vkCmdTraceRaysNV cases.
     case: PathBuf,
     /// The folder repro.c goes to.
     #[arg(long)]
@@ -30,7 +52,7 @@ pub fn run(a: ExportArgs) -> super::Exit {
     println!(
         "run:   ./repro   ({})",
         if exported.run_valid {
-            "runs the call for real and compares its output with the model's"
+            "runs the call for real and judges its records per launch ID against the model's; --records FILE writes them"
         } else {
             "records the call under the validation layer, which drops it, and prints the VUIDs reported"
         }

@@ -28,6 +28,10 @@ pub struct ReplayArgs {
     /// Print what the replay found as one JSON object instead.
     #[arg(long)]
     json: bool,
+    /// Trace cases run as valid: write the ray records read back to this file (little-endian u32
+    /// words, 28 per launch ID), as an exported program's `--records` does.
+    #[arg(long)]
+    records: Option<PathBuf>,
     /// Seconds the case may take in its worker process (at least 1).
     #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..))]
     timeout: u64,
@@ -74,6 +78,21 @@ pub fn run(a: ReplayArgs) -> super::Exit {
     };
     let replayed = session::replay(&case, &config)?;
     let r = &replayed.ran;
+    if let Some(path) = &a.records {
+        let words = r
+            .observation
+            .as_ref()
+            .and_then(|o| o.words())
+            .ok_or_else(|| {
+                session::SessionError::Usage(format!(
+                    "--records: {} read no ray records back (only a trace case run as valid does)",
+                    r.case.name
+                ))
+            })?;
+        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+        std::fs::write(path, bytes)
+            .map_err(|e| session::SessionError::io(path.display().to_string(), e))?;
+    }
     let calls = replayed
         .plan
         .as_ref()
@@ -117,10 +136,8 @@ pub fn run(a: ReplayArgs) -> super::Exit {
         for c in &calls {
             println!("  {c}");
         }
-    } else if r.case.as_trace().is_some() {
-        println!(
-            "calls:   not listed (the call plan does not yet describe rendered-scene trace cases)"
-        );
+    } else if r.observation.is_some() {
+        println!("calls:   not listed (the harness cannot realise the case; the status says why)");
     }
     match &r.observation {
         Some(obs) => println!("status:  {}", status(&obs.status)),

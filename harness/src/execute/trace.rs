@@ -2,7 +2,7 @@
 //! the case's state, the call recorded with the layer's messages collected (dropped unless the case is
 //! run as valid), and a valid launch submitted and its ray records read back.
 
-use super::{failure, Executor, MAX_OUTPUT_WORDS};
+use super::{failure, Executor};
 use crate::error::HarnessError;
 use crate::observe::{Observation, Output, Status};
 use crate::realise::{DeviceCache, Tlas, RAY_RECORD_SIZE};
@@ -13,7 +13,7 @@ use ash::vk;
 use model::call::{Address, Call, StridedRegion};
 use model::flags::QueueFlags;
 use model::tracer::record::RayRecord;
-use model::world::{CommandBufferLevel, CommandBufferLifecycle, PipelineApi};
+use model::world::{CommandBufferLevel, CommandBufferLifecycle};
 use std::time::Duration;
 
 pub(super) fn trace(ctx: &mut Executor, case: &model::TraceBody, run_valid: bool) -> Observation {
@@ -128,29 +128,12 @@ fn run(
             "secondary command buffers inside a render pass are not realised yet".into(),
         ));
     }
-    let trace = world.launch.traces();
-    let dims = case.call.dimensions(world);
-    let ids = dims
-        .map(|d| d.iter().map(|&x| x as usize).product::<usize>())
-        .unwrap_or(0);
-    if valid && ids.saturating_mul(RayRecord::WORDS) > MAX_OUTPUT_WORDS {
-        return Err(HarnessError::NotRealised(format!(
-            "a launch of {ids} IDs is larger than the harness reads back"
-        )));
-    }
-    // Records for every launch ID the harness reads back (an invalid case is never submitted).
-    let ids = ids.min(MAX_OUTPUT_WORDS / RayRecord::WORDS);
-    let words = ids * RayRecord::WORDS;
+    // What the harness makes and records: the case's plan (its refusals come after the device's).
+    let plan = crate::plan::TracePlan::of(case, valid)?;
+    let trace = plan.traces;
+    let api = plan.api;
+    let words = plan.io.records * RayRecord::WORDS;
     let pipeline = world.pipeline.as_ref();
-    // The scene and descriptor layout follow the pipeline's API (an NV pipeline reads an NV structure).
-    let api = pipeline.map_or(
-        if nv_call {
-            PipelineApi::Nv
-        } else {
-            PipelineApi::Khr
-        },
-        |p| p.api,
-    );
     // The resource state, and the case's pipeline with its templated raygen, before the shader binding
     // tables are filled with that pipeline's handles.
     if !world.resources.is_empty() {
@@ -162,15 +145,13 @@ fn run(
             harness_set,
         )?);
     }
-    *buffers = cache.case_buffers(
-        &crate::plan::trace::buffer_plans(world),
-        pipeline.map(|p| (p, trace)),
-    )?;
-    let (tlas, spheres) = if trace {
-        let (t, s) = cache.scene(&world.launch.scene, api)?;
-        (Some(t), Some(s))
-    } else {
-        (None, None)
+    *buffers = cache.case_buffers(&plan.buffers, pipeline.map(|p| (p, trace)))?;
+    let (tlas, spheres) = match &plan.scene {
+        Some(scene) => {
+            let (t, s) = cache.scene(&world.launch.scene, scene)?;
+            (Some(t), Some(s))
+        }
+        None => (None, None),
     };
     let layouts = cache.layouts(trace, api)?;
     let (vk_pipeline, stack_size) = match pipeline {
@@ -185,54 +166,25 @@ fn run(
     } else {
         None
     };
-    let launch = &world.launch;
-    let ray_list = if trace { launch.ray_list() } else { vec![] };
-    cache.io_buffers(words, ray_list.len(), launch.callables.len())?;
+    let ray_count = plan.io.rays.len().saturating_sub(16) / RAY_RECORD_SIZE;
+    let callable_count = plan.io.callables.len().saturating_sub(16) / 4;
+    cache.io_buffers(words, ray_count, callable_count)?;
     let (out, rays, calls) = (
         cache.output.as_ref().expect("made above"),
         cache.rays.as_ref().expect("made above"),
         cache.callables.as_ref().expect("made above"),
     );
-    // Records pre-filled (outcome NOT_RUN); rays header (count, capacity in launch IDs, extra
-    // recursion) and the rays as they are (origin and tmin, direction and tmax, SBT parameters, cull
-    // mask, flags); callables.
-    let fill: Vec<u8> = std::iter::repeat_n(RayRecord::PREFILL, ids)
-        .flatten()
-        .flat_map(|w| w.to_ne_bytes())
-        .collect();
-    out.write(0, &fill);
-    let mut ray_bytes: Vec<u8> = Vec::with_capacity(16 + ray_list.len() * RAY_RECORD_SIZE);
-    for v in [ray_list.len() as u32, ids as u32, launch.extra_recursion, 0] {
-        ray_bytes.extend_from_slice(&v.to_ne_bytes());
+    // The plan's bytes: records pre-filled (outcome NOT_RUN) where they are read back, the rays
+    // buffer, the callables.
+    if plan.io.fill_output {
+        let fill: Vec<u8> = std::iter::repeat_n(RayRecord::PREFILL, plan.io.records)
+            .flatten()
+            .flat_map(|w| w.to_le_bytes())
+            .collect();
+        out.write(0, &fill);
     }
-    for r in &ray_list {
-        let [ox, oy, oz] = r.origin;
-        let [dx, dy, dz] = r.direction;
-        for f in [ox, oy, oz, r.tmin, dx, dy, dz, r.tmax] {
-            ray_bytes.extend_from_slice(&f32::to_ne_bytes(f));
-        }
-        for v in [
-            r.sbt_offset,
-            r.sbt_stride,
-            r.miss_index,
-            r.cull_mask,
-            r.flags.0,
-            0,
-            0,
-            0,
-        ] {
-            ray_bytes.extend_from_slice(&v.to_ne_bytes());
-        }
-    }
-    rays.write(0, &ray_bytes);
-    let mut call_bytes: Vec<u8> = Vec::with_capacity(16 + launch.callables.len() * 4);
-    for v in [launch.callables.len() as u32, 0, 0, 0]
-        .iter()
-        .chain(&launch.callables)
-    {
-        call_bytes.extend_from_slice(&v.to_ne_bytes());
-    }
-    calls.write(0, &call_bytes);
+    rays.write(0, &plan.io.rays);
+    calls.write(0, &plan.io.callables);
 
     let d = &cache.dev.device;
     // Descriptor set.

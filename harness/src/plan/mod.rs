@@ -74,7 +74,7 @@ pub enum Step {
     /// `vkCmdSetRayTracingPipelineStackSizeKHR` with the pipeline's default stack size (4096 when the
     /// spec's formula gives 0).
     SetStackSize,
-    /// Bind the harness's descriptor set (scene, output, rays, callables) at set 0.
+    /// Bind the harness's descriptor set (scene, records, rays, callables, spheres) at set 0.
     BindHarnessSet,
     /// The descriptor sets and push constants of the case's resource state.
     ResourceBinds,
@@ -184,7 +184,7 @@ pub fn step_text(step: &Step) -> String {
             "vkCmdSetRayTracingPipelineStackSizeKHR (the pipeline's default stack size)".into()
         }
         Step::BindHarnessSet => {
-            "vkCmdBindDescriptorSets (set 0: scene, output, rays, callables)".into()
+            "vkCmdBindDescriptorSets (set 0: scene, records, rays, callables, spheres)".into()
         }
         Step::ResourceBinds => {
             "vkCmdBindDescriptorSets / vkCmdPushConstants (the resource state)".into()

@@ -1,6 +1,7 @@
 //! A ray tracing pipeline's plan: one stage per shader a group uses (the harness's module of that kind,
-//! specialised by constant 0 to the group's index) and the groups naming their stages, the flags,
-//! recursion depth and dynamic state — what `realise::pipeline` creates and the C export writes.
+//! specialised by constant 0 to the group's index and by constant 1 to its hit group's any-hit rule)
+//! and the groups naming their stages, the flags, recursion depth and dynamic state — what
+//! `realise::pipeline` creates and the C export writes.
 
 use super::ShaderKind;
 use crate::error::HarnessError;
@@ -18,6 +19,9 @@ pub struct StagePlan {
     pub stage: u32,
     /// The value of specialisation constant 0: the index of the group the stage serves.
     pub group: u32,
+    /// The value of specialisation constant 1: the any-hit rule of its hit group
+    /// (`model::tracer::AnyHitRule::code`; only the any-hit shader declares it; 0 for general groups).
+    pub any_hit_rule: u32,
 }
 
 /// `VkRayTracingShaderGroupTypeKHR`.
@@ -67,9 +71,9 @@ pub struct PipelinePlan {
     pub groups: Vec<GroupPlan>,
 }
 
-/// The library interface of a pipeline library: the payload is `Payload { uint word, depth, ray; }`
-/// (12 bytes); the shaders declare no hit attributes beyond the built-in 8 bytes.
-pub const MAX_PAYLOAD_SIZE: u32 = 12;
+/// The library interface of a pipeline library: the payload is twelve words (see
+/// `shaders/raygen.rgen`); the hit attribute is a vec2.
+pub const MAX_PAYLOAD_SIZE: u32 = 48;
 pub const MAX_HIT_ATTRIBUTE_SIZE: u32 = 8;
 
 impl PipelinePlan {
@@ -86,11 +90,17 @@ impl PipelinePlan {
         let mut groups = Vec::with_capacity(p.groups.len());
         for (g, group) in p.groups.iter().enumerate() {
             let g = g as u32;
+            let any_hit_rule = match group {
+                ShaderGroup::TrianglesHit { any_hit_rule, .. }
+                | ShaderGroup::ProceduralHit { any_hit_rule, .. } => any_hit_rule.code(),
+                ShaderGroup::General { .. } => 0,
+            };
             let mut add = |shader: ShaderKind, stage: vk::ShaderStageFlags| -> u32 {
                 stages.push(StagePlan {
                     shader,
                     stage: stage.as_raw(),
                     group: g,
+                    any_hit_rule,
                 });
                 stages.len() as u32 - 1
             };

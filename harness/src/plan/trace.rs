@@ -1,24 +1,25 @@
 //! A trace case's plan: the world's buffers with their writes (bytes, and shader group handles named by
-//! group), the pipeline, the scene, the harness's own buffers (output, rays, callables) with their
-//! bytes and descriptor set, the command buffer's steps and the call's arguments — and what the
-//! harness cannot realise, refused before anything is made.
+//! group), the pipeline, the rendered scene ([`ScenePlan`]), the harness's own buffers (ray records
+//! pre-filled, rays, callables, spheres) with their bytes and descriptor set, the command buffer's
+//! steps and the call's arguments — and what the harness cannot realise, refused before anything is
+//! made. The trace executor realises this plan's scene, buffers and bytes.
 
 use super::pipeline::PipelinePlan;
 use super::scene::ScenePlan;
+use super::Barrier;
 use super::{step_text, Step};
 use crate::error::HarnessError;
 use ash::vk;
-use model::call::{Address, NvTable, StridedRegion};
-use model::world::{CommandBufferLevel, Contents, HandleRef, MemoryBinding, PipelineApi, World};
+use model::call::{Address, Call, NvTable, StridedRegion};
+use model::flags::QueueFlags;
+use model::tracer::record::RayRecord;
+use model::world::{
+    CommandBufferLevel, CommandBufferLifecycle, Contents, HandleRef, MemoryBinding, PipelineApi,
+    World,
+};
 
 /// Bytes of one ray record of the rays buffer (std430 `Ray` after a 16-byte header).
 pub const RAY_RECORD_SIZE: usize = 64;
-
-/// Why [`TracePlan::of`] (and so the call plan, `rtconf export` and replay's call list) refuses every
-/// trace case.
-pub const NOT_DESCRIBED: &str = "the call plan does not yet describe rendered-scene trace cases \
-     (explicit and camera rays into bottom levels and instances, 28-word ray records); the harness runs \
-     them from the case itself, but cannot export or list their calls";
 
 /// A write into one of the world's buffers.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
@@ -62,11 +63,15 @@ pub struct BindingPlan {
 /// The harness's buffers: what the raygen reads and writes.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
 pub struct IoPlan {
-    /// Output words the buffer holds (at least one).
+    /// Launch IDs with a record in the output buffer (each [`RayRecord::WORDS`] words).
+    pub records: usize,
+    /// Output words the records binding covers: `records` records, at least one.
     pub output_words: usize,
-    /// Fill the output with [`model::semantics::NOT_RUN`] first (cases that are read back).
+    /// Fill every record with [`RayRecord::PREFILL`] first (cases that are read back).
     pub fill_output: bool,
-    /// The rays buffer: `[count, capacity, extra recursion, 0]`, then one record per ray.
+    /// The rays buffer: `[count, capacity in launch IDs, extra recursion, 0]`, then per ray origin and
+    /// tmin, direction and tmax (f32), SBT offset and stride, miss index, cull mask, flags (u32) and
+    /// three zero words.
     pub rays: Vec<u8>,
     /// The callables buffer: `[count, 0, 0, 0]`, then the callable record indices.
     pub callables: Vec<u8>,
@@ -111,13 +116,17 @@ pub struct TracePlan {
     /// The world has a resource state (descriptors, images, samplers, push constants): realised by
     /// `realise::resources`, outside this plan.
     pub resources: bool,
-    /// Words the launch writes (its dimensions' product; 0 when unknown).
-    pub launch_words: usize,
+    /// Launch IDs of the call (its dimensions' product; 0 when unknown).
+    pub launch_ids: usize,
 }
 
-/// The harness's descriptor bindings: 1 the output, 2 the rays, 3 the callable indices, and, when the
-/// launch traces, 0 the scene (a KHR or NV structure by `api`), also read by the closest-hit shaders,
-/// which trace their ray again.
+/// Launch IDs are read back only up to this many output words.
+pub const MAX_OUTPUT_WORDS: usize = crate::execute::MAX_OUTPUT_WORDS;
+
+/// The harness's descriptor bindings: 1 the records (written by the raygen, counted into by the
+/// any-hit and intersection shaders), 2 the rays, 3 the callable indices, 4 the spheres the
+/// intersection shader reports, and, when the launch traces, 0 the scene (a KHR or NV structure by
+/// `api`); the closest-hit reads the scene and the rays to trace its ray again.
 pub fn harness_bindings(traces: bool, api: PipelineApi) -> Vec<BindingPlan> {
     let raygen = vk::ShaderStageFlags::RAYGEN_KHR;
     let traced = if traces {
@@ -125,23 +134,19 @@ pub fn harness_bindings(traces: bool, api: PipelineApi) -> Vec<BindingPlan> {
     } else {
         raygen
     };
+    let any = vk::ShaderStageFlags::ANY_HIT_KHR;
+    let isect = vk::ShaderStageFlags::INTERSECTION_KHR;
     let storage = vk::DescriptorType::STORAGE_BUFFER.as_raw();
+    let binding = |binding: u32, stages: vk::ShaderStageFlags| BindingPlan {
+        binding,
+        ty: storage,
+        stages: stages.as_raw(),
+    };
     let mut b = vec![
-        BindingPlan {
-            binding: 1,
-            ty: storage,
-            stages: raygen.as_raw(),
-        },
-        BindingPlan {
-            binding: 2,
-            ty: storage,
-            stages: traced.as_raw(),
-        },
-        BindingPlan {
-            binding: 3,
-            ty: storage,
-            stages: raygen.as_raw(),
-        },
+        binding(1, raygen | any | isect),
+        binding(2, traced),
+        binding(3, raygen),
+        binding(4, isect),
     ];
     if traces {
         let ty = match api {
@@ -218,14 +223,340 @@ pub fn buffer_plans(world: &World) -> Vec<BufferPlan> {
         .collect()
 }
 
+/// The scene's builds as a person reads them: one line per bottom-level build (its geometries) and
+/// the top-level build (its instances).
+fn describe_scene(s: &ScenePlan, out: &mut Vec<String>) {
+    use super::scene::GeometryDataPlan;
+    let (khr, nv) = (s.api == PipelineApi::Khr, s.api == PipelineApi::Nv);
+    let build = if nv {
+        "vkCmdBuildAccelerationStructureNV"
+    } else {
+        "vkCmdBuildAccelerationStructuresKHR"
+    };
+    out.push(format!(
+        "vkCreateBuffer scene input ({} bytes), instances ({} records of 64 bytes){}",
+        s.input.len(),
+        s.instances.len(),
+        if khr {
+            "; vkCreateAccelerationStructureKHR per structure"
+        } else {
+            "; vkCreateAccelerationStructureNV per structure"
+        }
+    ));
+    for (b, bl) in s.bottoms.iter().enumerate() {
+        if !bl.built() {
+            out.push(format!(
+                "  bottom level {b}: no geometries, not built (referenced as 0)"
+            ));
+            continue;
+        }
+        let geoms: Vec<String> = bl
+            .geometries
+            .iter()
+            .map(|g| {
+                let mut names = Vec::new();
+                if g.flags & vk::GeometryFlagsKHR::OPAQUE.as_raw() != 0 {
+                    names.push("OPAQUE");
+                }
+                if g.flags & vk::GeometryFlagsKHR::NO_DUPLICATE_ANY_HIT_INVOCATION.as_raw() != 0 {
+                    names.push("NO_DUPLICATE_ANY_HIT_INVOCATION");
+                }
+                let flags = if names.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", names.join(" | "))
+                };
+                match g.data {
+                    GeometryDataPlan::Triangles {
+                        indices, transform, ..
+                    } => format!(
+                        "{} triangles{}{}{flags}",
+                        g.primitive_count,
+                        match indices {
+                            Some((_, _, bits)) => format!(", u{bits} indices"),
+                            None => String::new(),
+                        },
+                        if transform.is_some() {
+                            ", 3x4 transform"
+                        } else {
+                            ""
+                        },
+                    ),
+                    GeometryDataPlan::Aabbs { .. } => format!("{} AABBs{flags}", g.primitive_count),
+                }
+            })
+            .collect();
+        out.push(format!("{build}: bottom level {b}: {}", geoms.join("; ")));
+    }
+    let active = s.instances.iter().filter(|i| i.bottom.is_some()).count();
+    out.push(format!(
+        "{build}: top level of {} instance(s) ({active} active), after a barrier; one submission, waited for",
+        s.instances.len()
+    ));
+}
+
+/// The rays buffer's bytes: the header, then every ray of the launch as it is.
+fn ray_bytes(world: &World, capacity: usize) -> Vec<u8> {
+    let launch = &world.launch;
+    let rays = if launch.traces() {
+        launch.ray_list()
+    } else {
+        vec![]
+    };
+    let mut bytes: Vec<u8> = Vec::with_capacity(16 + rays.len() * RAY_RECORD_SIZE);
+    for v in [
+        rays.len() as u32,
+        capacity as u32,
+        launch.extra_recursion,
+        0,
+    ] {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    for r in &rays {
+        let [ox, oy, oz] = r.origin;
+        let [dx, dy, dz] = r.direction;
+        for f in [ox, oy, oz, r.tmin, dx, dy, dz, r.tmax] {
+            bytes.extend_from_slice(&f.to_le_bytes());
+        }
+        for v in [
+            r.sbt_offset,
+            r.sbt_stride,
+            r.miss_index,
+            r.cull_mask,
+            r.flags.0,
+            0,
+            0,
+            0,
+        ] {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    bytes
+}
+
 impl TracePlan {
-    /// The plan of a trace case. Not described yet: a trace case's launch traces a rendered scene
-    /// (bottom levels with their geometry, instances with transforms, explicit and camera rays, one
-    /// [`model::tracer::record::RayRecord`] per launch ID), which this plan does not carry; the
-    /// executor realises trace cases from the case itself ([`crate::execute`]), so every trace case
-    /// is refused here with [`NOT_DESCRIBED`].
-    pub fn of(_case: &model::TraceBody, _run_valid: bool) -> Result<TracePlan, HarnessError> {
-        Err(HarnessError::NotRealised(NOT_DESCRIBED.into()))
+    /// The plan of a trace case run as valid (`run_valid`: submitted and its records read back) or
+    /// only recorded under the layer, or why the harness cannot realise it.
+    pub fn of(case: &model::TraceBody, run_valid: bool) -> Result<TracePlan, HarnessError> {
+        let world = &case.world;
+        let cbs = &world.command_buffer;
+        if cbs.in_video_coding || cbs.protected || cbs.lifecycle == CommandBufferLifecycle::Invalid
+        {
+            return Err(HarnessError::NotRealised(
+                "video coding scopes, protected and invalid command buffers are not realised by the harness yet".into(),
+            ));
+        }
+        if !cbs.pool_queue.contains(QueueFlags::COMPUTE_BIT) {
+            return Err(HarnessError::NotRealised(
+                "a command pool for a queue family without compute is not realised yet".into(),
+            ));
+        }
+        if cbs.level == CommandBufferLevel::Secondary && cbs.in_render_pass {
+            return Err(HarnessError::NotRealised(
+                "secondary command buffers inside a render pass are not realised yet".into(),
+            ));
+        }
+        let nv_call = matches!(case.call, Call::TraceRaysNv(_));
+        let traces = world.launch.traces();
+        // What the case's device (exactly its extensions and features) cannot do, as the realisation
+        // says it.
+        let has_extension = |x: &str| world.device.extensions.contains(x);
+        let has_feature = |n: &str| {
+            world
+                .device
+                .features
+                .iter()
+                .any(|f| f == n || f.rsplit("::").next() == Some(n))
+        };
+        let not_realised = |why: &str| Err(HarnessError::NotRealised(why.into()));
+        if nv_call && !has_extension("VK_NV_ray_tracing") {
+            return not_realised(
+                "the case does not enable VK_NV_ray_tracing, so vkCmdTraceRaysNV cannot be called",
+            );
+        }
+        if !nv_call && !has_extension("VK_KHR_ray_tracing_pipeline") {
+            return not_realised("the case does not enable VK_KHR_ray_tracing_pipeline, so vkCmdTraceRays*KHR cannot be called");
+        }
+        let launch_ids = case
+            .call
+            .dimensions(world)
+            .map(|d| {
+                d.iter()
+                    .map(|&x| x as usize)
+                    .fold(1usize, usize::saturating_mul)
+            })
+            .unwrap_or(0);
+        if run_valid && launch_ids.saturating_mul(RayRecord::WORDS) > MAX_OUTPUT_WORDS {
+            return Err(HarnessError::NotRealised(format!(
+                "a launch of {launch_ids} IDs is larger than the harness reads back"
+            )));
+        }
+        // Records for every launch ID the harness reads back (an invalid case is never submitted).
+        let records = launch_ids.min(MAX_OUTPUT_WORDS / RayRecord::WORDS);
+        // The scene and descriptor layout follow the pipeline's API (an NV pipeline reads an NV structure).
+        let api = world.pipeline.as_ref().map_or(
+            if nv_call {
+                PipelineApi::Nv
+            } else {
+                PipelineApi::Khr
+            },
+            |p| p.api,
+        );
+        match world.pipeline.as_ref().map(|p| p.api) {
+            Some(PipelineApi::Khr) if !has_extension("VK_KHR_ray_tracing_pipeline") => {
+                return not_realised("the case does not enable VK_KHR_ray_tracing_pipeline, so no ray tracing pipeline can be made");
+            }
+            Some(PipelineApi::Nv) if !has_extension("VK_NV_ray_tracing") => {
+                return not_realised("the case does not enable VK_NV_ray_tracing, so no NV ray tracing pipeline can be made");
+            }
+            _ => {}
+        }
+        let pipeline = world
+            .pipeline
+            .as_ref()
+            .map(|p| PipelinePlan::of(p, traces))
+            .transpose()?;
+        if traces {
+            match api {
+                PipelineApi::Nv if !has_extension("VK_NV_ray_tracing") => {
+                    return not_realised(
+                        "the case traces rays but does not enable VK_NV_ray_tracing",
+                    );
+                }
+                PipelineApi::Khr if !has_extension("VK_KHR_acceleration_structure") => {
+                    return not_realised(
+                        "the case traces rays but does not enable VK_KHR_acceleration_structure",
+                    );
+                }
+                PipelineApi::Khr
+                    if !has_feature("accelerationStructure")
+                        || !has_feature("bufferDeviceAddress") =>
+                {
+                    return not_realised("the case traces rays but does not enable accelerationStructure and bufferDeviceAddress");
+                }
+                _ => {}
+            }
+        }
+        let buffers = buffer_plans(world);
+        let foreign_pipeline = buffers.iter().any(|b| {
+            b.writes.iter().any(|w| {
+                matches!(
+                    w,
+                    BufferWrite::Handle {
+                        handle: HandleRef::Foreign(_),
+                        ..
+                    }
+                )
+            })
+        });
+        let scene = traces.then(|| ScenePlan::of(&world.launch.scene, api));
+        let read_back = run_valid
+            && cbs.lifecycle == CommandBufferLifecycle::Recording
+            && cbs.level == CommandBufferLevel::Primary
+            && !cbs.in_render_pass;
+        let callables: Vec<u8> = [world.launch.callables.len() as u32, 0, 0, 0]
+            .iter()
+            .chain(&world.launch.callables)
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let io = IoPlan {
+            records,
+            output_words: (records * RayRecord::WORDS).max(RayRecord::WORDS),
+            fill_output: read_back,
+            rays: ray_bytes(world, records),
+            callables,
+        };
+        let mut steps = Vec::new();
+        if cbs.lifecycle != CommandBufferLifecycle::Initial {
+            steps.push(Step::Begin {
+                level: cbs.level,
+                continue_render_pass: false,
+            });
+            if traces {
+                // The scene was built by an earlier submission: a memory dependency from its build to
+                // the shaders' reads (submission order alone gives only an execution dependency).
+                // Recorded before any render pass begins, where a barrier would need a subpass
+                // self-dependency.
+                steps.push(Step::Barrier(Barrier::SceneBuildToShaders));
+            }
+            if !world.resources.is_empty() {
+                steps.push(Step::ResourceTransitions);
+            }
+            if world.pipeline.is_some() && cbs.pipeline_bound {
+                steps.push(Step::BindPipeline);
+                if cbs.stack_size_set {
+                    steps.push(Step::SetStackSize);
+                }
+            }
+            steps.push(Step::BindHarnessSet);
+            if !world.resources.is_empty() {
+                steps.push(Step::ResourceBinds);
+            }
+            if cbs.in_render_pass {
+                steps.push(Step::BeginRenderPass);
+            }
+            if cbs.lifecycle == CommandBufferLifecycle::Executable {
+                if cbs.in_render_pass {
+                    steps.push(Step::EndRenderPass);
+                }
+                steps.push(Step::End);
+            }
+        }
+        steps.push(Step::Call {
+            dropped: !run_valid,
+        });
+        if read_back {
+            steps.push(Step::Barrier(Barrier::ShaderWritesToHost));
+            steps.push(Step::Submit);
+            steps.push(Step::ReadBack {
+                words: records * RayRecord::WORDS,
+            });
+        }
+        let call = match &case.call {
+            Call::TraceRays(c) => TraceCall::TraceRays {
+                regions: [
+                    c.raygen.clone(),
+                    c.miss.clone(),
+                    c.hit.clone(),
+                    c.callable.clone(),
+                ],
+                dims: [c.width, c.height, c.depth],
+            },
+            Call::TraceRaysIndirect(c) => TraceCall::TraceRaysIndirect {
+                regions: [
+                    c.raygen.clone(),
+                    c.miss.clone(),
+                    c.hit.clone(),
+                    c.callable.clone(),
+                ],
+                indirect: c.indirect_address.clone(),
+            },
+            Call::TraceRaysNv(c) => TraceCall::TraceRaysNv {
+                tables: [
+                    c.raygen.clone(),
+                    c.miss.clone(),
+                    c.hit.clone(),
+                    c.callable.clone(),
+                ],
+                dims: [c.width, c.height, c.depth],
+            },
+        };
+        Ok(TracePlan {
+            api,
+            traces,
+            buffers,
+            pipeline,
+            foreign_pipeline,
+            scene,
+            bindings: harness_bindings(traces, api),
+            io,
+            level: cbs.level,
+            in_render_pass: cbs.in_render_pass,
+            steps,
+            call,
+            resources: !world.resources.is_empty(),
+            launch_ids,
+        })
     }
 
     /// Appends the plan's call sequence, as a person reads it.
@@ -293,17 +624,16 @@ impl TracePlan {
             }
         }
         if let Some(s) = &self.scene {
-            out.push(format!(
-                "build the scene: {} bottom-level structure(s), a top-level one of {} instance(s) (one submission)",
-                s.bottoms.len(),
-                s.instances.len()
-            ));
+            describe_scene(s, out);
         }
         out.push(format!(
-            "vkCreateBuffer output ({} words), rays ({} bytes), callables ({} bytes); one descriptor set",
-            self.io.output_words,
+            "vkCreateBuffer records ({} launch IDs of {} words{}), rays ({} bytes), callables ({} bytes), spheres ({} words); one descriptor set",
+            self.io.records,
+            RayRecord::WORDS,
+            if self.io.fill_output { ", pre-filled" } else { "" },
             self.io.rays.len(),
-            self.io.callables.len()
+            self.io.callables.len(),
+            self.scene.as_ref().map_or(4, |s| s.spheres.len()),
         ));
         if self.resources {
             out.push(

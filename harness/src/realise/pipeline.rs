@@ -24,7 +24,7 @@ macro_rules! group_infos {
 use crate::error::{vkfail, HarnessError};
 use crate::shaders::{self, ShaderKind};
 use ash::vk;
-use model::world::{GeneralStage, Pipeline, PipelineApi, ShaderGroup};
+use model::world::{Pipeline, PipelineApi};
 
 /// The descriptor set layout and pipeline layout of one raygen variant.
 #[derive(Clone, Copy)]
@@ -103,9 +103,8 @@ impl DeviceCache {
     }
 
     /// Layouts for the raygen variant: with the scene at binding 0 (`trace`, a KHR or NV acceleration
-    /// structure by `api`) or without. Binding 1 is the records (written by the raygen, counted into by
-    /// the any-hit and intersection shaders), 2 the rays, 3 the callable indices, 4 the spheres the
-    /// intersection shader reports; the closest-hit reads the scene and the rays to trace its ray again.
+    /// structure by `api`) or without; the bindings are the plan's
+    /// ([`crate::plan::trace::harness_bindings`]).
     pub(crate) fn layouts(
         &mut self,
         trace: bool,
@@ -114,40 +113,17 @@ impl DeviceCache {
         if let Some(l) = self.layouts.get(&(trace, api == PipelineApi::Nv)) {
             return Ok(*l);
         }
-        let raygen = vk::ShaderStageFlags::RAYGEN_KHR;
-        let traced = if trace {
-            raygen | vk::ShaderStageFlags::CLOSEST_HIT_KHR
-        } else {
-            raygen
-        };
-        let storage = |binding: u32, stages| {
-            vk::DescriptorSetLayoutBinding::default()
-                .binding(binding)
-                .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-                .descriptor_count(1)
-                .stage_flags(stages)
-        };
-        let any = vk::ShaderStageFlags::ANY_HIT_KHR;
-        let isect = vk::ShaderStageFlags::INTERSECTION_KHR;
-        let mut bindings = vec![
-            storage(1, raygen | any | isect),
-            storage(2, traced),
-            storage(3, raygen),
-            storage(4, isect),
-        ];
-        if trace {
-            let ty = match api {
-                PipelineApi::Khr => vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
-                PipelineApi::Nv => vk::DescriptorType::ACCELERATION_STRUCTURE_NV,
-            };
-            bindings.push(
-                vk::DescriptorSetLayoutBinding::default()
-                    .binding(0)
-                    .descriptor_type(ty)
-                    .descriptor_count(1)
-                    .stage_flags(traced),
-            );
-        }
+        let bindings: Vec<vk::DescriptorSetLayoutBinding> =
+            crate::plan::trace::harness_bindings(trace, api)
+                .iter()
+                .map(|b| {
+                    vk::DescriptorSetLayoutBinding::default()
+                        .binding(b.binding)
+                        .descriptor_type(vk::DescriptorType::from_raw(b.ty))
+                        .descriptor_count(1)
+                        .stage_flags(vk::ShaderStageFlags::from_raw(b.stages))
+                })
+                .collect();
         let d = &self.dev.device;
         // SAFETY: valid create infos.
         let set = unsafe {
@@ -228,97 +204,33 @@ impl DeviceCache {
             }
             _ => {}
         }
-        let raygen = if trace {
-            ShaderKind::RaygenTrace
-        } else {
-            ShaderKind::RaygenPlain
-        };
-        let closest = if trace {
-            ShaderKind::ClosestHitTrace
-        } else {
-            ShaderKind::ClosestHitPlain
-        };
-        // ([group index, any-hit rule], stage flag, module) per stage, and per group (type, [general,
-        // closest, any, intersection]).
-        let mut stage_list: Vec<([u32; 2], vk::ShaderStageFlags, vk::ShaderModule)> = Vec::new();
-        let mut groups: Vec<(vk::RayTracingShaderGroupTypeKHR, [u32; 4])> = Vec::new();
-        let unused = vk::SHADER_UNUSED_KHR;
-        for (g, group) in p.groups.iter().enumerate() {
-            let g = g as u32;
-            let rule = match group {
-                ShaderGroup::TrianglesHit { any_hit_rule, .. }
-                | ShaderGroup::ProceduralHit { any_hit_rule, .. } => any_hit_rule.code(),
-                ShaderGroup::General { .. } => 0,
+        // The plan's stages (each a module of its kind, a templated one where `modules` has it) and
+        // groups: ([group index, any-hit rule], stage flag, module) per stage, and per group (type,
+        // [general, closest, any, intersection]).
+        let plan = crate::plan::PipelinePlan::of(p, trace)?;
+        let mut stage_list: Vec<([u32; 2], vk::ShaderStageFlags, vk::ShaderModule)> =
+            Vec::with_capacity(plan.stages.len());
+        for st in &plan.stages {
+            let m = match modules.iter().find(|(k, _)| *k == st.shader) {
+                Some(&(_, m)) => m,
+                None => self.module(st.shader, api)?,
             };
-            let mut add = |this: &mut Self,
-                           kind: ShaderKind,
-                           stage: vk::ShaderStageFlags|
-             -> Result<u32, HarnessError> {
-                // A templated module of this kind replaces the harness's.
-                let m = match modules.iter().find(|(k, _)| *k == kind) {
-                    Some(&(_, m)) => m,
-                    None => this.module(kind, api)?,
-                };
-                stage_list.push(([g, rule], stage, m));
-                Ok(stage_list.len() as u32 - 1)
-            };
-            let info = match group {
-                ShaderGroup::General { stage } => {
-                    let (kind, flag) = match stage {
-                        GeneralStage::Raygen => (raygen, vk::ShaderStageFlags::RAYGEN_KHR),
-                        GeneralStage::Miss => (ShaderKind::Miss, vk::ShaderStageFlags::MISS_KHR),
-                        GeneralStage::Callable => {
-                            (ShaderKind::Callable, vk::ShaderStageFlags::CALLABLE_KHR)
-                        }
-                    };
-                    let s = add(self, kind, flag)?;
-                    (
-                        vk::RayTracingShaderGroupTypeKHR::GENERAL,
-                        [s, unused, unused, unused],
-                    )
-                }
-                ShaderGroup::TrianglesHit {
-                    closest_hit,
-                    any_hit,
-                    ..
-                }
-                | ShaderGroup::ProceduralHit {
-                    closest_hit,
-                    any_hit,
-                    ..
-                } => {
-                    let procedural = matches!(group, ShaderGroup::ProceduralHit { .. });
-                    let ch = if *closest_hit {
-                        add(self, closest, vk::ShaderStageFlags::CLOSEST_HIT_KHR)?
-                    } else {
-                        unused
-                    };
-                    let ah = if *any_hit {
-                        add(self, ShaderKind::AnyHit, vk::ShaderStageFlags::ANY_HIT_KHR)?
-                    } else {
-                        unused
-                    };
-                    let is = match group {
-                        ShaderGroup::ProceduralHit { intersection: true, .. } => {
-                            add(self, ShaderKind::Intersection, vk::ShaderStageFlags::INTERSECTION_KHR)?
-                        }
-                        ShaderGroup::ProceduralHit { intersection: false, .. } => {
-                            return Err(HarnessError::NotRealised(format!(
-                                "group {g} is procedural without an intersection shader, which no valid pipeline has"
-                            )))
-                        }
-                        _ => unused,
-                    };
-                    let ty = if procedural {
-                        vk::RayTracingShaderGroupTypeKHR::PROCEDURAL_HIT_GROUP
-                    } else {
-                        vk::RayTracingShaderGroupTypeKHR::TRIANGLES_HIT_GROUP
-                    };
-                    (ty, [unused, ch, ah, is])
-                }
-            };
-            groups.push(info);
+            stage_list.push((
+                [st.group, st.any_hit_rule],
+                vk::ShaderStageFlags::from_raw(st.stage),
+                m,
+            ));
         }
+        let groups: Vec<(vk::RayTracingShaderGroupTypeKHR, [u32; 4])> = plan
+            .groups
+            .iter()
+            .map(|g| {
+                (
+                    vk::RayTracingShaderGroupTypeKHR::from_raw(g.ty.raw()),
+                    [g.general, g.closest_hit, g.any_hit, g.intersection],
+                )
+            })
+            .collect();
         let group_values: Vec<[u32; 2]> = stage_list.iter().map(|(g, _, _)| *g).collect();
         // Constant 0: the group index; 1: the any-hit rule (only the any-hit shader declares it).
         let entry = [
@@ -403,10 +315,9 @@ impl DeviceCache {
             group_infos!(groups, vk::RayTracingShaderGroupCreateInfoKHR);
         let dynamic = [vk::DynamicState::RAY_TRACING_PIPELINE_STACK_SIZE_KHR];
         let dyn_info = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic);
-        // The payload is twelve words (see `shaders/raygen.rgen`); the hit attribute is a vec2.
         let iface = vk::RayTracingPipelineInterfaceCreateInfoKHR::default()
-            .max_pipeline_ray_payload_size(48)
-            .max_pipeline_ray_hit_attribute_size(8);
+            .max_pipeline_ray_payload_size(crate::plan::pipeline::MAX_PAYLOAD_SIZE)
+            .max_pipeline_ray_hit_attribute_size(crate::plan::pipeline::MAX_HIT_ATTRIBUTE_SIZE);
         let mut info = vk::RayTracingPipelineCreateInfoKHR::default()
             .flags(flags)
             .stages(&stages)

@@ -1,18 +1,19 @@
-//! The scene the rays see: one bottom-level structure per bottom level of the case's
-//! `model::scene::Scene` (triangles from f32 positions with optional u16/u32 indices and 3x4 geometry
-//! transform, or AABBs; OPAQUE and NO_DUPLICATE_ANY_HIT flags), a top-level structure over its
-//! instances (row-major 3x4 transform, custom index, mask, SBT record offset, facing and opacity
-//! flags; an inactive instance references 0), as KHR or NV acceleration structures through one
-//! geometry and instance writer, and the spheres buffer the intersection shader reads. Built once per
-//! content (a hash of the scene) and kept for the next cases on the device.
+//! The scene the rays see, built from the case's scene plan (`crate::plan::scene::ScenePlan`, the
+//! bytes the C export embeds too): one bottom-level structure per built bottom level (triangles from
+//! f32 positions with optional u16/u32 indices and 3x4 geometry transform, or AABBs; the plan's
+//! geometry flags), a top-level structure over the plan's instance records (an inactive instance
+//! references 0), as KHR or NV acceleration structures, and the spheres buffer the intersection
+//! shader reads. Built once per content (a hash of the scene) and kept for the next cases on the
+//! device.
 
 use super::DeviceCache;
 use crate::error::{vkfail, HarnessError};
+use crate::plan::scene::{GeometryDataPlan, InstancePlan, ScenePlan, AABB_STRIDE, VERTEX_STRIDE};
 use crate::vk::commands::{begin_one_time, memory_barrier};
 use crate::vk::memory::Allocation;
 use crate::vk::VkDevice;
 use ash::vk;
-use model::scene::{GeometryData, GeometryFlags, Indices, InstanceFlags, SceneInstance};
+use model::scene::SceneInstance;
 use model::world::PipelineApi;
 
 /// The top-level structure of a built scene, of the extension the case's pipeline uses.
@@ -96,149 +97,15 @@ pub(crate) fn sized_structure(
     Ok((structure, storage, scratch))
 }
 
-/// Where one geometry's data sits in the scene's input buffer.
-#[derive(Debug, Clone, Copy, Default)]
-struct Placed {
-    /// Vertices (triangles) or boxes (AABBs).
-    data: u64,
-    indices: Option<u64>,
-    transform: Option<u64>,
-}
-
-/// The bytes every bottom level is built from and where each geometry's data sits (16-aligned):
-/// positions as three f32 per vertex, indices as u16 or u32, the geometry transform as 12 f32
-/// (row-major), boxes as six f32.
-fn geometry_input(scene: &model::scene::Scene) -> (Vec<u8>, Vec<Vec<Placed>>) {
-    let mut input: Vec<u8> = Vec::new();
-    let at = |input: &mut Vec<u8>, bytes: &[u8]| -> u64 {
-        input.resize(input.len().next_multiple_of(16), 0);
-        let offset = input.len() as u64;
-        input.extend_from_slice(bytes);
-        // At least one byte, so an empty array still has an address inside the buffer.
-        if bytes.is_empty() {
-            input.push(0);
-        }
-        offset
-    };
-    let f32s =
-        |v: &mut dyn Iterator<Item = f32>| -> Vec<u8> { v.flat_map(|x| x.to_ne_bytes()).collect() };
-    let mut placed = Vec::new();
-    for bl in &scene.bottom_levels {
-        let mut per = Vec::new();
-        for g in &bl.geometries {
-            per.push(match &g.data {
-                GeometryData::Triangles(t) => {
-                    let data = at(
-                        &mut input,
-                        &f32s(&mut t.positions.iter().flatten().copied()),
-                    );
-                    let indices = t.indices.as_ref().map(|ix| {
-                        let bytes: Vec<u8> = match ix {
-                            Indices::U16(v) => v.iter().flat_map(|x| x.to_ne_bytes()).collect(),
-                            Indices::U32(v) => v.iter().flat_map(|x| x.to_ne_bytes()).collect(),
-                        };
-                        at(&mut input, &bytes)
-                    });
-                    let transform = t
-                        .transform
-                        .as_ref()
-                        .map(|m| at(&mut input, &f32s(&mut m.0.iter().flatten().copied())));
-                    Placed {
-                        data,
-                        indices,
-                        transform,
-                    }
-                }
-                GeometryData::Aabbs(a) => Placed {
-                    data: at(
-                        &mut input,
-                        &f32s(&mut a.boxes.iter().flat_map(|b| b.min.into_iter().chain(b.max))),
-                    ),
-                    indices: None,
-                    transform: None,
-                },
-            });
-        }
-        placed.push(per);
-    }
-    input.resize(input.len().max(16), 0);
-    (input, placed)
-}
-
-/// The words of the spheres buffer (see `shaders/intersection.rint`): per instance the start of its
-/// bottom level's geometry table, per geometry the start of its spheres, per sphere its centre and
-/// radius as f32 bits.
-fn sphere_words(scene: &model::scene::Scene) -> Vec<u32> {
-    let n = scene.instances.len();
-    let mut words = vec![0u32; n];
-    let mut tables = Vec::with_capacity(scene.bottom_levels.len());
-    for bl in &scene.bottom_levels {
-        tables.push(words.len() as u32);
-        words.extend(std::iter::repeat_n(0, bl.geometries.len()));
-    }
-    for (b, bl) in scene.bottom_levels.iter().enumerate() {
-        for (g, geometry) in bl.geometries.iter().enumerate() {
-            if let GeometryData::Aabbs(a) = &geometry.data {
-                words[tables[b] as usize + g] = words.len() as u32;
-                for s in &a.spheres {
-                    words.extend(s.center.map(f32::to_bits));
-                    words.push(s.radius.to_bits());
-                }
-            }
-        }
-    }
-    for (i, inst) in scene.instances.iter().enumerate() {
-        if let Some(b) = inst.bottom_level {
-            words[i] = tables.get(b as usize).copied().unwrap_or(0);
-        }
-    }
-    words.resize(words.len().max(4), 0);
-    words
-}
-
-fn khr_geometry_flags(f: GeometryFlags) -> vk::GeometryFlagsKHR {
-    let mut out = vk::GeometryFlagsKHR::empty();
-    if f.opaque {
-        out |= vk::GeometryFlagsKHR::OPAQUE;
-    }
-    if f.no_duplicate_any_hit {
-        out |= vk::GeometryFlagsKHR::NO_DUPLICATE_ANY_HIT_INVOCATION;
-    }
-    out
-}
-
-/// The instance flags byte (KHR and NV share the bits).
-fn instance_flags(f: InstanceFlags) -> u8 {
-    let mut out = vk::GeometryInstanceFlagsKHR::empty();
-    if f.triangle_facing_cull_disable {
-        out |= vk::GeometryInstanceFlagsKHR::TRIANGLE_FACING_CULL_DISABLE;
-    }
-    if f.flip_facing {
-        out |= vk::GeometryInstanceFlagsKHR::TRIANGLE_FLIP_FACING;
-    }
-    if f.force_opaque {
-        out |= vk::GeometryInstanceFlagsKHR::FORCE_OPAQUE;
-    }
-    if f.force_no_opaque {
-        out |= vk::GeometryInstanceFlagsKHR::FORCE_NO_OPAQUE;
-    }
-    out.as_raw() as u8
-}
-
-/// Whether a bottom level is realised as a structure: one without geometries is referenced as 0
-/// instead (inactive), which no ray can tell from an empty structure and no driver has to size.
-fn realised(bl: &model::scene::BottomLevel) -> bool {
-    !bl.geometries.is_empty()
-}
-
 impl DeviceCache {
-    /// The built scene for a case's scene (cached by content): its top level and spheres buffer.
+    /// The built scene of a case's scene plan (cached by the content of `scene`, the model's scene the
+    /// plan was made from): its top level and spheres buffer.
     pub(crate) fn scene(
         &mut self,
         scene: &model::scene::Scene,
-        api: PipelineApi,
+        plan: &ScenePlan,
     ) -> Result<(Tlas, vk::Buffer), HarnessError> {
-        let key = format!("{api:?}|{:016x}", model::semantics::scene_key(scene));
+        let key = format!("{:?}|{:016x}", plan.api, model::semantics::scene_key(scene));
         if !self.scenes.contains_key(&key) {
             // Every earlier case waited for its submission: no kept scene is in use.
             while self.scene_order.len() >= KEPT_SCENES {
@@ -247,7 +114,7 @@ impl DeviceCache {
                     self.destroy_scene(s);
                 }
             }
-            let built = self.build_scene(scene, api);
+            let built = self.build_scene(plan);
             self.scenes.insert(key.clone(), built);
             self.scene_order.push(key.clone());
         }
@@ -257,11 +124,7 @@ impl DeviceCache {
         }
     }
 
-    fn build_scene(
-        &mut self,
-        scene: &model::scene::Scene,
-        api: PipelineApi,
-    ) -> Result<Scene, HarnessError> {
+    fn build_scene(&mut self, scene: &ScenePlan) -> Result<Scene, HarnessError> {
         let mut built = Scene {
             tlas: Tlas::Khr(vk::AccelerationStructureKHR::null()),
             spheres: vk::Buffer::null(),
@@ -270,7 +133,7 @@ impl DeviceCache {
             nv_memory: Vec::new(),
             buffers: Vec::new(),
         };
-        let result = self.build_scene_into(scene, api, &mut built);
+        let result = self.build_scene_into(scene, &mut built);
         match result {
             Ok(()) => Ok(built),
             Err(e) => {
@@ -282,12 +145,10 @@ impl DeviceCache {
 
     fn build_scene_into(
         &mut self,
-        scene: &model::scene::Scene,
-        api: PipelineApi,
+        scene: &ScenePlan,
         built: &mut Scene,
     ) -> Result<(), HarnessError> {
-        let words = sphere_words(scene);
-        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_ne_bytes()).collect();
+        let bytes = scene.sphere_bytes();
         let spheres = Allocation::filled(
             &self.dev,
             &bytes,
@@ -297,7 +158,7 @@ impl DeviceCache {
         )?;
         built.spheres = spheres.buffer;
         built.buffers.push(spheres);
-        if api == PipelineApi::Nv {
+        if scene.api == PipelineApi::Nv {
             let Some(nv) = self.dev.nv.clone() else {
                 return Err(HarnessError::NotRealised(
                     "the case traces rays but does not enable VK_NV_ray_tracing".into(),
@@ -323,7 +184,7 @@ impl DeviceCache {
     fn build_khr_scene_into(
         &mut self,
         accel: &ash::khr::acceleration_structure::Device,
-        scene: &model::scene::Scene,
+        scene: &ScenePlan,
         built: &mut Scene,
     ) -> Result<(), HarnessError> {
         let dev = &self.dev;
@@ -331,9 +192,9 @@ impl DeviceCache {
             | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
         let scratch_align = (dev.limits.scratch_alignment as u64).max(256);
         let none = vk::BufferCreateFlags::empty();
-        let (input, placed) = geometry_input(scene);
+        let input = &scene.input;
         let inputs = Allocation::new(dev, input.len() as u64, input_usage, none, 256)?;
-        inputs.write(0, &input);
+        inputs.write(0, input);
         let base = inputs.address;
         built.buffers.push(inputs);
         let address = |offset: u64| vk::DeviceOrHostAddressConstKHR {
@@ -347,60 +208,57 @@ impl DeviceCache {
             vk::AccelerationStructureKHR,
             u64,
         )> = Vec::new();
-        for (b, bl) in scene.bottom_levels.iter().enumerate() {
-            if !realised(bl) {
+        for bl in &scene.bottoms {
+            if !bl.built() {
                 blas_addresses.push(0);
                 continue;
             }
             let mut geoms = Vec::new();
             let mut ranges = Vec::new();
-            for (g, geometry) in bl.geometries.iter().enumerate() {
-                let at = placed[b][g];
-                let (ty, data, count) = match &geometry.data {
-                    GeometryData::Triangles(t) => {
-                        let (index_type, index_data) = match (&t.indices, at.indices) {
-                            (Some(Indices::U16(_)), Some(o)) => (vk::IndexType::UINT16, address(o)),
-                            (Some(Indices::U32(_)), Some(o)) => (vk::IndexType::UINT32, address(o)),
-                            _ => (
-                                vk::IndexType::NONE_KHR,
-                                vk::DeviceOrHostAddressConstKHR { device_address: 0 },
-                            ),
+            for geometry in &bl.geometries {
+                let none_address = vk::DeviceOrHostAddressConstKHR { device_address: 0 };
+                let (ty, data) = match geometry.data {
+                    GeometryDataPlan::Triangles {
+                        vertices,
+                        vertex_count,
+                        indices,
+                        transform,
+                    } => {
+                        let (index_type, index_data) = match indices {
+                            Some((o, _, 16)) => (vk::IndexType::UINT16, address(o)),
+                            Some((o, _, _)) => (vk::IndexType::UINT32, address(o)),
+                            None => (vk::IndexType::NONE_KHR, none_address),
                         };
-                        let transform = at.transform.map_or(
-                            vk::DeviceOrHostAddressConstKHR { device_address: 0 },
-                            address,
-                        );
                         (
                             vk::GeometryTypeKHR::TRIANGLES,
                             vk::AccelerationStructureGeometryDataKHR {
                                 triangles:
                                     vk::AccelerationStructureGeometryTrianglesDataKHR::default()
                                         .vertex_format(vk::Format::R32G32B32_SFLOAT)
-                                        .vertex_data(address(at.data))
-                                        .vertex_stride(12)
-                                        .max_vertex(t.positions.len().saturating_sub(1) as u32)
+                                        .vertex_data(address(vertices))
+                                        .vertex_stride(VERTEX_STRIDE)
+                                        .max_vertex(vertex_count.saturating_sub(1))
                                         .index_type(index_type)
                                         .index_data(index_data)
-                                        .transform_data(transform),
+                                        .transform_data(transform.map_or(none_address, address)),
                             },
-                            t.primitive_count() as u32,
                         )
                     }
-                    GeometryData::Aabbs(a) => (
+                    GeometryDataPlan::Aabbs { boxes, .. } => (
                         vk::GeometryTypeKHR::AABBS,
                         vk::AccelerationStructureGeometryDataKHR {
                             aabbs: vk::AccelerationStructureGeometryAabbsDataKHR::default()
-                                .data(address(at.data))
-                                .stride(24),
+                                .data(address(boxes))
+                                .stride(AABB_STRIDE),
                         },
-                        a.boxes.len() as u32,
                     ),
                 };
+                let count = geometry.primitive_count;
                 geoms.push(
                     vk::AccelerationStructureGeometryKHR::default()
                         .geometry_type(ty)
                         .geometry(data)
-                        .flags(khr_geometry_flags(geometry.flags)),
+                        .flags(vk::GeometryFlagsKHR::from_raw(geometry.flags)),
                 );
                 ranges.push(
                     vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(count),
@@ -429,16 +287,8 @@ impl DeviceCache {
             built.buffers.push(storage);
             built.buffers.push(scratch);
         }
-        let references: Vec<u64> = scene
-            .instances
-            .iter()
-            .map(|i| {
-                i.bottom_level
-                    .and_then(|b| blas_addresses.get(b as usize).copied())
-                    .unwrap_or(0)
-            })
-            .collect();
-        let inst_buf = instance_buffer(dev, &scene.instances, &references, input_usage)?;
+        let records = scene.instance_bytes(&|b| blas_addresses.get(b).copied().unwrap_or(0));
+        let inst_buf = Allocation::filled(dev, &records, 64, input_usage, 256)?;
         let tlas_geom = [vk::AccelerationStructureGeometryKHR::default()
             .geometry_type(vk::GeometryTypeKHR::INSTANCES)
             .geometry(vk::AccelerationStructureGeometryDataKHR {
@@ -520,15 +370,15 @@ impl DeviceCache {
     fn build_nv_scene_into(
         &mut self,
         nv: &ash::nv::ray_tracing::Device,
-        scene: &model::scene::Scene,
+        scene: &ScenePlan,
         built: &mut Scene,
     ) -> Result<(), HarnessError> {
         let dev = &self.dev;
         let usage = vk::BufferUsageFlags::RAY_TRACING_NV;
         let none = vk::BufferCreateFlags::empty();
-        let (input, placed) = geometry_input(scene);
+        let input = &scene.input;
         let inputs = Allocation::new(dev, input.len() as u64, usage, none, 256)?;
-        inputs.write(0, &input);
+        inputs.write(0, input);
         let input_buffer = inputs.buffer;
         built.buffers.push(inputs);
 
@@ -599,56 +449,60 @@ impl DeviceCache {
         let mut handles = Vec::new();
         let mut blas_builds: Vec<(Vec<vk::GeometryNV>, vk::AccelerationStructureNV, vk::Buffer)> =
             Vec::new();
-        for (b, bl) in scene.bottom_levels.iter().enumerate() {
-            if !realised(bl) {
+        for bl in &scene.bottoms {
+            if !bl.built() {
                 handles.push(0u64);
                 continue;
             }
             let geoms: Vec<vk::GeometryNV> = bl
                 .geometries
                 .iter()
-                .enumerate()
-                .map(|(g, geometry)| {
-                    let at = placed[b][g];
+                .map(|geometry| {
                     let mut data = vk::GeometryDataNV::default();
-                    let ty = match &geometry.data {
-                        GeometryData::Triangles(t) => {
+                    let ty = match geometry.data {
+                        GeometryDataPlan::Triangles {
+                            vertices,
+                            vertex_count,
+                            indices,
+                            transform,
+                        } => {
                             let mut tri = vk::GeometryTrianglesNV::default()
                                 .vertex_data(input_buffer)
-                                .vertex_offset(at.data)
-                                .vertex_count(t.positions.len() as u32)
-                                .vertex_stride(12)
+                                .vertex_offset(vertices)
+                                .vertex_count(vertex_count)
+                                .vertex_stride(VERTEX_STRIDE)
                                 .vertex_format(vk::Format::R32G32B32_SFLOAT)
                                 .index_type(vk::IndexType::NONE_NV);
-                            if let (Some(ix), Some(o)) = (&t.indices, at.indices) {
+                            if let Some((o, count, bits)) = indices {
                                 tri = tri
                                     .index_data(input_buffer)
                                     .index_offset(o)
-                                    .index_count(ix.len() as u32)
-                                    .index_type(match ix {
-                                        Indices::U16(_) => vk::IndexType::UINT16,
-                                        Indices::U32(_) => vk::IndexType::UINT32,
+                                    .index_count(count)
+                                    .index_type(if bits == 16 {
+                                        vk::IndexType::UINT16
+                                    } else {
+                                        vk::IndexType::UINT32
                                     });
                             }
-                            if let Some(o) = at.transform {
+                            if let Some(o) = transform {
                                 tri = tri.transform_data(input_buffer).transform_offset(o);
                             }
                             data.triangles = tri;
                             vk::GeometryTypeNV::TRIANGLES
                         }
-                        GeometryData::Aabbs(a) => {
+                        GeometryDataPlan::Aabbs { boxes, count } => {
                             data.aabbs = vk::GeometryAABBNV::default()
                                 .aabb_data(input_buffer)
-                                .num_aab_bs(a.boxes.len() as u32)
-                                .stride(24)
-                                .offset(at.data);
+                                .num_aab_bs(count)
+                                .stride(AABB_STRIDE as u32)
+                                .offset(boxes);
                             vk::GeometryTypeNV::AABBS
                         }
                     };
                     vk::GeometryNV::default()
                         .geometry_type(ty)
                         .geometry(data)
-                        .flags(khr_geometry_flags(geometry.flags))
+                        .flags(vk::GeometryFlagsKHR::from_raw(geometry.flags))
                 })
                 .collect();
             let info = vk::AccelerationStructureInfoNV::default()
@@ -661,16 +515,8 @@ impl DeviceCache {
             handles.push(handle);
             blas_builds.push((geoms, blas, scratch));
         }
-        let references: Vec<u64> = scene
-            .instances
-            .iter()
-            .map(|i| {
-                i.bottom_level
-                    .and_then(|b| handles.get(b as usize).copied())
-                    .unwrap_or(0)
-            })
-            .collect();
-        let inst_buf = instance_buffer(dev, &scene.instances, &references, usage)?;
+        let records = scene.instance_bytes(&|b| handles.get(b).copied().unwrap_or(0));
+        let inst_buf = Allocation::filled(dev, &records, 64, usage, 256)?;
         let inst_buffer = inst_buf.buffer;
         built.buffers.push(inst_buf);
         let tlas_info = vk::AccelerationStructureInfoNV::default()
@@ -753,10 +599,8 @@ impl DeviceCache {
     }
 }
 
-/// The instance records of a scene's top-level structure in a buffer of `usage`: each instance's
-/// row-major transform, custom index and mask, SBT record offset and flags, referencing
-/// `references[i]` (a KHR device address or an NV handle; 0 for an inactive instance). KHR and NV
-/// records have one layout.
+/// The instance records of `instances` in a buffer of `usage`, referencing `references[i]` (a KHR
+/// device address or an NV handle; 0 for an inactive instance), written as the scene plan writes them.
 pub(crate) fn instance_buffer(
     dev: &VkDevice,
     instances: &[SceneInstance],
@@ -767,26 +611,7 @@ pub(crate) fn instance_buffer(
         .iter()
         .zip(references)
         .flat_map(|(inst, reference)| {
-            let m = &inst.transform.0;
-            let mut matrix = [0f32; 12];
-            for (k, x) in m.iter().flatten().enumerate() {
-                matrix[k] = *x;
-            }
-            let record = vk::AccelerationStructureInstanceKHR {
-                transform: vk::TransformMatrixKHR { matrix },
-                instance_custom_index_and_mask: vk::Packed24_8::new(
-                    inst.custom_index & 0xFF_FFFF,
-                    inst.mask,
-                ),
-                instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(
-                    inst.sbt_record_offset & 0xFF_FFFF,
-                    instance_flags(inst.flags),
-                ),
-                acceleration_structure_reference: vk::AccelerationStructureReferenceKHR {
-                    device_handle: *reference,
-                },
-            };
-            crate::vk::structs::as_bytes(&record).to_vec()
+            crate::plan::scene::instance_record(&InstancePlan::of(inst, None), *reference)
         })
         .collect();
     Allocation::filled(dev, &bytes, 64, usage, 256)
