@@ -16,7 +16,8 @@
 #       build   vkCmdBuildAccelerationStructuresIndirectKHR, layer 1.3.239
 #       render  valid cases only, --valid-count per command (rendered scenes judged by the tracer), 1.3.239
 #       trace-1.4.309, build-1.4.309   the same under trixie's 1.4.309 layer and its own registry
-#       findings  the driver findings kept under cases/nvidia-h200/ (and their reduced variants), 3 tries each
+#       findings  the driver findings kept under cases/nvidia-h200/ (and their reduced variants), twice each,
+#               then the same cases as the exported C programs --prepare compiled (.gl/bin/repro/)
 #       stress  rtconf stress (the numerical stress families), when the binary has that command
 #     Default: every phase, in that order. Each phase writes DIR/PHASE/ (the run folder) and DIR/PHASE.log;
 #     a phase that fails or runs past --phase-timeout is recorded with its exit status and the next one
@@ -43,7 +44,7 @@ while [[ $# -gt 0 ]]; do
         --phases) phases=$2; shift 2 ;;
         --phase-timeout) phase_timeout=$2; shift 2 ;;
         --tar) tar_file=$2; shift 2 ;;
-        -h|--help) sed -n '2,27p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        -h|--help) sed -n '2,28p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "nvidia-full-run: unknown argument $1 (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -52,6 +53,18 @@ if [[ $prepare -eq 1 ]]; then
     set -e
     cargo build --release -p rtconf-cli --bin rtconf
     bash scripts/nvidia-bundle.sh
+    # The driver findings as standalone C programs (the machine there has no compiler): one per case
+    # of cases/nvidia-h200/ that `rtconf export` writes, linked against the loader the bundle carries.
+    mkdir -p .gl/bin/repro
+    for c in cases/nvidia-h200/*.yaml cases/nvidia-h200/device-lost/*.yaml; do
+        n=$(basename "$c" .yaml)
+        if target/release/rtconf export "$c" --out "target/repro/$n" >/dev/null 2>&1 \
+            && cc -O1 "target/repro/$n/repro.c" -lvulkan -o ".gl/bin/repro/$n"; then
+            echo "nvidia-full-run: .gl/bin/repro/$n"
+        else
+            echo "nvidia-full-run: $n: not exported ($(target/release/rtconf export "$c" --out "target/repro/$n" 2>&1 | tail -1))"
+        fi
+    done
     echo "nvidia-full-run: ready; carry .gl and .gl-1.4.309 with the checkout, then run with --out there"
     exit 0
 fi
@@ -133,8 +146,20 @@ for p in $phases; do
         findings)
             # The kept driver findings and their reduced variants (cases/nvidia-h200/), each run three
             # times: a finding that does not repeat shows as a flake.
-            phase findings 1.3.239 run --driver nvidia --profile "$profile" --jobs 1 --retries 2 \
-                --cases cases/nvidia-h200 --out "$out/findings"
+            phase findings 1.3.239 run --driver nvidia --profile "$profile" --jobs 4 --retries 1 \
+                --timeout 20 --cases cases/nvidia-h200 --out "$out/findings"
+            # The same cases as the standalone programs a bug report carries (--prepare made them).
+            mkdir -p "$out/repro"
+            for r in .gl/bin/repro/*; do
+                [[ -x "$r" ]] || continue
+                n=$(basename "$r")
+                started=$SECONDS
+                RTCONF_BIN="$r" timeout --kill-after=5 30 bash scripts/nvidia-run.sh -- \
+                    --records "$out/repro/$n.records" >"$out/repro/$n.log" 2>&1
+                rc=$?
+                verdict=$(grep -E '^(verdict|records):' "$out/repro/$n.log" | tr '\n' ' ' | tr '|' '/')
+                echo "| repro $n | \`.gl/bin/repro/$n\` (exported C) | $rc | $((SECONDS - started)) | $verdict | | | | | | | | | |" >>"$readme"
+            done
             ;;
         stress)
             if "$bin" help stress >/dev/null 2>&1; then
