@@ -432,7 +432,7 @@ impl Detection {
         use plot::{palette, Axis, Chart, Marker, Scale, Series, Style};
         let mut kinds: Vec<&str> = self.cells.iter().map(|c| c.kind.as_str()).collect();
         kinds.dedup();
-        let series = kinds
+        let series: Vec<Series> = kinds
             .iter()
             .enumerate()
             .map(|(i, k)| {
@@ -457,6 +457,17 @@ impl Detection {
                 }
             })
             .collect();
+        // Room on the right for the legend, which sits in the upper right corner.
+        let xs: Vec<f64> = series
+            .iter()
+            .flat_map(|s: &Series| s.points.iter().map(|p| p.0))
+            .collect();
+        let lo = xs.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = xs.iter().copied().fold(0.0, f64::max);
+        let mut x = Axis::new("size / the kind's threshold", Scale::Log10);
+        if lo.is_finite() && hi > 0.0 {
+            x = x.with_range(lo / 2.0, hi * 100.0);
+        }
         let chart = Chart {
             title: format!(
                 "{} on {}: {}",
@@ -468,7 +479,7 @@ impl Detection {
                     "faults caught"
                 }
             ),
-            x: Axis::new("size / the kind's threshold", Scale::Log10),
+            x,
             y: if seconds {
                 Axis::new("median seconds to first detection", Scale::Log10)
             } else {
