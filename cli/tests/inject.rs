@@ -24,15 +24,8 @@ fn every_kind_well_above_threshold_is_caught_and_size_zero_never_is() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("detect");
     let kinds: Vec<&str> = WELL_ABOVE.iter().map(|(k, _)| *k).collect();
-    let mut args = vec![
-        "detect",
-        "--count",
-        "8",
-        "--seed",
-        "1",
-        "--kinds",
-        &kinds.join(","),
-    ];
+    let kinds = kinds.join(",");
+    let mut args = vec!["detect", "--count", "8", "--seed", "1", "--kinds", &kinds];
     let sizes: Vec<String> = WELL_ABOVE.iter().map(|(k, s)| format!("{k}={s}")).collect();
     for s in &sizes {
         args.extend(["--sizes", s]);
