@@ -197,6 +197,21 @@ fn bad_inject_and_sizes_values_are_refused_with_exit_2() {
         assert!(ran.stderr.contains(says), "--inject {value}: {}", ran.all());
         assert!(!ran.stderr.contains("panicked"), "{}", ran.all());
     }
+    let ran = rtconf(&[
+        "run",
+        "--inject",
+        "cull-mask:1",
+        "--shrink",
+        "1",
+        "--out",
+        "/nonexistent/never",
+    ]);
+    assert_eq!(ran.code, 2, "{}", ran.all());
+    assert!(
+        ran.stderr.contains("--shrink with --inject"),
+        "{}",
+        ran.all()
+    );
     for (args, says) in [
         (vec!["--kinds", "t-bais"], "unknown injection kind `t-bais`"),
         (

@@ -449,6 +449,12 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
                 .into(),
         ));
     }
+    if config.inject.is_some() && config.shrink > 0 {
+        return Err(SessionError::Usage(
+            "--shrink with --inject: a case fails only under its injection, which the shrinker does not apply"
+                .into(),
+        ));
+    }
     if let Some(dir) = &config.layer {
         harness::select_layer(dir)?;
     }
