@@ -1070,7 +1070,7 @@ mod tests {
                 .find(|&t| o.call.region(t) != c.call.region(t))
                 .expect("a region changed");
             let (ro, rc) = (o.call.region(t).unwrap(), c.call.region(t).unwrap());
-            assert_eq!(t == Table::Raygen, false, "raygen is never moved");
+            assert!(t != Table::Raygen, "raygen is never moved");
             let moved = rc.address.alignment_value() - ro.address.alignment_value();
             assert!(moved >= handle, "{moved}");
             let align = profile.limit("shaderGroupBaseAlignment").unwrap();
