@@ -83,6 +83,7 @@ fn config(s: &Selection, out: &Path) -> session::RunConfig {
         layer: None,
         strict: false,
         selection: session::Selection::default(),
+        inject: None,
     }
 }
 

@@ -71,6 +71,9 @@ pub struct CaseReport {
     #[serde(default, rename = "matched", skip_serializing_if = "Vec::is_empty")]
     pub triage: Vec<TriageMatch>,
     pub millis: f64,
+    /// In a run with `--inject`: the injection, and whether the driver ran the perturbed copy.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub injection: Option<crate::inject::CaseInjection>,
 }
 
 impl CaseReport {
@@ -88,6 +91,7 @@ impl CaseReport {
             detail: String::new(),
             triage: vec![],
             millis,
+            injection: None,
         }
     }
 }

@@ -9,10 +9,12 @@
 pub mod baseline;
 pub mod compare;
 pub mod details;
+pub mod detect;
 pub mod error;
 pub mod export;
 pub(crate) mod gate;
 pub mod html;
+pub mod inject;
 pub mod merge;
 pub mod names;
 pub mod outdir;

@@ -38,6 +38,9 @@ pub struct RunParameters {
     pub baseline: Option<String>,
     pub skips: Option<String>,
     pub flakes: Option<String>,
+    /// `--inject KIND:SIZE`, as given.
+    #[serde(default)]
+    pub inject: Option<String>,
 }
 
 /// The files a run writes into its directory (besides its folders).
@@ -240,6 +243,7 @@ mod tests {
             baseline: None,
             skips: None,
             flakes: None,
+            inject: None,
         }
     }
 

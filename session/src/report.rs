@@ -94,6 +94,9 @@ pub struct Summary {
     /// Per trace command: the rendered output judged per ray (counts, VARY share, error quantiles).
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub rendered: BTreeMap<String, crate::rendered::RenderedTotals>,
+    /// A run with `--inject`: the injection and its cases applied, not applicable and detected.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub inject: Option<crate::inject::InjectTotals>,
 }
 
 impl Summary {

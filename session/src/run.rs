@@ -52,6 +52,9 @@ pub struct RunConfig {
     pub strict: bool,
     /// Which cases run (a case folder, a shard, the baseline, skips and flakes, retries).
     pub selection: Selection,
+    /// Hand the driver a perturbed copy of each valid trace case while the model judges the case
+    /// itself (`crate::inject`), drawn from the run's seed.
+    pub inject: Option<crate::inject::Injection>,
 }
 
 /// How far a run has come, for a progress display.
@@ -446,6 +449,12 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
                 .into(),
         ));
     }
+    if config.inject.is_some() && config.shrink > 0 {
+        return Err(SessionError::Usage(
+            "--shrink with --inject: a case fails only under its injection, which the shrinker does not apply"
+                .into(),
+        ));
+    }
     if let Some(dir) = &config.layer {
         harness::select_layer(dir)?;
     }
@@ -527,6 +536,7 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
             .flakes
             .as_ref()
             .map(|p| p.display().to_string()),
+        inject: config.inject.map(|i| i.to_string()),
     };
     let done = crate::outdir::prepare(&config.out, &params, config.resume)?;
     let results_path = config.out.join("results.jsonl");
@@ -556,6 +566,7 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         retries: config.selection.retries,
         judging: &judging,
         progress,
+        inject: config.inject.map(|i| (i, config.scope.seed)),
     };
     let mut chunk: Vec<Case> = Vec::with_capacity(CHUNK);
     let mut family = None;
@@ -662,6 +673,9 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
     summary.expectations = expectations.files.clone();
     summary.layer = Some(layer.version.clone());
     judge_triage(&mut summary, &results_path, &triage, full)?;
+    if let Some(i) = &config.inject {
+        summary.inject = Some(crate::inject::totals(i, &results_path)?);
+    }
     summary.runner_peak_rss_kib = peak_rss_kib();
     summary.seconds = started.elapsed().as_secs_f64();
     summary.write(&config.out.join("summary.json"))?;
@@ -691,11 +705,16 @@ struct Dispatch<'a> {
     retries: usize,
     judging: &'a Judging<'a>,
     progress: &'a dyn Progress,
+    /// The injection and its seed: each request carries the perturbed copy, the judge the case.
+    inject: Option<(crate::inject::Injection, u64)>,
 }
 
 /// A case held back from `results.jsonl` to be run again: its first report and details, and the
 /// outcome of every attempt so far.
 struct Retried {
+    /// The case as judged (the request's is the copy the driver runs, under `--inject`).
+    case: Case,
+    note: Option<crate::inject::CaseInjection>,
     request: Request,
     report: CaseReport,
     details: CaseDetails,
@@ -710,22 +729,32 @@ impl Dispatch<'_> {
     /// core checks do for an update without a source) is recorded once more with validation stopping at
     /// the first of them, and its report says so.
     fn run(&self, chunk: &mut Vec<Case>, sink: &mut Sink) {
-        let requests: Vec<Request> = std::mem::take(chunk)
-            .into_iter()
+        let cases: Vec<Case> = std::mem::take(chunk);
+        let mut notes = Vec::with_capacity(cases.len());
+        let requests: Vec<Request> = cases
+            .iter()
             .enumerate()
-            .map(|(index, case)| Request {
-                index,
-                execution: Execution::for_case(&case, self.judging.profile),
-                case,
+            .map(|(index, case)| {
+                let (run, note) = crate::inject::executed(self.inject.as_ref(), case, self.judging);
+                notes.push(note);
+                Request {
+                    index,
+                    execution: Execution::for_case(&run, self.judging.profile),
+                    case: run,
+                }
             })
             .collect();
         let mut held: Vec<Retried> = Vec::new();
         let mut revalidate: Vec<Request> = Vec::new();
+        // The chunk's index of each case to record again.
+        let mut again_of: Vec<usize> = Vec::new();
         harness::run_in_workers(&requests, self.jobs, self.timeout, |resp| {
-            let request = &requests[resp.index.min(requests.len() - 1)];
+            let k = resp.index.min(requests.len() - 1);
+            let (request, case, note) = (&requests[k], &cases[k], &notes[k]);
             if matches!(resp.observation.status, harness::Status::Crash { .. })
                 && !request.execution.continue_past.is_empty()
             {
+                again_of.push(k);
                 revalidate.push(Request {
                     index: revalidate.len(),
                     case: request.case.clone(),
@@ -736,15 +765,17 @@ impl Dispatch<'_> {
                 });
                 return;
             }
-            let (report, details) = self.judged(&request.case, &resp);
+            let (report, details) = self.judged(case, note, &resp);
             crate::pictures::for_failure(
                 &sink.out.join("failures"),
-                &request.case,
+                case,
                 &resp.observation,
                 &report,
             );
             if self.retries > 0 && report.outcome.is_unexpected() {
                 held.push(Retried {
+                    case: case.clone(),
+                    note: note.clone(),
                     request: request.clone(),
                     attempts: vec![report.outcome],
                     report,
@@ -752,13 +783,14 @@ impl Dispatch<'_> {
                 });
                 return;
             }
-            sink.write(&request.case, &report, &details, vec![]);
+            sink.write(case, &report, &details, vec![]);
             self.progress.advance(1);
         });
         if !revalidate.is_empty() {
             harness::run_in_workers(&revalidate, self.jobs, self.timeout, |resp| {
-                let request = &revalidate[resp.index.min(revalidate.len() - 1)];
-                let (mut report, details) = self.judged(&request.case, &resp);
+                let k = again_of[resp.index.min(revalidate.len() - 1)];
+                let (case, note) = (&cases[k], &notes[k]);
+                let (mut report, details) = self.judged(case, note, &resp);
                 let note = format!(
                     "recorded with the layer's validation continuing past {} the worker died (the layer's \
                      later checks or the driver's recording of the call), so it was recorded again with \
@@ -770,7 +802,7 @@ impl Dispatch<'_> {
                 } else {
                     format!("{note}; {}", report.detail)
                 };
-                sink.write(&request.case, &report, &details, vec![]);
+                sink.write(case, &report, &details, vec![]);
                 self.progress.advance(1);
             });
         }
@@ -792,19 +824,26 @@ impl Dispatch<'_> {
                 let Some(h) = held.get_mut(resp.index) else {
                     return;
                 };
-                let (report, _) = self.judged(&h.request.case, &resp);
+                let (report, _) = self.judged(&h.case, &h.note, &resp);
                 h.attempts.push(report.outcome);
             });
         }
         for h in held {
-            sink.write(&h.request.case, &h.report, &h.details, h.attempts);
+            sink.write(&h.case, &h.report, &h.details, h.attempts);
             self.progress.advance(1);
         }
     }
 
-    /// The report of one response and what the run keeps of it.
-    fn judged(&self, case: &Case, resp: &Response) -> (CaseReport, CaseDetails) {
-        let (report, verdict) = self.judging.judge_with_verdict(case, resp);
+    /// The report of one response and what the run keeps of it: `case` is the case as judged, `note`
+    /// what an injection did with it.
+    fn judged(
+        &self,
+        case: &Case,
+        note: &Option<crate::inject::CaseInjection>,
+        resp: &Response,
+    ) -> (CaseReport, CaseDetails) {
+        let (mut report, verdict) = self.judging.judge_with_verdict(case, resp);
+        report.injection = note.clone();
         let details = CaseDetails {
             violations: verdict.violations,
             layer_messages: resp.observation.layer_messages.clone(),

@@ -3,6 +3,7 @@
 
 mod check;
 mod coverage;
+mod detect;
 mod export;
 mod gen;
 mod merge;
@@ -49,6 +50,10 @@ enum Command {
     Merge(merge::MergeArgs),
     /// Write the HTML report of a run folder (DIR/report/index.html).
     Report(report::ReportArgs),
+    /// The suite's detection table: seeded faults (`run --inject`) by kind and size, the detection rate
+    /// and the median cases and seconds to the first catch, the mutation score.
+    #[command(after_help = EXIT_CODES)]
+    Detect(detect::DetectArgs),
     /// One case on a driver with the full comparison.
     #[command(after_help = EXIT_CODES)]
     Replay(replay::ReplayArgs),
@@ -85,6 +90,7 @@ pub fn main() -> i32 {
         Command::Run(a) => run::run(*a),
         Command::Merge(a) => merge::run(a),
         Command::Report(a) => report::run(a),
+        Command::Detect(a) => detect::run(a),
         Command::Replay(a) => replay::run(a),
         Command::Export(a) => export::run(a),
         Command::Worker => Ok(harness::worker::worker_main()),

@@ -95,6 +95,16 @@ pub struct RunArgs {
     /// Also print the per-VUID agreement table and the specs the profile cannot express.
     #[arg(long, short)]
     verbose: bool,
+    /// Hand the driver a perturbed copy of each valid trace case while the model judges the case
+    /// itself: KIND:SIZE with KIND one of vertex-ulps, instance-transform, sbt-stride, sbt-offset,
+    /// cull-mask, drop-primitive, t-bias (`rtconf detect` measures them). A failing case is a caught
+    /// fault; cases the kind has nothing to act on run as they are and are counted not applicable.
+    #[arg(long, value_name = "KIND:SIZE", value_parser = parse_injection)]
+    inject: Option<session::inject::Injection>,
+}
+
+fn parse_injection(text: &str) -> Result<session::inject::Injection, String> {
+    session::inject::Injection::parse(text)
 }
 
 /// The progress bar on a terminal (hidden elsewhere), with the unexpected statuses so far.
@@ -183,6 +193,7 @@ pub fn run(a: RunArgs) -> super::Exit {
             flakes: a.flakes,
             retries: a.retries,
         },
+        inject: a.inject,
     };
     if a.list {
         let mut out = std::io::stdout().lock();
@@ -225,6 +236,12 @@ pub fn run(a: RunArgs) -> super::Exit {
         eprintln!("rtconf: the HTML report could not be written: {e}");
     }
     print_triage(&outcome.summary, config.strict);
+    if let Some(i) = &outcome.summary.inject {
+        println!(
+            "inject {}: {} cases ran the perturbed copy, {} detected; {} not applicable (ran as they are)",
+            i.injection, i.applied, i.detected, i.not_applicable
+        );
+    }
     print_summary(
         &outcome.summary,
         &config.out,
