@@ -18,6 +18,7 @@
 #       trace-1.4.309, build-1.4.309   the same under trixie's 1.4.309 layer and its own registry
 #       findings  the driver findings kept under cases/nvidia-h200/ (and their reduced variants), twice each,
 #               then the same cases as the exported C programs --prepare compiled (.gl/bin/repro/)
+#       detect  rtconf detect: seeded faults by kind and size (the suite's detection against run time)
 #       stress  rtconf stress (the numerical stress families), when the binary has that command
 #     Default: every phase, in that order. Each phase writes DIR/PHASE/ (the run folder) and DIR/PHASE.log;
 #     a phase that fails or runs past --phase-timeout is recorded with its exit status and the next one
@@ -32,7 +33,7 @@ repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$repo_root"
 
 out="" count=4 valid_count=100 commit="" tar_file="" phase_timeout=300
-phases="probe trace build render trace-1.4.309 build-1.4.309 findings stress"
+phases="probe trace build render trace-1.4.309 build-1.4.309 findings stress detect"
 prepare=0
 while [[ $# -gt 0 ]]; do
     case "$1" in
@@ -44,7 +45,7 @@ while [[ $# -gt 0 ]]; do
         --phases) phases=$2; shift 2 ;;
         --phase-timeout) phase_timeout=$2; shift 2 ;;
         --tar) tar_file=$2; shift 2 ;;
-        -h|--help) sed -n '2,28p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        -h|--help) sed -n '2,29p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "nvidia-full-run: unknown argument $1 (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -167,6 +168,11 @@ for p in $phases; do
             else
                 echo "| stress | (this binary has no \`rtconf stress\`) | not run | | | | | | | | | | | |" >>"$readme"
             fi
+            ;;
+        detect)
+            # The suite's curve on the GPU: seeded faults by kind and size, detection against run time.
+            phase detect 1.3.239 detect --driver nvidia --profile "$profile" --jobs "$(nproc 2>/dev/null || echo 4)" \
+                --count 40 --out "$out/detect"
             ;;
         *) echo "nvidia-full-run: unknown phase $p" >&2; exit 2 ;;
     esac
