@@ -129,6 +129,52 @@ pub struct FamilyResult {
 }
 
 impl FamilyResult {
+    /// The row of `family` before any case ran.
+    pub fn new(family: &Family, seeds: Vec<u64>) -> FamilyResult {
+        FamilyResult {
+            family: family.name.into(),
+            about: family.about.into(),
+            seeds,
+            claims: 0,
+            cases: 0,
+            outcomes: Outcomes::new(),
+            rays: 0,
+            req_violations: 0,
+            double_hits: 0,
+            holes: 0,
+            watertight_rays: 0,
+            vary_rays: 0,
+            vary_share: 0.0,
+            on_vary: VaryChoices::default(),
+            t_error_ulps: ErrorStats::default(),
+            t_error_bound: ErrorStats::default(),
+            bary_error_eps: ErrorStats::default(),
+            bary_error_ulps: ErrorStats::default(),
+            unreadable_records: 0,
+            seconds: 0.0,
+            note: String::new(),
+            findings: Vec::new(),
+            report: FamilyReport::new(family.name),
+        }
+    }
+
+    /// Fills the row's numbers from its report (and its unreadable records).
+    pub fn refresh(&mut self) {
+        let r = &self.report;
+        self.rays = r.rays();
+        self.req_violations = r.summary.fail + self.unreadable_records;
+        self.double_hits = r.double_hits;
+        self.holes = r.holes;
+        self.watertight_rays = r.watertight_rays;
+        self.vary_rays = r.summary.vary;
+        self.vary_share = r.vary_share();
+        self.on_vary = r.on_vary;
+        self.t_error_ulps = r.t_error_ulps();
+        self.t_error_bound = r.t_error_bound();
+        self.bary_error_eps = r.bary_error_eps();
+        self.bary_error_ulps = r.bary_error_ulps();
+    }
+
     /// Whether the driver did something the spec forbids on this family.
     pub fn driver_finding(&self) -> bool {
         self.req_violations > 0
@@ -190,9 +236,14 @@ impl FamilyResult {
     }
 }
 
-/// `median/p99/max` with three decimals, `-` where there is no value.
+/// `median/p99/max`, each with four significant digits (three decimals below 1000, else in
+/// exponent form), `-` where there is no value.
 pub fn stats_text(s: &ErrorStats) -> String {
-    let f = |x: Option<f64>| x.map_or("-".to_string(), |v| format!("{v:.3}"));
+    let f = |x: Option<f64>| match x {
+        None => "-".to_string(),
+        Some(v) if v.abs() < 1000.0 => format!("{v:.3}"),
+        Some(v) => format!("{v:.3e}"),
+    };
     format!("{}/{}/{}", f(s.median), f(s.p99), f(s.max))
 }
 
@@ -345,24 +396,13 @@ pub fn judge_launch(
     Ok(unreadable)
 }
 
-/// Fills a family's row from its report.
+/// Fills a family's row from its report and its times.
 fn finish(t: &mut Totals) {
     let f = &mut t.result;
-    let r = f.report.clone();
-    f.rays = r.rays();
-    f.req_violations = r.summary.fail + f.unreadable_records;
-    f.double_hits = r.double_hits;
-    f.holes = r.holes;
-    f.watertight_rays = r.watertight_rays;
-    f.vary_rays = r.summary.vary;
-    f.vary_share = r.vary_share();
-    f.on_vary = r.on_vary;
-    f.t_error_ulps = r.t_error_ulps();
-    f.t_error_bound = r.t_error_bound();
-    f.bary_error_eps = r.bary_error_eps();
-    f.bary_error_ulps = r.bary_error_ulps();
+    f.refresh();
     let room = 32usize.saturating_sub(f.findings.len());
-    f.findings.extend(r.findings.iter().take(room).cloned());
+    let kept: Vec<String> = f.report.findings.iter().take(room).cloned().collect();
+    f.findings.extend(kept);
     f.seconds = t.generate_seconds + t.worker_millis / 1000.0 + t.judge_seconds;
 }
 
@@ -416,31 +456,7 @@ pub fn stress(config: &StressConfig) -> Result<StressSummary, SessionError> {
         let t0 = Instant::now();
         let rays = config.size.rays(family);
         let seed_list: Vec<u64> = (0..seeds as u64).map(|k| config.seed + k).collect();
-        let mut result = FamilyResult {
-            family: family.name.into(),
-            about: family.about.into(),
-            seeds: seed_list.clone(),
-            claims: 0,
-            cases: 0,
-            outcomes: Outcomes::new(),
-            rays: 0,
-            req_violations: 0,
-            double_hits: 0,
-            holes: 0,
-            watertight_rays: 0,
-            vary_rays: 0,
-            vary_share: 0.0,
-            on_vary: VaryChoices::default(),
-            t_error_ulps: ErrorStats::default(),
-            t_error_bound: ErrorStats::default(),
-            bary_error_eps: ErrorStats::default(),
-            bary_error_ulps: ErrorStats::default(),
-            unreadable_records: 0,
-            seconds: 0.0,
-            note: String::new(),
-            findings: Vec::new(),
-            report: FamilyReport::new(family.name),
-        };
+        let mut result = FamilyResult::new(family, seed_list.clone());
         let mut split = 0;
         for &seed in &seed_list {
             let stress_case = family.case(seed, rays);

@@ -1,4 +1,4 @@
-//! The one picture of a stress run (`stress.png`): per family, the t error against its bound and
+//! The one picture of a stress run (`stress.png`): per family, the t error in f32 ULPs and
 //! the barycentric error in units of `f32::EPSILON` (median, p99, max, log scale) on the left; the
 //! share of rays classed VARY and the rays that failed or fell through a hole on the right. The
 //! families are numbered along x, their names listed under the charts.
@@ -8,7 +8,7 @@ use ::plot::{palette, Align, Axis, Chart, Image, Marker, Rect, Scale, Series, St
 use model::stress::ErrorStats;
 
 /// Values at or below this are drawn at it on the log axis (an exact result has error 0).
-const FLOOR: f64 = 1e-3;
+const FLOOR: f64 = 0.01;
 
 fn stat_series(
     name: &str,
@@ -50,22 +50,22 @@ pub fn render(summary: &StressSummary) -> Image {
     let fams = &summary.families;
     let n = fams.len().max(1) as f64;
     let x = || Axis::new("family", Scale::Linear).with_range(0.5, n + 0.5);
-    let t_bound = |f: &FamilyResult| f.t_error_bound;
+    let t_ulps = |f: &FamilyResult| f.t_error_ulps;
     let bary = |f: &FamilyResult| f.bary_error_eps;
     let med = |s: &ErrorStats| s.median;
     let p99 = |s: &ErrorStats| s.p99;
     let max = |s: &ErrorStats| s.max;
     let left = Chart {
         title: format!(
-            "Errors on {} ({}), floor {FLOOR}",
-            summary.driver, summary.device
+            "Errors on {} (profile {}); below {FLOOR} drawn at {FLOOR}",
+            summary.driver, summary.profile
         ),
         x: x(),
-        y: Axis::new("t error / bound; bary error / f32 eps", Scale::Log10),
+        y: Axis::new("t error (f32 ULPs); bary error (f32 eps)", Scale::Log10),
         series: vec![
-            stat_series("t/bound median", fams, 0, &t_bound, &med),
-            stat_series("t/bound p99", fams, 1, &t_bound, &p99),
-            stat_series("t/bound max", fams, 2, &t_bound, &max),
+            stat_series("t ULPs median", fams, 0, &t_ulps, &med),
+            stat_series("t ULPs p99", fams, 1, &t_ulps, &p99),
+            stat_series("t ULPs max", fams, 2, &t_ulps, &max),
             stat_series("bary eps p99", fams, 3, &bary, &p99),
             stat_series("bary eps max", fams, 4, &bary, &max),
         ],
