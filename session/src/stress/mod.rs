@@ -510,22 +510,52 @@ pub fn stress(config: &StressConfig) -> Result<StressSummary, SessionError> {
             case: p.launch.case.clone(),
         })
         .collect();
-    let mut answered = vec![false; requests.len()];
-    harness::run_in_workers(
-        &requests,
-        config.jobs.max(1),
-        Duration::from_secs(config.timeout.max(1)),
-        |resp: Response| {
-            let Some(p) = planned.get(resp.index) else {
-                return;
-            };
-            answered[resp.index] = true;
-            let t = &mut totals[p.family];
-            let j0 = Instant::now();
-            take_response(t, &judging, &p.launch.case, &resp);
-            t.judge_seconds += j0.elapsed().as_secs_f64();
-        },
-    );
+    // Judged on `jobs` threads as the responses arrive (the model's judgement is the run's CPU
+    // cost), then summed per family in case order, so the report does not depend on timing.
+    let (tx, rx) = std::sync::mpsc::channel::<Response>();
+    let rx = std::sync::Mutex::new(rx);
+    let judged = std::sync::Mutex::new(Vec::<Judged>::new());
+    std::thread::scope(|scope| {
+        for _ in 0..config.jobs.max(1) {
+            scope.spawn(|| loop {
+                let next = rx.lock().map(|r| r.recv());
+                let Ok(Ok(resp)) = next else {
+                    break;
+                };
+                let Some(p) = planned.get(resp.index) else {
+                    continue;
+                };
+                let j = judge_one(&judging, &p.launch.case, resp);
+                if let Ok(mut v) = judged.lock() {
+                    v.push(j);
+                }
+            });
+        }
+        harness::run_in_workers(
+            &requests,
+            config.jobs.max(1),
+            Duration::from_secs(config.timeout.max(1)),
+            |resp: Response| {
+                let _ = tx.send(resp);
+            },
+        );
+        drop(tx);
+    });
+    let mut judged = judged.into_inner().unwrap_or_default();
+    judged.sort_by_key(|j| j.index);
+    let mut answered = vec![false; planned.len()];
+    for j in judged {
+        answered[j.index] = true;
+        let t = &mut totals[planned[j.index].family];
+        t.worker_millis += j.worker_millis;
+        t.judge_seconds += j.seconds;
+        count(&mut t.result, &j.report);
+        t.result.report.merge(&j.family);
+        t.result.unreadable_records += j.unreadable;
+        if let Some(problem) = j.problem {
+            t.result.findings.push(problem);
+        }
+    }
     for (p, done) in planned.iter().zip(&answered) {
         if !done {
             let t = &mut totals[p.family];
@@ -585,16 +615,39 @@ fn count(result: &mut FamilyResult, report: &CaseReport) {
     }
 }
 
-/// One worker response: the session's judgement of the case, then its records into the family.
-fn take_response(t: &mut Totals, judging: &Judging, case: &model::Case, resp: &Response) {
-    t.worker_millis += resp.millis;
-    let report = judging.judge(case, resp);
-    count(&mut t.result, &report);
+/// One case judged: the session's report, and its records judged into a report of their own.
+struct Judged {
+    index: usize,
+    report: CaseReport,
+    family: FamilyReport,
+    unreadable: u64,
+    /// Why the records could not be judged, when they could not.
+    problem: Option<String>,
+    worker_millis: f64,
+    seconds: f64,
+}
+
+/// One worker response: the session's judgement of the case, then its records ray by ray.
+fn judge_one(judging: &Judging, case: &model::Case, resp: Response) -> Judged {
+    let started = Instant::now();
+    let report = judging.judge(case, &resp);
+    let mut family = FamilyReport::new(&case.name);
+    let mut unreadable = 0;
+    let mut problem = None;
     if let Some(words) = resp.observation.words() {
-        match judge_launch(&mut t.result.report, case, words) {
-            Ok(unreadable) => t.result.unreadable_records += unreadable,
-            Err(e) => t.result.findings.push(format!("{}: {e}", case.name)),
+        match judge_launch(&mut family, case, words) {
+            Ok(n) => unreadable = n,
+            Err(e) => problem = Some(format!("{}: {e}", case.name)),
         }
+    }
+    Judged {
+        index: resp.index,
+        report,
+        family,
+        unreadable,
+        problem,
+        worker_millis: resp.millis,
+        seconds: started.elapsed().as_secs_f64(),
     }
 }
 
