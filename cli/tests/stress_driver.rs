@@ -34,11 +34,14 @@ fn agrees(text: &str, s: &model::stress::ErrorStats) -> bool {
     let parts: Vec<&str> = text.split('/').collect();
     let want = [s.median, s.p99, s.max];
     parts.len() == 3
-        && parts.iter().zip(want).all(|(p, w)| match (p.parse::<f64>(), w) {
-            (Err(_), None) => *p == "-",
-            (Ok(v), Some(w)) => (v - w).abs() <= 1e-3 * w.abs().max(1.0),
-            _ => false,
-        })
+        && parts
+            .iter()
+            .zip(want)
+            .all(|(p, w)| match (p.parse::<f64>(), w) {
+                (Err(_), None) => *p == "-",
+                (Ok(v), Some(w)) => (v - w).abs() <= 1e-3 * w.abs().max(1.0),
+                _ => false,
+            })
 }
 
 #[test]
@@ -58,7 +61,11 @@ fn the_small_set_runs_every_family_on_lavapipe_and_reports_it_twice_alike() {
     let summary = families_json(&out);
     assert_eq!(summary.exit, 0);
     assert_eq!(summary.size, Size::Small);
-    assert!(summary.profile.starts_with("probed:"), "{}", summary.profile);
+    assert!(
+        summary.profile.starts_with("probed:"),
+        "{}",
+        summary.profile
+    );
     let all = model::stress::families();
     assert_eq!(summary.families.len(), all.len());
     for (f, fam) in summary.families.iter().zip(&all) {

@@ -227,7 +227,11 @@ fn a_triangle_around_the_vertex_outside_the_fan_is_refused_with_a_reused_index_t
                 v.extend(tri);
             }
             None => {
-                let tri = [t.positions[3 * p], t.positions[3 * p + 1], t.positions[3 * p + 2]];
+                let tri = [
+                    t.positions[3 * p],
+                    t.positions[3 * p + 1],
+                    t.positions[3 * p + 2],
+                ];
                 t.positions.extend(tri);
             }
         }

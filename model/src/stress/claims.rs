@@ -233,8 +233,7 @@ impl Claim {
                 fan,
             } => {
                 let r = ray_of(case, *ray, c)?;
-                let b = instance_bottom_level(scene, *instance, c)?;
-                through_vertex(scene, b, *instance, r, *vertex, fan, index, c)
+                through_vertex(scene, *instance, r, *vertex, fan, index, c)
             }
             Claim::ThroughInterior {
                 ray,

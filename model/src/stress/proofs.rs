@@ -40,19 +40,27 @@ fn fingerprint(scene: &Scene, bottom_level: u32) -> Fingerprint {
 /// fresh one, so the final proof never rests on a stale index.
 #[derive(Debug, Default)]
 pub struct FanIndex {
-    built: HashMap<u32, (Fingerprint, HashMap<[u32; 3], Vec<Member>>)>,
+    built: HashMap<u32, (Fingerprint, AroundVertex)>,
 }
+
+/// The triangles with a vertex of these bits.
+type AroundVertex = HashMap<[u32; 3], Vec<Member>>;
 
 impl FanIndex {
     /// The triangles of `bottom_level` with a vertex of bits `vertex`.
-    pub(super) fn around(&mut self, scene: &Scene, bottom_level: u32, vertex: [u32; 3]) -> &[Member] {
+    pub(super) fn around(
+        &mut self,
+        scene: &Scene,
+        bottom_level: u32,
+        vertex: [u32; 3],
+    ) -> &[Member] {
         let print = fingerprint(scene, bottom_level);
         let stale = self
             .built
             .get(&bottom_level)
             .is_none_or(|(f, _)| *f != print);
         if stale {
-            let mut map: HashMap<[u32; 3], Vec<Member>> = HashMap::new();
+            let mut map: AroundVertex = HashMap::new();
             if let Some(bl) = scene.bottom_levels.get(bottom_level as usize) {
                 for (g, geometry) in bl.geometries.iter().enumerate() {
                     let GeometryData::Triangles(t) = &geometry.data else {
@@ -293,7 +301,6 @@ pub(super) fn closed_mesh(
 
 pub(super) fn through_vertex(
     scene: &Scene,
-    bottom_level: u32,
     instance: u32,
     r: &Ray,
     vertex: [f32; 3],
@@ -301,6 +308,7 @@ pub(super) fn through_vertex(
     index: &mut FanIndex,
     c: &'static str,
 ) -> Result<(), ClaimError> {
+    let bottom_level = instance_bottom_level(scene, instance, c)?;
     if fan.len() < 3 {
         return err(c, "a fan needs at least three triangles");
     }
