@@ -20,7 +20,7 @@ pub struct StressArgs {
     /// Family cases have seeds SEED, SEED+1, ... (one per --seeds).
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Cases per family (default: 1 at --size small, 4 at --size full).
+    /// Cases per family (default 1).
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     seeds: Option<u64>,
     /// small: each family's test size (a few seconds in all); full: its full size.

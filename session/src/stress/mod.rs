@@ -53,12 +53,10 @@ impl Size {
         }
     }
 
-    /// Seeds per family when the run does not say.
+    /// Seeds per family when the run does not say: one (the model's judgement of a full-size
+    /// case takes minutes on the ill-conditioned and large-mesh families).
     pub fn default_seeds(self) -> usize {
-        match self {
-            Size::Small => 1,
-            Size::Full => 4,
-        }
+        1
     }
 }
 
@@ -117,6 +115,10 @@ pub struct FamilyResult {
     pub bary_error_ulps: ErrorStats,
     /// Records that could not be read (counted as REQ violations).
     pub unreadable_records: u64,
+    /// The error statistics whose value is infinite (JSON has no infinity: those read `null`
+    /// above), as `t_error_ulps.max`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub infinite: Vec<String>,
     /// Seconds the family took: generation and proofs, the workers, the judgement.
     pub seconds: f64,
     /// How the family's cases were cut to fit launches, when they were.
@@ -151,6 +153,7 @@ impl FamilyResult {
             bary_error_eps: ErrorStats::default(),
             bary_error_ulps: ErrorStats::default(),
             unreadable_records: 0,
+            infinite: Vec::new(),
             seconds: 0.0,
             note: String::new(),
             findings: Vec::new(),
@@ -173,6 +176,19 @@ impl FamilyResult {
         self.t_error_bound = r.t_error_bound();
         self.bary_error_eps = r.bary_error_eps();
         self.bary_error_ulps = r.bary_error_ulps();
+        self.infinite.clear();
+        for (name, e) in [
+            ("t_error_ulps", &self.t_error_ulps),
+            ("t_error_bound", &self.t_error_bound),
+            ("bary_error_eps", &self.bary_error_eps),
+            ("bary_error_ulps", &self.bary_error_ulps),
+        ] {
+            for (q, v) in [("median", e.median), ("p99", e.p99), ("max", e.max)] {
+                if v.is_some_and(|x| !x.is_finite()) {
+                    self.infinite.push(format!("{name}.{q}"));
+                }
+            }
+        }
     }
 
     /// Whether the driver did something the spec forbids on this family.
@@ -476,10 +492,6 @@ pub fn stress(config: &StressConfig) -> Result<StressSummary, SessionError> {
             }
             for launch in launches {
                 result.cases += 1;
-                if let Some(report) = crate::gate::gate(&launch.case, &judging) {
-                    count(&mut result, &report);
-                    continue;
-                }
                 planned.push(Planned { family: fi, launch });
             }
         }
@@ -499,6 +511,18 @@ pub fn stress(config: &StressConfig) -> Result<StressSummary, SessionError> {
             generate_seconds: t0.elapsed().as_secs_f64(),
         });
     }
+
+    // The gate (which traces every ray to know what the launch reads) on `jobs` threads; the
+    // cases it keeps from the driver are counted in their families.
+    let gated = gate_all(&planned, &judging, config.jobs.max(1));
+    let mut kept = Vec::with_capacity(planned.len());
+    for (p, g) in planned.into_iter().zip(gated) {
+        match g {
+            Some(report) => count(&mut totals[p.family].result, &report),
+            None => kept.push(p),
+        }
+    }
+    let planned = kept;
 
     // Run them in workers, judging each as it comes back.
     let requests: Vec<Request> = planned
@@ -613,6 +637,27 @@ fn count(result: &mut FamilyResult, report: &CaseReport) {
                 .unwrap_or_default()
         ));
     }
+}
+
+/// The gate's report of each planned case (None: it may run), on `threads` threads.
+fn gate_all(planned: &[Planned], judging: &Judging, threads: usize) -> Vec<Option<CaseReport>> {
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let out = std::sync::Mutex::new(vec![None; planned.len()]);
+    std::thread::scope(|scope| {
+        for _ in 0..threads {
+            scope.spawn(|| loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(p) = planned.get(i) else {
+                    break;
+                };
+                let g = crate::gate::gate(&p.launch.case, judging);
+                if let Ok(mut v) = out.lock() {
+                    v[i] = g;
+                }
+            });
+        }
+    });
+    out.into_inner().unwrap_or_default()
 }
 
 /// One case judged: the session's report, and its records judged into a report of their own.
