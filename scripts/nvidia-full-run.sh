@@ -10,7 +10,8 @@
 #
 #   there (the NVIDIA machine, as root, in the copied checkout):
 #     bash scripts/nvidia-full-run.sh --out DIR [--count N] [--valid-count N] [--commit SHA]
-#                                     [--phases LIST] [--phase-timeout S] [--tar FILE]
+#                                     [--phases LIST] [--phase-timeout S] [--stress-timeout S]
+#                                     [--tar FILE]
 #       probe   rtconf probe of the live device into profiles/nvidia-h200.json (every run below uses it)
 #       trace   the trace commands the profile supports, valid and invalid cases, layer 1.3.239
 #       build   vkCmdBuildAccelerationStructuresIndirectKHR, layer 1.3.239
@@ -19,11 +20,13 @@
 #       findings  the driver findings kept under cases/nvidia-h200/ (and their reduced variants), twice each,
 #               then the same cases as the exported C programs --prepare compiled (.gl/bin/repro/)
 #       detect  rtconf detect: seeded faults by kind and size (the suite's detection against run time)
-#       stress  rtconf stress (the numerical stress families), when the binary has that command
+#       stress  rtconf stress: the numerical stress families at full size on NVIDIA, layer 1.3.239, under
+#               --stress-timeout (default 3600 s: the model judges every ray on the CPU); DIR/stress/
+#               holds stress.json and stress.png, and the README gets the per-family table
 #     Default: every phase, in that order. Each phase writes DIR/PHASE/ (the run folder) and DIR/PHASE.log;
 #     a phase that fails or runs past --phase-timeout is recorded with its exit status and the next one
 #     runs. DIR/README.md gets one row per phase: the command, the exit status, the counts from
-#     summary.json. --tar packs DIR into one file (for machines that hand back few files).
+#     summary.json (stress: its cases by outcome from stress.json). --tar packs DIR into one file (for machines that hand back few files).
 #
 # The run phases take baselines/nvidia-h200.csv: the known driver findings are expected crashes there.
 # The commit is the checkout's (git rev-parse HEAD) unless --commit names it (a copy without .git).
@@ -32,7 +35,7 @@ set -uo pipefail
 repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$repo_root"
 
-out="" count=4 valid_count=100 commit="" tar_file="" phase_timeout=300
+out="" count=4 valid_count=100 commit="" tar_file="" phase_timeout=300 stress_timeout=3600
 phases="probe trace build render trace-1.4.309 build-1.4.309 findings stress detect"
 prepare=0
 while [[ $# -gt 0 ]]; do
@@ -44,8 +47,9 @@ while [[ $# -gt 0 ]]; do
         --commit) commit=$2; shift 2 ;;
         --phases) phases=$2; shift 2 ;;
         --phase-timeout) phase_timeout=$2; shift 2 ;;
+        --stress-timeout) stress_timeout=$2; shift 2 ;;
         --tar) tar_file=$2; shift 2 ;;
-        -h|--help) sed -n '2,29p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        -h|--help) sed -n '2,32p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "nvidia-full-run: unknown argument $1 (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -98,7 +102,22 @@ bin="$repo_root/.gl/bin/rtconf"
 row() {
     local phase=$1 cmd=$2 rc=$3 secs=$4 summary="$out/$1/summary.json"
     local counts="| | | | | | | | | |"
-    if [[ -s "$summary" ]] && command -v python3 >/dev/null; then
+    if [[ -s "$out/$1/stress.json" ]] && command -v python3 >/dev/null; then
+        # A stress run: its trace cases by outcome (pass, triaged, unsupported, not-realised, fail,
+        # crash, timeout, case-error summed over the families).
+        counts=$(python3 - "$out/$1/stress.json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+total = {}
+for f in s["families"]:
+    for k, n in f["outcomes"].items():
+        total[k] = total.get(k, 0) + n
+cases = sum(f["cases"] for f in s["families"])
+keys = ["pass", "triaged", "unsupported", "not-realised", "fail", "crash", "timeout", "case-error"]
+print("| " + " | ".join([str(cases)] + [str(total.get(k, 0)) for k in keys]) + " | |")
+PY
+)
+    elif [[ -s "$summary" ]] && command -v python3 >/dev/null; then
         counts=$(python3 - "$summary" <<'PY'
 import json, sys
 s = json.load(open(sys.argv[1]))
@@ -116,9 +135,10 @@ PY
 phase() {
     local name=$1 layer=$2
     shift 2
-    local started=$SECONDS
+    local started=$SECONDS limit=$phase_timeout
+    [[ "$name" == stress ]] && limit=$stress_timeout
     echo "nvidia-full-run: $name: rtconf $*" >&2
-    timeout --kill-after=10 "$phase_timeout" bash scripts/nvidia-run.sh --layer "$layer" -- "$@" \
+    timeout --kill-after=10 "$limit" bash scripts/nvidia-run.sh --layer "$layer" -- "$@" \
         >"$out/$name.log" 2>&1
     local rc=$?
     row "$name" "rtconf $* (layer $layer)" "$rc" "$((SECONDS - started))"
@@ -164,7 +184,9 @@ for p in $phases; do
             ;;
         stress)
             if "$bin" help stress >/dev/null 2>&1; then
-                phase stress 1.3.239 stress --driver nvidia --profile "$profile" --out "$out/stress"
+                phase stress 1.3.239 stress --driver nvidia --profile "$profile" --size full \
+                    --jobs "$(nproc 2>/dev/null || echo 4)" --out "$out/stress"
+                stress_table=$(sed -n '/^family /,/^[0-9.]* s; /p' "$out/stress.log")
             else
                 echo "| stress | (this binary has no \`rtconf stress\`) | not run | | | | | | | | | | | |" >>"$readme"
             fi
@@ -178,6 +200,16 @@ for p in $phases; do
     esac
 done
 echo >>"$readme"
+if [[ -n "${stress_table:-}" ]]; then
+    {
+        echo "## stress (per family: rtconf stress's table; DIR/stress/stress.json and stress.png)"
+        echo
+        echo '```'
+        echo "$stress_table"
+        echo '```'
+        echo
+    } >>"$readme"
+fi
 echo "- finished: $(date -u +%Y-%m-%dT%H:%M:%SZ)" >>"$readme"
 
 if [[ -n "$tar_file" ]]; then

@@ -193,3 +193,53 @@ fn drop_last_triangle(scene: &mut Scene, bottom_level: u32) {
         }
     }
 }
+
+/// A fan that is closed but leaves out a triangle around its vertex (a copy of one of its own,
+/// appended to the geometry) is refused — by a fresh proof, and through an index of the triangles
+/// around each vertex that was built on the intact scene before.
+#[test]
+fn a_triangle_around_the_vertex_outside_the_fan_is_refused_with_a_reused_index_too() {
+    let f = model::stress::family("watertight-vertices").unwrap();
+    let case = f.case(1, f.test_size);
+    assert!(case.check_claims().is_empty());
+    let (claim, member) = case
+        .claims
+        .iter()
+        .find_map(|c| match c {
+            Claim::ThroughSharedVertex { fan, .. } => Some((c, fan[0])),
+            _ => None,
+        })
+        .expect("a vertex claim");
+    let mut index = model::stress::FanIndex::default();
+    assert!(claim.check_indexed(&case, &mut index).is_ok());
+    let mut bad = case.clone();
+    if let model::scene::GeometryData::Triangles(t) =
+        &mut bad.scene.bottom_levels[0].geometries[member.0 as usize].data
+    {
+        let p = member.1 as usize;
+        match &mut t.indices {
+            Some(model::scene::Indices::U16(v)) => {
+                let tri = [v[3 * p], v[3 * p + 1], v[3 * p + 2]];
+                v.extend(tri);
+            }
+            Some(model::scene::Indices::U32(v)) => {
+                let tri = [v[3 * p], v[3 * p + 1], v[3 * p + 2]];
+                v.extend(tri);
+            }
+            None => {
+                let tri = [
+                    t.positions[3 * p],
+                    t.positions[3 * p + 1],
+                    t.positions[3 * p + 2],
+                ];
+                t.positions.extend(tri);
+            }
+        }
+    }
+    for e in [
+        claim.check(&bad).unwrap_err(),
+        claim.check_indexed(&bad, &mut index).unwrap_err(),
+    ] {
+        assert!(e.to_string().contains("not in the fan"), "{e}");
+    }
+}

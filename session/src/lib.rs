@@ -28,6 +28,7 @@ pub mod run;
 pub mod select;
 pub(crate) mod shrink;
 pub mod sources;
+pub mod stress;
 pub mod triage;
 
 pub use baseline::{Expectations, Status};

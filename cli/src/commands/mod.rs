@@ -12,6 +12,7 @@ mod registry;
 mod replay;
 mod report;
 mod run;
+mod stress;
 
 use clap::{Parser, Subcommand};
 use session::SessionError;
@@ -48,6 +49,10 @@ enum Command {
     /// Merge the run folders of a sharded run into one (results, summary, JUnit, report).
     #[command(after_help = EXIT_CODES)]
     Merge(merge::MergeArgs),
+    /// The numerical stress families on a driver: per family REQ violations, double hits, holes,
+    /// t and barycentric errors in ULPs and the driver's choices on VARY rays (stress.json, stress.png).
+    #[command(after_help = EXIT_CODES)]
+    Stress(stress::StressArgs),
     /// Write the HTML report of a run folder (DIR/report/index.html).
     Report(report::ReportArgs),
     /// The suite's detection table: seeded faults (`run --inject`) by kind and size, the detection rate
@@ -67,9 +72,12 @@ enum Command {
 /// The exit statuses every subcommand follows, for `--help`.
 const EXIT_CODES: &str = "Exit status:\n  \
     0  done, and nothing unexpected (run, merge: no case has status fail, crash, timeout, unexpected-pass\n     \
-    or missing; replay: the case passed or is triaged; check: every verdict is the case's intent)\n  \
-    1  unexpected results (those statuses, a generator error, a disagreeing verdict, a failing replay)\n  \
-    2  the command could not do its work: bad arguments or input files, a missing driver, layer or registry";
+    or missing; replay: the case passed or is triaged; check: every verdict is the case's intent;\n     \
+    stress: no REQ violation or double hit)\n  \
+    1  unexpected results (those statuses, a generator error, a disagreeing verdict, a failing replay,\n     \
+    a stress family's REQ violation, double hit, failure, crash or timeout)\n  \
+    2  the command could not do its work: bad arguments or input files, a missing driver, layer or registry,\n     \
+    a stress case at fault or a stress family that judged no ray";
 
 /// What a subcommand gives back: its exit status, or the error that stopped it.
 type Exit = Result<i32, SessionError>;
@@ -89,6 +97,7 @@ pub fn main() -> i32 {
         Command::Probe(a) => probe::run(a),
         Command::Run(a) => run::run(*a),
         Command::Merge(a) => merge::run(a),
+        Command::Stress(a) => stress::run(a),
         Command::Report(a) => report::run(a),
         Command::Detect(a) => detect::run(a),
         Command::Replay(a) => replay::run(a),

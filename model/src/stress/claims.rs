@@ -158,6 +158,12 @@ impl Claim {
 
     /// Proves the claim about `case` in exact arithmetic.
     pub fn check(&self, case: &StressCase) -> Result<(), ClaimError> {
+        self.check_indexed(case, &mut FanIndex::default())
+    }
+
+    /// [`Claim::check`] with the triangles around each vertex looked up in `index` (built on first
+    /// use, shared by the claims of one scene).
+    pub fn check_indexed(&self, case: &StressCase, index: &mut FanIndex) -> Result<(), ClaimError> {
         let c = self.kind();
         let scene = &case.scene;
         match self {
@@ -227,8 +233,7 @@ impl Claim {
                 fan,
             } => {
                 let r = ray_of(case, *ray, c)?;
-                let b = instance_bottom_level(scene, *instance, c)?;
-                through_vertex(scene, b, *instance, r, *vertex, fan, c)
+                through_vertex(scene, *instance, r, *vertex, fan, index, c)
             }
             Claim::ThroughInterior {
                 ray,

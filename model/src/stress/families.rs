@@ -158,6 +158,9 @@ pub(super) struct Aimer<'a> {
     pub mesh: &'a LatticeMesh,
     pub edges: Vec<SharedEdge>,
     pub fans: Vec<Vec<usize>>,
+    /// The triangles around each vertex of the scene being aimed at, for the vertex claims each
+    /// shot proves (the case's final proof builds its own).
+    pub index: std::cell::RefCell<super::FanIndex>,
 }
 
 /// How a ray is aimed: origin `distance` direction lengths before the target, direction scaled by
@@ -185,6 +188,7 @@ impl<'a> Aimer<'a> {
             mesh,
             edges: mesh.shared_edges(),
             fans: mesh.fans(),
+            index: Default::default(),
         }
     }
 
@@ -211,7 +215,10 @@ impl<'a> Aimer<'a> {
                 case.rays.resize(index + 1, ray);
             }
             case.rays[index] = ray;
-            if claim.check(case).is_ok() {
+            if claim
+                .check_indexed(case, &mut self.index.borrow_mut())
+                .is_ok()
+            {
                 case.claims.push(claim);
                 return Some(ray);
             }

@@ -23,6 +23,7 @@ mod transforms;
 pub use claims::{Claim, ClaimError, TLimit};
 pub use families::families;
 pub use mesh::LatticeMesh;
+pub use proofs::FanIndex;
 pub use report::{ErrorStats, FamilyReport, VaryChoices};
 
 use crate::scene::{Ray, Scene};
@@ -63,12 +64,14 @@ pub struct StressCase {
 }
 
 impl StressCase {
-    /// Checks every claim in exact arithmetic; the failures, each with the claim's index.
+    /// Checks every claim in exact arithmetic; the failures, each with the claim's index. The
+    /// claims share one fresh index of the triangles around each vertex.
     pub fn check_claims(&self) -> Vec<(usize, ClaimError)> {
+        let mut index = FanIndex::default();
         self.claims
             .iter()
             .enumerate()
-            .filter_map(|(i, c)| c.check(self).err().map(|e| (i, e)))
+            .filter_map(|(i, c)| c.check_indexed(self, &mut index).err().map(|e| (i, e)))
             .collect()
     }
 

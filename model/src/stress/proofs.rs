@@ -11,6 +11,81 @@ use std::collections::HashMap;
 
 pub(super) type X = Dyadic;
 
+/// What identifies the triangles of a bottom level an index was built from: per geometry, where
+/// its positions and indices live and how many there are.
+type Fingerprint = Vec<(usize, usize, usize, usize)>;
+
+fn fingerprint(scene: &Scene, bottom_level: u32) -> Fingerprint {
+    let Some(bl) = scene.bottom_levels.get(bottom_level as usize) else {
+        return Vec::new();
+    };
+    bl.geometries
+        .iter()
+        .map(|g| match &g.data {
+            GeometryData::Triangles(t) => (
+                t.positions.as_ptr() as usize,
+                t.positions.len(),
+                t.primitive_count(),
+                1,
+            ),
+            GeometryData::Aabbs(_) => (0, 0, 0, 0),
+        })
+        .collect()
+}
+
+/// The triangles around each vertex (by its bits) of a bottom level, built once and asked per
+/// vertex claim: a fan's "every triangle around the vertex" check is then the vertex's list, not
+/// a pass over a million triangles per ray. Rebuilt whenever the bottom level it was built from
+/// is not the one asked about (see [`Fingerprint`]); [`super::StressCase::check_claims`] uses a
+/// fresh one, so the final proof never rests on a stale index.
+#[derive(Debug, Default)]
+pub struct FanIndex {
+    built: HashMap<u32, (Fingerprint, AroundVertex)>,
+}
+
+/// The triangles with a vertex of these bits.
+type AroundVertex = HashMap<[u32; 3], Vec<Member>>;
+
+impl FanIndex {
+    /// The triangles of `bottom_level` with a vertex of bits `vertex`.
+    pub(super) fn around(
+        &mut self,
+        scene: &Scene,
+        bottom_level: u32,
+        vertex: [u32; 3],
+    ) -> &[Member] {
+        let print = fingerprint(scene, bottom_level);
+        let stale = self
+            .built
+            .get(&bottom_level)
+            .is_none_or(|(f, _)| *f != print);
+        if stale {
+            let mut map: AroundVertex = HashMap::new();
+            if let Some(bl) = scene.bottom_levels.get(bottom_level as usize) {
+                for (g, geometry) in bl.geometries.iter().enumerate() {
+                    let GeometryData::Triangles(t) = &geometry.data else {
+                        continue;
+                    };
+                    for p in 0..t.primitive_count() {
+                        let mut keys = t.vertices(p).map(key);
+                        keys.sort_unstable();
+                        for (i, k) in keys.iter().enumerate() {
+                            if i == 0 || keys[i - 1] != *k {
+                                map.entry(*k).or_default().push((g as u32, p as u32));
+                            }
+                        }
+                    }
+                }
+            }
+            self.built.insert(bottom_level, (print, map));
+        }
+        self.built
+            .get(&bottom_level)
+            .and_then(|(_, m)| m.get(&vertex))
+            .map_or(&[], |v| v.as_slice())
+    }
+}
+
 pub(super) fn err<T>(claim: &'static str, problem: impl Into<String>) -> Result<T, ClaimError> {
     Err(ClaimError {
         claim,
@@ -226,13 +301,14 @@ pub(super) fn closed_mesh(
 
 pub(super) fn through_vertex(
     scene: &Scene,
-    bottom_level: u32,
     instance: u32,
     r: &Ray,
     vertex: [f32; 3],
     fan: &[Member],
+    index: &mut FanIndex,
     c: &'static str,
 ) -> Result<(), ClaimError> {
+    let bottom_level = instance_bottom_level(scene, instance, c)?;
     if fan.len() < 3 {
         return err(c, "a fan needs at least three triangles");
     }
@@ -266,21 +342,19 @@ pub(super) fn through_vertex(
     let Some(bl) = scene.bottom_levels.get(bottom_level as usize) else {
         return err(c, "no such bottom level");
     };
-    for (g, geometry) in bl.geometries.iter().enumerate() {
-        let GeometryData::Triangles(t) = &geometry.data else {
+    for &(g, p) in index.around(scene, bottom_level, vk) {
+        let Some(GeometryData::Triangles(t)) = bl.geometries.get(g as usize).map(|x| &x.data)
+        else {
             continue;
         };
         if Some(t.transform) != transform {
             continue;
         }
-        for p in 0..t.primitive_count() {
-            let around = t.vertices(p).iter().any(|x| key(*x) == vk);
-            if around && !fan.contains(&(g as u32, p as u32)) {
-                return err(
-                    c,
-                    format!("triangle {p} of geometry {g} is around the vertex but not in the fan"),
-                );
-            }
+        if !fan.contains(&(g, p)) {
+            return err(
+                c,
+                format!("triangle {p} of geometry {g} is around the vertex but not in the fan"),
+            );
         }
     }
     // The ray line passes through the world vertex: (w − o) × d = 0, ahead, inside the interval.
