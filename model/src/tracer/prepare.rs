@@ -171,6 +171,8 @@ pub(crate) struct Node {
     pub first: u32,
     /// Leaf: number of items (> 0); interior: 0.
     pub count: u32,
+    /// Every item below is a triangle (a node a ray may skip behind a required hit).
+    pub triangles_only: bool,
 }
 
 /// Shared-edge and shared-vertex topology of the triangles of one transform class of a bottom
@@ -383,7 +385,11 @@ impl PreparedScene {
                 }
             }
         }
-        let (items, item_boxes, nodes) = build_bvh(items, boxes);
+        let triangle: Vec<bool> = items
+            .iter()
+            .map(|it: &Item| geometries[it.geometry as usize].kind == PrimitiveKind::Triangle)
+            .collect();
+        let (items, item_boxes, nodes) = build_bvh(items, boxes, &triangle);
         Ok(PreparedScene {
             scene: scene.clone(),
             instances,
@@ -405,11 +411,14 @@ impl PreparedScene {
         self.items.len()
     }
 
-    /// Calls `visit` for every item whose padded box the ray does not miss.
+    /// Calls `visit` for every item whose padded box the ray does not miss, nearer children first.
+    /// A node of triangles only is skipped as well when its padded box is missed by the ray cut at
+    /// `cut` (which `visit` may lower as it goes; see `traverse::trace_ray`).
     pub(crate) fn for_each_near(
         &self,
         ray: &RayF64,
         nodes_visited: &mut u64,
+        cut: &std::cell::Cell<f64>,
         mut visit: impl FnMut(Item, &FarBox),
     ) {
         if self.nodes.is_empty() {
@@ -420,6 +429,7 @@ impl PreparedScene {
         let mut stack = [0u32; 64];
         let mut depth = 1usize;
         let mut spill: Vec<u32> = Vec::new();
+        let mut cut_ray = *ray;
         loop {
             let n = if let Some(n) = spill.pop() {
                 n
@@ -434,6 +444,13 @@ impl PreparedScene {
             if node.bounds.is_far(ray) {
                 continue;
             }
+            let c = cut.get();
+            if node.triangles_only && c < ray.tmax {
+                cut_ray.tmax = c;
+                if node.bounds.is_far(&cut_ray) {
+                    continue;
+                }
+            }
             if node.count > 0 {
                 let range = node.first as usize..(node.first + node.count) as usize;
                 for (it, b) in self.items[range.clone()]
@@ -443,7 +460,16 @@ impl PreparedScene {
                     visit(*it, b);
                 }
             } else {
-                for child in [node.first, node.first + 1] {
+                // The nearer child (by its centre along the ray) is popped first.
+                let along = |i: u32| {
+                    let b = &self.nodes[i as usize].bounds;
+                    (0..3)
+                        .map(|k| (b.lo[k] + b.hi[k]) * ray.direction[k])
+                        .sum::<f64>()
+                };
+                let (a, b) = (node.first, node.first + 1);
+                let order = if along(a) <= along(b) { [b, a] } else { [a, b] };
+                for child in order {
                     if depth < stack.len() {
                         stack[depth] = child;
                         depth += 1;
@@ -515,7 +541,11 @@ impl BoundedF64 {
 const LEAF_SIZE: usize = 4;
 
 /// Builds a BVH by median splits along the widest centroid axis; items are reordered to leaves.
-fn build_bvh(items: Vec<Item>, boxes: Vec<FarBox>) -> (Vec<Item>, Vec<FarBox>, Vec<Node>) {
+fn build_bvh(
+    items: Vec<Item>,
+    boxes: Vec<FarBox>,
+    triangle: &[bool],
+) -> (Vec<Item>, Vec<FarBox>, Vec<Node>) {
     let mut order: Vec<u32> = (0..items.len() as u32).collect();
     let centroid = |b: &FarBox| [0, 1, 2].map(|k| 0.5 * (b.lo[k] + b.hi[k]));
     let cents: Vec<[f64; 3]> = boxes.iter().map(centroid).collect();
@@ -527,12 +557,14 @@ fn build_bvh(items: Vec<Item>, boxes: Vec<FarBox>) -> (Vec<Item>, Vec<FarBox>, V
         bounds: boxes[0],
         first: 0,
         count: 0,
+        triangles_only: false,
     });
     // (node index, range start, range end)
     let mut work = vec![(0usize, 0usize, items.len())];
     while let Some((n, start, end)) = work.pop() {
         let slice = &mut order[start..end];
         let mut bounds = boxes[slice[0] as usize];
+        let triangles_only = slice.iter().all(|&i| triangle[i as usize]);
         let mut clo = [f64::INFINITY; 3];
         let mut chi = [f64::NEG_INFINITY; 3];
         for &i in slice.iter() {
@@ -547,6 +579,7 @@ fn build_bvh(items: Vec<Item>, boxes: Vec<FarBox>) -> (Vec<Item>, Vec<FarBox>, V
                 bounds,
                 first: start as u32,
                 count: (end - start) as u32,
+                triangles_only,
             };
             continue;
         }
@@ -562,6 +595,7 @@ fn build_bvh(items: Vec<Item>, boxes: Vec<FarBox>) -> (Vec<Item>, Vec<FarBox>, V
             bounds,
             first: 0,
             count: 0,
+            triangles_only,
         };
         nodes.push(placeholder);
         nodes.push(placeholder);
@@ -569,6 +603,7 @@ fn build_bvh(items: Vec<Item>, boxes: Vec<FarBox>) -> (Vec<Item>, Vec<FarBox>, V
             bounds,
             first: left as u32,
             count: 0,
+            triangles_only,
         };
         work.push((left, start, start + mid));
         work.push((left + 1, start + mid, end));
