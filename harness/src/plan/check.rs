@@ -50,7 +50,7 @@ impl CheckPlan {
         let info = &case.call.infos[0];
         let top = info.ty == AsType::TopLevel;
         Ok(CheckPlan {
-            rays: check_rays(&prims, top),
+            rays: check_rays(&prims),
             spheres: sphere_table(info, &prims),
             procedural: info
                 .geometries

@@ -46,9 +46,8 @@ pub fn first_build(body: &AccelBody) -> Result<(Vec<RangeInfo>, Vec<BuiltPrimiti
 /// The rays that check a valid build case's structure (see `super::scene::check_rays`). None when
 /// the model cannot read the build (no info, records outside memory).
 pub fn check_rays(body: &AccelBody) -> Option<Vec<Ray>> {
-    let info = body.call.infos.first()?;
     let (_, prims) = first_build(body).ok()?;
-    Some(rays_through(&prims, info.ty == AsType::TopLevel))
+    Some(rays_through(&prims))
 }
 
 /// The outcomes the tracer allows for each ray against `scene`.
@@ -102,7 +101,7 @@ impl BuildCheck {
         let mem = body.world.memory();
         let ranges = indirect_ranges(&mem, &body.call, 0).map_err(|e| e.to_string())?;
         let (scene, prims) = scene_of(&mem, info, &ranges)?;
-        let rays = rays_through(&prims, info.ty == AsType::TopLevel);
+        let rays = rays_through(&prims);
         let (allowed, stats) = allowed_outcomes(&scene, &rays)?;
         Ok(BuildCheck {
             scene,
@@ -366,7 +365,7 @@ pub fn deviation(case: &AccelBody, words: &[u32]) -> Option<String> {
     let mem = case.world.memory();
     let ranges = indirect_ranges(&mem, &case.call, 0).ok()?;
     let prims = build_primitives(&mem, info, &ranges).ok()?;
-    let rays = rays_through(&prims, false);
+    let rays = rays_through(&prims);
     if rays.len() != records.len() {
         return None;
     }

@@ -244,7 +244,7 @@ fn aimed(point: [f64; 3], dir: [f64; 3]) -> Option<Ray> {
 fn across(draw: &mut Draw, n: [f64; 3]) -> [f64; 3] {
     let d = draw.direction();
     let l = norm(n);
-    if !(l > 0.0) || !l.is_finite() {
+    if !l.is_finite() || l <= 0.0 {
         return d;
     }
     let n = n.map(|x| x / l);
@@ -282,7 +282,7 @@ fn normal(v: &[[f64; 3]; 3]) -> [f64; 3] {
 /// The rays that check a built structure: through each active primitive at interior points from
 /// varied directions, through where each inactive one would be (it must not be hit), then random
 /// rays through the scene's bounds. Deterministic for a given build.
-pub fn check_rays(prims: &[BuiltPrimitive], top: bool) -> Vec<Ray> {
+pub fn check_rays(prims: &[BuiltPrimitive]) -> Vec<Ray> {
     let mut draw = Draw(0x5EED_0000 ^ prims.len() as u64);
     let per = if prims.len() * (RAYS_PER_PRIMITIVE + 1) <= MOST_RAYS {
         RAYS_PER_PRIMITIVE
@@ -357,8 +357,7 @@ pub fn check_rays(prims: &[BuiltPrimitive], top: bool) -> Vec<Ray> {
             }
         }
     }
-    let _ = top;
-    if !(lo[0] <= hi[0]) {
+    if lo[0].is_nan() || hi[0].is_nan() || lo[0] > hi[0] {
         (lo, hi) = ([-1.0; 3], [1.0; 3]);
     }
     let random = (8 + prims.len() / 2).min(MOST_RAYS.saturating_sub(rays.len()));

@@ -97,6 +97,7 @@ impl FarBox {
     /// divisions as multiplications by the ray's reciprocal directions: both within the f64 slack
     /// `far_pad` adds for the slab test). Monotone under box containment.
     #[inline]
+    #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
     pub fn is_far(&self, ray: &RayF64) -> bool {
         let o = &ray.origin;
         let axis = |k: usize| {
