@@ -82,7 +82,7 @@ fn resolve_check(dev: &VkDevice, check: TraceCheck) -> Result<TraceCheck, Harnes
     }
 }
 
-/// The valid case as a direct build with the ranges the model reads, then one ray per primitive; where
+/// The valid case as a direct build with the ranges the model reads, then the check's rays; where
 /// the device has accelerationStructureIndirectBuild, the case's indirect build is submitted too and
 /// traced with the same rays, and must report what the direct build did.
 #[allow(clippy::too_many_arguments)]
