@@ -301,10 +301,7 @@ fn judge(case: &Case, profile: &DeviceProfile) {
         }
         Body::Accel(a) => {
             let _ = model::accel::indirect_build(&a.world, &a.call);
-            if let Some(rays) = model::accel::check::check_rays(a) {
-                let hits = rays.iter().map(|_| None).collect();
-                let _ = model::accel::check::deviation(a, &hits);
-            }
+            let _ = model::accel::check::BuildCheck::of(a);
         }
     }
 }

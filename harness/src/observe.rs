@@ -71,14 +71,18 @@ pub enum TraceCheck {
 }
 
 /// The traced check of a build run as valid: the case built directly (with the ranges the model reads
-/// from memory), one ray per built primitive traced at it, and, where the device has
+/// from memory), the check's rays traced at it, and, where the device has
 /// `accelerationStructureIndirectBuild`, the case's own indirect build traced with the same rays.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TracedBuild {
     /// How the rays were traced (never `Auto`).
     pub check: TraceCheck,
-    /// What each ray reported at the directly built structure.
+    /// What each ray reported at the directly built structure (the committed hit of its record).
     pub hits: Hits,
+    /// The rays' records at the directly built structure: `model::tracer::record::RayRecord::WORDS`
+    /// words per ray, in the order of `model::accel::check::check_rays`.
+    #[serde(default)]
+    pub records: Vec<u32>,
     /// The layer's VUIDs for the direct build.
     pub direct_layer_vuids: Vec<String>,
     /// The real indirect build, where the device could run it.
@@ -90,6 +94,8 @@ pub struct TracedBuild {
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct IndirectBuild {
     pub hits: Hits,
+    #[serde(default)]
+    pub records: Vec<u32>,
     pub layer_vuids: Vec<String>,
 }
 

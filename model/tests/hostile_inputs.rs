@@ -63,9 +63,13 @@ fn judge_everything(case: &Case, profile: &DeviceProfile) -> Vec<String> {
     }
     if let Some(a) = case.as_accel() {
         let _ = model::accel::indirect_build(&a.world, &a.call);
-        if let Some(rays) = model::accel::check::check_rays(a) {
-            let hits = rays.iter().map(|_| None).collect();
-            let _ = model::accel::check::deviation(a, &hits);
+        if let Ok(check) = model::accel::check::BuildCheck::of(a) {
+            let misses: Vec<u32> = check
+                .rays
+                .iter()
+                .flat_map(|_| model::tracer::record::RayRecord::miss(1).to_words())
+                .collect();
+            let _ = model::accel::check::deviation(a, &misses);
         }
     }
     verdict.vuids().into_iter().map(String::from).collect()

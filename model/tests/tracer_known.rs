@@ -273,7 +273,19 @@ fn two_layers() -> Scene {
 
 #[test]
 fn the_closest_required_hit_is_the_only_committable_one() {
+    // Without any-hit shaders the layer behind the required hit is unobservable and left out.
     let out = trace(&two_layers(), &down(0.25, 0.25));
+    assert_eq!(out.candidates.len(), 1);
+    assert_eq!(out.committable.len(), 1);
+    assert_eq!(out.candidates[out.committable[0]].primitive, prim(0, 0, 0));
+    // With them, any-hit may run for the farther layer: it stays a candidate, never committable.
+    let accept = |_: u32, _: u32| HitShaders::with_any_hit(0, AnyHitRule::Accept);
+    let out = trace_with(
+        &two_layers(),
+        &down(0.25, 0.25),
+        &accept,
+        Precision::F64WithExactFallback,
+    );
     assert_eq!(out.candidates.len(), 2);
     assert_eq!(out.committable.len(), 1);
     assert_eq!(out.candidates[out.committable[0]].primitive, prim(0, 0, 0));

@@ -4,7 +4,7 @@
 
 use crate::triage::{CaseFacts, Triage, TriageMatch};
 use harness::observe::{DeviceLack, Observation, Status, TracedBuild};
-use model::accel::check::{deviation, ExpectedRay};
+use model::accel::check::{deviation, judge_build};
 use model::rules::modelled_scope;
 use model::{Body, Case, CommandId, DeviceProfile, Verdict};
 use std::collections::BTreeSet;
@@ -280,6 +280,7 @@ pub fn compare(
                 let ok = compare_rays(&facts, a, obs.traced(), triage, &mut problems, &mut triaged);
                 report.output_matches = Some(ok.0);
                 report.triage.extend(ok.1);
+                report.rendered = ok.2;
             }
             Body::Accel(_) => {}
         }
@@ -330,9 +331,11 @@ pub fn profile_lacks(profile: &DeviceProfile, lack: &DeviceLack) -> bool {
     }
 }
 
-/// The rays traced at what the device built against the model's primitives: a mismatch is a failure
-/// unless the triage names the deviation that explains it; the direct and the real indirect build must
-/// draw no layer message and must trace alike. Returns whether everything matched.
+/// The check's rays traced at what the device built, each record judged by the reference tracer
+/// against the model's primitives (`model::accel::check::judge_build`): a failing ray is a problem
+/// unless the triage names the deviation that explains them; the direct and the real indirect build
+/// must draw no layer message and must trace alike. Returns whether everything matched, the triage
+/// entry that explained a deviation, and the judged numbers (reported like a rendered case's).
 fn compare_rays(
     case: &CaseFacts,
     body: &model::AccelBody,
@@ -340,10 +343,14 @@ fn compare_rays(
     triage: &Triage,
     problems: &mut Vec<String>,
     triaged: &mut Vec<String>,
-) -> (bool, Option<TriageMatch>) {
+) -> (
+    bool,
+    Option<TriageMatch>,
+    Option<model::rendered::RenderedResult>,
+) {
     let Some(traced) = traced else {
         problems.push("no traced check of the build came back".into());
-        return (false, None);
+        return (false, None, None);
     };
     let mut matched = None;
     if !traced.direct_layer_vuids.is_empty() {
@@ -352,8 +359,14 @@ fn compare_rays(
             traced.direct_layer_vuids.join(", ")
         ));
     }
-    let rays: Vec<ExpectedRay> = model::accel::check::check_rays(body).unwrap_or_default();
-    let mismatches = ray_mismatches(&rays, &traced.hits);
+    let judged = match judge_build(body, &traced.records) {
+        Ok(j) => j.result,
+        Err(e) => {
+            problems.push(format!("the model cannot judge the build's rays: {e}"));
+            return (false, None, None);
+        }
+    };
+    let rays = model::accel::check::check_rays(body).unwrap_or_default();
     let mut indirect_vs_direct = Vec::new();
     if let Some(ind) = &traced.indirect {
         if !ind.layer_vuids.is_empty() {
@@ -366,30 +379,31 @@ fn compare_rays(
             if d != i {
                 let origin = rays.get(k).map(|r| r.origin).unwrap_or_default();
                 indirect_vs_direct.push(format!(
-                    "ray {k} at {origin:?}: direct build {d:?}, indirect build {i:?}"
+                    "ray {k} from {origin:?}: direct build {d:?}, indirect build {i:?}"
                 ));
             }
         }
     }
-    if let Some(first) = mismatches.first() {
+    if judged.failures > 0 {
+        let first = judged.first_failures.join(" | ");
         let key = format!(
             "{}:{}",
             case.command,
-            deviation(body, &traced.hits).unwrap_or_else(|| "rays".into())
+            deviation(body, &traced.records).unwrap_or_else(|| "rays".into())
         );
-        let n = traced.hits.len();
+        let n = judged.rays;
         match triage.explain_output(case, &key) {
             Some((m, reason)) => {
                 triaged.push(format!(
                     "output {key} ({} of {n} rays, first {first}; triaged {}: {reason})",
-                    mismatches.len(),
+                    judged.failures,
                     m.kind.name(),
                 ));
                 matched = Some(m);
             }
             None => problems.push(format!(
-                "output {key}: {} of {n} rays disagree with the model's primitives, first {first}",
-                mismatches.len()
+                "output {key}: {} of {n} rays break what the model allows for its primitives, first {first}",
+                judged.failures
             )),
         }
     }
@@ -399,22 +413,35 @@ fn compare_rays(
         ));
     }
     (
-        mismatches.is_empty() && indirect_vs_direct.is_empty(),
+        judged.failures == 0 && indirect_vs_direct.is_empty(),
         matched,
+        Some(judged),
     )
 }
 
-/// The rays whose device hit is not the model's, as a person reads them.
-pub fn ray_mismatches(rays: &[ExpectedRay], hits: &harness::observe::Hits) -> Vec<String> {
-    rays.iter()
-        .zip(hits)
+/// The check rays whose record the reference tracer fails, as a person reads them (all of them when
+/// the model cannot judge the build).
+pub fn ray_mismatches(body: &model::AccelBody, records: &[u32]) -> Vec<String> {
+    let Ok(check) = model::accel::check::BuildCheck::of(body) else {
+        return vec!["the model cannot judge the build's rays".into()];
+    };
+    let Ok(j) =
+        model::accel::check::judge_against(&check.rays, &check.allowed, &check.stats, records)
+    else {
+        return vec!["the records do not fit the check's rays".into()];
+    };
+    j.verdicts
+        .iter()
         .enumerate()
-        .filter(|(_, (ray, got))| **got != ray.hit)
-        .map(|(k, (ray, got))| {
-            format!(
-                "ray {k} at {:?}: expected {:?}, device {:?}",
-                ray.origin, ray.hit, got
-            )
+        .filter_map(|(k, v)| match v {
+            model::tracer::judge::RayVerdict::Fail(f) => {
+                let r = &check.rays[k];
+                Some(format!(
+                    "ray {k} from {:?} along {:?}: {f}",
+                    r.origin, r.direction
+                ))
+            }
+            _ => None,
         })
         .collect()
 }

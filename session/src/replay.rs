@@ -92,7 +92,7 @@ pub fn replay(case: &Case, config: &ReplayConfig) -> Result<Replayed, SessionErr
         ran.case.as_accel(),
         ran.observation.as_ref().and_then(|o| o.traced()),
     ) {
-        (Some(a), Some(t)) => model::accel::check::deviation(a, &t.hits),
+        (Some(a), Some(t)) => model::accel::check::deviation(a, &t.records),
         _ => None,
     };
     Ok(Replayed {

@@ -1,14 +1,14 @@
 //! Build cases on real lavapipe, run and judged as a run does: every generated indirect build is
 //! recorded under the validation layer (never submitted) and the layer's VUIDs are compared with the
 //! model's for the device's sizes; valid cases (valid apart from the missing
-//! accelerationStructureIndirectBuild) are also built directly and one traced ray per built primitive
-//! must agree with the model's primitive list.
+//! accelerationStructureIndirectBuild) are also built directly, and the check's rays (through every
+//! built primitive plus random rays) traced at it must pass the reference tracer's judgement.
 
 mod common;
 
 use common::{deviation, layer_vuids, mismatches, model_vuids, status, traced, Lavapipe, DEVICE};
 use harness::{Status, TraceCheck};
-use model::accel::check::expected_rays;
+use model::accel::check::BuildCheck;
 use model::accel::unavoidable;
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -52,7 +52,7 @@ fn valid_builds_trace_as_the_model_says_and_the_layer_reports_the_missing_featur
             // departure shows up here. See cases/build/indexed-first-vertex-shifted-primitives.yaml.
             let wrong = mismatches(&ran);
             let deviates = !wrong.is_empty()
-                && deviation(&case, &t.hits)
+                && deviation(&case, &t.records)
                     .is_some_and(|d| d.contains("first-vertex-applied-twice"));
             if deviates {
                 known_deviation += 1;
@@ -72,7 +72,7 @@ fn valid_builds_trace_as_the_model_says_and_the_layer_reports_the_missing_featur
             ));
         }
     }
-    assert!(rays > 20, "only {rays} rays traced");
+    assert!(rays > 100, "only {rays} rays traced");
     assert!(
         known_deviation <= 6,
         "{known_deviation} cases hit the known firstVertex deviation"
@@ -81,7 +81,7 @@ fn valid_builds_trace_as_the_model_says_and_the_layer_reports_the_missing_featur
 }
 
 #[test]
-fn expected_rays_hit_active_primitives_and_miss_inactive_ones() {
+fn check_rays_must_hit_active_primitives_and_miss_inactive_ones() {
     let profile = session::sources::profile_for("lavapipe").unwrap();
     let plan = generator::accel::BuildPlan {
         kind: generator::accel::Kind::Aabbs,
@@ -97,15 +97,31 @@ fn expected_rays_hit_active_primitives_and_miss_inactive_ones() {
         address_units: 0,
     };
     let case = generator::accel::realise(&plan, &profile, "aabbs");
-    let body = case.as_accel().unwrap();
-    let prims = model::accel::indirect_build(&body.world, &body.call)
-        .unwrap()
-        .remove(0);
-    let rays = expected_rays(&prims, false);
+    let check = BuildCheck::of(case.as_accel().unwrap()).unwrap();
+    // Two rays through each active box, one where the inactive one would be, then random rays.
+    let aimed: Vec<(bool, Vec<u32>)> = check.allowed[..5]
+        .iter()
+        .map(|a| {
+            let must = a
+                .committable
+                .iter()
+                .map(|&i| a.candidates[i].primitive.primitive)
+                .collect();
+            (a.miss.allowed, must)
+        })
+        .collect();
     assert_eq!(
-        rays.iter().map(|r| r.hit).collect::<Vec<_>>(),
-        vec![Some((0, 0, 0)), None, Some((0, 0, 2))]
+        aimed,
+        vec![
+            (false, vec![0]),
+            (false, vec![0]),
+            (true, vec![]),
+            (false, vec![2]),
+            (false, vec![2]),
+        ]
     );
+    assert!(check.allowed[2].miss.required);
+    assert!(check.rays.len() >= 5 + 8, "{} rays", check.rays.len());
 }
 
 /// Invalid cases: the layer's VUIDs against the model's, per target VUID (printed as the agreement table).

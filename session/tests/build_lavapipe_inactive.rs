@@ -1,7 +1,8 @@
 //! The inactive-triangle deviation of lavapipe (Mesa 25.0.7), probed with rays away from the model's
 //! centroids: geometry 0 of `cases/build/lavapipe-unexplained-rays.yaml` holds the triangles of
 //! firstVertex applied twice, geometry 1 loses primitive 0 next to its inactive (NaN) triangle, and
-//! `model::accel::check::deviation` names both cases after the CPU cast. Its AABB twin: an active box
+//! `model::accel::check::deviation` names both cases after judging the records against each deviation's
+//! structure. Its AABB twin: an active box
 //! before an inactive one (minimum X NaN) is lost, `cases/build/lavapipe-inactive-aabb-drops-box.yaml`.
 
 mod common;
@@ -9,6 +10,7 @@ mod common;
 use common::{committed, deviation, mismatches, status, traced, Lavapipe};
 use harness::{Status, TraceCheck};
 use model::accel::check::{INACTIVE_AABB_DROPS, INACTIVE_TRIANGLE_DROPS};
+use model::tracer::record::RayRecord as R;
 use session::Outcome;
 
 #[test]
@@ -38,7 +40,7 @@ fn lavapipe_drops_a_primitive_beside_an_inactive_triangle() {
 
     let ran = lvp.run(&unexplained, TraceCheck::Auto);
     assert_eq!(status(&ran), &Status::Ran);
-    let named = deviation(&unexplained, &traced(&ran).hits).unwrap();
+    let named = deviation(&unexplained, &traced(&ran).records).unwrap();
     assert!(
         named
             .split('|')
@@ -49,16 +51,17 @@ fn lavapipe_drops_a_primitive_beside_an_inactive_triangle() {
     let clean = committed("build/lavapipe-inactive-triangle-drops-primitive.yaml");
     let ran = lvp.run(&clean, TraceCheck::Auto);
     assert_eq!(status(&ran), &Status::Ran);
-    assert_eq!(mismatches(&ran).len(), 1, "{:?}", mismatches(&ran));
-    let hits = traced(&ran).hits.clone();
+    assert!(!mismatches(&ran).is_empty());
+    let records = traced(&ran).records.clone();
     assert_eq!(
-        deviation(&clean, &hits).as_deref(),
+        deviation(&clean, &records).as_deref(),
         Some(INACTIVE_TRIANGLE_DROPS)
     );
-    // A device that hits a primitive the cast does not is no deviation, dropped primitives or not.
-    let mut wrong = hits;
-    let k = wrong.iter().position(|h| h.is_some()).unwrap();
-    wrong[k] = Some((0, 7, 7));
+    // A device that hits a primitive the model does not have is no deviation, dropped primitives or not.
+    let mut wrong = records;
+    let k = traced(&ran).hits.iter().position(|h| h.is_some()).unwrap();
+    wrong[k * R::WORDS + R::GEOMETRY_INDEX] = 7;
+    wrong[k * R::WORDS + R::PRIMITIVE_ID] = 7;
     assert_eq!(deviation(&clean, &wrong), None);
 }
 
@@ -69,11 +72,12 @@ fn lavapipe_loses_an_active_box_before_an_inactive_one() {
     let mut lvp = Lavapipe::new();
     let ran = lvp.run(&case, TraceCheck::Auto);
     assert_eq!(status(&ran), &Status::Ran);
-    // FIXME(lavapipe, Mesa 25.0.7): a fixed driver hits box 0 with ray 0 and the case passes.
-    assert_eq!(traced(&ran).hits, vec![None, None]);
-    assert_eq!(mismatches(&ran).len(), 1, "{:?}", mismatches(&ran));
+    // FIXME(lavapipe, Mesa 25.0.7): a fixed driver hits box 0 with the rays through it and the case
+    // passes.
+    assert!(traced(&ran).hits.iter().all(|h| h.is_none()));
+    assert!(!mismatches(&ran).is_empty());
     assert_eq!(
-        deviation(&case, &traced(&ran).hits).as_deref(),
+        deviation(&case, &traced(&ran).records).as_deref(),
         Some(INACTIVE_AABB_DROPS)
     );
     assert_eq!(
@@ -83,10 +87,12 @@ fn lavapipe_loses_an_active_box_before_an_inactive_one() {
         ran.report.detail
     );
     // A device that hits the inactive box is no deviation.
-    assert_eq!(
-        deviation(&case, &vec![Some((0, 0, 0)), Some((0, 0, 1))]),
-        None
-    );
+    let mut wrong = traced(&ran).records.clone();
+    wrong[R::OUTCOME] = R::HIT;
+    wrong[R::GROUP] = 3;
+    wrong[R::PRIMITIVE_ID] = 1;
+    wrong[R::T] = 2.0f32.to_bits();
+    assert_eq!(deviation(&case, &wrong), None);
 
     // The inactive box first: lavapipe builds it as the model does.
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -105,5 +111,6 @@ fn lavapipe_loses_an_active_box_before_an_inactive_one() {
     let swapped = model::Case::from_yaml("swapped", &swapped).unwrap();
     let ran = lvp.run(&swapped, TraceCheck::Auto);
     assert_eq!(ran.report.outcome, Outcome::Pass, "{}", ran.report.detail);
-    assert_eq!(traced(&ran).hits, vec![None, Some((0, 0, 1))]);
+    let hits = &traced(&ran).hits;
+    assert!(hits.contains(&Some((0, 0, 1))) && !hits.contains(&Some((0, 0, 0))));
 }

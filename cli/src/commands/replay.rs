@@ -241,7 +241,8 @@ fn hit(h: &Option<(u32, u32, u32)>) -> String {
     })
 }
 
-/// A build's traced check: what each ray hit, the mismatches with the model, and what explains them.
+/// A build's traced check: what each ray hit, the reference tracer's verdict on its record, and what
+/// explains the failures.
 fn print_traced(body: &model::AccelBody, t: &TracedBuild, deviation: Option<&str>) {
     println!(
         "check:   {} ray(s) traced with {}",
@@ -251,24 +252,29 @@ fn print_traced(body: &model::AccelBody, t: &TracedBuild, deviation: Option<&str
             _ => "ray query",
         }
     );
-    let rays = model::accel::check::check_rays(body).unwrap_or_default();
+    let check = model::accel::check::BuildCheck::of(body);
+    let verdicts = check.as_ref().ok().and_then(|c| {
+        model::accel::check::judge_against(&c.rays, &c.allowed, &c.stats, &t.records).ok()
+    });
     for (k, h) in t.hits.iter().enumerate() {
-        let from = rays
-            .get(k)
-            .map(|r| format!(" from ({}, {}, {})", r.origin[0], r.origin[1], r.origin[2]))
+        let from = check
+            .as_ref()
+            .ok()
+            .and_then(|c| c.rays.get(k))
+            .map(|r| format!(" from {:?} along {:?}", r.origin, r.direction))
             .unwrap_or_default();
-        let expected = rays.get(k).map(|r| &r.hit);
-        match expected {
-            Some(e) if e != h => println!(
-                "         ray {k}{from}: {}; MISMATCH, the model expects {}",
-                hit(h),
-                hit(e)
-            ),
+        match verdicts.as_ref().and_then(|v| v.verdicts.get(k)) {
+            Some(model::tracer::judge::RayVerdict::Fail(f)) => {
+                println!("         ray {k}{from}: {}; FAILS: {f}", hit(h))
+            }
             _ => println!("         ray {k}{from}: {}", hit(h)),
         }
     }
+    if let Err(e) = &check {
+        println!("         the model cannot judge these rays: {e}");
+    }
     if let Some(d) = deviation {
-        println!("         the device's hits are exactly those of the build under `{d}`");
+        println!("         the device's records are exactly those of the build under `{d}`");
     }
     if !t.direct_layer_vuids.is_empty() {
         println!(

@@ -1,6 +1,7 @@
 //! The traced check of a build run as valid: the case's first info built directly with the ranges the
-//! model reads from memory (a top-level case's BLAS built first), one ray per built primitive traced at
-//! it — with ray query in a compute shader ([`ray_query`]), or with a ray tracing pipeline
+//! model reads from memory (a top-level case's BLAS built first), the check's rays (through every built
+//! primitive, plus random rays: `model::accel::check`) traced at it, each writing its 28-word
+//! `RayRecord` — with ray query in a compute shader ([`ray_query`]), or with a ray tracing pipeline
 //! ([`pipeline`]) where the device lacks ray query or when asked — and, where the device has
 //! `accelerationStructureIndirectBuild`, the case's own indirect build submitted and traced the same.
 
@@ -18,8 +19,7 @@ use crate::vk::commands::{memory_barrier, Commands};
 use crate::vk::memory::Allocation;
 use crate::vk::{VkDevice, VkInstance};
 use ash::vk;
-use model::accel::call::GeometryData;
-use model::accel::check::ExpectedRay;
+use model::accel::check::hits_of;
 use model::accel::AsType;
 use model::{AccelBody, Case};
 use std::sync::Arc;
@@ -82,7 +82,7 @@ fn resolve_check(dev: &VkDevice, check: TraceCheck) -> Result<TraceCheck, Harnes
     }
 }
 
-/// The valid case as a direct build with the ranges the model reads, then one ray per primitive; where
+/// The valid case as a direct build with the ranges the model reads, then the check's rays; where
 /// the device has accelerationStructureIndirectBuild, the case's indirect build is submitted too and
 /// traced with the same rays, and must report what the direct build did.
 #[allow(clippy::too_many_arguments)]
@@ -157,9 +157,7 @@ pub(crate) fn direct_and_trace(
                 extra.push(vb);
                 extra.push(scratch);
             }
-            let rays = &check_plan.rays;
-            let boxes = &check_plan.boxes;
-            let (hits, direct) = build_and_trace(
+            let (records, direct) = build_and_trace(
                 inst,
                 dev,
                 cmds,
@@ -169,11 +167,10 @@ pub(crate) fn direct_and_trace(
                 &ranges,
                 BuildPath::Direct,
                 check,
-                rays,
-                boxes,
+                &check_plan,
             )?;
             let indirect = if dev.has_feature("accelerationStructureIndirectBuild") {
-                let (hits, layer_vuids) = build_and_trace(
+                let (records, layer_vuids) = build_and_trace(
                     inst,
                     dev,
                     cmds,
@@ -183,16 +180,20 @@ pub(crate) fn direct_and_trace(
                     &ranges,
                     BuildPath::Indirect,
                     check,
-                    rays,
-                    boxes,
+                    &check_plan,
                 )?;
-                Some(IndirectBuild { hits, layer_vuids })
+                Some(IndirectBuild {
+                    hits: hits_of(&records),
+                    records,
+                    layer_vuids,
+                })
             } else {
                 None
             };
             Ok(TracedBuild {
                 check,
-                hits,
+                hits: hits_of(&records),
+                records,
                 direct_layer_vuids: direct,
                 indirect,
             })
@@ -204,7 +205,7 @@ pub(crate) fn direct_and_trace(
 }
 
 /// Builds the case's destination one way, under the layer, and traces the rays at it (a bottom-level
-/// result through a one-instance TLAS). Returns what each ray hit and the layer's VUIDs for the build.
+/// result through a one-instance TLAS). Returns the rays' records and the layer's VUIDs for the build.
 #[allow(clippy::too_many_arguments)]
 fn build_and_trace(
     inst: &VkInstance,
@@ -216,15 +217,14 @@ fn build_and_trace(
     ranges: &[model::accel::RangeInfo],
     path: BuildPath,
     check: TraceCheck,
-    rays: &[ExpectedRay],
-    boxes: &[u8],
-) -> Result<(Hits, Vec<String>), HarnessError> {
+    check_plan: &CheckPlan,
+) -> Result<(Vec<u32>, Vec<String>), HarnessError> {
     let accel = accel_of(dev)?;
     let info = &case.call.infos[0];
     let top = info.ty == AsType::TopLevel;
     let mut extra: Vec<Allocation> = Vec::new();
     let mut extra_as: Vec<vk::AccelerationStructureKHR> = Vec::new();
-    let result = (|| -> Result<(Hits, Vec<String>), HarnessError> {
+    let result = (|| -> Result<(Vec<u32>, Vec<String>), HarnessError> {
         let geoms = vk_geometries(&plan.infos[0], r)
             .ok_or_else(|| HarnessError::NotRealised("geometry type not realised".into()))?;
         inst.collector.clear();
@@ -303,21 +303,11 @@ fn build_and_trace(
             extra_as.push(tlas);
             tlas
         };
-        let procedural = info
-            .geometries
-            .iter()
-            .any(|g| matches!(g.data, GeometryData::Aabbs { .. }));
         let words = match check {
-            TraceCheck::Pipeline => {
-                pipeline::trace_pipeline(dev, cmds, scene, rays, boxes, procedural)?
-            }
-            _ => ray_query::trace(dev, cmds, scene, rays, boxes)?,
+            TraceCheck::Pipeline => pipeline::trace_pipeline(dev, cmds, scene, check_plan)?,
+            _ => ray_query::trace(dev, cmds, scene, check_plan)?,
         };
-        let hits = words
-            .iter()
-            .map(|h| (h[0] == 1).then_some((h[1], h[2], h[3])))
-            .collect();
-        Ok((hits, layer))
+        Ok((words, layer))
     })();
     for s in extra_as {
         // SAFETY: idle.
@@ -362,7 +352,7 @@ pub(crate) fn probe_rays(
             return HarnessError::not_realised("probing handles bottom-level builds");
         }
         let probe = CheckPlan::probe(case, origins)?;
-        let (hits, _) = build_and_trace(
+        let (records, _) = build_and_trace(
             inst,
             &dev,
             &cmds,
@@ -372,10 +362,9 @@ pub(crate) fn probe_rays(
             &probe.ranges,
             BuildPath::Direct,
             check,
-            &probe.rays,
-            &probe.boxes,
+            &probe,
         )?;
-        Ok(hits)
+        Ok(hits_of(&records))
     })();
     cmds.destroy(&dev);
     r.destroy(&dev);
@@ -398,4 +387,27 @@ fn accel_of(dev: &VkDevice) -> Result<&ash::khr::acceleration_structure::Device,
 /// The SPIR-V of the ray query check's compute shader.
 pub(crate) fn ray_query_spirv() -> Result<Vec<u32>, HarnessError> {
     ray_query::compile_trace_shader()
+}
+
+/// The SPIR-V of one of the check's shaders: compiled by build.rs from `shaders/` (`name` in its
+/// table), or at first use from `text` where the build had no glslangValidator.
+fn check_spirv(name: &str, file: &str, text: &str) -> Result<Vec<u32>, HarnessError> {
+    match crate::shaders::PRECOMPILED
+        .iter()
+        .find(|(n, _)| *n == name)
+        .and_then(|(_, b)| *b)
+    {
+        Some(b) if b.len() % 4 == 0 && b.len() >= 20 => Ok(b
+            .chunks_exact(4)
+            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect()),
+        Some(b) => Err(HarnessError::Shader(format!(
+            "{name}: not SPIR-V ({} bytes)",
+            b.len()
+        ))),
+        None => {
+            let ext = file.rsplit('.').next().unwrap_or(file);
+            crate::shaders::compile_glsl(file, ext, text, &[])
+        }
+    }
 }

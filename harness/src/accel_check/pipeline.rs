@@ -1,72 +1,41 @@
 //! The pipeline check, for devices without ray query: a ray tracing pipeline (raygen, miss,
-//! closest-hit, and an intersection shader for AABBs) that reports per ray what the ray query check
-//! reports.
+//! closest-hit, and an intersection shader for AABBs: `shaders/check.*`) that writes per ray the
+//! `RayRecord` the ray query check writes.
 
 use super::set::CheckSet;
 use crate::error::{vkfail, HarnessError};
+use crate::plan::check::CheckPlan;
 use crate::shaders;
 use crate::vk::commands::Commands;
 use crate::vk::memory::Allocation;
 use crate::vk::VkDevice;
 use ash::vk;
-use model::accel::check::ExpectedRay;
 
-/// The pipeline check's shaders: raygen traces ray `i` from `origins[i]` along +z; closest-hit writes
-/// `(1, gl_InstanceID, gl_GeometryIndexEXT, gl_PrimitiveID)`, miss writes zeros; the intersection
-/// shader reports an AABB hit exactly where the ray query check generates one.
-const PIPE_RGEN: &str = r#"#version 460
-#extension GL_EXT_ray_tracing : require
-layout(set = 0, binding = 0) uniform accelerationStructureEXT scene;
-layout(set = 0, binding = 1, std430) readonly buffer Rays { vec4 origins[]; };
-layout(set = 0, binding = 2, std430) buffer Hits { uvec4 hits[]; };
-layout(location = 0) rayPayloadEXT uvec4 payload;
-void main() {
-    uint i = gl_LaunchIDEXT.x;
-    payload = uvec4(0u);
-    traceRayEXT(scene, gl_RayFlagsNoneEXT, 0xFF, 0, 0, 0, origins[i].xyz, 0.0, vec3(0.0, 0.0, 1.0), 100.0, 0);
-    hits[i] = payload;
-}
-"#;
-
-const PIPE_RCHIT: &str = r#"#version 460
-#extension GL_EXT_ray_tracing : require
-layout(location = 0) rayPayloadInEXT uvec4 payload;
-void main() {
-    payload = uvec4(1u, uint(gl_InstanceID), uint(gl_GeometryIndexEXT), uint(gl_PrimitiveID));
-}
-"#;
-
-const PIPE_RMISS: &str = r#"#version 460
-#extension GL_EXT_ray_tracing : require
-layout(location = 0) rayPayloadInEXT uvec4 payload;
-void main() {
-    payload = uvec4(0u);
-}
-"#;
-
-const PIPE_RINT: &str = r#"#version 460
-#extension GL_EXT_ray_tracing : require
-layout(set = 0, binding = 3, std430) readonly buffer Boxes { uint base[8]; vec4 box[]; };
-void main() {
-    uint g = gl_GeometryIndexEXT;
-    uint p = gl_PrimitiveID;
-    vec3 o = gl_ObjectRayOriginEXT;
-    vec4 lo = box[2u * (base[g] + p)];
-    vec4 hi = box[2u * (base[g] + p) + 1u];
-    if (o.x >= lo.x && o.x <= hi.x && o.y >= lo.y && o.y <= hi.y) {
-        reportIntersectionEXT(max(lo.z - o.z, 0.0), 0u);
-    }
-}
-"#;
-
-/// SPIR-V of the pipeline check's four shaders (raygen, miss, closest-hit, intersection), compiled once.
+/// SPIR-V of the pipeline check's four shaders (raygen, miss, closest-hit, intersection:
+/// `shaders/check.*`).
 fn pipeline_shaders() -> Result<[Vec<u32>; 4], HarnessError> {
-    let c = |ext, text| shaders::compile_glsl("the pipeline check", ext, text, &[]);
+    use super::check_spirv as c;
     Ok([
-        c("rgen", PIPE_RGEN)?,
-        c("rmiss", PIPE_RMISS)?,
-        c("rchit", PIPE_RCHIT)?,
-        c("rint", PIPE_RINT)?,
+        c(
+            "check_raygen",
+            "check.rgen",
+            include_str!("../../shaders/check.rgen"),
+        )?,
+        c(
+            "check_miss",
+            "check.rmiss",
+            include_str!("../../shaders/check.rmiss"),
+        )?,
+        c(
+            "check_closest_hit",
+            "check.rchit",
+            include_str!("../../shaders/check.rchit"),
+        )?,
+        c(
+            "check_intersection",
+            "check.rint",
+            include_str!("../../shaders/check.rint"),
+        )?,
     ])
 }
 
@@ -74,19 +43,18 @@ fn align_up(v: u64, a: u64) -> u64 {
     v.div_ceil(a.max(1)) * a.max(1)
 }
 
-/// Traces the rays with a ray tracing pipeline (for devices without ray query); one
-/// `[hit, instance, geometry, primitive]` per ray, as the ray query check reports them. Every geometry
+/// Traces the plan's rays with a ray tracing pipeline (for devices without ray query); one `RayRecord`
+/// per ray, as the ray query check writes them. Every geometry
 /// uses hit record 0 (sbtRecordStride 0): the triangles hit group, or the procedural one for AABB
 /// builds.
 pub(super) fn trace_pipeline(
     dev: &VkDevice,
     cmds: &Commands,
     scene: vk::AccelerationStructureKHR,
-    rays: &[ExpectedRay],
-    boxes: &[u8],
-    procedural: bool,
-) -> Result<Vec<[u32; 4]>, HarnessError> {
-    if rays.is_empty() {
+    plan: &CheckPlan,
+) -> Result<Vec<u32>, HarnessError> {
+    let procedural = plan.procedural;
+    if plan.rays.is_empty() {
         return Ok(vec![]);
     }
     let rt = dev.rt.as_ref().ok_or_else(|| {
@@ -95,7 +63,7 @@ pub(super) fn trace_pipeline(
     let code = pipeline_shaders()?;
     let d = &dev.device;
     let stages = vk::ShaderStageFlags::RAYGEN_KHR | vk::ShaderStageFlags::INTERSECTION_KHR;
-    let check = CheckSet::new(dev, scene, rays, boxes, stages)?;
+    let check = CheckSet::new(dev, scene, plan, stages)?;
     let l = dev.limits;
     let handle = l.handle_size as u64;
     let record = align_up(handle, l.handle_alignment as u64);
@@ -106,7 +74,7 @@ pub(super) fn trace_pipeline(
     let mut sbt: Option<Allocation> = None;
     // SAFETY: valid create infos; everything made here is destroyed below after the wait.
     let out = unsafe {
-        (|| -> Result<Vec<[u32; 4]>, HarnessError> {
+        (|| -> Result<Vec<u32>, HarnessError> {
             pl = check.pipeline_layout(dev)?;
             let kinds = [
                 vk::ShaderStageFlags::RAYGEN_KHR,
@@ -188,9 +156,18 @@ pub(super) fn trace_pipeline(
                 &[check.set],
                 &[],
             );
-            rt.cmd_trace_rays(cmds.cb, &rgen, &miss, &hit, &call, rays.len() as u32, 1, 1);
+            rt.cmd_trace_rays(
+                cmds.cb,
+                &rgen,
+                &miss,
+                &hit,
+                &call,
+                plan.rays.len() as u32,
+                1,
+                1,
+            );
             cmds.submit(dev)?;
-            Ok(check.hits())
+            Ok(check.records())
         })()
     };
     // SAFETY: the submission was waited for (or never made); null handles are ignored.

@@ -1,19 +1,21 @@
-//! What both traced checks bind: the ray origins, the hits they write and the built primitives' box
-//! table as storage buffers, and the structure under test, in one descriptor set of one layout.
+//! What both traced checks bind: the rays, the 28-word records they write (pre-filled with
+//! `RayRecord::PREFILL`) and the built boxes' sphere table as storage buffers, and the structure under
+//! test, in one descriptor set of one layout.
 
 use crate::error::{vkfail, HarnessError};
+use crate::plan::check::CheckPlan;
 use crate::vk::descriptors::{storage_write, structure_write, whole};
 use crate::vk::memory::Allocation;
 use crate::vk::VkDevice;
 use ash::vk;
-use model::accel::check::ExpectedRay;
+use model::tracer::record::RayRecord;
 
 /// The check's buffers and descriptor set, for shaders of `stages`. Destroy with [`CheckSet::destroy`]
 /// once nothing recorded with it is pending.
 pub(super) struct CheckSet {
     rays: Allocation,
-    hits: Allocation,
-    boxes: Allocation,
+    records: Allocation,
+    spheres: Allocation,
     pub(super) layout: vk::DescriptorSetLayout,
     pool: vk::DescriptorPool,
     pub(super) set: vk::DescriptorSet,
@@ -21,34 +23,35 @@ pub(super) struct CheckSet {
 }
 
 impl CheckSet {
-    /// Binding 0: `scene`; 1: one `vec4` origin per ray; 2: one `uvec4` hit per ray; 3: `boxes`.
+    /// Binding 0: `scene`; 1: two `vec4` per ray (origin and tmin, direction and tmax); 2: one
+    /// pre-filled `RayRecord` per ray; 3: the sphere table.
     pub(super) fn new(
         dev: &VkDevice,
         scene: vk::AccelerationStructureKHR,
-        rays: &[ExpectedRay],
-        boxes: &[u8],
+        plan: &CheckPlan,
         stages: vk::ShaderStageFlags,
     ) -> Result<CheckSet, HarnessError> {
         let sb = vk::BufferUsageFlags::STORAGE_BUFFER;
         let none = vk::BufferCreateFlags::empty();
-        let origins: Vec<u8> = rays
-            .iter()
-            .flat_map(|r| [r.origin[0], r.origin[1], r.origin[2], 0.0])
-            .flat_map(|f: f32| f.to_le_bytes())
+        let rays = plan.ray_bytes();
+        let rb = Allocation::new(dev, rays.len() as u64, sb, none, 1)?;
+        rb.write(0, &rays);
+        let prefill: Vec<u8> = (0..plan.rays.len())
+            .flat_map(|_| RayRecord::PREFILL)
+            .flat_map(u32::to_le_bytes)
             .collect();
-        let rb = Allocation::new(dev, origins.len() as u64, sb, none, 1)?;
-        rb.write(0, &origins);
-        let hb = Allocation::new(dev, 16 * rays.len() as u64, sb, none, 1)?;
-        let bb = Allocation::new(dev, boxes.len() as u64, sb, none, 1)?;
-        bb.write(0, boxes);
+        let hb = Allocation::new(dev, prefill.len() as u64, sb, none, 1)?;
+        hb.write(0, &prefill);
+        let bb = Allocation::new(dev, plan.spheres.len() as u64, sb, none, 1)?;
+        bb.write(0, &plan.spheres);
         let mut cs = CheckSet {
             rays: rb,
-            hits: hb,
-            boxes: bb,
+            records: hb,
+            spheres: bb,
             layout: vk::DescriptorSetLayout::null(),
             pool: vk::DescriptorPool::null(),
             set: vk::DescriptorSet::null(),
-            count: rays.len(),
+            count: plan.rays.len(),
         };
         match cs.make_set(dev, scene, stages) {
             Ok(()) => Ok(cs),
@@ -117,7 +120,7 @@ impl CheckSet {
                 d,
                 self.set,
                 scene,
-                [self.rays.buffer, self.hits.buffer, self.boxes.buffer],
+                [self.rays.buffer, self.records.buffer, self.spheres.buffer],
             );
         }
         Ok(())
@@ -139,13 +142,9 @@ impl CheckSet {
         .map_err(vkfail("vkCreatePipelineLayout"))
     }
 
-    /// What each ray wrote: `[hit, instance, geometry, primitive]`.
-    pub(super) fn hits(&self) -> Vec<[u32; 4]> {
-        self.hits
-            .read_u32s(4 * self.count)
-            .chunks_exact(4)
-            .map(|c| [c[0], c[1], c[2], c[3]])
-            .collect()
+    /// What the rays wrote: [`RayRecord::WORDS`] words per ray.
+    pub(super) fn records(&self) -> Vec<u32> {
+        self.records.read_u32s(RayRecord::WORDS * self.count)
     }
 
     pub(super) fn destroy(self, dev: &VkDevice) {
@@ -159,14 +158,14 @@ impl CheckSet {
                 d.destroy_descriptor_set_layout(self.layout, None);
             }
         }
-        for a in [self.rays, self.hits, self.boxes] {
+        for a in [self.rays, self.records, self.spheres] {
             a.destroy(dev);
         }
     }
 }
 
-/// Writes the traced check's descriptor set: the structure under test at binding 0 and the rays, hits
-/// and built-primitive buffers at bindings 1 to 3 (the same layout for the ray-query and the pipeline path).
+/// Writes the traced check's descriptor set: the structure under test at binding 0 and the rays, records
+/// and sphere buffers at bindings 1 to 3 (the same layout for the ray-query and the pipeline path).
 ///
 /// # Safety
 /// `set` is a set of the check's layout that no pending command uses; the handles are live.

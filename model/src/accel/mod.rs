@@ -7,6 +7,7 @@
 pub mod call;
 pub mod check;
 pub mod rules;
+pub mod scene;
 pub mod semantics;
 pub mod world;
 

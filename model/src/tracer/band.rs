@@ -259,6 +259,28 @@ pub fn far_pad(static_pad: f64, rel: f64, origin_radius: f64, max_distance: f64)
     (pad + 1e-9 * max_distance) * SLACK
 }
 
+/// `1 / (1 − 2·rel)` rounded up by a relative 2^-50 (so a pad computed with it is at least
+/// [`far_pad`]'s), or infinity where `far_pad` is infinite (`rel ≥ 1/4`, or NaN).
+pub fn far_pad_scale(rel: f64) -> f64 {
+    if rel.is_nan() || rel >= 0.25 {
+        return f64::INFINITY;
+    }
+    (1.0 / (1.0 - 2.0 * rel)) * (1.0 + f64::EPSILON * 4.0)
+}
+
+/// [`far_pad`] with its division precomputed ([`far_pad_scale`]): never below it.
+#[inline]
+pub fn far_pad_scaled(
+    static_pad: f64,
+    rel: f64,
+    scale: f64,
+    origin_radius: f64,
+    max_distance: f64,
+) -> f64 {
+    let pad = (static_pad + origin_radius + rel * max_distance) * scale;
+    (pad + 1e-9 * max_distance) * SLACK
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

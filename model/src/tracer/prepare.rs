@@ -6,7 +6,8 @@
 
 use super::arith::{affine, v3, BoundedF64};
 use super::band::{
-    far_pad, norm3, vertex_static_radius, InstanceBand, BAND_SAFETY_FACTOR, SPHERE_SHADER_ERROR,
+    far_pad_scale, far_pad_scaled, norm3, vertex_static_radius, InstanceBand, BAND_SAFETY_FACTOR,
+    SPHERE_SHADER_ERROR,
 };
 use crate::scene::{GeometryData, Problem, Scene, Transform3x4};
 use std::collections::HashMap;
@@ -54,33 +55,58 @@ pub(crate) struct FarBox {
     pub rel: f64,
     pub origin_coef: f64,
     pub norm_t: f64,
+    /// `1 / (1 − 2·rel)` rounded up (see `band::far_pad`); infinite where `rel ≥ 1/4`.
+    pub inv_den: f64,
 }
 
 impl FarBox {
-    fn union(&self, o: &FarBox) -> FarBox {
+    /// A box with its pad constants.
+    pub fn new(
+        lo: [f64; 3],
+        hi: [f64; 3],
+        static_pad: f64,
+        rel: f64,
+        origin_coef: f64,
+        norm_t: f64,
+    ) -> FarBox {
         FarBox {
-            lo: [0, 1, 2].map(|k| self.lo[k].min(o.lo[k])),
-            hi: [0, 1, 2].map(|k| self.hi[k].max(o.hi[k])),
-            static_pad: self.static_pad.max(o.static_pad),
-            rel: self.rel.max(o.rel),
-            origin_coef: self.origin_coef.max(o.origin_coef),
-            norm_t: self.norm_t.max(o.norm_t),
+            lo,
+            hi,
+            static_pad,
+            rel,
+            origin_coef,
+            norm_t,
+            inv_den: far_pad_scale(rel),
         }
     }
 
+    fn union(&self, o: &FarBox) -> FarBox {
+        FarBox::new(
+            [0, 1, 2].map(|k| self.lo[k].min(o.lo[k])),
+            [0, 1, 2].map(|k| self.hi[k].max(o.hi[k])),
+            self.static_pad.max(o.static_pad),
+            self.rel.max(o.rel),
+            self.origin_coef.max(o.origin_coef),
+            self.norm_t.max(o.norm_t),
+        )
+    }
+
     /// Whether the ray segment misses the padded box: then no conformant implementation can
-    /// report a hit on anything inside (see `band::far_pad`). Monotone under box containment.
+    /// report a hit on anything inside (see `band::far_pad`, whose pad this evaluates with the
+    /// division by `1 − 2·rel` done as a multiplication by its reciprocal rounded up, and the slab
+    /// divisions as multiplications by the ray's reciprocal directions: both within the f64 slack
+    /// `far_pad` adds for the slab test). Monotone under box containment.
+    #[inline]
     #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
     pub fn is_far(&self, ray: &RayF64) -> bool {
-        let o = ray.origin;
+        let o = &ray.origin;
+        let axis = |k: usize| {
+            let x = (self.lo[k] - o[k]).abs().max((self.hi[k] - o[k]).abs());
+            x * x
+        };
+        let m = (axis(0) + axis(1) + axis(2)).sqrt();
         let r_o = self.origin_coef * (ray.origin_norm + self.norm_t);
-        let m2: f64 = (0..3)
-            .map(|k| {
-                let x = (self.lo[k] - o[k]).abs().max((self.hi[k] - o[k]).abs());
-                x * x
-            })
-            .sum();
-        let pad = far_pad(self.static_pad, self.rel, r_o, m2.sqrt());
+        let pad = far_pad_scaled(self.static_pad, self.rel, self.inv_den, r_o, m);
         if !pad.is_finite() {
             return false;
         }
@@ -89,14 +115,14 @@ impl FarBox {
         for k in 0..3 {
             let lo = self.lo[k] - pad;
             let hi = self.hi[k] + pad;
-            let d = ray.direction[k];
-            if d == 0.0 {
+            if ray.direction[k] == 0.0 {
                 if o[k] < lo || o[k] > hi {
                     return true;
                 }
             } else {
-                let t1 = (lo - o[k]) / d;
-                let t2 = (hi - o[k]) / d;
+                let inv = ray.inv_direction[k];
+                let t1 = (lo - o[k]) * inv;
+                let t2 = (hi - o[k]) * inv;
                 near = near.max(t1.min(t2));
                 far = far.min(t1.max(t2));
             }
@@ -113,14 +139,18 @@ pub(crate) struct RayF64 {
     pub tmin: f64,
     pub tmax: f64,
     pub origin_norm: f64,
+    /// `1 / direction` per axis (0 where the direction is 0, which the slab test handles apart).
+    pub inv_direction: [f64; 3],
 }
 
 impl RayF64 {
     pub fn of(ray: &crate::scene::Ray) -> RayF64 {
         let origin = ray.origin.map(|x| x as f64);
+        let direction = ray.direction.map(|x| x as f64);
         RayF64 {
             origin,
-            direction: ray.direction.map(|x| x as f64),
+            direction,
+            inv_direction: direction.map(|d| if d == 0.0 { 0.0 } else { 1.0 / d }),
             tmin: ray.tmin as f64,
             tmax: ray.tmax as f64,
             origin_norm: norm3(origin),
@@ -142,6 +172,8 @@ pub(crate) struct Node {
     pub first: u32,
     /// Leaf: number of items (> 0); interior: 0.
     pub count: u32,
+    /// Every item below is a triangle (a node a ray may skip behind a required hit).
+    pub triangles_only: bool,
 }
 
 /// Shared-edge and shared-vertex topology of the triangles of one transform class of a bottom
@@ -278,14 +310,14 @@ impl PreparedScene {
                                 }
                                 pad = pad.max(radius[v]);
                             }
-                            boxes.push(FarBox {
+                            boxes.push(FarBox::new(
                                 lo,
                                 hi,
-                                static_pad: pad,
-                                rel: band.test_rel + band.direction_rel,
-                                origin_coef: band.origin_coef,
-                                norm_t: band.norm_t,
-                            });
+                                pad,
+                                band.test_rel + band.direction_rel,
+                                band.origin_coef,
+                                band.norm_t,
+                            ));
                             items.push(Item {
                                 geometry: gi,
                                 primitive: prim as u32,
@@ -327,15 +359,15 @@ impl PreparedScene {
                                 }
                             }
                             let slack = 1e-9 * (extent * band.norm_a + band.norm_t);
-                            boxes.push(FarBox {
+                            boxes.push(FarBox::new(
                                 lo,
                                 hi,
-                                static_pad: 2.0 * band.norm_a * sse * 2.0 * extent + slack,
+                                2.0 * band.norm_a * sse * 2.0 * extent + slack,
                                 // Dobj ≤ 2‖A⁻¹‖·M (centre and radius seen from the origin).
-                                rel: 4.0 * k * (band.direction_rel * k + sse) * 1.01,
-                                origin_coef: 2.0 * k * (band.origin_coef + sse) * 1.01,
-                                norm_t: band.norm_t,
-                            });
+                                4.0 * k * (band.direction_rel * k + sse) * 1.01,
+                                2.0 * k * (band.origin_coef + sse) * 1.01,
+                                band.norm_t,
+                            ));
                             items.push(Item {
                                 geometry: gi,
                                 primitive: prim as u32,
@@ -354,7 +386,11 @@ impl PreparedScene {
                 }
             }
         }
-        let (items, item_boxes, nodes) = build_bvh(items, boxes);
+        let triangle: Vec<bool> = items
+            .iter()
+            .map(|it: &Item| geometries[it.geometry as usize].kind == PrimitiveKind::Triangle)
+            .collect();
+        let (items, item_boxes, nodes) = build_bvh(items, boxes, &triangle);
         Ok(PreparedScene {
             scene: scene.clone(),
             instances,
@@ -376,22 +412,45 @@ impl PreparedScene {
         self.items.len()
     }
 
-    /// Calls `visit` for every item whose padded box the ray does not miss.
+    /// Calls `visit` for every item whose padded box the ray does not miss, nearer children first.
+    /// A node of triangles only is skipped as well when its padded box is missed by the ray cut at
+    /// `cut` (which `visit` may lower as it goes; see `traverse::trace_ray`).
     pub(crate) fn for_each_near(
         &self,
         ray: &RayF64,
         nodes_visited: &mut u64,
+        cut: &std::cell::Cell<f64>,
         mut visit: impl FnMut(Item, &FarBox),
     ) {
         if self.nodes.is_empty() {
             return;
         }
-        let mut stack = vec![0u32];
-        while let Some(n) = stack.pop() {
+        // A median-split tree of at most 2^32 items is at most 32 levels deep, and each level
+        // leaves at most one node on the stack: a fixed stack suffices, a Vec takes any excess.
+        let mut stack = [0u32; 64];
+        let mut depth = 1usize;
+        let mut spill: Vec<u32> = Vec::new();
+        let mut cut_ray = *ray;
+        loop {
+            let n = if let Some(n) = spill.pop() {
+                n
+            } else if depth > 0 {
+                depth -= 1;
+                stack[depth]
+            } else {
+                break;
+            };
             let node = &self.nodes[n as usize];
             *nodes_visited += 1;
             if node.bounds.is_far(ray) {
                 continue;
+            }
+            let c = cut.get();
+            if node.triangles_only && c < ray.tmax {
+                cut_ray.tmax = c;
+                if node.bounds.is_far(&cut_ray) {
+                    continue;
+                }
             }
             if node.count > 0 {
                 let range = node.first as usize..(node.first + node.count) as usize;
@@ -402,8 +461,23 @@ impl PreparedScene {
                     visit(*it, b);
                 }
             } else {
-                stack.push(node.first);
-                stack.push(node.first + 1);
+                // The nearer child (by its centre along the ray) is popped first.
+                let along = |i: u32| {
+                    let b = &self.nodes[i as usize].bounds;
+                    (0..3)
+                        .map(|k| (b.lo[k] + b.hi[k]) * ray.direction[k])
+                        .sum::<f64>()
+                };
+                let (a, b) = (node.first, node.first + 1);
+                let order = if along(a) <= along(b) { [b, a] } else { [a, b] };
+                for child in order {
+                    if depth < stack.len() {
+                        stack[depth] = child;
+                        depth += 1;
+                    } else {
+                        spill.push(child);
+                    }
+                }
             }
         }
     }
@@ -468,7 +542,11 @@ impl BoundedF64 {
 const LEAF_SIZE: usize = 4;
 
 /// Builds a BVH by median splits along the widest centroid axis; items are reordered to leaves.
-fn build_bvh(items: Vec<Item>, boxes: Vec<FarBox>) -> (Vec<Item>, Vec<FarBox>, Vec<Node>) {
+fn build_bvh(
+    items: Vec<Item>,
+    boxes: Vec<FarBox>,
+    triangle: &[bool],
+) -> (Vec<Item>, Vec<FarBox>, Vec<Node>) {
     let mut order: Vec<u32> = (0..items.len() as u32).collect();
     let centroid = |b: &FarBox| [0, 1, 2].map(|k| 0.5 * (b.lo[k] + b.hi[k]));
     let cents: Vec<[f64; 3]> = boxes.iter().map(centroid).collect();
@@ -480,12 +558,14 @@ fn build_bvh(items: Vec<Item>, boxes: Vec<FarBox>) -> (Vec<Item>, Vec<FarBox>, V
         bounds: boxes[0],
         first: 0,
         count: 0,
+        triangles_only: false,
     });
     // (node index, range start, range end)
     let mut work = vec![(0usize, 0usize, items.len())];
     while let Some((n, start, end)) = work.pop() {
         let slice = &mut order[start..end];
         let mut bounds = boxes[slice[0] as usize];
+        let triangles_only = slice.iter().all(|&i| triangle[i as usize]);
         let mut clo = [f64::INFINITY; 3];
         let mut chi = [f64::NEG_INFINITY; 3];
         for &i in slice.iter() {
@@ -500,6 +580,7 @@ fn build_bvh(items: Vec<Item>, boxes: Vec<FarBox>) -> (Vec<Item>, Vec<FarBox>, V
                 bounds,
                 first: start as u32,
                 count: (end - start) as u32,
+                triangles_only,
             };
             continue;
         }
@@ -515,6 +596,7 @@ fn build_bvh(items: Vec<Item>, boxes: Vec<FarBox>) -> (Vec<Item>, Vec<FarBox>, V
             bounds,
             first: 0,
             count: 0,
+            triangles_only,
         };
         nodes.push(placeholder);
         nodes.push(placeholder);
@@ -522,6 +604,7 @@ fn build_bvh(items: Vec<Item>, boxes: Vec<FarBox>) -> (Vec<Item>, Vec<FarBox>, V
             bounds,
             first: left as u32,
             count: 0,
+            triangles_only,
         };
         work.push((left, start, start + mid));
         work.push((left + 1, start + mid, end));

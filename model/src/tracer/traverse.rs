@@ -209,6 +209,67 @@ fn confirmation(opaque: bool, shaders: &HitShaders, primitive: u32) -> Confirmat
     }
 }
 
+/// Whether a cut behind a required hit is allowed for the ray: it may not end at its first hit, and
+/// no primitive of the scene runs an any-hit shader for it (opaque, or a hit group without one).
+fn cut_allowed(scene: &PreparedScene, ray: &Ray, shaders: &ShaderTable<'_>) -> bool {
+    if ray.flags.contains(RayFlags::TERMINATE_ON_FIRST_HIT) {
+        return false;
+    }
+    scene.geometries.iter().all(|w| {
+        let inst = &scene.scene.instances[w.instance as usize];
+        let geometry =
+            &scene.scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize];
+        opacity(ray, inst, geometry.flags.opaque)
+            || !(shaders.hit)(w.instance, w.geometry).has_any_hit()
+    })
+}
+
+/// The upper t bound of a triangle that must be a candidate and is confirmed without any-hit
+/// (REQ-hit, not culled, its facing certain where a facing is culled), or None.
+fn required_hit_t(
+    scene: &PreparedScene,
+    w: &WorldGeometry,
+    primitive: u32,
+    ray: &Ray,
+    rf: &RayF64,
+    config: &TracerConfig,
+    stats: &mut TracerStats,
+) -> Option<f64> {
+    let inst = &scene.scene.instances[w.instance as usize];
+    if inst.mask as u32 & ray.cull_mask & 0xFF == 0 || ray.flags.contains(RayFlags::SKIP_TRIANGLES)
+    {
+        return None;
+    }
+    let geometry =
+        &scene.scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize];
+    if opacity_culled(ray, opacity(ray, inst, geometry.flags.opaque)) {
+        return None;
+    }
+    let out = classify_triangle(scene, w, primitive, ray, rf, config.precision, stats);
+    if out.class != PairClass::ReqHit {
+        return None;
+    }
+    let (signs, values, band) = (out.signs?, out.values?, out.band?);
+    let culls_facing = !inst.flags.triangle_facing_cull_disable
+        && (ray.flags.contains(RayFlags::CULL_BACK_FACING_TRIANGLES)
+            || ray.flags.contains(RayFlags::CULL_FRONT_FACING_TRIANGLES));
+    if culls_facing {
+        let o = signs.orientation?;
+        let front = ((o == Ordering::Less) != scene.instances[w.instance as usize].det_negative)
+            != inst.flags.flip_facing;
+        let culled = if front {
+            ray.flags.contains(RayFlags::CULL_FRONT_FACING_TRIANGLES)
+        } else {
+            ray.flags.contains(RayFlags::CULL_BACK_FACING_TRIANGLES)
+        };
+        if culled {
+            return None;
+        }
+    }
+    let (t, _) = triangle_intervals(&values, &band);
+    t.hi.is_finite().then_some(t.hi)
+}
+
 /// A procedural primitive the intersection shader must run for.
 struct MustRun {
     t_hi: f64,
@@ -229,26 +290,55 @@ pub fn trace_ray(
     }
     stats.rays += 1;
     let rf = RayF64::of(ray);
-    let mut near: Vec<Item> = Vec::new();
+    // The cut: the least upper t bound of a triangle that must be a candidate and must be confirmed
+    // (so the committed hit is at most there). Behind it an opaque triangle, or one without any-hit,
+    // is unobservable: where no primitive of the scene runs any-hit for this ray and the trace may
+    // not end at its first hit, a triangle whose padded box the ray cut at the cut misses is left
+    // out — in every mode alike (the BVH skips whole nodes of such triangles as the cut falls).
+    let cut = std::cell::Cell::new(f64::INFINITY);
+    let mut may_cut: Option<bool> = None;
+    let mut near: Vec<(Item, super::prepare::FarBox)> = Vec::new();
     let mut far_count = 0u64;
     let far_test = config.far_test;
+    let mut scratch = TracerStats::default();
     let mut visit = |item: Item, fb: &super::prepare::FarBox| {
         if far_test && fb.is_far(&rf) {
             far_count += 1;
-        } else {
-            near.push(item);
+            return;
+        }
+        near.push((item, *fb));
+        let w = &scene.geometries[item.geometry as usize];
+        if w.kind != PrimitiveKind::Triangle {
+            return;
+        }
+        if let Some(t_hi) = required_hit_t(scene, w, item.primitive, ray, &rf, config, &mut scratch)
+        {
+            if t_hi < cut.get() && *may_cut.get_or_insert_with(|| cut_allowed(scene, ray, shaders))
+            {
+                cut.set(t_hi);
+            }
         }
     };
     if config.use_bvh && config.far_test {
         let mut nodes = 0;
-        scene.for_each_near(&rf, &mut nodes, &mut visit);
+        scene.for_each_near(&rf, &mut nodes, &cut, &mut visit);
         stats.nodes_visited += nodes;
     } else {
         scene.for_each_item(&mut visit);
     }
     stats.far_rejections += far_count;
+    // What the cut leaves out (the BVH has left out a subset of it already).
+    let cut_at = cut.get();
+    if cut_at < rf.tmax {
+        let mut cut_ray = rf;
+        cut_ray.tmax = cut_at;
+        near.retain(|(it, fb)| {
+            scene.geometries[it.geometry as usize].kind != PrimitiveKind::Triangle
+                || !fb.is_far(&cut_ray)
+        });
+    }
     // A deterministic order, independent of the BVH.
-    near.sort_by_key(|it| {
+    near.sort_by_key(|(it, _)| {
         let w = &scene.geometries[it.geometry as usize];
         (w.instance, w.geometry, it.primitive)
     });
@@ -256,7 +346,7 @@ pub fn trace_ray(
     let mut candidates: Vec<Candidate> = Vec::new();
     let mut hits: Vec<TriangleHit> = Vec::new();
     let mut must_run: Vec<MustRun> = Vec::new();
-    for item in near {
+    for (item, _) in near {
         let w = &scene.geometries[item.geometry as usize];
         let inst = &scene.scene.instances[w.instance as usize];
         // Spec, "Ray Mask Culling".

@@ -68,6 +68,13 @@ pub(crate) fn watertight_groups(
     candidates: &[Candidate],
     hits: &[TriangleHit],
 ) -> Vec<WatertightGroup> {
+    // Only a triangle the ray passes within the band of can join a group.
+    if !hits
+        .iter()
+        .any(|h| candidates[h.candidate].presence == Presence::Possible)
+    {
+        return Vec::new();
+    }
     let by_prim: HashMap<PrimitiveRef, usize> = hits
         .iter()
         .enumerate()

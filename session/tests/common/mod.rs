@@ -3,7 +3,7 @@
 
 #![allow(dead_code)] // each test binary uses its own part
 
-use harness::observe::{Hits, Status, TracedBuild};
+use harness::observe::{Status, TracedBuild};
 use harness::{Driver, Executor, TraceCheck};
 use model::{Case, DeviceProfile, RuleSet};
 use session::run::{Judging, Ran};
@@ -83,16 +83,15 @@ pub fn traced(ran: &Ran) -> &TracedBuild {
         .unwrap_or_else(|| panic!("{}: no traced check: {:?}", ran.case.name, ran.observation))
 }
 
-/// The rays whose device hit is not the model's.
+/// The check rays whose record the reference tracer fails.
 pub fn mismatches(ran: &Ran) -> Vec<String> {
     let body = ran.case.as_accel().expect("a build case");
-    let rays = model::accel::check::check_rays(body).unwrap_or_default();
-    session::compare::ray_mismatches(&rays, &traced(ran).hits)
+    session::compare::ray_mismatches(body, &traced(ran).records)
 }
 
-/// The deviation the CPU cast names for hits at a build case.
-pub fn deviation(case: &Case, hits: &Hits) -> Option<String> {
-    model::accel::check::deviation(case.as_accel().expect("a build case"), hits)
+/// The deviation the model names for a build case's records.
+pub fn deviation(case: &Case, records: &[u32]) -> Option<String> {
+    model::accel::check::deviation(case.as_accel().expect("a build case"), records)
 }
 
 /// The reason of a case the device cannot run (its profile confirms what it lacks).
@@ -129,4 +128,45 @@ pub fn body(case: &Case) -> &model::TraceBody {
 /// The world of a trace case, to edit.
 pub fn world(case: &mut Case) -> &mut model::World {
     &mut case.as_trace_mut().expect("a trace case").world
+}
+
+/// Records as a device that builds the model's structure writes them: each ray's required hit at the
+/// exact t and barycentrics, or a miss.
+pub fn model_records(check: &model::accel::check::BuildCheck) -> Vec<u32> {
+    use model::tracer::record::{RayRecord, RecordOutcome};
+    check
+        .allowed
+        .iter()
+        .flat_map(|a| {
+            let hit = a
+                .committable
+                .iter()
+                .map(|&i| &a.candidates[i])
+                .filter(|c| c.presence == model::tracer::Presence::Required)
+                .min_by(|x, y| x.t_hull().lo.total_cmp(&y.t_hull().lo));
+            let r = match hit {
+                Some(c) => {
+                    let rep = &c.reports[0];
+                    RayRecord {
+                        outcome: RecordOutcome::Hit,
+                        group: Some(c.shaders.group),
+                        instance_id: c.primitive.instance,
+                        custom_index: c.custom_index,
+                        geometry_index: c.primitive.geometry,
+                        primitive_id: c.primitive.primitive,
+                        hit_kind: rep.hit_kind,
+                        t: rep.t_exact as f32,
+                        barycentrics: rep
+                            .barycentrics_exact
+                            .map_or([0.0; 2], |b| b.map(|x| x as f32)),
+                        ..RayRecord::miss(0)
+                    }
+                }
+                _ => RayRecord::miss(a.miss_shader.group),
+            };
+            let mut w = r.to_words();
+            w[RayRecord::INTERSECTION_COUNT] = a.intersection.min;
+            w
+        })
+        .collect()
 }
