@@ -30,6 +30,7 @@
 //! 64-bit images, accesses in a stage the pipeline lacks, sets statically used but never bound,
 //! descriptors of the wrong kind).
 
+mod descriptor_buffer;
 mod glsl;
 mod objects;
 
@@ -68,11 +69,18 @@ pub(crate) fn unsupported(world: &World) -> Option<String> {
     if st.is_empty() {
         return None;
     }
-    if st.descriptor_source == DescriptorSource::Buffers
-        || st.pipeline_descriptor_buffer
-        || st.descriptor_memory_not_resident
+    if st.descriptor_memory_not_resident {
+        return Some("descriptor buffer memory that is not resident (a sparse descriptor buffer with unbound pages) is not realised: the harness's descriptor buffers are host-visible and fully bound".into());
+    }
+    if (st.descriptor_source == DescriptorSource::Buffers || st.pipeline_descriptor_buffer)
+        && !world.device.extension("VK_EXT_descriptor_buffer")
     {
-        return Some("descriptor buffers (VK_EXT_descriptor_buffer) are not realised by the harness: its resource path binds descriptor sets only (whether the device has the extension or not)".into());
+        return Some("descriptor buffers and DESCRIPTOR_BUFFER_BIT_EXT pipelines need VK_EXT_descriptor_buffer, which the case does not enable".into());
+    }
+    if st.descriptor_source == DescriptorSource::Buffers
+        && !world.device.feature("descriptorBuffer")
+    {
+        return Some("descriptor buffers are bound (vkCmdBindDescriptorBuffersEXT) only with the descriptorBuffer feature, which the case does not enable".into());
     }
     if !st.tensors.is_empty() || !st.tensor_views.is_empty() {
         return Some(
@@ -186,6 +194,10 @@ pub(crate) struct Realised {
     modules: Vec<(ShaderKind, vk::ShaderModule)>,
     binds: Vec<(vk::PipelineLayout, u32, vk::DescriptorSet)>,
     pushes: Vec<(vk::PipelineLayout, u32, u32)>,
+    /// The descriptor memory of a state whose descriptors come from descriptor buffers (then `pool`,
+    /// `sets` and `binds` stay empty), with the harness's set as a descriptor buffer set layout.
+    descriptor_memory: Option<descriptor_buffer::DescriptorMemory>,
+    db_harness_set: vk::DescriptorSetLayout,
 }
 
 impl Realised {
@@ -205,6 +217,8 @@ impl Realised {
             modules: Vec::new(),
             binds: Vec::new(),
             pushes: Vec::new(),
+            descriptor_memory: None,
+            db_harness_set: vk::DescriptorSetLayout::null(),
         }
     }
 
@@ -273,12 +287,42 @@ impl Realised {
         }
     }
 
+    /// Whether the harness's own set lives in descriptor memory (written with
+    /// [`Realised::write_harness_set`] and placed by [`Realised::record_binds`]) instead of being bound
+    /// as a descriptor set.
+    pub(crate) fn harness_set_in_buffer(&self) -> bool {
+        self.descriptor_memory.is_some()
+    }
+
+    /// Writes the harness's own set into descriptor memory, when it lives there: bindings 1–4 as
+    /// (buffer info, device address of the buffer), and the scene's top level. Nothing otherwise.
+    pub(crate) fn write_harness_set(
+        &self,
+        dev: &crate::vk::VkDevice,
+        buffers: [(vk::DescriptorBufferInfo, u64); 4],
+        tlas: Option<crate::realise::Tlas>,
+    ) -> Result<(), HarnessError> {
+        match &self.descriptor_memory {
+            Some(m) => m.write_harness_set(dev, buffers, tlas),
+            None => Ok(()),
+        }
+    }
+
     /// Records the state's binds (case set `n` at set `n + 1`) and pushes (zero bytes), in order, after
-    /// the harness bound its own set with [`Realised::harness_layout`].
+    /// the harness bound its own set with [`Realised::harness_layout`] — or, with descriptor memory,
+    /// the descriptor buffer's binding and the offsets of the harness's set and the case's sets.
     ///
     /// # Safety
-    /// `cb` is recording on `d`.
-    pub(crate) unsafe fn record_binds(&self, d: &ash::Device, cb: vk::CommandBuffer) {
+    /// `cb` is recording on `d`, the device of `dev`.
+    pub(crate) unsafe fn record_binds(
+        &self,
+        dev: &crate::vk::VkDevice,
+        cb: vk::CommandBuffer,
+    ) {
+        let d = &dev.device;
+        if let Some(m) = &self.descriptor_memory {
+            m.record(dev, cb);
+        }
         for &(layout, set, ds) in &self.binds {
             d.cmd_bind_descriptor_sets(
                 cb,
@@ -305,6 +349,12 @@ impl Realised {
             }
             for (_, m) in self.modules {
                 d.destroy_shader_module(m, None);
+            }
+            if let Some(m) = self.descriptor_memory {
+                m.destroy(&cache.dev);
+            }
+            if self.db_harness_set != vk::DescriptorSetLayout::null() {
+                d.destroy_descriptor_set_layout(self.db_harness_set, None);
             }
             if self.pool != vk::DescriptorPool::null() {
                 d.destroy_descriptor_pool(self.pool, None);
