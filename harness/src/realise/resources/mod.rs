@@ -314,11 +314,7 @@ impl Realised {
     ///
     /// # Safety
     /// `cb` is recording on `d`, the device of `dev`.
-    pub(crate) unsafe fn record_binds(
-        &self,
-        dev: &crate::vk::VkDevice,
-        cb: vk::CommandBuffer,
-    ) {
+    pub(crate) unsafe fn record_binds(&self, dev: &crate::vk::VkDevice, cb: vk::CommandBuffer) {
         let d = &dev.device;
         if let Some(m) = &self.descriptor_memory {
             m.record(dev, cb);
