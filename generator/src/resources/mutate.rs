@@ -153,6 +153,15 @@ pub fn mutate(
             dev.features.insert("bufferDeviceAddress".into());
         }
         "08119" => {
+            // Descriptor memory that is not resident: a sparse descriptor buffer with no page bound.
+            for f in ["sparseBinding", "sparseResidencyBuffer"] {
+                if !profile.has_feature(f) {
+                    return Err(format!(
+                        "{f} is not supported, so no descriptor buffer memory can be left unbound"
+                    ));
+                }
+                dev.features.insert(f.into());
+            }
             st.descriptor_source = DescriptorSource::Buffers;
             dev.features.insert("descriptorBuffer".into());
             dev.features.insert("bufferDeviceAddress".into());

@@ -97,12 +97,16 @@ pub(super) struct DescriptorMemory {
 
 impl DescriptorMemory {
     /// Lays out the harness's set (with `harness_layout`) and each of `sets` (name and descriptor
-    /// buffer set layout) in one buffer.
+    /// buffer set layout) in one buffer: host-visible, or — when `resident` is false — a sparse
+    /// buffer with no page bound (`fence` is the one sparse binding waits on), whose descriptors are
+    /// never written.
     pub(super) fn new(
         dev: &VkDevice,
         harness_layout: vk::DescriptorSetLayout,
         sets: &[(String, vk::DescriptorSetLayout)],
         api: model::world::PipelineApi,
+        resident: bool,
+        fence: vk::Fence,
     ) -> Result<DescriptorMemory, HarnessError> {
         let db = db(dev)?;
         let align = db.offset_alignment;
@@ -117,14 +121,38 @@ impl DescriptorMemory {
         let usage = vk::BufferUsageFlags::RESOURCE_DESCRIPTOR_BUFFER_EXT
             | vk::BufferUsageFlags::SAMPLER_DESCRIPTOR_BUFFER_EXT
             | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-        let memory = Allocation::new(
-            dev,
-            at.max(align),
-            usage,
-            vk::BufferCreateFlags::empty(),
-            align,
-        )?;
-        memory.write(0, &vec![0u8; at.max(align) as usize]);
+        let memory = if resident {
+            let m = Allocation::new(
+                dev,
+                at.max(align),
+                usage,
+                vk::BufferCreateFlags::empty(),
+                align,
+            )?;
+            m.write(0, &vec![0u8; at.max(align) as usize]);
+            m
+        } else {
+            if !(dev.has_feature("sparseBinding") && dev.has_feature("sparseResidencyBuffer")) {
+                return unsup("descriptor memory that is not resident is a sparse descriptor buffer with no page bound, which needs the sparseBinding and sparseResidencyBuffer features the case does not enable");
+            }
+            // No memory is bound, so no write lands: every descriptor, the harness's too, is in
+            // memory that is not resident.
+            Allocation::sparse(
+                dev,
+                fence,
+                at.max(align),
+                usage,
+                vk::BufferCreateFlags::SPARSE_BINDING | vk::BufferCreateFlags::SPARSE_RESIDENCY,
+                crate::vk::memory::SparsePlan::Unbound,
+            )?
+        };
+        if memory.address % align != 0 {
+            let at = memory.address;
+            memory.destroy(dev);
+            return unsup(format!(
+                "the descriptor buffer was placed at {at:#x}, not a multiple of descriptorBufferOffsetAlignment ({align})"
+            ));
+        }
         Ok(DescriptorMemory {
             memory,
             harness_layout,
@@ -400,6 +428,7 @@ impl Realised {
         harness_layout: vk::DescriptorSetLayout,
         api: model::world::PipelineApi,
         usage: vk::BufferUsageFlags,
+        fence: vk::Fence,
     ) -> Result<(), HarnessError> {
         let mut sets = Vec::new();
         for s in &st.descriptor_sets {
@@ -411,7 +440,8 @@ impl Realised {
             })?;
             sets.push((s.name.clone(), l));
         }
-        let memory = DescriptorMemory::new(dev, harness_layout, &sets, api)?;
+        let resident = !st.descriptor_memory_not_resident;
+        let memory = DescriptorMemory::new(dev, harness_layout, &sets, api, resident, fence)?;
         // The memory is owned from here on, so an error below still destroys it.
         self.descriptor_memory = Some(memory);
         let memory = self.descriptor_memory.as_ref().expect("set above");

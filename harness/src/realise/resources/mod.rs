@@ -69,9 +69,6 @@ pub(crate) fn unsupported(world: &World) -> Option<String> {
     if st.is_empty() {
         return None;
     }
-    if st.descriptor_memory_not_resident {
-        return Some("descriptor buffer memory that is not resident (a sparse descriptor buffer with unbound pages) is not realised: the harness's descriptor buffers are host-visible and fully bound".into());
-    }
     if (st.descriptor_source == DescriptorSource::Buffers || st.pipeline_descriptor_buffer)
         && !world.device.extension("VK_EXT_descriptor_buffer")
     {

@@ -521,7 +521,7 @@ impl Realised {
                 self.buffer_views.insert(v.name.clone(), h);
             }
             if by_buffer {
-                self.write_descriptor_memory(dev, st, harness_set, api, usage)?;
+                self.write_descriptor_memory(dev, st, harness_set, api, usage, cache.cmds.fence)?;
             }
             // Descriptor pool and sets.
             let mut counts: HashMap<vk::DescriptorType, u32> = HashMap::new();
