@@ -163,14 +163,15 @@ impl DescriptorMemory {
         })
     }
 
-    /// Writes the descriptor of `source` as type `ty` at `element` of `binding` in case set `set`.
+    /// Writes the descriptor of `source` as type `ty` at `element` of `binding` (of type `slot`) in
+    /// case set `set`.
     pub(super) fn write(
         &self,
         dev: &VkDevice,
         set: &str,
         binding: u32,
         element: u32,
-        ty: vk::DescriptorType,
+        (ty, slot): (vk::DescriptorType, vk::DescriptorType),
         source: &Source,
     ) -> Result<(), HarnessError> {
         let &(layout, base) = self.sets.get(set).ok_or_else(|| {
@@ -183,7 +184,7 @@ impl DescriptorMemory {
             base,
             binding,
             element,
-            ty,
+            (ty, slot),
             source,
         )
     }
@@ -215,7 +216,10 @@ impl DescriptorMemory {
                 self.harness_offset,
                 i as u32 + 1,
                 0,
-                vk::DescriptorType::STORAGE_BUFFER,
+                (
+                    vk::DescriptorType::STORAGE_BUFFER,
+                    vk::DescriptorType::STORAGE_BUFFER,
+                ),
                 &source,
             )?;
         }
@@ -253,7 +257,7 @@ impl DescriptorMemory {
             self.harness_offset,
             0,
             0,
-            structure_type(self.api),
+            (structure_type(self.api), structure_type(self.api)),
             &Source::Structure(structure),
         )
     }
@@ -343,14 +347,19 @@ fn write_at(
     base: u64,
     binding: u32,
     element: u32,
-    ty: vk::DescriptorType,
+    (ty, slot): (vk::DescriptorType, vk::DescriptorType),
     source: &Source,
 ) -> Result<(), HarnessError> {
     let db = db(dev)?;
-    let size = db.size(ty);
-    if size == 0 {
+    let (size, stride) = (db.size(ty), db.size(slot));
+    if size == 0 || stride == 0 {
         return unsup(format!(
-            "{ty:?} descriptors have no size in descriptor memory"
+            "{ty:?} or {slot:?} descriptors have no size in descriptor memory"
+        ));
+    }
+    if size > stride {
+        return unsup(format!(
+            "a {ty:?} descriptor ({size} bytes) written where a {slot:?} binding holds {stride} bytes would run into the next descriptor"
         ));
     }
     let address_info;
@@ -412,7 +421,7 @@ fn write_at(
         db.ext
             .get_descriptor_set_layout_binding_offset(layout, binding)
     };
-    memory.write(base + offset + element as u64 * size as u64, &bytes);
+    memory.write(base + offset + element as u64 * stride as u64, &bytes);
     Ok(())
 }
 
@@ -462,7 +471,10 @@ impl Realised {
                             s.name, w.element, w.binding, b.count
                         ));
                     }
-                    let ty = objects::descriptor_type(b.ty)?;
+                    let slot = objects::descriptor_type(b.ty)?;
+                    // The type the descriptor is made as: the binding's, except a texel buffer view
+                    // written at a buffer binding, whose memory then holds a texel buffer descriptor.
+                    let mut ty = slot;
                     let source = match (&w.descriptor, b.ty) {
                         (
                             Descriptor::Image {
@@ -507,8 +519,20 @@ impl Realised {
                         }
                         (
                             Descriptor::TexelBuffer { view },
-                            DescriptorType::UniformTexelBuffer | DescriptorType::StorageTexelBuffer,
+                            DescriptorType::UniformTexelBuffer
+                            | DescriptorType::StorageTexelBuffer
+                            | DescriptorType::UniformBuffer
+                            | DescriptorType::StorageBuffer,
                         ) => {
+                            ty = match b.ty {
+                                DescriptorType::UniformBuffer => {
+                                    vk::DescriptorType::UNIFORM_TEXEL_BUFFER
+                                }
+                                DescriptorType::StorageBuffer => {
+                                    vk::DescriptorType::STORAGE_TEXEL_BUFFER
+                                }
+                                _ => slot,
+                            };
                             let bv = st.buffer_view(view).ok_or_else(|| {
                                 HarnessError::NotRealised(format!(
                                     "descriptor names buffer view `{view}`, which the state lacks"
@@ -563,7 +587,7 @@ impl Realised {
                             ))
                         }
                     };
-                    memory.write(dev, &s.name, w.binding, w.element, ty, &source)?;
+                    memory.write(dev, &s.name, w.binding, w.element, (ty, slot), &source)?;
                 }
             }
             Ok(())
