@@ -25,10 +25,19 @@
 //! glslangValidator at first use into a cache keyed by their hash, with `-DNV` for VK_NV_ray_tracing
 //! pipelines (the same GLSL in GL_NV_ray_tracing names, as build.rs compiles the harness's shaders).
 //!
-//! What is not realised is reported unsupported by [`unsupported`] with the reason (vendor objects,
-//! descriptor buffers, sparse and tile memory, implicit-LOD sampling, which ray tracing stages cannot do,
-//! 64-bit images, accesses in a stage the pipeline lacks, sets statically used but never bound,
-//! descriptors of the wrong kind).
+//! **Descriptor buffers.** A pipeline the state says was created with DESCRIPTOR_BUFFER_BIT_EXT is
+//! created with it; descriptors that come from descriptor buffers are written into descriptor memory
+//! (`descriptor_buffer.rs`): every set layout, the harness's own included, is a descriptor buffer set
+//! layout, the harness's set lives in the same buffer at offset 0, and the binds are one
+//! `vkCmdBindDescriptorBuffersEXT` and `vkCmdSetDescriptorBufferOffsetsEXT` calls (set `n + 1` for
+//! the case's set `n`, as above). Memory that is not resident is a sparse descriptor buffer with no
+//! page bound. The case's device must enable `descriptorBuffer` (and, for memory that is not resident,
+//! `sparseBinding` and `sparseResidencyBuffer`); the generator enables them.
+//!
+//! What is not realised is reported not realised by [`unsupported`] with the reason (vendor objects,
+//! sparse images and tile memory, Y′CbCr conversions and cubic filters, implicit-LOD sampling, which ray
+//! tracing stages cannot do, 64-bit images, accesses in a stage the pipeline lacks, sets statically used
+//! but never bound, descriptors of the wrong kind).
 
 mod descriptor_buffer;
 mod glsl;
@@ -98,15 +107,20 @@ pub(crate) fn unsupported(world: &World) -> Option<String> {
     if st.images.iter().any(|i| i.corner_sampled) {
         return Some("corner-sampled images (VK_NV_corner_sampled_image) are not realised: lavapipe lacks the extension".into());
     }
+    if st.samplers.iter().any(|s| s.ycbcr_conversion)
+        || st.image_views.iter().any(|v| v.ycbcr_conversion)
+    {
+        return Some("YCbCr conversion samplers and views are not realised: a VkSamplerYcbcrConversion needs a format with \
+             MIDPOINT_CHROMA_SAMPLES or COSITED_CHROMA_SAMPLES and its sampler must be an immutable sampler of the set \
+             layout, which the resource model does not describe".into());
+    }
     if st.samplers.iter().any(|s| {
         s.filters(Filter::CubicExt)
             || s.image_processing
-            || s.ycbcr_conversion
             || s.reduction == Reduction::WeightedAverageRangeclampQcom
             || s.cubic_weights != CubicWeights::CatmullRom
-    }) || st.image_views.iter().any(|v| v.ycbcr_conversion)
-    {
-        return Some("cubic filtering, QCOM image processing and YCbCr conversion samplers/views are not realised by the harness (it creates neither such samplers nor conversions, whether the device has the extensions or not)".into());
+    }) {
+        return Some("cubic filtering and QCOM image processing samplers are not realised by the harness (it creates no such sampler, whether the device has the extensions or not)".into());
     }
     if let Some(p) = world.pipeline.as_ref() {
         for s in st
