@@ -50,6 +50,9 @@ pub(crate) struct DescriptorBufferDevice {
     pub(crate) offset_alignment: u64,
     /// The size of one descriptor of each type, as `vkGetDescriptorEXT` writes it.
     sizes: Vec<(vk::DescriptorType, usize)>,
+    /// `combinedImageSamplerDescriptorSingleArray`: when false, an array of combined image samplers
+    /// is laid out as its image descriptors followed by its sampler descriptors.
+    pub(crate) combined_single_array: bool,
 }
 
 impl DescriptorBufferDevice {
@@ -106,6 +109,7 @@ impl DescriptorBufferDevice {
             ext: ash::ext::descriptor_buffer::Device::new(instance, device),
             offset_alignment: props.descriptor_buffer_offset_alignment.max(1),
             sizes,
+            combined_single_array: props.combined_image_sampler_descriptor_single_array != 0,
         }
     }
 

@@ -171,7 +171,7 @@ impl DescriptorMemory {
         set: &str,
         binding: u32,
         element: u32,
-        (ty, slot): (vk::DescriptorType, vk::DescriptorType),
+        (ty, slot, count): (vk::DescriptorType, vk::DescriptorType, u32),
         source: &Source,
     ) -> Result<(), HarnessError> {
         let &(layout, base) = self.sets.get(set).ok_or_else(|| {
@@ -184,7 +184,7 @@ impl DescriptorMemory {
             base,
             binding,
             element,
-            (ty, slot),
+            (ty, slot, count),
             source,
         )
     }
@@ -219,6 +219,7 @@ impl DescriptorMemory {
                 (
                     vk::DescriptorType::STORAGE_BUFFER,
                     vk::DescriptorType::STORAGE_BUFFER,
+                    1,
                 ),
                 &source,
             )?;
@@ -257,7 +258,7 @@ impl DescriptorMemory {
             self.harness_offset,
             0,
             0,
-            (structure_type(self.api), structure_type(self.api)),
+            (structure_type(self.api), structure_type(self.api), 1),
             &Source::Structure(structure),
         )
     }
@@ -347,7 +348,7 @@ fn write_at(
     base: u64,
     binding: u32,
     element: u32,
-    (ty, slot): (vk::DescriptorType, vk::DescriptorType),
+    (ty, slot, count): (vk::DescriptorType, vk::DescriptorType, u32),
     source: &Source,
 ) -> Result<(), HarnessError> {
     let db = db(dev)?;
@@ -421,7 +422,19 @@ fn write_at(
         db.ext
             .get_descriptor_set_layout_binding_offset(layout, binding)
     };
-    memory.write(base + offset + element as u64 * stride as u64, &bytes);
+    let at = base + offset;
+    if ty == vk::DescriptorType::COMBINED_IMAGE_SAMPLER && !db.combined_single_array {
+        // The image parts of the whole array first, then its sampler parts.
+        let image = db.size(vk::DescriptorType::SAMPLED_IMAGE).min(bytes.len());
+        let sampler = bytes.len() - image;
+        memory.write(at + element as u64 * image as u64, &bytes[..image]);
+        memory.write(
+            at + count as u64 * image as u64 + element as u64 * sampler as u64,
+            &bytes[image..],
+        );
+    } else {
+        memory.write(at + element as u64 * stride as u64, &bytes);
+    }
     Ok(())
 }
 
@@ -587,7 +600,14 @@ impl Realised {
                             ))
                         }
                     };
-                    memory.write(dev, &s.name, w.binding, w.element, (ty, slot), &source)?;
+                    memory.write(
+                        dev,
+                        &s.name,
+                        w.binding,
+                        w.element,
+                        (ty, slot, b.count),
+                        &source,
+                    )?;
                 }
             }
             Ok(())
