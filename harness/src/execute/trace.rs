@@ -306,10 +306,10 @@ fn run(
         r.write_harness_set(
             &cache.dev,
             [
-                (out_info[0], out.address),
-                (rays_info[0], rays.address),
-                (calls_info[0], calls.address),
-                (whole(none.buffer)[0], none.address),
+                (out.address, out_info[0].range),
+                (rays.address, rays.size),
+                (calls.address, calls.size),
+                (none.address, none.size),
             ],
             tlas,
         )?;

@@ -190,22 +190,16 @@ impl DescriptorMemory {
     }
 
     /// Writes the harness's own set: the records, rays, callables and spheres buffers (binding 1–4, as
-    /// buffer infos with their device addresses) and the scene's top level, when traced.
+    /// device address and range) and the scene's top level, when traced.
     pub(crate) fn write_harness_set(
         &self,
         dev: &VkDevice,
-        buffers: [(vk::DescriptorBufferInfo, u64); 4],
+        buffers: [(u64, u64); 4],
         tlas: Option<Tlas>,
     ) -> Result<(), HarnessError> {
-        for (i, (info, address)) in buffers.iter().enumerate() {
-            let range = if info.range == vk::WHOLE_SIZE {
-                // SAFETY: a live buffer of this device.
-                unsafe { dev.device.get_buffer_memory_requirements(info.buffer) }.size
-            } else {
-                info.range
-            };
+        for (i, &(address, range)) in buffers.iter().enumerate() {
             let source = Source::Address {
-                address: address + info.offset,
+                address,
                 range,
                 format: vk::Format::UNDEFINED,
             };

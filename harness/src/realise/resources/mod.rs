@@ -337,11 +337,11 @@ impl Realised {
     }
 
     /// Writes the harness's own set into descriptor memory, when it lives there: bindings 1–4 as
-    /// (buffer info, device address of the buffer), and the scene's top level. Nothing otherwise.
+    /// (device address, range), and the scene's top level. Nothing otherwise.
     pub(crate) fn write_harness_set(
         &self,
         dev: &crate::vk::VkDevice,
-        buffers: [(vk::DescriptorBufferInfo, u64); 4],
+        buffers: [(u64, u64); 4],
         tlas: Option<crate::realise::Tlas>,
     ) -> Result<(), HarnessError> {
         match &self.descriptor_memory {
