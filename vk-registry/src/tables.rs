@@ -23,6 +23,8 @@ pub const HARNESS_STRUCTURES: &[&str] = &[
     "VkPhysicalDeviceRayTracingMaintenance1FeaturesKHR",
     "VkPhysicalDeviceRayTracingMotionBlurFeaturesNV",
     "VkPhysicalDeviceBufferDeviceAddressFeatures",
+    "VkPhysicalDeviceDescriptorBufferFeaturesEXT",
+    "VkPhysicalDeviceShaderImageAtomicInt64FeaturesEXT",
     "VkPhysicalDeviceLimits",
     "VkPhysicalDeviceSparseProperties",
     "VkPhysicalDeviceVulkan11Properties",

@@ -115,6 +115,10 @@ pub fn mutate(
             if m.tag == "08116" {
                 st.descriptor_source = DescriptorSource::Buffers;
                 st.pipeline_descriptor_buffer = true;
+                // Descriptor buffers are bound (vkCmdBindDescriptorBuffersEXT) only with the feature, by
+                // device address.
+                dev.features.insert("descriptorBuffer".into());
+                dev.features.insert("bufferDeviceAddress".into());
             }
             access_mut(st).push(Access {
                 binding: 3,
@@ -143,9 +147,24 @@ pub fn mutate(
             }
         }
         "08115" => st.pipeline_descriptor_buffer = true,
-        "08117" => st.descriptor_source = DescriptorSource::Buffers,
-        "08119" => {
+        "08117" => {
             st.descriptor_source = DescriptorSource::Buffers;
+            dev.features.insert("descriptorBuffer".into());
+            dev.features.insert("bufferDeviceAddress".into());
+        }
+        "08119" => {
+            // Descriptor memory that is not resident: a sparse descriptor buffer with no page bound.
+            for f in ["sparseBinding", "sparseResidencyBuffer"] {
+                if !profile.has_feature(f) {
+                    return Err(format!(
+                        "{f} is not supported, so no descriptor buffer memory can be left unbound"
+                    ));
+                }
+                dev.features.insert(f.into());
+            }
+            st.descriptor_source = DescriptorSource::Buffers;
+            dev.features.insert("descriptorBuffer".into());
+            dev.features.insert("bufferDeviceAddress".into());
             st.pipeline_descriptor_buffer = true;
             st.descriptor_memory_not_resident = true;
             access_mut(st).push(Access {

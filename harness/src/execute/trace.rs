@@ -245,6 +245,27 @@ fn run(
     }
     // SAFETY: writes reference live objects; every binding of the layout is written.
     unsafe { d.update_descriptor_sets(&writes, &[]) };
+    // A state whose descriptors come from descriptor buffers holds the harness's set in its descriptor
+    // memory. Such a case is never submitted (every descriptor buffer world violates a rule), and the
+    // scene's spheres buffer has no device address, so the spheres binding is the empty buffer's.
+    if let Some(r) = res.as_ref().filter(|r| r.harness_set_in_buffer()) {
+        if valid {
+            return Err(HarnessError::NotRealised(
+                "a valid launch through descriptor buffers is not realised: the scene's spheres buffer has no device address to write a descriptor of".into(),
+            ));
+        }
+        let none = cache.no_spheres.as_ref().expect("made above");
+        r.write_harness_set(
+            &cache.dev,
+            [
+                (out.address, out_info[0].range),
+                (rays.address, rays.size),
+                (calls.address, calls.size),
+                (none.address, none.size),
+            ],
+            tlas,
+        )?;
+    }
 
     // Addresses and buffers by name.
     let addr = |a: &Address| -> Result<u64, HarnessError> {
@@ -327,16 +348,18 @@ fn run(
             // With a resource state the harness set is bound with the case pipeline's realised layout,
             // then the case's own binds and pushes follow.
             let harness_layout = res.as_ref().map_or(layouts.pipeline, |r| r.harness_layout);
-            d.cmd_bind_descriptor_sets(
-                cb,
-                vk::PipelineBindPoint::RAY_TRACING_KHR,
-                harness_layout,
-                0,
-                &[set],
-                &[],
-            );
+            if !res.as_ref().is_some_and(|r| r.harness_set_in_buffer()) {
+                d.cmd_bind_descriptor_sets(
+                    cb,
+                    vk::PipelineBindPoint::RAY_TRACING_KHR,
+                    harness_layout,
+                    0,
+                    &[set],
+                    &[],
+                );
+            }
             if let Some(r) = res.as_ref() {
-                r.record_binds(d, cb);
+                r.record_binds(&cache.dev, cb);
             }
             if let Some(pass) = render_pass {
                 begin_render_pass(d, cb, pass, vk::SubpassContents::INLINE);

@@ -208,7 +208,7 @@ impl DeviceCache {
         rays: usize,
         callables: usize,
     ) -> Result<(), HarnessError> {
-        let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER | self.dev.address_usage();
         let want_out = (words.max(1) * 4) as u64;
         if self.output.as_ref().is_none_or(|a| a.size < want_out) {
             if let Some(a) = self.output.take() {

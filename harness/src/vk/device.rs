@@ -120,6 +120,8 @@ pub(crate) struct VkDevice {
     pub(crate) sparse_binding: bool,
     /// VK_NV_ray_tracing, when the case enables it.
     pub(crate) nv: Option<ash::nv::ray_tracing::Device>,
+    /// VK_EXT_descriptor_buffer, when the case enables it with the `descriptorBuffer` feature.
+    pub(crate) descriptor_buffer: Option<crate::vk::descriptors::DescriptorBufferDevice>,
     /// Set by the owner when the device was lost or a submission never finished: dropping then neither
     /// waits for nor destroys the device, and keeps its instance alive (a leak, never a hang).
     pub(crate) leak: bool,
@@ -191,6 +193,17 @@ impl VkDevice {
         let nv = extensions
             .contains("VK_NV_ray_tracing")
             .then(|| ash::nv::ray_tracing::Device::new(&inst.instance, &device));
+        let descriptor_buffer = (extensions.contains("VK_EXT_descriptor_buffer")
+            && features
+                .iter()
+                .any(|f| f.rsplit("::").next() == Some("descriptorBuffer")))
+        .then(|| {
+            crate::vk::descriptors::DescriptorBufferDevice::new(
+                &inst.instance,
+                inst.physical,
+                &device,
+            )
+        });
         let accel = extensions
             .contains("VK_KHR_acceleration_structure")
             .then(|| ash::khr::acceleration_structure::Device::new(&inst.instance, &device));
@@ -257,6 +270,7 @@ impl VkDevice {
             limits,
             sparse_binding,
             nv,
+            descriptor_buffer,
             leak: false,
         })
     }
@@ -266,6 +280,16 @@ impl VkDevice {
         self.features
             .iter()
             .any(|f| f == name || f.rsplit("::").next() == Some(name))
+    }
+
+    /// `SHADER_DEVICE_ADDRESS` when the device has `bufferDeviceAddress` (so a buffer's address may be
+    /// asked and written into descriptors), else no usage.
+    pub(crate) fn address_usage(&self) -> vk::BufferUsageFlags {
+        if self.has_feature("bufferDeviceAddress") {
+            vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS
+        } else {
+            vk::BufferUsageFlags::empty()
+        }
     }
 
     /// A memory type index allowed by `bits` with all of `flags`.

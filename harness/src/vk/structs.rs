@@ -85,6 +85,20 @@ pub(crate) const FEATURE_STRUCTS: &[StructInfo] = &[
         core: None,
         extension: Some("VK_NV_ray_tracing_motion_blur"),
     },
+    StructInfo {
+        name: "VkPhysicalDeviceDescriptorBufferFeaturesEXT",
+        members: t::PHYSICAL_DEVICE_DESCRIPTOR_BUFFER_FEATURES_EXT,
+        s_type: vk::StructureType::PHYSICAL_DEVICE_DESCRIPTOR_BUFFER_FEATURES_EXT,
+        core: None,
+        extension: Some("VK_EXT_descriptor_buffer"),
+    },
+    StructInfo {
+        name: "VkPhysicalDeviceShaderImageAtomicInt64FeaturesEXT",
+        members: t::PHYSICAL_DEVICE_SHADER_IMAGE_ATOMIC_INT64_FEATURES_EXT,
+        s_type: vk::StructureType::PHYSICAL_DEVICE_SHADER_IMAGE_ATOMIC_INT64_FEATURES_EXT,
+        core: None,
+        extension: Some("VK_EXT_shader_image_atomic_int64"),
+    },
 ];
 
 /// Property structures chained behind `VkPhysicalDeviceProperties2`.

@@ -190,6 +190,20 @@ pub const PHYSICAL_DEVICE_BUFFER_DEVICE_ADDRESS_FEATURES: &[Member] = &[
     Member { name: "bufferDeviceAddressMultiDevice", kind: Bool, count: 1 },
 ];
 
+/// `VkPhysicalDeviceDescriptorBufferFeaturesEXT`.
+pub const PHYSICAL_DEVICE_DESCRIPTOR_BUFFER_FEATURES_EXT: &[Member] = &[
+    Member { name: "descriptorBuffer", kind: Bool, count: 1 },
+    Member { name: "descriptorBufferCaptureReplay", kind: Bool, count: 1 },
+    Member { name: "descriptorBufferImageLayoutIgnored", kind: Bool, count: 1 },
+    Member { name: "descriptorBufferPushDescriptors", kind: Bool, count: 1 },
+];
+
+/// `VkPhysicalDeviceShaderImageAtomicInt64FeaturesEXT`.
+pub const PHYSICAL_DEVICE_SHADER_IMAGE_ATOMIC_INT64_FEATURES_EXT: &[Member] = &[
+    Member { name: "shaderImageInt64Atomics", kind: Bool, count: 1 },
+    Member { name: "sparseImageInt64Atomics", kind: Bool, count: 1 },
+];
+
 /// `VkPhysicalDeviceLimits`.
 pub const PHYSICAL_DEVICE_LIMITS: &[Member] = &[
     Member { name: "maxImageDimension1D", kind: U32, count: 1 },

@@ -118,7 +118,7 @@ fn binding_of(st: &ResourceState, a: &Access) -> (Option<DescriptorType>, u32) {
 
 /// The view format the access goes through: the one written at its binding in the set bound there, else
 /// (no set bound, or one without that descriptor) in a set of the pipeline's layout for that set number.
-fn view_format(st: &ResourceState, a: &Access) -> Option<String> {
+pub(super) fn view_format(st: &ResourceState, a: &Access) -> Option<String> {
     let of = |set: &DescriptorSet| match set.written(a.binding, a.element)? {
         Descriptor::Image { view, .. } => st.image_view(view).map(|v| v.format.clone()),
         Descriptor::TexelBuffer { view } => st.buffer_view(view).map(|v| v.format.clone()),

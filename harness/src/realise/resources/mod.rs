@@ -25,11 +25,21 @@
 //! glslangValidator at first use into a cache keyed by their hash, with `-DNV` for VK_NV_ray_tracing
 //! pipelines (the same GLSL in GL_NV_ray_tracing names, as build.rs compiles the harness's shaders).
 //!
-//! What is not realised is reported unsupported by [`unsupported`] with the reason (vendor objects,
-//! descriptor buffers, sparse and tile memory, implicit-LOD sampling, which ray tracing stages cannot do,
-//! 64-bit images, accesses in a stage the pipeline lacks, sets statically used but never bound,
-//! descriptors of the wrong kind).
+//! **Descriptor buffers.** A pipeline the state says was created with DESCRIPTOR_BUFFER_BIT_EXT is
+//! created with it; descriptors that come from descriptor buffers are written into descriptor memory
+//! (`descriptor_buffer.rs`): every set layout, the harness's own included, is a descriptor buffer set
+//! layout, the harness's set lives in the same buffer at offset 0, and the binds are one
+//! `vkCmdBindDescriptorBuffersEXT` and `vkCmdSetDescriptorBufferOffsetsEXT` calls (set `n + 1` for
+//! the case's set `n`, as above). Memory that is not resident is a sparse descriptor buffer with no
+//! page bound. The case's device must enable `descriptorBuffer` (and, for memory that is not resident,
+//! `sparseBinding` and `sparseResidencyBuffer`); the generator enables them.
+//!
+//! What is not realised is reported not realised by [`unsupported`] with the reason (vendor objects,
+//! sparse images and tile memory, Y′CbCr conversions and cubic filters, implicit-LOD sampling, which ray
+//! tracing stages cannot do, 64-bit images, accesses in a stage the pipeline lacks, sets statically used
+//! but never bound, descriptors of the wrong kind).
 
+mod descriptor_buffer;
 mod glsl;
 mod objects;
 
@@ -68,11 +78,15 @@ pub(crate) fn unsupported(world: &World) -> Option<String> {
     if st.is_empty() {
         return None;
     }
-    if st.descriptor_source == DescriptorSource::Buffers
-        || st.pipeline_descriptor_buffer
-        || st.descriptor_memory_not_resident
+    if (st.descriptor_source == DescriptorSource::Buffers || st.pipeline_descriptor_buffer)
+        && !world.device.extension("VK_EXT_descriptor_buffer")
     {
-        return Some("descriptor buffers (VK_EXT_descriptor_buffer) are not realised by the harness: its resource path binds descriptor sets only (whether the device has the extension or not)".into());
+        return Some("descriptor buffers and DESCRIPTOR_BUFFER_BIT_EXT pipelines need VK_EXT_descriptor_buffer, which the case does not enable".into());
+    }
+    if st.descriptor_source == DescriptorSource::Buffers
+        && !world.device.feature("descriptorBuffer")
+    {
+        return Some("descriptor buffers are bound (vkCmdBindDescriptorBuffersEXT) only with the descriptorBuffer feature, which the case does not enable".into());
     }
     if !st.tensors.is_empty() || !st.tensor_views.is_empty() {
         return Some(
@@ -88,20 +102,25 @@ pub(crate) fn unsupported(world: &World) -> Option<String> {
     }
     if st.images.iter().any(|i| i.sparse_residency) || st.buffers.iter().any(|b| b.sparse_residency)
     {
-        return Some("sparse-resident images and descriptor buffers are not realised for resource states yet".into());
+        return Some("sparse-resident images and buffers of a resource state are not realised yet".into());
     }
     if st.images.iter().any(|i| i.corner_sampled) {
         return Some("corner-sampled images (VK_NV_corner_sampled_image) are not realised: lavapipe lacks the extension".into());
     }
+    if st.samplers.iter().any(|s| s.ycbcr_conversion)
+        || st.image_views.iter().any(|v| v.ycbcr_conversion)
+    {
+        return Some("YCbCr conversion samplers and views are not realised: a VkSamplerYcbcrConversion needs a format with \
+             MIDPOINT_CHROMA_SAMPLES or COSITED_CHROMA_SAMPLES and its sampler must be an immutable sampler of the set \
+             layout, which the resource model does not describe".into());
+    }
     if st.samplers.iter().any(|s| {
         s.filters(Filter::CubicExt)
             || s.image_processing
-            || s.ycbcr_conversion
             || s.reduction == Reduction::WeightedAverageRangeclampQcom
             || s.cubic_weights != CubicWeights::CatmullRom
-    }) || st.image_views.iter().any(|v| v.ycbcr_conversion)
-    {
-        return Some("cubic filtering, QCOM image processing and YCbCr conversion samplers/views are not realised by the harness (it creates neither such samplers nor conversions, whether the device has the extensions or not)".into());
+    }) {
+        return Some("cubic filtering and QCOM image processing samplers are not realised by the harness (it creates no such sampler, whether the device has the extensions or not)".into());
     }
     if let Some(p) = world.pipeline.as_ref() {
         for s in st
@@ -141,8 +160,8 @@ pub(crate) fn unsupported(world: &World) -> Option<String> {
                     .into(),
             );
         }
-        if a.image.is_some_and(|t| t.width == 64) {
-            return Some("64-bit image accesses (Int64ImageEXT) are not realised yet".into());
+        if let Some(why) = a.image.and_then(|t| sixty_four_bit(st, a, &t)) {
+            return Some(why);
         }
     }
     if let Some(n) = st.used_sets().into_iter().find(|&n| st.bound(n).is_none()) {
@@ -152,6 +171,37 @@ pub(crate) fn unsupported(world: &World) -> Option<String> {
         ));
     }
     None
+}
+
+/// Why an access whose image type or view format is 64-bit is not realised: a 64-bit float
+/// `Sampled Type` is no valid SPIR-V; a known `Image Format` whose width is not the `Sampled Type`'s
+/// breaks VUID-StandaloneSpirv-Image-04965 (only an Unknown-format access can hold such a pair); and
+/// 64-bit integer images (GL_EXT_shader_image_int64) are not written by the harness's GLSL yet.
+fn sixty_four_bit(st: &ResourceState, a: &Access, t: &ImageType) -> Option<String> {
+    let view = glsl::view_format(st, a);
+    let view_bits = view
+        .as_deref()
+        .and_then(model::resources::formats::info)
+        .map(|f| f.width);
+    if t.width != 64 && view_bits != Some(64) {
+        return None;
+    }
+    if t.width == 64 && t.sampled_type == Numeric::Float {
+        return Some(
+            "a 64-bit float Sampled Type is not valid SPIR-V (Int64ImageEXT allows 64-bit integer images only), so no shader \
+             performs this access"
+                .into(),
+        );
+    }
+    if !t.format_unknown && view_bits.is_some_and(|b| b != t.width) {
+        return Some(format!(
+            "a {}-bit Sampled Type with the known Image Format of a {} view breaks VUID-StandaloneSpirv-Image-04965 (the \
+             Image Format's width is the Sampled Type's); only an Unknown-format access can pair them",
+            t.width,
+            view.as_deref().unwrap_or("64-bit")
+        ));
+    }
+    Some("64-bit integer image accesses (Int64ImageEXT, GL_EXT_shader_image_int64) are not realised yet".into())
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -186,6 +236,10 @@ pub(crate) struct Realised {
     modules: Vec<(ShaderKind, vk::ShaderModule)>,
     binds: Vec<(vk::PipelineLayout, u32, vk::DescriptorSet)>,
     pushes: Vec<(vk::PipelineLayout, u32, u32)>,
+    /// The descriptor memory of a state whose descriptors come from descriptor buffers (then `pool`,
+    /// `sets` and `binds` stay empty), with the harness's set as a descriptor buffer set layout.
+    descriptor_memory: Option<descriptor_buffer::DescriptorMemory>,
+    db_harness_set: vk::DescriptorSetLayout,
 }
 
 impl Realised {
@@ -205,6 +259,8 @@ impl Realised {
             modules: Vec::new(),
             binds: Vec::new(),
             pushes: Vec::new(),
+            descriptor_memory: None,
+            db_harness_set: vk::DescriptorSetLayout::null(),
         }
     }
 
@@ -273,12 +329,38 @@ impl Realised {
         }
     }
 
+    /// Whether the harness's own set lives in descriptor memory (written with
+    /// [`Realised::write_harness_set`] and placed by [`Realised::record_binds`]) instead of being bound
+    /// as a descriptor set.
+    pub(crate) fn harness_set_in_buffer(&self) -> bool {
+        self.descriptor_memory.is_some()
+    }
+
+    /// Writes the harness's own set into descriptor memory, when it lives there: bindings 1–4 as
+    /// (device address, range), and the scene's top level. Nothing otherwise.
+    pub(crate) fn write_harness_set(
+        &self,
+        dev: &crate::vk::VkDevice,
+        buffers: [(u64, u64); 4],
+        tlas: Option<crate::realise::Tlas>,
+    ) -> Result<(), HarnessError> {
+        match &self.descriptor_memory {
+            Some(m) => m.write_harness_set(dev, buffers, tlas),
+            None => Ok(()),
+        }
+    }
+
     /// Records the state's binds (case set `n` at set `n + 1`) and pushes (zero bytes), in order, after
-    /// the harness bound its own set with [`Realised::harness_layout`].
+    /// the harness bound its own set with [`Realised::harness_layout`] — or, with descriptor memory,
+    /// the descriptor buffer's binding and the offsets of the harness's set and the case's sets.
     ///
     /// # Safety
-    /// `cb` is recording on `d`.
-    pub(crate) unsafe fn record_binds(&self, d: &ash::Device, cb: vk::CommandBuffer) {
+    /// `cb` is recording on `d`, the device of `dev`.
+    pub(crate) unsafe fn record_binds(&self, dev: &crate::vk::VkDevice, cb: vk::CommandBuffer) {
+        let d = &dev.device;
+        if let Some(m) = &self.descriptor_memory {
+            m.record(dev, cb);
+        }
         for &(layout, set, ds) in &self.binds {
             d.cmd_bind_descriptor_sets(
                 cb,
@@ -305,6 +387,12 @@ impl Realised {
             }
             for (_, m) in self.modules {
                 d.destroy_shader_module(m, None);
+            }
+            if let Some(m) = self.descriptor_memory {
+                m.destroy(&cache.dev);
+            }
+            if self.db_harness_set != vk::DescriptorSetLayout::null() {
+                d.destroy_descriptor_set_layout(self.db_harness_set, None);
             }
             if self.pool != vk::DescriptorPool::null() {
                 d.destroy_descriptor_pool(self.pool, None);

@@ -7,7 +7,7 @@ use super::*;
 use crate::error::vkfail;
 use model::world::PipelineApi;
 
-fn descriptor_type(t: DescriptorType) -> Result<vk::DescriptorType, HarnessError> {
+pub(super) fn descriptor_type(t: DescriptorType) -> Result<vk::DescriptorType, HarnessError> {
     Ok(match t {
         DescriptorType::Sampler => vk::DescriptorType::SAMPLER,
         DescriptorType::CombinedImageSampler => vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
@@ -26,7 +26,7 @@ fn descriptor_type(t: DescriptorType) -> Result<vk::DescriptorType, HarnessError
 }
 
 /// `VK_FORMAT_…` name to `vk::Format`, through ash's names of the core and extension ranges.
-fn vk_format(name: &str) -> Result<vk::Format, HarnessError> {
+pub(super) fn vk_format(name: &str) -> Result<vk::Format, HarnessError> {
     let n = name.strip_prefix("VK_FORMAT_").unwrap_or(name);
     let ranges = [
         (0, 185),
@@ -47,7 +47,7 @@ fn vk_format(name: &str) -> Result<vk::Format, HarnessError> {
         })
 }
 
-fn vk_layout(l: ImageLayout) -> Result<vk::ImageLayout, HarnessError> {
+pub(super) fn vk_layout(l: ImageLayout) -> Result<vk::ImageLayout, HarnessError> {
     Ok(match l {
         ImageLayout::Undefined => vk::ImageLayout::UNDEFINED,
         ImageLayout::General => vk::ImageLayout::GENERAL,
@@ -138,6 +138,9 @@ impl Realised {
             return unsup(why);
         }
         let st = &world.resources;
+        // Descriptors from descriptor buffers: every set layout (the harness's too) is a descriptor
+        // buffer layout, and descriptor memory stands in for the pool, the sets and their writes.
+        let by_buffer = st.descriptor_source == DescriptorSource::Buffers;
         // The stages templated: the raygen, and every other stage that declares accesses or pushes.
         let api = world.pipeline.as_ref().map_or(PipelineApi::Khr, |p| p.api);
         let mut templated = vec![Stage::Raygen];
@@ -164,6 +167,17 @@ impl Realised {
         let d = &dev.device;
         // SAFETY (whole block): create infos reference live locals and objects of this device.
         unsafe {
+            let harness_set = if by_buffer {
+                self.db_harness_set = descriptor_buffer::harness_set_layout(dev, trace, api)?;
+                self.db_harness_set
+            } else {
+                harness_set
+            };
+            let layout_flags = if by_buffer {
+                vk::DescriptorSetLayoutCreateFlags::DESCRIPTOR_BUFFER_EXT
+            } else {
+                vk::DescriptorSetLayoutCreateFlags::empty()
+            };
             // Set layouts.
             for l in &st.set_layouts {
                 let mut bs = Vec::new();
@@ -178,7 +192,9 @@ impl Realised {
                 }
                 let h = d
                     .create_descriptor_set_layout(
-                        &vk::DescriptorSetLayoutCreateInfo::default().bindings(&bs),
+                        &vk::DescriptorSetLayoutCreateInfo::default()
+                            .flags(layout_flags)
+                            .bindings(&bs),
                         None,
                     )
                     .map_err(vkfail("vkCreateDescriptorSetLayout"))?;
@@ -504,9 +520,12 @@ impl Realised {
                     .map_err(vkfail("vkCreateBufferView"))?;
                 self.buffer_views.insert(v.name.clone(), h);
             }
+            if by_buffer {
+                self.write_descriptor_memory(dev, st, harness_set, api, usage, cache.cmds.fence)?;
+            }
             // Descriptor pool and sets.
             let mut counts: HashMap<vk::DescriptorType, u32> = HashMap::new();
-            for s in &st.descriptor_sets {
+            for s in st.descriptor_sets.iter().filter(|_| !by_buffer) {
                 let Some(l) = st.set_layout(&s.layout) else {
                     return unsup(format!(
                         "descriptor set `{}` has layout `{}`, which the state lacks",
@@ -517,7 +536,7 @@ impl Realised {
                     *counts.entry(descriptor_type(b.ty)?).or_default() += b.count;
                 }
             }
-            if !st.descriptor_sets.is_empty() {
+            if !st.descriptor_sets.is_empty() && !by_buffer {
                 let sizes: Vec<vk::DescriptorPoolSize> = counts
                     .iter()
                     .map(|(t, n)| vk::DescriptorPoolSize {
@@ -542,7 +561,7 @@ impl Realised {
                     )
                     .map_err(vkfail("vkCreateDescriptorPool"))?;
             }
-            for s in &st.descriptor_sets {
+            for s in st.descriptor_sets.iter().filter(|_| !by_buffer) {
                 let l = [self.set_layouts[&s.layout]];
                 let h = d
                     .allocate_descriptor_sets(
@@ -555,7 +574,7 @@ impl Realised {
             }
             // Writes, one vkUpdateDescriptorSets each; destroyed objects are made, written and destroyed.
             let mut doomed: Vec<Allocation> = Vec::new();
-            for s in &st.descriptor_sets {
+            for s in st.descriptor_sets.iter().filter(|_| !by_buffer) {
                 let l = st.set_layout(&s.layout).expect("checked above");
                 for w in &s.writes {
                     let Some(b) = l.binding(w.binding) else {
@@ -665,6 +684,7 @@ impl Realised {
                 a.destroy(dev);
             }
             // Binds and pushes, recorded by `record_binds`.
+            let mut buffer_binds = Vec::new();
             for b in &st.bound_sets {
                 let layout = *self.pipeline_layouts.get(&b.layout).ok_or_else(|| {
                     HarnessError::NotRealised(format!(
@@ -672,6 +692,10 @@ impl Realised {
                         b.layout
                     ))
                 })?;
+                if by_buffer {
+                    buffer_binds.push((layout, b.set + 1, b.descriptor_set.clone()));
+                    continue;
+                }
                 let set = *self.sets.get(&b.descriptor_set).ok_or_else(|| {
                     HarnessError::NotRealised(format!(
                         "descriptor set `{}` is bound but the state lacks it",
@@ -679,6 +703,9 @@ impl Realised {
                     ))
                 })?;
                 self.binds.push((layout, b.set + 1, set));
+            }
+            if let Some(m) = self.descriptor_memory.as_mut() {
+                m.add_binds(self.harness_layout, &buffer_binds)?;
             }
             for p in &st.pushes {
                 let layout = *self.pipeline_layouts.get(&p.layout).ok_or_else(|| {
@@ -702,7 +729,13 @@ impl Realised {
             self.modules.push((shader_kind(*stage, trace), m));
         }
         if let Some(p) = world.pipeline.as_ref() {
-            let rp = cache.create_pipeline_with(p, trace, self.harness_layout, &self.modules)?;
+            // A descriptor buffer pipeline is created with DESCRIPTOR_BUFFER_BIT_EXT, whatever its
+            // descriptors come from.
+            let mut p = p.clone();
+            if st.pipeline_descriptor_buffer {
+                p.flags.0 |= vk::PipelineCreateFlags::DESCRIPTOR_BUFFER_EXT.as_raw() as u64;
+            }
+            let rp = cache.create_pipeline_with(&p, trace, self.harness_layout, &self.modules)?;
             cache.resource_pipeline = Some(rp);
         }
         Ok(())
