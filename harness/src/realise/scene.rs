@@ -149,11 +149,13 @@ impl DeviceCache {
         built: &mut Scene,
     ) -> Result<(), HarnessError> {
         let bytes = scene.sphere_bytes();
+        // Every allocation on a device with bufferDeviceAddress is asked for its address, which needs
+        // SHADER_DEVICE_ADDRESS usage (VUID-VkBufferDeviceAddressInfo-buffer-02601).
         let spheres = Allocation::filled(
             &self.dev,
             &bytes,
             16,
-            vk::BufferUsageFlags::STORAGE_BUFFER,
+            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS,
             256,
         )?;
         built.spheres = spheres.buffer;

@@ -24,6 +24,8 @@ pub(crate) struct Allocation {
     pub(crate) buffer: vk::Buffer,
     pub(crate) address: u64,
     pub(crate) size: u64,
+    /// The usage it was made with (its device address is asked for only with SHADER_DEVICE_ADDRESS).
+    usage: vk::BufferUsageFlags,
     pieces: Vec<Piece>,
     /// The device, kept only when the memory is not HOST_COHERENT (to flush and invalidate).
     non_coherent: Option<ash::Device>,
@@ -66,8 +68,13 @@ fn allocate(dev: &VkDevice, size: u64, memory_type: u32) -> Result<vk::DeviceMem
     })
 }
 
-fn address_of(dev: &VkDevice, b: vk::Buffer) -> u64 {
-    if dev.has_feature("bufferDeviceAddress") {
+/// The buffer's device address, or 0 where it has none: the device lacks bufferDeviceAddress, or the
+/// buffer was made without SHADER_DEVICE_ADDRESS usage (asking would itself be invalid,
+/// VUID-VkBufferDeviceAddressInfo-buffer-02601).
+fn address_of(dev: &VkDevice, b: vk::Buffer, usage: vk::BufferUsageFlags) -> u64 {
+    if dev.has_feature("bufferDeviceAddress")
+        && usage.contains(vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS)
+    {
         // SAFETY: b is bound completely to memory allocated with DEVICE_ADDRESS, or sparse
         // (VUID-VkBufferDeviceAddressInfo-buffer-02600 exempts sparse buffers).
         unsafe {
@@ -159,7 +166,7 @@ impl Allocation {
                 "vkBindBufferMemory failed: {r:?}"
             )));
         }
-        let mut address = address_of(dev, buffer);
+        let mut address = address_of(dev, buffer, usage);
         let mut offset = 0;
         if bda && align > 1 && address % align != 0 {
             let delta = align - address % align;
@@ -188,7 +195,7 @@ impl Allocation {
                 )));
             }
             offset = delta;
-            address = address_of(dev, buffer);
+            address = address_of(dev, buffer, usage);
             if address % align != 0 {
                 cleanup(buffer);
                 return Err(HarnessError::NotRealised(format!(
@@ -211,6 +218,7 @@ impl Allocation {
             buffer,
             address,
             size,
+            usage,
             pieces: vec![Piece {
                 memory,
                 at: 0,
@@ -239,6 +247,7 @@ impl Allocation {
             buffer,
             address: 0,
             size,
+            usage,
             pieces: Vec::new(),
             non_coherent: None,
         };
@@ -328,7 +337,7 @@ impl Allocation {
             }
             self.write(0, &vec![0u8; self.size as usize]);
         }
-        self.address = address_of(dev, self.buffer);
+        self.address = address_of(dev, self.buffer, self.usage);
         if dev.has_feature("bufferDeviceAddress") && self.address % BUFFER_PLACEMENT_ALIGNMENT != 0
         {
             return Err(HarnessError::NotRealised(format!(

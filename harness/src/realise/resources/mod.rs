@@ -102,7 +102,9 @@ pub(crate) fn unsupported(world: &World) -> Option<String> {
     }
     if st.images.iter().any(|i| i.sparse_residency) || st.buffers.iter().any(|b| b.sparse_residency)
     {
-        return Some("sparse-resident images and buffers of a resource state are not realised yet".into());
+        return Some(
+            "sparse-resident images and buffers of a resource state are not realised yet".into(),
+        );
     }
     if st.images.iter().any(|i| i.corner_sampled) {
         return Some("corner-sampled images (VK_NV_corner_sampled_image) are not realised: lavapipe lacks the extension".into());
