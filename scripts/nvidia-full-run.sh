@@ -17,7 +17,7 @@
 #       build   vkCmdBuildAccelerationStructuresIndirectKHR, layer 1.3.239
 #       render  valid cases only, --valid-count per command (rendered scenes judged by the tracer), 1.3.239
 #       trace-1.4.309, build-1.4.309   the same under trixie's 1.4.309 layer and its own registry
-#       findings  the driver findings kept under cases/nvidia-h200/ (and their reduced variants), twice each,
+#       findings  the driver findings kept under cases/nvidia-h200/device-lost/ (and their reduced variants), twice each,
 #               then the same cases as the exported C programs --prepare compiled (.gl/bin/repro/)
 #       detect  rtconf detect: seeded faults by kind and size (the suite's detection against run time)
 #       stress  rtconf stress: the numerical stress families at full size on NVIDIA, layer 1.3.239, under
@@ -59,9 +59,9 @@ if [[ $prepare -eq 1 ]]; then
     cargo build --release -p rtconf-cli --bin rtconf
     bash scripts/nvidia-bundle.sh
     # The driver findings as standalone C programs (the machine there has no compiler): one per case
-    # of cases/nvidia-h200/ that `rtconf export` writes, linked against the loader the bundle carries.
+    # of cases/nvidia-h200/device-lost/ that `rtconf export` writes, linked against the loader the bundle carries.
     mkdir -p .gl/bin/repro
-    for c in cases/nvidia-h200/*.yaml cases/nvidia-h200/device-lost/*.yaml; do
+    for c in cases/nvidia-h200/device-lost/*.yaml; do
         n=$(basename "$c" .yaml)
         if target/release/rtconf export "$c" --out "target/repro/$n" >/dev/null 2>&1 \
             && cc -O1 "target/repro/$n/repro.c" -lvulkan -o ".gl/bin/repro/$n"; then
@@ -168,7 +168,7 @@ for p in $phases; do
             # The kept driver findings and their reduced variants (cases/nvidia-h200/), each run three
             # times: a finding that does not repeat shows as a flake.
             phase findings 1.3.239 run --driver nvidia --profile "$profile" --jobs 4 --retries 1 \
-                --timeout 20 --cases cases/nvidia-h200 --out "$out/findings"
+                --timeout 20 --cases cases/nvidia-h200/device-lost --out "$out/findings"
             # The same cases as the standalone programs a bug report carries (--prepare made them).
             mkdir -p "$out/repro"
             for r in .gl/bin/repro/*; do

@@ -495,7 +495,7 @@ fn the_nvidia_device_lost_cases_export_to_c_that_compiles() {
         "trace-indirect-rendered-314-39",
         "trace-rendered-316-19",
     ] {
-        let case = common::repo().join(format!("cases/nvidia-h200/{name}.yaml"));
+        let case = common::repo().join(format!("cases/nvidia-h200/device-lost/{name}.yaml"));
         let out = dir.join(name);
         export_build(&case, &out);
         let source = std::fs::read_to_string(out.join("repro.c")).unwrap();

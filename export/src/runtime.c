@@ -98,6 +98,8 @@ HELPER const char *version_text(uint32_t v) {
 /* Creates the instance (with the validation layer and a messenger when it is installed; `need_layer`:
  * the case cannot be judged without it), picks the first device and prints what runs the case. */
 HELPER void start(int need_layer) {
+    /* Line by line, so a driver that hangs or kills the program leaves what it printed so far. */
+    setvbuf(stdout, NULL, _IOLBF, 0);
     const uint32_t one = 1;
     if (*(const uint8_t *)&one != 1) {
         fprintf(stderr, "rtconf reproducer: the embedded data is little-endian; this host is not\n");
@@ -394,7 +396,13 @@ HELPER void submit_and_wait(VkCommandBuffer cb) {
     submit.commandBufferCount = 1;
     submit.pCommandBuffers = &cb;
     CHECK(vkQueueSubmit(queue, 1, &submit, fence));
-    CHECK(vkWaitForFences(device, 1, &fence, VK_TRUE, 60ull * 1000 * 1000 * 1000));
+    VkResult waited = vkWaitForFences(device, 1, &fence, VK_TRUE, 20ull * 1000 * 1000 * 1000);
+    if (waited == VK_TIMEOUT) {
+        /* Nothing the case submits runs for seconds: a work that has not finished in 20 s hangs. */
+        printf("verdict: the submitted work did not finish within 20 s (the device hangs)\n");
+        exit(1);
+    }
+    CHECK(waited);
     CHECK(vkResetFences(device, 1, &fence));
 }
 

@@ -8,6 +8,15 @@ use crate::error::HarnessError;
 use ash::vk;
 use model::world::{GeneralStage, Pipeline, PipelineApi, ShaderGroup};
 
+
+/// The create flags a `vkCreateRayTracingPipelinesNV` pipeline keeps of the case's: the KHR-only ones
+/// (NO_NULL_*, SKIP_*, LIBRARY) are not NV pipeline flags; a descriptor buffer pipeline's
+/// DESCRIPTOR_BUFFER_BIT_EXT is one.
+pub const NV_PIPELINE_FLAGS: vk::PipelineCreateFlags = vk::PipelineCreateFlags::from_raw(
+    vk::PipelineCreateFlags::DISABLE_OPTIMIZATION.as_raw()
+        | vk::PipelineCreateFlags::DEFER_COMPILE_NV.as_raw()
+        | vk::PipelineCreateFlags::DESCRIPTOR_BUFFER_EXT.as_raw(),
+);
 /// `VK_SHADER_UNUSED_KHR`.
 pub const SHADER_UNUSED: u32 = vk::SHADER_UNUSED_KHR;
 
@@ -171,12 +180,7 @@ impl PipelinePlan {
         }
         let flags = vk::PipelineCreateFlags::from_raw(p.flags.0 as u32);
         let flags = match p.api {
-            // The KHR-only flags (NO_NULL_*, SKIP_*, LIBRARY) are not NV pipeline flags.
-            PipelineApi::Nv => {
-                flags
-                    & (vk::PipelineCreateFlags::DISABLE_OPTIMIZATION
-                        | vk::PipelineCreateFlags::DEFER_COMPILE_NV)
-            }
+            PipelineApi::Nv => flags & NV_PIPELINE_FLAGS,
             PipelineApi::Khr => flags,
         };
         Ok(PipelinePlan {

@@ -273,13 +273,8 @@ impl DeviceCache {
             let hs = self.dev.limits.nv_handle_size as usize;
             let nv_groups: Vec<vk::RayTracingShaderGroupCreateInfoNV> =
                 group_infos!(groups, vk::RayTracingShaderGroupCreateInfoNV);
-            // The KHR-only flags (NO_NULL_*, SKIP_*, LIBRARY) are not NV pipeline flags.
             let info = vk::RayTracingPipelineCreateInfoNV::default()
-                .flags(
-                    flags
-                        & (vk::PipelineCreateFlags::DISABLE_OPTIMIZATION
-                            | vk::PipelineCreateFlags::DEFER_COMPILE_NV),
-                )
+                .flags(flags & crate::plan::pipeline::NV_PIPELINE_FLAGS)
                 .stages(&stages)
                 .groups(&nv_groups)
                 .max_recursion_depth(p.max_recursion_depth)
