@@ -29,7 +29,8 @@
 #     summary.json (stress: its cases by outcome from stress.json). --tar packs DIR into one file (for machines that hand back few files).
 #
 # The run phases take baselines/nvidia-h200.csv: the known driver findings are expected crashes there.
-# The commit is the checkout's (git rev-parse HEAD) unless --commit names it (a copy without .git).
+# The commit is the one --prepare built the bundle from (.gl/COMMIT), else the checkout's, unless
+# --commit names it.
 set -uo pipefail
 
 repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -49,7 +50,7 @@ while [[ $# -gt 0 ]]; do
         --phase-timeout) phase_timeout=$2; shift 2 ;;
         --stress-timeout) stress_timeout=$2; shift 2 ;;
         --tar) tar_file=$2; shift 2 ;;
-        -h|--help) sed -n '2,32p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        -h|--help) sed -n '2,33p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "nvidia-full-run: unknown argument $1 (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -58,6 +59,8 @@ if [[ $prepare -eq 1 ]]; then
     set -e
     cargo build --release -p rtconf-cli --bin rtconf
     bash scripts/nvidia-bundle.sh
+    # The commit the bundle was built from (a copied checkout's .git may be older than its files).
+    git rev-parse --short HEAD >.gl/COMMIT 2>/dev/null || true
     # The driver findings as standalone C programs (the machine there has no compiler): one per case
     # of cases/nvidia-h200/device-lost/ that `rtconf export` writes, linked against the loader the bundle carries.
     mkdir -p .gl/bin/repro
@@ -75,7 +78,7 @@ if [[ $prepare -eq 1 ]]; then
 fi
 
 [[ -n "$out" ]] || { echo "nvidia-full-run: --out DIR (or --prepare; see --help)" >&2; exit 2; }
-[[ -n "$commit" ]] || commit=$(git rev-parse HEAD 2>/dev/null || echo unknown)
+[[ -n "$commit" ]] || commit=$(cat .gl/COMMIT 2>/dev/null || git rev-parse HEAD 2>/dev/null || echo unknown)
 mkdir -p "$out"
 out=$(realpath "$out")
 readme="$out/README.md"
