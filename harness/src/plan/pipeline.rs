@@ -8,7 +8,6 @@ use crate::error::HarnessError;
 use ash::vk;
 use model::world::{GeneralStage, Pipeline, PipelineApi, ShaderGroup};
 
-
 /// The create flags a `vkCreateRayTracingPipelinesNV` pipeline keeps of the case's: the KHR-only ones
 /// (NO_NULL_*, SKIP_*, LIBRARY) are not NV pipeline flags; a descriptor buffer pipeline's
 /// DESCRIPTOR_BUFFER_BIT_EXT is one.
