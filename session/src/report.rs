@@ -260,8 +260,7 @@ pub(crate) fn judge_triage(
     s.triage.files = triage.files.clone();
     s.triage.entries = triage.entries.len();
     let used: BTreeSet<String> = s.triage.used.keys().cloned().collect();
-    s.triage.stale = crate::triage::stale(triage, &used, &ran, &exercised);
-    s.triage.unexercised = crate::triage::unexercised(triage, &used, &ran, &exercised);
+    (s.triage.stale, s.triage.unexercised) = crate::triage::unused(triage, &used, &ran, &exercised);
     s.triage.stale_judged = full;
     Ok(())
 }

@@ -113,17 +113,7 @@ impl DeviceCache {
         if let Some(l) = self.layouts.get(&(trace, api == PipelineApi::Nv)) {
             return Ok(*l);
         }
-        let bindings: Vec<vk::DescriptorSetLayoutBinding> =
-            crate::plan::trace::harness_bindings(trace, api)
-                .iter()
-                .map(|b| {
-                    vk::DescriptorSetLayoutBinding::default()
-                        .binding(b.binding)
-                        .descriptor_type(vk::DescriptorType::from_raw(b.ty))
-                        .descriptor_count(1)
-                        .stage_flags(vk::ShaderStageFlags::from_raw(b.stages))
-                })
-                .collect();
+        let bindings = harness_set_bindings(trace, api);
         let d = &self.dev.device;
         // SAFETY: valid create infos.
         let set = unsafe {
@@ -357,4 +347,22 @@ impl DeviceCache {
             default_stack_size,
         })
     }
+}
+
+/// The harness's descriptor set as Vulkan bindings: the plan's
+/// ([`crate::plan::trace::harness_bindings`]), one descriptor each.
+pub(crate) fn harness_set_bindings(
+    trace: bool,
+    api: PipelineApi,
+) -> Vec<vk::DescriptorSetLayoutBinding<'static>> {
+    crate::plan::trace::harness_bindings(trace, api)
+        .iter()
+        .map(|b| {
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(b.binding)
+                .descriptor_type(vk::DescriptorType::from_raw(b.ty))
+                .descriptor_count(1)
+                .stage_flags(vk::ShaderStageFlags::from_raw(b.stages))
+        })
+        .collect()
 }

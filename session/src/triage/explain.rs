@@ -221,45 +221,24 @@ impl Triage {
     }
 }
 
-/// The entries about a command of `ran` (commands whose cases ran) that explained nothing although the
-/// run exercised what they speak of: their ids. A VUID entry is judged only when some case that ran
-/// involved one of its VUIDs (`exercised`: the targets and the VUIDs model or layer reported); one whose
-/// VUIDs no case touched (the profile cannot express them, or their cases were not realised) is
-/// [`unexercised`], not stale. An `output` entry is judged whenever its command ran.
-pub fn stale(
+/// The entries about a command of `ran` (commands whose cases ran) that explained nothing, as two lists
+/// of ids: **stale** ones, although the run exercised what they speak of, and **unexercised** ones. A
+/// VUID entry is judged only when some case that ran involved one of its VUIDs (`exercised`: the targets
+/// and the VUIDs model or layer reported); one whose VUIDs no case touched (the profile cannot express
+/// them, or their cases were not realised) is unexercised, not stale. An `output` entry is judged
+/// whenever its command ran.
+pub fn unused(
     triage: &Triage,
     matched: &BTreeSet<String>,
     ran: &BTreeSet<CommandId>,
     exercised: &BTreeSet<String>,
-) -> Vec<String> {
-    judged(triage, matched, ran)
-        .filter(|e| e.observed.touches(exercised))
-        .map(TriageEntry::id)
-        .collect()
-}
-
-/// The entries about a command of `ran` that explained nothing and whose VUIDs no case of the run
-/// involved: nothing can be said of them from this run.
-pub fn unexercised(
-    triage: &Triage,
-    matched: &BTreeSet<String>,
-    ran: &BTreeSet<CommandId>,
-    exercised: &BTreeSet<String>,
-) -> Vec<String> {
-    judged(triage, matched, ran)
-        .filter(|e| !e.observed.touches(exercised))
-        .map(TriageEntry::id)
-        .collect()
-}
-
-fn judged<'a>(
-    triage: &'a Triage,
-    matched: &'a BTreeSet<String>,
-    ran: &'a BTreeSet<CommandId>,
-) -> impl Iterator<Item = &'a TriageEntry> {
-    triage
+) -> (Vec<String>, Vec<String>) {
+    let (stale, unexercised): (Vec<&TriageEntry>, Vec<&TriageEntry>) = triage
         .entries
         .iter()
         .filter(|e| e.commands.iter().any(|c| ran.contains(c)))
         .filter(|e| !matched.contains(&e.id()))
+        .partition(|e| e.observed.touches(exercised));
+    let ids = |v: Vec<&TriageEntry>| v.into_iter().map(TriageEntry::id).collect();
+    (ids(stale), ids(unexercised))
 }

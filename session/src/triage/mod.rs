@@ -8,7 +8,7 @@
 mod explain;
 mod pattern;
 
-pub use explain::{stale, unexercised, CaseFacts, Explanation, TriageMatch, Unexplained};
+pub use explain::{unused, CaseFacts, Explanation, TriageMatch, Unexplained};
 pub use pattern::Pattern;
 
 use crate::error::SessionError;

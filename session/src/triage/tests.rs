@@ -267,11 +267,11 @@ fn entries_no_case_used_are_stale_for_the_commands_that_ran() {
     let none = BTreeSet::new();
     let exercised: BTreeSet<String> = [V.to_string()].into();
     assert_eq!(
-        stale(&t, &none, &ran, &exercised),
+        unused(&t, &none, &ran, &exercised).0,
         vec![format!("test.yaml: layer-silent {V}")]
     );
     let used: BTreeSet<String> = [t.entries[0].id()].into();
-    assert!(stale(&t, &used, &ran, &exercised).is_empty());
+    assert!(unused(&t, &used, &ran, &exercised).0.is_empty());
     assert_eq!(t.entries[1].commands, [CommandId::TraceRaysNv].into());
 }
 
@@ -348,13 +348,13 @@ fn an_entry_whose_vuids_no_case_involved_is_unexercised_not_stale() {
     let ran: BTreeSet<CommandId> = [CommandId::TraceRaysIndirect].into();
     let none = BTreeSet::new();
     let other: BTreeSet<String> = ["VUID-vkCmdTraceRaysIndirectKHR-None-02697".to_string()].into();
-    assert!(stale(&t, &none, &ran, &other).is_empty());
+    assert!(unused(&t, &none, &ran, &other).0.is_empty());
     assert_eq!(
-        unexercised(&t, &none, &ran, &other),
+        unused(&t, &none, &ran, &other).1,
         vec![format!("test.yaml: layer-silent {V}")]
     );
     // Once a case with its VUID ran, the same entry explaining nothing is stale.
     let with_v: BTreeSet<String> = [V.to_string()].into();
-    assert_eq!(stale(&t, &none, &ran, &with_v).len(), 1);
-    assert!(unexercised(&t, &none, &ran, &with_v).is_empty());
+    assert_eq!(unused(&t, &none, &ran, &with_v).0.len(), 1);
+    assert!(unused(&t, &none, &ran, &with_v).1.is_empty());
 }

@@ -22,36 +22,7 @@ pub(super) fn harness_set_layout(
     trace: bool,
     api: model::world::PipelineApi,
 ) -> Result<vk::DescriptorSetLayout, HarnessError> {
-    let raygen = vk::ShaderStageFlags::RAYGEN_KHR;
-    let traced = if trace {
-        raygen | vk::ShaderStageFlags::CLOSEST_HIT_KHR
-    } else {
-        raygen
-    };
-    let storage = |binding: u32, stages| {
-        vk::DescriptorSetLayoutBinding::default()
-            .binding(binding)
-            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-            .descriptor_count(1)
-            .stage_flags(stages)
-    };
-    let any = vk::ShaderStageFlags::ANY_HIT_KHR;
-    let isect = vk::ShaderStageFlags::INTERSECTION_KHR;
-    let mut bindings = vec![
-        storage(1, raygen | any | isect),
-        storage(2, traced),
-        storage(3, raygen),
-        storage(4, isect),
-    ];
-    if trace {
-        bindings.push(
-            vk::DescriptorSetLayoutBinding::default()
-                .binding(0)
-                .descriptor_type(structure_type(api))
-                .descriptor_count(1)
-                .stage_flags(traced),
-        );
-    }
+    let bindings = crate::realise::pipeline::harness_set_bindings(trace, api);
     // SAFETY: a valid create info on a device with the descriptorBuffer feature.
     unsafe {
         dev.device.create_descriptor_set_layout(
