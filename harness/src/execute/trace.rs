@@ -11,7 +11,6 @@ use crate::vk::descriptors::{storage_write, structure_write, whole};
 use crate::vk::memory::Allocation;
 use ash::vk;
 use model::call::{Address, Call, StridedRegion};
-use model::flags::QueueFlags;
 use model::tracer::record::RayRecord;
 use model::world::{CommandBufferLevel, CommandBufferLifecycle};
 use std::time::Duration;
@@ -112,21 +111,6 @@ fn run(
     // What the device lacks (checked against its profile) before what the harness does not realise.
     if let Some(e) = super::unrealisable_command_buffer(&cache.dev.inst, cbs) {
         return Err(e);
-    }
-    if cbs.in_video_coding || cbs.protected || cbs.lifecycle == CommandBufferLifecycle::Invalid {
-        return Err(HarnessError::NotRealised(
-            "video coding scopes, protected and invalid command buffers are not realised by the harness yet".into(),
-        ));
-    }
-    if !cbs.pool_queue.contains(QueueFlags::COMPUTE_BIT) {
-        return Err(HarnessError::NotRealised(
-            "a command pool for a queue family without compute is not realised yet".into(),
-        ));
-    }
-    if cbs.level == CommandBufferLevel::Secondary && cbs.in_render_pass {
-        return Err(HarnessError::NotRealised(
-            "secondary command buffers inside a render pass are not realised yet".into(),
-        ));
     }
     // What the harness makes and records: the case's plan (its refusals come after the device's).
     let plan = crate::plan::TracePlan::of(case, valid)?;
