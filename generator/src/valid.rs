@@ -185,6 +185,29 @@ pub fn limit_dims(lim: &Limits, raw: &[(u8, u32); 3]) -> [u32; 3] {
     out
 }
 
+/// The drawn indices a rendered case keeps: its pipeline is only what its scene needs — two miss
+/// groups, and hit groups of the scene's kind beside the draw's own (two more like it: closest-hit,
+/// and any-hit by the draw's rule), no callables, no extra recursion, no NO_NULL flags and no dynamic
+/// stack. Those vary in the plain valid cases; here they would make nearly every rendered case a
+/// pipeline of its own, and a driver compiles each (lavapipe lowers a whole ray tracing pipeline into
+/// one compute shader). Rendered cases then share a handful of pipelines (one per kind and any-hit
+/// rule) while their SBT records still point at distinct hit groups.
+fn for_scene(raw: &Raw, d: &SceneDraw) -> Raw {
+    let procedural = scenes::is_procedural(d);
+    let any_hit = scenes::any_hit_rule(d).is_some();
+    Raw {
+        miss_groups: 2,
+        hit_groups: vec![(procedural, true, any_hit); 2],
+        callable_groups: 0,
+        callables: vec![],
+        extra_recursion: 0,
+        spare_depth: 0,
+        no_null: [false; 4],
+        dynamic_stack: false,
+        ..raw.clone()
+    }
+}
+
 /// Resolves drawn indices into a valid plan.
 pub fn resolve(
     raw: &Raw,
@@ -194,6 +217,8 @@ pub fn resolve(
     dims: DimensionRange,
     rendered: Option<&SceneDraw>,
 ) -> Plan {
+    let scene_raw = rendered.map(|d| for_scene(raw, d));
+    let raw = scene_raw.as_ref().unwrap_or(raw);
     // Pipeline: raygen, miss, hit, callable groups.
     let mut groups = vec![ShaderGroup::General {
         stage: GeneralStage::Raygen,
@@ -201,19 +226,21 @@ pub fn resolve(
     groups.extend((0..raw.miss_groups).map(|_| ShaderGroup::General {
         stage: GeneralStage::Miss,
     }));
+    // A rendered case's hit groups all follow its draw's any-hit rule.
+    let any_hit_rule = rendered.and_then(scenes::any_hit_rule).unwrap_or_default();
     for &(procedural, closest_hit, any_hit) in &raw.hit_groups {
         groups.push(if procedural {
             ShaderGroup::ProceduralHit {
                 closest_hit,
                 any_hit,
-                any_hit_rule: Default::default(),
+                any_hit_rule,
                 intersection: true,
             }
         } else {
             ShaderGroup::TrianglesHit {
                 closest_hit,
                 any_hit,
-                any_hit_rule: Default::default(),
+                any_hit_rule,
             }
         });
     }
