@@ -58,6 +58,11 @@ pub fn export(plan: &CallPlan, expect: &Expectation) -> Result<Program, NotExpor
             plan.device.unknown.join(", ")
         )));
     }
+    if plan.device.pool_family.is_some() {
+        return Err(refuse(
+            "its command pool is of a queue family without compute, and the C writer creates a device with the compute family's queue only",
+        ));
+    }
     let mut e = Emitter::default();
     header(&mut e, plan, expect);
     e.raw(RUNTIME);

@@ -1,7 +1,8 @@
 //! Cases run on real lavapipe under the validation layer: valid launches (indirect; with callables and
 //! recursion; with dynamic stack size; with sparse buffers) whose read-back words equal the model's
-//! expectation, invalid calls whose VUIDs the 1.3.239 layer reports, and memory bindings the harness
-//! cannot realise validly reported as unsupported with the VUID that forbids them.
+//! expectation, invalid calls whose VUIDs the 1.3.239 layer reports, memory bindings the harness
+//! cannot realise validly reported as unsupported with the VUID that forbids them, and a pool of a
+//! family without compute unsupported for lavapipe's one family.
 
 mod common;
 
@@ -262,4 +263,36 @@ fn an_unbound_sparse_buffer_of_an_invalid_case_is_recorded_not_submitted() {
     sparse(&mut case, 1, MemoryBinding::Unbound);
     misalign_indirect_address(&mut case);
     check(&mut ctx, &case, &[INDIRECT_03634]);
+}
+
+#[test]
+fn a_pool_without_compute_is_unsupported_on_lavapipe_and_leaves_its_other_cases_running() {
+    let mut ctx = executor();
+    let mut case = valid_case();
+    let cbs = &mut world(&mut case).command_buffer;
+    cbs.pool_queue = model::flags::QueueFlags::TRANSFER_BIT;
+    cbs.pipeline_bound = false;
+    case.intent = Intent::Violates {
+        vuid: "VUID-vkCmdTraceRaysIndirectKHR-commandBuffer-cmdpool".into(),
+        also: vec!["VUID-vkCmdTraceRaysIndirectKHR-None-02700".into()],
+    };
+    // The plan realises it (the command buffer from a family without compute, holding the call alone);
+    // lavapipe's one family has compute, so the device lacks such a family.
+    let plan = harness::plan::CallPlan::of(&case, &harness::Execution::default()).expect("a plan");
+    assert_eq!(
+        plan.device.pool_family,
+        Some(model::flags::QueueFlags::TRANSFER_BIT)
+    );
+    let obs = execute(&case, &mut ctx);
+    let Status::Unsupported { reason, lacks } = &obs.status else {
+        panic!("{obs:?}")
+    };
+    assert_eq!(
+        lacks,
+        &harness::observe::DeviceLack::QueueFamilyWithout("VK_QUEUE_COMPUTE_BIT".into())
+    );
+    assert!(reason.contains("1 queue family has compute"), "{reason}");
+    assert!(obs.layer_vuids.is_empty(), "{obs:?}");
+    // The device of the same extensions and features with the compute family only is another one.
+    check(&mut ctx, &valid_case(), &[]);
 }

@@ -3,14 +3,16 @@
 //! addresses; every committed trace case and every trace case a run of the committed profiles
 //! generates (lavapipe's, and the H200's with its vkCmdTraceRaysNV cases) is described — its scene
 //! (bottom levels, instance records, spheres), rays and records as the model states them, its steps
-//! around exactly one call, its call list naming the scene's builds — and the buffer plans write
-//! shader records and indirect commands where the world says.
+//! around exactly one call, its call list naming the scene's builds; a command buffer of a pool without
+//! compute (the H200's transfer families) holding the call alone — and the buffer plans write shader
+//! records and indirect commands where the world says.
 
 use harness::plan::scene::{GeometryDataPlan, ScenePlan};
 use harness::plan::trace::{buffer_plans, BufferWrite, TracePlan, RAY_RECORD_SIZE};
 use harness::plan::{CallPlan, PlanBody, Step};
 use harness::Execution;
 use model::accel::world::{AddressResolver, SyntheticAddresses};
+use model::flags::QueueFlags;
 use model::tracer::record::RayRecord;
 use model::world::Contents;
 use model::Case;
@@ -101,6 +103,15 @@ fn check_trace_plan(case: &Case, exec: &Execution) -> Result<TracePlan, String> 
     };
     let world = &body.world;
     assert_eq!(t.traces, world.launch.traces(), "{}", case.name);
+    if world
+        .command_buffer
+        .pool_queue
+        .contains(QueueFlags::COMPUTE_BIT)
+    {
+        assert_eq!((t.pool_family, plan.device.pool_family), (None, None));
+    } else {
+        check_pool_without_compute(case, t, plan.device.pool_family);
+    }
     let rays = if t.traces {
         world.launch.ray_list()
     } else {
@@ -225,15 +236,40 @@ fn check_trace_plan(case: &Case, exec: &Execution) -> Result<TracePlan, String> 
 }
 
 /// What the harness refuses to realise, and so the plan refuses: the reasons it may give.
-const REFUSALS: [&str; 7] = [
+const REFUSALS: [&str; 10] = [
     "cannot be called",
     "the case traces rays but does not enable",
     "video coding scopes, protected and invalid command buffers are not realised",
-    "a command pool for a queue family without compute is not realised",
+    "a command buffer of a pool without compute is never submitted",
+    "a pipeline bound in a pool without compute",
+    "a resource state in a pool without compute",
+    "a render pass in a pool without compute is not realised",
     "secondary command buffers inside a render pass are not realised",
     "is larger than the harness reads back",
     "procedural without an intersection shader",
 ];
+
+/// A plan whose command buffer comes from a pool of a family without compute records the call alone
+/// there: its steps are a begin, an end where the case is executable, and the call (dropped).
+fn check_pool_without_compute(case: &Case, t: &TracePlan, device_pool: Option<QueueFlags>) {
+    let cbs = &case.as_trace().expect("a trace case").world.command_buffer;
+    assert_eq!(t.pool_family, Some(cbs.pool_queue), "{}", case.name);
+    assert_eq!(
+        device_pool, t.pool_family,
+        "{}: the device gets its queue",
+        case.name
+    );
+    for s in &t.steps {
+        assert!(
+            matches!(
+                s,
+                Step::Begin { .. } | Step::End | Step::Call { dropped: true }
+            ),
+            "{}: {s:?} recorded in a pool without compute",
+            case.name
+        );
+    }
+}
 
 #[test]
 fn committed_trace_cases_are_described_by_the_call_plan() {
@@ -274,6 +310,10 @@ fn every_generated_trace_case_of_the_committed_profiles_is_planned() {
     let mut totals: BTreeMap<String, (usize, usize)> = BTreeMap::new();
     let mut refused: BTreeMap<String, usize> = BTreeMap::new();
     let mut nv_planned = 0;
+    // Cases whose pool's family lacks compute, per trace command: planned (on the H200's transfer
+    // families) and refused.
+    let mut pool_planned: BTreeMap<&str, usize> = BTreeMap::new();
+    let mut pool_refused = 0;
     let (mut not_generated, mut kept_from_drivers) = (0, 0);
     for name in ["lavapipe", "nvidia-h200"] {
         let text = std::fs::read_to_string(dir.join(format!("{name}.json"))).unwrap();
@@ -310,15 +350,28 @@ fn every_generated_trace_case_of_the_committed_profiles_is_planned() {
                     let exec = Execution::for_case(case, &profile);
                     let key = format!("{name} {}", command.vk_name());
                     let entry = totals.entry(key).or_default();
+                    let pool_without_compute = !case
+                        .as_trace()
+                        .expect("a trace case")
+                        .world
+                        .command_buffer
+                        .pool_queue
+                        .contains(QueueFlags::COMPUTE_BIT);
                     match check_trace_plan(case, &exec) {
                         Ok(t) => {
                             entry.0 += 1;
                             if t.api == model::world::PipelineApi::Nv {
                                 nv_planned += 1;
                             }
+                            if pool_without_compute {
+                                *pool_planned.entry(command.vk_name()).or_default() += 1;
+                            }
                         }
                         Err(why) => {
                             entry.1 += 1;
+                            if pool_without_compute {
+                                pool_refused += 1;
+                            }
                             assert!(
                                 REFUSALS.iter().any(|r| why.contains(r)),
                                 "{}: refused: {why}",
@@ -342,6 +395,17 @@ fn every_generated_trace_case_of_the_committed_profiles_is_planned() {
     assert!(ok > 1000, "{ok} trace cases described");
     assert!(no * 20 < ok, "{no} refused of {}", ok + no);
     assert!(nv_planned > 20, "{nv_planned} NV cases planned");
+    // The H200 has transfer-only families: its pool-without-compute cases (commandBuffer-cmdpool of
+    // every trace command) are planned, none refused.
+    eprintln!("pools without compute: planned {pool_planned:?}, refused {pool_refused}");
+    assert_eq!(pool_refused, 0, "cases of a pool without compute refused");
+    for command in model::CommandId::TRACE {
+        assert!(
+            pool_planned.get(command.vk_name()).copied().unwrap_or(0) >= 3,
+            "{}: {pool_planned:?}",
+            command.vk_name()
+        );
+    }
     for (key, (ok, _)) in &totals {
         assert!(*ok > 0, "{key}: no case described");
     }

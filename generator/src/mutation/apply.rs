@@ -15,6 +15,19 @@ fn registry_vuid(rules: &RuleSet, scope: &str, tag: &str) -> Option<String> {
         .map(|r| r.vuid.clone())
 }
 
+/// The rule that a pipeline is bound, of `scope`, as the loaded registry names it: 08607 where shaderObject
+/// is enabled, 08606 (02700 in older registries) where it is not.
+fn no_pipeline_vuids(plan: &Plan, rules: &RuleSet, scope: &str) -> Vec<String> {
+    let tags: &[&str] = if plan.device.features.contains("shaderObject") {
+        &["08607"]
+    } else {
+        &["02700", "08606"]
+    };
+    tags.iter()
+        .filter_map(|tag| registry_vuid(rules, scope, tag))
+        .collect()
+}
+
 /// A record handle that is valid for an unreached or miss-reached miss record.
 fn miss_handle(plan: &mut Plan) -> HandleRef {
     let gi = GroupIndex::of(&plan.groups);
@@ -424,17 +437,9 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
                 CommandBufferLifecycle::Initial,
                 CommandBufferLifecycle::Invalid,
             ][knob as usize % 3];
-            // Nothing is bound in a command buffer that was never begun: the pipeline rule fires too,
-            // 08607 where shaderObject is enabled, 08606 (02700 in older registries) where it is not.
+            // Nothing is bound in a command buffer that was never begun: the pipeline rule fires too.
             if plan.command_buffer.lifecycle == CommandBufferLifecycle::Initial {
-                let tags: &[&str] = if plan.device.features.contains("shaderObject") {
-                    &["08607"]
-                } else {
-                    &["02700", "08606"]
-                };
-                for tag in tags {
-                    also.extend(registry_vuid(input.rules, cmd.vk_name(), tag));
-                }
+                also.extend(no_pipeline_vuids(&plan, input.rules, cmd.vk_name()));
             }
         }
         Mutation::PoolWithoutCompute => {
@@ -443,6 +448,15 @@ pub fn apply(m: Mutation, mut plan: Plan, input: &MutationInput) -> Result<Mutat
                 .filter(|q| !q.is_empty_set() && !q.contains(QueueFlags::COMPUTE_BIT))
                 .collect();
             plan.command_buffer.pool_queue = families[input.pick as usize % families.len()];
+            // Nothing can be bound at the ray tracing bind point in such a pool (binding a ray tracing
+            // pipeline needs compute, VUID-vkCmdBindPipeline-pipelineBindPoint-02391, and so does the
+            // stack size, VUID-vkCmdSetRayTracingPipelineStackSizeKHR-commandBuffer-cmdpool): the
+            // pipeline rule fires too. As with no pipeline bound, a zero dimension reads no record, so
+            // 03429 (handles from the bound pipeline) cannot apply.
+            plan.command_buffer.pipeline_bound = false;
+            plan.command_buffer.stack_size_set = false;
+            plan.dims[(knob % 3) as usize] = 0;
+            also.extend(no_pipeline_vuids(&plan, input.rules, cmd.vk_name()));
         }
         Mutation::InsideRenderPass => {
             if !plan

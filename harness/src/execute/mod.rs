@@ -52,7 +52,19 @@ impl Execution {
     }
 }
 
-/// Runs cases on one driver, caching a device per distinct enabled (extensions, features) set.
+/// The capabilities of a case's command pool's queue family when it lacks compute: the device then
+/// also gets a queue of a family without compute, and the case's command buffer comes from its pool.
+pub(crate) fn pool_without_compute(
+    cbs: &model::world::CommandBufferState,
+) -> Option<model::flags::QueueFlags> {
+    (!cbs
+        .pool_queue
+        .contains(model::flags::QueueFlags::COMPUTE_BIT))
+    .then_some(cbs.pool_queue)
+}
+
+/// Runs cases on one driver, caching a device per distinct enabled (extensions, features) set and
+/// pool family without compute.
 pub struct Executor {
     inst: Arc<VkInstance>,
     devices: HashMap<String, Result<DeviceCache, HarnessError>>,
@@ -79,8 +91,14 @@ impl Executor {
         self.inst.running_on()
     }
 
+    /// The cache key of a world's device: its extensions and features, and the capabilities of its pool's
+    /// family where that lacks compute (such a device has a second queue).
     fn device_key(world: &World) -> String {
-        serde_json::to_string(&world.device).unwrap_or_default()
+        let device = serde_json::to_string(&world.device).unwrap_or_default();
+        match pool_without_compute(&world.command_buffer) {
+            Some(q) => format!("{device} pool {:#x}", q.0),
+            None => device,
+        }
     }
 
     /// Runs one case and reports what the layer said and what the device produced (see
@@ -112,6 +130,7 @@ impl Executor {
                 self.inst.clone(),
                 &world.device.extensions,
                 &world.device.features,
+                pool_without_compute(&world.command_buffer),
             )
             .and_then(DeviceCache::new);
             self.inst.collector.clear();
@@ -128,9 +147,10 @@ use crate::observe::DeviceLack;
 use ash::vk;
 
 /// Why a command buffer state cannot be realised on this device for any command, if it cannot: a
-/// protected command buffer, a video coding scope, a pool of a queue family without compute. What the
-/// device lacks is said as a [`DeviceLack`] (the session checks it against the profile); what the
-/// harness does not do, as not realised.
+/// protected command buffer, a video coding scope, a pool of a queue family without compute on a device
+/// whose every family has compute. What the device lacks is said as a [`DeviceLack`] (the session checks
+/// it against the profile); what the harness does not do, as not realised. What a command's plan cannot
+/// record in a pool without compute is the plan's to refuse.
 pub(crate) fn unrealisable_command_buffer(
     inst: &VkInstance,
     cbs: &model::world::CommandBufferState,
@@ -179,30 +199,16 @@ pub(crate) fn unrealisable_command_buffer(
             )
         });
     }
-    if !cbs
-        .pool_queue
-        .contains(model::flags::QueueFlags::COMPUTE_BIT)
-    {
-        let without_compute = families
+    // A pool of a family without compute comes from a queue of such a family the device is created with
+    // (`VkDevice::new`); a device whose every family has compute lacks one.
+    if pool_without_compute(cbs).is_some()
+        && families
             .iter()
-            .any(|p| !p.queue_flags.contains(vk::QueueFlags::COMPUTE));
-        return Some(if without_compute {
-            HarnessError::NotRealised(
-                "a pool of a queue family without compute needs the device created with a queue of that family \
-                 (VUID-vkCreateCommandPool-queueFamilyIndex-01937); the harness's device has its compute family only"
-                    .into(),
-            )
-        } else {
-            HarnessError::lacks(
-                DeviceLack::QueueFamilyWithout("VK_QUEUE_COMPUTE_BIT".into()),
-                format!(
-                    "a pool of a queue family without VK_QUEUE_COMPUTE_BIT needs such a family; every one of the \
-                     device's {} queue famil{} has compute",
-                    families.len(),
-                    if families.len() == 1 { "y" } else { "ies" }
-                ),
-            )
-        });
+            .all(|p| p.queue_flags.contains(vk::QueueFlags::COMPUTE))
+    {
+        return Some(crate::vk::device::lacks_family_without_compute(
+            families.len(),
+        ));
     }
     None
 }

@@ -1,12 +1,15 @@
-//! The trace path: the world realised on the device for its enabled state, the command buffer put in
-//! the case's state, the call recorded with the layer's messages collected (dropped unless the case is
-//! run as valid), and a valid launch submitted and its ray records read back.
+//! The trace path: the world realised on the device for its enabled state (on its compute queue), the
+//! command buffer — of the compute family's pool, or of a family without compute's where the case says
+//! so — put in the case's state as the plan's steps say, the call recorded with the layer's messages
+//! collected (dropped unless the case is run as valid), and a valid launch submitted and its ray
+//! records read back.
 
 use super::{failure, Executor};
 use crate::error::HarnessError;
 use crate::observe::{Observation, Output, Status};
+use crate::plan::{Barrier, Step};
 use crate::realise::{DeviceCache, Tlas, RAY_RECORD_SIZE};
-use crate::vk::commands::{begin_render_pass, memory_barrier};
+use crate::vk::commands::{begin_render_pass, memory_barrier, Commands};
 use crate::vk::descriptors::{storage_write, structure_write, whole};
 use crate::vk::memory::Allocation;
 use ash::vk;
@@ -29,16 +32,24 @@ pub(super) fn trace(ctx: &mut Executor, case: &model::TraceBody, run_valid: bool
     };
     let mut buffers = Vec::new();
     let mut res: Option<crate::realise::resources::Realised> = None;
+    let mut pool: Option<Commands> = None;
     let result = run(
         case,
         run_valid,
         cache,
-        &mut buffers,
-        &mut res,
+        Made {
+            buffers: &mut buffers,
+            res: &mut res,
+            pool: &mut pool,
+        },
         timeout,
         &collector,
     );
     let lost = cache.lost;
+    // A pool of a family without compute goes with its case (its command buffers were never submitted).
+    if let Some(p) = pool.filter(|_| !lost) {
+        p.destroy(&cache.dev);
+    }
     // The case's resource objects (and its pipeline) go with the case; a lost device leaks them.
     match res {
         Some(r) if !lost => r.destroy(cache),
@@ -85,15 +96,23 @@ fn region(
     })
 }
 
+/// What a case's run makes that its caller destroys afterwards, whether the run succeeded or not.
+struct Made<'m> {
+    buffers: &'m mut Vec<(String, Allocation)>,
+    res: &'m mut Option<crate::realise::resources::Realised>,
+    /// The pool of the device's family without compute, for a case whose pool's family lacks compute.
+    pool: &'m mut Option<Commands>,
+}
+
 fn run(
     case: &model::TraceBody,
     valid: bool,
     cache: &mut DeviceCache,
-    buffers: &mut Vec<(String, Allocation)>,
-    res: &mut Option<crate::realise::resources::Realised>,
+    made: Made<'_>,
     timeout: Duration,
     collector: &crate::vk::Collector,
 ) -> Result<Observation, HarnessError> {
+    let Made { buffers, res, pool } = made;
     let world = &case.world;
     let cbs = &world.command_buffer;
     let nv_call = matches!(case.call, Call::TraceRaysNv(_));
@@ -281,11 +300,19 @@ fn run(
         }
     };
     let secondary = cbs.level == CommandBufferLevel::Secondary;
-    let cb = if secondary {
-        cache.cmds.secondary
-    } else {
-        cache.cmds.cb
-    };
+    // The command buffer comes from the compute family's pool, or from a pool of the device's family
+    // without compute (made for this case) where the case's pool lacks compute.
+    if plan.pool_family.is_some() {
+        let family = cache.dev.pool_family.ok_or_else(|| {
+            HarnessError::Failed(
+                "the device was created without a queue of a family without compute".into(),
+            )
+        })?;
+        *pool = Some(Commands::of_family(&cache.dev, family)?);
+    }
+    let cmds = pool.as_ref().unwrap_or(&cache.cmds);
+    let cb = if secondary { cmds.secondary } else { cmds.cb };
+    let step = |s: Step| plan.steps.contains(&s);
     let d = &cache.dev.device;
     // SAFETY: recording into an idle command buffer with live objects.
     unsafe {
@@ -298,7 +325,7 @@ fn run(
             }
             d.begin_command_buffer(cb, &begin)
                 .map_err(|r| HarnessError::Failed(format!("vkBeginCommandBuffer: {r:?}")))?;
-            if trace {
+            if step(Step::Barrier(Barrier::SceneBuildToShaders)) {
                 // The scene was built by an earlier submission: a memory dependency from its build to the
                 // shaders' reads (submission order alone gives only an execution dependency). Recorded
                 // before any render pass begins, where a barrier would need a subpass self-dependency.
@@ -315,12 +342,12 @@ fn run(
                     ),
                 );
             }
-            if let Some(r) = res.as_ref() {
+            if let Some(r) = res.as_ref().filter(|_| step(Step::ResourceTransitions)) {
                 r.record_transitions(d, cb);
             }
-            if let Some(p) = vk_pipeline.filter(|_| cbs.pipeline_bound) {
+            if let Some(p) = vk_pipeline.filter(|_| step(Step::BindPipeline)) {
                 d.cmd_bind_pipeline(cb, vk::PipelineBindPoint::RAY_TRACING_KHR, p);
-                if cbs.stack_size_set {
+                if step(Step::SetStackSize) {
                     if let Some(rt) = &cache.dev.rt {
                         // The spec's default stack size for the pipeline (a fixed guess can be too small on
                         // a real GPU once closest-hit shaders recurse: undefined behaviour, not a test).
@@ -332,7 +359,9 @@ fn run(
             // With a resource state the harness set is bound with the case pipeline's realised layout,
             // then the case's own binds and pushes follow.
             let harness_layout = res.as_ref().map_or(layouts.pipeline, |r| r.harness_layout);
-            if !res.as_ref().is_some_and(|r| r.harness_set_in_buffer()) {
+            if step(Step::BindHarnessSet)
+                && !res.as_ref().is_some_and(|r| r.harness_set_in_buffer())
+            {
                 d.cmd_bind_descriptor_sets(
                     cb,
                     vk::PipelineBindPoint::RAY_TRACING_KHR,
@@ -342,7 +371,7 @@ fn run(
                     &[],
                 );
             }
-            if let Some(r) = res.as_ref() {
+            if let Some(r) = res.as_ref().filter(|_| step(Step::ResourceBinds)) {
                 r.record_binds(&cache.dev, cb);
             }
             if let Some(pass) = render_pass {

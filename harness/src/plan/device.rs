@@ -1,6 +1,6 @@
 //! The device of a plan: the extensions a case enables and its features resolved to the structures
 //! that hold them (`VkPhysicalDeviceFeatures` or a structure chained behind it), as the harness's
-//! device creation chains them on a Vulkan 1.3 device.
+//! device creation chains them on a Vulkan 1.3 device, and the queue families it gets a queue of.
 
 use crate::vk::structs::FEATURE_STRUCTS;
 use crate::vk::tables as vk_tables;
@@ -32,6 +32,10 @@ pub struct DevicePlan {
     pub chain: Vec<FeatureStruct>,
     /// Features no known structure holds (the device creation reports them unsupported).
     pub unknown: Vec<String>,
+    /// Besides the first family with compute, a queue of a family without compute whose capabilities
+    /// are these (or the nearest, as the harness's device creation picks it), for a command pool of
+    /// such a family.
+    pub pool_family: Option<model::flags::QueueFlags>,
 }
 
 /// The version every plan's device is assumed to have: the harness asks for Vulkan 1.3.

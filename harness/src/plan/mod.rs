@@ -102,10 +102,13 @@ impl CallPlan {
     /// The plan of `case` run as `exec` says, or what the harness cannot realise (`Unsupported`).
     pub fn of(case: &Case, exec: &Execution) -> Result<CallPlan, HarnessError> {
         let (device, body) = match (&case.body, case.as_trace(), case.as_accel()) {
-            (_, Some(t), _) => (
-                DevicePlan::of(&t.world.device.extensions, &t.world.device.features),
-                PlanBody::Trace(TracePlan::of(t, exec.run_valid)?),
-            ),
+            (_, Some(t), _) => {
+                let trace = TracePlan::of(t, exec.run_valid)?;
+                let mut device =
+                    DevicePlan::of(&t.world.device.extensions, &t.world.device.features);
+                device.pool_family = trace.pool_family;
+                (device, PlanBody::Trace(trace))
+            }
             (_, _, Some(a)) => (
                 DevicePlan::of(&a.world.device.extensions, &a.world.device.features),
                 PlanBody::Build(BuildPlan::of(a)?),
@@ -124,7 +127,7 @@ impl CallPlan {
     /// The call sequence as a person reads it, one line per object made or command recorded.
     pub fn describe(&self) -> Vec<String> {
         let mut out = vec![format!(
-            "vkCreateDevice with {} and {}",
+            "vkCreateDevice with {} and {}{}",
             if self.device.extensions.is_empty() {
                 "no extensions".to_string()
             } else {
@@ -134,6 +137,13 @@ impl CallPlan {
                 "no features".to_string()
             } else {
                 self.device.features.join(", ")
+            },
+            match self.device.pool_family {
+                Some(q) => format!(
+                    "; a queue of the first family with compute and one of a family without compute with {}",
+                    q.names().join(" | ")
+                ),
+                None => String::new(),
             }
         )];
         match &self.body {

@@ -108,6 +108,10 @@ pub struct TracePlan {
     pub scene: Option<ScenePlan>,
     pub bindings: Vec<BindingPlan>,
     pub io: IoPlan,
+    /// The capabilities of the queue family of the command buffer's pool when it lacks compute: the
+    /// device gets a queue of a family without compute, the command buffer comes from that family's
+    /// pool and holds the call alone (None: the compute family's pool).
+    pub pool_family: Option<QueueFlags>,
     /// The secondary level records the call.
     pub level: CommandBufferLevel,
     pub in_render_pass: bool,
@@ -346,10 +350,35 @@ impl TracePlan {
                 "video coding scopes, protected and invalid command buffers are not realised by the harness yet".into(),
             ));
         }
-        if !cbs.pool_queue.contains(QueueFlags::COMPUTE_BIT) {
-            return Err(HarnessError::NotRealised(
-                "a command pool for a queue family without compute is not realised yet".into(),
-            ));
+        let pool_family =
+            (!cbs.pool_queue.contains(QueueFlags::COMPUTE_BIT)).then_some(cbs.pool_queue);
+        if pool_family.is_some() {
+            // The command buffer comes from a pool of a family without compute, where nothing but the
+            // call is recorded: the world is realised on the compute queue first, and every command the
+            // harness records around a call needs compute or graphics in the pool's family.
+            if run_valid {
+                return Err(HarnessError::NotRealised(
+                    "a command buffer of a pool without compute is never submitted: no trace command is valid in it (VUID-vkCmdTraceRaysKHR-commandBuffer-cmdpool)".into(),
+                ));
+            }
+            if world.pipeline.is_some()
+                && cbs.pipeline_bound
+                && cbs.lifecycle != CommandBufferLifecycle::Initial
+            {
+                return Err(HarnessError::NotRealised(
+                    "a pipeline bound in a pool without compute: binding a ray tracing pipeline needs compute in the pool's family (VUID-vkCmdBindPipeline-pipelineBindPoint-02391), so such a pool's case states nothing bound".into(),
+                ));
+            }
+            if !world.resources.is_empty() {
+                return Err(HarnessError::NotRealised(
+                    "a resource state in a pool without compute: its descriptor binds need graphics or compute in the pool's family (VUID-vkCmdBindDescriptorSets-commandBuffer-cmdpool)".into(),
+                ));
+            }
+            if cbs.in_render_pass {
+                return Err(HarnessError::NotRealised(
+                    "a render pass in a pool without compute is not realised: the harness begins its empty render pass only in its compute family's pool (a family without compute would need graphics, VUID-vkCmdBeginRenderPass-commandBuffer-cmdpool)".into(),
+                ));
+            }
         }
         if cbs.level == CommandBufferLevel::Secondary && cbs.in_render_pass {
             return Err(HarnessError::NotRealised(
@@ -472,7 +501,10 @@ impl TracePlan {
                 level: cbs.level,
                 continue_render_pass: false,
             });
-            if traces {
+            // In a pool without compute nothing is recorded before the call: the barrier's stages, the
+            // binds and the harness's descriptor set need compute there (the case is never submitted).
+            let compute_pool = pool_family.is_none();
+            if traces && compute_pool {
                 // The scene was built by an earlier submission: a memory dependency from its build to
                 // the shaders' reads (submission order alone gives only an execution dependency).
                 // Recorded before any render pass begins, where a barrier would need a subpass
@@ -488,7 +520,9 @@ impl TracePlan {
                     steps.push(Step::SetStackSize);
                 }
             }
-            steps.push(Step::BindHarnessSet);
+            if compute_pool {
+                steps.push(Step::BindHarnessSet);
+            }
             if !world.resources.is_empty() {
                 steps.push(Step::ResourceBinds);
             }
@@ -550,6 +584,7 @@ impl TracePlan {
             scene,
             bindings: harness_bindings(traces, api),
             io,
+            pool_family,
             level: cbs.level,
             in_render_pass: cbs.in_render_pass,
             steps,
@@ -639,6 +674,12 @@ impl TracePlan {
             out.push(
                 "the resource state: descriptor sets, images, samplers, push constants".into(),
             );
+        }
+        if let Some(q) = self.pool_family {
+            out.push(format!(
+                "vkCreateCommandPool of the device's queue family without compute for {} (the world above made on the compute queue); the command buffer from it",
+                names(q.names())
+            ));
         }
         for s in &self.steps {
             if let Step::Call { .. } = s {

@@ -226,7 +226,7 @@ pub(crate) fn device_for(
         ext.insert("VK_KHR_ray_tracing_pipeline".into());
         feat.insert("rayTracingPipeline".into());
     }
-    VkDevice::new(inst.clone(), &ext, &feat)
+    VkDevice::new(inst.clone(), &ext, &feat, None)
 }
 
 /// Creates the case's buffers and structures and writes the memory image. Memory follows each buffer's

@@ -1,5 +1,6 @@
-//! One-shot command buffers: a pool with a primary and a secondary buffer, a fence, begin / barrier /
-//! submit-and-wait, and an empty render pass for calls recorded inside one.
+//! One-shot command buffers: a pool (of the compute family, or of a case's family without compute) with a
+//! primary and a secondary buffer, a fence, begin / barrier / submit-and-wait, and an empty render pass
+//! for calls recorded inside one.
 
 use crate::error::{vkfail, HarnessError};
 use crate::vk::VkDevice;
@@ -16,14 +17,21 @@ pub(crate) struct Commands {
 }
 
 impl Commands {
+    /// The compute family's pool, whose buffers the harness submits.
     pub(crate) fn new(dev: &VkDevice) -> Result<Commands, HarnessError> {
+        Commands::of_family(dev, dev.queue_family)
+    }
+
+    /// A pool of `family`, one the device was created with a queue of. Only the compute family's
+    /// buffers are submitted ([`Commands::submit_and_wait`] uses the device's compute queue).
+    pub(crate) fn of_family(dev: &VkDevice, family: u32) -> Result<Commands, HarnessError> {
         let d = &dev.device;
         // SAFETY: valid create infos.
         unsafe {
             let pool = d
                 .create_command_pool(
                     &vk::CommandPoolCreateInfo::default()
-                        .queue_family_index(dev.queue_family)
+                        .queue_family_index(family)
                         .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
                     None,
                 )

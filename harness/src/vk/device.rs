@@ -1,5 +1,6 @@
 //! Devices created with exactly the extensions and features a case enables (or the reason it cannot
-//! be), with the ray tracing limits the harness lays tables out with.
+//! be), with a queue of the compute family and, for a case whose command pool's family lacks compute, a
+//! queue of such a family; and the ray tracing limits the harness lays tables out with.
 
 use super::instance::VkInstance;
 use crate::error::HarnessError;
@@ -7,6 +8,7 @@ use crate::vk::layout::{self, EXTENSIBLE_HEADER};
 use crate::vk::structs::{self, RawChain, FEATURE_STRUCTS};
 use crate::vk::tables as vk_tables;
 use ash::vk;
+use model::flags::QueueFlags;
 use std::collections::{BTreeMap, BTreeSet};
 use std::ffi::CString;
 use std::sync::Arc;
@@ -106,12 +108,79 @@ pub(crate) struct RtLimits {
     pub(crate) nv_handle_size: u32,
 }
 
+/// How the family chosen for a command pool without compute matches the capabilities a case states.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum PoolMatch {
+    /// Its flags, as far as the model names queue flags, are the case's.
+    Exact,
+    /// It has every capability the case states and more (the fewest more of any such family).
+    Superset,
+    /// It lacks some capability the case states besides compute (the most of them of any family).
+    Nearest,
+}
+
+/// The queue family a command pool of a family with `want` and without compute comes from, among
+/// `families` (the device's, in order), and how it matches; None when every family has compute.
+///
+/// Flags are compared on the bits the model names ([`QueueFlags::NAMES`]): a driver's family may carry
+/// bits no profile records (optical flow, for one), which no rule reads. An exact match is taken
+/// first, then the family with every stated capability and the fewest others, then the one with the
+/// most of them. The last two still give the layer the call the case states: a trace command's (and a
+/// build's) only rule on its pool's family is that it has compute
+/// (`VUID-vkCmdTraceRaysKHR-commandBuffer-cmdpool` and its siblings), and every candidate lacks it.
+pub(crate) fn pool_family(
+    families: &[vk::QueueFlags],
+    want: QueueFlags,
+) -> Option<(usize, PoolMatch)> {
+    let known = QueueFlags::NAMES.iter().fold(0u64, |a, (_, v)| a | v);
+    let named = |f: &vk::QueueFlags| QueueFlags(f.as_raw() as u64 & known);
+    let without: Vec<(usize, QueueFlags)> = families
+        .iter()
+        .map(named)
+        .enumerate()
+        .filter(|(_, f)| !f.contains(QueueFlags::COMPUTE_BIT))
+        .collect();
+    if let Some((i, _)) = without.iter().find(|(_, f)| *f == want) {
+        return Some((*i, PoolMatch::Exact));
+    }
+    let extra = |f: &QueueFlags| f.without(want).0.count_ones();
+    if let Some((i, _)) = without
+        .iter()
+        .filter(|(_, f)| f.contains(want.without(QueueFlags::COMPUTE_BIT)))
+        .min_by_key(|(i, f)| (extra(f), *i))
+    {
+        return Some((*i, PoolMatch::Superset));
+    }
+    let shared = |f: &QueueFlags| QueueFlags(f.0 & want.0).0.count_ones();
+    without
+        .iter()
+        .max_by_key(|(i, f)| (shared(f), std::cmp::Reverse(*i)))
+        .map(|(i, _)| (*i, PoolMatch::Nearest))
+}
+
+/// What a device with `count` queue families, every one with compute, lacks for a command pool of a
+/// family without compute.
+pub(crate) fn lacks_family_without_compute(count: usize) -> HarnessError {
+    HarnessError::lacks(
+        crate::observe::DeviceLack::QueueFamilyWithout("VK_QUEUE_COMPUTE_BIT".into()),
+        format!(
+            "a pool of a queue family without VK_QUEUE_COMPUTE_BIT needs such a family; every one of the \
+             device's {count} queue famil{} has compute",
+            if count == 1 { "y" } else { "ies" }
+        ),
+    )
+}
+
 /// A logical device with exactly a case's extensions and features, and what the harness needs of it.
 pub(crate) struct VkDevice {
     pub(crate) inst: Arc<VkInstance>,
     pub(crate) device: ash::Device,
+    /// The queue of the compute family, which every submission of the harness goes to.
     pub(crate) queue: vk::Queue,
     pub(crate) queue_family: u32,
+    /// The family without compute the device also has a queue of, for a case whose command pool's
+    /// family lacks compute ([`pool_family`]); nothing is submitted to it.
+    pub(crate) pool_family: Option<u32>,
     pub(crate) features: BTreeSet<String>,
     pub(crate) rt: Option<ash::khr::ray_tracing_pipeline::Device>,
     pub(crate) accel: Option<ash::khr::acceleration_structure::Device>,
@@ -128,11 +197,15 @@ pub(crate) struct VkDevice {
 }
 
 impl VkDevice {
-    /// Creates a device with exactly `extensions` and `features` enabled, or says what the driver lacks.
+    /// Creates a device with exactly `extensions` and `features` enabled, with a queue of the first
+    /// family with compute and, when `pool_without_compute` states a pool's family, a queue of the family
+    /// [`pool_family`] picks for it (VUID-vkCreateCommandPool-queueFamilyIndex-01937: a pool's family is
+    /// one the device was created with); or says what the driver lacks.
     pub(crate) fn new(
         inst: Arc<VkInstance>,
         extensions: &BTreeSet<String>,
         features: &BTreeSet<String>,
+        pool_without_compute: Option<QueueFlags>,
     ) -> Result<VkDevice, HarnessError> {
         let available = inst.device_extensions();
         let missing: Vec<&String> = extensions
@@ -162,10 +235,25 @@ impl VkDevice {
                 "no queue family with VK_QUEUE_COMPUTE_BIT",
             ));
         };
+        let pool_family = match pool_without_compute {
+            None => None,
+            Some(want) => {
+                let flags: Vec<vk::QueueFlags> = families.iter().map(|f| f.queue_flags).collect();
+                match pool_family(&flags, want) {
+                    Some((i, _)) => Some(i as u32),
+                    None => return Err(lacks_family_without_compute(families.len())),
+                }
+            }
+        };
         let priorities = [1.0f32];
-        let queue_info = [vk::DeviceQueueCreateInfo::default()
-            .queue_family_index(family as u32)
-            .queue_priorities(&priorities)];
+        let queue_info: Vec<vk::DeviceQueueCreateInfo> = std::iter::once(family as u32)
+            .chain(pool_family)
+            .map(|f| {
+                vk::DeviceQueueCreateInfo::default()
+                    .queue_family_index(f)
+                    .queue_priorities(&priorities)
+            })
+            .collect();
         let ext_c: Vec<CString> = extensions
             .iter()
             .filter_map(|e| CString::new(e.as_str()).ok())
@@ -263,6 +351,7 @@ impl VkDevice {
             device,
             queue,
             queue_family: family as u32,
+            pool_family,
             features: features.clone(),
             rt,
             accel,
@@ -314,5 +403,56 @@ impl Drop for VkDevice {
             let _ = self.device.device_wait_idle();
             self.device.destroy_device(None);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const G: vk::QueueFlags = vk::QueueFlags::GRAPHICS;
+    const C: vk::QueueFlags = vk::QueueFlags::COMPUTE;
+    const T: vk::QueueFlags = vk::QueueFlags::TRANSFER;
+    const S: vk::QueueFlags = vk::QueueFlags::SPARSE_BINDING;
+    const V: vk::QueueFlags = vk::QueueFlags::VIDEO_DECODE_KHR;
+
+    #[test]
+    fn a_pool_family_matches_the_stated_flags_first() {
+        // The H200's families as its profile lists them.
+        let h200 = [G | C | T | S, T | S, C | T | S, T | S, T | S];
+        let ts = QueueFlags::TRANSFER_BIT | QueueFlags::SPARSE_BINDING_BIT;
+        assert_eq!(pool_family(&h200, ts), Some((1, PoolMatch::Exact)));
+        // Bits no rule reads (optical flow) do not spoil a match.
+        let flow = vk::QueueFlags::OPTICAL_FLOW_NV;
+        assert_eq!(
+            pool_family(&[G | C | T, T | S | flow], ts),
+            Some((1, PoolMatch::Exact))
+        );
+        // Transfer only asked, none that exact: the family with the fewest other capabilities.
+        let t = QueueFlags::TRANSFER_BIT;
+        assert_eq!(
+            pool_family(&[G | C | T, V | T | S, T | S], t),
+            Some((2, PoolMatch::Superset))
+        );
+        // Sparse binding asked and no family without compute has it: the one sharing the most.
+        assert_eq!(
+            pool_family(&[G | C | T | S, V, T], ts),
+            Some((2, PoolMatch::Nearest))
+        );
+    }
+
+    #[test]
+    fn no_pool_family_where_every_family_has_compute() {
+        let lavapipe = [G | C | T];
+        assert_eq!(pool_family(&lavapipe, QueueFlags::TRANSFER_BIT), None);
+        let e = lacks_family_without_compute(lavapipe.len());
+        let HarnessError::DeviceLacks { lack, reason } = e else {
+            panic!("{e:?}")
+        };
+        assert_eq!(
+            lack,
+            crate::observe::DeviceLack::QueueFamilyWithout("VK_QUEUE_COMPUTE_BIT".into())
+        );
+        assert!(reason.contains("1 queue family has compute"), "{reason}");
     }
 }

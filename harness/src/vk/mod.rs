@@ -5,7 +5,7 @@
 
 pub(crate) mod commands;
 pub(crate) mod descriptors;
-mod device;
+pub(crate) mod device;
 mod instance;
 pub(crate) mod layout;
 pub(crate) mod memory;
