@@ -16,6 +16,7 @@ pub mod plan;
 pub mod probe;
 pub(crate) mod realise;
 pub(crate) mod shaders;
+pub mod timing;
 pub(crate) mod vk;
 pub mod worker;
 

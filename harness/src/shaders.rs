@@ -170,6 +170,7 @@ pub(crate) fn compile_glsl(
     std::fs::create_dir_all(&dir).map_err(|e| io(&dir, e))?;
     let spv = dir.join(format!("{key:016x}.spv"));
     if !spv.exists() {
+        let _phase = crate::timing::span(crate::timing::Phase::Shaders);
         let pid = std::process::id();
         let src = dir.join(format!("{key:016x}-{pid}.{ext}"));
         std::fs::write(&src, text).map_err(|e| io(&src, e))?;

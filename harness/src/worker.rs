@@ -7,7 +7,7 @@ use crate::execute::{Execution, Executor};
 use crate::observe::{Observation, Status};
 use crate::vk::Driver;
 use model::case::Case;
-use std::collections::VecDeque;
+use std::collections::{BTreeMap, VecDeque};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::PathBuf;
 use std::process::{Child, ChildStdin, Command, Stdio};
@@ -51,6 +51,10 @@ pub struct Response {
     pub observation: Observation,
     /// Wall time of the case in the worker, in milliseconds.
     pub millis: f64,
+    /// Of that, the milliseconds per phase of the execution ([`crate::timing`]); the rest is the
+    /// worker's own (reading the request, the plan, destroying the case's objects).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub phases: BTreeMap<String, f64>,
 }
 
 impl Request {
@@ -61,6 +65,7 @@ impl Request {
             name: self.case.name.clone(),
             observation: Observation::with_status(status),
             millis,
+            phases: BTreeMap::new(),
         }
     }
 }
@@ -78,6 +83,7 @@ pub fn worker_main() -> i32 {
             continue;
         }
         let started = Instant::now();
+        let _ = crate::timing::take();
         let (index, name, observation) = match serde_json::from_str::<Request>(&line) {
             Err(e) => {
                 let index = serde_json::from_str::<serde_json::Value>(&line)
@@ -108,6 +114,7 @@ pub fn worker_main() -> i32 {
             name,
             observation,
             millis: started.elapsed().as_secs_f64() * 1000.0,
+            phases: crate::timing::take(),
         };
         let Ok(text) = serde_json::to_string(&response) else {
             return 3;

@@ -379,6 +379,7 @@ mod tests {
             detail: String::new(),
             triage: vec![],
             millis: 1.0,
+            phases: Default::default(),
             injection: None,
         }
     }

@@ -71,6 +71,10 @@ pub struct CaseReport {
     #[serde(default, rename = "matched", skip_serializing_if = "Vec::is_empty")]
     pub triage: Vec<TriageMatch>,
     pub millis: f64,
+    /// Where the case's time went, in milliseconds: the worker's execution phases
+    /// (`harness::timing`) and the runner's judging (`judge`).
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub phases: std::collections::BTreeMap<String, f64>,
     /// In a run with `--inject`: the injection, and whether the driver ran the perturbed copy.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub injection: Option<crate::inject::CaseInjection>,
@@ -91,6 +95,7 @@ impl CaseReport {
             detail: String::new(),
             triage: vec![],
             millis,
+            phases: Default::default(),
             injection: None,
         }
     }

@@ -90,6 +90,12 @@ pub struct Summary {
     pub runner_peak_rss_kib: Option<u64>,
     /// Wall time of the run, in seconds.
     pub seconds: f64,
+    /// Where the cases' time went, in seconds summed over the cases (so over the workers, which run
+    /// side by side): each execution phase of `harness::timing`, `worker-other` (the rest of the
+    /// workers' per-case time: the plan, destroying the case's objects) and `judge` (the runner's
+    /// judging).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub time: BTreeMap<String, f64>,
     pub vuids: BTreeMap<String, VuidTally>,
     /// Per trace command: the rendered output judged per ray (counts, VARY share, error quantiles).
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
@@ -182,6 +188,17 @@ pub fn summarise(
                 .add(x);
         }
         *s.statuses.entry(line.status).or_default() += 1;
+        let mut in_phases = 0.0;
+        for (phase, ms) in &r.phases {
+            *s.time.entry(phase.clone()).or_default() += ms / 1000.0;
+            if phase != "judge" {
+                in_phases += ms;
+            }
+        }
+        if !r.phases.is_empty() {
+            *s.time.entry("worker-other".into()).or_default() +=
+                (r.millis - in_phases).max(0.0) / 1000.0;
+        }
         s.retries += line.attempts.len().saturating_sub(1);
         match r.outcome {
             Outcome::Pass => s.passed += 1,

@@ -239,6 +239,7 @@ impl Judging<'_> {
             name: case.name.clone(),
             observation: harness::Observation::crash("the worker gave no result"),
             millis: 0.0,
+            phases: Default::default(),
         });
         let ran = as_run(case, &resp.observation).into_owned();
         let verdict = self.rules.judge(self.profile, &ran.body);
@@ -842,8 +843,13 @@ impl Dispatch<'_> {
         note: &Option<crate::inject::CaseInjection>,
         resp: &Response,
     ) -> (CaseReport, CaseDetails) {
+        let judging = std::time::Instant::now();
         let (mut report, verdict) = self.judging.judge_with_verdict(case, resp);
         report.injection = note.clone();
+        report.phases = resp.phases.clone();
+        report
+            .phases
+            .insert("judge".into(), judging.elapsed().as_secs_f64() * 1000.0);
         let details = CaseDetails {
             violations: verdict.violations,
             layer_messages: resp.observation.layer_messages.clone(),

@@ -352,6 +352,16 @@ pub fn print_summary(s: &Summary, out: &Path, not_expressible: usize, verbose: b
         s.cases as f64 / s.seconds.max(1e-9),
         s.runner_peak_rss_kib.map_or("?".into(), |k| k.to_string())
     );
+    if !s.time.is_empty() {
+        let total: f64 = s.time.values().sum();
+        let mut parts: Vec<(&String, &f64)> = s.time.iter().collect();
+        parts.sort_by(|a, b| b.1.total_cmp(a.1));
+        let parts: Vec<String> = parts
+            .iter()
+            .map(|(k, v)| format!("{k} {v:.1} s ({:.0}%)", 100.0 * **v / total.max(1e-9)))
+            .collect();
+        println!("spent:   {}", parts.join(", "));
+    }
     for (command, r) in &s.rendered {
         let q = |x: &session::rendered::Quantiles| {
             format!(

@@ -250,10 +250,14 @@ pub(crate) fn execute(inst: &Arc<VkInstance>, case: &Case, exec: &super::Executi
         Ok(p) => p,
         Err(e) => return failure(e),
     };
-    let dev = match device_for(inst, body, check) {
-        Ok(d) => d,
-        Err(e) => return failure(e),
+    let dev = {
+        let _phase = crate::timing::span(crate::timing::Phase::Device);
+        match device_for(inst, body, check) {
+            Ok(d) => d,
+            Err(e) => return failure(e),
+        }
     };
+    let _phase = crate::timing::span(crate::timing::Phase::Structures);
     let result = (|| -> Result<(), HarnessError> {
         let mut cmds = Commands::new(&dev)?;
         let r = match realise(&dev, &plan, cmds.fence) {

@@ -126,6 +126,7 @@ impl Executor {
     fn device(&mut self, world: &World) -> Result<&mut DeviceCache, HarnessError> {
         let key = Self::device_key(world);
         if !self.devices.contains_key(&key) {
+            let _phase = crate::timing::span(crate::timing::Phase::Device);
             let made = VkDevice::new(
                 self.inst.clone(),
                 &world.device.extensions,

@@ -9,6 +9,7 @@ use crate::error::HarnessError;
 use crate::observe::{Observation, Output, Status};
 use crate::plan::{Barrier, Step};
 use crate::realise::{DeviceCache, Tlas, RAY_RECORD_SIZE};
+use crate::timing::{span, Phase};
 use crate::vk::commands::{begin_render_pass, memory_barrier, Commands};
 use crate::vk::descriptors::{storage_write, structure_write, whole};
 use crate::vk::memory::Allocation;
@@ -133,6 +134,7 @@ fn run(
     }
     // What the harness makes and records: the case's plan (its refusals come after the device's).
     let plan = crate::plan::TracePlan::of(case, valid)?;
+    let _phase = span(Phase::Resources);
     let trace = plan.traces;
     let api = plan.api;
     let words = plan.io.records * RayRecord::WORDS;
@@ -151,6 +153,7 @@ fn run(
     *buffers = cache.case_buffers(&plan.buffers, pipeline.map(|p| (p, trace)))?;
     let (tlas, spheres) = match &plan.scene {
         Some(scene) => {
+            let _phase = span(Phase::Structures);
             let (t, s) = cache.scene(&world.launch.scene, scene)?;
             (Some(t), Some(s))
         }
@@ -314,6 +317,7 @@ fn run(
     let cb = if secondary { cmds.secondary } else { cmds.cb };
     let step = |s: Step| plan.steps.contains(&s);
     let d = &cache.dev.device;
+    let recording = span(Phase::Record);
     // SAFETY: recording into an idle command buffer with live objects.
     unsafe {
         if cbs.lifecycle != CommandBufferLifecycle::Initial {
@@ -443,6 +447,7 @@ fn run(
         }
     }
     collector.set_abort(false);
+    drop(recording);
     let mut obs = Observation::with_status(Status::Ran);
     obs.set_messages(collector.take());
     if !valid
@@ -467,7 +472,11 @@ fn run(
             .map_err(|r| HarnessError::Failed(format!("vkEndCommandBuffer: {r:?}")))?;
     }
     collector.clear();
-    cache.submit_and_wait(timeout)?;
+    {
+        let _phase = span(Phase::Gpu);
+        cache.submit_and_wait(timeout)?;
+    }
+    let _phase = span(Phase::Readback);
     let out = cache.output.as_ref().expect("made above");
     obs.output = Some(Output::Words(out.read_u32s(words)));
     Ok(obs)

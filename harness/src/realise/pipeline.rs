@@ -180,6 +180,7 @@ impl DeviceCache {
         layout: vk::PipelineLayout,
         modules: &[(ShaderKind, vk::ShaderModule)],
     ) -> Result<RealPipeline, HarnessError> {
+        let _phase = crate::timing::span(crate::timing::Phase::Pipeline);
         let api = p.api;
         match api {
             PipelineApi::Khr if self.dev.rt.is_none() => {
