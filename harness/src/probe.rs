@@ -32,8 +32,14 @@ const FORMATS: &[(vk::Format, &str)] = &[
     ),
     (vk::Format::R32G32B32A32_UINT, "VK_FORMAT_R32G32B32A32_UINT"),
     // Formats that need a sampler Y′CbCr conversion: single-plane 4:2:2 and two- and three-plane.
-    (vk::Format::G8B8G8R8_422_UNORM, "VK_FORMAT_G8B8G8R8_422_UNORM"),
-    (vk::Format::B8G8R8G8_422_UNORM, "VK_FORMAT_B8G8R8G8_422_UNORM"),
+    (
+        vk::Format::G8B8G8R8_422_UNORM,
+        "VK_FORMAT_G8B8G8R8_422_UNORM",
+    ),
+    (
+        vk::Format::B8G8R8G8_422_UNORM,
+        "VK_FORMAT_B8G8R8G8_422_UNORM",
+    ),
     (
         vk::Format::G8_B8R8_2PLANE_420_UNORM,
         "VK_FORMAT_G8_B8R8_2PLANE_420_UNORM",

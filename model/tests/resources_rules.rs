@@ -91,6 +91,7 @@ fn compatibility_compares_set_layout_definitions_not_names() {
         binding: 0,
         ty: t,
         count: 1,
+        immutable_samplers: vec![],
     };
     let st = ResourceState {
         set_layouts: vec![

@@ -98,7 +98,13 @@ pub fn resolve(rs: &ResourceState) -> Vec<Resolved<'_>> {
                 Some(Descriptor::Image { view, sampler, .. }) => {
                     r.view = rs.image_view(view);
                     r.image = r.view.and_then(|v| rs.image(&v.image));
-                    r.sampler = sampler.as_deref().and_then(|s| rs.sampler(s));
+                    // An immutable sampler of the binding is the one used, whatever was written.
+                    let immutable = binding
+                        .and_then(|b| b.immutable_samplers.get(a.element as usize))
+                        .filter(|_| {
+                            binding.is_some_and(|b| b.ty == DescriptorType::CombinedImageSampler)
+                        });
+                    r.sampler = immutable.or(sampler.as_ref()).and_then(|s| rs.sampler(s));
                 }
                 Some(Descriptor::TexelBuffer { view }) => {
                     r.buffer_view = rs.buffer_view(view);
