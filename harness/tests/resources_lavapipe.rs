@@ -126,7 +126,6 @@ fn families_the_harness_does_not_realise_say_so() {
             "vkCmdTraceRaysIndirectKHR-None-08117-4-0",
             "descriptor buffers",
         ),
-        ("vkCmdTraceRaysIndirectKHR-None-06550-4-0", "YCbCr"),
     ] {
         let obs = execute(&case(name), &mut ctx);
         match &obs.status {
