@@ -140,7 +140,11 @@ fn a_ycbcr_view_without_an_immutable_ycbcr_sampler_is_not_realised() {
     let mut c = lvp.cases(CommandId::TraceRays, "-06551").remove(0);
     sample_without_offset(&mut c);
     let st = &mut c.as_trace_mut().unwrap().world.resources;
-    for b in st.set_layouts.iter_mut().flat_map(|l| l.bindings.iter_mut()) {
+    for b in st
+        .set_layouts
+        .iter_mut()
+        .flat_map(|l| l.bindings.iter_mut())
+    {
         b.immutable_samplers.clear();
     }
     let r = lvp.run(&c);
