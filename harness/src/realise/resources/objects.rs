@@ -694,6 +694,9 @@ impl Realised {
                             }];
                             d.update_descriptor_sets(&[base.image_info(&info)], &[]);
                         }
+                        // A binding of immutable samplers is never written (its samplers are the layout's).
+                        (Descriptor::Sampler { .. }, DescriptorType::Sampler)
+                            if !b.immutable_samplers.is_empty() => {}
                         (Descriptor::Sampler { sampler }, DescriptorType::Sampler) => {
                             let smp = *self.samplers.get(sampler).ok_or_else(|| {
                                 HarnessError::NotRealised(format!(

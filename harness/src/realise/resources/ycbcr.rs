@@ -28,6 +28,16 @@ type Key = (String, bool);
 /// cannot (checked before any device work).
 pub(super) fn unsupported(world: &World) -> Option<String> {
     let st = &world.resources;
+    if let Some(v) = st
+        .image_views
+        .iter()
+        .find(|v| !v.ycbcr_conversion && formats::needs_ycbcr_conversion(&v.format))
+    {
+        return Some(format!(
+            "view `{}` of {} enables no Y′CbCr conversion, which a sampled view of that format must",
+            v.name, v.format
+        ));
+    }
     let any = st.samplers.iter().any(|s| s.ycbcr_conversion)
         || st.image_views.iter().any(|v| v.ycbcr_conversion);
     if !any {
