@@ -180,7 +180,14 @@ pub(super) fn descriptor_problem(rs: &ResourceState, r: &Resolved) -> Option<Str
             r.access.element, r.access.binding, set.name
         ));
     };
-    if !kind_fits(d, binding.ty) {
+    // A combined image sampler written without a sampler takes its binding's immutable one.
+    let immutable_combined = binding.ty == DescriptorType::CombinedImageSampler
+        && binding
+            .immutable_samplers
+            .get(r.access.element as usize)
+            .is_some()
+        && matches!(d, Descriptor::Image { .. });
+    if !kind_fits(d, binding.ty) && !immutable_combined {
         return Some(format!(
             "holds a descriptor that is not a valid {:?}",
             binding.ty
