@@ -9,8 +9,8 @@ use ash::vk;
 use model::profile::{DeviceProfile, FormatFeatures, PropertyValue};
 use std::collections::BTreeSet;
 
-/// Formats whose features the probe records: vertex formats for acceleration structure builds and
-/// common storage/colour formats.
+/// Formats whose features the probe records: vertex formats for acceleration structure builds,
+/// common storage/colour formats, and formats that need a sampler Y′CbCr conversion.
 const FORMATS: &[(vk::Format, &str)] = &[
     (vk::Format::R32G32B32_SFLOAT, "VK_FORMAT_R32G32B32_SFLOAT"),
     (vk::Format::R32G32_SFLOAT, "VK_FORMAT_R32G32_SFLOAT"),
@@ -31,6 +31,35 @@ const FORMATS: &[(vk::Format, &str)] = &[
         "VK_FORMAT_R32G32B32A32_SFLOAT",
     ),
     (vk::Format::R32G32B32A32_UINT, "VK_FORMAT_R32G32B32A32_UINT"),
+    // Formats that need a sampler Y′CbCr conversion: single-plane 4:2:2 and two- and three-plane.
+    (
+        vk::Format::G8B8G8R8_422_UNORM,
+        "VK_FORMAT_G8B8G8R8_422_UNORM",
+    ),
+    (
+        vk::Format::B8G8R8G8_422_UNORM,
+        "VK_FORMAT_B8G8R8G8_422_UNORM",
+    ),
+    (
+        vk::Format::G8_B8R8_2PLANE_420_UNORM,
+        "VK_FORMAT_G8_B8R8_2PLANE_420_UNORM",
+    ),
+    (
+        vk::Format::G8_B8_R8_3PLANE_420_UNORM,
+        "VK_FORMAT_G8_B8_R8_3PLANE_420_UNORM",
+    ),
+    (
+        vk::Format::G8_B8R8_2PLANE_422_UNORM,
+        "VK_FORMAT_G8_B8R8_2PLANE_422_UNORM",
+    ),
+    (
+        vk::Format::G8_B8_R8_3PLANE_422_UNORM,
+        "VK_FORMAT_G8_B8_R8_3PLANE_422_UNORM",
+    ),
+    (
+        vk::Format::G8_B8_R8_3PLANE_444_UNORM,
+        "VK_FORMAT_G8_B8_R8_3PLANE_444_UNORM",
+    ),
 ];
 
 const FORMAT_FEATURE_NAMES: &[(vk::FormatFeatureFlags, &str)] = &[
@@ -106,6 +135,32 @@ const FORMAT_FEATURE_NAMES: &[(vk::FormatFeatureFlags, &str)] = &[
         vk::FormatFeatureFlags::ACCELERATION_STRUCTURE_VERTEX_BUFFER_KHR,
         "VK_FORMAT_FEATURE_ACCELERATION_STRUCTURE_VERTEX_BUFFER_BIT_KHR",
     ),
+    // What a sampler Y′CbCr conversion of the format may be created with.
+    (
+        vk::FormatFeatureFlags::MIDPOINT_CHROMA_SAMPLES,
+        "VK_FORMAT_FEATURE_MIDPOINT_CHROMA_SAMPLES_BIT",
+    ),
+    (
+        vk::FormatFeatureFlags::COSITED_CHROMA_SAMPLES,
+        "VK_FORMAT_FEATURE_COSITED_CHROMA_SAMPLES_BIT",
+    ),
+    (
+        vk::FormatFeatureFlags::SAMPLED_IMAGE_YCBCR_CONVERSION_LINEAR_FILTER,
+        "VK_FORMAT_FEATURE_SAMPLED_IMAGE_YCBCR_CONVERSION_LINEAR_FILTER_BIT",
+    ),
+    (
+        vk::FormatFeatureFlags::SAMPLED_IMAGE_YCBCR_CONVERSION_SEPARATE_RECONSTRUCTION_FILTER,
+        "VK_FORMAT_FEATURE_SAMPLED_IMAGE_YCBCR_CONVERSION_SEPARATE_RECONSTRUCTION_FILTER_BIT",
+    ),
+    (
+        vk::FormatFeatureFlags::SAMPLED_IMAGE_YCBCR_CONVERSION_CHROMA_RECONSTRUCTION_EXPLICIT,
+        "VK_FORMAT_FEATURE_SAMPLED_IMAGE_YCBCR_CONVERSION_CHROMA_RECONSTRUCTION_EXPLICIT_BIT",
+    ),
+    (
+        vk::FormatFeatureFlags::SAMPLED_IMAGE_YCBCR_CONVERSION_CHROMA_RECONSTRUCTION_EXPLICIT_FORCEABLE,
+        "VK_FORMAT_FEATURE_SAMPLED_IMAGE_YCBCR_CONVERSION_CHROMA_RECONSTRUCTION_EXPLICIT_FORCEABLE_BIT",
+    ),
+    (vk::FormatFeatureFlags::DISJOINT, "VK_FORMAT_FEATURE_DISJOINT_BIT"),
 ];
 
 const QUEUE_FLAG_NAMES: &[(vk::QueueFlags, &str)] = &[

@@ -91,6 +91,7 @@ fn compatibility_compares_set_layout_definitions_not_names() {
         binding: 0,
         ty: t,
         count: 1,
+        immutable_samplers: vec![],
     };
     let st = ResourceState {
         set_layouts: vec![
@@ -169,4 +170,75 @@ fn wording_variants_become_parameters() {
         rule("VUID-vkCmdTraceRaysNV-magFilter-04553"),
         ResourceRule::LinearFilterFeature { mipmap: false, .. }
     ));
+}
+
+#[test]
+fn a_binding_s_immutable_sampler_is_the_one_an_access_uses() {
+    let sampler = |name: &str, ycbcr| Sampler {
+        name: name.into(),
+        ycbcr_conversion: ycbcr,
+        ..Default::default()
+    };
+    let mut st = ResourceState {
+        set_layouts: vec![SetLayout {
+            name: "sl".into(),
+            bindings: vec![LayoutBinding {
+                binding: 0,
+                ty: DescriptorType::CombinedImageSampler,
+                count: 1,
+                immutable_samplers: vec!["immutable".into()],
+            }],
+        }],
+        descriptor_sets: vec![DescriptorSet {
+            name: "ds".into(),
+            layout: "sl".into(),
+            writes: vec![Write {
+                binding: 0,
+                element: 0,
+                descriptor: Descriptor::Image {
+                    view: "v".into(),
+                    sampler: Some("written".into()),
+                    layout: ImageLayout::ShaderReadOnlyOptimal,
+                },
+            }],
+        }],
+        bound_sets: vec![BoundSet {
+            set: 0,
+            descriptor_set: "ds".into(),
+            layout: "pl".into(),
+        }],
+        samplers: vec![sampler("immutable", true), sampler("written", false)],
+        stages: vec![StageUse {
+            stage: Stage::Raygen,
+            accesses: vec![Access {
+                op: Op::Fetch,
+                image: Some(ImageType::default()),
+                ..Default::default()
+            }],
+            push_constants: None,
+            robustness: Default::default(),
+        }],
+        ..Default::default()
+    };
+    let used = |st: &ResourceState| {
+        rules::resolve(st)[0]
+            .sampler
+            .map(|s| s.name.clone())
+            .unwrap_or_default()
+    };
+    assert_eq!(used(&st), "immutable");
+    st.set_layouts[0].bindings[0].immutable_samplers.clear();
+    assert_eq!(
+        used(&st),
+        "written",
+        "without immutable samplers the write's is used"
+    );
+    // The state round-trips with the immutable sampler named in the YAML, and old states without one parse.
+    st.set_layouts[0].bindings[0].immutable_samplers = vec!["immutable".into()];
+    let text = serde_yaml::to_string(&st).unwrap();
+    assert!(text.contains("immutable_samplers"), "{text}");
+    assert_eq!(serde_yaml::from_str::<ResourceState>(&text).unwrap(), st);
+    let old: LayoutBinding =
+        serde_yaml::from_str("binding: 0\ntype: combined-image-sampler\n").unwrap();
+    assert!(old.immutable_samplers.is_empty());
 }

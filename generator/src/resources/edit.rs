@@ -23,7 +23,39 @@ pub(super) fn set_binding(st: &mut ResourceState, binding: u32, ty: DescriptorTy
         .find(|l| l.name == SET_LAYOUT)
         .expect("the base layout");
     l.bindings.retain(|b| b.binding != binding);
-    l.bindings.push(LayoutBinding { binding, ty, count });
+    l.bindings.push(LayoutBinding {
+        binding,
+        ty,
+        count,
+        immutable_samplers: vec![],
+    });
+}
+
+/// Makes `sampler` the immutable sampler of every element of the base layout's `binding`.
+pub(super) fn immutable_sampler(st: &mut ResourceState, binding: u32, sampler: &str) {
+    let b = st
+        .set_layouts
+        .iter_mut()
+        .find(|l| l.name == SET_LAYOUT)
+        .and_then(|l| l.bindings.iter_mut().find(|b| b.binding == binding))
+        .expect("the binding");
+    b.immutable_samplers = vec![sampler.to_string(); b.count as usize];
+}
+
+/// The profile's formats that need a sampler Y′CbCr conversion and can be sampled with one: a
+/// chroma sample position bit (a conversion's chroma offsets need one) and SAMPLED_IMAGE_BIT.
+pub(super) fn ycbcr_formats(profile: &DeviceProfile) -> Vec<String> {
+    formats::reported(profile)
+        .into_iter()
+        .filter(|f| formats::needs_ycbcr_conversion(f))
+        .filter(|f| {
+            let s = feats(profile, f, Usage::Optimal);
+            s.contains("SAMPLED_IMAGE_BIT")
+                && (s.contains("MIDPOINT_CHROMA_SAMPLES_BIT")
+                    || s.contains("COSITED_CHROMA_SAMPLES_BIT"))
+        })
+        .map(String::from)
+        .collect()
 }
 
 pub(super) fn write(st: &mut ResourceState, binding: u32, d: Descriptor) {

@@ -62,6 +62,7 @@ pub fn mutate(
                         binding: 9,
                         ty: DescriptorType::Sampler,
                         count: 1,
+                        immutable_samplers: vec![],
                     }],
                 });
                 st.pipeline_layouts.push(PipelineLayout {
@@ -504,30 +505,51 @@ pub fn mutate(
             access_mut(st).push(a);
         }
         "06550" | "06551" => {
+            // A conversion is valid only for a format that needs one and has a chroma sample position
+            // bit, and only through a combined image sampler whose immutable sampler carries the same
+            // conversion as the view: a written sampler or the view alone breaks vkUpdateDescriptorSets'
+            // rules, so sampler and view both enable it.
+            if !profile.has_feature("samplerYcbcrConversion") {
+                return Err("the device lacks samplerYcbcrConversion".into());
+            }
+            let f = pick(&ycbcr_formats(profile), knob).ok_or(
+                "the profile reports no format that needs a sampler Y′CbCr conversion and can be sampled \
+                 with one (MIDPOINT_ or COSITED_CHROMA_SAMPLES_BIT)",
+            )?;
+            dev.features.insert("samplerYcbcrConversion".into());
+            // Without SEPARATE_RECONSTRUCTION_FILTER the sampler filters as the conversion's chroma
+            // filter, which is linear only with YCBCR_CONVERSION_LINEAR_FILTER.
+            let fs = feats(profile, &f, Usage::Optimal);
+            let filter = if knob / 2 % 2 == 1
+                && fs.contains("SAMPLED_IMAGE_FILTER_LINEAR_BIT")
+                && fs.contains("SAMPLED_IMAGE_YCBCR_CONVERSION_LINEAR_FILTER_BIT")
+            {
+                Filter::Linear
+            } else {
+                Filter::Nearest
+            };
             let mut a = sampled_x(
                 st,
-                &sampled,
+                &f,
                 ViewType::TwoD,
                 Sampler {
+                    mag_filter: filter,
+                    min_filter: filter,
                     ycbcr_conversion: true,
-                    ..nearest.clone()
+                    ..Default::default()
                 },
                 Op::Sample,
             );
-            if knob % 2 == 1 {
-                st.samplers
-                    .iter_mut()
-                    .find(|s| s.name == "xs")
-                    .unwrap()
-                    .ycbcr_conversion = false;
-                st.image_views
-                    .iter_mut()
-                    .find(|v| v.name == "x")
-                    .unwrap()
-                    .ycbcr_conversion = true;
-            }
+            st.image_views
+                .iter_mut()
+                .find(|v| v.name == "x")
+                .unwrap()
+                .ycbcr_conversion = true;
+            immutable_sampler(st, 6, "xs");
             if m.tag == "06550" {
-                a.op = [Op::Fetch, Op::Read][knob as usize / 2 % 2];
+                // OpImageFetch is the one instruction other than a sample that a combined image
+                // sampler's image can be used with.
+                a.op = Op::Fetch;
             } else {
                 a.offset = true;
             }

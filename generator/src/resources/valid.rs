@@ -92,6 +92,7 @@ pub fn valid_state(profile: &DeviceProfile, choice: u32, bits: u32) -> ResourceS
         binding,
         ty,
         count: if binding == 0 { 2 } else { 1 },
+        immutable_samplers: vec![],
     };
     let layout = SetLayout {
         name: SET_LAYOUT.into(),

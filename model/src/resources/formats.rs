@@ -79,6 +79,24 @@ pub fn info(format: &str) -> Option<FormatInfo> {
     })
 }
 
+/// Whether sampling the format needs a sampler Y′CbCr conversion: the 4:2:2 and 4:2:0 formats and
+/// the multi-planar ones (their names carry `_422`, `_420` or `PLANE`).
+pub fn needs_ycbcr_conversion(format: &str) -> bool {
+    let n = format.strip_prefix("VK_FORMAT_").unwrap_or(format);
+    n.contains("PLANE") || n.contains("_422") || n.contains("_420")
+}
+
+/// The number of planes of a format (1 for every format that is not multi-planar).
+pub fn planes(format: &str) -> u32 {
+    if format.contains("_3PLANE_") {
+        3
+    } else if format.contains("_2PLANE_") {
+        2
+    } else {
+        1
+    }
+}
+
 /// Where the features of a format are looked up.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Usage {
@@ -125,4 +143,27 @@ pub fn features(profile: &DeviceProfile, format: &str, usage: Usage) -> Option<B
 /// The formats the profile reports, in name order.
 pub fn reported(profile: &DeviceProfile) -> Vec<&str> {
     profile.formats.keys().map(String::as_str).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ycbcr_formats_are_told_from_their_names() {
+        for f in [
+            "VK_FORMAT_G8_B8R8_2PLANE_420_UNORM",
+            "VK_FORMAT_G8_B8_R8_3PLANE_444_UNORM",
+            "VK_FORMAT_G8B8G8R8_422_UNORM",
+        ] {
+            assert!(needs_ycbcr_conversion(f), "{f}");
+            assert!(info(f).is_none(), "{f} has no per-texel component layout");
+        }
+        for f in ["VK_FORMAT_R8G8B8A8_UNORM", "VK_FORMAT_R10X6_UNORM_PACK16"] {
+            assert!(!needs_ycbcr_conversion(f), "{f}");
+        }
+        assert_eq!(planes("VK_FORMAT_G8_B8R8_2PLANE_420_UNORM"), 2);
+        assert_eq!(planes("VK_FORMAT_G8_B8_R8_3PLANE_420_UNORM"), 3);
+        assert_eq!(planes("VK_FORMAT_G8B8G8R8_422_UNORM"), 1);
+    }
 }

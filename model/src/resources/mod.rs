@@ -346,6 +346,10 @@ pub struct LayoutBinding {
     pub ty: DescriptorType,
     #[serde(default = "one")]
     pub count: u32,
+    /// `pImmutableSamplers`: the sampler of each element (empty: none), which a write's sampler cannot
+    /// replace. A sampler with a Y′CbCr conversion is only ever one of these.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub immutable_samplers: Vec<String>,
 }
 
 /// A `VkDescriptorSetLayout`.
@@ -783,6 +787,7 @@ mod tests {
                 binding: 0,
                 ty: DescriptorType::UniformBuffer,
                 count: 1,
+                immutable_samplers: vec![],
             }],
         };
         let pl = |name: &str, size| PipelineLayout {

@@ -34,14 +34,21 @@
 //! page bound. The case's device must enable `descriptorBuffer` (and, for memory that is not resident,
 //! `sparseBinding` and `sparseResidencyBuffer`); the generator enables them.
 //!
+//! **Immutable samplers and Y′CbCr conversions.** A binding's immutable samplers are its set layout's
+//! `pImmutableSamplers` (a write's sampler is then ignored). A sampler and a view that enable a Y′CbCr
+//! conversion share one `VkSamplerYcbcrConversion` (`ycbcr.rs`), given to both in their `pNext`; the
+//! sampler is an immutable sampler, the image has one level and one layer, its transitions name the
+//! colour aspect (all planes of an image that is not disjoint), and its memory is bound whole.
+//!
 //! What is not realised is reported not realised by [`unsupported`] with the reason (vendor objects,
-//! sparse images and tile memory, Y′CbCr conversions and cubic filters, implicit-LOD sampling, which ray
+//! sparse images and tile memory, cubic filters, implicit-LOD sampling, which ray
 //! tracing stages cannot do, 64-bit images, accesses in a stage the pipeline lacks, sets statically used
 //! but never bound, descriptors of the wrong kind).
 
 mod descriptor_buffer;
 mod glsl;
 mod objects;
+mod ycbcr;
 
 pub use glsl::{compile_stage, stage_glsl, stage_source};
 
@@ -109,12 +116,16 @@ pub(crate) fn unsupported(world: &World) -> Option<String> {
     if st.images.iter().any(|i| i.corner_sampled) {
         return Some("corner-sampled images (VK_NV_corner_sampled_image) are not realised: lavapipe lacks the extension".into());
     }
-    if st.samplers.iter().any(|s| s.ycbcr_conversion)
-        || st.image_views.iter().any(|v| v.ycbcr_conversion)
+    if st.descriptor_source == DescriptorSource::Buffers
+        && st
+            .set_layouts
+            .iter()
+            .any(|l| l.bindings.iter().any(|b| !b.immutable_samplers.is_empty()))
     {
-        return Some("YCbCr conversion samplers and views are not realised: a VkSamplerYcbcrConversion needs a format with \
-             MIDPOINT_CHROMA_SAMPLES or COSITED_CHROMA_SAMPLES and its sampler must be an immutable sampler of the set \
-             layout, which the resource model does not describe".into());
+        return Some("immutable samplers in descriptor buffer set layouts are not realised".into());
+    }
+    if let Some(why) = ycbcr::unsupported(world) {
+        return Some(why);
     }
     if st.samplers.iter().any(|s| {
         s.filters(Filter::CubicExt)
@@ -242,6 +253,8 @@ pub(crate) struct Realised {
     /// `sets` and `binds` stay empty), with the harness's set as a descriptor buffer set layout.
     descriptor_memory: Option<descriptor_buffer::DescriptorMemory>,
     db_harness_set: vk::DescriptorSetLayout,
+    /// The Y′CbCr conversions the samplers and views were created with.
+    ycbcr: ycbcr::Conversions,
 }
 
 impl Realised {
@@ -263,6 +276,7 @@ impl Realised {
             pushes: Vec::new(),
             descriptor_memory: None,
             db_harness_set: vk::DescriptorSetLayout::null(),
+            ycbcr: ycbcr::Conversions::default(),
         }
     }
 
@@ -380,7 +394,7 @@ impl Realised {
     }
 
     /// Destroys every object (the case's pipeline in `cache.resource_pipeline` included).
-    pub(crate) fn destroy(self, cache: &mut DeviceCache) {
+    pub(crate) fn destroy(mut self, cache: &mut DeviceCache) {
         let d = &cache.dev.device;
         // SAFETY: nothing recorded with these objects is pending (the caller's contract).
         unsafe {
@@ -415,6 +429,7 @@ impl Realised {
             for (_, h) in self.samplers {
                 d.destroy_sampler(h, None);
             }
+            self.ycbcr.destroy(&cache.dev);
             for (_, h) in self.pipeline_layouts {
                 d.destroy_pipeline_layout(h, None);
             }

@@ -127,6 +127,43 @@ pub(super) fn renew_command_buffers(cache: &mut DeviceCache) -> Result<(), Harne
 }
 
 impl Realised {
+    /// The realised immutable samplers of a binding (`pImmutableSamplers`), one per element.
+    fn immutable_samplers(
+        &self,
+        l: &SetLayout,
+        b: &LayoutBinding,
+    ) -> Result<Vec<vk::Sampler>, HarnessError> {
+        if b.immutable_samplers.is_empty() {
+            return Ok(vec![]);
+        }
+        if !matches!(
+            b.ty,
+            DescriptorType::Sampler | DescriptorType::CombinedImageSampler
+        ) || b.immutable_samplers.len() != b.count as usize
+        {
+            return unsup(format!(
+                "set layout `{}` binding {} ({:?}, count {}) names {} immutable samplers: only sampler and combined image \
+                 sampler bindings have them, one per element",
+                l.name,
+                b.binding,
+                b.ty,
+                b.count,
+                b.immutable_samplers.len()
+            ));
+        }
+        b.immutable_samplers
+            .iter()
+            .map(|n| {
+                self.samplers.get(n).copied().ok_or_else(|| {
+                    HarnessError::NotRealised(format!(
+                        "set layout `{}` binding {} names immutable sampler `{n}`, which the state lacks",
+                        l.name, b.binding
+                    ))
+                })
+            })
+            .collect()
+    }
+
     pub(super) fn build(
         &mut self,
         cache: &mut DeviceCache,
@@ -178,17 +215,66 @@ impl Realised {
             } else {
                 vk::DescriptorSetLayoutCreateFlags::empty()
             };
+            // Y′CbCr conversions, then samplers (before the set layouts that hold them as immutable samplers).
+            self.ycbcr = super::ycbcr::Conversions::new(dev, st)?;
+            for s in &st.samplers {
+                let mut red = vk::SamplerReductionModeCreateInfo::default().reduction_mode(match s
+                    .reduction
+                {
+                    Reduction::Min => vk::SamplerReductionMode::MIN,
+                    Reduction::Max => vk::SamplerReductionMode::MAX,
+                    _ => vk::SamplerReductionMode::WEIGHTED_AVERAGE,
+                });
+                let mut info = vk::SamplerCreateInfo::default()
+                    .mag_filter(filter(s.mag_filter))
+                    .min_filter(filter(s.min_filter))
+                    .mipmap_mode(match s.mipmap_mode {
+                        MipmapMode::Nearest => vk::SamplerMipmapMode::NEAREST,
+                        MipmapMode::Linear => vk::SamplerMipmapMode::LINEAR,
+                    })
+                    .address_mode_u(address(s.address_modes[0]))
+                    .address_mode_v(address(s.address_modes[1]))
+                    .address_mode_w(address(s.address_modes[2]))
+                    .compare_enable(s.compare_enable)
+                    .compare_op(vk::CompareOp::LESS_OR_EQUAL)
+                    .unnormalized_coordinates(s.unnormalized_coordinates)
+                    .min_lod(0.0)
+                    .max_lod(if s.unnormalized_coordinates {
+                        0.0
+                    } else {
+                        vk::LOD_CLAMP_NONE
+                    });
+                if s.reduction != Reduction::WeightedAverage {
+                    info = info.push_next(&mut red);
+                }
+                let mut conversion = vk::SamplerYcbcrConversionInfo::default();
+                if let Some(c) = self.ycbcr.of_sampler(&s.name) {
+                    conversion = conversion.conversion(c);
+                    info = info.push_next(&mut conversion);
+                }
+                let h = d
+                    .create_sampler(&info, None)
+                    .map_err(vkfail("vkCreateSampler"))?;
+                self.samplers.insert(s.name.clone(), h);
+            }
             // Set layouts.
             for l in &st.set_layouts {
+                let immutable: Vec<Vec<vk::Sampler>> = l
+                    .bindings
+                    .iter()
+                    .map(|b| self.immutable_samplers(l, b))
+                    .collect::<Result<_, _>>()?;
                 let mut bs = Vec::new();
-                for b in &l.bindings {
-                    bs.push(
-                        vk::DescriptorSetLayoutBinding::default()
-                            .binding(b.binding)
-                            .descriptor_type(descriptor_type(b.ty)?)
-                            .descriptor_count(b.count)
-                            .stage_flags(rt_stages()),
-                    );
+                for (b, imm) in l.bindings.iter().zip(&immutable) {
+                    let mut binding = vk::DescriptorSetLayoutBinding::default()
+                        .binding(b.binding)
+                        .descriptor_type(descriptor_type(b.ty)?)
+                        .descriptor_count(b.count)
+                        .stage_flags(rt_stages());
+                    if !imm.is_empty() {
+                        binding = binding.immutable_samplers(imm);
+                    }
+                    bs.push(binding);
                 }
                 let h = d
                     .create_descriptor_set_layout(
@@ -253,42 +339,6 @@ impl Realised {
                         .map_err(vkfail("vkCreatePipelineLayout"))?;
                     self.own_harness_layout = true;
                 }
-            }
-            // Samplers.
-            for s in &st.samplers {
-                let mut red = vk::SamplerReductionModeCreateInfo::default().reduction_mode(match s
-                    .reduction
-                {
-                    Reduction::Min => vk::SamplerReductionMode::MIN,
-                    Reduction::Max => vk::SamplerReductionMode::MAX,
-                    _ => vk::SamplerReductionMode::WEIGHTED_AVERAGE,
-                });
-                let mut info = vk::SamplerCreateInfo::default()
-                    .mag_filter(filter(s.mag_filter))
-                    .min_filter(filter(s.min_filter))
-                    .mipmap_mode(match s.mipmap_mode {
-                        MipmapMode::Nearest => vk::SamplerMipmapMode::NEAREST,
-                        MipmapMode::Linear => vk::SamplerMipmapMode::LINEAR,
-                    })
-                    .address_mode_u(address(s.address_modes[0]))
-                    .address_mode_v(address(s.address_modes[1]))
-                    .address_mode_w(address(s.address_modes[2]))
-                    .compare_enable(s.compare_enable)
-                    .compare_op(vk::CompareOp::LESS_OR_EQUAL)
-                    .unnormalized_coordinates(s.unnormalized_coordinates)
-                    .min_lod(0.0)
-                    .max_lod(if s.unnormalized_coordinates {
-                        0.0
-                    } else {
-                        vk::LOD_CLAMP_NONE
-                    });
-                if s.reduction != Reduction::WeightedAverage {
-                    info = info.push_next(&mut red);
-                }
-                let h = d
-                    .create_sampler(&info, None)
-                    .map_err(vkfail("vkCreateSampler"))?;
-                self.samplers.insert(s.name.clone(), h);
             }
             // Usage of images and buffers from the descriptors written with them.
             let mut image_usage: HashMap<&str, vk::ImageUsageFlags> = HashMap::new();
@@ -377,6 +427,15 @@ impl Realised {
                 };
                 if ty == vk::ImageType::TYPE_3D {
                     layers = 1;
+                }
+                if super::ycbcr::Conversions::is_ycbcr_format(&img.format)
+                    && (ty != vk::ImageType::TYPE_2D || levels != 1 || layers != 1)
+                {
+                    return unsup(format!(
+                        "image `{}` of {} is not a 2D image of one level and one layer, which the harness makes of \
+                         formats that need a Y′CbCr conversion",
+                        img.name, img.format
+                    ));
                 }
                 if views.iter().any(|v| v.format != img.format) {
                     flags |= vk::ImageCreateFlags::MUTABLE_FORMAT;
@@ -472,7 +531,7 @@ impl Realised {
                     ViewType::ThreeD => 1,
                     _ => v.layer_count.max(1),
                 };
-                let info = vk::ImageViewCreateInfo::default()
+                let mut info = vk::ImageViewCreateInfo::default()
                     .image(image)
                     .view_type(vt)
                     .format(vk_format(&v.format)?)
@@ -483,6 +542,11 @@ impl Realised {
                         base_array_layer: 0,
                         layer_count: layers,
                     });
+                let mut conversion = vk::SamplerYcbcrConversionInfo::default();
+                if let Some(c) = self.ycbcr.of_view(&v.name) {
+                    conversion = conversion.conversion(c);
+                    info = info.push_next(&mut conversion);
+                }
                 let h = d
                     .create_image_view(&info, None)
                     .map_err(vkfail("vkCreateImageView"))?;
@@ -533,7 +597,13 @@ impl Realised {
                     ));
                 };
                 for b in &l.bindings {
-                    *counts.entry(descriptor_type(b.ty)?).or_default() += b.count;
+                    // A Y′CbCr combined image sampler may take one descriptor per plane (at most 3).
+                    let ycbcr = b
+                        .immutable_samplers
+                        .iter()
+                        .any(|n| self.ycbcr.of_sampler(n).is_some());
+                    *counts.entry(descriptor_type(b.ty)?).or_default() +=
+                        b.count * if ycbcr { 3 } else { 1 };
                 }
             }
             if !st.descriptor_sets.is_empty() && !by_buffer {
@@ -611,8 +681,10 @@ impl Realised {
                         ) => {
                             let v = *self.views.get(view).ok_or_else(|| HarnessError::NotRealised(format!("descriptor names view `{view}`, which the state lacks (destroyed views are not realised)")))?;
                             let smp = match (b.ty, sampler) {
+                                // The immutable sampler is used; the write's is ignored.
+                                (DescriptorType::CombinedImageSampler, _) if !b.immutable_samplers.is_empty() => vk::Sampler::null(),
                                 (DescriptorType::CombinedImageSampler, Some(n)) => *self.samplers.get(n).ok_or_else(|| HarnessError::NotRealised(format!("descriptor names sampler `{n}`, which the state lacks")))?,
-                                (DescriptorType::CombinedImageSampler, None) => return unsup("a combined image sampler written without a sampler (immutable samplers are not modelled)"),
+                                (DescriptorType::CombinedImageSampler, None) => return unsup("a combined image sampler written without a sampler, at a binding with no immutable sampler"),
                                 _ => vk::Sampler::null(),
                             };
                             let info = [vk::DescriptorImageInfo {
@@ -622,6 +694,9 @@ impl Realised {
                             }];
                             d.update_descriptor_sets(&[base.image_info(&info)], &[]);
                         }
+                        // A binding of immutable samplers is never written (its samplers are the layout's).
+                        (Descriptor::Sampler { .. }, DescriptorType::Sampler)
+                            if !b.immutable_samplers.is_empty() => {}
                         (Descriptor::Sampler { sampler }, DescriptorType::Sampler) => {
                             let smp = *self.samplers.get(sampler).ok_or_else(|| {
                                 HarnessError::NotRealised(format!(

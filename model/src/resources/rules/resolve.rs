@@ -98,7 +98,13 @@ pub fn resolve(rs: &ResourceState) -> Vec<Resolved<'_>> {
                 Some(Descriptor::Image { view, sampler, .. }) => {
                     r.view = rs.image_view(view);
                     r.image = r.view.and_then(|v| rs.image(&v.image));
-                    r.sampler = sampler.as_deref().and_then(|s| rs.sampler(s));
+                    // An immutable sampler of the binding is the one used, whatever was written.
+                    let immutable = binding
+                        .and_then(|b| b.immutable_samplers.get(a.element as usize))
+                        .filter(|_| {
+                            binding.is_some_and(|b| b.ty == DescriptorType::CombinedImageSampler)
+                        });
+                    r.sampler = immutable.or(sampler.as_ref()).and_then(|s| rs.sampler(s));
                 }
                 Some(Descriptor::TexelBuffer { view }) => {
                     r.buffer_view = rs.buffer_view(view);
@@ -174,7 +180,14 @@ pub(super) fn descriptor_problem(rs: &ResourceState, r: &Resolved) -> Option<Str
             r.access.element, r.access.binding, set.name
         ));
     };
-    if !kind_fits(d, binding.ty) {
+    // A combined image sampler written without a sampler takes its binding's immutable one.
+    let immutable_combined = binding.ty == DescriptorType::CombinedImageSampler
+        && binding
+            .immutable_samplers
+            .get(r.access.element as usize)
+            .is_some()
+        && matches!(d, Descriptor::Image { .. });
+    if !kind_fits(d, binding.ty) && !immutable_combined {
         return Some(format!(
             "holds a descriptor that is not a valid {:?}",
             binding.ty
