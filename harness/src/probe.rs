@@ -9,8 +9,9 @@ use ash::vk;
 use model::profile::{DeviceProfile, FormatFeatures, PropertyValue};
 use std::collections::BTreeSet;
 
-/// Formats whose features the probe records: vertex formats for acceleration structure builds and
-/// common storage/colour formats.
+/// Formats whose features the probe records: vertex formats for acceleration structure builds,
+/// common storage/colour formats, and the 64-bit integer formats of 64-bit image accesses
+/// (VK_EXT_shader_image_atomic_int64).
 const FORMATS: &[(vk::Format, &str)] = &[
     (vk::Format::R32G32B32_SFLOAT, "VK_FORMAT_R32G32B32_SFLOAT"),
     (vk::Format::R32G32_SFLOAT, "VK_FORMAT_R32G32_SFLOAT"),
@@ -31,6 +32,8 @@ const FORMATS: &[(vk::Format, &str)] = &[
         "VK_FORMAT_R32G32B32A32_SFLOAT",
     ),
     (vk::Format::R32G32B32A32_UINT, "VK_FORMAT_R32G32B32A32_UINT"),
+    (vk::Format::R64_UINT, "VK_FORMAT_R64_UINT"),
+    (vk::Format::R64_SINT, "VK_FORMAT_R64_SINT"),
 ];
 
 const FORMAT_FEATURE_NAMES: &[(vk::FormatFeatureFlags, &str)] = &[
