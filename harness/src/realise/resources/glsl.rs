@@ -751,6 +751,8 @@ mod tests {
             "R8G8B8A8_UINT",
             "R16_SINT",
             "R8_SNORM",
+            "R64_UINT",
+            "R64_SINT",
         ] {
             let q = glsl_format(f).unwrap();
             let n = formats::info(f).unwrap().numeric;
