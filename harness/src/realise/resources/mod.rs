@@ -179,11 +179,10 @@ pub(crate) fn unsupported(world: &World) -> Option<String> {
 /// Why an access whose image type or view format is 64-bit is not realised: a 64-bit float
 /// `Sampled Type` is no valid SPIR-V; a storage access's known `Image Format` whose width is not the
 /// `Sampled Type`'s breaks VUID-StandaloneSpirv-Image-04965 (only an Unknown-format access can hold
-/// such a pair; a sampled image's format is always Unknown); GLSL
-/// has 64-bit integer storage images (GL_EXT_shader_image_int64) but no 64-bit samplers or textures;
-/// and a 64-bit integer `Sampled Type` is realised only on a device that enables what its capabilities
-/// need (`Int64ImageEXT`: shaderImageInt64Atomics of VK_EXT_shader_image_atomic_int64; `Int64`:
-/// shaderInt64). A 32-bit `Sampled Type` over a 64-bit view (an Unknown-format storage access or a
+/// such a pair; a sampled image's format is always Unknown); GLSL has 64-bit integer storage images
+/// (GL_EXT_shader_image_int64) but no 64-bit samplers or textures; and a 64-bit integer `Sampled Type`
+/// is realised only on a device that enables what its capabilities need (`Int64ImageEXT`:
+/// shaderImageInt64Atomics of VK_EXT_shader_image_atomic_int64; `Int64`: shaderInt64). A 32-bit `Sampled Type` over a 64-bit view (an Unknown-format storage access or a
 /// fetch) is realised as it is.
 fn sixty_four_bit(world: &World, st: &ResourceState, a: &Access, t: &ImageType) -> Option<String> {
     let view = glsl::view_format(st, a);
