@@ -10,7 +10,8 @@ use model::profile::{DeviceProfile, FormatFeatures, PropertyValue};
 use std::collections::BTreeSet;
 
 /// Formats whose features the probe records: vertex formats for acceleration structure builds,
-/// common storage/colour formats, and formats that need a sampler Y′CbCr conversion.
+/// common storage/colour formats, formats that need a sampler Y′CbCr conversion, and the 64-bit
+/// integer formats of 64-bit image accesses (VK_EXT_shader_image_atomic_int64).
 const FORMATS: &[(vk::Format, &str)] = &[
     (vk::Format::R32G32B32_SFLOAT, "VK_FORMAT_R32G32B32_SFLOAT"),
     (vk::Format::R32G32_SFLOAT, "VK_FORMAT_R32G32_SFLOAT"),
@@ -60,6 +61,8 @@ const FORMATS: &[(vk::Format, &str)] = &[
         vk::Format::G8_B8_R8_3PLANE_444_UNORM,
         "VK_FORMAT_G8_B8_R8_3PLANE_444_UNORM",
     ),
+    (vk::Format::R64_UINT, "VK_FORMAT_R64_UINT"),
+    (vk::Format::R64_SINT, "VK_FORMAT_R64_SINT"),
 ];
 
 const FORMAT_FEATURE_NAMES: &[(vk::FormatFeatureFlags, &str)] = &[

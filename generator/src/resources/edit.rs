@@ -216,5 +216,3 @@ pub(super) fn first(v: Vec<String>, what: &str) -> Result<String, String> {
         .next()
         .ok_or_else(|| format!("the profile reports no format {what}"))
 }
-
-pub(super) const F64: &str = "VK_FORMAT_R64_UINT";

@@ -9,6 +9,7 @@
 mod edit;
 mod mutate;
 mod valid;
+mod wide;
 
 pub use mutate::mutate;
 pub use valid::{state_strategy, valid_state, LAYOUT, SET, SET_LAYOUT};

@@ -363,66 +363,8 @@ pub fn mutate(
             a.texel_components = Some(1 + knob % 3);
             access_mut(st).push(a);
         }
-        "04470" | "04474" => {
-            let mut a = plain_y(
-                st,
-                DescriptorType::StorageImage,
-                F64,
-                ImageLayout::General,
-                Op::Atomic,
-            );
-            if m.tag == "04470" {
-                a.op = Op::Read;
-            } else {
-                a.image.as_mut().unwrap().width = 64;
-                dev.features.remove("sparseImageInt64Atomics");
-                st.images
-                    .iter_mut()
-                    .find(|i| i.name == "y")
-                    .unwrap()
-                    .sparse_residency = true;
-            }
-            access_mut(st).push(a);
-        }
-        "04472" | "04475" => {
-            let mut a = texel_z(
-                st,
-                DescriptorType::StorageTexelBuffer,
-                F64,
-                m.tag == "04475",
-                Op::Atomic,
-            );
-            if m.tag == "04472" {
-                a.op = Op::Read;
-            } else {
-                a.image.as_mut().unwrap().width = 64;
-                dev.features.remove("sparseImageInt64Atomics");
-            }
-            access_mut(st).push(a);
-        }
-        "04471" => {
-            let f = first(
-                formats_with(profile, Usage::Optimal, &["STORAGE_IMAGE_BIT"], &[]),
-                "for storage images",
-            )?;
-            let mut a = plain_y(
-                st,
-                DescriptorType::StorageImage,
-                &f,
-                ImageLayout::General,
-                Op::Read,
-            );
-            a.image.as_mut().unwrap().width = 64;
-            access_mut(st).push(a);
-        }
-        "04473" => {
-            let f = first(
-                formats_with(profile, Usage::Buffer, &["STORAGE_TEXEL_BUFFER_BIT"], &[]),
-                "for storage texel buffers",
-            )?;
-            let mut a = texel_z(st, DescriptorType::StorageTexelBuffer, &f, false, Op::Read);
-            a.image.as_mut().unwrap().width = 64;
-            access_mut(st).push(a);
+        "04470" | "04471" | "04472" | "04473" | "04474" | "04475" => {
+            super::wide::mutate_wide(m.tag, st, dev, profile, knob)?;
         }
         "04553" | "04770" => {
             let f = first(

@@ -50,16 +50,39 @@ pub fn glsl_format(f: &str) -> Option<&'static str> {
         "R32_UINT" => "r32ui",
         "R16_UINT" => "r16ui",
         "R8_UINT" => "r8ui",
+        "R64_UINT" => "r64ui",
+        "R64_SINT" => "r64i",
         _ => return None,
     })
 }
 
-fn prefix(n: Numeric) -> &'static str {
-    match n {
-        Numeric::Float => "",
-        Numeric::Int => "i",
-        Numeric::Uint => "u",
+/// The GLSL type prefix of a `Sampled Type` (`u64` for 64-bit unsigned: GL_EXT_shader_image_int64).
+fn prefix(t: &ImageType) -> &'static str {
+    match (t.sampled_type, t.width == 64) {
+        (Numeric::Float, _) => "",
+        (Numeric::Int, false) => "i",
+        (Numeric::Uint, false) => "u",
+        (Numeric::Int, true) => "i64",
+        (Numeric::Uint, true) => "u64",
     }
+}
+
+/// The GLSL scalar type of a `Sampled Type`.
+fn scalar(t: &ImageType) -> &'static str {
+    match (t.sampled_type, t.width == 64) {
+        (Numeric::Float, _) => "float",
+        (Numeric::Int, false) => "int",
+        (Numeric::Uint, false) => "uint",
+        (Numeric::Int, true) => "int64_t",
+        (Numeric::Uint, true) => "uint64_t",
+    }
+}
+
+/// Whether a stage's accesses need GL_EXT_shader_image_int64 (a 64-bit `Sampled Type`).
+fn uses_int64_images(accesses: &[Access]) -> bool {
+    accesses
+        .iter()
+        .any(|a| a.image.is_some_and(|t| t.width == 64))
 }
 
 fn dim_suffix(t: &ImageType) -> String {
@@ -86,6 +109,8 @@ fn vec_of(base: &str, n: usize, v: &str) -> String {
     let (s, p) = match base {
         "float" => ("float", "vec"),
         "int" => ("int", "ivec"),
+        "int64_t" => ("int64_t", "i64vec"),
+        "uint64_t" => ("uint64_t", "u64vec"),
         _ => ("uint", "uvec"),
     };
     if n == 1 {
@@ -95,12 +120,12 @@ fn vec_of(base: &str, n: usize, v: &str) -> String {
     }
 }
 
-/// `uint` of a scalar expression of the sampled type.
-fn to_uint(n: Numeric, e: &str) -> String {
-    match n {
-        Numeric::Float => format!("floatBitsToUint({e})"),
-        Numeric::Int => format!("uint({e})"),
-        Numeric::Uint => e.to_string(),
+/// `uint` of a scalar expression of the sampled type (64-bit integers are truncated).
+fn to_uint(t: &ImageType, e: &str) -> String {
+    match (t.sampled_type, t.width == 64) {
+        (Numeric::Float, _) => format!("floatBitsToUint({e})"),
+        (Numeric::Uint, false) => e.to_string(),
+        (Numeric::Int, _) | (Numeric::Uint, true) => format!("uint({e})"),
     }
 }
 
@@ -217,7 +242,7 @@ pub fn stage_glsl(
     base: &str,
 ) -> Result<(String, Vec<NarrowWrite>), HarnessError> {
     let mut narrow = Vec::new();
-    let exts = String::from(
+    let mut exts = String::from(
         "#extension GL_EXT_shader_image_load_formatted : require\n\
          #extension GL_EXT_samplerless_texture_functions : require\n#extension GL_EXT_nonuniform_qualifier : enable\n",
     );
@@ -225,6 +250,12 @@ pub fn stage_glsl(
     let mut body = String::from("    uint acc = 0u;\n");
     let stage = st.stages.iter().find(|s| s.stage == which);
     let accesses: &[Access] = stage.map_or(&[], |s| &s.accesses);
+    if uses_int64_images(accesses) {
+        exts.push_str(
+            "#extension GL_EXT_shader_image_int64 : require\n\
+             #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require\n",
+        );
+    }
     for (i, a) in accesses.iter().enumerate() {
         let set = a.set + 1;
         let (ty, count) = binding_of(st, a);
@@ -301,18 +332,22 @@ pub fn stage_glsl(
                 a.op
             )));
         };
-        let p = prefix(t.sampled_type);
-        let base_ty = match t.sampled_type {
-            Numeric::Float => "float",
-            Numeric::Int => "int",
-            Numeric::Uint => "uint",
-        };
+        if t.width == 64 && t.sampled_type == Numeric::Float {
+            return Err(HarnessError::NotRealised(format!(
+                "access {i}: a 64-bit float Sampled Type is not valid SPIR-V"
+            )));
+        }
+        let p = prefix(&t);
+        let base_ty = scalar(&t);
         let n = coord_len(t.dim) + t.arrayed as usize;
         let fcoord = vec_of("float", n, "0.5");
         let icoord = vec_of("int", n, "0");
         let ds = dim_suffix(&t);
         match a.op {
             Op::Sample | Op::Fetch => {
+                if t.width == 64 {
+                    return Err(HarnessError::NotRealised(format!("access {i}: GLSL has no 64-bit sampler or texture types (GL_EXT_shader_image_int64 adds storage images only)")));
+                }
                 let shadow = if a.dref { "Shadow" } else { "" };
                 let combined = match (ty, a.sampler_at) {
                     (Some(DescriptorType::CombinedImageSampler), _) | (None, None) => true,
@@ -396,7 +431,7 @@ pub fn stage_glsl(
                 let e = if a.dref {
                     format!("floatBitsToUint({e})")
                 } else {
-                    to_uint(t.sampled_type, &e)
+                    to_uint(&t, &e)
                 };
                 writeln!(body, "    acc += {e};").unwrap();
             }
@@ -417,10 +452,12 @@ pub fn stage_glsl(
                     if t.format_unknown {
                         return Err(HarnessError::NotRealised(format!("access {i}: GLSL image atomics need an r32 format qualifier, not Unknown")));
                     }
-                    Some(match t.sampled_type {
-                        Numeric::Float => "r32f",
-                        Numeric::Int => "r32i",
-                        Numeric::Uint => "r32ui",
+                    Some(match (t.sampled_type, t.width == 64) {
+                        (Numeric::Float, _) => "r32f",
+                        (Numeric::Int, false) => "r32i",
+                        (Numeric::Uint, false) => "r32ui",
+                        (Numeric::Int, true) => "r64i",
+                        (Numeric::Uint, true) => "r64ui",
                     })
                 } else if t.format_unknown {
                     None
@@ -455,16 +492,24 @@ pub fn stage_glsl(
                     Op::Read => writeln!(
                         body,
                         "    acc += {};",
-                        to_uint(t.sampled_type, &format!("imageLoad({name}{idx}, {c}).x"))
+                        to_uint(&t, &format!("imageLoad({name}{idx}, {c}).x"))
                     )
                     .unwrap(),
                     Op::Atomic => {
-                        let e = match t.sampled_type {
-                            Numeric::Float => format!("imageAtomicExchange({name}{idx}, {c}, 1.0)"),
-                            Numeric::Int => format!("imageAtomicAdd({name}{idx}, {c}, 1)"),
-                            Numeric::Uint => format!("imageAtomicAdd({name}{idx}, {c}, 1u)"),
+                        let one = match (t.sampled_type, t.width == 64) {
+                            (Numeric::Float, _) => "1.0",
+                            (Numeric::Int, false) => "1",
+                            (Numeric::Uint, false) => "1u",
+                            (Numeric::Int, true) => "1l",
+                            (Numeric::Uint, true) => "1ul",
                         };
-                        writeln!(body, "    acc += {};", to_uint(t.sampled_type, &e)).unwrap();
+                        let f = if t.sampled_type == Numeric::Float {
+                            "imageAtomicExchange"
+                        } else {
+                            "imageAtomicAdd"
+                        };
+                        let e = format!("{f}({name}{idx}, {c}, {one})");
+                        writeln!(body, "    acc += {};", to_uint(&t, &e)).unwrap();
                     }
                     _ => {
                         let k = a.texel_components.unwrap_or(4);
@@ -479,6 +524,11 @@ pub fn stage_glsl(
                             vec_of(base_ty, 4, "0")
                         )
                         .unwrap();
+                        if k < 4 && t.width == 64 {
+                            return Err(HarnessError::NotRealised(format!(
+                                "access {i} writes a 64-bit texel of {k} components, which the module patch does not write"
+                            )));
+                        }
                         if k < 4 {
                             // GLSL's imageStore always writes four components: the module is patched
                             // after compilation (see `patch_narrow_writes`) so this OpImageWrite's texel
@@ -496,10 +546,7 @@ pub fn stage_glsl(
                             writeln!(
                                 body,
                                 "    acc += {};",
-                                to_uint(
-                                    t.sampled_type,
-                                    &format!("n{i}{}", if k > 1 { ".x" } else { "" })
-                                )
+                                to_uint(&t, &format!("n{i}{}", if k > 1 { ".x" } else { "" }))
                             )
                             .unwrap();
                             narrow.push(NarrowWrite {
@@ -704,6 +751,8 @@ mod tests {
             "R8G8B8A8_UINT",
             "R16_SINT",
             "R8_SNORM",
+            "R64_UINT",
+            "R64_SINT",
         ] {
             let q = glsl_format(f).unwrap();
             let n = formats::info(f).unwrap().numeric;

@@ -42,8 +42,9 @@
 //!
 //! What is not realised is reported not realised by [`unsupported`] with the reason (vendor objects,
 //! sparse images and tile memory, cubic filters, implicit-LOD sampling, which ray
-//! tracing stages cannot do, 64-bit images, accesses in a stage the pipeline lacks, sets statically used
-//! but never bound, descriptors of the wrong kind).
+//! tracing stages cannot do, 64-bit float images, 64-bit samplers and textures, 64-bit integer images on
+//! a device that does not enable shaderImageInt64Atomics, accesses in a stage the pipeline lacks, sets
+//! statically used but never bound, descriptors of the wrong kind).
 
 mod descriptor_buffer;
 mod glsl;
@@ -173,7 +174,7 @@ pub(crate) fn unsupported(world: &World) -> Option<String> {
                     .into(),
             );
         }
-        if let Some(why) = a.image.and_then(|t| sixty_four_bit(st, a, &t)) {
+        if let Some(why) = a.image.and_then(|t| sixty_four_bit(world, st, a, &t)) {
             return Some(why);
         }
     }
@@ -187,10 +188,14 @@ pub(crate) fn unsupported(world: &World) -> Option<String> {
 }
 
 /// Why an access whose image type or view format is 64-bit is not realised: a 64-bit float
-/// `Sampled Type` is no valid SPIR-V; a known `Image Format` whose width is not the `Sampled Type`'s
-/// breaks VUID-StandaloneSpirv-Image-04965 (only an Unknown-format access can hold such a pair); and
-/// 64-bit integer images (GL_EXT_shader_image_int64) are not written by the harness's GLSL yet.
-fn sixty_four_bit(st: &ResourceState, a: &Access, t: &ImageType) -> Option<String> {
+/// `Sampled Type` is no valid SPIR-V; a storage access's known `Image Format` whose width is not the
+/// `Sampled Type`'s breaks VUID-StandaloneSpirv-Image-04965 (only an Unknown-format access can hold
+/// such a pair; a sampled image's format is always Unknown); GLSL has 64-bit integer storage images
+/// (GL_EXT_shader_image_int64) but no 64-bit samplers or textures; and a 64-bit integer `Sampled Type`
+/// is realised only on a device that enables what its capabilities need (`Int64ImageEXT`:
+/// shaderImageInt64Atomics of VK_EXT_shader_image_atomic_int64; `Int64`: shaderInt64). A 32-bit `Sampled Type` over a 64-bit view (an Unknown-format storage access or a
+/// fetch) is realised as it is.
+fn sixty_four_bit(world: &World, st: &ResourceState, a: &Access, t: &ImageType) -> Option<String> {
     let view = glsl::view_format(st, a);
     let view_bits = view
         .as_deref()
@@ -206,7 +211,9 @@ fn sixty_four_bit(st: &ResourceState, a: &Access, t: &ImageType) -> Option<Strin
                 .into(),
         );
     }
-    if !t.format_unknown && view_bits.is_some_and(|b| b != t.width) {
+    // Only storage accesses declare an Image Format: a sampled image's is always Unknown.
+    let storage = matches!(a.op, Op::Read | Op::Write | Op::Atomic);
+    if storage && !t.format_unknown && view_bits.is_some_and(|b| b != t.width) {
         return Some(format!(
             "a {}-bit Sampled Type with the known Image Format of a {} view breaks VUID-StandaloneSpirv-Image-04965 (the \
              Image Format's width is the Sampled Type's); only an Unknown-format access can pair them",
@@ -214,7 +221,32 @@ fn sixty_four_bit(st: &ResourceState, a: &Access, t: &ImageType) -> Option<Strin
             view.as_deref().unwrap_or("64-bit")
         ));
     }
-    Some("64-bit integer image accesses (Int64ImageEXT, GL_EXT_shader_image_int64) are not realised yet".into())
+    if t.width != 64 {
+        return None;
+    }
+    if a.op.samples() || a.op == Op::Fetch {
+        return Some(
+            "a 64-bit integer Sampled Type through a sampler or texture: GLSL has no such types (GL_EXT_shader_image_int64 \
+             adds storage images only), so the harness writes no shader that performs this access"
+                .into(),
+        );
+    }
+    let lacking: Vec<&str> = ["shaderImageInt64Atomics", "shaderInt64"]
+        .into_iter()
+        .filter(|f| !world.device.feature(f))
+        .collect();
+    if !world.device.extension("VK_EXT_shader_image_atomic_int64") || !lacking.is_empty() {
+        return Some(format!(
+            "a 64-bit integer Sampled Type needs the Int64ImageEXT and Int64 capabilities, whose features \
+             (VK_EXT_shader_image_atomic_int64's shaderImageInt64Atomics, shaderInt64) the case does not enable{}",
+            if lacking.is_empty() {
+                " (the extension is missing)".to_string()
+            } else {
+                format!(" (missing: {})", lacking.join(", "))
+            }
+        ));
+    }
+    None
 }
 
 // ---------------------------------------------------------------------------------------------
