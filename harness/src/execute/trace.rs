@@ -86,6 +86,23 @@ pub(super) fn trace(ctx: &mut Executor, case: &model::TraceBody, run_valid: bool
     }
 }
 
+/// A driver may refuse to create an object whose use the case states invalidly (a shader that fetches
+/// through a Y′CbCr sampler fails vkCreateRayTracingPipelinesKHR on NVIDIA): the use is undefined
+/// behaviour, so any result is the driver's to give. For a case run as invalid that means the call
+/// cannot be recorded — not realised, with the driver's answer — not a crash; a valid case keeps the
+/// failure.
+fn refused_for_invalid_use(e: HarnessError, valid: bool) -> HarnessError {
+    match e {
+        HarnessError::Failed(m) if !valid && m.starts_with("vkCreate") => {
+            HarnessError::NotRealised(format!(
+                "the driver refused an object of this invalid case ({m}): the use the case states is \
+                 undefined behaviour, so the call cannot be recorded"
+            ))
+        }
+        e => e,
+    }
+}
+
 fn region(
     r: &StridedRegion,
     addr: &dyn Fn(&Address) -> Result<u64, HarnessError>,
@@ -143,12 +160,10 @@ fn run(
     // tables are filled with that pipeline's handles.
     if !world.resources.is_empty() {
         let harness_set = cache.layouts(trace, api)?.set;
-        *res = Some(crate::realise::resources::Realised::new(
-            cache,
-            world,
-            trace,
-            harness_set,
-        )?);
+        *res = Some(
+            crate::realise::resources::Realised::new(cache, world, trace, harness_set)
+                .map_err(|e| refused_for_invalid_use(e, valid))?,
+        );
     }
     *buffers = cache.case_buffers(&plan.buffers, pipeline.map(|p| (p, trace)))?;
     let (tlas, spheres) = match &plan.scene {
