@@ -334,6 +334,19 @@ impl WrittenEntry {
                 ))
             }
         };
+        let patterns: Vec<&Pattern> = match &observed {
+            Observed::LayerSilent(p) | Observed::LayerExtra(p) | Observed::Output(p) => vec![p],
+            Observed::LayerRenames { model, layer } => vec![model, layer],
+        };
+        if let Some(p) = patterns
+            .iter()
+            .find(|p| p.as_str().contains(['?', '[', ']']))
+        {
+            return Err(format!(
+                "{}: `{p}` has a wildcard other than `*` (`?` and `[...]` would match only themselves)",
+                observed.describe()
+            ));
+        }
         if !self.kind.admits(&observed) {
             return Err(format!(
                 "{}: kind {} explains only {}, not {}",

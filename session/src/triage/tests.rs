@@ -358,3 +358,54 @@ fn an_entry_whose_vuids_no_case_involved_is_unexercised_not_stale() {
     assert_eq!(unused(&t, &none, &ran, &with_v).0.len(), 1);
     assert!(unused(&t, &none, &ran, &with_v).1.is_empty());
 }
+
+#[test]
+fn the_1_3_239_gap_for_sampled_type_widths_explains_the_h200_cases_of_every_command() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../triage/layer-1.3.239.yaml");
+    let text = std::fs::read_to_string(path).expect("the 1.3.239 triage file");
+    let t = triage(&text);
+    for (command, scope) in [
+        (CommandId::TraceRays, "vkCmdTraceRaysKHR"),
+        (CommandId::TraceRaysIndirect, "vkCmdTraceRaysIndirectKHR"),
+        (CommandId::TraceRaysNv, "vkCmdTraceRaysNV"),
+    ] {
+        let v = format!("VUID-{scope}-SampledType-04470");
+        let model = strings(&[&v]);
+        let e = t.explain(&CaseFacts {
+            name: &format!("{scope}-SampledType-04470-1-0"),
+            command,
+            target: Some(&v),
+            model: &model,
+            layer: &[],
+            layer_other: &[],
+            problems: &[],
+        });
+        assert_eq!(explained(&e), vec![("layer-silent", v.as_str())], "{scope}");
+        // The other direction is never absorbed.
+        let layer = strings(&[&v]);
+        let e = t.explain(&CaseFacts {
+            name: &format!("{scope}-valid-1-0"),
+            command,
+            target: None,
+            model: &[],
+            layer: &layer,
+            layer_other: &[],
+            problems: &[],
+        });
+        assert!(e.matched.is_empty(), "{scope}: {:?}", explained(&e));
+    }
+}
+
+#[test]
+fn a_pattern_with_a_wildcard_other_than_star_is_a_located_error() {
+    let text = entry(
+        "layer-silent: VUID-vkCmdTraceRays*-SampledType-0447?",
+        "layer-gap",
+    );
+    let err = Triage::from_yaml("triage/test.yaml", &text).expect_err("`?` is refused");
+    let err = err.to_string();
+    assert!(
+        err.contains("triage/test.yaml") && err.contains("other than `*`"),
+        "{err}"
+    );
+}
