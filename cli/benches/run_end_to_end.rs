@@ -7,12 +7,16 @@
 //! - `run invalid cases/s`, `run rendered cases/s`: cases over the run's wall time (`summary.json`);
 //! - `in-process invalid cases/s`, `in-process rendered cases/s`: the ceiling, the same cases;
 //! - `run share of ceiling`: the invalid selection's end-to-end rate over its in-process rate;
-//! - `run overhead`: the share of the valid run's wall time, over its worker processes, not spent
-//!   executing cases (the per-case times in `results.jsonl` summed and divided by the workers). It
-//!   counts worker start-up, generation, judging and writing; it does not separate the driver's own
-//!   trace time from the harness's realisation (that needs GPU timestamps, not taken yet).
+//! - `run overhead`: on the rendered selection, rtconf's own time against the driver's trace time:
+//!   the harness's phases (`harness::timing`: resources, shaders, record, readback and the rest of each
+//!   case in its worker) and the runner's judging, over the `gpu` phase (submission to fence: the
+//!   driver running the launch, with whatever it compiles lazily at the first dispatch). Pipeline
+//!   creation, structure builds and device creation are the driver's work and counted in neither;
+//! - `run time <phase>`: where the rendered run's case time went (`summary.json` `time`), seconds
+//!   summed over the cases.
 
 use harness::{Driver, Execution, Executor};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
@@ -108,8 +112,9 @@ fn in_process_rate(s: &Selection, out: &Path) -> f64 {
     cases.len() as f64 / started.elapsed().as_secs_f64()
 }
 
-/// One `rtconf run` of the selection: its summary and the per-case milliseconds summed.
-fn end_to_end(s: &Selection, out: &Path) -> (f64, usize, f64) {
+/// One `rtconf run` of the selection: its wall seconds, cases and where the case time went
+/// (`summary.json` `time`, seconds per phase).
+fn end_to_end(s: &Selection, out: &Path) -> (f64, usize, BTreeMap<String, f64>) {
     let status = Command::new(env!("CARGO_BIN_EXE_rtconf"))
         .args(["run", "--driver", "lavapipe", "--jobs", &JOBS.to_string()])
         .args(&s.args)
@@ -131,14 +136,32 @@ fn end_to_end(s: &Selection, out: &Path) -> (f64, usize, f64) {
     .expect("summary.json parses");
     let cases = summary["cases"].as_u64().unwrap_or(0) as usize;
     let seconds = summary["seconds"].as_f64().unwrap_or(f64::NAN);
-    let millis: f64 = std::fs::read_to_string(out.join("results.jsonl"))
-        .unwrap_or_default()
-        .lines()
-        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
-        .filter_map(|v| v["millis"].as_f64())
-        .sum();
+    let time: BTreeMap<String, f64> = summary["time"]
+        .as_object()
+        .map(|o| {
+            o.iter()
+                .filter_map(|(k, v)| Some((k.clone(), v.as_f64()?)))
+                .collect()
+        })
+        .unwrap_or_default();
     assert!(cases > 0, "{}: the run made no case", s.name);
-    (seconds, cases, millis)
+    (seconds, cases, time)
+}
+
+/// rtconf's own time over the driver's trace time (see the module's `run overhead`).
+fn overhead(time: &BTreeMap<String, f64>) -> f64 {
+    let own: f64 = [
+        "resources",
+        "shaders",
+        "record",
+        "readback",
+        "worker-other",
+        "judge",
+    ]
+    .iter()
+    .filter_map(|k| time.get(*k))
+    .sum();
+    own / time.get("gpu").copied().unwrap_or(f64::NAN)
 }
 
 fn repo() -> PathBuf {
@@ -152,7 +175,7 @@ fn main() {
     let mut overhead = f64::NAN;
     for s in selections() {
         let out = tmp.path().join(s.name);
-        let (seconds, cases, millis) = end_to_end(&s, &out);
+        let (seconds, cases, time) = end_to_end(&s, &out);
         let run_rate = cases as f64 / seconds;
         let ceiling = in_process_rate(&s, &tmp.path().join(format!("{}-list", s.name)));
         lines.push(format!("run {} cases/s: {run_rate:.0}", s.name));
@@ -161,7 +184,12 @@ fn main() {
         if s.name == "invalid" {
             invalid_share = run_rate / ceiling;
         } else {
-            overhead = 1.0 - (millis / 1000.0 / JOBS as f64) / seconds;
+            overhead = self::overhead(&time);
+            let mut by_time: Vec<(&String, &f64)> = time.iter().collect();
+            by_time.sort_by(|a, b| b.1.total_cmp(a.1));
+            for (phase, secs) in by_time {
+                lines.push(format!("run time {phase}: {secs:.2} s"));
+            }
         }
     }
     for l in &lines {
