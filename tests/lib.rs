@@ -66,3 +66,23 @@ pub fn registry_1_4_309() -> PathBuf {
     }
     reg
 }
+
+/// A case's declared VUIDs (its target and co-violations) and the VUIDs the model judges it to
+/// violate on `profile`, for tests that check a generator declares exactly what the model finds.
+pub fn declared_and_judged(
+    rules: &RuleSet,
+    profile: &DeviceProfile,
+    case: &model::case::Case,
+) -> (
+    std::collections::BTreeSet<String>,
+    std::collections::BTreeSet<String>,
+) {
+    let declared = case.expected_vuids().into_iter().collect();
+    let judged = rules
+        .judge(profile, &case.body)
+        .vuids()
+        .into_iter()
+        .map(String::from)
+        .collect();
+    (declared, judged)
+}

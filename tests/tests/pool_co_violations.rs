@@ -6,7 +6,6 @@
 use generator::{generate, CaseSpec};
 use model::flags::QueueFlags;
 use model::{CommandId, RuleSet};
-use std::collections::BTreeSet;
 
 fn check(rules: &RuleSet, registry: &str, pipeline_tag: &str) -> usize {
     let profile = rtconf_tests::profile("nvidia-h200");
@@ -28,13 +27,7 @@ fn check(rules: &RuleSet, registry: &str, pipeline_tag: &str) -> usize {
                 "{registry} {}",
                 case.name
             );
-            let expected: BTreeSet<String> = case.expected_vuids().into_iter().collect();
-            let got: BTreeSet<String> = rules
-                .judge(&profile, &case.body)
-                .vuids()
-                .into_iter()
-                .map(String::from)
-                .collect();
+            let (expected, got) = rtconf_tests::declared_and_judged(rules, &profile, &case);
             assert_eq!(got, expected, "{registry} {}", case.name);
             let pipeline_rule = format!("VUID-{}-None-{pipeline_tag}", command.vk_name());
             assert_eq!(

@@ -6,7 +6,6 @@
 use generator::{generate, CaseSpec};
 use model::world::CommandBufferLifecycle;
 use model::{CommandId, RuleSet};
-use std::collections::BTreeSet;
 
 fn check(rules: &RuleSet, registry: &str) -> usize {
     let mut initial = 0;
@@ -20,13 +19,7 @@ fn check(rules: &RuleSet, registry: &str) -> usize {
                 let Some(trace) = case.as_trace() else {
                     continue;
                 };
-                let expected: BTreeSet<String> = case.expected_vuids().into_iter().collect();
-                let got: BTreeSet<String> = rules
-                    .judge(&profile, &case.body)
-                    .vuids()
-                    .into_iter()
-                    .map(String::from)
-                    .collect();
+                let (expected, got) = rtconf_tests::declared_and_judged(rules, &profile, &case);
                 assert_eq!(got, expected, "{registry} {name} {}", case.name);
                 if trace.world.command_buffer.lifecycle == CommandBufferLifecycle::Initial {
                     initial += 1;
