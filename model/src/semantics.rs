@@ -324,6 +324,18 @@ pub fn allowed_for_ray(
     ray: &Ray,
     stats: &mut TracerStats,
 ) -> Option<AllowedOutcomes> {
+    allowed_for_ray_with(world, call, prepared, ray, &TracerConfig::default(), stats)
+}
+
+/// [`allowed_for_ray`] with other tracer settings (brute force: the reference of the default).
+pub fn allowed_for_ray_with(
+    world: &World,
+    call: &Call,
+    prepared: &PreparedScene,
+    ray: &Ray,
+    config: &TracerConfig,
+    stats: &mut TracerStats,
+) -> Option<AllowedOutcomes> {
     let scene = &world.launch.scene;
     let hit = |i: u32, g: u32| {
         let inst = &scene.instances[i as usize];
@@ -337,7 +349,7 @@ pub fn allowed_for_ray(
         hit: &hit,
         miss: miss_shader(world, call, miss_record(ray.miss_index)),
     };
-    trace_ray(prepared, ray, &table, &TracerConfig::default(), stats).ok()
+    trace_ray(prepared, ray, &table, config, stats).ok()
 }
 
 /// Every shader binding table record the launch reads, as (table, record index), sorted: the raygen

@@ -57,6 +57,10 @@ pub(crate) struct FarBox {
     pub norm_t: f64,
     /// `1 / (1 − 2·rel)` rounded up (see `band::far_pad`); infinite where `rel ≥ 1/4`.
     pub inv_den: f64,
+    /// A pad at least [`FarBox::is_far`]'s for every ray: `pad_base + pad_slope·|o|` (see
+    /// [`FarBox::is_far_bound`]).
+    pub pad_base: f64,
+    pub pad_slope: f64,
 }
 
 impl FarBox {
@@ -69,6 +73,23 @@ impl FarBox {
         origin_coef: f64,
         norm_t: f64,
     ) -> FarBox {
+        let inv_den = far_pad_scale(rel);
+        // The farthest point of the box from the world origin: |o − x| ≤ |o| + reach for every
+        // point x of it, so `m` of `is_far` is at most |o| + reach.
+        let reach = (0..3)
+            .map(|k| {
+                let x = lo[k].abs().max(hi[k].abs());
+                x * x
+            })
+            .sum::<f64>()
+            .sqrt()
+            * BOUND_SLACK;
+        // `far_pad_scaled` is affine and increasing in `origin_radius` and `max_distance`; with
+        // `origin_radius = origin_coef·(|o| + norm_t)` and `max_distance ≤ |o| + reach` it is
+        // below `pad_base + pad_slope·|o|`, and BOUND_SLACK covers the rounding of both sides.
+        let pad_base =
+            far_pad_scaled(static_pad, rel, inv_den, origin_coef * norm_t, reach) * BOUND_SLACK;
+        let pad_slope = far_pad_scaled(0.0, rel, inv_den, origin_coef, 1.0) * BOUND_SLACK;
         FarBox {
             lo,
             hi,
@@ -76,7 +97,9 @@ impl FarBox {
             rel,
             origin_coef,
             norm_t,
-            inv_den: far_pad_scale(rel),
+            inv_den,
+            pad_base,
+            pad_slope,
         }
     }
 
@@ -89,6 +112,49 @@ impl FarBox {
             self.origin_coef.max(o.origin_coef),
             self.norm_t.max(o.norm_t),
         )
+    }
+
+    /// The ray's entry t into the box padded by the bound `pad_base + pad_slope·|o|` (at least
+    /// the pad of [`FarBox::is_far`]) over `[tmin, tmax]`, or None when it misses it. A miss here
+    /// implies [`FarBox::is_far`] at the same `tmax` (the pad is larger, and the rounded slab
+    /// bounds are monotone in the pad); an entry t above a lower `tmax` is a miss at that `tmax`.
+    #[inline]
+    #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
+    pub fn is_far_bound(&self, ray: &RayF64, tmax: f64) -> Option<f64> {
+        let o = &ray.origin;
+        let pad = self.pad_base + self.pad_slope * ray.origin_norm;
+        if !pad.is_finite() {
+            return Some(f64::NEG_INFINITY);
+        }
+        let mut near = ray.tmin;
+        let mut far = tmax;
+        for k in 0..3 {
+            let lo = self.lo[k] - pad;
+            let hi = self.hi[k] + pad;
+            if ray.direction[k] == 0.0 {
+                if o[k] < lo || o[k] > hi {
+                    return None;
+                }
+            } else {
+                let inv = ray.inv_direction[k];
+                let t1 = (lo - o[k]) * inv;
+                let t2 = (hi - o[k]) * inv;
+                near = near.max(t1.min(t2));
+                far = far.min(t1.max(t2));
+            }
+        }
+        // NaN is never a miss, as in `is_far`.
+        if near > far {
+            None
+        } else {
+            Some(near)
+        }
+    }
+
+    /// [`FarBox::is_far`] that first asks the cheaper bound: the same answer.
+    #[inline]
+    pub fn is_far_fast(&self, ray: &RayF64) -> bool {
+        self.is_far_bound(ray, ray.tmax).is_none() || self.is_far(ray)
     }
 
     /// Whether the ray segment misses the padded box: then no conformant implementation can
@@ -412,9 +478,11 @@ impl PreparedScene {
         self.items.len()
     }
 
-    /// Calls `visit` for every item whose padded box the ray does not miss, nearer children first.
-    /// A node of triangles only is skipped as well when its padded box is missed by the ray cut at
-    /// `cut` (which `visit` may lower as it goes; see `traverse::trace_ray`).
+    /// Calls `visit` for every item of every leaf whose padded box the ray does not miss, nearer
+    /// children first (`visit` applies the items' own far test). A node of triangles only is
+    /// skipped as well when its padded box is missed by the ray cut at `cut` (which `visit` may
+    /// lower as it goes; see `traverse::trace_ray`). Nodes are tested with the pad bound of
+    /// [`FarBox::is_far_bound`], so a node is skipped only where every item below it is far.
     pub(crate) fn for_each_near(
         &self,
         ray: &RayF64,
@@ -422,18 +490,30 @@ impl PreparedScene {
         cut: &std::cell::Cell<f64>,
         mut visit: impl FnMut(Item, &FarBox),
     ) {
-        if self.nodes.is_empty() {
+        let Some(root) = self.nodes.first() else {
             return;
-        }
+        };
+        let limit = |node: &Node| {
+            let c = cut.get();
+            if node.triangles_only && c < ray.tmax {
+                c
+            } else {
+                ray.tmax
+            }
+        };
+        *nodes_visited += 1;
+        let Some(entry) = root.bounds.is_far_bound(ray, limit(root)) else {
+            return;
+        };
         // A median-split tree of at most 2^32 items is at most 32 levels deep, and each level
         // leaves at most one node on the stack: a fixed stack suffices, a Vec takes any excess.
-        let mut stack = [0u32; 64];
+        let mut stack = [(0u32, 0f64); 64];
+        stack[0] = (0, entry);
         let mut depth = 1usize;
-        let mut spill: Vec<u32> = Vec::new();
-        let mut cut_ray = *ray;
+        let mut spill: Vec<(u32, f64)> = Vec::new();
         loop {
-            let n = if let Some(n) = spill.pop() {
-                n
+            let (n, entry) = if let Some(x) = spill.pop() {
+                x
             } else if depth > 0 {
                 depth -= 1;
                 stack[depth]
@@ -441,16 +521,10 @@ impl PreparedScene {
                 break;
             };
             let node = &self.nodes[n as usize];
-            *nodes_visited += 1;
-            if node.bounds.is_far(ray) {
+            // The cut may have fallen since the node was pushed: its entry t past the cut is a
+            // miss of the cut ray.
+            if node.triangles_only && entry > cut.get() {
                 continue;
-            }
-            let c = cut.get();
-            if node.triangles_only && c < ray.tmax {
-                cut_ray.tmax = c;
-                if node.bounds.is_far(&cut_ray) {
-                    continue;
-                }
             }
             if node.count > 0 {
                 let range = node.first as usize..(node.first + node.count) as usize;
@@ -460,23 +534,27 @@ impl PreparedScene {
                 {
                     visit(*it, b);
                 }
-            } else {
-                // The nearer child (by its centre along the ray) is popped first.
-                let along = |i: u32| {
-                    let b = &self.nodes[i as usize].bounds;
-                    (0..3)
-                        .map(|k| (b.lo[k] + b.hi[k]) * ray.direction[k])
-                        .sum::<f64>()
-                };
-                let (a, b) = (node.first, node.first + 1);
-                let order = if along(a) <= along(b) { [b, a] } else { [a, b] };
-                for child in order {
-                    if depth < stack.len() {
-                        stack[depth] = child;
-                        depth += 1;
-                    } else {
-                        spill.push(child);
-                    }
+                continue;
+            }
+            let (a, b) = (node.first, node.first + 1);
+            let (na, nb) = (&self.nodes[a as usize], &self.nodes[b as usize]);
+            *nodes_visited += 2;
+            let ea = na.bounds.is_far_bound(ray, limit(na));
+            let eb = nb.bounds.is_far_bound(ray, limit(nb));
+            // The nearer child (by its entry t) is popped first.
+            let order = match (ea, eb) {
+                (Some(x), Some(y)) if x <= y => [Some((b, y)), Some((a, x))],
+                (Some(x), Some(y)) => [Some((a, x)), Some((b, y))],
+                (Some(x), None) => [None, Some((a, x))],
+                (None, Some(y)) => [None, Some((b, y))],
+                (None, None) => [None, None],
+            };
+            for child in order.into_iter().flatten() {
+                if depth < stack.len() {
+                    stack[depth] = child;
+                    depth += 1;
+                } else {
+                    spill.push(child);
                 }
             }
         }
@@ -540,6 +618,10 @@ impl BoundedF64 {
 }
 
 const LEAF_SIZE: usize = 4;
+
+/// Relative slack on the pad bound of [`FarBox::is_far_bound`], far above the rounding of it and
+/// of the pad it bounds.
+const BOUND_SLACK: f64 = 1.0 + 1e-10;
 
 /// Builds a BVH by median splits along the widest centroid axis; items are reordered to leaves.
 fn build_bvh(

@@ -11,7 +11,7 @@
 
 use super::arith::{affine, v3, BoundedF64, Dyadic, PlainF32, V3};
 use super::band::triangle_band;
-use super::prepare::{Item, PreparedScene, RayF64, WorldGeometry};
+use super::prepare::{FarBox, Item, PreparedScene, RayF64, WorldGeometry};
 use super::sphere::{sphere_band, sphere_reports, sphere_signs, SphereSigns};
 use super::triangle::{
     classify, triangle_intervals, triangle_signs, MissReason, PairClass, TriangleSigns,
@@ -24,11 +24,34 @@ use crate::scene::{GeometryData, Problem, Ray, RayFlags, SceneInstance};
 use std::cmp::Ordering;
 
 /// The outcome of one (ray, triangle) pair.
+#[derive(Clone, Copy)]
 struct TriangleOutcome {
     class: PairClass,
     signs: Option<TriangleSigns>,
     values: Option<TriangleValues>,
     band: Option<super::band::TriangleBand>,
+    evaluation: Evaluation,
+}
+
+/// Which arithmetic decided a pair's signs (the counter it adds to).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Evaluation {
+    /// Decided before any arithmetic (degenerate or in-plane).
+    None,
+    Filter,
+    Exact,
+    F32,
+}
+
+impl Evaluation {
+    fn count(self, stats: &mut TracerStats) {
+        match self {
+            Evaluation::None => {}
+            Evaluation::Filter => stats.filter_decided += 1,
+            Evaluation::Exact => stats.exact_evaluations += 1,
+            Evaluation::F32 => stats.f32_evaluations += 1,
+        }
+    }
 }
 
 fn dyadic_world(scene: &PreparedScene, w: &WorldGeometry, v: [f32; 3]) -> V3<Dyadic> {
@@ -68,7 +91,6 @@ fn classify_triangle(
     ray: &Ray,
     rf: &RayF64,
     precision: Precision,
-    stats: &mut TracerStats,
 ) -> TriangleOutcome {
     let GeometryData::Triangles(t) =
         &scene.scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize].data
@@ -82,6 +104,7 @@ fn classify_triangle(
         signs: None,
         values: None,
         band: None,
+        evaluation: Evaluation::None,
     };
     // Spec, "Ray Face Culling": a zero ray-space area is culled. Two coincident vertices give zero
     // area in every implementation (identical inputs, identical arithmetic).
@@ -106,8 +129,7 @@ fn classify_triangle(
     let world_f64 = ids.map(|i| w.vertices[i].map(|x| x.value));
     let radius = ids.map(|i| w.static_radius[i]);
     let band = triangle_band(&inst.band, &world_f64, &radius, rf.origin, rf.direction);
-    let evaluate_exact = |stats: &mut TracerStats| {
-        stats.exact_evaluations += 1;
+    let evaluate_exact = || {
         let world = pos.map(|p| dyadic_world(scene, w, p));
         triangle_signs::<Dyadic>(
             &world,
@@ -119,8 +141,8 @@ fn classify_triangle(
         )
         .expect("exact arithmetic decides every sign")
     };
-    let (signs, values) = match precision {
-        Precision::ExactOnly => evaluate_exact(stats),
+    let ((signs, values), evaluation) = match precision {
+        Precision::ExactOnly => (evaluate_exact(), Evaluation::Exact),
         Precision::F64WithExactFallback => {
             let world = ids.map(|i| w.vertices[i]);
             match triangle_signs::<BoundedF64>(
@@ -131,17 +153,13 @@ fn classify_triangle(
                 ray.tmax,
                 &band,
             ) {
-                Some(x) => {
-                    stats.filter_decided += 1;
-                    x
-                }
-                None => evaluate_exact(stats),
+                Some(x) => (x, Evaluation::Filter),
+                None => (evaluate_exact(), Evaluation::Exact),
             }
         }
         Precision::F32FilterOnly => {
-            stats.f32_evaluations += 1;
             let world = pos.map(|p| f32_world(scene, w, p));
-            triangle_signs::<PlainF32>(
+            let x = triangle_signs::<PlainF32>(
                 &world,
                 &v3(ray.origin),
                 &v3(ray.direction),
@@ -149,7 +167,8 @@ fn classify_triangle(
                 ray.tmax,
                 &band,
             )
-            .expect("f32 signs are taken at face value")
+            .expect("f32 signs are taken at face value");
+            (x, Evaluation::F32)
         }
     };
     TriangleOutcome {
@@ -157,6 +176,7 @@ fn classify_triangle(
         signs: Some(signs),
         values: Some(values),
         band: Some(band),
+        evaluation,
     }
 }
 
@@ -224,28 +244,29 @@ fn cut_allowed(scene: &PreparedScene, ray: &Ray, shaders: &ShaderTable<'_>) -> b
     })
 }
 
-/// The upper t bound of a triangle that must be a candidate and is confirmed without any-hit
-/// (REQ-hit, not culled, its facing certain where a facing is culled), or None.
-fn required_hit_t(
-    scene: &PreparedScene,
-    w: &WorldGeometry,
-    primitive: u32,
-    ray: &Ray,
-    rf: &RayF64,
-    config: &TracerConfig,
-    stats: &mut TracerStats,
-) -> Option<f64> {
+/// Whether a triangle of `w` survives mask, primitive and opacity culling for the ray (the pairs
+/// [`required_hit_t`] asks about).
+fn triangle_unculled(scene: &PreparedScene, w: &WorldGeometry, ray: &Ray) -> bool {
     let inst = &scene.scene.instances[w.instance as usize];
     if inst.mask as u32 & ray.cull_mask & 0xFF == 0 || ray.flags.contains(RayFlags::SKIP_TRIANGLES)
     {
-        return None;
+        return false;
     }
     let geometry =
         &scene.scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize];
-    if opacity_culled(ray, opacity(ray, inst, geometry.flags.opaque)) {
-        return None;
-    }
-    let out = classify_triangle(scene, w, primitive, ray, rf, config.precision, stats);
+    !opacity_culled(ray, opacity(ray, inst, geometry.flags.opaque))
+}
+
+/// The upper t bound of a triangle that must be a candidate and is confirmed without any-hit
+/// (REQ-hit, not culled — see [`triangle_unculled`] —, its facing certain where a facing is
+/// culled), or None; `out` is its classification.
+fn required_hit_t(
+    scene: &PreparedScene,
+    w: &WorldGeometry,
+    ray: &Ray,
+    out: &TriangleOutcome,
+) -> Option<f64> {
+    let inst = &scene.scene.instances[w.instance as usize];
     if out.class != PairClass::ReqHit {
         return None;
     }
@@ -268,6 +289,14 @@ fn required_hit_t(
     }
     let (t, _) = triangle_intervals(&values, &band);
     t.hi.is_finite().then_some(t.hi)
+}
+
+/// A primitive the ray's padded box test kept, with its classification when the traversal made
+/// one (an unculled triangle).
+struct NearItem {
+    item: Item,
+    bounds: FarBox,
+    outcome: Option<TriangleOutcome>,
 }
 
 /// A procedural primitive the intersection shader must run for.
@@ -297,27 +326,48 @@ pub fn trace_ray(
     // out — in every mode alike (the BVH skips whole nodes of such triangles as the cut falls).
     let cut = std::cell::Cell::new(f64::INFINITY);
     let mut may_cut: Option<bool> = None;
-    let mut near: Vec<(Item, super::prepare::FarBox)> = Vec::new();
+    let mut near: Vec<NearItem> = Vec::new();
     let mut far_count = 0u64;
     let far_test = config.far_test;
-    let mut scratch = TracerStats::default();
-    let mut visit = |item: Item, fb: &super::prepare::FarBox| {
-        if far_test && fb.is_far(&rf) {
+    let mut visit = |item: Item, fb: &FarBox| {
+        if far_test && fb.is_far_fast(&rf) {
             far_count += 1;
             return;
         }
-        near.push((item, *fb));
         let w = &scene.geometries[item.geometry as usize];
         if w.kind != PrimitiveKind::Triangle {
+            near.push(NearItem {
+                item,
+                bounds: *fb,
+                outcome: None,
+            });
             return;
         }
-        if let Some(t_hi) = required_hit_t(scene, w, item.primitive, ray, &rf, config, &mut scratch)
+        // Behind the cut already: the final cut, never above it, leaves it out too.
+        let c = cut.get();
+        if c < rf.tmax {
+            let mut cut_ray = rf;
+            cut_ray.tmax = c;
+            if fb.is_far_fast(&cut_ray) {
+                return;
+            }
+        }
+        let outcome = triangle_unculled(scene, w, ray)
+            .then(|| classify_triangle(scene, w, item.primitive, ray, &rf, config.precision));
+        if let Some(t_hi) = outcome
+            .as_ref()
+            .and_then(|out| required_hit_t(scene, w, ray, out))
         {
             if t_hi < cut.get() && *may_cut.get_or_insert_with(|| cut_allowed(scene, ray, shaders))
             {
                 cut.set(t_hi);
             }
         }
+        near.push(NearItem {
+            item,
+            bounds: *fb,
+            outcome,
+        });
     };
     if config.use_bvh && config.far_test {
         let mut nodes = 0;
@@ -327,26 +377,26 @@ pub fn trace_ray(
         scene.for_each_item(&mut visit);
     }
     stats.far_rejections += far_count;
-    // What the cut leaves out (the BVH has left out a subset of it already).
+    // What the cut leaves out of what was kept before it fell.
     let cut_at = cut.get();
     if cut_at < rf.tmax {
         let mut cut_ray = rf;
         cut_ray.tmax = cut_at;
-        near.retain(|(it, fb)| {
-            scene.geometries[it.geometry as usize].kind != PrimitiveKind::Triangle
-                || !fb.is_far(&cut_ray)
+        near.retain(|n| {
+            scene.geometries[n.item.geometry as usize].kind != PrimitiveKind::Triangle
+                || !n.bounds.is_far_fast(&cut_ray)
         });
     }
     // A deterministic order, independent of the BVH.
-    near.sort_by_key(|(it, _)| {
-        let w = &scene.geometries[it.geometry as usize];
-        (w.instance, w.geometry, it.primitive)
+    near.sort_by_key(|n| {
+        let w = &scene.geometries[n.item.geometry as usize];
+        (w.instance, w.geometry, n.item.primitive)
     });
 
     let mut candidates: Vec<Candidate> = Vec::new();
     let mut hits: Vec<TriangleHit> = Vec::new();
     let mut must_run: Vec<MustRun> = Vec::new();
-    for (item, _) in near {
+    for NearItem { item, outcome, .. } in near {
         let w = &scene.geometries[item.geometry as usize];
         let inst = &scene.scene.instances[w.instance as usize];
         // Spec, "Ray Mask Culling".
@@ -373,8 +423,10 @@ pub fn trace_ray(
         stats.pair_tests += 1;
         match w.kind {
             PrimitiveKind::Triangle => {
-                let out =
-                    classify_triangle(scene, w, item.primitive, ray, &rf, config.precision, stats);
+                let out = outcome.unwrap_or_else(|| {
+                    classify_triangle(scene, w, item.primitive, ray, &rf, config.precision)
+                });
+                out.evaluation.count(stats);
                 let (presence, reason) = match out.class {
                     PairClass::ReqHit => {
                         stats.req_hit += 1;
