@@ -2,7 +2,8 @@
 //! cases with, shader binding table resolution and prepared-scene memo included — on the triangle
 //! workloads of `model::tracer::workload` as a 64x64 launch of the hand-made indirect case (the
 //! scene and rays `harness/benches/render_rays.rs` gives lavapipe), beside the bare tracer
-//! (`workload::run`, one shader table for every ray) on the same rays as the peer in the same run.
+//! (`workload::run`, one shader table for every ray) on the same rays as the peer in the same run,
+//! and the launch's CPU time per ray (all threads).
 //!
 //! `cargo bench -p rtconf-model --bench expected_launch` (`RTCONF_BENCH_PASSES` sets the passes,
 //! default 9; each rate is their
@@ -24,6 +25,18 @@ fn hand_case() -> Case {
     Case::from_yaml("hand", &text).expect("the hand-made case parses")
 }
 
+/// CPU seconds this process has used (all threads): a rate from it is less disturbed by other
+/// processes on a shared machine than one from wall time.
+fn cpu_seconds() -> f64 {
+    let mut t = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes one timespec through a valid pointer.
+    unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut t) };
+    t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -36,11 +49,12 @@ fn main() {
         .unwrap_or(9);
     let only = std::env::var("RTCONF_BENCH_ONLY").unwrap_or_default();
     println!(
-        "{:<24} {:>7} {:>7} {:>16} {:>16} {:>8} {:>10} {:>10} {:>10}",
+        "{:<24} {:>7} {:>7} {:>16} {:>14} {:>16} {:>8} {:>10} {:>10} {:>10}",
         "workload",
         "prims",
         "rays",
         "launch rays/s",
+        "cpu µs/ray",
         "tracer rays/s",
         "ratio",
         "nodes/ray",
@@ -75,10 +89,12 @@ fn main() {
             .expect("the workload's outcomes");
         let per_ray = |n: u64| n as f64 / warm.stats.rays.max(1) as f64;
         let mut launch = Vec::new();
+        let mut cpu = Vec::new();
         for _ in 0..passes {
-            let t = Instant::now();
+            let (t, c) = (Instant::now(), cpu_seconds());
             let e = model::semantics::expected_launch(&body.world, &body.call);
             launch.push(ids / t.elapsed().as_secs_f64());
+            cpu.push(1e6 * (cpu_seconds() - c) / ids);
             assert!(e.is_some());
         }
         let prepared = PreparedScene::new(&w.scene).expect("defined workload");
@@ -91,11 +107,12 @@ fn main() {
         }
         let (l, r) = (median(launch), median(tracer));
         println!(
-            "{:<24} {:>7} {:>7} {:>16.0} {:>16.0} {:>8.2} {:>10.1} {:>10.1} {:>10.1}",
+            "{:<24} {:>7} {:>7} {:>16.0} {:>14.2} {:>16.0} {:>8.2} {:>10.1} {:>10.1} {:>10.1}",
             w.name,
             prepared.primitive_count(),
             w.rays.len(),
             l,
+            median(cpu),
             r,
             l / r,
             per_ray(warm.stats.nodes_visited),

@@ -197,6 +197,82 @@ impl FarBox {
     }
 }
 
+/// The traversal's compact copy of a [`FarBox`]'s bound: its corners rounded outward to f32 and
+/// the pad coefficients rounded up, so the box it tests contains the f64 one and its pad is at
+/// least as large — a miss here is a miss of [`FarBox::is_far_bound`], hence of
+/// [`FarBox::is_far`] (the slab test evaluated in f64 either way, the rounded slab bounds monotone
+/// in the box and the pad). Half the bytes of the f64 bound, a quarter of the FarBox.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct BoundBox {
+    lo: [f32; 3],
+    hi: [f32; 3],
+    pad_base: f32,
+    pad_slope: f32,
+}
+
+/// The greatest f32 at most `x` (NaN stays NaN).
+fn f32_down(x: f64) -> f32 {
+    let y = x as f32;
+    if (y as f64) <= x || y.is_nan() {
+        y
+    } else if y == 0.0 {
+        -f32::from_bits(1)
+    } else if y > 0.0 {
+        f32::from_bits(y.to_bits() - 1)
+    } else {
+        f32::from_bits(y.to_bits() + 1)
+    }
+}
+
+/// The least f32 at least `x`.
+fn f32_up(x: f64) -> f32 {
+    -f32_down(-x)
+}
+
+impl BoundBox {
+    pub fn of(b: &FarBox) -> BoundBox {
+        BoundBox {
+            lo: b.lo.map(f32_down),
+            hi: b.hi.map(f32_up),
+            pad_base: f32_up(b.pad_base),
+            pad_slope: f32_up(b.pad_slope),
+        }
+    }
+
+    /// [`FarBox::is_far_bound`] of this box: the entry t, or None for a miss.
+    #[inline]
+    #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
+    pub fn entry(&self, ray: &RayF64, tmax: f64) -> Option<f64> {
+        let o = &ray.origin;
+        let pad = self.pad_base as f64 + self.pad_slope as f64 * ray.origin_norm;
+        if !pad.is_finite() {
+            return Some(f64::NEG_INFINITY);
+        }
+        let mut near = ray.tmin;
+        let mut far = tmax;
+        for k in 0..3 {
+            let lo = self.lo[k] as f64 - pad;
+            let hi = self.hi[k] as f64 + pad;
+            if ray.direction[k] == 0.0 {
+                if o[k] < lo || o[k] > hi {
+                    return None;
+                }
+            } else {
+                let inv = ray.inv_direction[k];
+                let t1 = (lo - o[k]) * inv;
+                let t2 = (hi - o[k]) * inv;
+                near = near.max(t1.min(t2));
+                far = far.min(t1.max(t2));
+            }
+        }
+        if near > far {
+            None
+        } else {
+            Some(near)
+        }
+    }
+}
+
 /// A ray in f64 (exact conversions).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct RayF64 {
@@ -233,7 +309,7 @@ pub(crate) struct Item {
 
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Node {
-    pub bounds: FarBox,
+    pub bounds: BoundBox,
     /// Leaf: first item; interior: index of the left child (the right child is `left + 1`).
     pub first: u32,
     /// Leaf: number of items (> 0); interior: 0.
@@ -268,6 +344,8 @@ pub struct PreparedScene {
     pub(crate) items: Vec<Item>,
     /// The far box of each item, in `items` order.
     pub(crate) item_boxes: Vec<FarBox>,
+    /// The compact bound of each item's far box, in `items` order.
+    pub(crate) item_bounds: Vec<BoundBox>,
     pub(crate) nodes: Vec<Node>,
     /// `(bottom level, transform class)` → topology, built on first use.
     pub(crate) topology: HashMap<(u32, u32), OnceLock<Topology>>,
@@ -457,12 +535,14 @@ impl PreparedScene {
             .map(|it: &Item| geometries[it.geometry as usize].kind == PrimitiveKind::Triangle)
             .collect();
         let (items, item_boxes, nodes) = build_bvh(items, boxes, &triangle);
+        let item_bounds = item_boxes.iter().map(BoundBox::of).collect();
         Ok(PreparedScene {
             scene: scene.clone(),
             instances,
             geometries,
             items,
             item_boxes,
+            item_bounds,
             nodes,
             topology,
         })
@@ -481,12 +561,14 @@ impl PreparedScene {
     /// Calls `visit` for every item of every leaf whose padded box the ray does not miss, nearer
     /// children first (`visit` applies the items' own far test). A node of triangles only is
     /// skipped as well when its padded box is missed by the ray cut at `cut` (which `visit` may
-    /// lower as it goes; see `traverse::trace_ray`). Nodes are tested with the pad bound of
-    /// [`FarBox::is_far_bound`], so a node is skipped only where every item below it is far.
+    /// lower as it goes; see `traverse::trace_ray`). Nodes are tested with their [`BoundBox`], so
+    /// a node is skipped only where every item below it is far; items are first tested so too,
+    /// and those it finds far (counted in `far_rejections`) or behind the cut are not visited.
     pub(crate) fn for_each_near(
         &self,
         ray: &RayF64,
         nodes_visited: &mut u64,
+        far_rejections: &mut u64,
         cut: &std::cell::Cell<f64>,
         mut visit: impl FnMut(Item, &FarBox),
     ) {
@@ -502,7 +584,7 @@ impl PreparedScene {
             }
         };
         *nodes_visited += 1;
-        let Some(entry) = root.bounds.is_far_bound(ray, limit(root)) else {
+        let Some(entry) = root.bounds.entry(ray, limit(root)) else {
             return;
         };
         // A median-split tree of at most 2^32 items is at most 32 levels deep, and each level
@@ -528,19 +610,29 @@ impl PreparedScene {
             }
             if node.count > 0 {
                 let range = node.first as usize..(node.first + node.count) as usize;
-                for (it, b) in self.items[range.clone()]
+                let c = cut.get();
+                for ((it, b), bound) in self.items[range.clone()]
                     .iter()
-                    .zip(&self.item_boxes[range])
+                    .zip(&self.item_boxes[range.clone()])
+                    .zip(&self.item_bounds[range])
                 {
-                    visit(*it, b);
+                    match bound.entry(ray, ray.tmax) {
+                        None => *far_rejections += 1,
+                        // Behind the cut: `visit` would leave the triangle out as well.
+                        Some(e)
+                            if e > c
+                                && self.geometries[it.geometry as usize].kind
+                                    == PrimitiveKind::Triangle => {}
+                        Some(_) => visit(*it, b),
+                    }
                 }
                 continue;
             }
             let (a, b) = (node.first, node.first + 1);
             let (na, nb) = (&self.nodes[a as usize], &self.nodes[b as usize]);
             *nodes_visited += 2;
-            let ea = na.bounds.is_far_bound(ray, limit(na));
-            let eb = nb.bounds.is_far_bound(ray, limit(nb));
+            let ea = na.bounds.entry(ray, limit(na));
+            let eb = nb.bounds.entry(ray, limit(nb));
             // The nearer child (by its entry t) is popped first.
             let order = match (ea, eb) {
                 (Some(x), Some(y)) if x <= y => [Some((b, y)), Some((a, x))],
@@ -637,7 +729,7 @@ fn build_bvh(
         return (items, boxes, nodes);
     }
     nodes.push(Node {
-        bounds: boxes[0],
+        bounds: BoundBox::of(&boxes[0]),
         first: 0,
         count: 0,
         triangles_only: false,
@@ -659,7 +751,7 @@ fn build_bvh(
         }
         if end - start <= LEAF_SIZE {
             nodes[n] = Node {
-                bounds,
+                bounds: BoundBox::of(&bounds),
                 first: start as u32,
                 count: (end - start) as u32,
                 triangles_only,
@@ -675,7 +767,7 @@ fn build_bvh(
         });
         let left = nodes.len();
         let placeholder = Node {
-            bounds,
+            bounds: BoundBox::of(&bounds),
             first: 0,
             count: 0,
             triangles_only,
@@ -683,7 +775,7 @@ fn build_bvh(
         nodes.push(placeholder);
         nodes.push(placeholder);
         nodes[n] = Node {
-            bounds,
+            bounds: BoundBox::of(&bounds),
             first: left as u32,
             count: 0,
             triangles_only,

@@ -370,9 +370,10 @@ pub fn trace_ray(
         });
     };
     if config.use_bvh && config.far_test {
-        let mut nodes = 0;
-        scene.for_each_near(&rf, &mut nodes, &cut, &mut visit);
+        let (mut nodes, mut far) = (0, 0);
+        scene.for_each_near(&rf, &mut nodes, &mut far, &cut, &mut visit);
         stats.nodes_visited += nodes;
+        stats.far_rejections += far;
     } else {
         scene.for_each_item(&mut visit);
     }
