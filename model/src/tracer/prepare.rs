@@ -57,8 +57,8 @@ pub(crate) struct FarBox {
     pub norm_t: f64,
     /// `1 / (1 − 2·rel)` rounded up (see `band::far_pad`); infinite where `rel ≥ 1/4`.
     pub inv_den: f64,
-    /// A pad at least [`FarBox::is_far`]'s for every ray: `pad_base + pad_slope·|o|` (see
-    /// [`FarBox::is_far_bound`]).
+    /// A pad at least [`FarBox::is_far`]'s for every ray: `pad_base + pad_slope·|o|` (the pad of
+    /// [`BoundBox::entry`]).
     pub pad_base: f64,
     pub pad_slope: f64,
 }
@@ -114,49 +114,6 @@ impl FarBox {
         )
     }
 
-    /// The ray's entry t into the box padded by the bound `pad_base + pad_slope·|o|` (at least
-    /// the pad of [`FarBox::is_far`]) over `[tmin, tmax]`, or None when it misses it. A miss here
-    /// implies [`FarBox::is_far`] at the same `tmax` (the pad is larger, and the rounded slab
-    /// bounds are monotone in the pad); an entry t above a lower `tmax` is a miss at that `tmax`.
-    #[inline]
-    #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
-    pub fn is_far_bound(&self, ray: &RayF64, tmax: f64) -> Option<f64> {
-        let o = &ray.origin;
-        let pad = self.pad_base + self.pad_slope * ray.origin_norm;
-        if !pad.is_finite() {
-            return Some(f64::NEG_INFINITY);
-        }
-        let mut near = ray.tmin;
-        let mut far = tmax;
-        for k in 0..3 {
-            let lo = self.lo[k] - pad;
-            let hi = self.hi[k] + pad;
-            if ray.direction[k] == 0.0 {
-                if o[k] < lo || o[k] > hi {
-                    return None;
-                }
-            } else {
-                let inv = ray.inv_direction[k];
-                let t1 = (lo - o[k]) * inv;
-                let t2 = (hi - o[k]) * inv;
-                near = near.max(t1.min(t2));
-                far = far.min(t1.max(t2));
-            }
-        }
-        // NaN is never a miss, as in `is_far`.
-        if near > far {
-            None
-        } else {
-            Some(near)
-        }
-    }
-
-    /// [`FarBox::is_far`] that first asks the cheaper bound: the same answer.
-    #[inline]
-    pub fn is_far_fast(&self, ray: &RayF64) -> bool {
-        self.is_far_bound(ray, ray.tmax).is_none() || self.is_far(ray)
-    }
-
     /// Whether the ray segment misses the padded box: then no conformant implementation can
     /// report a hit on anything inside (see `band::far_pad`, whose pad this evaluates with the
     /// division by `1 − 2·rel` done as a multiplication by its reciprocal rounded up, and the slab
@@ -165,6 +122,11 @@ impl FarBox {
     #[inline]
     #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
     pub fn is_far(&self, ray: &RayF64) -> bool {
+        // A segment that meets the box itself meets it padded (the pad is never negative, and
+        // the rounded slab bounds are monotone in it): not far, without the pad.
+        if self.meets_unpadded(ray) {
+            return false;
+        }
         let o = &ray.origin;
         let axis = |k: usize| {
             let x = (self.lo[k] - o[k]).abs().max((self.hi[k] - o[k]).abs());
@@ -197,11 +159,38 @@ impl FarBox {
     }
 }
 
-/// The traversal's compact copy of a [`FarBox`]'s bound: its corners rounded outward to f32 and
-/// the pad coefficients rounded up, so the box it tests contains the f64 one and its pad is at
-/// least as large — a miss here is a miss of [`FarBox::is_far_bound`], hence of
-/// [`FarBox::is_far`] (the slab test evaluated in f64 either way, the rounded slab bounds monotone
-/// in the box and the pad). Half the bytes of the f64 bound, a quarter of the FarBox.
+impl FarBox {
+    /// Whether the ray segment meets the box without its pad (the slab test of `is_far` with a
+    /// zero pad).
+    #[inline]
+    #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
+    fn meets_unpadded(&self, ray: &RayF64) -> bool {
+        let o = &ray.origin;
+        let mut near = ray.tmin;
+        let mut far = ray.tmax;
+        for k in 0..3 {
+            let (lo, hi) = (self.lo[k], self.hi[k]);
+            if ray.direction[k] == 0.0 {
+                if o[k] < lo || o[k] > hi {
+                    return false;
+                }
+            } else {
+                let inv = ray.inv_direction[k];
+                let t1 = (lo - o[k]) * inv;
+                let t2 = (hi - o[k]) * inv;
+                near = near.max(t1.min(t2));
+                far = far.min(t1.max(t2));
+            }
+        }
+        near <= far
+    }
+}
+
+/// The traversal's compact copy of a [`FarBox`]: its corners rounded outward to f32 and its pad
+/// bounded by `pad_base + pad_slope·|o|` (coefficients rounded up), so the box it tests contains
+/// the f64 one and its pad is at least [`FarBox::is_far`]'s. The slab test is evaluated in f64
+/// either way and its rounded bounds are monotone in the box and the pad, so a miss here is a miss
+/// there. A quarter of the bytes of the FarBox, and no square root.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct BoundBox {
     lo: [f32; 3],
@@ -239,30 +228,52 @@ impl BoundBox {
         }
     }
 
-    /// [`FarBox::is_far_bound`] of this box: the entry t, or None for a miss.
+    /// The ray's entry t into the padded box over `[tmin, tmax]`, or None when it misses it
+    /// (then [`FarBox::is_far`] holds at the same `tmax`); an entry t above a lower `tmax` is a
+    /// miss at that `tmax`.
     #[inline]
     #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
     pub fn entry(&self, ray: &RayF64, tmax: f64) -> Option<f64> {
         let o = &ray.origin;
         let pad = self.pad_base as f64 + self.pad_slope as f64 * ray.origin_norm;
-        if !pad.is_finite() {
+        // An infinite (or NaN) pad is never a miss, as in `is_far`.
+        if !(pad < f64::INFINITY) {
             return Some(f64::NEG_INFINITY);
         }
         let mut near = ray.tmin;
         let mut far = tmax;
-        for k in 0..3 {
-            let lo = self.lo[k] as f64 - pad;
-            let hi = self.hi[k] as f64 + pad;
-            if ray.direction[k] == 0.0 {
-                if o[k] < lo || o[k] > hi {
-                    return None;
-                }
-            } else {
+        if ray.oblique {
+            // Every direction component is non-zero: the slab bounds are finite or infinite,
+            // never NaN (finite pad and origin, boxes never +inf below or -inf above), so the
+            // comparisons below are `max`/`min`, and the sign of the reciprocal says which face
+            // comes first.
+            for k in 0..3 {
                 let inv = ray.inv_direction[k];
-                let t1 = (lo - o[k]) * inv;
-                let t2 = (hi - o[k]) * inv;
-                near = near.max(t1.min(t2));
-                far = far.min(t1.max(t2));
+                let (first, last) = if inv > 0.0 {
+                    (self.lo[k] as f64 - pad, self.hi[k] as f64 + pad)
+                } else {
+                    (self.hi[k] as f64 + pad, self.lo[k] as f64 - pad)
+                };
+                let t_in = (first - o[k]) * inv;
+                let t_out = (last - o[k]) * inv;
+                near = if t_in > near { t_in } else { near };
+                far = if t_out < far { t_out } else { far };
+            }
+        } else {
+            for k in 0..3 {
+                let lo = self.lo[k] as f64 - pad;
+                let hi = self.hi[k] as f64 + pad;
+                if ray.direction[k] == 0.0 {
+                    if o[k] < lo || o[k] > hi {
+                        return None;
+                    }
+                } else {
+                    let inv = ray.inv_direction[k];
+                    let t1 = (lo - o[k]) * inv;
+                    let t2 = (hi - o[k]) * inv;
+                    near = near.max(t1.min(t2));
+                    far = far.min(t1.max(t2));
+                }
             }
         }
         if near > far {
@@ -283,6 +294,8 @@ pub(crate) struct RayF64 {
     pub origin_norm: f64,
     /// `1 / direction` per axis (0 where the direction is 0, which the slab test handles apart).
     pub inv_direction: [f64; 3],
+    /// No direction component is 0.
+    pub oblique: bool,
 }
 
 impl RayF64 {
@@ -293,6 +306,7 @@ impl RayF64 {
             origin,
             direction,
             inv_direction: direction.map(|d| if d == 0.0 { 0.0 } else { 1.0 / d }),
+            oblique: direction.iter().all(|&d| d != 0.0),
             tmin: ray.tmin as f64,
             tmax: ray.tmax as f64,
             origin_norm: norm3(origin),
@@ -347,6 +361,8 @@ pub struct PreparedScene {
     /// The compact bound of each item's far box, in `items` order.
     pub(crate) item_bounds: Vec<BoundBox>,
     pub(crate) nodes: Vec<Node>,
+    /// `(instance, geometry)` of every AABB geometry with an active box, in instance order.
+    pub(crate) procedural: Vec<(u32, u32)>,
     /// `(bottom level, transform class)` → topology, built on first use.
     pub(crate) topology: HashMap<(u32, u32), OnceLock<Topology>>,
 }
@@ -536,6 +552,20 @@ impl PreparedScene {
             .collect();
         let (items, item_boxes, nodes) = build_bvh(items, boxes, &triangle);
         let item_bounds = item_boxes.iter().map(BoundBox::of).collect();
+        let procedural = geometries
+            .iter()
+            .filter(|w| w.kind == PrimitiveKind::Aabb)
+            .filter(|w| {
+                let GeometryData::Aabbs(a) = &scene.bottom_levels[w.bottom_level as usize]
+                    .geometries[w.geometry as usize]
+                    .data
+                else {
+                    unreachable!("an AABB geometry")
+                };
+                !a.boxes.iter().all(|b| b.is_inactive())
+            })
+            .map(|w| (w.instance, w.geometry))
+            .collect();
         Ok(PreparedScene {
             scene: scene.clone(),
             instances,
@@ -544,6 +574,7 @@ impl PreparedScene {
             item_boxes,
             item_bounds,
             nodes,
+            procedural,
             topology,
         })
     }
@@ -575,8 +606,7 @@ impl PreparedScene {
         let Some(root) = self.nodes.first() else {
             return;
         };
-        let limit = |node: &Node| {
-            let c = cut.get();
+        let limit = |node: &Node, c: f64| {
             if node.triangles_only && c < ray.tmax {
                 c
             } else {
@@ -584,11 +614,11 @@ impl PreparedScene {
             }
         };
         *nodes_visited += 1;
-        let Some(entry) = root.bounds.entry(ray, limit(root)) else {
+        let Some(entry) = root.bounds.entry(ray, limit(root, cut.get())) else {
             return;
         };
-        // A median-split tree of at most 2^32 items is at most 32 levels deep, and each level
-        // leaves at most one node on the stack: a fixed stack suffices, a Vec takes any excess.
+        // Each level leaves at most one node on the stack: a fixed stack holds any tree up to 64
+        // levels deep, a Vec takes any excess.
         let mut stack = [(0u32, 0f64); 64];
         stack[0] = (0, entry);
         let mut depth = 1usize;
@@ -603,36 +633,48 @@ impl PreparedScene {
                 break;
             };
             let node = &self.nodes[n as usize];
+            let c = cut.get();
             // The cut may have fallen since the node was pushed: its entry t past the cut is a
             // miss of the cut ray.
-            if node.triangles_only && entry > cut.get() {
+            if node.triangles_only && entry > c {
                 continue;
             }
             if node.count > 0 {
-                let range = node.first as usize..(node.first + node.count) as usize;
-                let c = cut.get();
-                for ((it, b), bound) in self.items[range.clone()]
-                    .iter()
-                    .zip(&self.item_boxes[range.clone()])
-                    .zip(&self.item_bounds[range])
-                {
-                    match bound.entry(ray, ray.tmax) {
+                // The leaf's items by entry t, nearer first (a nearer required hit may cut the
+                // others before they are classified).
+                let mut order = [(0f64, 0usize); LEAF_SIZE];
+                let mut len = 0;
+                for i in node.first as usize..(node.first + node.count) as usize {
+                    match self.item_bounds[i].entry(ray, ray.tmax) {
                         None => *far_rejections += 1,
-                        // Behind the cut: `visit` would leave the triangle out as well.
-                        Some(e)
-                            if e > c
-                                && self.geometries[it.geometry as usize].kind
-                                    == PrimitiveKind::Triangle => {}
-                        Some(_) => visit(*it, b),
+                        Some(e) => {
+                            let mut at = len;
+                            while at > 0 && order[at - 1].0 > e {
+                                order[at] = order[at - 1];
+                                at -= 1;
+                            }
+                            order[at] = (e, i);
+                            len += 1;
+                        }
                     }
+                }
+                for &(e, i) in &order[..len] {
+                    let it = self.items[i];
+                    // Behind the cut: `visit` would leave the triangle out as well.
+                    if e > cut.get()
+                        && self.geometries[it.geometry as usize].kind == PrimitiveKind::Triangle
+                    {
+                        continue;
+                    }
+                    visit(it, &self.item_boxes[i]);
                 }
                 continue;
             }
             let (a, b) = (node.first, node.first + 1);
             let (na, nb) = (&self.nodes[a as usize], &self.nodes[b as usize]);
             *nodes_visited += 2;
-            let ea = na.bounds.entry(ray, limit(na));
-            let eb = nb.bounds.entry(ray, limit(nb));
+            let ea = na.bounds.entry(ray, limit(na, c));
+            let eb = nb.bounds.entry(ray, limit(nb, c));
             // The nearer child (by its entry t) is popped first.
             let order = match (ea, eb) {
                 (Some(x), Some(y)) if x <= y => [Some((b, y)), Some((a, x))],
@@ -711,11 +753,93 @@ impl BoundedF64 {
 
 const LEAF_SIZE: usize = 4;
 
-/// Relative slack on the pad bound of [`FarBox::is_far_bound`], far above the rounding of it and
-/// of the pad it bounds.
+/// Relative slack on the pad bound of [`BoundBox`], far above the rounding of it and of the pad
+/// it bounds.
 const BOUND_SLACK: f64 = 1.0 + 1e-10;
 
-/// Builds a BVH by median splits along the widest centroid axis; items are reordered to leaves.
+/// Bins of the surface-area split.
+const SAH_BINS: usize = 16;
+
+/// Half the surface area of a box (the chance a random ray through its parent meets it, up to a
+/// common factor).
+fn half_area(lo: &[f64; 3], hi: &[f64; 3]) -> f64 {
+    let d = [0, 1, 2].map(|k| (hi[k] - lo[k]).max(0.0));
+    d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+}
+
+/// The surface-area split of `slice` (items binned by centroid along each axis, the plane of least
+/// `area(left)·n(left) + area(right)·n(right)`): reorders `slice` so the left part comes first
+/// and returns its length, or None where no plane has items on both sides.
+fn sah_split(
+    slice: &mut [u32],
+    boxes: &[FarBox],
+    cents: &[[f64; 3]],
+    clo: [f64; 3],
+    chi: [f64; 3],
+) -> Option<usize> {
+    let mut best: Option<(f64, usize, usize)> = None;
+    let bin_of = |c: f64, k: usize| -> usize {
+        let w = chi[k] - clo[k];
+        (((c - clo[k]) / w * SAH_BINS as f64) as usize).min(SAH_BINS - 1)
+    };
+    for k in 0..3 {
+        let w = chi[k] - clo[k];
+        if !(w > 0.0 && w.is_finite()) {
+            continue;
+        }
+        let mut count = [0usize; SAH_BINS];
+        let mut lo = [[f64::INFINITY; 3]; SAH_BINS];
+        let mut hi = [[f64::NEG_INFINITY; 3]; SAH_BINS];
+        for &i in slice.iter() {
+            let b = bin_of(cents[i as usize][k], k);
+            count[b] += 1;
+            let fb = &boxes[i as usize];
+            for a in 0..3 {
+                lo[b][a] = lo[b][a].min(fb.lo[a]);
+                hi[b][a] = hi[b][a].max(fb.hi[a]);
+            }
+        }
+        // Areas and counts of the left parts (bins 0..=p) and right parts (p+1..).
+        let mut left = [(0.0, 0usize); SAH_BINS];
+        let (mut l, mut h, mut n) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3], 0);
+        for p in 0..SAH_BINS {
+            for a in 0..3 {
+                l[a] = l[a].min(lo[p][a]);
+                h[a] = h[a].max(hi[p][a]);
+            }
+            n += count[p];
+            left[p] = (if n > 0 { half_area(&l, &h) } else { 0.0 }, n);
+        }
+        let (mut l, mut h, mut n) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3], 0);
+        for p in (1..SAH_BINS).rev() {
+            for a in 0..3 {
+                l[a] = l[a].min(lo[p][a]);
+                h[a] = h[a].max(hi[p][a]);
+            }
+            n += count[p];
+            let (la, ln) = left[p - 1];
+            if ln == 0 || n == 0 {
+                continue;
+            }
+            let cost = la * ln as f64 + half_area(&l, &h) * n as f64;
+            if best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, k, p));
+            }
+        }
+    }
+    let (_, k, p) = best?;
+    // Partition: bins below p to the left, in a stable, deterministic order.
+    let (mut a, mut b): (Vec<u32>, Vec<u32>) = slice
+        .iter()
+        .partition(|&&i| bin_of(cents[i as usize][k], k) < p);
+    let mid = a.len();
+    a.append(&mut b);
+    slice.copy_from_slice(&a);
+    Some(mid)
+}
+
+/// Builds a BVH by surface-area splits (median splits where centroids coincide); items are
+/// reordered to leaves.
 fn build_bvh(
     items: Vec<Item>,
     boxes: Vec<FarBox>,
@@ -758,13 +882,20 @@ fn build_bvh(
             };
             continue;
         }
-        let axis = (0..3)
-            .max_by(|&a, &b| (chi[a] - clo[a]).total_cmp(&(chi[b] - clo[b])))
-            .unwrap_or(0);
-        let mid = (end - start) / 2;
-        slice.select_nth_unstable_by(mid, |&a, &b| {
-            cents[a as usize][axis].total_cmp(&cents[b as usize][axis])
-        });
+        let mid = match sah_split(slice, &boxes, &cents, clo, chi) {
+            Some(mid) => mid,
+            None => {
+                // Centroids that no plane separates: a median split along the widest axis.
+                let axis = (0..3)
+                    .max_by(|&a, &b| (chi[a] - clo[a]).total_cmp(&(chi[b] - clo[b])))
+                    .unwrap_or(0);
+                let mid = (end - start) / 2;
+                slice.select_nth_unstable_by(mid, |&a, &b| {
+                    cents[a as usize][axis].total_cmp(&cents[b as usize][axis])
+                });
+                mid
+            }
+        };
         let left = nodes.len();
         let placeholder = Node {
             bounds: BoundBox::of(&bounds),

@@ -326,11 +326,12 @@ pub fn trace_ray(
     // out — in every mode alike (the BVH skips whole nodes of such triangles as the cut falls).
     let cut = std::cell::Cell::new(f64::INFINITY);
     let mut may_cut: Option<bool> = None;
-    let mut near: Vec<NearItem> = Vec::new();
+    let mut scratch = SCRATCH.with(|s| std::mem::take(&mut *s.borrow_mut()));
+    let near = &mut scratch.near;
     let mut far_count = 0u64;
     let far_test = config.far_test;
     let mut visit = |item: Item, fb: &FarBox| {
-        if far_test && fb.is_far_fast(&rf) {
+        if far_test && fb.is_far(&rf) {
             far_count += 1;
             return;
         }
@@ -348,7 +349,7 @@ pub fn trace_ray(
         if c < rf.tmax {
             let mut cut_ray = rf;
             cut_ray.tmax = c;
-            if fb.is_far_fast(&cut_ray) {
+            if fb.is_far(&cut_ray) {
                 return;
             }
         }
@@ -385,7 +386,7 @@ pub fn trace_ray(
         cut_ray.tmax = cut_at;
         near.retain(|n| {
             scene.geometries[n.item.geometry as usize].kind != PrimitiveKind::Triangle
-                || !n.bounds.is_far_fast(&cut_ray)
+                || !n.bounds.is_far(&cut_ray)
         });
     }
     // A deterministic order, independent of the BVH.
@@ -394,10 +395,10 @@ pub fn trace_ray(
         (w.instance, w.geometry, n.item.primitive)
     });
 
-    let mut candidates: Vec<Candidate> = Vec::new();
-    let mut hits: Vec<TriangleHit> = Vec::new();
+    let mut candidates: Vec<Candidate> = Vec::with_capacity(near.len());
+    let hits = &mut scratch.hits;
     let mut must_run: Vec<MustRun> = Vec::new();
-    for NearItem { item, outcome, .. } in near {
+    for NearItem { item, outcome, .. } in near.drain(..) {
         let w = &scene.geometries[item.geometry as usize];
         let inst = &scene.scene.instances[w.instance as usize];
         // Spec, "Ray Mask Culling".
@@ -455,22 +456,28 @@ pub fn trace_ray(
                     (world_negative != scene.instances[w.instance as usize].det_negative)
                         != inst.flags.flip_facing
                 });
-                let mut kinds: Vec<u32> = match front {
-                    Some(true) => vec![0xFE],
-                    Some(false) => vec![0xFF],
-                    None => vec![0xFE, 0xFF],
+                const BOTH: [u32; 2] = [0xFE, 0xFF];
+                let facings: &[u32] = match front {
+                    Some(true) => &BOTH[..1],
+                    Some(false) => &BOTH[1..],
+                    None => &BOTH,
                 };
-                let mut facing_vary = false;
-                if !inst.flags.triangle_facing_cull_disable {
-                    let before = kinds.len();
-                    if ray.flags.contains(RayFlags::CULL_BACK_FACING_TRIANGLES) {
-                        kinds.retain(|k| *k != 0xFF);
+                let culls = !inst.flags.triangle_facing_cull_disable;
+                let mut kept = [0u32; 2];
+                let mut count = 0;
+                for &k in facings {
+                    let culled = culls
+                        && ((k == 0xFF
+                            && ray.flags.contains(RayFlags::CULL_BACK_FACING_TRIANGLES))
+                            || (k == 0xFE
+                                && ray.flags.contains(RayFlags::CULL_FRONT_FACING_TRIANGLES)));
+                    if !culled {
+                        kept[count] = k;
+                        count += 1;
                     }
-                    if ray.flags.contains(RayFlags::CULL_FRONT_FACING_TRIANGLES) {
-                        kinds.retain(|k| *k != 0xFE);
-                    }
-                    facing_vary = kinds.len() < before && front.is_none();
                 }
+                let kinds = &kept[..count];
+                let facing_vary = count < facings.len() && front.is_none();
                 if kinds.is_empty() {
                     continue;
                 }
@@ -638,10 +645,23 @@ pub fn trace_ray(
             }
         }
     }
-    let watertight = watertight_groups(scene, ray, &candidates, &hits);
+    let watertight = watertight_groups(scene, ray, &candidates, hits);
+    hits.clear();
+    SCRATCH.with(|s| *s.borrow_mut() = scratch);
     Ok(conclude(
         scene, ray, shaders, candidates, must_run, watertight,
     ))
+}
+
+/// Buffers one ray's trace needs and none keeps, reused by the next ray of the thread.
+#[derive(Default)]
+struct Scratch {
+    near: Vec<NearItem>,
+    hits: Vec<TriangleHit>,
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
 }
 
 /// From the candidates to the allowed committed hits, the miss rule and the invocation counts.
@@ -654,37 +674,44 @@ fn conclude(
     watertight: Vec<WatertightGroup>,
 ) -> AllowedOutcomes {
     let tofh = ray.flags.contains(RayFlags::TERMINATE_ON_FIRST_HIT);
-    let confirmable: Vec<bool> = candidates
+    // Per candidate: confirmable, may end the trace early, and the hull of its t intervals.
+    struct Facts {
+        confirmable: bool,
+        early: bool,
+        hull: Interval,
+    }
+    let facts: Vec<Facts> = candidates
         .iter()
-        .map(|c| c.confirmation.confirms())
-        .collect();
-    let early: Vec<bool> = candidates
-        .iter()
-        .zip(&confirmable)
-        .map(|(c, &ok)| {
-            ok && (tofh || c.confirmation == Confirmation::AnyHitAccepts { terminates: true })
+        .map(|c| {
+            let ok = c.confirmation.confirms();
+            Facts {
+                confirmable: ok,
+                early: ok
+                    && (tofh || c.confirmation == Confirmation::AnyHitAccepts { terminates: true }),
+                hull: c.t_hull(),
+            }
         })
         .collect();
-    let hulls: Vec<Interval> = candidates.iter().map(|c| c.t_hull()).collect();
+    let confirmable = |i: usize| facts[i].confirmable;
+    let early = |i: usize| facts[i].early;
+    let hulls = |i: usize| facts[i].hull;
     let required: Vec<usize> = (0..candidates.len())
-        .filter(|&i| confirmable[i] && candidates[i].presence == Presence::Required)
+        .filter(|&i| confirmable(i) && candidates[i].presence == Presence::Required)
         .collect();
     let committable: Vec<usize> = (0..candidates.len())
         .filter(|&i| {
-            confirmable[i]
-                && (early[i]
+            confirmable(i)
+                && (early(i)
                     || required
                         .iter()
-                        .all(|&r| r == i || hulls[i].lo <= hulls[r].hi))
+                        .all(|&r| r == i || hulls(i).lo <= hulls(r).hi))
         })
         .collect();
-    let any_early = early.iter().any(|&e| e);
     // A candidate must be processed when nothing can end the trace or shrink tmax below it first.
     let must_process = |i: Option<usize>, t_hi: f64| -> bool {
         (0..candidates.len())
-            .all(|c| Some(c) == i || !confirmable[c] || (!early[c] && hulls[c].lo > t_hi))
+            .all(|c| Some(c) == i || !confirmable(c) || (!early(c) && hulls(c).lo > t_hi))
     };
-    let _ = any_early;
     // Any-hit: at most once per candidate with NO_DUPLICATE_ANY_HIT, unbounded otherwise; with
     // TerminateOnFirstHit every accepting invocation ends the trace.
     let mut any_hit_max: Option<u32> = Some(0);
@@ -702,7 +729,7 @@ fn conclude(
                 _ => None,
             };
         }
-        if c.presence == Presence::Required && must_process(Some(i), hulls[i].hi) {
+        if c.presence == Presence::Required && must_process(Some(i), hulls(i).hi) {
             any_hit_min += 1;
         }
     }
@@ -711,26 +738,18 @@ fn conclude(
     }
     // Intersection shaders may run for any reachable box (boxes may be enlarged without bound).
     let mut reachable_procedural = false;
-    for (i, inst) in scene.scene.instances.iter().enumerate() {
-        let Some(b) = inst.bottom_level else { continue };
-        if inst.mask as u32 & ray.cull_mask & 0xFF == 0 || ray.flags.contains(RayFlags::SKIP_AABBS)
-        {
-            continue;
-        }
-        for (g, geometry) in scene.scene.bottom_levels[b as usize]
-            .geometries
-            .iter()
-            .enumerate()
-        {
-            let GeometryData::Aabbs(a) = &geometry.data else {
-                continue;
-            };
-            if a.boxes.iter().all(|b| b.is_inactive()) {
+    if !ray.flags.contains(RayFlags::SKIP_AABBS) {
+        for &(i, g) in &scene.procedural {
+            let inst = &scene.scene.instances[i as usize];
+            if inst.mask as u32 & ray.cull_mask & 0xFF == 0 {
                 continue;
             }
+            let b = inst
+                .bottom_level
+                .expect("a procedural geometry's instance has a level");
+            let geometry = &scene.scene.bottom_levels[b as usize].geometries[g as usize];
             let opaque = opacity(ray, inst, geometry.flags.opaque);
-            if !opacity_culled(ray, opaque) && (shaders.hit)(i as u32, g as u32).has_intersection()
-            {
+            if !opacity_culled(ray, opaque) && (shaders.hit)(i, g).has_intersection() {
                 reachable_procedural = true;
             }
         }
