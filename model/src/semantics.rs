@@ -204,23 +204,122 @@ pub fn ray_key(r: &Ray) -> [u32; 13] {
 
 /// Prepared scenes by content, shared by every judgement of a case (the generator, the gate, the rules
 /// and the comparison each ask): the last few, so a process that judges cases one after another
-/// prepares each scene once.
+/// prepares each scene once. A scene is found by comparing it bit for bit with the prepared ones'
+/// (one pass over its data, no hash to collide).
 pub fn prepared(scene: &Scene) -> Option<Arc<PreparedScene>> {
-    static MEMO: Mutex<Vec<(u64, Arc<PreparedScene>)>> = Mutex::new(Vec::new());
-    let key = scene_key(scene);
+    static MEMO: Mutex<Vec<Arc<PreparedScene>>> = Mutex::new(Vec::new());
     let mut memo = MEMO.lock().unwrap_or_else(|e| e.into_inner());
-    if let Some(pos) = memo.iter().position(|(k, _)| *k == key) {
+    if let Some(pos) = memo.iter().position(|p| same_scene(p.scene(), scene)) {
         let hit = memo.remove(pos);
-        let p = hit.1.clone();
-        memo.push(hit);
-        return Some(p);
+        memo.push(hit.clone());
+        return Some(hit);
     }
     let p = Arc::new(PreparedScene::new(scene).ok()?);
-    memo.push((key, p.clone()));
+    memo.push(p.clone());
     if memo.len() > 4 {
         memo.remove(0);
     }
     Some(p)
+}
+
+/// Whether two scenes are identical bit for bit (−0 and +0 differ, a NaN equals the same NaN).
+pub fn same_scene(a: &Scene, b: &Scene) -> bool {
+    fn floats(a: &[f32], b: &[f32]) -> bool {
+        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+    }
+    fn transform(a: &crate::scene::Transform3x4, b: &crate::scene::Transform3x4) -> bool {
+        floats(a.0.as_flattened(), b.0.as_flattened())
+    }
+    let (
+        Scene {
+            bottom_levels: la,
+            instances: ia,
+        },
+        Scene {
+            bottom_levels: lb,
+            instances: ib,
+        },
+    ) = (a, b);
+    let levels = la.len() == lb.len()
+        && la.iter().zip(lb).all(|(x, y)| {
+            let (
+                crate::scene::BottomLevel { geometries: gx },
+                crate::scene::BottomLevel { geometries: gy },
+            ) = (x, y);
+            gx.len() == gy.len()
+                && gx.iter().zip(gy).all(|(g, h)| {
+                    let (
+                        crate::scene::Geometry {
+                            flags: fg,
+                            data: dg,
+                        },
+                        crate::scene::Geometry {
+                            flags: fh,
+                            data: dh,
+                        },
+                    ) = (g, h);
+                    fg == fh
+                        && match (dg, dh) {
+                            (GeometryData::Triangles(t), GeometryData::Triangles(u)) => {
+                                let crate::scene::Triangles {
+                                    positions: pt,
+                                    indices: it,
+                                    transform: tt,
+                                } = t;
+                                let crate::scene::Triangles {
+                                    positions: pu,
+                                    indices: iu,
+                                    transform: tu,
+                                } = u;
+                                floats(pt.as_flattened(), pu.as_flattened())
+                                    && it == iu
+                                    && match (tt, tu) {
+                                        (Some(m), Some(n)) => transform(m, n),
+                                        (None, None) => true,
+                                        _ => false,
+                                    }
+                            }
+                            (GeometryData::Aabbs(x), GeometryData::Aabbs(y)) => {
+                                let crate::scene::Aabbs {
+                                    boxes: bx,
+                                    spheres: sx,
+                                } = x;
+                                let crate::scene::Aabbs {
+                                    boxes: by,
+                                    spheres: sy,
+                                } = y;
+                                bx.len() == by.len()
+                                    && bx.iter().zip(by).all(|(p, q)| {
+                                        floats(&p.min, &q.min) && floats(&p.max, &q.max)
+                                    })
+                                    && sx.len() == sy.len()
+                                    && sx.iter().zip(sy).all(|(p, q)| {
+                                        floats(&p.center, &q.center)
+                                            && p.radius.to_bits() == q.radius.to_bits()
+                                    })
+                            }
+                            _ => false,
+                        }
+                })
+        });
+    levels
+        && ia.len() == ib.len()
+        && ia.iter().zip(ib).all(|(x, y)| {
+            let crate::scene::SceneInstance {
+                bottom_level,
+                transform: t,
+                custom_index,
+                mask,
+                sbt_record_offset,
+                flags,
+            } = x;
+            *bottom_level == y.bottom_level
+                && transform(t, &y.transform)
+                && *custom_index == y.custom_index
+                && *mask == y.mask
+                && *sbt_record_offset == y.sbt_record_offset
+                && *flags == y.flags
+        })
 }
 
 /// The hit records the launch may read, with the kind of geometry each is reached from, sorted: the
@@ -587,33 +686,33 @@ fn trace_distinct(
     // leave one worker behind.
     const CHUNK: usize = 32;
     let next = std::sync::atomic::AtomicUsize::new(0);
-    let parts: Vec<(Vec<(usize, Option<AllowedOutcomes>)>, TracerStats)> =
-        std::thread::scope(|scope| {
-            let handles: Vec<_> = (0..workers)
-                .map(|_| {
-                    scope.spawn(|| {
-                        let mut out = Vec::new();
-                        let mut stats = TracerStats::default();
-                        loop {
-                            let start = next.fetch_add(CHUNK, std::sync::atomic::Ordering::Relaxed);
-                            if start >= distinct.len() {
-                                break;
-                            }
-                            for (k, &i) in distinct.iter().enumerate().skip(start).take(CHUNK) {
-                                let a =
-                                    allowed_for_ray(world, call, prepared, &rays[i], &mut stats);
-                                out.push((k, a));
-                            }
+    /// One worker's outcomes by distinct-ray index, and its counters.
+    type Part = (Vec<(usize, Option<AllowedOutcomes>)>, TracerStats);
+    let parts: Vec<Part> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..workers)
+            .map(|_| {
+                scope.spawn(|| {
+                    let mut out = Vec::new();
+                    let mut stats = TracerStats::default();
+                    loop {
+                        let start = next.fetch_add(CHUNK, std::sync::atomic::Ordering::Relaxed);
+                        if start >= distinct.len() {
+                            break;
                         }
-                        (out, stats)
-                    })
+                        for (k, &i) in distinct.iter().enumerate().skip(start).take(CHUNK) {
+                            let a = allowed_for_ray(world, call, prepared, &rays[i], &mut stats);
+                            out.push((k, a));
+                        }
+                    }
+                    (out, stats)
                 })
-                .collect();
-            handles
-                .into_iter()
-                .map(|h| h.join().expect("a tracing worker does not panic"))
-                .collect()
-        });
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().expect("a tracing worker does not panic"))
+            .collect()
+    });
     let mut slots: Vec<Option<AllowedOutcomes>> = vec![None; distinct.len()];
     for (out, part) in parts {
         stats.merge(&part);

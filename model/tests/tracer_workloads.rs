@@ -159,3 +159,85 @@ fn expected_launch_allows_per_launch_id_what_brute_force_allows_its_ray() {
     }
     assert_eq!(compared, 4 * 2 * (SIDE * SIDE) as usize);
 }
+
+#[test]
+fn the_prepared_scene_memo_tells_scenes_apart_by_every_bit() {
+    use model::scene::{GeometryData, Indices, Transform3x4};
+    use model::semantics::{prepared, same_scene};
+    let base = standard_workloads(2, false)
+        .into_iter()
+        .find(|w| w.name.starts_with("instanced"))
+        .expect("the instanced workload")
+        .scene;
+    assert!(same_scene(&base, &base.clone()));
+    fn triangles(s: &mut model::scene::Scene) -> &mut model::scene::Triangles {
+        match &mut s.bottom_levels[0].geometries[0].data {
+            GeometryData::Triangles(t) => t,
+            GeometryData::Aabbs(_) => unreachable!("a triangle level"),
+        }
+    }
+    // One change of each kind the tracer can see; each must make another scene.
+    let mut changed: Vec<(&str, model::scene::Scene)> = Vec::new();
+    let mut s = base.clone();
+    triangles(&mut s).positions[7][1] =
+        f32::from_bits(triangles(&mut s).positions[7][1].to_bits() + 1);
+    changed.push(("one ulp of one vertex", s));
+    let mut s = base.clone();
+    let last = triangles(&mut s).positions.len() - 1;
+    triangles(&mut s).positions[last][2] = -triangles(&mut s).positions[last][2];
+    changed.push(("the sign of the last coordinate", s));
+    let mut s = base.clone();
+    match triangles(&mut s).indices.as_mut() {
+        Some(Indices::U16(v)) => v.swap(0, 1),
+        Some(Indices::U32(v)) => v.swap(0, 1),
+        None => panic!("the icosphere is indexed"),
+    }
+    changed.push(("two indices swapped", s));
+    let mut s = base.clone();
+    triangles(&mut s).transform = Some(Transform3x4::IDENTITY);
+    changed.push(("an identity geometry transform", s));
+    let mut s = base.clone();
+    s.bottom_levels[0].geometries[0].flags.opaque ^= true;
+    changed.push(("the opaque flag", s));
+    let mut s = base.clone();
+    s.instances[3].transform.0[1][3] =
+        f32::from_bits(s.instances[3].transform.0[1][3].to_bits() ^ 1);
+    changed.push(("one bit of one instance's translation", s));
+    let mut s = base.clone();
+    s.instances[5].mask ^= 0x10;
+    changed.push(("an instance mask", s));
+    let mut s = base.clone();
+    s.instances[5].flags.flip_facing ^= true;
+    changed.push(("an instance flag", s));
+    let mut s = base.clone();
+    s.instances.pop();
+    changed.push(("one instance fewer", s));
+    for (what, s) in &changed {
+        assert!(!same_scene(&base, s), "{what}: taken for the same scene");
+        assert!(!same_scene(s, &base), "{what}: taken for the same scene");
+    }
+    // A zero of the other sign is another scene for the memo too.
+    let mut zero = model::scene::Scene {
+        bottom_levels: vec![model::scene::BottomLevel {
+            geometries: vec![model::scene::Geometry {
+                flags: Default::default(),
+                data: GeometryData::Triangles(model::scene::Triangles {
+                    positions: vec![[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]],
+                    indices: None,
+                    transform: None,
+                }),
+            }],
+        }],
+        instances: vec![model::scene::SceneInstance::of(0)],
+    };
+    let a = prepared(&zero).expect("a defined scene");
+    triangles(&mut zero).positions[0][0] = -0.0;
+    let b = prepared(&zero).expect("a defined scene");
+    assert!(!std::sync::Arc::ptr_eq(&a, &b));
+    assert_eq!(b.scene().bottom_levels, zero.bottom_levels);
+    let c = prepared(&zero).expect("a defined scene");
+    assert!(
+        std::sync::Arc::ptr_eq(&b, &c),
+        "the same scene is prepared once"
+    );
+}

@@ -237,7 +237,7 @@ impl BoundBox {
         let o = &ray.origin;
         let pad = self.pad_base as f64 + self.pad_slope as f64 * ray.origin_norm;
         // An infinite (or NaN) pad is never a miss, as in `is_far`.
-        if !(pad < f64::INFINITY) {
+        if pad.is_nan() || pad == f64::INFINITY {
             return Some(f64::NEG_INFINITY);
         }
         let mut near = ray.tmin;
