@@ -321,6 +321,23 @@ pub(crate) struct Item {
     pub primitive: u32,
 }
 
+/// A node of the tree without its bound.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct NodeLinks {
+    /// Leaf: first item; interior: index of the left child (the right child is `left + 1`).
+    pub first: u32,
+    /// Leaf: number of items (> 0); interior: 0.
+    pub count: u32,
+    /// Every item below is a triangle (a node a ray may skip behind a required hit).
+    pub triangles_only: bool,
+}
+
+/// The bounds of two sibling nodes, tested together.
+#[derive(Debug, Clone, Copy)]
+#[repr(C, align(64))]
+pub(crate) struct ChildBounds(pub [BoundBox; 2]);
+
+/// A node as the build makes it.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Node {
     pub bounds: BoundBox,
@@ -360,7 +377,12 @@ pub struct PreparedScene {
     pub(crate) item_boxes: Vec<FarBox>,
     /// The compact bound of each item's far box, in `items` order.
     pub(crate) item_bounds: Vec<BoundBox>,
-    pub(crate) nodes: Vec<Node>,
+    /// The tree: node 0 the root, the children of an interior node at `first` and `first + 1`.
+    pub(crate) nodes: Vec<NodeLinks>,
+    /// The bound of the root.
+    pub(crate) root_bound: BoundBox,
+    /// The bounds of nodes `2p + 1` and `2p + 2` (the children of one node), one cache line.
+    pub(crate) child_bounds: Vec<ChildBounds>,
     /// `(instance, geometry)` of every AABB geometry with an active box, in instance order.
     pub(crate) procedural: Vec<(u32, u32)>,
     /// `(bottom level, transform class)` → topology, built on first use.
@@ -552,6 +574,29 @@ impl PreparedScene {
             .collect();
         let (items, item_boxes, nodes) = build_bvh(items, boxes, &triangle);
         let item_bounds = item_boxes.iter().map(BoundBox::of).collect();
+        let root_bound = nodes.first().map_or(
+            BoundBox {
+                lo: [0.0; 3],
+                hi: [0.0; 3],
+                pad_base: 0.0,
+                pad_slope: 0.0,
+            },
+            |n| n.bounds,
+        );
+        let child_bounds = nodes
+            .get(1..)
+            .unwrap_or_default()
+            .chunks_exact(2)
+            .map(|pair| ChildBounds([pair[0].bounds, pair[1].bounds]))
+            .collect();
+        let nodes = nodes
+            .iter()
+            .map(|n| NodeLinks {
+                first: n.first,
+                count: n.count,
+                triangles_only: n.triangles_only,
+            })
+            .collect();
         let procedural = geometries
             .iter()
             .filter(|w| w.kind == PrimitiveKind::Aabb)
@@ -574,6 +619,8 @@ impl PreparedScene {
             item_boxes,
             item_bounds,
             nodes,
+            root_bound,
+            child_bounds,
             procedural,
             topology,
         })
@@ -606,7 +653,7 @@ impl PreparedScene {
         let Some(root) = self.nodes.first() else {
             return;
         };
-        let limit = |node: &Node, c: f64| {
+        let limit = |node: &NodeLinks, c: f64| {
             if node.triangles_only && c < ray.tmax {
                 c
             } else {
@@ -614,7 +661,7 @@ impl PreparedScene {
             }
         };
         *nodes_visited += 1;
-        let Some(entry) = root.bounds.entry(ray, limit(root, cut.get())) else {
+        let Some(entry) = self.root_bound.entry(ray, limit(root, cut.get())) else {
             return;
         };
         // Each level leaves at most one node on the stack: a fixed stack holds any tree up to 64
@@ -673,8 +720,9 @@ impl PreparedScene {
             let (a, b) = (node.first, node.first + 1);
             let (na, nb) = (&self.nodes[a as usize], &self.nodes[b as usize]);
             *nodes_visited += 2;
-            let ea = na.bounds.entry(ray, limit(na, c));
-            let eb = nb.bounds.entry(ray, limit(nb, c));
+            let pair = &self.child_bounds[(a as usize - 1) / 2].0;
+            let ea = pair[0].entry(ray, limit(na, c));
+            let eb = pair[1].entry(ray, limit(nb, c));
             // The nearer child (by its entry t) is popped first.
             let order = match (ea, eb) {
                 (Some(x), Some(y)) if x <= y => [Some((b, y)), Some((a, x))],
