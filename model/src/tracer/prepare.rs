@@ -284,6 +284,55 @@ impl BoundBox {
     }
 }
 
+/// An item's [`BoundBox`] and its inner box: the f64 box rounded inward to f32 (empty where
+/// rounding leaves nothing), so a segment that meets it meets the f64 box, hence is not far.
+#[derive(Debug, Clone, Copy)]
+#[repr(C, align(64))]
+pub(crate) struct ItemBounds {
+    pub outer: BoundBox,
+    inner_lo: [f32; 3],
+    inner_hi: [f32; 3],
+}
+
+impl ItemBounds {
+    fn of(b: &FarBox) -> ItemBounds {
+        ItemBounds {
+            outer: BoundBox::of(b),
+            inner_lo: b.lo.map(f32_up),
+            inner_hi: b.hi.map(f32_down),
+        }
+    }
+
+    /// Whether the ray segment meets the inner box (then [`FarBox::is_far`] is false: the inner
+    /// box lies in the f64 box, and the slab test's rounded bounds are monotone in the box).
+    #[inline]
+    #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
+    pub fn meets_inner(&self, ray: &RayF64) -> bool {
+        let o = &ray.origin;
+        let mut near = ray.tmin;
+        let mut far = ray.tmax;
+        for k in 0..3 {
+            let (lo, hi) = (self.inner_lo[k] as f64, self.inner_hi[k] as f64);
+            // An empty (or NaN) inner box meets nothing.
+            if lo > hi || lo.is_nan() || hi.is_nan() {
+                return false;
+            }
+            if ray.direction[k] == 0.0 {
+                if o[k] < lo || o[k] > hi {
+                    return false;
+                }
+            } else {
+                let inv = ray.inv_direction[k];
+                let t1 = (lo - o[k]) * inv;
+                let t2 = (hi - o[k]) * inv;
+                near = near.max(t1.min(t2));
+                far = far.min(t1.max(t2));
+            }
+        }
+        near <= far
+    }
+}
+
 /// A ray in f64 (exact conversions).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct RayF64 {
@@ -375,8 +424,8 @@ pub struct PreparedScene {
     pub(crate) items: Vec<Item>,
     /// The far box of each item, in `items` order.
     pub(crate) item_boxes: Vec<FarBox>,
-    /// The compact bound of each item's far box, in `items` order.
-    pub(crate) item_bounds: Vec<BoundBox>,
+    /// The compact bounds of each item's far box, in `items` order.
+    pub(crate) item_bounds: Vec<ItemBounds>,
     /// The tree: node 0 the root, the children of an interior node at `first` and `first + 1`.
     pub(crate) nodes: Vec<NodeLinks>,
     /// The bound of the root.
@@ -573,7 +622,7 @@ impl PreparedScene {
             .map(|it: &Item| geometries[it.geometry as usize].kind == PrimitiveKind::Triangle)
             .collect();
         let (items, item_boxes, nodes) = build_bvh(items, boxes, &triangle);
-        let item_bounds = item_boxes.iter().map(BoundBox::of).collect();
+        let item_bounds = item_boxes.iter().map(ItemBounds::of).collect();
         let root_bound = nodes.first().map_or(
             BoundBox {
                 lo: [0.0; 3],
@@ -636,8 +685,8 @@ impl PreparedScene {
         self.items.len()
     }
 
-    /// Calls `visit` for every item of every leaf whose padded box the ray does not miss, nearer
-    /// children first (`visit` applies the items' own far test). A node of triangles only is
+    /// Calls `visit` with the index of every item of every leaf whose padded box the ray does not
+    /// miss, nearer children first (`visit` applies the items' own far test). A node of triangles only is
     /// skipped as well when its padded box is missed by the ray cut at `cut` (which `visit` may
     /// lower as it goes; see `traverse::trace_ray`). Nodes are tested with their [`BoundBox`], so
     /// a node is skipped only where every item below it is far; items are first tested so too,
@@ -648,7 +697,7 @@ impl PreparedScene {
         nodes_visited: &mut u64,
         far_rejections: &mut u64,
         cut: &std::cell::Cell<f64>,
-        mut visit: impl FnMut(Item, &FarBox),
+        mut visit: impl FnMut(usize),
     ) {
         let Some(root) = self.nodes.first() else {
             return;
@@ -692,7 +741,7 @@ impl PreparedScene {
                 let mut order = [(0f64, 0usize); LEAF_SIZE];
                 let mut len = 0;
                 for i in node.first as usize..(node.first + node.count) as usize {
-                    match self.item_bounds[i].entry(ray, ray.tmax) {
+                    match self.item_bounds[i].outer.entry(ray, ray.tmax) {
                         None => *far_rejections += 1,
                         Some(e) => {
                             let mut at = len;
@@ -713,7 +762,7 @@ impl PreparedScene {
                     {
                         continue;
                     }
-                    visit(it, &self.item_boxes[i]);
+                    visit(i);
                 }
                 continue;
             }
@@ -739,13 +788,6 @@ impl PreparedScene {
                     spill.push(child);
                 }
             }
-        }
-    }
-
-    /// Calls `visit` for every item, near or not (the brute-force reference for the BVH).
-    pub(crate) fn for_each_item(&self, mut visit: impl FnMut(Item, &FarBox)) {
-        for (it, b) in self.items.iter().zip(&self.item_boxes) {
-            visit(*it, b);
         }
     }
 

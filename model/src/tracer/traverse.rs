@@ -11,7 +11,7 @@
 
 use super::arith::{affine, v3, BoundedF64, Dyadic, PlainF32, V3};
 use super::band::triangle_band;
-use super::prepare::{FarBox, Item, PreparedScene, RayF64, WorldGeometry};
+use super::prepare::{Item, PreparedScene, RayF64, WorldGeometry};
 use super::sphere::{sphere_band, sphere_reports, sphere_signs, SphereSigns};
 use super::triangle::{
     classify, triangle_intervals, triangle_signs, MissReason, PairClass, TriangleSigns,
@@ -295,7 +295,8 @@ fn required_hit_t(
 /// one (an unculled triangle).
 struct NearItem {
     item: Item,
-    bounds: FarBox,
+    /// Its index in the prepared scene's items.
+    index: usize,
     outcome: Option<TriangleOutcome>,
 }
 
@@ -330,8 +331,15 @@ pub fn trace_ray(
     let near = &mut scratch.near;
     let mut far_count = 0u64;
     let far_test = config.far_test;
-    let mut visit = |item: Item, fb: &FarBox| {
-        if far_test && fb.is_far(&rf) {
+    // The BVH's shortcuts (brute force, the reference, goes without): a segment that meets an
+    // item's inner box is not far from it.
+    let quick = config.use_bvh && far_test;
+    let far = |i: usize, ray: &RayF64| {
+        !(quick && scene.item_bounds[i].meets_inner(ray)) && scene.item_boxes[i].is_far(ray)
+    };
+    let mut visit = |i: usize| {
+        let item = scene.items[i];
+        if far_test && far(i, &rf) {
             far_count += 1;
             return;
         }
@@ -339,7 +347,7 @@ pub fn trace_ray(
         if w.kind != PrimitiveKind::Triangle {
             near.push(NearItem {
                 item,
-                bounds: *fb,
+                index: i,
                 outcome: None,
             });
             return;
@@ -349,7 +357,7 @@ pub fn trace_ray(
         if c < rf.tmax {
             let mut cut_ray = rf;
             cut_ray.tmax = c;
-            if fb.is_far(&cut_ray) {
+            if far(i, &cut_ray) {
                 return;
             }
         }
@@ -366,17 +374,17 @@ pub fn trace_ray(
         }
         near.push(NearItem {
             item,
-            bounds: *fb,
+            index: i,
             outcome,
         });
     };
-    if config.use_bvh && config.far_test {
+    if quick {
         let (mut nodes, mut far) = (0, 0);
         scene.for_each_near(&rf, &mut nodes, &mut far, &cut, &mut visit);
         stats.nodes_visited += nodes;
         stats.far_rejections += far;
     } else {
-        scene.for_each_item(&mut visit);
+        (0..scene.items.len()).for_each(&mut visit);
     }
     stats.far_rejections += far_count;
     // What the cut leaves out of what was kept before it fell.
@@ -386,7 +394,7 @@ pub fn trace_ray(
         cut_ray.tmax = cut_at;
         near.retain(|n| {
             scene.geometries[n.item.geometry as usize].kind != PrimitiveKind::Triangle
-                || !n.bounds.is_far(&cut_ray)
+                || !far(n.index, &cut_ray)
         });
     }
     // A deterministic order, independent of the BVH.
