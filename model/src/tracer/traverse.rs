@@ -403,7 +403,7 @@ pub fn trace_ray(
         (w.instance, w.geometry, n.item.primitive)
     });
 
-    let mut candidates: Vec<Candidate> = Vec::with_capacity(near.len());
+    let mut candidates: Vec<Candidate> = Vec::new();
     let hits = &mut scratch.hits;
     let mut must_run: Vec<MustRun> = Vec::new();
     for NearItem { item, outcome, .. } in near.drain(..) {
@@ -688,31 +688,45 @@ fn conclude(
         early: bool,
         hull: Interval,
     }
-    let facts: Vec<Facts> = candidates
-        .iter()
-        .map(|c| {
-            let ok = c.confirmation.confirms();
-            Facts {
-                confirmable: ok,
-                early: ok
-                    && (tofh || c.confirmation == Confirmation::AnyHitAccepts { terminates: true }),
-                hull: c.t_hull(),
-            }
-        })
-        .collect();
+    let fact = |c: &Candidate| {
+        let ok = c.confirmation.confirms();
+        Facts {
+            confirmable: ok,
+            early: ok
+                && (tofh || c.confirmation == Confirmation::AnyHitAccepts { terminates: true }),
+            hull: c.t_hull(),
+        }
+    };
+    // On the stack for the usual few candidates.
+    const FEW: usize = 8;
+    let mut few = [const {
+        Facts {
+            confirmable: false,
+            early: false,
+            hull: Interval::ALL,
+        }
+    }; FEW];
+    let many: Vec<Facts>;
+    let facts: &[Facts] = if candidates.len() <= FEW {
+        for (f, c) in few.iter_mut().zip(&candidates) {
+            *f = fact(c);
+        }
+        &few[..candidates.len()]
+    } else {
+        many = candidates.iter().map(fact).collect();
+        &many
+    };
     let confirmable = |i: usize| facts[i].confirmable;
     let early = |i: usize| facts[i].early;
     let hulls = |i: usize| facts[i].hull;
-    let required: Vec<usize> = (0..candidates.len())
-        .filter(|&i| confirmable(i) && candidates[i].presence == Presence::Required)
-        .collect();
+    let required = || {
+        (0..candidates.len())
+            .filter(|&i| confirmable(i) && candidates[i].presence == Presence::Required)
+    };
+    let no_required = required().next().is_none();
     let committable: Vec<usize> = (0..candidates.len())
         .filter(|&i| {
-            confirmable(i)
-                && (early(i)
-                    || required
-                        .iter()
-                        .all(|&r| r == i || hulls(i).lo <= hulls(r).hi))
+            confirmable(i) && (early(i) || required().all(|r| r == i || hulls(i).lo <= hulls(r).hi))
         })
         .collect();
     // A candidate must be processed when nothing can end the trace or shrink tmax below it first.
@@ -769,13 +783,13 @@ fn conclude(
             must_process(own, m.t_hi)
         })
         .count() as u32;
-    let discouraged = required.is_empty() && watertight.iter().any(|g| g.expect_hit);
+    let discouraged = no_required && watertight.iter().any(|g| g.expect_hit);
     let vary = candidates.iter().any(|c| c.presence == Presence::Possible)
         || committable.len() > 1
         || candidates.iter().any(|c| c.reports.len() > 1);
     AllowedOutcomes {
         miss: MissRule {
-            allowed: required.is_empty(),
+            allowed: no_required,
             required: committable.is_empty(),
             discouraged,
         },
