@@ -5,7 +5,10 @@
 //! records), and by the model (`expected_launch`: the allowed outcomes of every launch ID, the
 //! prepared scene cached likewise). Each rate is the median of five passes; the ratio is the oracle's
 //! rate over lavapipe's. Also the share of ray/primitive tests that needed the exact fallback, and
-//! whether lavapipe's records pass the judgement.
+//! whether lavapipe's records pass the judgement. Lavapipe runs llvmpipe on every core, and the model
+//! traces a launch's distinct rays on every core too (`expected_launch`), so the ratio compares the
+//! two on the same machine; `cargo bench -p rtconf-model --bench expected_launch` gives the model's
+//! CPU time per ray beside it.
 //!
 //! `cargo bench -p rtconf-harness --bench render_rays` (lavapipe through `VK_DRIVER_FILES`).
 

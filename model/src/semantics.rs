@@ -10,7 +10,8 @@ use crate::tracer::{
     TracerStats,
 };
 use crate::world::{GeometryKind, HandleRef, ShaderGroup, World};
-use std::collections::BTreeSet;
+use std::collections::{BTreeSet, HashMap};
+use std::hash::BuildHasherDefault;
 use std::sync::{Arc, Mutex};
 
 /// The miss record a ray reaches (`missIndex & 0xFFFF`, semantics.md §6).
@@ -203,23 +204,122 @@ pub fn ray_key(r: &Ray) -> [u32; 13] {
 
 /// Prepared scenes by content, shared by every judgement of a case (the generator, the gate, the rules
 /// and the comparison each ask): the last few, so a process that judges cases one after another
-/// prepares each scene once.
+/// prepares each scene once. A scene is found by comparing it bit for bit with the prepared ones'
+/// (one pass over its data, no hash to collide).
 pub fn prepared(scene: &Scene) -> Option<Arc<PreparedScene>> {
-    static MEMO: Mutex<Vec<(u64, Arc<PreparedScene>)>> = Mutex::new(Vec::new());
-    let key = scene_key(scene);
+    static MEMO: Mutex<Vec<Arc<PreparedScene>>> = Mutex::new(Vec::new());
     let mut memo = MEMO.lock().unwrap_or_else(|e| e.into_inner());
-    if let Some(pos) = memo.iter().position(|(k, _)| *k == key) {
+    if let Some(pos) = memo.iter().position(|p| same_scene(p.scene(), scene)) {
         let hit = memo.remove(pos);
-        let p = hit.1.clone();
-        memo.push(hit);
-        return Some(p);
+        memo.push(hit.clone());
+        return Some(hit);
     }
     let p = Arc::new(PreparedScene::new(scene).ok()?);
-    memo.push((key, p.clone()));
+    memo.push(p.clone());
     if memo.len() > 4 {
         memo.remove(0);
     }
     Some(p)
+}
+
+/// Whether two scenes are identical bit for bit (−0 and +0 differ, a NaN equals the same NaN).
+pub fn same_scene(a: &Scene, b: &Scene) -> bool {
+    fn floats(a: &[f32], b: &[f32]) -> bool {
+        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+    }
+    fn transform(a: &crate::scene::Transform3x4, b: &crate::scene::Transform3x4) -> bool {
+        floats(a.0.as_flattened(), b.0.as_flattened())
+    }
+    let (
+        Scene {
+            bottom_levels: la,
+            instances: ia,
+        },
+        Scene {
+            bottom_levels: lb,
+            instances: ib,
+        },
+    ) = (a, b);
+    let levels = la.len() == lb.len()
+        && la.iter().zip(lb).all(|(x, y)| {
+            let (
+                crate::scene::BottomLevel { geometries: gx },
+                crate::scene::BottomLevel { geometries: gy },
+            ) = (x, y);
+            gx.len() == gy.len()
+                && gx.iter().zip(gy).all(|(g, h)| {
+                    let (
+                        crate::scene::Geometry {
+                            flags: fg,
+                            data: dg,
+                        },
+                        crate::scene::Geometry {
+                            flags: fh,
+                            data: dh,
+                        },
+                    ) = (g, h);
+                    fg == fh
+                        && match (dg, dh) {
+                            (GeometryData::Triangles(t), GeometryData::Triangles(u)) => {
+                                let crate::scene::Triangles {
+                                    positions: pt,
+                                    indices: it,
+                                    transform: tt,
+                                } = t;
+                                let crate::scene::Triangles {
+                                    positions: pu,
+                                    indices: iu,
+                                    transform: tu,
+                                } = u;
+                                floats(pt.as_flattened(), pu.as_flattened())
+                                    && it == iu
+                                    && match (tt, tu) {
+                                        (Some(m), Some(n)) => transform(m, n),
+                                        (None, None) => true,
+                                        _ => false,
+                                    }
+                            }
+                            (GeometryData::Aabbs(x), GeometryData::Aabbs(y)) => {
+                                let crate::scene::Aabbs {
+                                    boxes: bx,
+                                    spheres: sx,
+                                } = x;
+                                let crate::scene::Aabbs {
+                                    boxes: by,
+                                    spheres: sy,
+                                } = y;
+                                bx.len() == by.len()
+                                    && bx.iter().zip(by).all(|(p, q)| {
+                                        floats(&p.min, &q.min) && floats(&p.max, &q.max)
+                                    })
+                                    && sx.len() == sy.len()
+                                    && sx.iter().zip(sy).all(|(p, q)| {
+                                        floats(&p.center, &q.center)
+                                            && p.radius.to_bits() == q.radius.to_bits()
+                                    })
+                            }
+                            _ => false,
+                        }
+                })
+        });
+    levels
+        && ia.len() == ib.len()
+        && ia.iter().zip(ib).all(|(x, y)| {
+            let crate::scene::SceneInstance {
+                bottom_level,
+                transform: t,
+                custom_index,
+                mask,
+                sbt_record_offset,
+                flags,
+            } = x;
+            *bottom_level == y.bottom_level
+                && transform(t, &y.transform)
+                && *custom_index == y.custom_index
+                && *mask == y.mask
+                && *sbt_record_offset == y.sbt_record_offset
+                && *flags == y.flags
+        })
 }
 
 /// The hit records the launch may read, with the kind of geometry each is reached from, sorted: the
@@ -324,6 +424,18 @@ pub fn allowed_for_ray(
     ray: &Ray,
     stats: &mut TracerStats,
 ) -> Option<AllowedOutcomes> {
+    allowed_for_ray_with(world, call, prepared, ray, &TracerConfig::default(), stats)
+}
+
+/// [`allowed_for_ray`] with other tracer settings (brute force: the reference of the default).
+pub fn allowed_for_ray_with(
+    world: &World,
+    call: &Call,
+    prepared: &PreparedScene,
+    ray: &Ray,
+    config: &TracerConfig,
+    stats: &mut TracerStats,
+) -> Option<AllowedOutcomes> {
     let scene = &world.launch.scene;
     let hit = |i: u32, g: u32| {
         let inst = &scene.instances[i as usize];
@@ -337,7 +449,7 @@ pub fn allowed_for_ray(
         hit: &hit,
         miss: miss_shader(world, call, miss_record(ray.miss_index)),
     };
-    trace_ray(prepared, ray, &table, &TracerConfig::default(), stats).ok()
+    trace_ray(prepared, ray, &table, config, stats).ok()
 }
 
 /// Every shader binding table record the launch reads, as (table, record index), sorted: the raygen
@@ -498,7 +610,9 @@ impl ExpectedLaunch {
 }
 
 /// The expected output of a valid call, or None when the dimensions are not known or the scene is
-/// undefined.
+/// undefined. Each distinct ray is traced once; large launches are traced on every core the
+/// machine offers (each ray's outcomes depend on nothing else, and the counters are sums, so the
+/// answer is the same however the rays are shared out).
 pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
     let dims = call.dimensions(world)?;
     let rays = traced_rays(world, call);
@@ -506,20 +620,34 @@ pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
     let mut allowed: Vec<AllowedOutcomes> = Vec::with_capacity(rays.len());
     if !rays.is_empty() {
         let prepared = prepared(&world.launch.scene)?;
-        let mut memo: std::collections::HashMap<[u32; 13], usize> =
-            std::collections::HashMap::new();
-        for ray in &rays {
-            let key = ray_key(ray);
-            match memo.get(&key) {
-                Some(&k) => {
-                    let a = allowed[k].clone();
-                    allowed.push(a);
-                }
-                None => {
-                    memo.insert(key, allowed.len());
-                    allowed.push(allowed_for_ray(world, call, &prepared, ray, &mut stats)?);
-                }
-            }
+        // The first launch ray of each distinct ray, and for every ray the distinct one it is.
+        let mut memo: HashMap<[u32; 13], usize, BuildHasherDefault<RayKeyHasher>> =
+            HashMap::with_capacity_and_hasher(rays.len(), Default::default());
+        let mut distinct: Vec<usize> = Vec::new();
+        let of: Vec<usize> = rays
+            .iter()
+            .enumerate()
+            .map(|(i, ray)| {
+                *memo.entry(ray_key(ray)).or_insert_with(|| {
+                    distinct.push(i);
+                    distinct.len() - 1
+                })
+            })
+            .collect();
+        let traced = trace_distinct(world, call, &prepared, &rays, &distinct, &mut stats)?;
+        let mut traced: Vec<Option<AllowedOutcomes>> = traced.into_iter().map(Some).collect();
+        // The last launch ray of a distinct ray takes its outcomes, the others a copy.
+        let mut last = vec![usize::MAX; distinct.len()];
+        for (i, &d) in of.iter().enumerate() {
+            last[d] = i;
+        }
+        for (i, &d) in of.iter().enumerate() {
+            let a = if last[d] == i {
+                traced[d].take()
+            } else {
+                traced[d].clone()
+            };
+            allowed.push(a.expect("a distinct ray's outcomes are taken once, last"));
         }
     }
     Some(ExpectedLaunch {
@@ -528,4 +656,97 @@ pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
         allowed,
         stats,
     })
+}
+
+/// Distinct rays per worker below which a launch is traced on one thread (a thread costs about
+/// as much as tracing a few dozen rays).
+const RAYS_PER_WORKER: usize = 256;
+
+/// The outcomes of `rays[distinct[k]]` for each k, or None when one is undefined; the counters
+/// summed into `stats`.
+fn trace_distinct(
+    world: &World,
+    call: &Call,
+    prepared: &PreparedScene,
+    rays: &[Ray],
+    distinct: &[usize],
+    stats: &mut TracerStats,
+) -> Option<Vec<AllowedOutcomes>> {
+    let workers = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(distinct.len() / RAYS_PER_WORKER)
+        .max(1);
+    if workers == 1 {
+        return distinct
+            .iter()
+            .map(|&i| allowed_for_ray(world, call, prepared, &rays[i], stats))
+            .collect();
+    }
+    // Workers take chunks of distinct rays in turn, so an expensive part of the image does not
+    // leave one worker behind.
+    const CHUNK: usize = 32;
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    /// One worker's outcomes by distinct-ray index, and its counters.
+    type Part = (Vec<(usize, Option<AllowedOutcomes>)>, TracerStats);
+    let parts: Vec<Part> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..workers)
+            .map(|_| {
+                scope.spawn(|| {
+                    let mut out = Vec::new();
+                    let mut stats = TracerStats::default();
+                    loop {
+                        let start = next.fetch_add(CHUNK, std::sync::atomic::Ordering::Relaxed);
+                        if start >= distinct.len() {
+                            break;
+                        }
+                        for (k, &i) in distinct.iter().enumerate().skip(start).take(CHUNK) {
+                            let a = allowed_for_ray(world, call, prepared, &rays[i], &mut stats);
+                            out.push((k, a));
+                        }
+                    }
+                    (out, stats)
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().expect("a tracing worker does not panic"))
+            .collect()
+    });
+    let mut slots: Vec<Option<AllowedOutcomes>> = vec![None; distinct.len()];
+    for (out, part) in parts {
+        stats.merge(&part);
+        for (k, a) in out {
+            slots[k] = Some(a?);
+        }
+    }
+    slots.into_iter().collect()
+}
+
+/// A hasher for [`ray_key`]s (the memo of distinct rays): a multiply-rotate mix of the words,
+/// deterministic; keys are still compared in full, so a collision costs time, never an answer.
+#[derive(Default)]
+struct RayKeyHasher(u64);
+
+impl std::hash::Hasher for RayKeyHasher {
+    fn finish(&self) -> u64 {
+        let h = self.0;
+        (h ^ (h >> 29)).wrapping_mul(0xBF58_476D_1CE4_E5B9) ^ (h >> 32)
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        let mut words = bytes.chunks_exact(4);
+        for w in &mut words {
+            self.write_u32(u32::from_le_bytes([w[0], w[1], w[2], w[3]]));
+        }
+        for b in words.remainder() {
+            self.write_u32(*b as u32);
+        }
+    }
+    fn write_u32(&mut self, x: u32) {
+        self.0 = (self.0.rotate_left(5) ^ x as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    }
+    fn write_usize(&mut self, x: usize) {
+        self.write_u32(x as u32);
+        self.write_u32((x as u64 >> 32) as u32);
+    }
 }

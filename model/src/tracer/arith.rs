@@ -302,26 +302,32 @@ impl Num for Dyadic {
 /// Three-vectors of a [`Num`].
 pub type V3<T> = [T; 3];
 
+#[inline]
 pub fn v3<T: Num>(p: [f32; 3]) -> V3<T> {
     [T::from_f32(p[0]), T::from_f32(p[1]), T::from_f32(p[2])]
 }
 
+#[inline]
 pub fn sub3<T: Num>(a: &V3<T>, b: &V3<T>) -> V3<T> {
     [a[0].sub(&b[0]), a[1].sub(&b[1]), a[2].sub(&b[2])]
 }
 
+#[inline]
 pub fn add3<T: Num>(a: &V3<T>, b: &V3<T>) -> V3<T> {
     [a[0].add(&b[0]), a[1].add(&b[1]), a[2].add(&b[2])]
 }
 
+#[inline]
 pub fn scale3<T: Num>(a: &V3<T>, s: &T) -> V3<T> {
     [a[0].mul(s), a[1].mul(s), a[2].mul(s)]
 }
 
+#[inline]
 pub fn dot3<T: Num>(a: &V3<T>, b: &V3<T>) -> T {
     a[0].mul(&b[0]).add(&a[1].mul(&b[1])).add(&a[2].mul(&b[2]))
 }
 
+#[inline]
 pub fn cross3<T: Num>(a: &V3<T>, b: &V3<T>) -> V3<T> {
     [
         a[1].mul(&b[2]).sub(&a[2].mul(&b[1])),
@@ -331,6 +337,7 @@ pub fn cross3<T: Num>(a: &V3<T>, b: &V3<T>) -> V3<T> {
 }
 
 /// `d · (a × b)`.
+#[inline]
 pub fn triple<T: Num>(d: &V3<T>, a: &V3<T>, b: &V3<T>) -> T {
     dot3(d, &cross3(a, b))
 }

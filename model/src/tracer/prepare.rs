@@ -57,6 +57,10 @@ pub(crate) struct FarBox {
     pub norm_t: f64,
     /// `1 / (1 − 2·rel)` rounded up (see `band::far_pad`); infinite where `rel ≥ 1/4`.
     pub inv_den: f64,
+    /// A pad at least [`FarBox::is_far`]'s for every ray: `pad_base + pad_slope·|o|` (the pad of
+    /// [`BoundBox::entry`]).
+    pub pad_base: f64,
+    pub pad_slope: f64,
 }
 
 impl FarBox {
@@ -69,6 +73,23 @@ impl FarBox {
         origin_coef: f64,
         norm_t: f64,
     ) -> FarBox {
+        let inv_den = far_pad_scale(rel);
+        // The farthest point of the box from the world origin: |o − x| ≤ |o| + reach for every
+        // point x of it, so `m` of `is_far` is at most |o| + reach.
+        let reach = (0..3)
+            .map(|k| {
+                let x = lo[k].abs().max(hi[k].abs());
+                x * x
+            })
+            .sum::<f64>()
+            .sqrt()
+            * BOUND_SLACK;
+        // `far_pad_scaled` is affine and increasing in `origin_radius` and `max_distance`; with
+        // `origin_radius = origin_coef·(|o| + norm_t)` and `max_distance ≤ |o| + reach` it is
+        // below `pad_base + pad_slope·|o|`, and BOUND_SLACK covers the rounding of both sides.
+        let pad_base =
+            far_pad_scaled(static_pad, rel, inv_den, origin_coef * norm_t, reach) * BOUND_SLACK;
+        let pad_slope = far_pad_scaled(0.0, rel, inv_den, origin_coef, 1.0) * BOUND_SLACK;
         FarBox {
             lo,
             hi,
@@ -76,7 +97,9 @@ impl FarBox {
             rel,
             origin_coef,
             norm_t,
-            inv_den: far_pad_scale(rel),
+            inv_den,
+            pad_base,
+            pad_slope,
         }
     }
 
@@ -99,6 +122,11 @@ impl FarBox {
     #[inline]
     #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
     pub fn is_far(&self, ray: &RayF64) -> bool {
+        // A segment that meets the box itself meets it padded (the pad is never negative, and
+        // the rounded slab bounds are monotone in it): not far, without the pad.
+        if self.meets_unpadded(ray) {
+            return false;
+        }
         let o = &ray.origin;
         let axis = |k: usize| {
             let x = (self.lo[k] - o[k]).abs().max((self.hi[k] - o[k]).abs());
@@ -131,6 +159,180 @@ impl FarBox {
     }
 }
 
+impl FarBox {
+    /// Whether the ray segment meets the box without its pad (the slab test of `is_far` with a
+    /// zero pad).
+    #[inline]
+    #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
+    fn meets_unpadded(&self, ray: &RayF64) -> bool {
+        let o = &ray.origin;
+        let mut near = ray.tmin;
+        let mut far = ray.tmax;
+        for k in 0..3 {
+            let (lo, hi) = (self.lo[k], self.hi[k]);
+            if ray.direction[k] == 0.0 {
+                if o[k] < lo || o[k] > hi {
+                    return false;
+                }
+            } else {
+                let inv = ray.inv_direction[k];
+                let t1 = (lo - o[k]) * inv;
+                let t2 = (hi - o[k]) * inv;
+                near = near.max(t1.min(t2));
+                far = far.min(t1.max(t2));
+            }
+        }
+        near <= far
+    }
+}
+
+/// The traversal's compact copy of a [`FarBox`]: its corners rounded outward to f32 and its pad
+/// bounded by `pad_base + pad_slope·|o|` (coefficients rounded up), so the box it tests contains
+/// the f64 one and its pad is at least [`FarBox::is_far`]'s. The slab test is evaluated in f64
+/// either way and its rounded bounds are monotone in the box and the pad, so a miss here is a miss
+/// there. A quarter of the bytes of the FarBox, and no square root.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct BoundBox {
+    lo: [f32; 3],
+    hi: [f32; 3],
+    pad_base: f32,
+    pad_slope: f32,
+}
+
+/// The greatest f32 at most `x` (NaN stays NaN).
+fn f32_down(x: f64) -> f32 {
+    let y = x as f32;
+    if (y as f64) <= x || y.is_nan() {
+        y
+    } else if y == 0.0 {
+        -f32::from_bits(1)
+    } else if y > 0.0 {
+        f32::from_bits(y.to_bits() - 1)
+    } else {
+        f32::from_bits(y.to_bits() + 1)
+    }
+}
+
+/// The least f32 at least `x`.
+fn f32_up(x: f64) -> f32 {
+    -f32_down(-x)
+}
+
+impl BoundBox {
+    pub fn of(b: &FarBox) -> BoundBox {
+        BoundBox {
+            lo: b.lo.map(f32_down),
+            hi: b.hi.map(f32_up),
+            pad_base: f32_up(b.pad_base),
+            pad_slope: f32_up(b.pad_slope),
+        }
+    }
+
+    /// The ray's entry t into the padded box over `[tmin, tmax]`, or None when it misses it
+    /// (then [`FarBox::is_far`] holds at the same `tmax`); an entry t above a lower `tmax` is a
+    /// miss at that `tmax`.
+    #[inline]
+    #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
+    pub fn entry(&self, ray: &RayF64, tmax: f64) -> Option<f64> {
+        let o = &ray.origin;
+        let pad = self.pad_base as f64 + self.pad_slope as f64 * ray.origin_norm;
+        // An infinite (or NaN) pad is never a miss, as in `is_far`.
+        if pad.is_nan() || pad == f64::INFINITY {
+            return Some(f64::NEG_INFINITY);
+        }
+        let mut near = ray.tmin;
+        let mut far = tmax;
+        if ray.oblique {
+            // Every direction component is non-zero: the slab bounds are finite or infinite,
+            // never NaN (finite pad and origin, boxes never +inf below or -inf above), so the
+            // comparisons below are `max`/`min`, and the sign of the reciprocal says which face
+            // comes first.
+            for k in 0..3 {
+                let inv = ray.inv_direction[k];
+                let (first, last) = if inv > 0.0 {
+                    (self.lo[k] as f64 - pad, self.hi[k] as f64 + pad)
+                } else {
+                    (self.hi[k] as f64 + pad, self.lo[k] as f64 - pad)
+                };
+                let t_in = (first - o[k]) * inv;
+                let t_out = (last - o[k]) * inv;
+                near = if t_in > near { t_in } else { near };
+                far = if t_out < far { t_out } else { far };
+            }
+        } else {
+            for k in 0..3 {
+                let lo = self.lo[k] as f64 - pad;
+                let hi = self.hi[k] as f64 + pad;
+                if ray.direction[k] == 0.0 {
+                    if o[k] < lo || o[k] > hi {
+                        return None;
+                    }
+                } else {
+                    let inv = ray.inv_direction[k];
+                    let t1 = (lo - o[k]) * inv;
+                    let t2 = (hi - o[k]) * inv;
+                    near = near.max(t1.min(t2));
+                    far = far.min(t1.max(t2));
+                }
+            }
+        }
+        if near > far {
+            None
+        } else {
+            Some(near)
+        }
+    }
+}
+
+/// An item's [`BoundBox`] and its inner box: the f64 box rounded inward to f32 (empty where
+/// rounding leaves nothing), so a segment that meets it meets the f64 box, hence is not far.
+#[derive(Debug, Clone, Copy)]
+#[repr(C, align(64))]
+pub(crate) struct ItemBounds {
+    pub outer: BoundBox,
+    inner_lo: [f32; 3],
+    inner_hi: [f32; 3],
+}
+
+impl ItemBounds {
+    fn of(b: &FarBox) -> ItemBounds {
+        ItemBounds {
+            outer: BoundBox::of(b),
+            inner_lo: b.lo.map(f32_up),
+            inner_hi: b.hi.map(f32_down),
+        }
+    }
+
+    /// Whether the ray segment meets the inner box (then [`FarBox::is_far`] is false: the inner
+    /// box lies in the f64 box, and the slab test's rounded bounds are monotone in the box).
+    #[inline]
+    #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
+    pub fn meets_inner(&self, ray: &RayF64) -> bool {
+        let o = &ray.origin;
+        let mut near = ray.tmin;
+        let mut far = ray.tmax;
+        for k in 0..3 {
+            let (lo, hi) = (self.inner_lo[k] as f64, self.inner_hi[k] as f64);
+            // An empty (or NaN) inner box meets nothing.
+            if lo > hi || lo.is_nan() || hi.is_nan() {
+                return false;
+            }
+            if ray.direction[k] == 0.0 {
+                if o[k] < lo || o[k] > hi {
+                    return false;
+                }
+            } else {
+                let inv = ray.inv_direction[k];
+                let t1 = (lo - o[k]) * inv;
+                let t2 = (hi - o[k]) * inv;
+                near = near.max(t1.min(t2));
+                far = far.min(t1.max(t2));
+            }
+        }
+        near <= far
+    }
+}
+
 /// A ray in f64 (exact conversions).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct RayF64 {
@@ -141,6 +343,8 @@ pub(crate) struct RayF64 {
     pub origin_norm: f64,
     /// `1 / direction` per axis (0 where the direction is 0, which the slab test handles apart).
     pub inv_direction: [f64; 3],
+    /// No direction component is 0.
+    pub oblique: bool,
 }
 
 impl RayF64 {
@@ -151,6 +355,7 @@ impl RayF64 {
             origin,
             direction,
             inv_direction: direction.map(|d| if d == 0.0 { 0.0 } else { 1.0 / d }),
+            oblique: direction.iter().all(|&d| d != 0.0),
             tmin: ray.tmin as f64,
             tmax: ray.tmax as f64,
             origin_norm: norm3(origin),
@@ -165,9 +370,26 @@ pub(crate) struct Item {
     pub primitive: u32,
 }
 
+/// A node of the tree without its bound.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct NodeLinks {
+    /// Leaf: first item; interior: index of the left child (the right child is `left + 1`).
+    pub first: u32,
+    /// Leaf: number of items (> 0); interior: 0.
+    pub count: u32,
+    /// Every item below is a triangle (a node a ray may skip behind a required hit).
+    pub triangles_only: bool,
+}
+
+/// The bounds of two sibling nodes, tested together.
+#[derive(Debug, Clone, Copy)]
+#[repr(C, align(64))]
+pub(crate) struct ChildBounds(pub [BoundBox; 2]);
+
+/// A node as the build makes it.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Node {
-    pub bounds: FarBox,
+    pub bounds: BoundBox,
     /// Leaf: first item; interior: index of the left child (the right child is `left + 1`).
     pub first: u32,
     /// Leaf: number of items (> 0); interior: 0.
@@ -202,7 +424,16 @@ pub struct PreparedScene {
     pub(crate) items: Vec<Item>,
     /// The far box of each item, in `items` order.
     pub(crate) item_boxes: Vec<FarBox>,
-    pub(crate) nodes: Vec<Node>,
+    /// The compact bounds of each item's far box, in `items` order.
+    pub(crate) item_bounds: Vec<ItemBounds>,
+    /// The tree: node 0 the root, the children of an interior node at `first` and `first + 1`.
+    pub(crate) nodes: Vec<NodeLinks>,
+    /// The bound of the root.
+    pub(crate) root_bound: BoundBox,
+    /// The bounds of nodes `2p + 1` and `2p + 2` (the children of one node), one cache line.
+    pub(crate) child_bounds: Vec<ChildBounds>,
+    /// `(instance, geometry)` of every AABB geometry with an active box, in instance order.
+    pub(crate) procedural: Vec<(u32, u32)>,
     /// `(bottom level, transform class)` → topology, built on first use.
     pub(crate) topology: HashMap<(u32, u32), OnceLock<Topology>>,
 }
@@ -391,13 +622,55 @@ impl PreparedScene {
             .map(|it: &Item| geometries[it.geometry as usize].kind == PrimitiveKind::Triangle)
             .collect();
         let (items, item_boxes, nodes) = build_bvh(items, boxes, &triangle);
+        let item_bounds = item_boxes.iter().map(ItemBounds::of).collect();
+        let root_bound = nodes.first().map_or(
+            BoundBox {
+                lo: [0.0; 3],
+                hi: [0.0; 3],
+                pad_base: 0.0,
+                pad_slope: 0.0,
+            },
+            |n| n.bounds,
+        );
+        let child_bounds = nodes
+            .get(1..)
+            .unwrap_or_default()
+            .chunks_exact(2)
+            .map(|pair| ChildBounds([pair[0].bounds, pair[1].bounds]))
+            .collect();
+        let nodes = nodes
+            .iter()
+            .map(|n| NodeLinks {
+                first: n.first,
+                count: n.count,
+                triangles_only: n.triangles_only,
+            })
+            .collect();
+        let procedural = geometries
+            .iter()
+            .filter(|w| w.kind == PrimitiveKind::Aabb)
+            .filter(|w| {
+                let GeometryData::Aabbs(a) = &scene.bottom_levels[w.bottom_level as usize]
+                    .geometries[w.geometry as usize]
+                    .data
+                else {
+                    unreachable!("an AABB geometry")
+                };
+                !a.boxes.iter().all(|b| b.is_inactive())
+            })
+            .map(|w| (w.instance, w.geometry))
+            .collect();
         Ok(PreparedScene {
             scene: scene.clone(),
             instances,
             geometries,
             items,
             item_boxes,
+            item_bounds,
             nodes,
+            root_bound,
+            child_bounds,
+            procedural,
             topology,
         })
     }
@@ -412,28 +685,43 @@ impl PreparedScene {
         self.items.len()
     }
 
-    /// Calls `visit` for every item whose padded box the ray does not miss, nearer children first.
-    /// A node of triangles only is skipped as well when its padded box is missed by the ray cut at
-    /// `cut` (which `visit` may lower as it goes; see `traverse::trace_ray`).
+    /// Calls `visit` with the index of every item of every leaf whose padded box the ray does not
+    /// miss, nearer children first (`visit` applies the items' own far test). A node of triangles only is
+    /// skipped as well when its padded box is missed by the ray cut at `cut` (which `visit` may
+    /// lower as it goes; see `traverse::trace_ray`). Nodes are tested with their [`BoundBox`], so
+    /// a node is skipped only where every item below it is far; items are first tested so too,
+    /// and those it finds far (counted in `far_rejections`) or behind the cut are not visited.
     pub(crate) fn for_each_near(
         &self,
         ray: &RayF64,
         nodes_visited: &mut u64,
+        far_rejections: &mut u64,
         cut: &std::cell::Cell<f64>,
-        mut visit: impl FnMut(Item, &FarBox),
+        mut visit: impl FnMut(usize),
     ) {
-        if self.nodes.is_empty() {
+        let Some(root) = self.nodes.first() else {
             return;
-        }
-        // A median-split tree of at most 2^32 items is at most 32 levels deep, and each level
-        // leaves at most one node on the stack: a fixed stack suffices, a Vec takes any excess.
-        let mut stack = [0u32; 64];
+        };
+        let limit = |node: &NodeLinks, c: f64| {
+            if node.triangles_only && c < ray.tmax {
+                c
+            } else {
+                ray.tmax
+            }
+        };
+        *nodes_visited += 1;
+        let Some(entry) = self.root_bound.entry(ray, limit(root, cut.get())) else {
+            return;
+        };
+        // Each level leaves at most one node on the stack: a fixed stack holds any tree up to 64
+        // levels deep, a Vec takes any excess.
+        let mut stack = [(0u32, 0f64); 64];
+        stack[0] = (0, entry);
         let mut depth = 1usize;
-        let mut spill: Vec<u32> = Vec::new();
-        let mut cut_ray = *ray;
+        let mut spill: Vec<(u32, f64)> = Vec::new();
         loop {
-            let n = if let Some(n) = spill.pop() {
-                n
+            let (n, entry) = if let Some(x) = spill.pop() {
+                x
             } else if depth > 0 {
                 depth -= 1;
                 stack[depth]
@@ -441,51 +729,65 @@ impl PreparedScene {
                 break;
             };
             let node = &self.nodes[n as usize];
-            *nodes_visited += 1;
-            if node.bounds.is_far(ray) {
+            let c = cut.get();
+            // The cut may have fallen since the node was pushed: its entry t past the cut is a
+            // miss of the cut ray.
+            if node.triangles_only && entry > c {
                 continue;
             }
-            let c = cut.get();
-            if node.triangles_only && c < ray.tmax {
-                cut_ray.tmax = c;
-                if node.bounds.is_far(&cut_ray) {
-                    continue;
-                }
-            }
             if node.count > 0 {
-                let range = node.first as usize..(node.first + node.count) as usize;
-                for (it, b) in self.items[range.clone()]
-                    .iter()
-                    .zip(&self.item_boxes[range])
-                {
-                    visit(*it, b);
-                }
-            } else {
-                // The nearer child (by its centre along the ray) is popped first.
-                let along = |i: u32| {
-                    let b = &self.nodes[i as usize].bounds;
-                    (0..3)
-                        .map(|k| (b.lo[k] + b.hi[k]) * ray.direction[k])
-                        .sum::<f64>()
-                };
-                let (a, b) = (node.first, node.first + 1);
-                let order = if along(a) <= along(b) { [b, a] } else { [a, b] };
-                for child in order {
-                    if depth < stack.len() {
-                        stack[depth] = child;
-                        depth += 1;
-                    } else {
-                        spill.push(child);
+                // The leaf's items by entry t, nearer first (a nearer required hit may cut the
+                // others before they are classified).
+                let mut order = [(0f64, 0usize); LEAF_SIZE];
+                let mut len = 0;
+                for i in node.first as usize..(node.first + node.count) as usize {
+                    match self.item_bounds[i].outer.entry(ray, ray.tmax) {
+                        None => *far_rejections += 1,
+                        Some(e) => {
+                            let mut at = len;
+                            while at > 0 && order[at - 1].0 > e {
+                                order[at] = order[at - 1];
+                                at -= 1;
+                            }
+                            order[at] = (e, i);
+                            len += 1;
+                        }
                     }
                 }
+                for &(e, i) in &order[..len] {
+                    let it = self.items[i];
+                    // Behind the cut: `visit` would leave the triangle out as well.
+                    if e > cut.get()
+                        && self.geometries[it.geometry as usize].kind == PrimitiveKind::Triangle
+                    {
+                        continue;
+                    }
+                    visit(i);
+                }
+                continue;
             }
-        }
-    }
-
-    /// Calls `visit` for every item, near or not (the brute-force reference for the BVH).
-    pub(crate) fn for_each_item(&self, mut visit: impl FnMut(Item, &FarBox)) {
-        for (it, b) in self.items.iter().zip(&self.item_boxes) {
-            visit(*it, b);
+            let (a, b) = (node.first, node.first + 1);
+            let (na, nb) = (&self.nodes[a as usize], &self.nodes[b as usize]);
+            *nodes_visited += 2;
+            let pair = &self.child_bounds[(a as usize - 1) / 2].0;
+            let ea = pair[0].entry(ray, limit(na, c));
+            let eb = pair[1].entry(ray, limit(nb, c));
+            // The nearer child (by its entry t) is popped first.
+            let order = match (ea, eb) {
+                (Some(x), Some(y)) if x <= y => [Some((b, y)), Some((a, x))],
+                (Some(x), Some(y)) => [Some((a, x)), Some((b, y))],
+                (Some(x), None) => [None, Some((a, x))],
+                (None, Some(y)) => [None, Some((b, y))],
+                (None, None) => [None, None],
+            };
+            for child in order.into_iter().flatten() {
+                if depth < stack.len() {
+                    stack[depth] = child;
+                    depth += 1;
+                } else {
+                    spill.push(child);
+                }
+            }
         }
     }
 
@@ -541,7 +843,93 @@ impl BoundedF64 {
 
 const LEAF_SIZE: usize = 4;
 
-/// Builds a BVH by median splits along the widest centroid axis; items are reordered to leaves.
+/// Relative slack on the pad bound of [`BoundBox`], far above the rounding of it and of the pad
+/// it bounds.
+const BOUND_SLACK: f64 = 1.0 + 1e-10;
+
+/// Bins of the surface-area split.
+const SAH_BINS: usize = 16;
+
+/// Half the surface area of a box (the chance a random ray through its parent meets it, up to a
+/// common factor).
+fn half_area(lo: &[f64; 3], hi: &[f64; 3]) -> f64 {
+    let d = [0, 1, 2].map(|k| (hi[k] - lo[k]).max(0.0));
+    d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+}
+
+/// The surface-area split of `slice` (items binned by centroid along each axis, the plane of least
+/// `area(left)·n(left) + area(right)·n(right)`): reorders `slice` so the left part comes first
+/// and returns its length, or None where no plane has items on both sides.
+fn sah_split(
+    slice: &mut [u32],
+    boxes: &[FarBox],
+    cents: &[[f64; 3]],
+    clo: [f64; 3],
+    chi: [f64; 3],
+) -> Option<usize> {
+    let mut best: Option<(f64, usize, usize)> = None;
+    let bin_of = |c: f64, k: usize| -> usize {
+        let w = chi[k] - clo[k];
+        (((c - clo[k]) / w * SAH_BINS as f64) as usize).min(SAH_BINS - 1)
+    };
+    for k in 0..3 {
+        let w = chi[k] - clo[k];
+        if !(w > 0.0 && w.is_finite()) {
+            continue;
+        }
+        let mut count = [0usize; SAH_BINS];
+        let mut lo = [[f64::INFINITY; 3]; SAH_BINS];
+        let mut hi = [[f64::NEG_INFINITY; 3]; SAH_BINS];
+        for &i in slice.iter() {
+            let b = bin_of(cents[i as usize][k], k);
+            count[b] += 1;
+            let fb = &boxes[i as usize];
+            for a in 0..3 {
+                lo[b][a] = lo[b][a].min(fb.lo[a]);
+                hi[b][a] = hi[b][a].max(fb.hi[a]);
+            }
+        }
+        // Areas and counts of the left parts (bins 0..=p) and right parts (p+1..).
+        let mut left = [(0.0, 0usize); SAH_BINS];
+        let (mut l, mut h, mut n) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3], 0);
+        for p in 0..SAH_BINS {
+            for a in 0..3 {
+                l[a] = l[a].min(lo[p][a]);
+                h[a] = h[a].max(hi[p][a]);
+            }
+            n += count[p];
+            left[p] = (if n > 0 { half_area(&l, &h) } else { 0.0 }, n);
+        }
+        let (mut l, mut h, mut n) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3], 0);
+        for p in (1..SAH_BINS).rev() {
+            for a in 0..3 {
+                l[a] = l[a].min(lo[p][a]);
+                h[a] = h[a].max(hi[p][a]);
+            }
+            n += count[p];
+            let (la, ln) = left[p - 1];
+            if ln == 0 || n == 0 {
+                continue;
+            }
+            let cost = la * ln as f64 + half_area(&l, &h) * n as f64;
+            if best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, k, p));
+            }
+        }
+    }
+    let (_, k, p) = best?;
+    // Partition: bins below p to the left, in a stable, deterministic order.
+    let (mut a, mut b): (Vec<u32>, Vec<u32>) = slice
+        .iter()
+        .partition(|&&i| bin_of(cents[i as usize][k], k) < p);
+    let mid = a.len();
+    a.append(&mut b);
+    slice.copy_from_slice(&a);
+    Some(mid)
+}
+
+/// Builds a BVH by surface-area splits (median splits where centroids coincide); items are
+/// reordered to leaves.
 fn build_bvh(
     items: Vec<Item>,
     boxes: Vec<FarBox>,
@@ -555,7 +943,7 @@ fn build_bvh(
         return (items, boxes, nodes);
     }
     nodes.push(Node {
-        bounds: boxes[0],
+        bounds: BoundBox::of(&boxes[0]),
         first: 0,
         count: 0,
         triangles_only: false,
@@ -577,23 +965,30 @@ fn build_bvh(
         }
         if end - start <= LEAF_SIZE {
             nodes[n] = Node {
-                bounds,
+                bounds: BoundBox::of(&bounds),
                 first: start as u32,
                 count: (end - start) as u32,
                 triangles_only,
             };
             continue;
         }
-        let axis = (0..3)
-            .max_by(|&a, &b| (chi[a] - clo[a]).total_cmp(&(chi[b] - clo[b])))
-            .unwrap_or(0);
-        let mid = (end - start) / 2;
-        slice.select_nth_unstable_by(mid, |&a, &b| {
-            cents[a as usize][axis].total_cmp(&cents[b as usize][axis])
-        });
+        let mid = match sah_split(slice, &boxes, &cents, clo, chi) {
+            Some(mid) => mid,
+            None => {
+                // Centroids that no plane separates: a median split along the widest axis.
+                let axis = (0..3)
+                    .max_by(|&a, &b| (chi[a] - clo[a]).total_cmp(&(chi[b] - clo[b])))
+                    .unwrap_or(0);
+                let mid = (end - start) / 2;
+                slice.select_nth_unstable_by(mid, |&a, &b| {
+                    cents[a as usize][axis].total_cmp(&cents[b as usize][axis])
+                });
+                mid
+            }
+        };
         let left = nodes.len();
         let placeholder = Node {
-            bounds,
+            bounds: BoundBox::of(&bounds),
             first: 0,
             count: 0,
             triangles_only,
@@ -601,7 +996,7 @@ fn build_bvh(
         nodes.push(placeholder);
         nodes.push(placeholder);
         nodes[n] = Node {
-            bounds,
+            bounds: BoundBox::of(&bounds),
             first: left as u32,
             count: 0,
             triangles_only,

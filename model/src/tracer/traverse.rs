@@ -24,11 +24,34 @@ use crate::scene::{GeometryData, Problem, Ray, RayFlags, SceneInstance};
 use std::cmp::Ordering;
 
 /// The outcome of one (ray, triangle) pair.
+#[derive(Clone, Copy)]
 struct TriangleOutcome {
     class: PairClass,
     signs: Option<TriangleSigns>,
     values: Option<TriangleValues>,
     band: Option<super::band::TriangleBand>,
+    evaluation: Evaluation,
+}
+
+/// Which arithmetic decided a pair's signs (the counter it adds to).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Evaluation {
+    /// Decided before any arithmetic (degenerate or in-plane).
+    None,
+    Filter,
+    Exact,
+    F32,
+}
+
+impl Evaluation {
+    fn count(self, stats: &mut TracerStats) {
+        match self {
+            Evaluation::None => {}
+            Evaluation::Filter => stats.filter_decided += 1,
+            Evaluation::Exact => stats.exact_evaluations += 1,
+            Evaluation::F32 => stats.f32_evaluations += 1,
+        }
+    }
 }
 
 fn dyadic_world(scene: &PreparedScene, w: &WorldGeometry, v: [f32; 3]) -> V3<Dyadic> {
@@ -68,7 +91,6 @@ fn classify_triangle(
     ray: &Ray,
     rf: &RayF64,
     precision: Precision,
-    stats: &mut TracerStats,
 ) -> TriangleOutcome {
     let GeometryData::Triangles(t) =
         &scene.scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize].data
@@ -82,6 +104,7 @@ fn classify_triangle(
         signs: None,
         values: None,
         band: None,
+        evaluation: Evaluation::None,
     };
     // Spec, "Ray Face Culling": a zero ray-space area is culled. Two coincident vertices give zero
     // area in every implementation (identical inputs, identical arithmetic).
@@ -106,8 +129,7 @@ fn classify_triangle(
     let world_f64 = ids.map(|i| w.vertices[i].map(|x| x.value));
     let radius = ids.map(|i| w.static_radius[i]);
     let band = triangle_band(&inst.band, &world_f64, &radius, rf.origin, rf.direction);
-    let evaluate_exact = |stats: &mut TracerStats| {
-        stats.exact_evaluations += 1;
+    let evaluate_exact = || {
         let world = pos.map(|p| dyadic_world(scene, w, p));
         triangle_signs::<Dyadic>(
             &world,
@@ -119,8 +141,8 @@ fn classify_triangle(
         )
         .expect("exact arithmetic decides every sign")
     };
-    let (signs, values) = match precision {
-        Precision::ExactOnly => evaluate_exact(stats),
+    let ((signs, values), evaluation) = match precision {
+        Precision::ExactOnly => (evaluate_exact(), Evaluation::Exact),
         Precision::F64WithExactFallback => {
             let world = ids.map(|i| w.vertices[i]);
             match triangle_signs::<BoundedF64>(
@@ -131,17 +153,13 @@ fn classify_triangle(
                 ray.tmax,
                 &band,
             ) {
-                Some(x) => {
-                    stats.filter_decided += 1;
-                    x
-                }
-                None => evaluate_exact(stats),
+                Some(x) => (x, Evaluation::Filter),
+                None => (evaluate_exact(), Evaluation::Exact),
             }
         }
         Precision::F32FilterOnly => {
-            stats.f32_evaluations += 1;
             let world = pos.map(|p| f32_world(scene, w, p));
-            triangle_signs::<PlainF32>(
+            let x = triangle_signs::<PlainF32>(
                 &world,
                 &v3(ray.origin),
                 &v3(ray.direction),
@@ -149,7 +167,8 @@ fn classify_triangle(
                 ray.tmax,
                 &band,
             )
-            .expect("f32 signs are taken at face value")
+            .expect("f32 signs are taken at face value");
+            (x, Evaluation::F32)
         }
     };
     TriangleOutcome {
@@ -157,6 +176,7 @@ fn classify_triangle(
         signs: Some(signs),
         values: Some(values),
         band: Some(band),
+        evaluation,
     }
 }
 
@@ -224,28 +244,29 @@ fn cut_allowed(scene: &PreparedScene, ray: &Ray, shaders: &ShaderTable<'_>) -> b
     })
 }
 
-/// The upper t bound of a triangle that must be a candidate and is confirmed without any-hit
-/// (REQ-hit, not culled, its facing certain where a facing is culled), or None.
-fn required_hit_t(
-    scene: &PreparedScene,
-    w: &WorldGeometry,
-    primitive: u32,
-    ray: &Ray,
-    rf: &RayF64,
-    config: &TracerConfig,
-    stats: &mut TracerStats,
-) -> Option<f64> {
+/// Whether a triangle of `w` survives mask, primitive and opacity culling for the ray (the pairs
+/// [`required_hit_t`] asks about).
+fn triangle_unculled(scene: &PreparedScene, w: &WorldGeometry, ray: &Ray) -> bool {
     let inst = &scene.scene.instances[w.instance as usize];
     if inst.mask as u32 & ray.cull_mask & 0xFF == 0 || ray.flags.contains(RayFlags::SKIP_TRIANGLES)
     {
-        return None;
+        return false;
     }
     let geometry =
         &scene.scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize];
-    if opacity_culled(ray, opacity(ray, inst, geometry.flags.opaque)) {
-        return None;
-    }
-    let out = classify_triangle(scene, w, primitive, ray, rf, config.precision, stats);
+    !opacity_culled(ray, opacity(ray, inst, geometry.flags.opaque))
+}
+
+/// The upper t bound of a triangle that must be a candidate and is confirmed without any-hit
+/// (REQ-hit, not culled — see [`triangle_unculled`] —, its facing certain where a facing is
+/// culled), or None; `out` is its classification.
+fn required_hit_t(
+    scene: &PreparedScene,
+    w: &WorldGeometry,
+    ray: &Ray,
+    out: &TriangleOutcome,
+) -> Option<f64> {
+    let inst = &scene.scene.instances[w.instance as usize];
     if out.class != PairClass::ReqHit {
         return None;
     }
@@ -268,6 +289,15 @@ fn required_hit_t(
     }
     let (t, _) = triangle_intervals(&values, &band);
     t.hi.is_finite().then_some(t.hi)
+}
+
+/// A primitive the ray's padded box test kept, with its classification when the traversal made
+/// one (an unculled triangle).
+struct NearItem {
+    item: Item,
+    /// Its index in the prepared scene's items.
+    index: usize,
+    outcome: Option<TriangleOutcome>,
 }
 
 /// A procedural primitive the intersection shader must run for.
@@ -297,56 +327,86 @@ pub fn trace_ray(
     // out — in every mode alike (the BVH skips whole nodes of such triangles as the cut falls).
     let cut = std::cell::Cell::new(f64::INFINITY);
     let mut may_cut: Option<bool> = None;
-    let mut near: Vec<(Item, super::prepare::FarBox)> = Vec::new();
+    let mut scratch = SCRATCH.with(|s| std::mem::take(&mut *s.borrow_mut()));
+    let near = &mut scratch.near;
     let mut far_count = 0u64;
     let far_test = config.far_test;
-    let mut scratch = TracerStats::default();
-    let mut visit = |item: Item, fb: &super::prepare::FarBox| {
-        if far_test && fb.is_far(&rf) {
+    // The BVH's shortcuts (brute force, the reference, goes without): a segment that meets an
+    // item's inner box is not far from it.
+    let quick = config.use_bvh && far_test;
+    let far = |i: usize, ray: &RayF64| {
+        !(quick && scene.item_bounds[i].meets_inner(ray)) && scene.item_boxes[i].is_far(ray)
+    };
+    let mut visit = |i: usize| {
+        let item = scene.items[i];
+        if far_test && far(i, &rf) {
             far_count += 1;
             return;
         }
-        near.push((item, *fb));
         let w = &scene.geometries[item.geometry as usize];
         if w.kind != PrimitiveKind::Triangle {
+            near.push(NearItem {
+                item,
+                index: i,
+                outcome: None,
+            });
             return;
         }
-        if let Some(t_hi) = required_hit_t(scene, w, item.primitive, ray, &rf, config, &mut scratch)
+        // Behind the cut already: the final cut, never above it, leaves it out too.
+        let c = cut.get();
+        if c < rf.tmax {
+            let mut cut_ray = rf;
+            cut_ray.tmax = c;
+            if far(i, &cut_ray) {
+                return;
+            }
+        }
+        let outcome = triangle_unculled(scene, w, ray)
+            .then(|| classify_triangle(scene, w, item.primitive, ray, &rf, config.precision));
+        if let Some(t_hi) = outcome
+            .as_ref()
+            .and_then(|out| required_hit_t(scene, w, ray, out))
         {
             if t_hi < cut.get() && *may_cut.get_or_insert_with(|| cut_allowed(scene, ray, shaders))
             {
                 cut.set(t_hi);
             }
         }
+        near.push(NearItem {
+            item,
+            index: i,
+            outcome,
+        });
     };
-    if config.use_bvh && config.far_test {
-        let mut nodes = 0;
-        scene.for_each_near(&rf, &mut nodes, &cut, &mut visit);
+    if quick {
+        let (mut nodes, mut far) = (0, 0);
+        scene.for_each_near(&rf, &mut nodes, &mut far, &cut, &mut visit);
         stats.nodes_visited += nodes;
+        stats.far_rejections += far;
     } else {
-        scene.for_each_item(&mut visit);
+        (0..scene.items.len()).for_each(&mut visit);
     }
     stats.far_rejections += far_count;
-    // What the cut leaves out (the BVH has left out a subset of it already).
+    // What the cut leaves out of what was kept before it fell.
     let cut_at = cut.get();
     if cut_at < rf.tmax {
         let mut cut_ray = rf;
         cut_ray.tmax = cut_at;
-        near.retain(|(it, fb)| {
-            scene.geometries[it.geometry as usize].kind != PrimitiveKind::Triangle
-                || !fb.is_far(&cut_ray)
+        near.retain(|n| {
+            scene.geometries[n.item.geometry as usize].kind != PrimitiveKind::Triangle
+                || !far(n.index, &cut_ray)
         });
     }
     // A deterministic order, independent of the BVH.
-    near.sort_by_key(|(it, _)| {
-        let w = &scene.geometries[it.geometry as usize];
-        (w.instance, w.geometry, it.primitive)
+    near.sort_by_key(|n| {
+        let w = &scene.geometries[n.item.geometry as usize];
+        (w.instance, w.geometry, n.item.primitive)
     });
 
     let mut candidates: Vec<Candidate> = Vec::new();
-    let mut hits: Vec<TriangleHit> = Vec::new();
+    let hits = &mut scratch.hits;
     let mut must_run: Vec<MustRun> = Vec::new();
-    for (item, _) in near {
+    for NearItem { item, outcome, .. } in near.drain(..) {
         let w = &scene.geometries[item.geometry as usize];
         let inst = &scene.scene.instances[w.instance as usize];
         // Spec, "Ray Mask Culling".
@@ -373,8 +433,10 @@ pub fn trace_ray(
         stats.pair_tests += 1;
         match w.kind {
             PrimitiveKind::Triangle => {
-                let out =
-                    classify_triangle(scene, w, item.primitive, ray, &rf, config.precision, stats);
+                let out = outcome.unwrap_or_else(|| {
+                    classify_triangle(scene, w, item.primitive, ray, &rf, config.precision)
+                });
+                out.evaluation.count(stats);
                 let (presence, reason) = match out.class {
                     PairClass::ReqHit => {
                         stats.req_hit += 1;
@@ -402,22 +464,28 @@ pub fn trace_ray(
                     (world_negative != scene.instances[w.instance as usize].det_negative)
                         != inst.flags.flip_facing
                 });
-                let mut kinds: Vec<u32> = match front {
-                    Some(true) => vec![0xFE],
-                    Some(false) => vec![0xFF],
-                    None => vec![0xFE, 0xFF],
+                const BOTH: [u32; 2] = [0xFE, 0xFF];
+                let facings: &[u32] = match front {
+                    Some(true) => &BOTH[..1],
+                    Some(false) => &BOTH[1..],
+                    None => &BOTH,
                 };
-                let mut facing_vary = false;
-                if !inst.flags.triangle_facing_cull_disable {
-                    let before = kinds.len();
-                    if ray.flags.contains(RayFlags::CULL_BACK_FACING_TRIANGLES) {
-                        kinds.retain(|k| *k != 0xFF);
+                let culls = !inst.flags.triangle_facing_cull_disable;
+                let mut kept = [0u32; 2];
+                let mut count = 0;
+                for &k in facings {
+                    let culled = culls
+                        && ((k == 0xFF
+                            && ray.flags.contains(RayFlags::CULL_BACK_FACING_TRIANGLES))
+                            || (k == 0xFE
+                                && ray.flags.contains(RayFlags::CULL_FRONT_FACING_TRIANGLES)));
+                    if !culled {
+                        kept[count] = k;
+                        count += 1;
                     }
-                    if ray.flags.contains(RayFlags::CULL_FRONT_FACING_TRIANGLES) {
-                        kinds.retain(|k| *k != 0xFE);
-                    }
-                    facing_vary = kinds.len() < before && front.is_none();
                 }
+                let kinds = &kept[..count];
+                let facing_vary = count < facings.len() && front.is_none();
                 if kinds.is_empty() {
                     continue;
                 }
@@ -585,10 +653,23 @@ pub fn trace_ray(
             }
         }
     }
-    let watertight = watertight_groups(scene, ray, &candidates, &hits);
+    let watertight = watertight_groups(scene, ray, &candidates, hits);
+    hits.clear();
+    SCRATCH.with(|s| *s.borrow_mut() = scratch);
     Ok(conclude(
         scene, ray, shaders, candidates, must_run, watertight,
     ))
+}
+
+/// Buffers one ray's trace needs and none keeps, reused by the next ray of the thread.
+#[derive(Default)]
+struct Scratch {
+    near: Vec<NearItem>,
+    hits: Vec<TriangleHit>,
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
 }
 
 /// From the candidates to the allowed committed hits, the miss rule and the invocation counts.
@@ -601,37 +682,58 @@ fn conclude(
     watertight: Vec<WatertightGroup>,
 ) -> AllowedOutcomes {
     let tofh = ray.flags.contains(RayFlags::TERMINATE_ON_FIRST_HIT);
-    let confirmable: Vec<bool> = candidates
-        .iter()
-        .map(|c| c.confirmation.confirms())
-        .collect();
-    let early: Vec<bool> = candidates
-        .iter()
-        .zip(&confirmable)
-        .map(|(c, &ok)| {
-            ok && (tofh || c.confirmation == Confirmation::AnyHitAccepts { terminates: true })
-        })
-        .collect();
-    let hulls: Vec<Interval> = candidates.iter().map(|c| c.t_hull()).collect();
-    let required: Vec<usize> = (0..candidates.len())
-        .filter(|&i| confirmable[i] && candidates[i].presence == Presence::Required)
-        .collect();
+    // Per candidate: confirmable, may end the trace early, and the hull of its t intervals.
+    struct Facts {
+        confirmable: bool,
+        early: bool,
+        hull: Interval,
+    }
+    let fact = |c: &Candidate| {
+        let ok = c.confirmation.confirms();
+        Facts {
+            confirmable: ok,
+            early: ok
+                && (tofh || c.confirmation == Confirmation::AnyHitAccepts { terminates: true }),
+            hull: c.t_hull(),
+        }
+    };
+    // On the stack for the usual few candidates.
+    const FEW: usize = 8;
+    let mut few = [const {
+        Facts {
+            confirmable: false,
+            early: false,
+            hull: Interval::ALL,
+        }
+    }; FEW];
+    let many: Vec<Facts>;
+    let facts: &[Facts] = if candidates.len() <= FEW {
+        for (f, c) in few.iter_mut().zip(&candidates) {
+            *f = fact(c);
+        }
+        &few[..candidates.len()]
+    } else {
+        many = candidates.iter().map(fact).collect();
+        &many
+    };
+    let confirmable = |i: usize| facts[i].confirmable;
+    let early = |i: usize| facts[i].early;
+    let hulls = |i: usize| facts[i].hull;
+    let required = || {
+        (0..candidates.len())
+            .filter(|&i| confirmable(i) && candidates[i].presence == Presence::Required)
+    };
+    let no_required = required().next().is_none();
     let committable: Vec<usize> = (0..candidates.len())
         .filter(|&i| {
-            confirmable[i]
-                && (early[i]
-                    || required
-                        .iter()
-                        .all(|&r| r == i || hulls[i].lo <= hulls[r].hi))
+            confirmable(i) && (early(i) || required().all(|r| r == i || hulls(i).lo <= hulls(r).hi))
         })
         .collect();
-    let any_early = early.iter().any(|&e| e);
     // A candidate must be processed when nothing can end the trace or shrink tmax below it first.
     let must_process = |i: Option<usize>, t_hi: f64| -> bool {
         (0..candidates.len())
-            .all(|c| Some(c) == i || !confirmable[c] || (!early[c] && hulls[c].lo > t_hi))
+            .all(|c| Some(c) == i || !confirmable(c) || (!early(c) && hulls(c).lo > t_hi))
     };
-    let _ = any_early;
     // Any-hit: at most once per candidate with NO_DUPLICATE_ANY_HIT, unbounded otherwise; with
     // TerminateOnFirstHit every accepting invocation ends the trace.
     let mut any_hit_max: Option<u32> = Some(0);
@@ -649,7 +751,7 @@ fn conclude(
                 _ => None,
             };
         }
-        if c.presence == Presence::Required && must_process(Some(i), hulls[i].hi) {
+        if c.presence == Presence::Required && must_process(Some(i), hulls(i).hi) {
             any_hit_min += 1;
         }
     }
@@ -658,26 +760,18 @@ fn conclude(
     }
     // Intersection shaders may run for any reachable box (boxes may be enlarged without bound).
     let mut reachable_procedural = false;
-    for (i, inst) in scene.scene.instances.iter().enumerate() {
-        let Some(b) = inst.bottom_level else { continue };
-        if inst.mask as u32 & ray.cull_mask & 0xFF == 0 || ray.flags.contains(RayFlags::SKIP_AABBS)
-        {
-            continue;
-        }
-        for (g, geometry) in scene.scene.bottom_levels[b as usize]
-            .geometries
-            .iter()
-            .enumerate()
-        {
-            let GeometryData::Aabbs(a) = &geometry.data else {
-                continue;
-            };
-            if a.boxes.iter().all(|b| b.is_inactive()) {
+    if !ray.flags.contains(RayFlags::SKIP_AABBS) {
+        for &(i, g) in &scene.procedural {
+            let inst = &scene.scene.instances[i as usize];
+            if inst.mask as u32 & ray.cull_mask & 0xFF == 0 {
                 continue;
             }
+            let b = inst
+                .bottom_level
+                .expect("a procedural geometry's instance has a level");
+            let geometry = &scene.scene.bottom_levels[b as usize].geometries[g as usize];
             let opaque = opacity(ray, inst, geometry.flags.opaque);
-            if !opacity_culled(ray, opaque) && (shaders.hit)(i as u32, g as u32).has_intersection()
-            {
+            if !opacity_culled(ray, opaque) && (shaders.hit)(i, g).has_intersection() {
                 reachable_procedural = true;
             }
         }
@@ -689,13 +783,13 @@ fn conclude(
             must_process(own, m.t_hi)
         })
         .count() as u32;
-    let discouraged = required.is_empty() && watertight.iter().any(|g| g.expect_hit);
+    let discouraged = no_required && watertight.iter().any(|g| g.expect_hit);
     let vary = candidates.iter().any(|c| c.presence == Presence::Possible)
         || committable.len() > 1
         || candidates.iter().any(|c| c.reports.len() > 1);
     AllowedOutcomes {
         miss: MissRule {
-            allowed: required.is_empty(),
+            allowed: no_required,
             required: committable.is_empty(),
             discouraged,
         },

@@ -48,7 +48,9 @@ pub struct TriangleSigns {
     pub window: WindowSide,
 }
 
-/// The f64 approximations (with error bounds) of the quantities, for intervals.
+/// The f64 approximations (with error bounds) of the quantities, for intervals. A pair robustly
+/// outside two edges needs no more than its edge functions: its sum and plane are not evaluated
+/// (NaN, with an infinite bound).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TriangleValues {
     pub edge: [(f64, f64); 3],
@@ -79,12 +81,10 @@ pub fn triangle_signs<T: Num>(
         triple(direction, &a[2], &a[0]),
         triple(direction, &a[0], &a[1]),
     ];
-    let s = e[0].add(&e[1]).add(&e[2]);
-    let n = triple(&a[0], &a[1], &a[2]);
-    let values = TriangleValues {
+    let mut values = TriangleValues {
         edge: [0, 1, 2].map(|i| (e[i].approx(), e[i].error())),
-        sum: (s.approx(), s.error()),
-        plane: (n.approx(), n.error()),
+        sum: (f64::NAN, f64::INFINITY),
+        plane: (f64::NAN, f64::INFINITY),
     };
     let mut edges = [EdgeSide::Band; 3];
     for i in 0..3 {
@@ -107,6 +107,10 @@ pub fn triangle_signs<T: Num>(
         };
         return Some((signs, values));
     }
+    let s = e[0].add(&e[1]).add(&e[2]);
+    let n = triple(&a[0], &a[1], &a[2]);
+    values.sum = (s.approx(), s.error());
+    values.plane = (n.approx(), n.error());
     let orientation = if sign_above(&s, band.sum)? == Ordering::Greater {
         Some(Ordering::Greater)
     } else if sign_below(&s, band.sum)? == Ordering::Less {

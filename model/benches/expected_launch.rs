@@ -1,0 +1,123 @@
+//! Rays per second of `model::semantics::expected_launch` — the oracle the session judges rendered
+//! cases with, shader binding table resolution and prepared-scene memo included — on the triangle
+//! workloads of `model::tracer::workload` as a 64x64 launch of the hand-made indirect case (the
+//! scene and rays `harness/benches/render_rays.rs` gives lavapipe), beside the bare tracer
+//! (`workload::run`, one shader table for every ray) on the same rays as the peer in the same run,
+//! and the launch's CPU time per ray (all threads).
+//!
+//! `cargo bench -p rtconf-model --bench expected_launch` (`RTCONF_BENCH_PASSES` sets the passes,
+//! default 9; each rate is their
+//! median; `RTCONF_BENCH_ONLY=NAME` keeps the workloads whose name contains NAME).
+
+use model::case::Case;
+use model::scene::GeometryData;
+use model::tracer::workload::{run, standard_workloads};
+use model::tracer::{PreparedScene, TracerConfig};
+use model::world::Contents;
+use std::time::Instant;
+
+const SIDE: u32 = 64;
+
+fn hand_case() -> Case {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../cases/hand/trace-indirect-records-32.yaml");
+    let text = std::fs::read_to_string(&path).expect("the hand-made case");
+    Case::from_yaml("hand", &text).expect("the hand-made case parses")
+}
+
+/// CPU seconds this process has used (all threads): a rate from it is less disturbed by other
+/// processes on a shared machine than one from wall time.
+fn cpu_seconds() -> f64 {
+    let mut t = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes one timespec through a valid pointer.
+    unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut t) };
+    t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() {
+    let passes: usize = std::env::var("RTCONF_BENCH_PASSES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(9);
+    let only = std::env::var("RTCONF_BENCH_ONLY").unwrap_or_default();
+    println!(
+        "{:<24} {:>7} {:>7} {:>16} {:>14} {:>16} {:>8} {:>10} {:>10} {:>10}",
+        "workload",
+        "prims",
+        "rays",
+        "launch rays/s",
+        "cpu µs/ray",
+        "tracer rays/s",
+        "ratio",
+        "nodes/ray",
+        "far/ray",
+        "pairs/ray"
+    );
+    for w in standard_workloads(SIDE, false) {
+        let triangles = w.scene.bottom_levels.iter().all(|b| {
+            b.geometries
+                .iter()
+                .all(|g| matches!(g.data, GeometryData::Triangles(_)))
+        });
+        if !triangles || !w.name.contains(only.as_str()) {
+            continue;
+        }
+        let mut case = hand_case();
+        let t = case.as_trace_mut().expect("a trace case");
+        t.world.launch.scene = w.scene.clone();
+        t.world.launch.rays = w.rays.clone();
+        for b in &mut t.world.buffers {
+            for c in &mut b.contents {
+                if let Contents::TraceRaysIndirectCommand { width, height, .. } = c {
+                    *width = SIDE;
+                    *height = SIDE;
+                }
+            }
+        }
+        let body = case.as_trace().expect("a trace case").clone();
+        let ids = (SIDE * SIDE) as f64;
+        // Warm-up: the prepared scene is made once.
+        let warm = model::semantics::expected_launch(&body.world, &body.call)
+            .expect("the workload's outcomes");
+        let per_ray = |n: u64| n as f64 / warm.stats.rays.max(1) as f64;
+        let mut launch = Vec::new();
+        let mut cpu = Vec::new();
+        for _ in 0..passes {
+            let (t, c) = (Instant::now(), cpu_seconds());
+            let e = model::semantics::expected_launch(&body.world, &body.call);
+            launch.push(ids / t.elapsed().as_secs_f64());
+            cpu.push(1e6 * (cpu_seconds() - c) / ids);
+            assert!(e.is_some());
+        }
+        let prepared = PreparedScene::new(&w.scene).expect("defined workload");
+        let mut tracer = Vec::new();
+        for _ in 0..passes {
+            let t = Instant::now();
+            let r = run(&prepared, &w.rays, &TracerConfig::default());
+            tracer.push(w.rays.len() as f64 / t.elapsed().as_secs_f64());
+            assert_eq!(r.0.len(), w.rays.len());
+        }
+        let (l, r) = (median(launch), median(tracer));
+        println!(
+            "{:<24} {:>7} {:>7} {:>16.0} {:>14.2} {:>16.0} {:>8.2} {:>10.1} {:>10.1} {:>10.1}",
+            w.name,
+            prepared.primitive_count(),
+            w.rays.len(),
+            l,
+            median(cpu),
+            r,
+            l / r,
+            per_ray(warm.stats.nodes_visited),
+            per_ray(warm.stats.far_rejections),
+            per_ray(warm.stats.pair_tests)
+        );
+    }
+}
