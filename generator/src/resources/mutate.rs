@@ -116,10 +116,7 @@ pub fn mutate(
             if m.tag == "08116" {
                 st.descriptor_source = DescriptorSource::Buffers;
                 st.pipeline_descriptor_buffer = true;
-                // Descriptor buffers are bound (vkCmdBindDescriptorBuffersEXT) only with the feature, by
-                // device address.
-                dev.features.insert("descriptorBuffer".into());
-                dev.features.insert("bufferDeviceAddress".into());
+                use_descriptor_buffers(profile, dev)?;
             }
             access_mut(st).push(Access {
                 binding: 3,
@@ -147,11 +144,13 @@ pub fn mutate(
                 _ => write(st, 3, Descriptor::TexelBuffer { view: "stb".into() }),
             }
         }
-        "08115" => st.pipeline_descriptor_buffer = true,
+        "08115" => {
+            st.pipeline_descriptor_buffer = true;
+            use_descriptor_buffers(profile, dev)?;
+        }
         "08117" => {
             st.descriptor_source = DescriptorSource::Buffers;
-            dev.features.insert("descriptorBuffer".into());
-            dev.features.insert("bufferDeviceAddress".into());
+            use_descriptor_buffers(profile, dev)?;
         }
         "08119" => {
             // Descriptor memory that is not resident: a sparse descriptor buffer with no page bound.
@@ -164,8 +163,7 @@ pub fn mutate(
                 dev.features.insert(f.into());
             }
             st.descriptor_source = DescriptorSource::Buffers;
-            dev.features.insert("descriptorBuffer".into());
-            dev.features.insert("bufferDeviceAddress".into());
+            use_descriptor_buffers(profile, dev)?;
             st.pipeline_descriptor_buffer = true;
             st.descriptor_memory_not_resident = true;
             access_mut(st).push(Access {
@@ -715,4 +713,20 @@ pub fn mutate(
     }
     let _ = linear_ok;
     Ok(also)
+}
+
+/// Enables what a world with descriptor buffers or a DESCRIPTOR_BUFFER_BIT_EXT pipeline needs:
+/// VK_EXT_descriptor_buffer with its descriptorBuffer feature (a pipeline with the flag needs the feature,
+/// VUID-VkRayTracingPipelineCreateInfoKHR-flags-08096) and bufferDeviceAddress (descriptor buffers are
+/// bound by address). A registry whose descriptor-buffer VUIDs list no dependency (1.4.309 lists them as
+/// core) still needs the extension on the device, so it is enabled here, not from the VUID's dependencies.
+fn use_descriptor_buffers(profile: &DeviceProfile, dev: &mut DeviceState) -> Result<(), String> {
+    const EXTENSION: &str = "VK_EXT_descriptor_buffer";
+    if !profile.has_extension(EXTENSION) {
+        return Err(format!("the device lacks {EXTENSION}"));
+    }
+    dev.extensions.insert(EXTENSION.into());
+    dev.features.insert("descriptorBuffer".into());
+    dev.features.insert("bufferDeviceAddress".into());
+    Ok(())
 }
