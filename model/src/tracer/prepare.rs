@@ -163,27 +163,33 @@ impl FarBox {
     /// Whether the ray segment meets the box without its pad (the slab test of `is_far` with a
     /// zero pad).
     #[inline]
-    #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
     fn meets_unpadded(&self, ray: &RayF64) -> bool {
-        let o = &ray.origin;
-        let mut near = ray.tmin;
-        let mut far = ray.tmax;
-        for k in 0..3 {
-            let (lo, hi) = (self.lo[k], self.hi[k]);
-            if ray.direction[k] == 0.0 {
-                if o[k] < lo || o[k] > hi {
-                    return false;
-                }
-            } else {
-                let inv = ray.inv_direction[k];
-                let t1 = (lo - o[k]) * inv;
-                let t2 = (hi - o[k]) * inv;
-                near = near.max(t1.min(t2));
-                far = far.min(t1.max(t2));
-            }
-        }
-        near <= far
+        slab_meets(ray, self.lo, self.hi)
     }
+}
+
+/// The slab test in f64: whether the ray's segment [tmin, tmax] meets the box [lo, hi] (an axis the
+/// ray does not move along decides by the origin alone).
+#[inline]
+#[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
+fn slab_meets(ray: &RayF64, lo: [f64; 3], hi: [f64; 3]) -> bool {
+    let o = &ray.origin;
+    let mut near = ray.tmin;
+    let mut far = ray.tmax;
+    for k in 0..3 {
+        if ray.direction[k] == 0.0 {
+            if o[k] < lo[k] || o[k] > hi[k] {
+                return false;
+            }
+        } else {
+            let inv = ray.inv_direction[k];
+            let t1 = (lo[k] - o[k]) * inv;
+            let t2 = (hi[k] - o[k]) * inv;
+            near = near.max(t1.min(t2));
+            far = far.min(t1.max(t2));
+        }
+    }
+    near <= far
 }
 
 /// The traversal's compact copy of a [`FarBox`]: its corners rounded outward to f32 and its pad
@@ -306,30 +312,13 @@ impl ItemBounds {
     /// Whether the ray segment meets the inner box (then [`FarBox::is_far`] is false: the inner
     /// box lies in the f64 box, and the slab test's rounded bounds are monotone in the box).
     #[inline]
-    #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
     pub fn meets_inner(&self, ray: &RayF64) -> bool {
-        let o = &ray.origin;
-        let mut near = ray.tmin;
-        let mut far = ray.tmax;
-        for k in 0..3 {
-            let (lo, hi) = (self.inner_lo[k] as f64, self.inner_hi[k] as f64);
-            // An empty (or NaN) inner box meets nothing.
-            if lo > hi || lo.is_nan() || hi.is_nan() {
-                return false;
-            }
-            if ray.direction[k] == 0.0 {
-                if o[k] < lo || o[k] > hi {
-                    return false;
-                }
-            } else {
-                let inv = ray.inv_direction[k];
-                let t1 = (lo - o[k]) * inv;
-                let t2 = (hi - o[k]) * inv;
-                near = near.max(t1.min(t2));
-                far = far.min(t1.max(t2));
-            }
+        let (lo, hi) = (self.inner_lo.map(f64::from), self.inner_hi.map(f64::from));
+        // An empty (or NaN) inner box meets nothing.
+        if (0..3).any(|k| lo[k] > hi[k] || lo[k].is_nan() || hi[k].is_nan()) {
+            return false;
         }
-        near <= far
+        slab_meets(ray, lo, hi)
     }
 }
 
