@@ -86,3 +86,56 @@ pub fn declared_and_judged(
         .collect();
     (declared, judged)
 }
+
+/// lavapipe under the validation layer, with the installed registry's rules, the lavapipe profile and
+/// the triage files of the layer's own version: cases generated, run and judged as a run does.
+pub struct Lavapipe {
+    pub rules: RuleSet,
+    pub profile: DeviceProfile,
+    pub triage: session::Triage,
+    pub executor: harness::Executor,
+}
+
+impl Lavapipe {
+    pub fn new() -> Lavapipe {
+        std::env::set_var("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json");
+        let layer =
+            harness::validation_layer().expect("the validation layer: `bash scripts/setup.sh`");
+        let driver = harness::Driver::Lavapipe;
+        Lavapipe {
+            rules: installed_rules(),
+            profile: profile("lavapipe"),
+            triage: session::sources::triage_for(&[], Some(&layer.version), &driver)
+                .expect("triage files parse"),
+            executor: harness::Executor::new(driver)
+                .expect("lavapipe and the validation layer: run `bash scripts/setup.sh`"),
+        }
+    }
+
+    pub fn generate(
+        &self,
+        spec: &generator::CaseSpec,
+        count: usize,
+        seed: u64,
+    ) -> Result<Vec<model::Case>, generator::GenError> {
+        generator::generate(&self.profile, "lavapipe", &self.rules, spec, count, seed)
+    }
+
+    /// One case run and judged as a run does (the gate, the execution, one verdict, the comparison).
+    pub fn run(&mut self, case: &model::Case) -> session::CaseReport {
+        let judging = session::run::Judging {
+            rules: &self.rules,
+            profile: &self.profile,
+            triage: &self.triage,
+        };
+        judging
+            .run_here(&mut self.executor, case, harness::TraceCheck::Auto)
+            .report
+    }
+}
+
+impl Default for Lavapipe {
+    fn default() -> Lavapipe {
+        Lavapipe::new()
+    }
+}

@@ -4,66 +4,12 @@
 //! output must equal the model's expected launch.
 
 use generator::CaseSpec;
-use harness::{Driver, Executor, TraceCheck};
 use model::CommandId;
-use rtconf_tests::{installed_rules, profile};
-use session::{CaseReport, Outcome, Triage};
+use rtconf_tests::Lavapipe;
+use session::{CaseReport, Outcome};
 use std::collections::BTreeMap;
 
 const COMMAND: CommandId = CommandId::TraceRaysIndirect;
-
-/// lavapipe under the validation layer, with the installed registry's rules and the triage files.
-struct Lavapipe {
-    rules: model::RuleSet,
-    profile: model::DeviceProfile,
-    triage: Triage,
-    executor: Executor,
-}
-
-impl Lavapipe {
-    fn new() -> Lavapipe {
-        std::env::set_var("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json");
-        let rules = installed_rules();
-        let layer =
-            harness::validation_layer().expect("the validation layer: `bash scripts/setup.sh`");
-        let triage = session::sources::triage_for(&[], Some(&layer.version), &Driver::Lavapipe)
-            .expect("triage files parse");
-        let executor = Executor::new(Driver::Lavapipe)
-            .expect("lavapipe and the validation layer: run `bash scripts/setup.sh`");
-        Lavapipe {
-            rules,
-            profile: profile("lavapipe"),
-            triage,
-            executor,
-        }
-    }
-
-    fn generate(
-        &self,
-        spec: &CaseSpec,
-        count: usize,
-        seed: u64,
-    ) -> Result<Vec<model::Case>, generator::GenError> {
-        generator::generate(&self.profile, "lavapipe", &self.rules, spec, count, seed)
-    }
-
-    /// Each case run and judged as a run does (the gate, the execution, one verdict, the comparison).
-    fn run(&mut self, cases: &[model::Case]) -> Vec<CaseReport> {
-        let judging = session::run::Judging {
-            rules: &self.rules,
-            profile: &self.profile,
-            triage: &self.triage,
-        };
-        cases
-            .iter()
-            .map(|c| {
-                judging
-                    .run_here(&mut self.executor, c, TraceCheck::Auto)
-                    .report
-            })
-            .collect()
-    }
-}
 
 #[test]
 fn the_layer_agrees_with_the_model_on_every_executable_vuid_or_the_triage_says_why() {
@@ -94,7 +40,7 @@ fn the_layer_agrees_with_the_model_on_every_executable_vuid_or_the_triage_says_w
             }
             Err(e) => panic!("{vuid}: {e}"),
         };
-        for r in lvp.run(&cases) {
+        for r in cases.iter().map(|c| lvp.run(c)) {
             if matches!(r.outcome, Outcome::Fail | Outcome::Crash | Outcome::Timeout) {
                 failures.push(format!("{}: {:?} {}", r.case, r.outcome, r.detail));
             }
@@ -131,7 +77,7 @@ fn valid_launches_write_what_the_model_expects_and_the_layer_stays_silent() {
     let cases = lvp
         .generate(&CaseSpec::valid(COMMAND), 40, 3)
         .expect("valid cases");
-    let reports = lvp.run(&cases);
+    let reports: Vec<CaseReport> = cases.iter().map(|c| lvp.run(c)).collect();
     let bad: Vec<String> = reports
         .iter()
         .filter(|r| !matches!(r.outcome, Outcome::Pass | Outcome::Triaged))

@@ -8,66 +8,32 @@
 //! both objects were made with it.
 
 use generator::CaseSpec;
-use harness::{Driver, Executor, TraceCheck};
 use model::resources::Op;
 use model::{CommandId, Intent};
-use rtconf_tests::{installed_rules, profile};
-use session::{CaseReport, Outcome, Triage};
+use rtconf_tests::Lavapipe;
+use session::Outcome;
 
 const COMMANDS: [CommandId; 2] = [CommandId::TraceRays, CommandId::TraceRaysIndirect];
 
-struct Lavapipe {
-    rules: model::RuleSet,
-    profile: model::DeviceProfile,
-    triage: Triage,
-    executor: Executor,
-}
-
-impl Lavapipe {
-    fn new() -> Lavapipe {
-        std::env::set_var("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json");
-        let layer =
-            harness::validation_layer().expect("the validation layer: `bash scripts/setup.sh`");
-        Lavapipe {
-            rules: installed_rules(),
-            profile: profile("lavapipe"),
-            triage: session::sources::triage_for(&[], Some(&layer.version), &Driver::Lavapipe)
-                .expect("triage files parse"),
-            executor: Executor::new(Driver::Lavapipe)
-                .expect("lavapipe and the validation layer: run `bash scripts/setup.sh`"),
-        }
-    }
-
-    fn cases(&self, command: CommandId, tag: &str) -> Vec<model::Case> {
-        let vuid = self
-            .rules
-            .rows
-            .iter()
-            .find(|r| r.scope == command.vk_name() && r.vuid.ends_with(tag))
-            .unwrap_or_else(|| panic!("{} has a rule {tag}", command.vk_name()))
-            .vuid
-            .clone();
-        generator::generate(
-            &self.profile,
-            "lavapipe",
-            &self.rules,
-            &CaseSpec::violate(command, &vuid),
-            4,
-            11,
-        )
-        .unwrap_or_else(|e| panic!("{vuid}: {e:?}"))
-    }
-
-    fn run(&mut self, case: &model::Case) -> CaseReport {
-        let judging = session::run::Judging {
-            rules: &self.rules,
-            profile: &self.profile,
-            triage: &self.triage,
-        };
-        judging
-            .run_here(&mut self.executor, case, TraceCheck::Auto)
-            .report
-    }
+/// The generated cases of `command`'s rule ending in `tag`.
+fn cases(lvp: &Lavapipe, command: CommandId, tag: &str) -> Vec<model::Case> {
+    let vuid = lvp
+        .rules
+        .rows
+        .iter()
+        .find(|r| r.scope == command.vk_name() && r.vuid.ends_with(tag))
+        .unwrap_or_else(|| panic!("{} has a rule {tag}", command.vk_name()))
+        .vuid
+        .clone();
+    generator::generate(
+        &lvp.profile,
+        "lavapipe",
+        &lvp.rules,
+        &CaseSpec::violate(command, &vuid),
+        4,
+        11,
+    )
+    .unwrap_or_else(|e| panic!("{vuid}: {e:?}"))
 }
 
 fn ycbcr_views(c: &model::Case) -> usize {
@@ -104,7 +70,7 @@ fn ycbcr_cases_are_realised_and_agree_with_the_model_or_the_triage() {
     let mut n = 0;
     for command in COMMANDS {
         for tag in ["-06550", "-06551"] {
-            for c in lvp.cases(command, tag) {
+            for c in cases(&lvp, command, tag) {
                 assert_eq!(ycbcr_views(&c), 1, "{}: one Y′CbCr view", c.name);
                 let r = lvp.run(&c);
                 n += 1;
@@ -122,7 +88,7 @@ fn ycbcr_cases_are_realised_and_agree_with_the_model_or_the_triage() {
 fn the_valid_counterpart_samples_silently_and_writes_what_the_model_expects() {
     let mut lvp = Lavapipe::new();
     for command in COMMANDS {
-        for mut c in lvp.cases(command, "-06551") {
+        for mut c in cases(&lvp, command, "-06551") {
             c.name = format!("{}-valid", c.name);
             sample_without_offset(&mut c);
             let r = lvp.run(&c);
@@ -137,7 +103,7 @@ fn the_valid_counterpart_samples_silently_and_writes_what_the_model_expects() {
 #[test]
 fn a_ycbcr_view_without_an_immutable_ycbcr_sampler_is_not_realised() {
     let mut lvp = Lavapipe::new();
-    let mut c = lvp.cases(CommandId::TraceRays, "-06551").remove(0);
+    let mut c = cases(&lvp, CommandId::TraceRays, "-06551").remove(0);
     sample_without_offset(&mut c);
     let st = &mut c.as_trace_mut().unwrap().world.resources;
     for b in st
