@@ -120,7 +120,6 @@ impl FarBox {
     /// divisions as multiplications by the ray's reciprocal directions: both within the f64 slack
     /// `far_pad` adds for the slab test). Monotone under box containment.
     #[inline]
-    #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
     pub fn is_far(&self, ray: &RayF64) -> bool {
         // A segment that meets the box itself meets it padded (the pad is never negative, and
         // the rounded slab bounds are monotone in it): not far, without the pad.
@@ -138,24 +137,7 @@ impl FarBox {
         if !pad.is_finite() {
             return false;
         }
-        let mut near = ray.tmin;
-        let mut far = ray.tmax;
-        for k in 0..3 {
-            let lo = self.lo[k] - pad;
-            let hi = self.hi[k] + pad;
-            if ray.direction[k] == 0.0 {
-                if o[k] < lo || o[k] > hi {
-                    return true;
-                }
-            } else {
-                let inv = ray.inv_direction[k];
-                let t1 = (lo - o[k]) * inv;
-                let t2 = (hi - o[k]) * inv;
-                near = near.max(t1.min(t2));
-                far = far.min(t1.max(t2));
-            }
-        }
-        near > far
+        !slab_meets(ray, self.lo.map(|v| v - pad), self.hi.map(|v| v + pad))
     }
 }
 
