@@ -15,7 +15,9 @@ fn results(out: &Path) -> BTreeMap<String, serde_json::Value> {
     for line in text.lines() {
         let mut v: serde_json::Value =
             serde_json::from_str(line).unwrap_or_else(|e| panic!("a torn line `{line}`: {e}"));
-        v.as_object_mut().unwrap().remove("millis");
+        let line_of = v.as_object_mut().unwrap();
+        line_of.remove("millis");
+        line_of.remove("phases");
         let name = v["case"].as_str().unwrap().to_string();
         assert!(by_case.insert(name.clone(), v).is_none(), "{name} twice");
     }

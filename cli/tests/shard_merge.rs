@@ -37,7 +37,9 @@ fn run(out: &Path, shard: Option<&str>) {
 /// A result line without its timing, for comparing runs.
 fn untimed(v: &Value) -> Value {
     let mut v = v.clone();
-    v.as_object_mut().unwrap().remove("millis");
+    let line = v.as_object_mut().unwrap();
+    line.remove("millis");
+    line.remove("phases");
     v
 }
 

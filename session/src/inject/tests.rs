@@ -28,9 +28,10 @@ fn copies(kind: Kind, size: f64) -> Vec<(Case, Case)> {
         .iter()
         .filter_map(|c| {
             let i = inject(c, &Injection { kind, size }, &profile, 7).ok()?;
-            // Deterministic in (case, injection, seed).
+            // Deterministic in (case, injection, seed). Compared as text: an inactive box's NaN
+            // coordinate is never equal to itself as a float.
             let again = inject(c, &Injection { kind, size }, &profile, 7).unwrap();
-            assert_eq!(i, again);
+            assert_eq!(format!("{i:?}"), format!("{again:?}"));
             Some((c.clone(), i.case))
         })
         .collect();
@@ -45,7 +46,7 @@ fn size_zero_is_the_case_itself() {
         let mut applied = 0;
         for c in &cases {
             if let Ok(i) = inject(c, &Injection { kind, size: 0.0 }, &profile, 7) {
-                assert_eq!(&i.case, c, "{kind}");
+                assert_eq!(format!("{:?}", i.case), format!("{c:?}"), "{kind}");
                 applied += 1;
             }
         }
