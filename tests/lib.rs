@@ -67,6 +67,12 @@ pub fn registry_1_4_309() -> PathBuf {
     reg
 }
 
+/// The rule table of the 1.4.309 registry ([`registry_1_4_309`]).
+pub fn rules_1_4_309() -> RuleSet {
+    let set = vk_registry::source::load_vuids(&registry_1_4_309()).expect("the 1.4.309 registry");
+    RuleSet::from_vuids(&set)
+}
+
 /// A case's declared VUIDs (its target and co-violations) and the VUIDs the model judges it to
 /// violate on `profile`, for tests that check a generator declares exactly what the model finds.
 pub fn declared_and_judged(
