@@ -1,6 +1,9 @@
-//! Compiles the GLSL ray tracing shaders in `shaders/` (the trace pipelines' and the build check's) to SPIR-V in OUT_DIR with glslangValidator. When
-//! glslangValidator is missing the build still succeeds: the harness then compiles at first use and, if it
-//! is still missing, says to run `bash scripts/setup.sh`.
+//! Links the shaderc library (libshaderc-dev) statically into the harness, so a run compiles GLSL in
+//! its own process and needs no compiler on PATH; and compiles the GLSL ray tracing shaders in
+//! `shaders/` (the trace pipelines' and the build check's) to SPIR-V in OUT_DIR with glslangValidator
+//! (glslang-tools, the same glslang release). When glslangValidator is missing the build still
+//! succeeds: the harness then compiles those shaders at first use with the linked library. A missing
+//! libshaderc-dev fails the build with the set-up command.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -27,7 +30,72 @@ const CHECK_SHADERS: &[(&str, &str)] = &[
     ("check.rint", "check_intersection"),
 ];
 
+/// Debian's libshaderc_combined.a holds shaderc alone: the glslang and SPIRV-Tools archives it
+/// needs follow it, each after the ones that use it.
+const SHADERC_ARCHIVES: &[&str] = &[
+    "shaderc_combined",
+    "SPIRV",
+    "MachineIndependent",
+    "OSDependent",
+    "OGLCompiler",
+    "GenericCodeGen",
+    "SPIRV-Tools-opt",
+    "SPIRV-Tools",
+];
+
+/// The folder that holds every archive of [`SHADERC_ARCHIVES`]: `$SHADERC_LIB_DIR`, else the
+/// system's library folders (Debian's multiarch one first).
+fn shaderc_lib_dir() -> Result<PathBuf, String> {
+    println!("cargo:rerun-if-env-changed=SHADERC_LIB_DIR");
+    let arch = std::env::var("CARGO_CFG_TARGET_ARCH").unwrap_or_default();
+    let candidates: Vec<PathBuf> = match std::env::var_os("SHADERC_LIB_DIR") {
+        Some(d) => vec![PathBuf::from(d)],
+        None => vec![
+            PathBuf::from(format!("/usr/lib/{arch}-linux-gnu")),
+            PathBuf::from("/usr/lib64"),
+            PathBuf::from("/usr/lib"),
+        ],
+    };
+    let missing = |d: &Path| -> Vec<String> {
+        SHADERC_ARCHIVES
+            .iter()
+            .map(|a| format!("lib{a}.a"))
+            .filter(|f| !d.join(f).is_file())
+            .collect()
+    };
+    if let Some(d) = candidates.iter().find(|d| missing(d).is_empty()) {
+        return Ok(d.clone());
+    }
+    let first = &candidates[0];
+    Err(format!(
+        "the shaderc library is missing ({} not in {}): install libshaderc-dev with `bash scripts/setup.sh`, or set SHADERC_LIB_DIR",
+        missing(first).join(", "),
+        first.display()
+    ))
+}
+
 fn main() {
+    match shaderc_lib_dir() {
+        Ok(lib) => {
+            for a in SHADERC_ARCHIVES {
+                println!(
+                    "cargo:rerun-if-changed={}",
+                    lib.join(format!("lib{a}.a")).display()
+                );
+            }
+            println!("cargo:rustc-link-search=native={}", lib.display());
+            // Not bundled into the rlib: the archives are named on the final link, after the objects
+            // that call them, in this order.
+            for a in SHADERC_ARCHIVES {
+                println!("cargo:rustc-link-lib=static:-bundle={a}");
+            }
+            println!("cargo:rustc-link-lib=dylib=stdc++");
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::exit(1);
+        }
+    }
     let dir = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").unwrap_or_else(|_| ".".into()))
         .join("shaders");
     let out = PathBuf::from(std::env::var("OUT_DIR").unwrap_or_else(|_| ".".into()));
@@ -59,7 +127,7 @@ fn main() {
                 spv.display().to_string()
             ));
         } else {
-            println!("cargo:warning=glslangValidator could not compile shaders/{src}; the harness will try at first use (install it with `bash scripts/setup.sh`)");
+            println!("cargo:warning=glslangValidator could not compile shaders/{src}; the harness compiles it at first use (install glslang-tools with `bash scripts/setup.sh`)");
             table.push_str(&format!("    ({name:?}, None),\n"));
         }
     }

@@ -4,11 +4,10 @@
 //! glslangValidator invocation, cached by content — and the one place SPIR-V becomes a shader module
 //! ([`module`]).
 
-use crate::error::{vkfail, HarnessError, SETUP_COMMAND};
+use crate::error::{vkfail, HarnessError};
 use crate::vk::VkDevice;
 use ash::vk;
 use std::collections::HashMap;
-use std::process::Command;
 use std::sync::Mutex;
 
 include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
@@ -141,10 +140,11 @@ fn words(name: &str, bytes: &[u8]) -> Result<Vec<u32>, HarnessError> {
         .collect())
 }
 
-/// Compiles GLSL to SPIR-V words with glslangValidator (Vulkan 1.2 target): `ext` is the stage's file
-/// extension (`rgen`, `rchit`, `comp`, …), `defines` the preprocessor names (`TRACE`, `NV`), `what`
-/// names the shader in errors. Results are cached in this process and on disk by content, so worker
-/// processes compile each source once.
+/// Compiles GLSL to SPIR-V words in this process, with the shaderc library linked into the binary
+/// (Vulkan 1.2 target, so SPIR-V 1.5, as `glslangValidator --target-env vulkan1.2 -V` gives): `ext` is
+/// the stage's file extension (`rgen`, `rchit`, `comp`, …), `defines` the preprocessor names (`TRACE`,
+/// `NV`), `what` names the shader in errors. No process is spawned and no tool on PATH is needed.
+/// Results are memoised in this process by content.
 pub(crate) fn compile_glsl(
     what: &str,
     ext: &str,
@@ -164,41 +164,16 @@ pub(crate) fn compile_glsl(
     {
         return Ok(w.clone());
     }
-    let io =
-        |p: &std::path::Path, e: std::io::Error| HarnessError::Io(format!("{}: {e}", p.display()));
-    let dir = std::env::temp_dir().join("rtconf-shaders");
-    std::fs::create_dir_all(&dir).map_err(|e| io(&dir, e))?;
-    let spv = dir.join(format!("{key:016x}.spv"));
-    if !spv.exists() {
+    let stage = glsl::Stage::of_extension(ext).ok_or_else(|| {
+        HarnessError::Shader(format!(
+            "{what}: no shader stage has the file extension `.{ext}`"
+        ))
+    })?;
+    let bytes = {
         let _phase = crate::timing::span(crate::timing::Phase::Shaders);
-        let pid = std::process::id();
-        let src = dir.join(format!("{key:016x}-{pid}.{ext}"));
-        std::fs::write(&src, text).map_err(|e| io(&src, e))?;
-        let tmp = dir.join(format!("{key:016x}-{pid}.spv"));
-        let out = Command::new("glslangValidator")
-            .args(["--target-env", "vulkan1.2", "-V"])
-            .args(defines.iter().map(|d| format!("-D{d}")))
-            .arg(&src)
-            .arg("-o")
-            .arg(&tmp)
-            .output()
-            .map_err(|e| {
-                HarnessError::Shader(format!(
-                    "glslangValidator is not available ({e}); install it with `{SETUP_COMMAND}`"
-                ))
-            });
-        let _ = std::fs::remove_file(&src);
-        let out = out?;
-        if !out.status.success() {
-            return Err(HarnessError::Shader(format!(
-                "glslangValidator failed on {what}: {}\n{text}",
-                String::from_utf8_lossy(&out.stdout)
-            )));
-        }
-        // Renamed into place whole, so another worker never reads a half-written module.
-        std::fs::rename(&tmp, &spv).map_err(|e| io(&spv, e))?;
+        glsl::compile(&format!("{what}.{ext}"), stage, text, defines)
     }
-    let bytes = std::fs::read(&spv).map_err(|e| io(&spv, e))?;
+    .map_err(|message| HarnessError::Shader(format!("{what}: {message}\n{text}")))?;
     let w = words(what, &bytes)?;
     MEMO.lock()
         .unwrap_or_else(|e| e.into_inner())
@@ -207,9 +182,193 @@ pub(crate) fn compile_glsl(
     Ok(w)
 }
 
+/// The shaderc library's C interface, as much of it as [`compile_glsl`] uses (`shaderc/shaderc.h` of
+/// libshaderc-dev; build.rs links it and the glslang and SPIRV-Tools archives it needs statically).
+mod glsl {
+    use std::ffi::{c_char, c_int, c_void, CStr, CString};
+    use std::sync::OnceLock;
+
+    /// `shaderc_shader_kind` values of the stages the harness compiles.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    #[repr(i32)]
+    pub(super) enum Stage {
+        Compute = 2,
+        Raygen = 14,
+        AnyHit = 15,
+        ClosestHit = 16,
+        Miss = 17,
+        Intersection = 18,
+        Callable = 19,
+    }
+
+    impl Stage {
+        /// The stage a file extension names, as glslangValidator infers it.
+        pub(super) fn of_extension(ext: &str) -> Option<Stage> {
+            Some(match ext {
+                "comp" => Stage::Compute,
+                "rgen" => Stage::Raygen,
+                "rahit" => Stage::AnyHit,
+                "rchit" => Stage::ClosestHit,
+                "rmiss" => Stage::Miss,
+                "rint" => Stage::Intersection,
+                "rcall" => Stage::Callable,
+                _ => return None,
+            })
+        }
+    }
+
+    const TARGET_ENV_VULKAN: c_int = 0;
+    /// `shaderc_env_version_vulkan_1_2`: VK_MAKE_VERSION(1, 2, 0).
+    const ENV_VERSION_VULKAN_1_2: u32 = (1 << 22) | (2 << 12);
+    const STATUS_SUCCESS: c_int = 0;
+
+    // Linked by build.rs: libshaderc_combined.a, then the archives it needs, in order.
+    extern "C" {
+        fn shaderc_compiler_initialize() -> *mut c_void;
+        fn shaderc_compile_options_initialize() -> *mut c_void;
+        fn shaderc_compile_options_release(options: *mut c_void);
+        fn shaderc_compile_options_add_macro_definition(
+            options: *mut c_void,
+            name: *const c_char,
+            name_length: usize,
+            value: *const c_char,
+            value_length: usize,
+        );
+        fn shaderc_compile_options_set_target_env(
+            options: *mut c_void,
+            target: c_int,
+            version: u32,
+        );
+        fn shaderc_compile_into_spv(
+            compiler: *const c_void,
+            source_text: *const c_char,
+            source_text_size: usize,
+            shader_kind: c_int,
+            input_file_name: *const c_char,
+            entry_point_name: *const c_char,
+            additional_options: *const c_void,
+        ) -> *mut c_void;
+        fn shaderc_result_release(result: *mut c_void);
+        fn shaderc_result_get_length(result: *const c_void) -> usize;
+        fn shaderc_result_get_compilation_status(result: *const c_void) -> c_int;
+        fn shaderc_result_get_bytes(result: *const c_void) -> *const c_char;
+        fn shaderc_result_get_error_message(result: *const c_void) -> *const c_char;
+    }
+
+    /// The process's one compiler object, never released.
+    struct Compiler(*mut c_void);
+    // SAFETY: shaderc_compile_into_spv takes the compiler as const and "may be safely called from
+    // multiple threads without explicit synchronization" (shaderc.h); nothing else uses the pointer.
+    unsafe impl Send for Compiler {}
+    // SAFETY: as for Send: only const uses are shared.
+    unsafe impl Sync for Compiler {}
+
+    fn compiler() -> Result<*const c_void, String> {
+        static COMPILER: OnceLock<Compiler> = OnceLock::new();
+        // SAFETY: no arguments; the result is checked for null.
+        let c = COMPILER.get_or_init(|| Compiler(unsafe { shaderc_compiler_initialize() }));
+        if c.0.is_null() {
+            Err("the shaderc compiler could not be initialised".into())
+        } else {
+            Ok(c.0)
+        }
+    }
+
+    /// Releases the options and the result when the compilation ends, whichever way.
+    struct Owned {
+        options: *mut c_void,
+        result: *mut c_void,
+    }
+    impl Drop for Owned {
+        fn drop(&mut self) {
+            // SAFETY: each pointer is null or came from its initialiser and is released once, here;
+            // both release functions accept null.
+            unsafe {
+                if !self.result.is_null() {
+                    shaderc_result_release(self.result);
+                }
+                shaderc_compile_options_release(self.options);
+            }
+        }
+    }
+
+    /// Compiles `text` as `stage` (entry point `main`) with `defines` (each defined empty, as
+    /// glslangValidator's `-DNAME`): the module's bytes, or the compiler's message.
+    pub(super) fn compile(
+        name: &str,
+        stage: Stage,
+        text: &str,
+        defines: &[&str],
+    ) -> Result<Vec<u8>, String> {
+        let compiler = compiler()?;
+        let file = CString::new(name).map_err(|_| format!("the name {name:?} holds a NUL byte"))?;
+        // SAFETY: no arguments; checked for null before use.
+        let mut owned = Owned {
+            options: unsafe { shaderc_compile_options_initialize() },
+            result: std::ptr::null_mut(),
+        };
+        if owned.options.is_null() {
+            return Err("the shaderc options could not be initialised".into());
+        }
+        // SAFETY: `owned.options` is live; each name is read for its length only (no NUL needed), and
+        // a null value with length 0 defines the macro empty.
+        unsafe {
+            shaderc_compile_options_set_target_env(
+                owned.options,
+                TARGET_ENV_VULKAN,
+                ENV_VERSION_VULKAN_1_2,
+            );
+            for d in defines {
+                shaderc_compile_options_add_macro_definition(
+                    owned.options,
+                    d.as_ptr().cast(),
+                    d.len(),
+                    std::ptr::null(),
+                    0,
+                );
+            }
+        }
+        // SAFETY: the compiler and options are live; the source is read for `text.len()` bytes; the
+        // file and entry point names are NUL-terminated.
+        owned.result = unsafe {
+            shaderc_compile_into_spv(
+                compiler,
+                text.as_ptr().cast(),
+                text.len(),
+                stage as c_int,
+                file.as_ptr(),
+                c"main".as_ptr(),
+                owned.options,
+            )
+        };
+        if owned.result.is_null() {
+            return Err("shaderc returned no result".into());
+        }
+        let r = owned.result;
+        // SAFETY: `r` is a live result; the message is NUL-terminated and the bytes are
+        // `shaderc_result_get_length` long, both owned by `r`, copied before it is released.
+        unsafe {
+            if shaderc_result_get_compilation_status(r) != STATUS_SUCCESS {
+                let m = shaderc_result_get_error_message(r);
+                let message = if m.is_null() {
+                    String::from("the compiler gave no message")
+                } else {
+                    CStr::from_ptr(m).to_string_lossy().into_owned()
+                };
+                return Err(message);
+            }
+            let (bytes, len) = (shaderc_result_get_bytes(r), shaderc_result_get_length(r));
+            if bytes.is_null() {
+                return Err("the compiler gave no module".into());
+            }
+            Ok(std::slice::from_raw_parts(bytes.cast::<u8>(), len).to_vec())
+        }
+    }
+}
+
 /// A shader module of SPIR-V words on a device; the caller destroys it.
 pub(crate) fn module(dev: &VkDevice, code: &[u32]) -> Result<vk::ShaderModule, HarnessError> {
-    // SAFETY: `code` is SPIR-V from glslangValidator (checked for a module's size).
+    // SAFETY: `code` is SPIR-V from glslang (checked for a module's size).
     unsafe {
         dev.device
             .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(code), None)
@@ -219,6 +378,8 @@ pub(crate) fn module(dev: &VkDevice, code: &[u32]) -> Result<vk::ShaderModule, H
 
 #[cfg(test)]
 mod tests {
+    use crate::error::SETUP_COMMAND;
+
     const ALL: [ShaderKind; 8] = [
         ShaderKind::RaygenTrace,
         ShaderKind::RaygenPlain,
@@ -244,6 +405,124 @@ mod tests {
             i += count.max(1);
         }
         out
+    }
+
+    /// A module without what only names its compiler: the generator word and the OpSourceExtension
+    /// instructions (opcode 4) shaderc adds for its own preprocessing (`GL_GOOGLE_*`).
+    fn without_compiler_marks(words: &[u32]) -> Vec<u32> {
+        let mut out = vec![words[0], words[1], words[3], words[4]];
+        let mut i = 5;
+        while i < words.len() {
+            let count = ((words[i] >> 16) as usize).max(1);
+            let inst = &words[i..(i + count).min(words.len())];
+            let text: Vec<u8> = inst[1..].iter().flat_map(|w| w.to_le_bytes()).collect();
+            if !(words[i] & 0xFFFF == 4 && text.starts_with(b"GL_GOOGLE_")) {
+                out.extend_from_slice(inst);
+            }
+            i += count;
+        }
+        out
+    }
+
+    /// Every module build.rs compiled with glslangValidator, compiled again in this process from the
+    /// same source and defines: SPIR-V 1.5, and the same instructions, word for word, but for the
+    /// marks of the compiler.
+    #[test]
+    fn in_process_modules_match_the_build_compilers_where_a_driver_reads_them() {
+        let checks: [(&str, &str, &str); 5] = [
+            (
+                "check_query",
+                "check_query.comp",
+                include_str!("../shaders/check_query.comp"),
+            ),
+            (
+                "check_raygen",
+                "check.rgen",
+                include_str!("../shaders/check.rgen"),
+            ),
+            (
+                "check_miss",
+                "check.rmiss",
+                include_str!("../shaders/check.rmiss"),
+            ),
+            (
+                "check_closest_hit",
+                "check.rchit",
+                include_str!("../shaders/check.rchit"),
+            ),
+            (
+                "check_intersection",
+                "check.rint",
+                include_str!("../shaders/check.rint"),
+            ),
+        ];
+        let mut variants: Vec<(String, &str, &str, Vec<&str>)> = checks
+            .iter()
+            .map(|&(name, file, text)| (name.to_string(), file, text, vec![]))
+            .collect();
+        for k in ALL {
+            for api in [ShaderApi::Khr, ShaderApi::Nv] {
+                let (file, text, args) = k.source();
+                let mut defines: Vec<&str> =
+                    args.iter().map(|a| a.trim_start_matches("-D")).collect();
+                if api == ShaderApi::Nv {
+                    defines.push("NV");
+                }
+                variants.push((k.variant_name(api), file, text, defines));
+            }
+        }
+        assert_eq!(variants.len(), PRECOMPILED.len(), "one per build.rs module");
+        for (name, file, text, defines) in variants {
+            let built = PRECOMPILED
+                .iter()
+                .find(|(n, _)| *n == name)
+                .and_then(|(_, b)| *b)
+                .unwrap_or_else(|| {
+                    panic!("build.rs compiled {name} (glslangValidator: `{SETUP_COMMAND}`)")
+                });
+            let built = words(&name, built).unwrap();
+            let ext = file.rsplit('.').next().unwrap();
+            let here = compile_glsl(&name, ext, text, &defines).unwrap();
+            assert_eq!(here[1], 0x0001_0500, "{name}: SPIR-V 1.5");
+            assert!(
+                without_compiler_marks(&here) == without_compiler_marks(&built),
+                "{name}: the same module as glslangValidator's"
+            );
+        }
+    }
+
+    #[test]
+    fn a_compile_error_names_the_shader_and_carries_the_message_and_the_source() {
+        let text = "#version 460\nvoid main() { undeclared_name = 1; }\n";
+        match compile_glsl("the planted shader", "comp", text, &[]) {
+            Err(HarnessError::Shader(m)) => {
+                assert!(m.contains("the planted shader"), "{m}");
+                assert!(m.contains("undeclared_name"), "the compiler's message: {m}");
+                assert!(m.contains("error"), "the compiler's message: {m}");
+                assert!(m.ends_with(text), "the source: {m}");
+            }
+            other => panic!("a shader error, got {other:?}"),
+        }
+        match compile_glsl(
+            "the planted shader",
+            "frag",
+            "#version 460\nvoid main() {}\n",
+            &[],
+        ) {
+            Err(HarnessError::Shader(m)) => assert!(m.contains(".frag"), "{m}"),
+            other => panic!("no stage for .frag, got {other:?}"),
+        }
+    }
+
+    /// A define is what `-DNAME` gives: defined, with an empty value.
+    #[test]
+    fn a_define_is_defined_empty() {
+        let text = "#version 460\nlayout(local_size_x = 1) in;\n#if !defined(PLANTED)\n#error not defined\n#endif\n#define EMPTY_CHECK PLANTED 1\nvoid main() { int a = EMPTY_CHECK; }\n";
+        assert!(compile_glsl("defined", "comp", text, &["PLANTED"]).is_ok());
+        assert!(matches!(
+            compile_glsl("undefined", "comp", text, &[]),
+            Err(HarnessError::Shader(m)) if m.contains("not defined")
+        ));
     }
 
     #[test]
