@@ -18,8 +18,9 @@ lavapipe_ok() {
 
 missing() {
   need=()
-  # ca-certificates: cargo fetches the crates over https; chromium: the HTML report's browser test.
-  for p in libvulkan1 libvulkan-dev vulkan-validationlayers glslang-tools vulkan-tools ca-certificates chromium; do
+  # ca-certificates: cargo fetches the crates over https; chromium: the HTML report's browser test;
+  # libshaderc-dev: the shader compiler the harness links (with glslang-dev's and spirv-tools' archives).
+  for p in libvulkan1 libvulkan-dev vulkan-validationlayers glslang-tools libshaderc-dev vulkan-tools ca-certificates chromium; do
     have_pkg "$p" || need+=("$p")
   done
   # rustc links through the system C compiler (`cc`); a Debian with only rustup has none.
@@ -44,7 +45,7 @@ missing || exit 0   # a concurrent run installed it meanwhile
 codename=$(. /etc/os-release && echo "${VERSION_CODENAME:-}")
 if [ "$codename" != "bookworm" ]; then
   echo "rtconf setup: this script targets Debian 12 (bookworm); found '${codename:-unknown}'." >&2
-  echo "Install by hand: Mesa >= 24 lavapipe with ray tracing, libvulkan-dev, vulkan-validationlayers, glslang-tools, chromium." >&2
+  echo "Install by hand: Mesa >= 24 lavapipe with ray tracing, libvulkan-dev, vulkan-validationlayers, glslang-tools, libshaderc-dev, chromium." >&2
   exit 1
 fi
 

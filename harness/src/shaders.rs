@@ -1,8 +1,8 @@
 //! The one shader path of the harness: the SPIR-V of its own shaders (compiled by build.rs from
 //! `harness/shaders/`, or at first use when the build had no glslangValidator), every GLSL it compiles
-//! at run time (resource-state stages, the build checks' shaders) through [`compile_glsl`] — one
-//! glslangValidator invocation, cached by content — and the one place SPIR-V becomes a shader module
-//! ([`module`]).
+//! at run time (resource-state stages, the build checks' shaders) through [`compile_glsl`] — in this
+//! process, with the shaderc library linked into the binary, memoised by content — and the one place
+//! SPIR-V becomes a shader module ([`module`]).
 
 use crate::error::{vkfail, HarnessError};
 use crate::vk::VkDevice;
