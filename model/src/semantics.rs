@@ -344,11 +344,27 @@ pub fn launch_hit_reach(
     let Some(prepared) = prepared(&launch.scene) else {
         return vec![];
     };
+    let keys: Vec<[u32; 13]> = rays.iter().map(ray_key).collect();
+    // The gate, the rules and the judgement of one case each ask for the same launch's reach (several
+    // predicates per case); a launch traced once serves them all. Entries are found by the prepared
+    // scene (one `Arc` per scene content while `prepared` keeps it, and the entry holds it, so its
+    // address is never reused) and the traced rays bit for bit.
+    type Reach = (Arc<PreparedScene>, Vec<[u32; 13]>, Vec<(u64, GeometryKind)>);
+    static MEMO: Mutex<Vec<Reach>> = Mutex::new(Vec::new());
+    {
+        let memo = MEMO.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, _, reach)) = memo
+            .iter()
+            .find(|(p, k, _)| Arc::ptr_eq(p, &prepared) && *k == keys)
+        {
+            return reach.clone();
+        }
+    }
     let scene = &launch.scene;
     let mut out: BTreeSet<(u64, GeometryKind)> = BTreeSet::new();
     let mut seen: std::collections::HashSet<[u32; 13]> = std::collections::HashSet::new();
-    for ray in &rays {
-        if !seen.insert(ray_key(ray)) {
+    for (ray, key) in rays.iter().zip(&keys) {
+        if !seen.insert(*key) {
             continue;
         }
         for (i, g, kind) in ray_reach(&prepared, ray) {
@@ -359,7 +375,13 @@ pub fn launch_hit_reach(
             ));
         }
     }
-    out.into_iter().collect()
+    let reach: Vec<(u64, GeometryKind)> = out.into_iter().collect();
+    let mut memo = MEMO.lock().unwrap_or_else(|e| e.into_inner());
+    memo.push((prepared, keys, reach.clone()));
+    if memo.len() > 4 {
+        memo.remove(0);
+    }
+    reach
 }
 
 /// The shader group a hit record holds, as the tracer sees it: a zero handle is the zero group; a
@@ -471,8 +493,12 @@ pub fn records_read(world: &World, call: &Call) -> Vec<(Table, u64)> {
         let mut stats = TracerStats::default();
         let prepared = prepared(&world.launch.scene);
         let mut seen: std::collections::HashSet<[u32; 13]> = std::collections::HashSet::new();
+        let mut misses_read: BTreeSet<u64> = BTreeSet::new();
         for ray in &rays {
-            if !seen.insert(ray_key(ray)) {
+            // A miss record already read needs no other ray traced to be read (launches share a few
+            // miss indices among many rays).
+            let record = miss_record(ray.miss_index);
+            if misses_read.contains(&record) || !seen.insert(ray_key(ray)) {
                 continue;
             }
             let miss = match &prepared {
@@ -482,7 +508,8 @@ pub fn records_read(world: &World, call: &Call) -> Vec<(Table, u64)> {
                 None => true,
             };
             if miss {
-                out.push((Table::Miss, miss_record(ray.miss_index)));
+                misses_read.insert(record);
+                out.push((Table::Miss, record));
             }
         }
     }
