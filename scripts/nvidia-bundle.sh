@@ -1,9 +1,8 @@
 #!/usr/bin/env bash
 # Gather what the NVIDIA machine lacks (it has the driver, no Vulkan loader, no validation layer,
-# no glslang, no network) into folders that git ignores, for scripts/nvidia-run.sh to use there:
+# no network) into folders that git ignores, for scripts/nvidia-run.sh to use there:
 #   .gl/debs/          bookworm's amd64 .debs: libvulkan1, libglvnd0, libegl1, libgl1, libglx0,
-#                      libopengl0, libgles2, vulkan-validationlayers (1.3.239), glslang-tools
-#                      (the harness still calls glslangValidator while running) and libvulkan-dev
+#                      libopengl0, libgles2, vulkan-validationlayers (1.3.239) and libvulkan-dev
 #                      (the 1.3.239 registry at rtconf's default /usr/share/vulkan/registry)
 #   .gl/bin/rtconf     a stripped copy of target/release/rtconf, when that exists (--no-binary: none)
 #   .gl-1.4.309/debs/  trixie's vulkan-validationlayers (1.4.309), libstdc++6, libgcc-s1 and
@@ -31,7 +30,7 @@ done
 bookworm_debs="$repo_root/.gl/debs"
 trixie_debs="$repo_root/.gl-1.4.309/debs"
 bin_dir="$repo_root/.gl/bin"
-packages=(libvulkan1 libglvnd0 libegl1 libgl1 libglx0 libopengl0 libgles2 vulkan-validationlayers glslang-tools libvulkan-dev)
+packages=(libvulkan1 libglvnd0 libegl1 libgl1 libglx0 libopengl0 libgles2 vulkan-validationlayers libvulkan-dev)
 limit_mib=40
 
 fetch_require apt-get dpkg-deb flock

@@ -46,7 +46,7 @@ manifest_name=VkLayer_khronos_validation.json
 fetch_complete "$bookworm_debs" || { echo "nvidia-run: $bookworm_debs is missing or incomplete (scripts/nvidia-bundle.sh)" >&2; exit 1; }
 fetch_require dpkg flock
 
-# 1. The loader, GL dispatch libraries, glslang, the 1.3.239 layer and registry: into the prefix, once.
+# 1. The loader, GL dispatch libraries, the 1.3.239 layer and registry: into the prefix, once.
 stamp="$root/var/lib/rtconf-bundle.stamp"
 want=$(cd "$bookworm_debs" && ls -1 ./*.deb | sort | tr '\n' ' ')
 if [[ "$(cat "$stamp" 2>/dev/null)" != "$want" ]]; then

@@ -29,8 +29,8 @@ while [[ $# -gt 0 ]]; do
     esac
 done
 root=$(realpath -m "$root")
-# What the root holds beyond minbase: lavapipe and the loader, the layer, glslang (the harness
-# compiles shaders while running) and vulkaninfo (to report the layer's and the driver's versions).
+# What the root holds beyond minbase: lavapipe and the loader, the layer, glslang-tools (the harness
+# links its compiler now; the package stays so an existing root still matches this list) and vulkaninfo (to report the layer's and the driver's versions).
 packages=(mesa-vulkan-drivers libvulkan1 vulkan-validationlayers glslang-tools vulkan-tools ca-certificates)
 wanted="${packages[*]}"
 
