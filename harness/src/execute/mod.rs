@@ -64,13 +64,23 @@ pub(crate) fn pool_without_compute(
 }
 
 /// Runs cases on one driver, caching a device per distinct enabled (extensions, features) set and
-/// pool family without compute.
+/// pool family without compute — and, on a driver that numbers shader group handles in creation
+/// order, a device per valid pipeline (see [`Executor::handles_by_creation_order`]).
 pub struct Executor {
     inst: Arc<VkInstance>,
     devices: HashMap<String, Result<DeviceCache, HarnessError>>,
+    /// The keys of the devices made for one valid pipeline each, oldest first (at most
+    /// [`PIPELINE_DEVICES`] are kept).
+    pipeline_devices: Vec<String>,
+    /// Whether two pipelines made alike on one device get different group handles: measured on this
+    /// driver at the first valid case with a pipeline.
+    handles_by_creation: Option<bool>,
     /// How long a valid case's submission may run.
     pub gpu_timeout: Duration,
 }
+
+/// The most devices of one valid pipeline each an executor keeps.
+const PIPELINE_DEVICES: usize = 8;
 
 impl Executor {
     /// Loads `driver` with the validation layer.
@@ -78,6 +88,8 @@ impl Executor {
         Ok(Executor {
             inst: Arc::new(VkInstance::new(driver, true)?),
             devices: HashMap::new(),
+            pipeline_devices: Vec::new(),
+            handles_by_creation: None,
             gpu_timeout: Duration::from_secs(20),
         })
     }
@@ -123,8 +135,78 @@ impl Executor {
         crate::accel_check::probe_rays(&self.inst, case, origins, check)
     }
 
-    fn device(&mut self, world: &World) -> Result<&mut DeviceCache, HarnessError> {
+    /// The cache key of the device a case runs on: its world's ([`Executor::device_key`]), and for a
+    /// valid case on a driver that numbers handles in creation order, its pipeline too.
+    fn case_device_key(&mut self, world: &World, valid: bool) -> String {
         let key = Self::device_key(world);
+        match world.pipeline.as_ref() {
+            Some(p) if valid && self.handles_by_creation_order(world) => {
+                format!(
+                    "{key} pipeline {}",
+                    serde_json::to_string(p).unwrap_or_default()
+                )
+            }
+            _ => key,
+        }
+    }
+
+    /// Whether this driver gives two pipelines made alike on one device different shader group
+    /// handles, measured once on a device of `world`'s own with its pipeline made twice.
+    ///
+    /// A driver that numbers handles in the order pipelines are made may build those numbers into each
+    /// pipeline's code (lavapipe lowers a whole ray tracing pipeline into one compute shader that
+    /// compares the raygen record's handle with each group's number). The same pipeline made at
+    /// another place in a device's life is then other code, which the driver compiles anew (seconds
+    /// on lavapipe, at the first dispatch) and its shader cache never recognises, so which cases a
+    /// worker happened to run before decided what it compiled. On such a driver each valid pipeline
+    /// gets a device of its own, made first there: the same pipeline is the same code in every worker
+    /// and every run, and the driver's cache serves it.
+    fn handles_by_creation_order(&mut self, world: &World) -> bool {
+        if let Some(known) = self.handles_by_creation {
+            return known;
+        }
+        let Some(p) = world.pipeline.as_ref() else {
+            return false;
+        };
+        let measured = VkDevice::new(
+            self.inst.clone(),
+            &world.device.extensions,
+            &world.device.features,
+            None,
+        )
+        .and_then(DeviceCache::new)
+        .and_then(|mut cache| {
+            let first = cache.pipeline(p, true, false)?.handles.clone();
+            let second = cache.pipeline(p, true, true)?.handles.clone();
+            Ok(first != second)
+        });
+        self.inst.collector.clear();
+        // A device or pipeline this world cannot make says nothing; ask again at the next case.
+        match measured {
+            Ok(known) => {
+                self.handles_by_creation = Some(known);
+                known
+            }
+            Err(_) => false,
+        }
+    }
+
+    /// Forgets a case's device (lost: its objects are leaked, see `DeviceCache::lost`).
+    fn forget_device(&mut self, world: &World, valid: bool) {
+        let key = self.case_device_key(world, valid);
+        self.pipeline_devices.retain(|k| *k != key);
+        self.devices.remove(&key);
+    }
+
+    fn device(&mut self, world: &World, valid: bool) -> Result<&mut DeviceCache, HarnessError> {
+        let key = self.case_device_key(world, valid);
+        if key != Self::device_key(world) && !self.devices.contains_key(&key) {
+            self.pipeline_devices.push(key.clone());
+            if self.pipeline_devices.len() > PIPELINE_DEVICES {
+                let oldest = self.pipeline_devices.remove(0);
+                self.devices.remove(&oldest);
+            }
+        }
         if !self.devices.contains_key(&key) {
             let _phase = crate::timing::span(crate::timing::Phase::Device);
             let made = VkDevice::new(

@@ -27,7 +27,7 @@ pub(super) fn trace(ctx: &mut Executor, case: &model::TraceBody, run_valid: bool
     }
     let timeout = ctx.gpu_timeout;
     let collector = ctx.inst.collector.clone();
-    let cache = match ctx.device(&case.world) {
+    let cache = match ctx.device(&case.world, run_valid) {
         Ok(c) => c,
         Err(e) => return failure(e),
     };
@@ -77,7 +77,7 @@ pub(super) fn trace(ctx: &mut Executor, case: &model::TraceBody, run_valid: bool
     collector.clear();
     if lost {
         // Dropping a lost cache leaks its objects instead of waiting on the device.
-        ctx.devices.remove(&Executor::device_key(&case.world));
+        ctx.forget_device(&case.world, run_valid);
         collector.clear();
     }
     match result {
