@@ -1,21 +1,32 @@
 //! Throughput of `rtconf run` end to end on lavapipe (the binary, its worker processes, the layer, the
 //! judging and the files it writes), against the ceiling of the same cases executed back to back in
-//! this process on one warm executor. Two selections: invalid cases of every trace VUID of the indirect
-//! command, and valid cases (each with its scene traced and its records judged) of vkCmdTraceRaysKHR.
+//! this process on one warm executor. Three selections: invalid cases of every trace VUID of the
+//! indirect command; valid cases of vkCmdTraceRaysKHR as a run draws them (aimed launches and
+//! rendered scenes of every size from 1x1 to 256x256); and rendered cases at 64x64 — the run's
+//! rendered vkCmdTraceRaysKHR cases with their launch (and camera) set to 64x64, written to a
+//! folder and run with `--cases`.
 //!
 //! Lines printed (all measured in this one run):
-//! - `run invalid cases/s`, `run rendered cases/s`: cases over the run's wall time (`summary.json`);
-//! - `in-process invalid cases/s`, `in-process rendered cases/s`: the ceiling, the same cases;
+//! - `run invalid cases/s`, `run valid cases/s`, `run rendered cases/s`: cases over the run's wall
+//!   time (`summary.json`), the last for the 64x64 rendered cases;
+//! - `in-process … cases/s`: the ceiling, the same cases executed (not judged) in this process;
 //! - `run share of ceiling`: the invalid selection's end-to-end rate over its in-process rate;
-//! - `run overhead`: on the rendered selection, rtconf's own time against the driver's trace time:
-//!   the harness's phases (`harness::timing`: resources, shaders, record, readback and the rest of each
-//!   case in its worker) and the runner's judging, over the `gpu` phase (submission to fence: the
-//!   driver running the launch, with whatever it compiles lazily at the first dispatch). Pipeline
-//!   creation, structure builds and device creation are the driver's work and counted in neither;
-//! - `run time <phase>`: where the rendered run's case time went (`summary.json` `time`), seconds
-//!   summed over the cases.
+//! - `run overhead`: on the 64x64 rendered cases, the harness's own time against the driver's
+//!   trace time: the worker's phases that are the harness's (`harness::timing`: resources, shaders,
+//!   record, readback and the rest of each case in its worker) over the `gpu` phase (submission to
+//!   fence: the driver running the launch, with whatever it compiles lazily at the first dispatch).
+//!   Pipeline creation, structure builds and device creation are the driver's work and counted in
+//!   neither; the reference tracer's judging is the oracle's and printed on its own line
+//!   (`run judge over gpu`; the oracle's speed against lavapipe is `--bench render_rays`);
+//! - `run time <phase>`: where each run's case time went (`summary.json` `time`), seconds summed
+//!   over the cases.
+//!
+//! The run's lavapipe shader cache (Mesa's, on disk) is warm after the first run on a machine: the
+//! harness makes each valid pipeline as the same code every time (see `harness::Executor`), so the
+//! figures are those of a second run. A first run on a fresh machine compiles each pipeline once.
 
 use harness::{Driver, Execution, Executor};
+use model::case::Case;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -23,16 +34,62 @@ use std::time::Instant;
 
 const JOBS: usize = 2;
 
+/// The launch side of the rendered selection.
+const SIDE: u32 = 64;
+
 /// One selection of cases: the arguments of `rtconf run` that make it.
 struct Selection {
     name: &'static str,
     args: Vec<String>,
     scope: session::Scope,
     count: usize,
+    /// The cases of a selection run from a folder (`--cases`), written there first.
+    folder: Option<Vec<Case>>,
 }
 
-fn selections() -> Vec<Selection> {
+fn selections(tmp: &Path) -> Vec<Selection> {
     let invalid = "VUID-vkCmdTraceRaysIndirectKHR-*";
+    let valid_scope = session::Scope {
+        commands: vec![model::CommandId::TraceRays],
+        vuids: vec![],
+        valid_only: true,
+        seed: 1,
+        rendered: session::plan::DEFAULT_RENDERED,
+    };
+    let valid = Selection {
+        name: "valid",
+        args: [
+            "--valid-only",
+            "--command",
+            "vkCmdTraceRaysKHR",
+            "--count",
+            "60",
+        ]
+        .map(String::from)
+        .to_vec(),
+        scope: valid_scope.clone(),
+        count: 60,
+        folder: None,
+    };
+    // The run's rendered cases of vkCmdTraceRaysKHR, each at 64x64.
+    let drawn = session::list(&config(&valid, &tmp.join("rendered-list")))
+        .expect("the selection lists its cases");
+    let rendered: Vec<Case> = drawn
+        .into_iter()
+        .filter(|c| c.name.contains("rendered"))
+        .filter_map(at_side)
+        .collect();
+    assert!(
+        rendered.len() >= 50,
+        "the valid selection draws rendered cases ({} at {SIDE}x{SIDE})",
+        rendered.len()
+    );
+    let folder = tmp.join("rendered-cases");
+    std::fs::create_dir_all(&folder).expect("a case folder");
+    for c in &rendered {
+        std::fs::write(folder.join(format!("{}.yaml", c.name)), c.to_yaml())
+            .expect("the case folder is writable");
+    }
     vec![
         Selection {
             name: "invalid",
@@ -47,28 +104,33 @@ fn selections() -> Vec<Selection> {
                 rendered: session::plan::DEFAULT_RENDERED,
             },
             count: 8,
+            folder: None,
         },
+        valid,
         Selection {
             name: "rendered",
-            args: [
-                "--valid-only",
-                "--command",
-                "vkCmdTraceRaysKHR",
-                "--count",
-                "120",
-            ]
-            .map(String::from)
-            .to_vec(),
-            scope: session::Scope {
-                commands: vec![model::CommandId::TraceRays],
-                vuids: vec![],
-                valid_only: true,
-                seed: 1,
-                rendered: session::plan::DEFAULT_RENDERED,
-            },
-            count: 120,
+            args: vec!["--cases".into(), folder.display().to_string()],
+            scope: valid_scope,
+            count: 1,
+            folder: Some(rendered),
         },
     ]
+}
+
+/// A rendered vkCmdTraceRaysKHR case with its launch (and its camera, where it has one) set to
+/// SIDE x SIDE launch IDs, if it still is a case the gate lets run.
+fn at_side(mut case: Case) -> Option<Case> {
+    let profile = session::sources::profile_for("lavapipe").expect("the lavapipe profile");
+    let body = case.as_trace_mut()?;
+    let model::call::Call::TraceRays(call) = &mut body.call else {
+        return None;
+    };
+    (call.width, call.height, call.depth) = (SIDE, SIDE, 1);
+    if let Some(camera) = body.world.launch.camera.as_mut() {
+        (camera.width, camera.height) = (SIDE, SIDE);
+    }
+    case.name = format!("{}-{SIDE}x{SIDE}", case.name);
+    case.runnable(&profile).ok().map(|_| case)
 }
 
 fn config(s: &Selection, out: &Path) -> session::RunConfig {
@@ -94,8 +156,10 @@ fn config(s: &Selection, out: &Path) -> session::RunConfig {
 /// The run's cases executed back to back on one warm executor in this process: cases per second
 /// (the first pass warms devices and pipelines and is not timed).
 fn in_process_rate(s: &Selection, out: &Path) -> f64 {
-    let cfg = config(s, out);
-    let cases = session::list(&cfg).expect("the selection lists its cases");
+    let cases = match &s.folder {
+        Some(cases) => cases.clone(),
+        None => session::list(&config(s, out)).expect("the selection lists its cases"),
+    };
     let profile = session::sources::profile_for("lavapipe").expect("the lavapipe profile");
     let mut executor = Executor::new(Driver::Lavapipe).expect("a lavapipe executor");
     let execs: Vec<Execution> = cases
@@ -148,20 +212,17 @@ fn end_to_end(s: &Selection, out: &Path) -> (f64, usize, BTreeMap<String, f64>) 
     (seconds, cases, time)
 }
 
-/// rtconf's own time over the driver's trace time (see the module's `run overhead`).
+/// The harness's own time over the driver's trace time (see the module's `run overhead`).
 fn overhead(time: &BTreeMap<String, f64>) -> f64 {
-    let own: f64 = [
-        "resources",
-        "shaders",
-        "record",
-        "readback",
-        "worker-other",
-        "judge",
-    ]
-    .iter()
-    .filter_map(|k| time.get(*k))
-    .sum();
-    own / time.get("gpu").copied().unwrap_or(f64::NAN)
+    let own: f64 = ["resources", "shaders", "record", "readback", "worker-other"]
+        .iter()
+        .filter_map(|k| time.get(*k))
+        .sum();
+    own / gpu(time)
+}
+
+fn gpu(time: &BTreeMap<String, f64>) -> f64 {
+    time.get("gpu").copied().unwrap_or(f64::NAN)
 }
 
 fn repo() -> PathBuf {
@@ -173,7 +234,8 @@ fn main() {
     let mut lines = Vec::new();
     let mut invalid_share = f64::NAN;
     let mut overhead = f64::NAN;
-    for s in selections() {
+    let mut judge_over_gpu = f64::NAN;
+    for s in selections(tmp.path()) {
         let out = tmp.path().join(s.name);
         let (seconds, cases, time) = end_to_end(&s, &out);
         let run_rate = cases as f64 / seconds;
@@ -181,20 +243,24 @@ fn main() {
         lines.push(format!("run {} cases/s: {run_rate:.0}", s.name));
         lines.push(format!("in-process {} cases/s: {ceiling:.0}", s.name));
         lines.push(format!("{} cases: {cases} in {seconds:.2} s", s.name));
-        if s.name == "invalid" {
-            invalid_share = run_rate / ceiling;
-        } else {
-            overhead = self::overhead(&time);
-            let mut by_time: Vec<(&String, &f64)> = time.iter().collect();
-            by_time.sort_by(|a, b| b.1.total_cmp(a.1));
-            for (phase, secs) in by_time {
-                lines.push(format!("run time {phase}: {secs:.2} s"));
+        match s.name {
+            "invalid" => invalid_share = run_rate / ceiling,
+            "rendered" => {
+                overhead = self::overhead(&time);
+                judge_over_gpu = time.get("judge").copied().unwrap_or(f64::NAN) / gpu(&time);
             }
+            _ => {}
+        }
+        let mut by_time: Vec<(&String, &f64)> = time.iter().collect();
+        by_time.sort_by(|a, b| b.1.total_cmp(a.1));
+        for (phase, secs) in by_time {
+            lines.push(format!("run time {} {phase}: {secs:.2} s", s.name));
         }
     }
     for l in &lines {
         println!("{l}");
     }
+    println!("run judge over gpu: {:.0}%", judge_over_gpu * 100.0);
     println!("run overhead: {:.0}%", overhead * 100.0);
     println!("run share of ceiling: {:.0}%", invalid_share * 100.0);
 }

@@ -23,22 +23,54 @@ pub const DRIVER_ENV: &str = "RTCONF_DRIVER";
 pub struct Request {
     /// Position of the case in the batch given to the pool.
     pub index: usize,
-    /// Carried as the case's YAML: JSON has no NaN, and build cases hold NaN coordinates (inactive
-    /// primitives).
-    #[serde(with = "yaml_text")]
+    /// Carried as the case's CBOR, in hex: JSON has no NaN, and build cases hold NaN coordinates
+    /// (inactive primitives); the case's YAML would do, but reading a rendered scene's YAML costs the
+    /// worker more than running it.
+    #[serde(with = "case_wire")]
     pub case: Case,
     #[serde(default)]
     pub execution: Execution,
 }
 
-mod yaml_text {
+/// A case as the runner hands it to a worker: its serde form in CBOR (self-describing, every float
+/// kept bit for bit), as hex digits.
+mod case_wire {
     use model::case::Case;
     pub fn serialize<S: serde::Serializer>(c: &Case, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(&c.to_yaml())
+        let mut bytes = Vec::new();
+        ciborium::into_writer(c, &mut bytes).map_err(serde::ser::Error::custom)?;
+        const DIGITS: &[u8; 16] = b"0123456789abcdef";
+        let hex: String = bytes
+            .iter()
+            .flat_map(|b| {
+                [
+                    DIGITS[(b >> 4) as usize] as char,
+                    DIGITS[(b & 15) as usize] as char,
+                ]
+            })
+            .collect();
+        s.serialize_str(&hex)
     }
     pub fn deserialize<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Case, D::Error> {
+        use serde::de::Error;
         let text = <String as serde::Deserialize>::deserialize(d)?;
-        Case::from_yaml("request", &text).map_err(serde::de::Error::custom)
+        let digit = |c: u8| match c {
+            b'0'..=b'9' => Ok(c - b'0'),
+            b'a'..=b'f' => Ok(c - b'a' + 10),
+            _ => Err(D::Error::custom(format!(
+                "the case is not hex digits (byte {c:#04x})"
+            ))),
+        };
+        if text.len() % 2 != 0 {
+            return Err(D::Error::custom("the case's hex digits are odd in number"));
+        }
+        let bytes = text
+            .as_bytes()
+            .chunks_exact(2)
+            .map(|p| Ok(digit(p[0])? << 4 | digit(p[1])?))
+            .collect::<Result<Vec<u8>, D::Error>>()?;
+        ciborium::from_reader(bytes.as_slice())
+            .map_err(|e| D::Error::custom(format!("the case does not read: {e}")))
     }
 }
 
