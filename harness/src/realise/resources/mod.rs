@@ -551,3 +551,80 @@ impl Realised {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ash::vk::Handle;
+
+    fn layout(bindings: &[(u32, DescriptorType, u32)]) -> SetLayout {
+        SetLayout {
+            name: "l".into(),
+            bindings: bindings
+                .iter()
+                .map(|&(binding, ty, count)| LayoutBinding {
+                    binding,
+                    ty,
+                    count,
+                    immutable_samplers: vec![],
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn set_layouts_share_a_key_exactly_when_defined_identically() {
+        let none = vk::DescriptorSetLayoutCreateFlags::empty();
+        let base = [
+            (0, DescriptorType::StorageImage, 1),
+            (2, DescriptorType::Sampler, 3),
+        ];
+        let key = set_layout_key(none, &layout(&base));
+        // The name is not content.
+        let mut renamed = layout(&base);
+        renamed.name = "other".into();
+        assert_eq!(set_layout_key(none, &renamed), key);
+        // Each planted difference: binding number, type, count, flags.
+        let planted = [
+            [(1, DescriptorType::StorageImage, 1), base[1]],
+            [(0, DescriptorType::SampledImage, 1), base[1]],
+            [(0, DescriptorType::StorageImage, 2), base[1]],
+        ];
+        for p in planted {
+            assert_ne!(set_layout_key(none, &layout(&p)), key, "{p:?}");
+        }
+        let db = vk::DescriptorSetLayoutCreateFlags::DESCRIPTOR_BUFFER_EXT;
+        assert_ne!(set_layout_key(db, &layout(&base)), key);
+    }
+
+    #[test]
+    fn pipeline_layouts_share_a_key_exactly_when_defined_identically() {
+        let harness = vk::DescriptorSetLayout::from_raw(7);
+        let ranges = [PushRange {
+            offset: 0,
+            size: 16,
+        }];
+        let key = pipeline_layout_key(harness, &["a", "b"], &ranges);
+        assert_eq!(pipeline_layout_key(harness, &["a", "b"], &ranges), key);
+        assert_ne!(pipeline_layout_key(harness, &["b", "a"], &ranges), key);
+        assert_ne!(pipeline_layout_key(harness, &["a"], &ranges), key);
+        assert_ne!(
+            pipeline_layout_key(
+                harness,
+                &["a", "b"],
+                &[PushRange {
+                    offset: 4,
+                    size: 16
+                }]
+            ),
+            key
+        );
+        assert_ne!(
+            pipeline_layout_key(harness, &["a", "b"], &[PushRange { offset: 0, size: 8 }]),
+            key
+        );
+        assert_ne!(pipeline_layout_key(harness, &["a", "b"], &[]), key);
+        let other = vk::DescriptorSetLayout::from_raw(8);
+        assert_ne!(pipeline_layout_key(other, &["a", "b"], &ranges), key);
+    }
+}
