@@ -213,17 +213,18 @@ pub const CANONICAL_PIPELINES: u32 = 6;
 
 /// The canonical pipeline shapes: (miss groups, (procedural, closest-hit, any-hit) per hit group,
 /// callable groups, maximum recursion depth, dynamic stack size). Between them every group kind and
-/// shader (so a resource state's accesses can land in every stage the launch reaches), static and
-/// dynamic stack; few stages each, since a driver's compile grows with them; the depth at least what
-/// any drawn launch needs (1 + the drawn extra recursion).
+/// shader (so a resource state's accesses can land in every stage a launch reaches), static and
+/// dynamic stack; at most four stages each, since a driver's compile grows with them (lavapipe's
+/// about doubles from one stage to three and again to seven); the depth at least what any drawn
+/// launch needs (1 + the drawn extra recursion).
 type Shape = (usize, &'static [(bool, bool, bool)], usize, u32, bool);
 const SHAPES: [Shape; CANONICAL_PIPELINES as usize] = [
     (0, &[], 0, 2, false),
     (1, &[(false, true, false)], 0, 2, false),
-    (1, &[(true, true, false)], 1, 2, true),
-    (1, &[(false, true, true), (true, true, false)], 1, 2, false),
-    (2, &[(false, false, true), (true, false, true)], 1, 3, true),
-    (1, &[(false, true, false)], 2, 3, false),
+    (1, &[(true, true, false)], 0, 2, true),
+    (0, &[(false, true, false)], 1, 3, true),
+    (1, &[(true, false, false)], 1, 2, false),
+    (1, &[(false, false, true)], 0, 3, false),
 ];
 
 /// The base plan of an invalid case: the drawn plan with its pipeline replaced by canonical shape
