@@ -216,7 +216,16 @@ pub fn case_strategy(
                 .new_tree(&mut runner_for(0))
                 .map_err(|e| GenError::Io(e.to_string()))?
                 .current();
-            let probe = valid::resolve(&probe_raw, &profile, &lim, command, dims, None);
+            let canonical = !mutation::edits_pipeline(m);
+            let base =
+                move |raw: &valid::Raw, shape: u32, profile: &DeviceProfile, lim: &Limits| {
+                    if canonical {
+                        valid::canonical_base(raw, shape, profile, lim, command, dims)
+                    } else {
+                        valid::resolve(raw, profile, lim, command, dims, None)
+                    }
+                };
+            let probe = base(&probe_raw, 0, &profile, &lim);
             let target = mutation_io::Target {
                 profile,
                 rules,
@@ -227,10 +236,12 @@ pub fn case_strategy(
             mutation::apply(m, probe, &target.input(0, 0))?;
             // Knob 0 (the boundary value) is drawn most often and is where shrinking goes.
             let knob = proptest::prop_oneof![3 => proptest::strategy::Just(0u32), 2 => 0..4u32];
-            Ok((valid::raw_strategy(), knob, 0..4u32)
-                .prop_map(move |(raw, knob, pick)| {
-                    let plan =
-                        valid::resolve(&raw, &target.profile, &target.lim, command, dims, None);
+            // The base world's pipeline: one of the canonical shapes, picked by the seed (shape 0
+            // is where shrinking goes), unless the mutation edits the pipeline.
+            let shape = 0..valid::CANONICAL_PIPELINES;
+            Ok((valid::raw_strategy(), knob, 0..4u32, shape)
+                .prop_map(move |(raw, knob, pick, shape)| {
+                    let plan = base(&raw, shape, &target.profile, &target.lim);
                     let mutated = mutation::apply(m, plan, &target.input(knob, pick))
                         .expect("a mutation that applied once applies to every plan");
                     let intent = Intent::Violates {

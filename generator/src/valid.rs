@@ -208,6 +208,59 @@ fn for_scene(raw: &Raw, d: &SceneDraw) -> Raw {
     }
 }
 
+/// How many canonical pipelines the base worlds of invalid cases draw from ([`canonical_base`]).
+pub const CANONICAL_PIPELINES: u32 = 6;
+
+/// The canonical pipeline shapes: (miss groups, (procedural, closest-hit, any-hit) per hit group,
+/// callable groups, maximum recursion depth, dynamic stack size). Between them every group kind and
+/// shader (so a resource state's accesses can land in every stage a launch reaches), static and
+/// dynamic stack; at most four stages each, since a driver's compile grows with them (lavapipe's
+/// about doubles from one stage to three and again to seven); the depth at least what any drawn
+/// launch needs (1 + the drawn extra recursion).
+type Shape = (usize, &'static [(bool, bool, bool)], usize, u32, bool);
+const SHAPES: [Shape; CANONICAL_PIPELINES as usize] = [
+    (0, &[], 0, 2, false),
+    (1, &[(false, true, false)], 0, 2, false),
+    (1, &[(true, true, false)], 0, 2, true),
+    (0, &[(false, true, false)], 1, 3, true),
+    (1, &[(true, false, false)], 1, 2, false),
+    (1, &[(false, false, true)], 0, 3, false),
+];
+
+/// The base plan of an invalid case: the drawn plan with its pipeline replaced by canonical shape
+/// `shape` (of [`CANONICAL_PIPELINES`]). An invalid case is about the one rule its mutation breaks;
+/// the pipeline it runs need not be new, and a pipeline that is not new is a compile the driver need
+/// not do (lavapipe lowers every ray tracing pipeline into one compute shader, which is most of an
+/// invalid case's time). The seed still picks among the shapes, and records, tables, scene, rays and
+/// launch still vary. Valid cases keep their drawn pipelines: they are what a driver runs. A mutation
+/// that edits the pipeline itself starts from the drawn one instead (see `mutation::edits_pipeline`).
+pub fn canonical_base(
+    raw: &Raw,
+    shape: u32,
+    profile: &DeviceProfile,
+    lim: &Limits,
+    command: CommandId,
+    dims: DimensionRange,
+) -> Plan {
+    let (miss, hits, callables, depth, dynamic) = SHAPES[shape as usize % SHAPES.len()];
+    let fixed = Raw {
+        miss_groups: miss,
+        hit_groups: hits.to_vec(),
+        callable_groups: callables,
+        // No NO_NULL flags: they are kept or dropped by what the records reach, so the flags (part
+        // of the pipeline) would vary with every draw.
+        no_null: [false; 4],
+        dynamic_stack: dynamic,
+        ..raw.clone()
+    };
+    let mut plan = resolve(&fixed, profile, lim, command, dims, None);
+    // The depth is the shape's, not the launch's need plus a drawn spare: still at least what the
+    // launch needs and within the device's maximum (which `resolve` keeps the launch within).
+    let max_dev = lim.max_recursion.min(u32::MAX as u64) as u32;
+    plan.max_recursion_depth = depth.min(max_dev).max(plan.launch.recursion_depth());
+    plan
+}
+
 /// Resolves drawn indices into a valid plan.
 pub fn resolve(
     raw: &Raw,

@@ -149,3 +149,51 @@ fn vuids_of_other_commands_are_refused() {
     .unwrap_err();
     assert!(matches!(err, GenError::NotForCommand { .. }), "{err}");
 }
+
+/// The distinct pipeline descriptions among cases (as JSON).
+fn distinct_pipelines(cases: &[model::Case]) -> BTreeSet<String> {
+    cases
+        .iter()
+        .map(|c| {
+            let p = &c.as_trace().expect("trace cases").world.pipeline;
+            serde_json::to_string(p).expect("a pipeline serialises")
+        })
+        .collect()
+}
+
+#[test]
+fn invalid_cases_share_canonical_pipelines_unless_their_mutation_edits_the_pipeline() {
+    let (name, profile) = common::profiles()
+        .into_iter()
+        .find(|(n, _)| n == "lavapipe")
+        .unwrap();
+    let n = 64;
+    let gen = |spec: &CaseSpec| generate(&profile, &name, common::rules(), spec, n, 5).unwrap();
+    // A rule about the indirect buffer: its cases' pipelines come from the canonical set, and the
+    // seed still picks more than one of them.
+    let address = gen(&CaseSpec::violate(
+        CommandId::TraceRaysIndirect,
+        "VUID-vkCmdTraceRaysIndirectKHR-indirectDeviceAddress-03634",
+    ));
+    let shared = distinct_pipelines(&address);
+    assert!(
+        shared.len() > 1 && shared.len() <= generator::valid::CANONICAL_PIPELINES as usize,
+        "{} distinct pipelines among {n} cases of 03634",
+        shared.len()
+    );
+    // A rule about the pipeline's flags: its base is the drawn pipeline, so its pipelines vary more.
+    let flags = gen(&CaseSpec::violate(
+        CommandId::TraceRaysIndirect,
+        "VUID-vkCmdTraceRaysIndirectKHR-flags-03513",
+    ));
+    assert!(
+        distinct_pipelines(&flags).len() > generator::valid::CANONICAL_PIPELINES as usize,
+        "the pipelines of 03513 are as varied as their draws"
+    );
+    // Valid cases keep their drawn pipelines.
+    let valid = gen(&CaseSpec::valid(CommandId::TraceRaysIndirect));
+    assert!(
+        distinct_pipelines(&valid).len() > generator::valid::CANONICAL_PIPELINES as usize,
+        "valid cases' pipelines are drawn"
+    );
+}

@@ -224,6 +224,26 @@ pub fn mutations_for(vuid: &str) -> Option<Mutation> {
     }
 }
 
+/// Whether a mutation edits the pipeline description itself (its flags, groups, recursion depth or
+/// stack-size state). Such a mutation starts from the drawn pipeline, so its pipelines are as varied as
+/// the draws and the edit make them; every other mutation starts from a canonical pipeline
+/// ([`crate::valid::canonical_base`]), since its rule is not about the pipeline and a pipeline a case
+/// does not need to be new is a compile the driver need not do. A resource mutation templates the
+/// stages' modules, not the description, so it takes the canonical description too.
+pub fn edits_pipeline(m: Mutation) -> bool {
+    matches!(
+        m,
+        Mutation::MotionPipelineWithoutFeature
+            | Mutation::RecursionTooDeep
+            | Mutation::NullMissAtRegionAddress
+            | Mutation::NullHitReached(_)
+            | Mutation::NullHitTableWithNoNullFlag(_)
+            | Mutation::HitGroupMismatch(_)
+            | Mutation::DynamicStackSizeNotSet
+            | Mutation::StaticStackSizeSet
+    )
+}
+
 /// Whether a mutation can be expressed on a profile (without building a case).
 pub fn supported(m: Mutation, profile: &DeviceProfile, command: CommandId) -> Result<(), GenError> {
     let unsupported = |why: &str| {

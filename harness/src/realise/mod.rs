@@ -45,8 +45,11 @@ pub(crate) struct DeviceCache {
     pub(crate) lost: bool,
     /// The pipeline of a case with a resource state (its own raygen module and pipeline
     /// layout, made by `crate::realise::resources`), returned by [`DeviceCache::pipeline`] for the case's own
-    /// (non-foreign) pipeline while that case runs. Owned and destroyed by `crate::realise::resources::Realised`.
+    /// (non-foreign) pipeline while that case runs. Owned and destroyed by `crate::realise::resources::Realised`,
+    /// unless it is a copy of one [`resources::Shared`] keeps.
     pub(crate) resource_pipeline: Option<RealPipeline>,
+    /// Resource-state layouts and pipelines shared by content across cases.
+    pub(crate) shared_resources: resources::Shared,
     pub(crate) dev: VkDevice,
 }
 
@@ -72,6 +75,8 @@ impl Drop for DeviceCache {
                 self.destroy_scene(s);
             }
         }
+        // Before the harness's layouts: the shared pipeline layouts hold its set layout.
+        self.shared_resources.destroy(&self.dev.device);
         let d = &self.dev.device;
         // SAFETY: as above.
         unsafe {
@@ -149,6 +154,7 @@ impl DeviceCache {
                 no_spheres: None,
                 lost: false,
                 resource_pipeline: None,
+                shared_resources: resources::Shared::default(),
                 dev,
             })
         }

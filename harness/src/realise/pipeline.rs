@@ -34,6 +34,7 @@ pub(crate) struct Layouts {
 }
 
 /// A created ray tracing pipeline and its group handles.
+#[derive(Clone)]
 pub(crate) struct RealPipeline {
     pub(crate) pipeline: vk::Pipeline,
     pub(crate) handles: Vec<u8>,
@@ -172,7 +173,8 @@ impl DeviceCache {
 
     /// The pipeline for a description with `layout` and, for each shader kind `modules`
     /// names, that module in every stage of that kind (used by `crate::realise::resources` for cases with a
-    /// resource state: its templated raygen, closest-hit, miss, ... modules). Not cached.
+    /// resource state: its templated raygen, closest-hit, miss, ... modules). Not cached here
+    /// (`crate::realise::resources::Shared` keeps them by content).
     pub(crate) fn create_pipeline_with(
         &mut self,
         p: &Pipeline,

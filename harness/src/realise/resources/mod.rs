@@ -252,9 +252,82 @@ fn sixty_four_bit(world: &World, st: &ResourceState, a: &Access, t: &ImageType) 
 // ---------------------------------------------------------------------------------------------
 // GLSL
 
+/// Resource-state objects a device's cases share by content: set layouts, pipeline layouts and the
+/// ray tracing pipelines made with templated stages. Two cases whose layouts are defined identically
+/// get the same layout handles, which the layer and the spec judge alike (layouts are compared by
+/// compatibility, that is by content); and two whose pipeline description, templated modules' SPIR-V
+/// and realised layout are the same run one pipeline, so the driver compiles it once. States whose
+/// set layouts hold immutable samplers or whose descriptors come from descriptor buffers keep their
+/// own objects (their layouts reference the case's samplers and its descriptor buffer set layout).
+#[derive(Default)]
+pub(crate) struct Shared {
+    /// By [`set_layout_key`].
+    set_layouts: HashMap<String, vk::DescriptorSetLayout>,
+    /// By the set layouts' keys and the push constant ranges.
+    pipeline_layouts: HashMap<String, vk::PipelineLayout>,
+    /// Hashed over the whole key (the SPIR-V included) and found by comparing it.
+    pipelines: HashMap<PipelineKey, crate::realise::RealPipeline>,
+}
+
+/// What makes two resource-state pipelines the same.
+#[derive(PartialEq, Eq, Hash)]
+struct PipelineKey {
+    /// The pipeline description as JSON (its flags with DESCRIPTOR_BUFFER_BIT_EXT where the state asks).
+    description: String,
+    trace: bool,
+    /// The realised pipeline layout's key.
+    layout: String,
+    /// The templated module of each stage kind, as SPIR-V.
+    modules: Vec<(ShaderKind, Vec<u32>)>,
+}
+
+/// The content of a set layout as created: its flags and, per binding, number, type and count (every
+/// binding is visible to every ray tracing stage; none has immutable samplers here).
+fn set_layout_key(flags: vk::DescriptorSetLayoutCreateFlags, l: &SetLayout) -> String {
+    let bindings: Vec<(u32, DescriptorType, u32)> = l
+        .bindings
+        .iter()
+        .map(|b| (b.binding, b.ty, b.count))
+        .collect();
+    format!("{:#x}|{bindings:?}", flags.as_raw())
+}
+
+/// The content of a pipeline layout as created: the harness's set layout (set 0), the case's set
+/// layouts' keys in set order, and the push constant ranges.
+fn pipeline_layout_key(
+    harness_set: vk::DescriptorSetLayout,
+    sets: &[&str],
+    ranges: &[PushRange],
+) -> String {
+    let ranges: Vec<(u32, u32)> = ranges.iter().map(|r| (r.offset, r.size)).collect();
+    format!("{:?}|{}|{ranges:?}", harness_set, sets.join(";"))
+}
+
+impl Shared {
+    /// Destroys every shared object (nothing recorded with them is pending).
+    pub(crate) fn destroy(&mut self, d: &ash::Device) {
+        // SAFETY: the caller's contract; pipelines go before the layouts they were made with.
+        unsafe {
+            for (_, p) in self.pipelines.drain() {
+                d.destroy_pipeline(p.pipeline, None);
+            }
+            for (_, h) in self.pipeline_layouts.drain() {
+                d.destroy_pipeline_layout(h, None);
+            }
+            for (_, h) in self.set_layouts.drain() {
+                d.destroy_descriptor_set_layout(h, None);
+            }
+        }
+    }
+}
+
 /// A case's resource state realised on a device. Destroy with [`Realised::destroy`] once nothing
 /// recorded with it is pending.
 pub(crate) struct Realised {
+    /// The set layouts, pipeline layouts (the harness layout included) are [`Shared`]'s, not the case's.
+    shared_layouts: bool,
+    /// `cache.resource_pipeline` is a copy of a [`Shared`] pipeline, not the case's own.
+    shared_pipeline: bool,
     set_layouts: HashMap<String, vk::DescriptorSetLayout>,
     pipeline_layouts: HashMap<String, vk::PipelineLayout>,
     /// The realised layout of the case's pipeline (`[harness set] ++ its sets`), which the harness binds
@@ -292,6 +365,8 @@ pub(crate) struct Realised {
 impl Realised {
     fn empty() -> Realised {
         Realised {
+            shared_layouts: false,
+            shared_pipeline: false,
             set_layouts: HashMap::new(),
             pipeline_layouts: HashMap::new(),
             harness_layout: vk::PipelineLayout::null(),
@@ -326,10 +401,7 @@ impl Realised {
         match r.build(cache, world, trace, harness_set) {
             Ok(()) => Ok(r),
             Err(e) => {
-                if let Some(p) = cache.resource_pipeline.take() {
-                    // SAFETY: never used by a command buffer.
-                    unsafe { cache.dev.device.destroy_pipeline(p.pipeline, None) };
-                }
+                // The case's own pipeline (never used by a command buffer) goes with its objects.
                 r.destroy(cache);
                 Err(e)
             }
@@ -431,7 +503,9 @@ impl Realised {
         // SAFETY: nothing recorded with these objects is pending (the caller's contract).
         unsafe {
             if let Some(p) = cache.resource_pipeline.take() {
-                d.destroy_pipeline(p.pipeline, None);
+                if !self.shared_pipeline {
+                    d.destroy_pipeline(p.pipeline, None);
+                }
             }
             for (_, m) in self.modules {
                 d.destroy_shader_module(m, None);
@@ -462,6 +536,9 @@ impl Realised {
                 d.destroy_sampler(h, None);
             }
             self.ycbcr.destroy(&cache.dev);
+            if self.shared_layouts {
+                return;
+            }
             for (_, h) in self.pipeline_layouts {
                 d.destroy_pipeline_layout(h, None);
             }
@@ -472,5 +549,82 @@ impl Realised {
                 d.destroy_descriptor_set_layout(h, None);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ash::vk::Handle;
+
+    fn layout(bindings: &[(u32, DescriptorType, u32)]) -> SetLayout {
+        SetLayout {
+            name: "l".into(),
+            bindings: bindings
+                .iter()
+                .map(|&(binding, ty, count)| LayoutBinding {
+                    binding,
+                    ty,
+                    count,
+                    immutable_samplers: vec![],
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn set_layouts_share_a_key_exactly_when_defined_identically() {
+        let none = vk::DescriptorSetLayoutCreateFlags::empty();
+        let base = [
+            (0, DescriptorType::StorageImage, 1),
+            (2, DescriptorType::Sampler, 3),
+        ];
+        let key = set_layout_key(none, &layout(&base));
+        // The name is not content.
+        let mut renamed = layout(&base);
+        renamed.name = "other".into();
+        assert_eq!(set_layout_key(none, &renamed), key);
+        // Each planted difference: binding number, type, count, flags.
+        let planted = [
+            [(1, DescriptorType::StorageImage, 1), base[1]],
+            [(0, DescriptorType::SampledImage, 1), base[1]],
+            [(0, DescriptorType::StorageImage, 2), base[1]],
+        ];
+        for p in planted {
+            assert_ne!(set_layout_key(none, &layout(&p)), key, "{p:?}");
+        }
+        let db = vk::DescriptorSetLayoutCreateFlags::DESCRIPTOR_BUFFER_EXT;
+        assert_ne!(set_layout_key(db, &layout(&base)), key);
+    }
+
+    #[test]
+    fn pipeline_layouts_share_a_key_exactly_when_defined_identically() {
+        let harness = vk::DescriptorSetLayout::from_raw(7);
+        let ranges = [PushRange {
+            offset: 0,
+            size: 16,
+        }];
+        let key = pipeline_layout_key(harness, &["a", "b"], &ranges);
+        assert_eq!(pipeline_layout_key(harness, &["a", "b"], &ranges), key);
+        assert_ne!(pipeline_layout_key(harness, &["b", "a"], &ranges), key);
+        assert_ne!(pipeline_layout_key(harness, &["a"], &ranges), key);
+        assert_ne!(
+            pipeline_layout_key(
+                harness,
+                &["a", "b"],
+                &[PushRange {
+                    offset: 4,
+                    size: 16
+                }]
+            ),
+            key
+        );
+        assert_ne!(
+            pipeline_layout_key(harness, &["a", "b"], &[PushRange { offset: 0, size: 8 }]),
+            key
+        );
+        assert_ne!(pipeline_layout_key(harness, &["a", "b"], &[]), key);
+        let other = vk::DescriptorSetLayout::from_raw(8);
+        assert_ne!(pipeline_layout_key(other, &["a", "b"], &ranges), key);
     }
 }

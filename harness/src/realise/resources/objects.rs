@@ -200,6 +200,8 @@ impl Realised {
                 })?;
             sources.push((stage, glsl, narrow));
         }
+        // The realised pipeline layout's key, where it is shared.
+        let harness_layout_key: Option<String>;
         let dev = &cache.dev;
         let d = &dev.device;
         // SAFETY (whole block): create infos reference live locals and objects of this device.
@@ -257,8 +259,27 @@ impl Realised {
                     .map_err(vkfail("vkCreateSampler"))?;
                 self.samplers.insert(s.name.clone(), h);
             }
-            // Set layouts.
+            // Set layouts and pipeline layouts: shared by content across the device's cases where no
+            // binding has immutable samplers (the layout would name this case's samplers) and the
+            // descriptors are sets (a descriptor buffer layout's harness set is the case's own).
+            let share = !by_buffer
+                && st
+                    .set_layouts
+                    .iter()
+                    .all(|l| l.bindings.iter().all(|b| b.immutable_samplers.is_empty()));
+            self.shared_layouts = share;
+            let shared = &mut cache.shared_resources;
+            let mut set_keys: HashMap<&str, String> = HashMap::new();
+            let mut layout_keys: HashMap<&str, String> = HashMap::new();
             for l in &st.set_layouts {
+                let key = super::set_layout_key(layout_flags, l);
+                if share {
+                    if let Some(&h) = shared.set_layouts.get(&key) {
+                        self.set_layouts.insert(l.name.clone(), h);
+                        set_keys.insert(&l.name, key);
+                        continue;
+                    }
+                }
                 let immutable: Vec<Vec<vk::Sampler>> = l
                     .bindings
                     .iter()
@@ -284,10 +305,27 @@ impl Realised {
                         None,
                     )
                     .map_err(vkfail("vkCreateDescriptorSetLayout"))?;
+                if share {
+                    shared.set_layouts.insert(key.clone(), h);
+                }
                 self.set_layouts.insert(l.name.clone(), h);
+                set_keys.insert(&l.name, key);
             }
             // Pipeline layouts: the harness set, then the case's.
             for p in &st.pipeline_layouts {
+                let keys: Vec<&str> = p
+                    .sets
+                    .iter()
+                    .map(|s| set_keys.get(s.as_str()).map_or("", |k| k.as_str()))
+                    .collect();
+                let key = super::pipeline_layout_key(harness_set, &keys, &p.push_ranges);
+                if share && p.sets.iter().all(|s| set_keys.contains_key(s.as_str())) {
+                    if let Some(&h) = shared.pipeline_layouts.get(&key) {
+                        self.pipeline_layouts.insert(p.name.clone(), h);
+                        layout_keys.insert(&p.name, key);
+                        continue;
+                    }
+                }
                 let mut sl = vec![harness_set];
                 for s in &p.sets {
                     sl.push(*self.set_layouts.get(s).ok_or_else(|| {
@@ -314,7 +352,11 @@ impl Realised {
                         None,
                     )
                     .map_err(vkfail("vkCreatePipelineLayout"))?;
+                if share {
+                    shared.pipeline_layouts.insert(key.clone(), h);
+                }
                 self.pipeline_layouts.insert(p.name.clone(), h);
+                layout_keys.insert(&p.name, key);
             }
             match st.pipeline_layout.as_deref() {
                 Some(n) => {
@@ -323,6 +365,7 @@ impl Realised {
                             "the pipeline's layout `{n}` is not in the state"
                         ))
                     })?;
+                    harness_layout_key = layout_keys.get(n).cloned();
                 }
                 None => {
                     if !st.used_sets().is_empty()
@@ -330,14 +373,27 @@ impl Realised {
                     {
                         return unsup("the state's shaders use sets or push constants but the pipeline names no layout");
                     }
-                    let sl = [harness_set];
-                    self.harness_layout = d
-                        .create_pipeline_layout(
-                            &vk::PipelineLayoutCreateInfo::default().set_layouts(&sl),
-                            None,
-                        )
-                        .map_err(vkfail("vkCreatePipelineLayout"))?;
-                    self.own_harness_layout = true;
+                    let key = super::pipeline_layout_key(harness_set, &[], &[]);
+                    match shared.pipeline_layouts.get(&key).filter(|_| share) {
+                        Some(&h) => self.harness_layout = h,
+                        None => {
+                            let sl = [harness_set];
+                            self.harness_layout = d
+                                .create_pipeline_layout(
+                                    &vk::PipelineLayoutCreateInfo::default().set_layouts(&sl),
+                                    None,
+                                )
+                                .map_err(vkfail("vkCreatePipelineLayout"))?;
+                            if share {
+                                shared
+                                    .pipeline_layouts
+                                    .insert(key.clone(), self.harness_layout);
+                            } else {
+                                self.own_harness_layout = true;
+                            }
+                        }
+                    }
+                    harness_layout_key = Some(key);
                 }
             }
             // Usage of images and buffers from the descriptors written with them.
@@ -793,6 +849,7 @@ impl Realised {
             }
         }
         // The pipeline with the templated stages (KHR or NV GLSL by the pipeline's API).
+        let mut codes = Vec::with_capacity(sources.len());
         for (stage, glsl, narrow) in &sources {
             let mut code = compile_stage(glsl, *stage, trace, api)?;
             patch_narrow_writes(&mut code, narrow).map_err(|e| {
@@ -800,19 +857,44 @@ impl Realised {
                     "patching the {stage:?} shader's narrow writes: {e}"
                 ))
             })?;
-            let m = crate::shaders::module(&cache.dev, &code)?;
-            self.modules.push((shader_kind(*stage, trace), m));
+            codes.push((shader_kind(*stage, trace), code));
         }
-        if let Some(p) = world.pipeline.as_ref() {
-            // A descriptor buffer pipeline is created with DESCRIPTOR_BUFFER_BIT_EXT, whatever its
-            // descriptors come from.
-            let mut p = p.clone();
-            if st.pipeline_descriptor_buffer {
-                p.flags.0 |= vk::PipelineCreateFlags::DESCRIPTOR_BUFFER_EXT.as_raw() as u64;
-            }
-            let rp = cache.create_pipeline_with(&p, trace, self.harness_layout, &self.modules)?;
-            cache.resource_pipeline = Some(rp);
+        let Some(p) = world.pipeline.as_ref() else {
+            return Ok(());
+        };
+        // A descriptor buffer pipeline is created with DESCRIPTOR_BUFFER_BIT_EXT, whatever its
+        // descriptors come from.
+        let mut p = p.clone();
+        if st.pipeline_descriptor_buffer {
+            p.flags.0 |= vk::PipelineCreateFlags::DESCRIPTOR_BUFFER_EXT.as_raw() as u64;
         }
+        // Shared by content (with shared layouts only: the key names the layout by its content).
+        let key = harness_layout_key
+            .filter(|_| self.shared_layouts)
+            .map(|layout| super::PipelineKey {
+                description: serde_json::to_string(&p).unwrap_or_default(),
+                trace,
+                layout,
+                modules: codes.clone(),
+            });
+        if let Some(rp) = key
+            .as_ref()
+            .and_then(|k| cache.shared_resources.pipelines.get(k))
+        {
+            cache.resource_pipeline = Some(rp.clone());
+            self.shared_pipeline = true;
+            return Ok(());
+        }
+        for (kind, code) in &codes {
+            let m = crate::shaders::module(&cache.dev, code)?;
+            self.modules.push((*kind, m));
+        }
+        let rp = cache.create_pipeline_with(&p, trace, self.harness_layout, &self.modules)?;
+        if let Some(k) = key {
+            cache.shared_resources.pipelines.insert(k, rp.clone());
+            self.shared_pipeline = true;
+        }
+        cache.resource_pipeline = Some(rp);
         Ok(())
     }
 }
