@@ -482,6 +482,37 @@ pub fn records_read(world: &World, call: &Call) -> Vec<(Table, u64)> {
     if launch_ids(world, call) == Some(0) {
         return vec![];
     }
+    // The gate asks for a case's records long before the rules of its judgement do (a run gates a
+    // whole chunk of cases first), and tracing a rendered launch's rays costs far more than
+    // fingerprinting it; so the records are kept by the fingerprint of the world and the call.
+    static MEMO: Mutex<Option<HashMap<u128, Vec<(Table, u64)>>>> = Mutex::new(None);
+    const KEPT: usize = 4096;
+    let key = match call {
+        Call::TraceRaysIndirect(c) => crate::fingerprint::of(&(world, 0u8, c)),
+        Call::TraceRays(c) => crate::fingerprint::of(&(world, 1u8, c)),
+        Call::TraceRaysNv(c) => crate::fingerprint::of(&(world, 2u8, c)),
+    };
+    if let Some(k) = key {
+        let memo = MEMO.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(read) = memo.as_ref().and_then(|m| m.get(&k)) {
+            return read.clone();
+        }
+    }
+    let read = records_read_traced(world, call);
+    if let Some(k) = key {
+        let mut memo = MEMO.lock().unwrap_or_else(|e| e.into_inner());
+        let m = memo.get_or_insert_with(HashMap::new);
+        if m.len() >= KEPT {
+            m.clear();
+        }
+        m.insert(k, read.clone());
+    }
+    read
+}
+
+/// [`records_read`] computed: the hit records of the launch's reach, and a miss record for each ray a
+/// miss is allowed for.
+fn records_read_traced(world: &World, call: &Call) -> Vec<(Table, u64)> {
     let mut out = vec![(Table::Raygen, 0)];
     out.extend(
         reached_hit_records(world, call)

@@ -202,7 +202,7 @@ pub(crate) fn shader_kind(stage: Stage, trace: bool) -> ShaderKind {
     }
 }
 
-/// The harness's GLSL source of a stage and the file extension glslangValidator infers the stage from.
+/// The harness's GLSL source of a stage and the file extension the compiler takes the stage from.
 pub fn stage_source(stage: Stage) -> (&'static str, &'static str) {
     match stage {
         Stage::Raygen => (include_str!("../../../shaders/raygen.rgen"), "rgen"),

@@ -21,8 +21,8 @@
 //! unsupported (nothing bound would use them statically); a stage the pipeline has but the launch does
 //! not reach still uses them statically, which is what these rules ask. Texel operands narrower than
 //! four components, which GLSL's `imageStore` cannot express, are patched into the compiled module
-//! (`OpImageWrite` with a narrow constant texel, see [`patch_narrow_writes`]). Sources are compiled with
-//! glslangValidator at first use into a cache keyed by their hash, with `-DNV` for VK_NV_ray_tracing
+//! (`OpImageWrite` with a narrow constant texel, see [`patch_narrow_writes`]). Sources are compiled in process
+//! (`crate::shaders::compile_glsl`, the linked shaderc library) at first use, memoised by content, with `NV` defined for VK_NV_ray_tracing
 //! pipelines (the same GLSL in GL_NV_ray_tracing names, as build.rs compiles the harness's shaders).
 //!
 //! **Descriptor buffers.** A pipeline the state says was created with DESCRIPTOR_BUFFER_BIT_EXT is

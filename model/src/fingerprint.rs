@@ -1,0 +1,45 @@
+//! Content fingerprints: 128 bits of a value's serde form in CBOR (every float bit for bit), for
+//! memoising what the model derives from large values (a launch's scene and rays) across the gate,
+//! the rules and the judgement of one case without holding or comparing the values themselves.
+
+use std::hash::Hasher;
+
+/// A writer that feeds two independently keyed hashers.
+struct Feed(
+    std::collections::hash_map::DefaultHasher,
+    std::collections::hash_map::DefaultHasher,
+);
+
+impl std::io::Write for Feed {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.write(buf);
+        self.1.write(buf);
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// The fingerprint of `value`: equal values always get equal fingerprints; different ones differ
+/// but with a chance of about 2^-128. None when the value does not serialise.
+pub fn of<T: serde::Serialize + ?Sized>(value: &T) -> Option<u128> {
+    let mut second = std::collections::hash_map::DefaultHasher::new();
+    second.write_u64(0x9e37_79b9_7f4a_7c15);
+    let mut feed = Feed(std::collections::hash_map::DefaultHasher::new(), second);
+    ciborium::into_writer(value, &mut feed).ok()?;
+    Some((feed.0.finish() as u128) << 64 | feed.1.finish() as u128)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn equal_values_match_and_one_bit_tells_them_apart() {
+        let a = vec![1.0f32, f32::NAN, -0.0];
+        let b = vec![1.0f32, f32::NAN, 0.0];
+        assert_eq!(super::of(&a), super::of(&a.clone()));
+        assert_ne!(super::of(&a), super::of(&b));
+        let nan_payload = vec![1.0f32, f32::from_bits(0x7fc0_0001), -0.0];
+        assert_ne!(super::of(&a), super::of(&nan_payload));
+    }
+}
