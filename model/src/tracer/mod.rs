@@ -9,6 +9,7 @@
 
 pub mod arith;
 pub mod band;
+mod bvh;
 pub mod judge;
 mod prepare;
 pub mod record;
