@@ -298,6 +298,9 @@ struct NearItem {
     /// Its index in the prepared scene's items.
     index: usize,
     outcome: Option<TriangleOutcome>,
+    /// The cut it was kept at (its padded box met by the ray cut there): the final cut, if the
+    /// same, would keep it again.
+    kept_at: f64,
 }
 
 /// A procedural primitive the intersection shader must run for.
@@ -349,6 +352,7 @@ pub fn trace_ray(
                 item,
                 index: i,
                 outcome: None,
+                kept_at: f64::INFINITY,
             });
             return;
         }
@@ -376,6 +380,7 @@ pub fn trace_ray(
             item,
             index: i,
             outcome,
+            kept_at: c,
         });
     };
     if quick {
@@ -394,6 +399,7 @@ pub fn trace_ray(
         cut_ray.tmax = cut_at;
         near.retain(|n| {
             scene.geometries[n.item.geometry as usize].kind != PrimitiveKind::Triangle
+                || n.kept_at == cut_at
                 || !far(n.index, &cut_ray)
         });
     }
