@@ -17,6 +17,9 @@
 
 use super::prepare::{f32_up, BoundBox, FarBox, Item, ItemBounds, PreparedScene, RayF64};
 
+#[cfg(test)]
+mod lane_tests;
+
 /// A node as the build makes it.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Node {
@@ -49,6 +52,11 @@ pub(crate) struct LaneBounds {
 impl LaneBounds {
     /// The lanes of up to four bounds, and whether the lane test may decide them all.
     fn new(boxes: &[BoundBox]) -> (LaneBounds, bool) {
+        LaneBounds::with_margin(boxes, LANE_MARGIN)
+    }
+
+    /// [`LaneBounds::new`] with another relative margin (a test's planted fault).
+    fn with_margin(boxes: &[BoundBox], margin: f64) -> (LaneBounds, bool) {
         let mut l = LaneBounds {
             lo: [[0.0; 4]; 3],
             hi: [[0.0; 4]; 3],
@@ -67,9 +75,9 @@ impl LaneBounds {
             }
             // The pad's own two f32 roundings and the f64 roundings here stay far below the
             // factor 1 + 2⁻²⁰; 2⁻¹⁰⁰ covers underflow of the slab products.
-            let grow = 1.0 + LANE_MARGIN;
-            let base = (b.pad_base as f64 * grow + LANE_MARGIN * reach + 2f64.powi(-100)) * grow;
-            let slope = (b.pad_slope as f64 * grow + LANE_MARGIN) * grow;
+            let grow = 1.0 + margin;
+            let base = (b.pad_base as f64 * grow + margin * reach + 2f64.powi(-100)) * grow;
+            let slope = (b.pad_slope as f64 * grow + margin) * grow;
             l.pad_base[lane] = f32_up(base);
             l.pad_slope[lane] = f32_up(slope);
             // Also NaN fails these.

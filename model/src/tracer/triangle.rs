@@ -96,7 +96,11 @@ pub fn triangle_signs<T: Num>(
         sum: (f64::NAN, f64::INFINITY),
         plane: (f64::NAN, f64::INFINITY),
     };
-    let mut edges = [side(&e0, band.edge[0])?, side(&e1, band.edge[1])?, EdgeSide::Band];
+    let mut edges = [
+        side(&e0, band.edge[0])?,
+        side(&e1, band.edge[1])?,
+        EdgeSide::Band,
+    ];
     let opposite = |x: EdgeSide, y: EdgeSide| {
         matches!(
             (x, y),
