@@ -48,15 +48,15 @@ fn disagreements(margin: f64, cases: usize) -> (usize, usize, usize) {
         // A point on the padded box's boundary: a face, an edge or a corner.
         let mut target = [0; 3].map(|k| rng.range(b.lo[k] as f64 - pad, b.hi[k] as f64 + pad));
         let pinned = 1 + (rng.unit() * 3.0) as usize;
-        for k in 0..pinned {
-            target[k] = if rng.unit() < 0.5 {
+        for (k, t) in target.iter_mut().enumerate().take(pinned) {
+            *t = if rng.unit() < 0.5 {
                 b.lo[k] as f64 - pad
             } else {
                 b.hi[k] as f64 + pad
             };
         }
         let direction = [0, 1, 2].map(|k| (target[k] - origin[k] as f64) as f32);
-        if direction.iter().any(|&d| d == 0.0) {
+        if direction.contains(&0.0) {
             continue;
         }
         let tmax = if rng.unit() < 0.3 { 1.0 } else { f32::INFINITY };
