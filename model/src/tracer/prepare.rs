@@ -374,6 +374,9 @@ pub struct PreparedScene {
     pub(crate) tree: WideTree,
     /// `(instance, geometry)` of every AABB geometry with an active box, in instance order.
     pub(crate) procedural: Vec<(u32, u32)>,
+    /// Every geometry is opaque for a ray without opacity flags (its instance forces it opaque,
+    /// or does not force it non-opaque and the geometry is opaque).
+    pub(crate) all_opaque: bool,
     /// `(bottom level, transform class)` → topology, built on first use.
     pub(crate) topology: HashMap<(u32, u32), OnceLock<Topology>>,
 }
@@ -582,7 +585,14 @@ impl PreparedScene {
             })
             .map(|w| (w.instance, w.geometry))
             .collect();
+        let all_opaque = geometries.iter().all(|w| {
+            let inst = &scene.instances[w.instance as usize];
+            let geometry =
+                &scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize];
+            inst.flags.force_opaque || (!inst.flags.force_no_opaque && geometry.flags.opaque)
+        });
         Ok(PreparedScene {
+            all_opaque,
             scene: scene.clone(),
             instances,
             geometries,

@@ -235,6 +235,12 @@ fn cut_allowed(scene: &PreparedScene, ray: &Ray, shaders: &ShaderTable<'_>) -> b
     if ray.flags.contains(RayFlags::TERMINATE_ON_FIRST_HIT) {
         return false;
     }
+    // Every primitive opaque for this ray: none runs any-hit, whatever the shader table holds.
+    if ray.flags.contains(RayFlags::OPAQUE)
+        || (!ray.flags.contains(RayFlags::NO_OPAQUE) && scene.all_opaque)
+    {
+        return true;
+    }
     scene.geometries.iter().all(|w| {
         let inst = &scene.scene.instances[w.instance as usize];
         let geometry =
