@@ -251,6 +251,22 @@ impl WideTree {
         self.nodes.len()
     }
 
+    /// Asks the cache for node `n` (a hint: no effect on any result).
+    #[inline]
+    fn prefetch(&self, n: u32) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(node) = self.nodes.get(n as usize) {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            let p = node as *const WideNode as *const i8;
+            // SAFETY: a prefetch reads nothing and the addresses lie within the node.
+            unsafe {
+                _mm_prefetch(p, _MM_HINT_T0);
+                _mm_prefetch(p.add(64), _MM_HINT_T0);
+                _mm_prefetch(p.add(128), _MM_HINT_T0);
+            }
+        }
+    }
+
     /// Adds the wide node of binary node `n` (and everything below it); its index.
     fn add(&mut self, binary: &[Node], n: usize, items: &[ItemBounds], triangle: &[bool]) -> u32 {
         let node = binary[n];
@@ -448,8 +464,9 @@ impl PreparedScene {
                 (c < ray.tmax).then_some(c),
                 &mut lanes,
             );
-            // The nearest child is popped first.
+            // The nearest child is popped first; the others are fetched while it is traversed.
             for &(e, child, _) in lanes[..len].iter().rev() {
+                self.tree.prefetch(child);
                 if depth < stack.len() {
                     stack[depth] = (child, e);
                     depth += 1;
