@@ -225,7 +225,13 @@ pub fn prepared(scene: &Scene) -> Option<Arc<PreparedScene>> {
 /// Whether two scenes are identical bit for bit (−0 and +0 differ, a NaN equals the same NaN).
 pub fn same_scene(a: &Scene, b: &Scene) -> bool {
     fn floats(a: &[f32], b: &[f32]) -> bool {
-        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+        // Blocks compared without an early exit inside, so the comparison runs in vector lanes.
+        a.len() == b.len()
+            && a.chunks(64).zip(b.chunks(64)).all(|(x, y)| {
+                x.iter()
+                    .zip(y)
+                    .fold(true, |same, (p, q)| same & (p.to_bits() == q.to_bits()))
+            })
     }
     fn transform(a: &crate::scene::Transform3x4, b: &crate::scene::Transform3x4) -> bool {
         floats(a.0.as_flattened(), b.0.as_flattened())

@@ -410,12 +410,13 @@ pub fn trace_ray(
         });
     }
     // A deterministic order, independent of the BVH.
-    near.sort_by_key(|n| {
+    // (instance, geometry, primitive) is unique per item: an unstable sort gives the same order.
+    near.sort_unstable_by_key(|n| {
         let w = &scene.geometries[n.item.geometry as usize];
         (w.instance, w.geometry, n.item.primitive)
     });
 
-    let mut candidates: Vec<Candidate> = Vec::new();
+    let mut candidates: Vec<Candidate> = Vec::with_capacity(near.len());
     let hits = &mut scratch.hits;
     let mut must_run: Vec<MustRun> = Vec::new();
     for NearItem { item, outcome, .. } in near.drain(..) {
@@ -441,7 +442,8 @@ pub fn trace_ray(
             primitive: item.primitive,
         };
         let opaque = opacity(ray, inst, geometry.flags.opaque);
-        let hit_shaders = (shaders.hit)(w.instance, w.geometry);
+        // Resolved where a candidate needs it (most near pairs are misses).
+        let hit_shaders = || (shaders.hit)(w.instance, w.geometry);
         stats.pair_tests += 1;
         match w.kind {
             PrimitiveKind::Triangle => {
@@ -540,6 +542,7 @@ pub fn trace_ray(
                         .map(|i| w.vertices[i].map(|x| x.value)),
                     signs,
                 });
+                let hit_shaders = hit_shaders();
                 candidates.push(Candidate {
                     primitive: prim,
                     kind: PrimitiveKind::Triangle,
@@ -554,6 +557,7 @@ pub fn trace_ray(
                 });
             }
             PrimitiveKind::Aabb => {
+                let hit_shaders = hit_shaders();
                 if opacity_culled(ray, opaque) || !hit_shaders.has_intersection() {
                     stats.req_miss += 1;
                     continue;
