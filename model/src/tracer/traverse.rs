@@ -9,7 +9,7 @@
 //! that could be confirmed first (TerminateOnFirstHit: any of them; an any-hit `Terminate` rule:
 //! those candidates).
 
-use super::arith::{affine, v3, BoundedF64, Dyadic, PlainF32, V3};
+use super::arith::{affine, map3, v3, BoundedF64, Dyadic, PlainF32, V3};
 use super::band::triangle_band;
 use super::prepare::{Item, PreparedScene, RayF64, WorldGeometry};
 use super::sphere::{sphere_band, sphere_reports, sphere_signs, SphereSigns};
@@ -98,7 +98,7 @@ fn classify_triangle(
         unreachable!("triangle geometry")
     };
     let ids = t.vertex_indices(primitive as usize);
-    let pos = ids.map(|i| t.positions[i]);
+    let pos = map3(ids, |i| t.positions[i]);
     let miss = |reason| TriangleOutcome {
         class: PairClass::ReqMiss(reason),
         signs: None,
@@ -126,8 +126,8 @@ fn classify_triangle(
             }
         }
     }
-    let world_f64 = ids.map(|i| w.vertices[i].map(|x| x.value));
-    let radius = ids.map(|i| w.static_radius[i]);
+    let world_f64 = map3(ids, |i| map3(w.vertices[i], |x| x.value));
+    let radius = map3(ids, |i| w.static_radius[i]);
     let band = triangle_band(&inst.band, &world_f64, &radius, rf.origin, rf.direction);
     let evaluate_exact = || {
         let world = pos.map(|p| dyadic_world(scene, w, p));
@@ -144,7 +144,7 @@ fn classify_triangle(
     let ((signs, values), evaluation) = match precision {
         Precision::ExactOnly => (evaluate_exact(), Evaluation::Exact),
         Precision::F64WithExactFallback => {
-            let world = ids.map(|i| w.vertices[i]);
+            let world = map3(ids, |i| w.vertices[i]);
             match triangle_signs::<BoundedF64>(
                 &world,
                 &v3(ray.origin),
@@ -539,7 +539,7 @@ pub fn trace_ray(
                     vertices: tri.vertices(item.primitive as usize),
                     world: tri
                         .vertex_indices(item.primitive as usize)
-                        .map(|i| w.vertices[i].map(|x| x.value)),
+                        .map(|i| map3(w.vertices[i], |x| x.value)),
                     signs,
                 });
                 let hit_shaders = hit_shaders();

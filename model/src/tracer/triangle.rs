@@ -11,7 +11,7 @@
 //! its band from [`super::band`]; the band constants are computed in f64 the same way in every mode,
 //! so only the signs of `quantity − constant` differ between modes, and those are certified.
 
-use super::arith::{sub3, triple, Num, V3};
+use super::arith::{map3, sub3, triple, Num, V3};
 use super::band::TriangleBand;
 use std::cmp::Ordering;
 
@@ -75,7 +75,7 @@ pub fn triangle_signs<T: Num>(
     tmax: f32,
     band: &TriangleBand,
 ) -> Option<(TriangleSigns, TriangleValues)> {
-    let a = [0, 1, 2].map(|k| sub3(&world[k], origin));
+    let a = map3([0, 1, 2], |k| sub3(&world[k], origin));
     let side = |e: &T, bound: f64| -> Option<EdgeSide> {
         Some(if sign_above(e, bound)? == Ordering::Greater {
             EdgeSide::Positive
