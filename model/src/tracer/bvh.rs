@@ -37,7 +37,7 @@ pub(crate) struct Node {
 const LANE_MARGIN: f64 = 1.0 / 1_048_576.0;
 
 /// Largest magnitude of a corner, pad or origin component the lane test takes.
-const LANE_RANGE: f64 = 1.152_921_504_606_847e18; // 2^60
+const LANE_RANGE: f64 = (1u64 << 60) as f64;
 
 /// Four boxes in f32 lanes: corners per axis, and the lane pad `base + slope·|o|`.
 #[derive(Debug, Clone, Copy)]
