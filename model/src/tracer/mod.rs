@@ -10,6 +10,7 @@
 pub mod arith;
 pub mod band;
 mod bvh;
+mod conclude;
 pub mod judge;
 mod prepare;
 pub mod record;
