@@ -4,7 +4,8 @@
 //! shader table cached after a warm-up, so a pass is record, submit and read back the 28-word
 //! records), and by the model (`expected_launch`: the allowed outcomes of every launch ID, the
 //! prepared scene cached likewise). Each rate is the median of five passes; the ratio is the oracle's
-//! rate over lavapipe's. Also the share of ray/primitive tests that needed the exact fallback, and
+//! rate over lavapipe's, and `paired` the median of the passes' own ratios (each pass times the two
+//! back to back, so a change in the machine's load between passes moves both sides alike). Also the share of ray/primitive tests that needed the exact fallback, and
 //! whether lavapipe's records pass the judgement. Lavapipe runs llvmpipe on every core, and the model
 //! traces a launch's distinct rays on every core too (`expected_launch`), so the ratio compares the
 //! two on the same machine; `cargo bench -p rtconf-model --bench expected_launch` gives the model's
@@ -43,8 +44,16 @@ fn main() {
         }
     };
     println!(
-        "{:<24} {:>7} {:>7} {:>14} {:>14} {:>8} {:>9} {:>8}",
-        "workload", "prims", "rays", "oracle rays/s", "lvp rays/s", "ratio", "exact %", "judged"
+        "{:<24} {:>7} {:>7} {:>14} {:>14} {:>8} {:>8} {:>9} {:>8}",
+        "workload",
+        "prims",
+        "rays",
+        "oracle rays/s",
+        "lvp rays/s",
+        "ratio",
+        "paired",
+        "exact %",
+        "judged"
     );
     let mut ratios = Vec::new();
     for w in standard_workloads(SIDE, false) {
@@ -107,15 +116,19 @@ fn main() {
             .expect("the workload's outcomes");
         let mut lvp = Vec::new();
         let mut oracle = Vec::new();
+        let mut paired = Vec::new();
         let mut last = warm;
         for _ in 0..PASSES {
             let t = Instant::now();
             last = ctx.execute(&case, &exec);
-            lvp.push(ids / t.elapsed().as_secs_f64());
+            let l = ids / t.elapsed().as_secs_f64();
             let t = Instant::now();
             let e = model::semantics::expected_launch(&body.world, &body.call);
-            oracle.push(ids / t.elapsed().as_secs_f64());
+            let o = ids / t.elapsed().as_secs_f64();
             assert!(e.is_some());
+            lvp.push(l);
+            oracle.push(o);
+            paired.push(o / l);
         }
         let judged = match last
             .words()
@@ -129,13 +142,14 @@ fn main() {
         let (o, l) = (median(oracle), median(lvp));
         ratios.push(o / l);
         println!(
-            "{:<24} {:>7} {:>7} {:>14.0} {:>14.0} {:>8.2} {:>9.4} {:>8}",
+            "{:<24} {:>7} {:>7} {:>14.0} {:>14.0} {:>8.2} {:>8.2} {:>9.4} {:>8}",
             w.name,
             prims,
             SIDE * SIDE,
             o,
             l,
             o / l,
+            median(paired),
             100.0 * expected.stats.exact_share(),
             judged
         );

@@ -225,7 +225,13 @@ pub fn prepared(scene: &Scene) -> Option<Arc<PreparedScene>> {
 /// Whether two scenes are identical bit for bit (−0 and +0 differ, a NaN equals the same NaN).
 pub fn same_scene(a: &Scene, b: &Scene) -> bool {
     fn floats(a: &[f32], b: &[f32]) -> bool {
-        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+        // Blocks compared without an early exit inside, so the comparison runs in vector lanes.
+        a.len() == b.len()
+            && a.chunks(64).zip(b.chunks(64)).all(|(x, y)| {
+                x.iter()
+                    .zip(y)
+                    .fold(true, |same, (p, q)| same & (p.to_bits() == q.to_bits()))
+            })
     }
     fn transform(a: &crate::scene::Transform3x4, b: &crate::scene::Transform3x4) -> bool {
         floats(a.0.as_flattened(), b.0.as_flattened())
@@ -458,14 +464,34 @@ pub fn allowed_for_ray_with(
     config: &TracerConfig,
     stats: &mut TracerStats,
 ) -> Option<AllowedOutcomes> {
+    let memo = HitRecordMemo::default();
+    allowed_for_ray_memo(world, call, prepared, ray, config, stats, &memo)
+}
+
+/// The hit groups of the hit records a launch's rays reached, by record index: a record's group
+/// depends on the world and call alone, so the rays of one launch share the memo.
+type HitRecordMemo = std::cell::RefCell<HashMap<u64, HitShaders, BuildHasherDefault<RayKeyHasher>>>;
+
+/// [`allowed_for_ray_with`], the hit records resolved through `memo`.
+fn allowed_for_ray_memo(
+    world: &World,
+    call: &Call,
+    prepared: &PreparedScene,
+    ray: &Ray,
+    config: &TracerConfig,
+    stats: &mut TracerStats,
+    memo: &HitRecordMemo,
+) -> Option<AllowedOutcomes> {
     let scene = &world.launch.scene;
     let hit = |i: u32, g: u32| {
         let inst = &scene.instances[i as usize];
-        hit_shaders(
-            world,
-            call,
-            hit_record(inst.sbt_record_offset, g, ray.sbt_offset, ray.sbt_stride),
-        )
+        let record = hit_record(inst.sbt_record_offset, g, ray.sbt_offset, ray.sbt_stride);
+        if let Some(h) = memo.borrow().get(&record) {
+            return *h;
+        }
+        let h = hit_shaders(world, call, record);
+        memo.borrow_mut().insert(record, h);
+        h
     };
     let table = ShaderTable {
         hit: &hit,
@@ -692,20 +718,25 @@ pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
                 })
             })
             .collect();
-        let traced = trace_distinct(world, call, &prepared, &rays, &distinct, &mut stats)?;
-        let mut traced: Vec<Option<AllowedOutcomes>> = traced.into_iter().map(Some).collect();
-        // The last launch ray of a distinct ray takes its outcomes, the others a copy.
-        let mut last = vec![usize::MAX; distinct.len()];
-        for (i, &d) in of.iter().enumerate() {
-            last[d] = i;
-        }
-        for (i, &d) in of.iter().enumerate() {
-            let a = if last[d] == i {
-                traced[d].take()
-            } else {
-                traced[d].clone()
-            };
-            allowed.push(a.expect("a distinct ray's outcomes are taken once, last"));
+        let mut traced = trace_distinct(world, call, &prepared, &rays, &distinct, &mut stats)?;
+        if distinct.len() == rays.len() {
+            // Every ray is distinct (the usual launch): the outcomes are in launch order already.
+            allowed = traced;
+        } else {
+            // The last launch ray of a distinct ray takes its outcomes, the others a copy.
+            let mut last = vec![usize::MAX; distinct.len()];
+            for (i, &d) in of.iter().enumerate() {
+                last[d] = i;
+            }
+            let mut traced: Vec<Option<AllowedOutcomes>> = traced.drain(..).map(Some).collect();
+            for (i, &d) in of.iter().enumerate() {
+                let a = if last[d] == i {
+                    traced[d].take()
+                } else {
+                    traced[d].clone()
+                };
+                allowed.push(a.expect("a distinct ray's outcomes are taken once, last"));
+            }
         }
     }
     Some(ExpectedLaunch {
@@ -734,33 +765,42 @@ fn trace_distinct(
         .map_or(1, |n| n.get())
         .min(distinct.len() / RAYS_PER_WORKER)
         .max(1);
+    let config = TracerConfig::default();
     if workers == 1 {
+        let memo = HitRecordMemo::default();
         return distinct
             .iter()
-            .map(|&i| allowed_for_ray(world, call, prepared, &rays[i], stats))
+            .map(|&i| allowed_for_ray_memo(world, call, prepared, &rays[i], &config, stats, &memo))
             .collect();
     }
     // Workers take chunks of distinct rays in turn, so an expensive part of the image does not
-    // leave one worker behind.
+    // leave one worker behind; each chunk's outcomes are moved into their place once.
     const CHUNK: usize = 32;
     let next = std::sync::atomic::AtomicUsize::new(0);
-    /// One worker's outcomes by distinct-ray index, and its counters.
-    type Part = (Vec<(usize, Option<AllowedOutcomes>)>, TracerStats);
+    /// One worker's chunks (first distinct-ray index, outcomes), and its counters.
+    type Part = (Vec<(usize, Vec<Option<AllowedOutcomes>>)>, TracerStats);
     let parts: Vec<Part> = std::thread::scope(|scope| {
         let handles: Vec<_> = (0..workers)
             .map(|_| {
                 scope.spawn(|| {
                     let mut out = Vec::new();
                     let mut stats = TracerStats::default();
+                    let memo = HitRecordMemo::default();
                     loop {
                         let start = next.fetch_add(CHUNK, std::sync::atomic::Ordering::Relaxed);
                         if start >= distinct.len() {
                             break;
                         }
-                        for (k, &i) in distinct.iter().enumerate().skip(start).take(CHUNK) {
-                            let a = allowed_for_ray(world, call, prepared, &rays[i], &mut stats);
-                            out.push((k, a));
-                        }
+                        let chunk = distinct[start..]
+                            .iter()
+                            .take(CHUNK)
+                            .map(|&i| {
+                                allowed_for_ray_memo(
+                                    world, call, prepared, &rays[i], &config, &mut stats, &memo,
+                                )
+                            })
+                            .collect();
+                        out.push((start, chunk));
                     }
                     (out, stats)
                 })
@@ -771,14 +811,19 @@ fn trace_distinct(
             .map(|h| h.join().expect("a tracing worker does not panic"))
             .collect()
     });
-    let mut slots: Vec<Option<AllowedOutcomes>> = vec![None; distinct.len()];
+    let mut chunks: Vec<(usize, Vec<Option<AllowedOutcomes>>)> = Vec::new();
     for (out, part) in parts {
         stats.merge(&part);
-        for (k, a) in out {
-            slots[k] = Some(a?);
+        chunks.extend(out);
+    }
+    chunks.sort_unstable_by_key(|c| c.0);
+    let mut all = Vec::with_capacity(distinct.len());
+    for (_, chunk) in chunks {
+        for a in chunk {
+            all.push(a?);
         }
     }
-    slots.into_iter().collect()
+    Some(all)
 }
 
 /// A hasher for [`ray_key`]s (the memo of distinct rays): a multiply-rotate mix of the words,

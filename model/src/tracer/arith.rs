@@ -307,6 +307,14 @@ pub fn v3<T: Num>(p: [f32; 3]) -> V3<T> {
     [T::from_f32(p[0]), T::from_f32(p[1]), T::from_f32(p[2])]
 }
 
+/// `a.map(f)` for three elements, written out so it inlines in the hot paths (the same calls in
+/// the same order).
+#[inline(always)]
+pub(crate) fn map3<T, U>(a: [T; 3], mut f: impl FnMut(T) -> U) -> [U; 3] {
+    let [x, y, z] = a;
+    [f(x), f(y), f(z)]
+}
+
 #[inline]
 pub fn sub3<T: Num>(a: &V3<T>, b: &V3<T>) -> V3<T> {
     [a[0].sub(&b[0]), a[1].sub(&b[1]), a[2].sub(&b[2])]

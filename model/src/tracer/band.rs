@@ -18,6 +18,7 @@
 //!
 //! [`BAND_SAFETY_FACTOR`] multiplies all of it once.
 
+use super::arith::map3;
 use crate::scene::Transform3x4;
 
 /// Unit roundoff of f32.
@@ -211,16 +212,20 @@ pub fn triangle_band(
     let r_o = band.origin_radius(origin);
     let dn = norm3(direction);
     let p = band.direction_rel;
-    let a = [0, 1, 2].map(|k| [0, 1, 2].map(|c| world[k][c] - origin[c]));
-    let len = a.map(norm3);
+    let a = map3([0, 1, 2], |k| map3([0, 1, 2], |c| world[k][c] - origin[c]));
+    let len = map3(a, norm3);
     // f64 rounding of the cross products: far below 1e-12 of the lengths.
-    let perp = [0, 1, 2].map(|k| norm3(cross_f64(a[k], direction)) / dn + 1e-12 * len[k]);
-    let cross = [0, 1, 2].map(|i| {
+    let perp = map3([0, 1, 2], |k| {
+        norm3(cross_f64(a[k], direction)) / dn + 1e-12 * len[k]
+    });
+    let cross = map3([0, 1, 2], |i| {
         let (j, k) = ((i + 1) % 3, (i + 2) % 3);
         norm3(cross_f64(a[j], a[k])) + 1e-12 * len[j] * len[k]
     });
-    let alpha = [0, 1, 2].map(|k| static_radius[k] + band.test_rel * len[k] + r_o);
-    let edge = [0, 1, 2].map(|i| {
+    let alpha = map3([0, 1, 2], |k| {
+        static_radius[k] + band.test_rel * len[k] + r_o
+    });
+    let edge = map3([0, 1, 2], |i| {
         let (j, k) = ((i + 1) % 3, (i + 2) % 3);
         let (aj, ak) = (alpha[j], alpha[k]);
         let vertices = aj * perp[k] + ak * perp[j] + aj * ak;

@@ -9,6 +9,8 @@
 
 pub mod arith;
 pub mod band;
+mod bvh;
+mod conclude;
 pub mod judge;
 mod prepare;
 pub mod record;

@@ -9,6 +9,7 @@ use super::band::{
     far_pad_scale, far_pad_scaled, norm3, vertex_static_radius, InstanceBand, BAND_SAFETY_FACTOR,
     SPHERE_SHADER_ERROR,
 };
+use super::bvh::{build_bvh, WideTree};
 use crate::scene::{GeometryData, Problem, Scene, Transform3x4};
 use std::collections::HashMap;
 use std::sync::OnceLock;
@@ -103,7 +104,7 @@ impl FarBox {
         }
     }
 
-    fn union(&self, o: &FarBox) -> FarBox {
+    pub(crate) fn union(&self, o: &FarBox) -> FarBox {
         FarBox::new(
             [0, 1, 2].map(|k| self.lo[k].min(o.lo[k])),
             [0, 1, 2].map(|k| self.hi[k].max(o.hi[k])),
@@ -181,14 +182,14 @@ fn slab_meets(ray: &RayF64, lo: [f64; 3], hi: [f64; 3]) -> bool {
 /// there. A quarter of the bytes of the FarBox, and no square root.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct BoundBox {
-    lo: [f32; 3],
-    hi: [f32; 3],
-    pad_base: f32,
-    pad_slope: f32,
+    pub lo: [f32; 3],
+    pub hi: [f32; 3],
+    pub pad_base: f32,
+    pub pad_slope: f32,
 }
 
 /// The greatest f32 at most `x` (NaN stays NaN).
-fn f32_down(x: f64) -> f32 {
+pub(crate) fn f32_down(x: f64) -> f32 {
     let y = x as f32;
     if (y as f64) <= x || y.is_nan() {
         y
@@ -202,7 +203,7 @@ fn f32_down(x: f64) -> f32 {
 }
 
 /// The least f32 at least `x`.
-fn f32_up(x: f64) -> f32 {
+pub(crate) fn f32_up(x: f64) -> f32 {
     -f32_down(-x)
 }
 
@@ -341,34 +342,6 @@ pub(crate) struct Item {
     pub primitive: u32,
 }
 
-/// A node of the tree without its bound.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct NodeLinks {
-    /// Leaf: first item; interior: index of the left child (the right child is `left + 1`).
-    pub first: u32,
-    /// Leaf: number of items (> 0); interior: 0.
-    pub count: u32,
-    /// Every item below is a triangle (a node a ray may skip behind a required hit).
-    pub triangles_only: bool,
-}
-
-/// The bounds of two sibling nodes, tested together.
-#[derive(Debug, Clone, Copy)]
-#[repr(C, align(64))]
-pub(crate) struct ChildBounds(pub [BoundBox; 2]);
-
-/// A node as the build makes it.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Node {
-    pub bounds: BoundBox,
-    /// Leaf: first item; interior: index of the left child (the right child is `left + 1`).
-    pub first: u32,
-    /// Leaf: number of items (> 0); interior: 0.
-    pub count: u32,
-    /// Every item below is a triangle (a node a ray may skip behind a required hit).
-    pub triangles_only: bool,
-}
-
 /// Shared-edge and shared-vertex topology of the triangles of one transform class of a bottom
 /// level (spec, "Watertightness": identical transforms within a single instance).
 #[derive(Debug, Default)]
@@ -397,14 +370,13 @@ pub struct PreparedScene {
     pub(crate) item_boxes: Vec<FarBox>,
     /// The compact bounds of each item's far box, in `items` order.
     pub(crate) item_bounds: Vec<ItemBounds>,
-    /// The tree: node 0 the root, the children of an interior node at `first` and `first + 1`.
-    pub(crate) nodes: Vec<NodeLinks>,
-    /// The bound of the root.
-    pub(crate) root_bound: BoundBox,
-    /// The bounds of nodes `2p + 1` and `2p + 2` (the children of one node), one cache line.
-    pub(crate) child_bounds: Vec<ChildBounds>,
+    /// The four-wide tree over `items` (see [`super::bvh`]).
+    pub(crate) tree: WideTree,
     /// `(instance, geometry)` of every AABB geometry with an active box, in instance order.
     pub(crate) procedural: Vec<(u32, u32)>,
+    /// Every geometry is opaque for a ray without opacity flags (its instance forces it opaque,
+    /// or does not force it non-opaque and the geometry is opaque).
+    pub(crate) all_opaque: bool,
     /// `(bottom level, transform class)` → topology, built on first use.
     pub(crate) topology: HashMap<(u32, u32), OnceLock<Topology>>,
 }
@@ -416,7 +388,7 @@ impl std::fmt::Debug for PreparedScene {
             "PreparedScene({} instances, {} primitives, {} nodes)",
             self.instances.len(),
             self.items.len(),
-            self.nodes.len()
+            self.tree.len()
         )
     }
 }
@@ -593,30 +565,12 @@ impl PreparedScene {
             .map(|it: &Item| geometries[it.geometry as usize].kind == PrimitiveKind::Triangle)
             .collect();
         let (items, item_boxes, nodes) = build_bvh(items, boxes, &triangle);
-        let item_bounds = item_boxes.iter().map(ItemBounds::of).collect();
-        let root_bound = nodes.first().map_or(
-            BoundBox {
-                lo: [0.0; 3],
-                hi: [0.0; 3],
-                pad_base: 0.0,
-                pad_slope: 0.0,
-            },
-            |n| n.bounds,
-        );
-        let child_bounds = nodes
-            .get(1..)
-            .unwrap_or_default()
-            .chunks_exact(2)
-            .map(|pair| ChildBounds([pair[0].bounds, pair[1].bounds]))
-            .collect();
-        let nodes = nodes
+        let item_bounds: Vec<ItemBounds> = item_boxes.iter().map(ItemBounds::of).collect();
+        let item_triangles: Vec<bool> = items
             .iter()
-            .map(|n| NodeLinks {
-                first: n.first,
-                count: n.count,
-                triangles_only: n.triangles_only,
-            })
+            .map(|it: &Item| geometries[it.geometry as usize].kind == PrimitiveKind::Triangle)
             .collect();
+        let tree = WideTree::new(&nodes, &item_bounds, &item_triangles);
         let procedural = geometries
             .iter()
             .filter(|w| w.kind == PrimitiveKind::Aabb)
@@ -631,16 +585,21 @@ impl PreparedScene {
             })
             .map(|w| (w.instance, w.geometry))
             .collect();
+        let all_opaque = geometries.iter().all(|w| {
+            let inst = &scene.instances[w.instance as usize];
+            let geometry =
+                &scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize];
+            inst.flags.force_opaque || (!inst.flags.force_no_opaque && geometry.flags.opaque)
+        });
         Ok(PreparedScene {
+            all_opaque,
             scene: scene.clone(),
             instances,
             geometries,
             items,
             item_boxes,
             item_bounds,
-            nodes,
-            root_bound,
-            child_bounds,
+            tree,
             procedural,
             topology,
         })
@@ -654,112 +613,6 @@ impl PreparedScene {
     /// Number of active primitives in the BVH.
     pub fn primitive_count(&self) -> usize {
         self.items.len()
-    }
-
-    /// Calls `visit` with the index of every item of every leaf whose padded box the ray does not
-    /// miss, nearer children first (`visit` applies the items' own far test). A node of triangles only is
-    /// skipped as well when its padded box is missed by the ray cut at `cut` (which `visit` may
-    /// lower as it goes; see `traverse::trace_ray`). Nodes are tested with their [`BoundBox`], so
-    /// a node is skipped only where every item below it is far; items are first tested so too,
-    /// and those it finds far (counted in `far_rejections`) or behind the cut are not visited.
-    pub(crate) fn for_each_near(
-        &self,
-        ray: &RayF64,
-        nodes_visited: &mut u64,
-        far_rejections: &mut u64,
-        cut: &std::cell::Cell<f64>,
-        mut visit: impl FnMut(usize),
-    ) {
-        let Some(root) = self.nodes.first() else {
-            return;
-        };
-        let limit = |node: &NodeLinks, c: f64| {
-            if node.triangles_only && c < ray.tmax {
-                c
-            } else {
-                ray.tmax
-            }
-        };
-        *nodes_visited += 1;
-        let Some(entry) = self.root_bound.entry(ray, limit(root, cut.get())) else {
-            return;
-        };
-        // Each level leaves at most one node on the stack: a fixed stack holds any tree up to 64
-        // levels deep, a Vec takes any excess.
-        let mut stack = [(0u32, 0f64); 64];
-        stack[0] = (0, entry);
-        let mut depth = 1usize;
-        let mut spill: Vec<(u32, f64)> = Vec::new();
-        loop {
-            let (n, entry) = if let Some(x) = spill.pop() {
-                x
-            } else if depth > 0 {
-                depth -= 1;
-                stack[depth]
-            } else {
-                break;
-            };
-            let node = &self.nodes[n as usize];
-            let c = cut.get();
-            // The cut may have fallen since the node was pushed: its entry t past the cut is a
-            // miss of the cut ray.
-            if node.triangles_only && entry > c {
-                continue;
-            }
-            if node.count > 0 {
-                // The leaf's items by entry t, nearer first (a nearer required hit may cut the
-                // others before they are classified).
-                let mut order = [(0f64, 0usize); LEAF_SIZE];
-                let mut len = 0;
-                for i in node.first as usize..(node.first + node.count) as usize {
-                    match self.item_bounds[i].outer.entry(ray, ray.tmax) {
-                        None => *far_rejections += 1,
-                        Some(e) => {
-                            let mut at = len;
-                            while at > 0 && order[at - 1].0 > e {
-                                order[at] = order[at - 1];
-                                at -= 1;
-                            }
-                            order[at] = (e, i);
-                            len += 1;
-                        }
-                    }
-                }
-                for &(e, i) in &order[..len] {
-                    let it = self.items[i];
-                    // Behind the cut: `visit` would leave the triangle out as well.
-                    if e > cut.get()
-                        && self.geometries[it.geometry as usize].kind == PrimitiveKind::Triangle
-                    {
-                        continue;
-                    }
-                    visit(i);
-                }
-                continue;
-            }
-            let (a, b) = (node.first, node.first + 1);
-            let (na, nb) = (&self.nodes[a as usize], &self.nodes[b as usize]);
-            *nodes_visited += 2;
-            let pair = &self.child_bounds[(a as usize - 1) / 2].0;
-            let ea = pair[0].entry(ray, limit(na, c));
-            let eb = pair[1].entry(ray, limit(nb, c));
-            // The nearer child (by its entry t) is popped first.
-            let order = match (ea, eb) {
-                (Some(x), Some(y)) if x <= y => [Some((b, y)), Some((a, x))],
-                (Some(x), Some(y)) => [Some((a, x)), Some((b, y))],
-                (Some(x), None) => [None, Some((a, x))],
-                (None, Some(y)) => [None, Some((b, y))],
-                (None, None) => [None, None],
-            };
-            for child in order.into_iter().flatten() {
-                if depth < stack.len() {
-                    stack[depth] = child;
-                    depth += 1;
-                } else {
-                    spill.push(child);
-                }
-            }
-        }
     }
 
     /// The topology of a bottom level's transform class.
@@ -812,170 +665,6 @@ impl BoundedF64 {
     }
 }
 
-const LEAF_SIZE: usize = 4;
-
 /// Relative slack on the pad bound of [`BoundBox`], far above the rounding of it and of the pad
 /// it bounds.
 const BOUND_SLACK: f64 = 1.0 + 1e-10;
-
-/// Bins of the surface-area split.
-const SAH_BINS: usize = 16;
-
-/// Half the surface area of a box (the chance a random ray through its parent meets it, up to a
-/// common factor).
-fn half_area(lo: &[f64; 3], hi: &[f64; 3]) -> f64 {
-    let d = [0, 1, 2].map(|k| (hi[k] - lo[k]).max(0.0));
-    d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
-}
-
-/// The surface-area split of `slice` (items binned by centroid along each axis, the plane of least
-/// `area(left)·n(left) + area(right)·n(right)`): reorders `slice` so the left part comes first
-/// and returns its length, or None where no plane has items on both sides.
-fn sah_split(
-    slice: &mut [u32],
-    boxes: &[FarBox],
-    cents: &[[f64; 3]],
-    clo: [f64; 3],
-    chi: [f64; 3],
-) -> Option<usize> {
-    let mut best: Option<(f64, usize, usize)> = None;
-    let bin_of = |c: f64, k: usize| -> usize {
-        let w = chi[k] - clo[k];
-        (((c - clo[k]) / w * SAH_BINS as f64) as usize).min(SAH_BINS - 1)
-    };
-    for k in 0..3 {
-        let w = chi[k] - clo[k];
-        if !(w > 0.0 && w.is_finite()) {
-            continue;
-        }
-        let mut count = [0usize; SAH_BINS];
-        let mut lo = [[f64::INFINITY; 3]; SAH_BINS];
-        let mut hi = [[f64::NEG_INFINITY; 3]; SAH_BINS];
-        for &i in slice.iter() {
-            let b = bin_of(cents[i as usize][k], k);
-            count[b] += 1;
-            let fb = &boxes[i as usize];
-            for a in 0..3 {
-                lo[b][a] = lo[b][a].min(fb.lo[a]);
-                hi[b][a] = hi[b][a].max(fb.hi[a]);
-            }
-        }
-        // Areas and counts of the left parts (bins 0..=p) and right parts (p+1..).
-        let mut left = [(0.0, 0usize); SAH_BINS];
-        let (mut l, mut h, mut n) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3], 0);
-        for p in 0..SAH_BINS {
-            for a in 0..3 {
-                l[a] = l[a].min(lo[p][a]);
-                h[a] = h[a].max(hi[p][a]);
-            }
-            n += count[p];
-            left[p] = (if n > 0 { half_area(&l, &h) } else { 0.0 }, n);
-        }
-        let (mut l, mut h, mut n) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3], 0);
-        for p in (1..SAH_BINS).rev() {
-            for a in 0..3 {
-                l[a] = l[a].min(lo[p][a]);
-                h[a] = h[a].max(hi[p][a]);
-            }
-            n += count[p];
-            let (la, ln) = left[p - 1];
-            if ln == 0 || n == 0 {
-                continue;
-            }
-            let cost = la * ln as f64 + half_area(&l, &h) * n as f64;
-            if best.is_none_or(|(c, _, _)| cost < c) {
-                best = Some((cost, k, p));
-            }
-        }
-    }
-    let (_, k, p) = best?;
-    // Partition: bins below p to the left, in a stable, deterministic order.
-    let (mut a, mut b): (Vec<u32>, Vec<u32>) = slice
-        .iter()
-        .partition(|&&i| bin_of(cents[i as usize][k], k) < p);
-    let mid = a.len();
-    a.append(&mut b);
-    slice.copy_from_slice(&a);
-    Some(mid)
-}
-
-/// Builds a BVH by surface-area splits (median splits where centroids coincide); items are
-/// reordered to leaves.
-fn build_bvh(
-    items: Vec<Item>,
-    boxes: Vec<FarBox>,
-    triangle: &[bool],
-) -> (Vec<Item>, Vec<FarBox>, Vec<Node>) {
-    let mut order: Vec<u32> = (0..items.len() as u32).collect();
-    let centroid = |b: &FarBox| [0, 1, 2].map(|k| 0.5 * (b.lo[k] + b.hi[k]));
-    let cents: Vec<[f64; 3]> = boxes.iter().map(centroid).collect();
-    let mut nodes: Vec<Node> = Vec::new();
-    if items.is_empty() {
-        return (items, boxes, nodes);
-    }
-    nodes.push(Node {
-        bounds: BoundBox::of(&boxes[0]),
-        first: 0,
-        count: 0,
-        triangles_only: false,
-    });
-    // (node index, range start, range end)
-    let mut work = vec![(0usize, 0usize, items.len())];
-    while let Some((n, start, end)) = work.pop() {
-        let slice = &mut order[start..end];
-        let mut bounds = boxes[slice[0] as usize];
-        let triangles_only = slice.iter().all(|&i| triangle[i as usize]);
-        let mut clo = [f64::INFINITY; 3];
-        let mut chi = [f64::NEG_INFINITY; 3];
-        for &i in slice.iter() {
-            bounds = bounds.union(&boxes[i as usize]);
-            for k in 0..3 {
-                clo[k] = clo[k].min(cents[i as usize][k]);
-                chi[k] = chi[k].max(cents[i as usize][k]);
-            }
-        }
-        if end - start <= LEAF_SIZE {
-            nodes[n] = Node {
-                bounds: BoundBox::of(&bounds),
-                first: start as u32,
-                count: (end - start) as u32,
-                triangles_only,
-            };
-            continue;
-        }
-        let mid = match sah_split(slice, &boxes, &cents, clo, chi) {
-            Some(mid) => mid,
-            None => {
-                // Centroids that no plane separates: a median split along the widest axis.
-                let axis = (0..3)
-                    .max_by(|&a, &b| (chi[a] - clo[a]).total_cmp(&(chi[b] - clo[b])))
-                    .unwrap_or(0);
-                let mid = (end - start) / 2;
-                slice.select_nth_unstable_by(mid, |&a, &b| {
-                    cents[a as usize][axis].total_cmp(&cents[b as usize][axis])
-                });
-                mid
-            }
-        };
-        let left = nodes.len();
-        let placeholder = Node {
-            bounds: BoundBox::of(&bounds),
-            first: 0,
-            count: 0,
-            triangles_only,
-        };
-        nodes.push(placeholder);
-        nodes.push(placeholder);
-        nodes[n] = Node {
-            bounds: BoundBox::of(&bounds),
-            first: left as u32,
-            count: 0,
-            triangles_only,
-        };
-        work.push((left, start, start + mid));
-        work.push((left + 1, start + mid, end));
-    }
-    let sorted_items = order.iter().map(|&i| items[i as usize]).collect();
-    let sorted_boxes = order.iter().map(|&i| boxes[i as usize]).collect();
-    (sorted_items, sorted_boxes, nodes)
-}

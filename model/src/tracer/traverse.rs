@@ -1,16 +1,10 @@
-//! One ray through a prepared scene: candidates after culling (spec, "Ray Intersection Culling"),
-//! confirmation ("Ray Intersection Confirmation"), and the set of committed hits, miss rule and
-//! invocation counts the traversal may produce ("Ray Closest Hit Determination", "Ray Result
-//! Determination"; semantics.md §2, §10).
-//!
-//! Traversal order is unspecified, so the allowed committed hits are: every confirmable candidate
-//! whose t may be at most the t of every required confirmable candidate (the closest, with
-//! overlapping intervals VARY), and — when the trace may end early — every confirmable candidate
-//! that could be confirmed first (TerminateOnFirstHit: any of them; an any-hit `Terminate` rule:
-//! those candidates).
+//! One ray through a prepared scene: candidates after culling (spec, "Ray Intersection Culling")
+//! and confirmation ("Ray Intersection Confirmation"); `conclude.rs` turns them into the set of
+//! committed hits, miss rule and invocation counts the traversal may produce.
 
-use super::arith::{affine, v3, BoundedF64, Dyadic, PlainF32, V3};
+use super::arith::{affine, map3, v3, BoundedF64, Dyadic, PlainF32, V3};
 use super::band::triangle_band;
+use super::conclude::conclude;
 use super::prepare::{Item, PreparedScene, RayF64, WorldGeometry};
 use super::sphere::{sphere_band, sphere_reports, sphere_signs, SphereSigns};
 use super::triangle::{
@@ -98,7 +92,7 @@ fn classify_triangle(
         unreachable!("triangle geometry")
     };
     let ids = t.vertex_indices(primitive as usize);
-    let pos = ids.map(|i| t.positions[i]);
+    let pos = map3(ids, |i| t.positions[i]);
     let miss = |reason| TriangleOutcome {
         class: PairClass::ReqMiss(reason),
         signs: None,
@@ -126,8 +120,8 @@ fn classify_triangle(
             }
         }
     }
-    let world_f64 = ids.map(|i| w.vertices[i].map(|x| x.value));
-    let radius = ids.map(|i| w.static_radius[i]);
+    let world_f64 = map3(ids, |i| map3(w.vertices[i], |x| x.value));
+    let radius = map3(ids, |i| w.static_radius[i]);
     let band = triangle_band(&inst.band, &world_f64, &radius, rf.origin, rf.direction);
     let evaluate_exact = || {
         let world = pos.map(|p| dyadic_world(scene, w, p));
@@ -144,7 +138,7 @@ fn classify_triangle(
     let ((signs, values), evaluation) = match precision {
         Precision::ExactOnly => (evaluate_exact(), Evaluation::Exact),
         Precision::F64WithExactFallback => {
-            let world = ids.map(|i| w.vertices[i]);
+            let world = map3(ids, |i| w.vertices[i]);
             match triangle_signs::<BoundedF64>(
                 &world,
                 &v3(ray.origin),
@@ -192,7 +186,7 @@ impl OptionTransform for Option<&crate::scene::Transform3x4> {
 
 /// Opacity of a candidate (spec, "Ray Opacity Culling"): ray flags beat the instance's FORCE_*
 /// flags, which beat the geometry's OPAQUE bit.
-fn opacity(ray: &Ray, inst: &SceneInstance, geometry_opaque: bool) -> bool {
+pub(super) fn opacity(ray: &Ray, inst: &SceneInstance, geometry_opaque: bool) -> bool {
     if ray.flags.contains(RayFlags::OPAQUE) {
         true
     } else if ray.flags.contains(RayFlags::NO_OPAQUE) {
@@ -207,7 +201,7 @@ fn opacity(ray: &Ray, inst: &SceneInstance, geometry_opaque: bool) -> bool {
 }
 
 /// Whether opacity culling drops the candidate (spec, "Ray Opacity Culling").
-fn opacity_culled(ray: &Ray, opaque: bool) -> bool {
+pub(super) fn opacity_culled(ray: &Ray, opaque: bool) -> bool {
     (ray.flags.contains(RayFlags::CULL_OPAQUE) && opaque)
         || (ray.flags.contains(RayFlags::CULL_NO_OPAQUE) && !opaque)
 }
@@ -234,6 +228,12 @@ fn confirmation(opaque: bool, shaders: &HitShaders, primitive: u32) -> Confirmat
 fn cut_allowed(scene: &PreparedScene, ray: &Ray, shaders: &ShaderTable<'_>) -> bool {
     if ray.flags.contains(RayFlags::TERMINATE_ON_FIRST_HIT) {
         return false;
+    }
+    // Every primitive opaque for this ray: none runs any-hit, whatever the shader table holds.
+    if ray.flags.contains(RayFlags::OPAQUE)
+        || (!ray.flags.contains(RayFlags::NO_OPAQUE) && scene.all_opaque)
+    {
+        return true;
     }
     scene.geometries.iter().all(|w| {
         let inst = &scene.scene.instances[w.instance as usize];
@@ -298,12 +298,15 @@ struct NearItem {
     /// Its index in the prepared scene's items.
     index: usize,
     outcome: Option<TriangleOutcome>,
+    /// The cut it was kept at (its padded box met by the ray cut there): the final cut, if the
+    /// same, would keep it again.
+    kept_at: f64,
 }
 
 /// A procedural primitive the intersection shader must run for.
-struct MustRun {
-    t_hi: f64,
-    primitive: PrimitiveRef,
+pub(super) struct MustRun {
+    pub t_hi: f64,
+    pub primitive: PrimitiveRef,
 }
 
 /// Traces one ray: the set of outcomes the spec allows. Fails with the ray's undefined things.
@@ -349,6 +352,7 @@ pub fn trace_ray(
                 item,
                 index: i,
                 outcome: None,
+                kept_at: f64::INFINITY,
             });
             return;
         }
@@ -376,6 +380,7 @@ pub fn trace_ray(
             item,
             index: i,
             outcome,
+            kept_at: c,
         });
     };
     if quick {
@@ -394,16 +399,18 @@ pub fn trace_ray(
         cut_ray.tmax = cut_at;
         near.retain(|n| {
             scene.geometries[n.item.geometry as usize].kind != PrimitiveKind::Triangle
+                || n.kept_at == cut_at
                 || !far(n.index, &cut_ray)
         });
     }
     // A deterministic order, independent of the BVH.
-    near.sort_by_key(|n| {
+    // (instance, geometry, primitive) is unique per item: an unstable sort gives the same order.
+    near.sort_unstable_by_key(|n| {
         let w = &scene.geometries[n.item.geometry as usize];
         (w.instance, w.geometry, n.item.primitive)
     });
 
-    let mut candidates: Vec<Candidate> = Vec::new();
+    let mut candidates: Vec<Candidate> = Vec::with_capacity(near.len());
     let hits = &mut scratch.hits;
     let mut must_run: Vec<MustRun> = Vec::new();
     for NearItem { item, outcome, .. } in near.drain(..) {
@@ -429,7 +436,8 @@ pub fn trace_ray(
             primitive: item.primitive,
         };
         let opaque = opacity(ray, inst, geometry.flags.opaque);
-        let hit_shaders = (shaders.hit)(w.instance, w.geometry);
+        // Resolved where a candidate needs it (most near pairs are misses).
+        let hit_shaders = || (shaders.hit)(w.instance, w.geometry);
         stats.pair_tests += 1;
         match w.kind {
             PrimitiveKind::Triangle => {
@@ -525,9 +533,10 @@ pub fn trace_ray(
                     vertices: tri.vertices(item.primitive as usize),
                     world: tri
                         .vertex_indices(item.primitive as usize)
-                        .map(|i| w.vertices[i].map(|x| x.value)),
+                        .map(|i| map3(w.vertices[i], |x| x.value)),
                     signs,
                 });
+                let hit_shaders = hit_shaders();
                 candidates.push(Candidate {
                     primitive: prim,
                     kind: PrimitiveKind::Triangle,
@@ -542,6 +551,7 @@ pub fn trace_ray(
                 });
             }
             PrimitiveKind::Aabb => {
+                let hit_shaders = hit_shaders();
                 if opacity_culled(ray, opaque) || !hit_shaders.has_intersection() {
                     stats.req_miss += 1;
                     continue;
@@ -670,144 +680,6 @@ struct Scratch {
 
 thread_local! {
     static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
-}
-
-/// From the candidates to the allowed committed hits, the miss rule and the invocation counts.
-fn conclude(
-    scene: &PreparedScene,
-    ray: &Ray,
-    shaders: &ShaderTable<'_>,
-    candidates: Vec<Candidate>,
-    must_run: Vec<MustRun>,
-    watertight: Vec<WatertightGroup>,
-) -> AllowedOutcomes {
-    let tofh = ray.flags.contains(RayFlags::TERMINATE_ON_FIRST_HIT);
-    // Per candidate: confirmable, may end the trace early, and the hull of its t intervals.
-    struct Facts {
-        confirmable: bool,
-        early: bool,
-        hull: Interval,
-    }
-    let fact = |c: &Candidate| {
-        let ok = c.confirmation.confirms();
-        Facts {
-            confirmable: ok,
-            early: ok
-                && (tofh || c.confirmation == Confirmation::AnyHitAccepts { terminates: true }),
-            hull: c.t_hull(),
-        }
-    };
-    // On the stack for the usual few candidates.
-    const FEW: usize = 8;
-    let mut few = [const {
-        Facts {
-            confirmable: false,
-            early: false,
-            hull: Interval::ALL,
-        }
-    }; FEW];
-    let many: Vec<Facts>;
-    let facts: &[Facts] = if candidates.len() <= FEW {
-        for (f, c) in few.iter_mut().zip(&candidates) {
-            *f = fact(c);
-        }
-        &few[..candidates.len()]
-    } else {
-        many = candidates.iter().map(fact).collect();
-        &many
-    };
-    let confirmable = |i: usize| facts[i].confirmable;
-    let early = |i: usize| facts[i].early;
-    let hulls = |i: usize| facts[i].hull;
-    let required = || {
-        (0..candidates.len())
-            .filter(|&i| confirmable(i) && candidates[i].presence == Presence::Required)
-    };
-    let no_required = required().next().is_none();
-    let committable: Vec<usize> = (0..candidates.len())
-        .filter(|&i| {
-            confirmable(i) && (early(i) || required().all(|r| r == i || hulls(i).lo <= hulls(r).hi))
-        })
-        .collect();
-    // A candidate must be processed when nothing can end the trace or shrink tmax below it first.
-    let must_process = |i: Option<usize>, t_hi: f64| -> bool {
-        (0..candidates.len())
-            .all(|c| Some(c) == i || !confirmable(c) || (!early(c) && hulls(c).lo > t_hi))
-    };
-    // Any-hit: at most once per candidate with NO_DUPLICATE_ANY_HIT, unbounded otherwise; with
-    // TerminateOnFirstHit every accepting invocation ends the trace.
-    let mut any_hit_max: Option<u32> = Some(0);
-    let mut accepting_any_hit = false;
-    let mut any_hit_min = 0u32;
-    for (i, c) in candidates.iter().enumerate() {
-        if !c.confirmation.runs_any_hit() {
-            continue;
-        }
-        let accepts = c.confirmation.confirms();
-        accepting_any_hit |= accepts;
-        if !(tofh && accepts) {
-            any_hit_max = match (any_hit_max, c.no_duplicate_any_hit) {
-                (Some(m), true) => Some(m + 1),
-                _ => None,
-            };
-        }
-        if c.presence == Presence::Required && must_process(Some(i), hulls(i).hi) {
-            any_hit_min += 1;
-        }
-    }
-    if tofh && accepting_any_hit {
-        any_hit_max = any_hit_max.map(|m| m + 1);
-    }
-    // Intersection shaders may run for any reachable box (boxes may be enlarged without bound).
-    let mut reachable_procedural = false;
-    if !ray.flags.contains(RayFlags::SKIP_AABBS) {
-        for &(i, g) in &scene.procedural {
-            let inst = &scene.scene.instances[i as usize];
-            if inst.mask as u32 & ray.cull_mask & 0xFF == 0 {
-                continue;
-            }
-            let b = inst
-                .bottom_level
-                .expect("a procedural geometry's instance has a level");
-            let geometry = &scene.scene.bottom_levels[b as usize].geometries[g as usize];
-            let opaque = opacity(ray, inst, geometry.flags.opaque);
-            if !opacity_culled(ray, opaque) && (shaders.hit)(i, g).has_intersection() {
-                reachable_procedural = true;
-            }
-        }
-    }
-    let intersection_min = must_run
-        .iter()
-        .filter(|m| {
-            let own = candidates.iter().position(|c| c.primitive == m.primitive);
-            must_process(own, m.t_hi)
-        })
-        .count() as u32;
-    let discouraged = no_required && watertight.iter().any(|g| g.expect_hit);
-    let vary = candidates.iter().any(|c| c.presence == Presence::Possible)
-        || committable.len() > 1
-        || candidates.iter().any(|c| c.reports.len() > 1);
-    AllowedOutcomes {
-        miss: MissRule {
-            allowed: no_required,
-            required: committable.is_empty(),
-            discouraged,
-        },
-        committable,
-        candidates,
-        miss_shader: shaders.miss,
-        skip_closest_hit: ray.flags.contains(RayFlags::SKIP_CLOSEST_HIT_SHADER),
-        any_hit: CountBounds {
-            min: any_hit_min,
-            max: any_hit_max,
-        },
-        intersection: CountBounds {
-            min: intersection_min,
-            max: if reachable_procedural { None } else { Some(0) },
-        },
-        watertight,
-        vary,
-    }
 }
 
 /// Traces every ray of a launch (one shader table for all, e.g. uniform SBT parameters).

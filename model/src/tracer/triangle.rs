@@ -11,7 +11,7 @@
 //! its band from [`super::band`]; the band constants are computed in f64 the same way in every mode,
 //! so only the signs of `quantity − constant` differ between modes, and those are certified.
 
-use super::arith::{sub3, triple, Num, V3};
+use super::arith::{map3, sub3, triple, Num, V3};
 use super::band::TriangleBand;
 use std::cmp::Ordering;
 
@@ -50,7 +50,7 @@ pub struct TriangleSigns {
 
 /// The f64 approximations (with error bounds) of the quantities, for intervals. A pair robustly
 /// outside two edges needs no more than its edge functions: its sum and plane are not evaluated
-/// (NaN, with an infinite bound).
+/// (NaN, with an infinite bound), nor its third edge function where the first two decide.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TriangleValues {
     pub edge: [(f64, f64); 3],
@@ -75,27 +75,52 @@ pub fn triangle_signs<T: Num>(
     tmax: f32,
     band: &TriangleBand,
 ) -> Option<(TriangleSigns, TriangleValues)> {
-    let a = [0, 1, 2].map(|k| sub3(&world[k], origin));
-    let e = [
-        triple(direction, &a[1], &a[2]),
-        triple(direction, &a[2], &a[0]),
-        triple(direction, &a[0], &a[1]),
-    ];
-    let mut values = TriangleValues {
-        edge: [0, 1, 2].map(|i| (e[i].approx(), e[i].error())),
-        sum: (f64::NAN, f64::INFINITY),
-        plane: (f64::NAN, f64::INFINITY),
-    };
-    let mut edges = [EdgeSide::Band; 3];
-    for i in 0..3 {
-        edges[i] = if sign_above(&e[i], band.edge[i])? == Ordering::Greater {
+    let a = map3([0, 1, 2], |k| sub3(&world[k], origin));
+    let side = |e: &T, bound: f64| -> Option<EdgeSide> {
+        Some(if sign_above(e, bound)? == Ordering::Greater {
             EdgeSide::Positive
-        } else if sign_below(&e[i], band.edge[i])? == Ordering::Less {
+        } else if sign_below(e, bound)? == Ordering::Less {
             EdgeSide::Negative
         } else {
             EdgeSide::Band
+        })
+    };
+    let e0 = triple(direction, &a[1], &a[2]);
+    let e1 = triple(direction, &a[2], &a[0]);
+    let mut values = TriangleValues {
+        edge: [
+            (e0.approx(), e0.error()),
+            (e1.approx(), e1.error()),
+            (f64::NAN, f64::INFINITY),
+        ],
+        sum: (f64::NAN, f64::INFINITY),
+        plane: (f64::NAN, f64::INFINITY),
+    };
+    let mut edges = [
+        side(&e0, band.edge[0])?,
+        side(&e1, band.edge[1])?,
+        EdgeSide::Band,
+    ];
+    let opposite = |x: EdgeSide, y: EdgeSide| {
+        matches!(
+            (x, y),
+            (EdgeSide::Positive, EdgeSide::Negative) | (EdgeSide::Negative, EdgeSide::Positive)
+        )
+    };
+    if opposite(edges[0], edges[1]) {
+        // Robustly on different sides of two edge lines: no perturbation can hit, whatever the
+        // third edge (its value is not evaluated: NaN with an infinite bound, its side Band).
+        let signs = TriangleSigns {
+            edges,
+            orientation: None,
+            window: WindowSide::Band,
         };
+        return Some((signs, values));
     }
+    let e2 = triple(direction, &a[0], &a[1]);
+    values.edge[2] = (e2.approx(), e2.error());
+    edges[2] = side(&e2, band.edge[2])?;
+    let e = [e0, e1, e2];
     let mixed = edges.contains(&EdgeSide::Positive) && edges.contains(&EdgeSide::Negative);
     if mixed {
         // Robustly on different sides of two edge lines: no perturbation can hit. Nothing else is

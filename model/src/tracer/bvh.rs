@@ -1,0 +1,643 @@
+//! The prepared scene's bounding volume hierarchy: a binned surface-area build of binary nodes,
+//! collapsed into a four-wide tree whose four child bounds are tested against a ray at once in f32
+//! lanes, with a margin that makes an f32 miss imply the f64 miss of the same [`BoundBox`] (hence
+//! the far test's: a node is skipped only where every item below it is far).
+//!
+//! The lane test's soundness. For a ray with every direction component in [2⁻⁴⁰, 2⁴⁰] and
+//! origin components at most 2⁶⁰, and bounds whose corners and pads are at most 2⁶⁰ (other rays
+//! and nodes take the f64 test of [`BoundBox::entry`]), each computed slab value
+//! `fl(fl(fl(face ∓ P) − o)·fl(1/d))` is the exact `t` of a face moved by at most
+//! `4.002·u₃₂·(R + P + |o|)` (`R` the largest corner magnitude of the box, `P` the f32 pad, no
+//! overflow or harmful underflow in that range); the f64 test's faces move by at most the same
+//! with `u₆₄`. The lane pad is `P ≥ (1 + 2⁻²⁰)·P₆₄ + 2⁻²⁰·(R + |o|)` (its coefficients rounded up,
+//! see [`LaneBounds::new`]), so the box the f32 computation decides exactly contains the one the
+//! f64 computation decides exactly; an f32 miss over `[tmin, tmax↑]` is an exact miss of the
+//! larger box, hence of the smaller, hence the f64 test's miss. An f32 entry `t` above a lower
+//! `tmax` is likewise an exact miss of the larger box at that `tmax`.
+
+use super::prepare::{f32_up, BoundBox, FarBox, Item, ItemBounds, PreparedScene, RayF64};
+
+#[cfg(test)]
+mod lane_tests;
+
+/// A node as the build makes it.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Node {
+    pub bounds: BoundBox,
+    /// Leaf: first item; interior: index of the left child (the right child is `left + 1`).
+    pub first: u32,
+    /// Leaf: number of items (> 0); interior: 0.
+    pub count: u32,
+    /// Every item below is a triangle (a node a ray may skip behind a required hit).
+    pub triangles_only: bool,
+}
+
+/// Relative margin of the lane pad (see the module comment): far above the 4.002·(u₃₂ + u₆₄) of
+/// the two slab computations.
+const LANE_MARGIN: f64 = 1.0 / 1_048_576.0;
+
+/// Largest magnitude of a corner, pad or origin component the lane test takes.
+const LANE_RANGE: f64 = (1u64 << 60) as f64;
+
+/// Four boxes in f32 lanes: corners per axis, and the lane pad `base + slope·|o|`.
+#[derive(Debug, Clone, Copy)]
+#[repr(C, align(64))]
+pub(crate) struct LaneBounds {
+    lo: [[f32; 4]; 3],
+    hi: [[f32; 4]; 3],
+    pad_base: [f32; 4],
+    pad_slope: [f32; 4],
+}
+
+impl LaneBounds {
+    /// The lanes of up to four bounds, and whether the lane test may decide them all.
+    fn new(boxes: &[BoundBox]) -> (LaneBounds, bool) {
+        LaneBounds::with_margin(boxes, LANE_MARGIN)
+    }
+
+    /// [`LaneBounds::new`] with another relative margin (a test's planted fault).
+    fn with_margin(boxes: &[BoundBox], margin: f64) -> (LaneBounds, bool) {
+        let mut l = LaneBounds {
+            lo: [[0.0; 4]; 3],
+            hi: [[0.0; 4]; 3],
+            pad_base: [0.0; 4],
+            pad_slope: [0.0; 4],
+        };
+        let mut fast = true;
+        for (lane, b) in boxes.iter().enumerate() {
+            let mut reach: f64 = 0.0;
+            for k in 0..3 {
+                l.lo[k][lane] = b.lo[k];
+                l.hi[k][lane] = b.hi[k];
+                reach = reach
+                    .max((b.lo[k] as f64).abs())
+                    .max((b.hi[k] as f64).abs());
+            }
+            // The pad's own two f32 roundings and the f64 roundings here stay far below the
+            // factor 1 + 2⁻²⁰; 2⁻¹⁰⁰ covers underflow of the slab products.
+            let grow = 1.0 + margin;
+            let base = (b.pad_base as f64 * grow + margin * reach + 2f64.powi(-100)) * grow;
+            let slope = (b.pad_slope as f64 * grow + margin) * grow;
+            l.pad_base[lane] = f32_up(base);
+            l.pad_slope[lane] = f32_up(slope);
+            // Also NaN fails these.
+            fast &= reach <= LANE_RANGE && base <= LANE_RANGE && slope <= 1024.0;
+        }
+        (l, fast)
+    }
+
+    /// Per lane, the entry t (the f32 slab test's near value), and as bit `lane` whether the lane
+    /// is hit, for the segment `[tmin, far[lane]]`.
+    #[inline]
+    #[cfg(target_arch = "x86_64")]
+    fn entries(&self, r: &LaneRay, far: [f32; 4]) -> ([f32; 4], u32) {
+        use std::arch::x86_64::*;
+        // SAFETY: SSE is part of x86_64; the loads read 16-byte aligned lanes of `self` (align 64,
+        // every lane array at a multiple of 16 bytes).
+        unsafe {
+            let pad = _mm_add_ps(
+                _mm_load_ps(self.pad_base.as_ptr()),
+                _mm_mul_ps(
+                    _mm_load_ps(self.pad_slope.as_ptr()),
+                    _mm_set1_ps(r.origin_norm),
+                ),
+            );
+            // Negation is exact: `face + (−pad)` rounds as `face − pad`.
+            let neg_pad = _mm_sub_ps(_mm_setzero_ps(), pad);
+            let mut near = _mm_set1_ps(r.tmin);
+            let mut far = _mm_loadu_ps(far.as_ptr());
+            for k in 0..3 {
+                let (first, last, inward, outward) = if r.positive[k] {
+                    (&self.lo[k], &self.hi[k], neg_pad, pad)
+                } else {
+                    (&self.hi[k], &self.lo[k], pad, neg_pad)
+                };
+                let o = _mm_set1_ps(r.origin[k]);
+                let inv = _mm_set1_ps(r.inv_direction[k]);
+                let t_in = _mm_mul_ps(
+                    _mm_sub_ps(_mm_add_ps(_mm_load_ps(first.as_ptr()), inward), o),
+                    inv,
+                );
+                let t_out = _mm_mul_ps(
+                    _mm_sub_ps(_mm_add_ps(_mm_load_ps(last.as_ptr()), outward), o),
+                    inv,
+                );
+                // No NaN reaches the lane test: max and min are the comparisons they stand for.
+                near = _mm_max_ps(t_in, near);
+                far = _mm_min_ps(t_out, far);
+            }
+            let hit = _mm_movemask_ps(_mm_cmple_ps(near, far)) as u32;
+            let mut out = [0f32; 4];
+            _mm_storeu_ps(out.as_mut_ptr(), near);
+            (out, hit)
+        }
+    }
+
+    /// [`LaneBounds::entries`] without SSE (the same operations lane by lane).
+    #[inline]
+    #[cfg(not(target_arch = "x86_64"))]
+    #[allow(clippy::needless_range_loop)] // lanes of several arrays indexed together
+    fn entries(&self, r: &LaneRay, mut far: [f32; 4]) -> ([f32; 4], u32) {
+        let mut pad = [0f32; 4];
+        for l in 0..4 {
+            pad[l] = self.pad_base[l] + self.pad_slope[l] * r.origin_norm;
+        }
+        let mut near = [r.tmin; 4];
+        for k in 0..3 {
+            let (first, last, s) = if r.positive[k] {
+                (&self.lo[k], &self.hi[k], 1.0f32)
+            } else {
+                (&self.hi[k], &self.lo[k], -1.0f32)
+            };
+            let (o, inv) = (r.origin[k], r.inv_direction[k]);
+            for l in 0..4 {
+                let t_in = (first[l] + -s * pad[l] - o) * inv;
+                let t_out = (last[l] + s * pad[l] - o) * inv;
+                near[l] = if t_in > near[l] { t_in } else { near[l] };
+                far[l] = if t_out < far[l] { t_out } else { far[l] };
+            }
+        }
+        let mut hit = 0;
+        for l in 0..4 {
+            hit |= ((near[l] <= far[l]) as u32) << l;
+        }
+        (near, hit)
+    }
+}
+
+/// The ray as the lane test takes it.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct LaneRay {
+    origin: [f32; 3],
+    inv_direction: [f32; 3],
+    positive: [bool; 3],
+    tmin: f32,
+    /// |o| rounded up.
+    origin_norm: f32,
+    /// tmax rounded up.
+    tmax: f32,
+    /// Within the lane test's range (see the module comment).
+    fast: bool,
+}
+
+impl LaneRay {
+    fn of(ray: &RayF64) -> LaneRay {
+        let d = ray.direction;
+        let fast = ray.oblique
+            && d.iter()
+                .all(|x| (2f64.powi(-40)..=2f64.powi(40)).contains(&x.abs()))
+            && ray.origin.iter().all(|x| x.abs() <= LANE_RANGE)
+            && ray.tmin.is_finite();
+        LaneRay {
+            // The ray's components are f32 values: exact.
+            origin: ray.origin.map(|x| x as f32),
+            inv_direction: d.map(|x| 1.0 / x as f32),
+            positive: d.map(|x| x > 0.0),
+            tmin: ray.tmin as f32,
+            origin_norm: f32_up(ray.origin_norm * (1.0 + 1e-12)),
+            tmax: f32_up(ray.tmax),
+            fast,
+        }
+    }
+}
+
+/// A node of the four-wide tree: up to four lanes, each a child node (interior) or an item (leaf).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct WideNode {
+    bounds: LaneBounds,
+    /// Per lane: the child's index in the tree (interior) or the item's index (leaf).
+    child: [u32; 4],
+    count: u8,
+    leaf: bool,
+    /// The lane test decides every lane (otherwise the f64 test of each lane's [`BoundBox`]).
+    fast: bool,
+    /// Every item below this node is a triangle.
+    triangles_only: bool,
+    /// Bit `lane`: every item below the lane is a triangle.
+    lane_triangles: u8,
+}
+
+/// The four-wide tree: node 0 the root, with the root's own bound, and each node's lanes' f64
+/// bounds beside it.
+#[derive(Debug, Default)]
+pub(crate) struct WideTree {
+    nodes: Vec<WideNode>,
+    boxes: Vec<[BoundBox; 4]>,
+    root_bound: Option<BoundBox>,
+}
+
+const EMPTY_BOX: BoundBox = BoundBox {
+    lo: [0.0; 3],
+    hi: [0.0; 3],
+    pad_base: 0.0,
+    pad_slope: 0.0,
+};
+
+impl WideTree {
+    /// Collapses a binary tree (node 0 the root, children at `first` and `first + 1`): a wide
+    /// node's lanes are its binary node's grandchildren (a leaf child stands for itself), a binary
+    /// leaf becomes a wide leaf whose lanes are its items.
+    pub(crate) fn new(binary: &[Node], items: &[ItemBounds], triangle: &[bool]) -> WideTree {
+        let mut tree = WideTree::default();
+        let Some(root) = binary.first() else {
+            return tree;
+        };
+        tree.root_bound = Some(root.bounds);
+        tree.add(binary, 0, items, triangle);
+        tree
+    }
+
+    pub(crate) fn len(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Asks the cache for node `n` (a hint: no effect on any result).
+    #[inline]
+    fn prefetch(&self, n: u32) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(node) = self.nodes.get(n as usize) {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            let p = node as *const WideNode as *const i8;
+            // SAFETY: a prefetch reads nothing and the addresses lie within the node.
+            unsafe {
+                _mm_prefetch(p, _MM_HINT_T0);
+                _mm_prefetch(p.add(64), _MM_HINT_T0);
+                _mm_prefetch(p.add(128), _MM_HINT_T0);
+            }
+        }
+    }
+
+    /// Adds the wide node of binary node `n` (and everything below it); its index.
+    fn add(&mut self, binary: &[Node], n: usize, items: &[ItemBounds], triangle: &[bool]) -> u32 {
+        let node = binary[n];
+        let at = self.nodes.len();
+        let mut boxes = [EMPTY_BOX; 4];
+        let mut child = [0u32; 4];
+        let mut lane_triangles = 0u8;
+        let count;
+        let leaf = node.count > 0;
+        // Reserve the slot: children come after their parent.
+        self.nodes.push(WideNode {
+            bounds: LaneBounds::new(&[]).0,
+            child,
+            count: 0,
+            leaf,
+            fast: false,
+            triangles_only: node.triangles_only,
+            lane_triangles,
+        });
+        self.boxes.push(boxes);
+        if leaf {
+            count = node.count as usize;
+            assert!(count <= 4, "a binary leaf holds at most four items");
+            for l in 0..count {
+                let i = node.first as usize + l;
+                boxes[l] = items[i].outer;
+                child[l] = i as u32;
+                lane_triangles |= (triangle[i] as u8) << l;
+            }
+        } else {
+            let mut lanes = Vec::with_capacity(4);
+            for c in [node.first as usize, node.first as usize + 1] {
+                if binary[c].count > 0 {
+                    lanes.push(c);
+                } else {
+                    lanes.push(binary[c].first as usize);
+                    lanes.push(binary[c].first as usize + 1);
+                }
+            }
+            count = lanes.len();
+            for (l, &c) in lanes.iter().enumerate() {
+                boxes[l] = binary[c].bounds;
+                lane_triangles |= (binary[c].triangles_only as u8) << l;
+                child[l] = self.add(binary, c, items, triangle);
+            }
+        }
+        let (bounds, fast) = LaneBounds::new(&boxes[..count]);
+        self.nodes[at] = WideNode {
+            bounds,
+            child,
+            count: count as u8,
+            leaf,
+            fast,
+            triangles_only: node.triangles_only,
+            lane_triangles,
+        };
+        self.boxes[at] = boxes;
+        at as u32
+    }
+}
+
+/// Items of a leaf, or children of a node, a ray may meet: at most four.
+type Lanes = [(f64, u32, bool); 4];
+
+impl PreparedScene {
+    /// Per lane of tree node `n` the ray's entry t and whether it may meet the lane's bound over
+    /// `[tmin, limit]`, `limit` the cut for a lane of triangles only where `cut` is given, `tmax`
+    /// otherwise (f32 lanes where they decide, else the f64 [`BoundBox::entry`]); the lanes met,
+    /// nearer first, in `out`, and their number.
+    #[inline]
+    fn lane_entries(
+        &self,
+        n: usize,
+        ray: &RayF64,
+        lane_ray: &LaneRay,
+        cut: Option<f64>,
+        out: &mut Lanes,
+    ) -> usize {
+        let node = &self.tree.nodes[n];
+        let count = node.count as usize;
+        let mut len = 0;
+        let mut push = |e: f64, l: usize| {
+            let mut at = len;
+            while at > 0 && out[at - 1].0 > e {
+                out[at] = out[at - 1];
+                at -= 1;
+            }
+            out[at] = (e, node.child[l], node.lane_triangles & (1 << l) != 0);
+            len += 1;
+        };
+        if lane_ray.fast && node.fast {
+            let mut far = [lane_ray.tmax; 4];
+            if let Some(c) = cut {
+                let c = f32_up(c);
+                for (l, f) in far.iter_mut().enumerate() {
+                    if node.lane_triangles & (1 << l) != 0 {
+                        *f = c;
+                    }
+                }
+            }
+            let (near, hit) = node.bounds.entries(lane_ray, far);
+            let mut hit = hit & ((1u32 << count) - 1);
+            while hit != 0 {
+                let l = hit.trailing_zeros() as usize;
+                hit &= hit - 1;
+                push(near[l] as f64, l);
+            }
+        } else {
+            let boxes = &self.tree.boxes[n];
+            for (l, b) in boxes.iter().enumerate().take(count) {
+                let limit = match cut {
+                    Some(c) if node.lane_triangles & (1 << l) != 0 => c,
+                    _ => ray.tmax,
+                };
+                if let Some(e) = b.entry(ray, limit) {
+                    push(e, l);
+                }
+            }
+        }
+        len
+    }
+
+    /// Calls `visit` with the index of every item of every leaf whose padded box the ray does not
+    /// miss, nearer children first (`visit` applies the items' own far test). A node of triangles
+    /// only is skipped as well when its padded box is missed by the ray cut at `cut` (which `visit`
+    /// may lower as it goes; see `traverse::trace_ray`). Nodes are tested with their bounds (the
+    /// lane test, or [`BoundBox::entry`]), so a node is skipped only where every item below it is
+    /// far; items are first tested so too, and those found far (counted in `far_rejections`) or
+    /// behind the cut are not visited.
+    pub(crate) fn for_each_near(
+        &self,
+        ray: &RayF64,
+        nodes_visited: &mut u64,
+        far_rejections: &mut u64,
+        cut: &std::cell::Cell<f64>,
+        mut visit: impl FnMut(usize),
+    ) {
+        let (Some(root), Some(root_bound)) = (self.tree.nodes.first(), self.tree.root_bound) else {
+            return;
+        };
+        let limit = |triangles_only: bool, c: f64| {
+            if triangles_only && c < ray.tmax {
+                c
+            } else {
+                ray.tmax
+            }
+        };
+        *nodes_visited += 1;
+        let Some(entry) = root_bound.entry(ray, limit(root.triangles_only, cut.get())) else {
+            return;
+        };
+        let lane_ray = LaneRay::of(ray);
+        // Each level leaves at most three nodes on the stack: a fixed stack holds any tree up to
+        // 64 levels deep, a Vec takes any excess.
+        let mut stack = [(0u32, 0f64); 192];
+        stack[0] = (0, entry);
+        let mut depth = 1usize;
+        let mut spill: Vec<(u32, f64)> = Vec::new();
+        let mut lanes: Lanes = [(0.0, 0, false); 4];
+        loop {
+            let (n, entry) = if let Some(x) = spill.pop() {
+                x
+            } else if depth > 0 {
+                depth -= 1;
+                stack[depth]
+            } else {
+                break;
+            };
+            let node = &self.tree.nodes[n as usize];
+            let c = cut.get();
+            // The cut may have fallen since the node was pushed: its entry t past the cut is a
+            // miss of the cut ray.
+            if node.triangles_only && entry > c {
+                continue;
+            }
+            if node.leaf {
+                // The leaf's items by entry t, nearer first (a nearer required hit may cut the
+                // others before they are classified).
+                let len = self.lane_entries(n as usize, ray, &lane_ray, None, &mut lanes);
+                *far_rejections += node.count as u64 - len as u64;
+                for &(e, i, triangle) in &lanes[..len] {
+                    // Behind the cut: `visit` would leave the triangle out as well.
+                    if triangle && e > cut.get() {
+                        continue;
+                    }
+                    visit(i as usize);
+                }
+                continue;
+            }
+            *nodes_visited += node.count as u64;
+            let len = self.lane_entries(
+                n as usize,
+                ray,
+                &lane_ray,
+                (c < ray.tmax).then_some(c),
+                &mut lanes,
+            );
+            // The nearest child is popped first; the others are fetched while it is traversed.
+            for &(e, child, _) in lanes[..len].iter().rev() {
+                self.tree.prefetch(child);
+                if depth < stack.len() {
+                    stack[depth] = (child, e);
+                    depth += 1;
+                } else {
+                    spill.push((child, e));
+                }
+            }
+        }
+    }
+}
+
+const LEAF_SIZE: usize = 4;
+
+/// Bins of the surface-area split.
+const SAH_BINS: usize = 16;
+
+/// Half the surface area of a box (the chance a random ray through its parent meets it, up to a
+/// common factor).
+fn half_area(lo: &[f64; 3], hi: &[f64; 3]) -> f64 {
+    let d = [0, 1, 2].map(|k| (hi[k] - lo[k]).max(0.0));
+    d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+}
+
+/// The surface-area split of `slice` (items binned by centroid along each axis, the plane of least
+/// `area(left)·n(left) + area(right)·n(right)`): reorders `slice` so the left part comes first
+/// and returns its length, or None where no plane has items on both sides.
+fn sah_split(
+    slice: &mut [u32],
+    boxes: &[FarBox],
+    cents: &[[f64; 3]],
+    clo: [f64; 3],
+    chi: [f64; 3],
+) -> Option<usize> {
+    let mut best: Option<(f64, usize, usize)> = None;
+    let bin_of = |c: f64, k: usize| -> usize {
+        let w = chi[k] - clo[k];
+        (((c - clo[k]) / w * SAH_BINS as f64) as usize).min(SAH_BINS - 1)
+    };
+    for k in 0..3 {
+        let w = chi[k] - clo[k];
+        if !(w > 0.0 && w.is_finite()) {
+            continue;
+        }
+        let mut count = [0usize; SAH_BINS];
+        let mut lo = [[f64::INFINITY; 3]; SAH_BINS];
+        let mut hi = [[f64::NEG_INFINITY; 3]; SAH_BINS];
+        for &i in slice.iter() {
+            let b = bin_of(cents[i as usize][k], k);
+            count[b] += 1;
+            let fb = &boxes[i as usize];
+            for a in 0..3 {
+                lo[b][a] = lo[b][a].min(fb.lo[a]);
+                hi[b][a] = hi[b][a].max(fb.hi[a]);
+            }
+        }
+        // Areas and counts of the left parts (bins 0..=p) and right parts (p+1..).
+        let mut left = [(0.0, 0usize); SAH_BINS];
+        let (mut l, mut h, mut n) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3], 0);
+        for p in 0..SAH_BINS {
+            for a in 0..3 {
+                l[a] = l[a].min(lo[p][a]);
+                h[a] = h[a].max(hi[p][a]);
+            }
+            n += count[p];
+            left[p] = (if n > 0 { half_area(&l, &h) } else { 0.0 }, n);
+        }
+        let (mut l, mut h, mut n) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3], 0);
+        for p in (1..SAH_BINS).rev() {
+            for a in 0..3 {
+                l[a] = l[a].min(lo[p][a]);
+                h[a] = h[a].max(hi[p][a]);
+            }
+            n += count[p];
+            let (la, ln) = left[p - 1];
+            if ln == 0 || n == 0 {
+                continue;
+            }
+            let cost = la * ln as f64 + half_area(&l, &h) * n as f64;
+            if best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, k, p));
+            }
+        }
+    }
+    let (_, k, p) = best?;
+    // Partition: bins below p to the left, in a stable, deterministic order.
+    let (mut a, mut b): (Vec<u32>, Vec<u32>) = slice
+        .iter()
+        .partition(|&&i| bin_of(cents[i as usize][k], k) < p);
+    let mid = a.len();
+    a.append(&mut b);
+    slice.copy_from_slice(&a);
+    Some(mid)
+}
+
+/// Builds a BVH by surface-area splits (median splits where centroids coincide); items are
+/// reordered to leaves.
+pub(crate) fn build_bvh(
+    items: Vec<Item>,
+    boxes: Vec<FarBox>,
+    triangle: &[bool],
+) -> (Vec<Item>, Vec<FarBox>, Vec<Node>) {
+    let mut order: Vec<u32> = (0..items.len() as u32).collect();
+    let centroid = |b: &FarBox| [0, 1, 2].map(|k| 0.5 * (b.lo[k] + b.hi[k]));
+    let cents: Vec<[f64; 3]> = boxes.iter().map(centroid).collect();
+    let mut nodes: Vec<Node> = Vec::new();
+    if items.is_empty() {
+        return (items, boxes, nodes);
+    }
+    nodes.push(Node {
+        bounds: BoundBox::of(&boxes[0]),
+        first: 0,
+        count: 0,
+        triangles_only: false,
+    });
+    // (node index, range start, range end)
+    let mut work = vec![(0usize, 0usize, items.len())];
+    while let Some((n, start, end)) = work.pop() {
+        let slice = &mut order[start..end];
+        let mut bounds = boxes[slice[0] as usize];
+        let triangles_only = slice.iter().all(|&i| triangle[i as usize]);
+        let mut clo = [f64::INFINITY; 3];
+        let mut chi = [f64::NEG_INFINITY; 3];
+        for &i in slice.iter() {
+            bounds = bounds.union(&boxes[i as usize]);
+            for k in 0..3 {
+                clo[k] = clo[k].min(cents[i as usize][k]);
+                chi[k] = chi[k].max(cents[i as usize][k]);
+            }
+        }
+        if end - start <= LEAF_SIZE {
+            nodes[n] = Node {
+                bounds: BoundBox::of(&bounds),
+                first: start as u32,
+                count: (end - start) as u32,
+                triangles_only,
+            };
+            continue;
+        }
+        let mid = match sah_split(slice, &boxes, &cents, clo, chi) {
+            Some(mid) => mid,
+            None => {
+                // Centroids that no plane separates: a median split along the widest axis.
+                let axis = (0..3)
+                    .max_by(|&a, &b| (chi[a] - clo[a]).total_cmp(&(chi[b] - clo[b])))
+                    .unwrap_or(0);
+                let mid = (end - start) / 2;
+                slice.select_nth_unstable_by(mid, |&a, &b| {
+                    cents[a as usize][axis].total_cmp(&cents[b as usize][axis])
+                });
+                mid
+            }
+        };
+        let left = nodes.len();
+        let placeholder = Node {
+            bounds: BoundBox::of(&bounds),
+            first: 0,
+            count: 0,
+            triangles_only,
+        };
+        nodes.push(placeholder);
+        nodes.push(placeholder);
+        nodes[n] = Node {
+            bounds: BoundBox::of(&bounds),
+            first: left as u32,
+            count: 0,
+            triangles_only,
+        };
+        work.push((left, start, start + mid));
+        work.push((left + 1, start + mid, end));
+    }
+    let sorted_items = order.iter().map(|&i| items[i as usize]).collect();
+    let sorted_boxes = order.iter().map(|&i| boxes[i as usize]).collect();
+    (sorted_items, sorted_boxes, nodes)
+}
