@@ -31,6 +31,42 @@ pub fn of<T: serde::Serialize + ?Sized>(value: &T) -> Option<u128> {
     Some((feed.0.finish() as u128) << 64 | feed.1.finish() as u128)
 }
 
+/// Values kept by fingerprint, at most `KEPT` of them (all forgotten when full): a memo for `static`s.
+pub struct Memo<V, const KEPT: usize> {
+    map: std::sync::Mutex<Option<std::collections::HashMap<u128, V>>>,
+}
+
+impl<V: Clone, const KEPT: usize> Memo<V, KEPT> {
+    pub const fn new() -> Self {
+        Memo {
+            map: std::sync::Mutex::new(None),
+        }
+    }
+
+    /// The value kept for `key`, or `make`'s, kept for next time (no key: made, not kept).
+    pub fn get_or(&self, key: Option<u128>, make: impl FnOnce() -> V) -> V {
+        let Some(k) = key else { return make() };
+        let lock = || self.map.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(v) = lock().as_ref().and_then(|m| m.get(&k)) {
+            return v.clone();
+        }
+        let v = make();
+        let mut map = lock();
+        let m = map.get_or_insert_with(std::collections::HashMap::new);
+        if m.len() >= KEPT {
+            m.clear();
+        }
+        m.insert(k, v.clone());
+        v
+    }
+}
+
+impl<V: Clone, const KEPT: usize> Default for Memo<V, KEPT> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     #[test]
@@ -41,5 +77,25 @@ mod tests {
         assert_ne!(super::of(&a), super::of(&b));
         let nan_payload = vec![1.0f32, f32::from_bits(0x7fc0_0001), -0.0];
         assert_ne!(super::of(&a), super::of(&nan_payload));
+    }
+
+    #[test]
+    fn a_memo_makes_each_value_once_and_forgets_when_full() {
+        let memo: super::Memo<u32, 2> = super::Memo::new();
+        let mut made = 0;
+        for k in [1u128, 1, 2, 1] {
+            memo.get_or(Some(k), || {
+                made += 1;
+                k as u32
+            });
+        }
+        assert_eq!(made, 2);
+        assert_eq!(memo.get_or(Some(3), || 30), 30);
+        assert_eq!(
+            memo.get_or(Some(1), || 10),
+            10,
+            "a full memo forgets what it kept"
+        );
+        assert_eq!(memo.get_or(None, || 7), 7);
     }
 }

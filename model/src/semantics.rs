@@ -347,29 +347,30 @@ pub fn launch_hit_reach(
     if rays.is_empty() {
         return vec![];
     }
+    let keys: Vec<[u32; 13]> = rays.iter().map(ray_key).collect();
+    // The generator, the gate, the rules and the judgement of one case each ask for the same launch's
+    // reach, the generator and the gate a whole chunk of cases apart; a launch traced once serves
+    // them all, found by the fingerprint of its scene and traced rays.
+    static MEMO: crate::fingerprint::Memo<Vec<(u64, GeometryKind)>, 4096> =
+        crate::fingerprint::Memo::new();
+    MEMO.get_or(crate::fingerprint::of(&(&launch.scene, &keys)), || {
+        traced_hit_reach(launch, &rays, &keys)
+    })
+}
+
+/// [`launch_hit_reach`] traced: the union of the distinct rays' [`ray_reach`] as hit records.
+fn traced_hit_reach(
+    launch: &crate::world::Launch,
+    rays: &[Ray],
+    keys: &[[u32; 13]],
+) -> Vec<(u64, GeometryKind)> {
     let Some(prepared) = prepared(&launch.scene) else {
         return vec![];
     };
-    let keys: Vec<[u32; 13]> = rays.iter().map(ray_key).collect();
-    // The gate, the rules and the judgement of one case each ask for the same launch's reach (several
-    // predicates per case); a launch traced once serves them all. Entries are found by the prepared
-    // scene (one `Arc` per scene content while `prepared` keeps it, and the entry holds it, so its
-    // address is never reused) and the traced rays bit for bit.
-    type Reach = (Arc<PreparedScene>, Vec<[u32; 13]>, Vec<(u64, GeometryKind)>);
-    static MEMO: Mutex<Vec<Reach>> = Mutex::new(Vec::new());
-    {
-        let memo = MEMO.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((_, _, reach)) = memo
-            .iter()
-            .find(|(p, k, _)| Arc::ptr_eq(p, &prepared) && *k == keys)
-        {
-            return reach.clone();
-        }
-    }
     let scene = &launch.scene;
     let mut out: BTreeSet<(u64, GeometryKind)> = BTreeSet::new();
     let mut seen: std::collections::HashSet<[u32; 13]> = std::collections::HashSet::new();
-    for (ray, key) in rays.iter().zip(&keys) {
+    for (ray, key) in rays.iter().zip(keys) {
         if !seen.insert(*key) {
             continue;
         }
@@ -381,13 +382,7 @@ pub fn launch_hit_reach(
             ));
         }
     }
-    let reach: Vec<(u64, GeometryKind)> = out.into_iter().collect();
-    let mut memo = MEMO.lock().unwrap_or_else(|e| e.into_inner());
-    memo.push((prepared, keys, reach.clone()));
-    if memo.len() > 4 {
-        memo.remove(0);
-    }
-    reach
+    out.into_iter().collect()
 }
 
 /// The shader group a hit record holds, as the tracer sees it: a zero handle is the zero group; a
@@ -511,29 +506,14 @@ pub fn records_read(world: &World, call: &Call) -> Vec<(Table, u64)> {
     // The gate asks for a case's records long before the rules of its judgement do (a run gates a
     // whole chunk of cases first), and tracing a rendered launch's rays costs far more than
     // fingerprinting it; so the records are kept by the fingerprint of the world and the call.
-    static MEMO: Mutex<Option<HashMap<u128, Vec<(Table, u64)>>>> = Mutex::new(None);
-    const KEPT: usize = 4096;
+    static MEMO: crate::fingerprint::Memo<Vec<(Table, u64)>, 4096> =
+        crate::fingerprint::Memo::new();
     let key = match call {
         Call::TraceRaysIndirect(c) => crate::fingerprint::of(&(world, 0u8, c)),
         Call::TraceRays(c) => crate::fingerprint::of(&(world, 1u8, c)),
         Call::TraceRaysNv(c) => crate::fingerprint::of(&(world, 2u8, c)),
     };
-    if let Some(k) = key {
-        let memo = MEMO.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(read) = memo.as_ref().and_then(|m| m.get(&k)) {
-            return read.clone();
-        }
-    }
-    let read = records_read_traced(world, call);
-    if let Some(k) = key {
-        let mut memo = MEMO.lock().unwrap_or_else(|e| e.into_inner());
-        let m = memo.get_or_insert_with(HashMap::new);
-        if m.len() >= KEPT {
-            m.clear();
-        }
-        m.insert(k, read.clone());
-    }
-    read
+    MEMO.get_or(key, || records_read_traced(world, call))
 }
 
 /// [`records_read`] computed: the hit records of the launch's reach, and a miss record for each ray a
