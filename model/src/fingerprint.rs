@@ -4,31 +4,28 @@
 
 use std::hash::Hasher;
 
-/// A writer that feeds two independently keyed hashers.
-struct Feed(
-    std::collections::hash_map::DefaultHasher,
-    std::collections::hash_map::DefaultHasher,
-);
-
-impl std::io::Write for Feed {
-    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        self.0.write(buf);
-        self.1.write(buf);
-        Ok(buf.len())
-    }
-    fn flush(&mut self) -> std::io::Result<()> {
-        Ok(())
-    }
-}
-
 /// The fingerprint of `value`: equal values always get equal fingerprints; different ones differ
 /// but with a chance of about 2^-128. None when the value does not serialise.
 pub fn of<T: serde::Serialize + ?Sized>(value: &T) -> Option<u128> {
+    of_with_words(value, &[])
+}
+
+/// The fingerprint of `value` followed by `words` (taken as they are: a long run of plain words,
+/// such as a launch's ray keys, costs a copy instead of a CBOR item each).
+pub fn of_with_words<T: serde::Serialize + ?Sized>(value: &T, words: &[u32]) -> Option<u128> {
+    let mut bytes = Vec::new();
+    ciborium::into_writer(value, &mut bytes).ok()?;
+    bytes.reserve(words.len() * 4 + 8);
+    bytes.extend_from_slice(&(words.len() as u64).to_le_bytes());
+    for w in words {
+        bytes.extend_from_slice(&w.to_le_bytes());
+    }
+    let mut first = std::collections::hash_map::DefaultHasher::new();
     let mut second = std::collections::hash_map::DefaultHasher::new();
     second.write_u64(0x9e37_79b9_7f4a_7c15);
-    let mut feed = Feed(std::collections::hash_map::DefaultHasher::new(), second);
-    ciborium::into_writer(value, &mut feed).ok()?;
-    Some((feed.0.finish() as u128) << 64 | feed.1.finish() as u128)
+    first.write(&bytes);
+    second.write(&bytes);
+    Some((first.finish() as u128) << 64 | second.finish() as u128)
 }
 
 /// Values kept by fingerprint, at most `KEPT` of them (all forgotten when full): a memo for `static`s.
@@ -77,6 +74,14 @@ mod tests {
         assert_ne!(super::of(&a), super::of(&b));
         let nan_payload = vec![1.0f32, f32::from_bits(0x7fc0_0001), -0.0];
         assert_ne!(super::of(&a), super::of(&nan_payload));
+        assert_ne!(
+            super::of_with_words(&a, &[1, 2]),
+            super::of_with_words(&a, &[1, 3])
+        );
+        assert_ne!(
+            super::of_with_words(&a, &[]),
+            super::of_with_words(&a, &[0])
+        );
     }
 
     #[test]

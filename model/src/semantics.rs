@@ -353,9 +353,8 @@ pub fn launch_hit_reach(
     // them all, found by the fingerprint of its scene and traced rays.
     static MEMO: crate::fingerprint::Memo<Vec<(u64, GeometryKind)>, 4096> =
         crate::fingerprint::Memo::new();
-    MEMO.get_or(crate::fingerprint::of(&(&launch.scene, &keys)), || {
-        traced_hit_reach(launch, &rays, &keys)
-    })
+    let fingerprint = crate::fingerprint::of_with_words(&launch.scene, keys.as_flattened());
+    MEMO.get_or(fingerprint, || traced_hit_reach(launch, &rays, &keys))
 }
 
 /// [`launch_hit_reach`] traced: the union of the distinct rays' [`ray_reach`] as hit records.
