@@ -24,6 +24,7 @@
 //! The run's lavapipe shader cache (Mesa's, on disk) is warm after the first run on a machine: the
 //! harness makes each valid pipeline as the same code every time (see `harness::Executor`), so the
 //! figures are those of a second run. A first run on a fresh machine compiles each pipeline once.
+//! `RTCONF_BENCH_DIR=DIR` keeps every run folder and the 64x64 case folder under DIR.
 
 use harness::{Driver, Execution, Executor};
 use model::case::Case;
@@ -230,16 +231,26 @@ fn repo() -> PathBuf {
 }
 
 fn main() {
+    // RTCONF_BENCH_DIR keeps the runs' folders (and the 64x64 case folder) there for inspection.
+    let kept = std::env::var_os("RTCONF_BENCH_DIR").map(PathBuf::from);
     let tmp = tempfile::tempdir().expect("a temporary folder");
+    let tmp = match &kept {
+        Some(dir) => {
+            std::fs::create_dir_all(dir).expect("RTCONF_BENCH_DIR is writable");
+            dir.clone()
+        }
+        None => tmp.path().to_path_buf(),
+    };
+    let tmp = &tmp;
     let mut lines = Vec::new();
     let mut invalid_share = f64::NAN;
     let mut overhead = f64::NAN;
     let mut judge_over_gpu = f64::NAN;
-    for s in selections(tmp.path()) {
-        let out = tmp.path().join(s.name);
+    for s in selections(tmp) {
+        let out = tmp.join(s.name);
         let (seconds, cases, time) = end_to_end(&s, &out);
         let run_rate = cases as f64 / seconds;
-        let ceiling = in_process_rate(&s, &tmp.path().join(format!("{}-list", s.name)));
+        let ceiling = in_process_rate(&s, &tmp.join(format!("{}-list", s.name)));
         lines.push(format!("run {} cases/s: {run_rate:.0}", s.name));
         lines.push(format!("in-process {} cases/s: {ceiling:.0}", s.name));
         lines.push(format!("{} cases: {cases} in {seconds:.2} s", s.name));
