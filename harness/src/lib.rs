@@ -33,5 +33,5 @@ pub mod resource_glsl {
     pub use crate::realise::resources::{compile_stage, stage_glsl, stage_source};
 }
 pub use worker::{
-    run_in_workers, run_in_workers_with, worker_main, Request, Response, WorkerCommand,
+    run_in_workers, run_in_workers_with, run_stream, worker_main, Request, Response, WorkerCommand,
 };

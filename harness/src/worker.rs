@@ -7,7 +7,7 @@ use crate::execute::{Execution, Executor};
 use crate::observe::{Observation, Status};
 use crate::vk::Driver;
 use model::case::Case;
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::PathBuf;
 use std::process::{Child, ChildStdin, Command, Stdio};
@@ -26,19 +26,23 @@ pub struct Request {
     /// Carried as the case's CBOR, in hex: JSON has no NaN, and build cases hold NaN coordinates
     /// (inactive primitives); the case's YAML would do, but reading a rendered scene's YAML costs the
     /// worker more than running it.
-    #[serde(with = "case_wire")]
+    #[serde(with = "cbor_hex")]
     pub case: Case,
     #[serde(default)]
     pub execution: Execution,
 }
 
-/// A case as the runner hands it to a worker: its serde form in CBOR (self-describing, every float
-/// kept bit for bit), as hex digits.
-mod case_wire {
-    use model::case::Case;
-    pub fn serialize<S: serde::Serializer>(c: &Case, s: S) -> Result<S::Ok, S::Error> {
+/// A value as the runner and a worker hand it to each other inside a JSON line: its serde form in CBOR
+/// (self-describing, every float kept bit for bit), as hex digits. A rendered case's scene and its
+/// launch's ray records (tens of thousands of words) read several times faster so than as JSON
+/// numbers.
+mod cbor_hex {
+    pub fn serialize<T: serde::Serialize, S: serde::Serializer>(
+        v: &T,
+        s: S,
+    ) -> Result<S::Ok, S::Error> {
         let mut bytes = Vec::new();
-        ciborium::into_writer(c, &mut bytes).map_err(serde::ser::Error::custom)?;
+        ciborium::into_writer(v, &mut bytes).map_err(serde::ser::Error::custom)?;
         const DIGITS: &[u8; 16] = b"0123456789abcdef";
         let hex: String = bytes
             .iter()
@@ -51,18 +55,20 @@ mod case_wire {
             .collect();
         s.serialize_str(&hex)
     }
-    pub fn deserialize<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Case, D::Error> {
+    pub fn deserialize<'de, T: serde::de::DeserializeOwned, D: serde::Deserializer<'de>>(
+        d: D,
+    ) -> Result<T, D::Error> {
         use serde::de::Error;
-        let text = <String as serde::Deserialize>::deserialize(d)?;
+        let text = <std::borrow::Cow<'de, str> as serde::Deserialize>::deserialize(d)?;
         let digit = |c: u8| match c {
             b'0'..=b'9' => Ok(c - b'0'),
             b'a'..=b'f' => Ok(c - b'a' + 10),
             _ => Err(D::Error::custom(format!(
-                "the case is not hex digits (byte {c:#04x})"
+                "the value is not hex digits (byte {c:#04x})"
             ))),
         };
         if text.len() % 2 != 0 {
-            return Err(D::Error::custom("the case's hex digits are odd in number"));
+            return Err(D::Error::custom("the value's hex digits are odd in number"));
         }
         let bytes = text
             .as_bytes()
@@ -70,7 +76,7 @@ mod case_wire {
             .map(|p| Ok(digit(p[0])? << 4 | digit(p[1])?))
             .collect::<Result<Vec<u8>, D::Error>>()?;
         ciborium::from_reader(bytes.as_slice())
-            .map_err(|e| D::Error::custom(format!("the case does not read: {e}")))
+            .map_err(|e| D::Error::custom(format!("the value does not read: {e}")))
     }
 }
 
@@ -80,6 +86,7 @@ pub struct Response {
     /// Position of the case in the batch given to the pool.
     pub index: usize,
     pub name: String,
+    #[serde(with = "cbor_hex")]
     pub observation: Observation,
     /// Wall time of the case in the worker, in milliseconds.
     pub millis: f64,
@@ -106,7 +113,10 @@ impl Request {
 /// code.
 pub fn worker_main() -> i32 {
     let driver = Driver::parse(&std::env::var(DRIVER_ENV).unwrap_or_else(|_| "lavapipe".into()));
-    let mut executor: Option<Result<Executor, crate::HarnessError>> = None;
+    // Made before the first request arrives: the instance (and the layer's start-up) overlaps the
+    // runner's drawing of the first cases.
+    let mut executor: Option<Result<Executor, crate::HarnessError>> =
+        Some(Executor::new(driver.clone()));
     let stdin = std::io::stdin();
     let mut stdout = std::io::stdout();
     for line in stdin.lock().lines() {
@@ -377,20 +387,54 @@ pub fn run_in_workers_with(
     timeout: Duration,
     mut on_result: impl FnMut(Response),
 ) {
-    let queue: Arc<Mutex<VecDeque<usize>>> = Arc::new(Mutex::new((0..requests.len()).collect()));
-    let (tx, rx) = mpsc::channel::<Response>();
+    if requests.is_empty() {
+        return;
+    }
+    let workers = jobs.max(1).min(requests.len());
+    run_stream(
+        cmd,
+        workers,
+        timeout,
+        requests.iter(),
+        |r: &&Request| Some(*r),
+        |_, r| {
+            if let Some(r) = r {
+                on_result(r)
+            }
+        },
+    );
+}
+
+/// Runs a stream of jobs on `jobs` worker processes started at once (each makes its instance while
+/// the first jobs are still being drawn) and kept for the whole stream: `source` is drawn from by
+/// whichever worker is free, so a producer that generates jobs while earlier ones run keeps every
+/// worker busy. `request` says what a job runs (None: nothing — the job passes straight to
+/// `on_result`, in its turn). `on_result` gets each job back with its response, in completion order,
+/// on the calling thread. A worker that crashes or hangs is replaced and its job reported `crash` or
+/// `timeout`.
+pub fn run_stream<J: Send>(
+    cmd: &WorkerCommand,
+    jobs: usize,
+    timeout: Duration,
+    source: impl Iterator<Item = J> + Send,
+    request: impl Fn(&J) -> Option<&Request> + Sync,
+    mut on_result: impl FnMut(J, Option<Response>),
+) {
+    let source = Mutex::new(source);
+    let (tx, rx) = mpsc::channel::<(J, Option<Response>)>();
     std::thread::scope(|s| {
-        for _ in 0..jobs.max(1).min(requests.len().max(1)) {
-            let queue = queue.clone();
+        for _ in 0..jobs.max(1) {
             let tx = tx.clone();
+            let (source, request) = (&source, &request);
             s.spawn(move || {
-                let mut worker: Option<Worker> = None;
+                let mut worker: Option<Worker> = Worker::spawn(cmd).ok();
                 loop {
-                    let Some(i) = queue.lock().unwrap_or_else(|e| e.into_inner()).pop_front()
-                    else {
-                        break;
+                    let next = source.lock().unwrap_or_else(|e| e.into_inner()).next();
+                    let Some(job) = next else { break };
+                    let Some(req) = request(&job) else {
+                        let _ = tx.send((job, None));
+                        continue;
                     };
-                    let req = &requests[i];
                     if worker.is_none() {
                         match Worker::spawn(cmd) {
                             Ok(w) => worker = Some(w),
@@ -401,23 +445,23 @@ pub fn run_in_workers_with(
                                         cmd.program.display()
                                     ),
                                 };
-                                let _ = tx.send(req.lost(status, 0.0));
+                                let lost = req.lost(status, 0.0);
+                                let _ = tx.send((job, Some(lost)));
                                 continue;
                             }
                         }
                     }
                     let w = worker.as_mut().expect("spawned above");
-                    match run_one(w, req, timeout) {
-                        Outcome::Done(r) => {
-                            let _ = tx.send(r);
-                        }
+                    let response = match run_one(w, req, timeout) {
+                        Outcome::Done(r) => r,
                         Outcome::Lost(r) => {
                             if let Some(w) = worker.take() {
                                 w.stop();
                             }
-                            let _ = tx.send(r);
+                            r
                         }
-                    }
+                    };
+                    let _ = tx.send((job, Some(response)));
                 }
                 if let Some(w) = worker.take() {
                     drop(w.stdin);
@@ -427,8 +471,8 @@ pub fn run_in_workers_with(
             });
         }
         drop(tx);
-        for r in rx {
-            on_result(r);
+        for (job, r) in rx {
+            on_result(job, r);
         }
     });
 }

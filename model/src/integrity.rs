@@ -21,9 +21,69 @@ pub struct Flaw {
     pub problem: String,
 }
 
+/// The parts of a trace case that can hold references, in the case's YAML form: its world without
+/// the launch (scenes, rays and the camera hold geometry and indices, never a name — `Scene::undefined`
+/// judges their indices) and without the resource state (descriptors may name destroyed objects on
+/// purpose), and its call. A rendered scene's thousands of coordinates are never turned into YAML
+/// values to be walked.
+#[derive(serde::Serialize)]
+struct TraceReferences<'a> {
+    world: WorldReferences<'a>,
+    call: CallReferences<'a>,
+}
+
+#[derive(serde::Serialize)]
+struct WorldReferences<'a> {
+    device: &'a crate::world::DeviceState,
+    buffers: &'a [crate::world::Buffer],
+    pipeline: &'a Option<crate::world::Pipeline>,
+    command_buffer: &'a crate::world::CommandBufferState,
+}
+
+/// A trace call as the case's YAML writes it: the call's own fields, without the command's tag.
+#[derive(serde::Serialize)]
+#[serde(untagged)]
+enum CallReferences<'a> {
+    Indirect(&'a crate::call::TraceRaysIndirect),
+    Direct(&'a crate::call::TraceRays),
+    Nv(&'a crate::call::TraceRaysNv),
+}
+
+/// The case as a YAML value for the walk: every part that can hold a reference.
+fn referencing_parts(case: &Case) -> Option<Value> {
+    use crate::call::Call;
+    let Some(t) = case.as_trace() else {
+        return serde_yaml::to_value(case).ok();
+    };
+    // Destructured so that a field added to the world is a compile error here until it is placed.
+    let crate::world::World {
+        device,
+        buffers,
+        pipeline,
+        command_buffer,
+        launch: _,
+        resources: _,
+    } = &t.world;
+    let call = match &t.call {
+        Call::TraceRaysIndirect(c) => CallReferences::Indirect(c),
+        Call::TraceRays(c) => CallReferences::Direct(c),
+        Call::TraceRaysNv(c) => CallReferences::Nv(c),
+    };
+    serde_yaml::to_value(TraceReferences {
+        world: WorldReferences {
+            device,
+            buffers,
+            pipeline,
+            command_buffer,
+        },
+        call,
+    })
+    .ok()
+}
+
 /// Every error of the case, in the order of the file.
 pub fn flaws(case: &Case) -> Vec<Flaw> {
-    let Ok(doc) = serde_yaml::to_value(case) else {
+    let Some(doc) = referencing_parts(case) else {
         return vec![];
     };
     let world = doc.get("world");
@@ -73,7 +133,7 @@ pub fn flaws(case: &Case) -> Vec<Flaw> {
     };
     for key in ["world", "call"] {
         if let Some(v) = doc.get(key) {
-            scope.walk(v, key.to_string(), &mut out);
+            scope.walk(v, &mut key.to_string(), &mut out);
         }
     }
     out
@@ -88,7 +148,11 @@ struct Scope {
 }
 
 impl Scope {
-    fn walk(&self, v: &Value, at: String, out: &mut Vec<Flaw>) {
+    /// Walks `v`, whose YAML path is `at` (a buffer extended and cut back as the walk goes down and
+    /// up, so a path is only written out for a flaw).
+    fn walk(&self, v: &Value, at: &mut String, out: &mut Vec<Flaw>) {
+        use std::fmt::Write;
+        let len = at.len();
         match v {
             Value::Mapping(m) => {
                 let is_address = m.len() == 2
@@ -97,23 +161,26 @@ impl Scope {
                 let is_structure = at.starts_with("world.structures[") && at.ends_with(']');
                 for (k, child) in m {
                     let Some(key) = k.as_str() else { continue };
-                    let here = format!("{at}.{key}");
+                    at.push('.');
+                    at.push_str(key);
                     // Descriptors may name destroyed objects on purpose (rules judge them).
-                    if here == "world.resources" {
-                        continue;
+                    if at != "world.resources" {
+                        let names_buffer = key == "buffer" && (is_address || is_structure);
+                        self.field(key, names_buffer, child, at, out);
+                        self.walk(child, at, out);
                     }
-                    let names_buffer = key == "buffer" && (is_address || is_structure);
-                    self.field(key, names_buffer, child, &here, out);
-                    self.walk(child, here, out);
+                    at.truncate(len);
                 }
             }
             Value::Sequence(items) => {
                 for (i, child) in items.iter().enumerate() {
-                    self.walk(child, format!("{at}[{i}]"), out);
+                    let _ = write!(at, "[{i}]");
+                    self.walk(child, at, out);
+                    at.truncate(len);
                 }
             }
             Value::Tagged(t) => {
-                self.tagged(&t.tag.to_string(), &t.value, &at, out);
+                self.tagged(&t.tag.to_string(), &t.value, at, out);
                 self.walk(&t.value, at, out);
             }
             _ => {}
@@ -177,5 +244,115 @@ impl Scope {
             }
             _ => {}
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The walk over the whole case document, as the reference for the parts it is given.
+    fn flaws_of_whole_document(case: &Case) -> Vec<Flaw> {
+        let doc = serde_yaml::to_value(case).expect("a case serialises");
+        let groups = case
+            .as_trace()
+            .map(|t| t.world.pipeline.as_ref().map(|p| p.groups.len()));
+        let names = |list: &str| -> BTreeSet<String> {
+            doc.get("world")
+                .and_then(|w| w.get(list))
+                .and_then(Value::as_sequence)
+                .map(|items| {
+                    items
+                        .iter()
+                        .filter_map(|v| Some(v.get("name")?.as_str()?.to_string()))
+                        .collect()
+                })
+                .unwrap_or_default()
+        };
+        let scope = Scope {
+            buffers: names("buffers"),
+            structures: names("structures"),
+            groups,
+        };
+        let mut out = Vec::new();
+        for key in ["world", "call"] {
+            if let Some(v) = doc.get(key) {
+                scope.walk(v, &mut key.to_string(), &mut out);
+            }
+        }
+        out
+    }
+
+    fn case_files(dir: &std::path::Path, out: &mut Vec<std::path::PathBuf>) {
+        for entry in std::fs::read_dir(dir).expect("the cases folder reads") {
+            let path = entry.expect("a folder entry").path();
+            if path.is_dir() {
+                case_files(&path, out);
+            } else if path.extension().is_some_and(|e| e == "yaml") {
+                out.push(path);
+            }
+        }
+    }
+
+    #[test]
+    fn the_referencing_parts_find_what_the_whole_document_finds() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases");
+        let mut files = Vec::new();
+        case_files(&root, &mut files);
+        let mut compared = 0;
+        let mut with_launch = 0;
+        for f in files {
+            let text = std::fs::read_to_string(&f).expect("a case file reads");
+            let Ok(mut case) = Case::from_yaml(&f.display().to_string(), &text) else {
+                continue;
+            };
+            let dangling = |case: &mut Case| {
+                if let Some(b) = case
+                    .as_trace_mut()
+                    .and_then(|t| t.world.buffers.first_mut())
+                {
+                    b.name = format!("{}-renamed", b.name);
+                }
+            };
+            for planted in [false, true] {
+                if planted {
+                    dangling(&mut case);
+                }
+                assert_eq!(
+                    flaws(&case),
+                    flaws_of_whole_document(&case),
+                    "{} (a buffer renamed: {planted})",
+                    f.display()
+                );
+            }
+            compared += 1;
+            with_launch += case
+                .as_trace()
+                .is_some_and(|t| !t.world.launch.rays.is_empty() || t.world.launch.camera.is_some())
+                as usize;
+        }
+        assert!(
+            compared > 50 && with_launch > 5,
+            "{compared} cases, {with_launch} with a launch"
+        );
+    }
+
+    #[test]
+    fn a_dangling_address_is_found_in_a_trace_world() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../cases/hand/trace-indirect-records-32.yaml");
+        let text = std::fs::read_to_string(&root).expect("the hand case reads");
+        let mut case = Case::from_yaml("hand", &text).expect("the hand case parses");
+        assert!(flaws(&case).is_empty());
+        let t = case.as_trace_mut().expect("a trace case");
+        let first = t.world.buffers[0].name.clone();
+        t.world.buffers[0].name = "elsewhere".into();
+        let found = flaws(&case);
+        assert!(
+            found
+                .iter()
+                .any(|f| f.problem.contains(&format!("`{first}`"))),
+            "{found:?}"
+        );
     }
 }

@@ -58,7 +58,7 @@ pub struct RunConfig {
 }
 
 /// How far a run has come, for a progress display.
-pub trait Progress {
+pub trait Progress: Sync {
     /// The number of cases the run plans (some specs may give fewer).
     fn planned(&self, cases: u64);
     /// `n` more cases are done (run, skipped, or not generated).
@@ -115,8 +115,14 @@ impl RunOutcome {
     }
 }
 
-/// Cases generated ahead of the workers: bounds memory, and amortises worker start-up.
+/// Cases generated ahead of the workers: bounds memory.
+const AHEAD: usize = 256;
+
+/// Cases the generator draws of a spec at one call.
 const CHUNK: usize = 512;
+
+mod dispatch;
+use dispatch::Dispatch;
 
 /// What every case of a run is judged with.
 pub struct Judging<'a> {
@@ -263,6 +269,8 @@ impl Judging<'_> {
 /// Where a run writes: `results.jsonl` (appended and flushed per case), the case files of the cases that
 /// did not pass and their details.
 struct Sink<'a> {
+    /// Set when a write fails.
+    stop: &'a std::sync::atomic::AtomicBool,
     out: PathBuf,
     results_path: PathBuf,
     results: std::fs::File,
@@ -299,6 +307,7 @@ impl Sink<'_> {
         );
         if let Err(e) = keep(&self.out, case, report, status, details) {
             self.error.get_or_insert(e);
+            self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
             return;
         }
         self.progress.status(status);
@@ -311,6 +320,7 @@ impl Sink<'_> {
         let text = serde_json::to_string(&line).unwrap_or_default();
         if let Err(e) = writeln!(self.results, "{text}").and_then(|_| self.results.flush()) {
             self.error.get_or_insert((self.results_path.clone(), e));
+            self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
         }
     }
 }
@@ -546,7 +556,10 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         .append(true)
         .open(&results_path)
         .map_err(|e| SessionError::io(results_path.display().to_string(), e))?;
+    // Set by the first write that fails: the producer stops drawing cases.
+    let stop = std::sync::atomic::AtomicBool::new(false);
     let mut sink = Sink {
+        stop: &stop,
         out: config.out.clone(),
         results_path: results_path.clone(),
         results,
@@ -569,48 +582,42 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         progress,
         inject: config.inject.map(|i| (i, config.scope.seed)),
     };
-    let mut chunk: Vec<Case> = Vec::with_capacity(CHUNK);
-    let mut family = None;
-    let planned = each_case(
-        config,
-        &rules,
-        &profile,
-        &profile_name,
-        &expectations,
-        progress,
-        &mut |c: Case| {
-            // A write that failed (a full disk) ends the run: nothing more could be kept.
-            if sink.error.is_some() {
-                return;
-            }
-            if done.contains(&c.name) {
-                progress.advance(1);
-                return;
-            }
-            if let Some(report) = crate::gate::gate(&c, &judging) {
-                let details = CaseDetails {
-                    violations: model::validate(&rules, &profile, &c).violations,
-                    layer_messages: vec![],
-                };
-                sink.write(&c, &report, &details, vec![]);
-                progress.advance(1);
-                return;
-            }
-            // A chunk holds cases of one command family, in the plan's order.
-            let this = c.command().is_trace();
-            if family.is_some_and(|f| f != this) && !chunk.is_empty() {
-                dispatch.run(&mut chunk, &mut sink);
-            }
-            family = Some(this);
-            chunk.push(c);
-            if chunk.len() == CHUNK {
-                dispatch.run(&mut chunk, &mut sink);
-            }
-        },
-    )?;
-    if !chunk.is_empty() {
-        dispatch.run(&mut chunk, &mut sink);
-    }
+    // The cases are generated and gated on a thread of their own, a bounded stretch ahead of the
+    // workers, which draw them as they are free; results are judged and written here as they come.
+    let planned = std::thread::scope(|scope| {
+        let (tx, rx) = std::sync::mpsc::sync_channel::<dispatch::Drawn>(AHEAD);
+        let producer = scope.spawn(|| {
+            let tx = tx;
+            let mut index = 0usize;
+            each_case(
+                config,
+                &rules,
+                &profile,
+                &profile_name,
+                &expectations,
+                progress,
+                &mut |c: Case| {
+                    // A write that failed (a full disk) ends the run: nothing more could be kept.
+                    if stop.load(std::sync::atomic::Ordering::Relaxed) {
+                        return;
+                    }
+                    if done.contains(&c.name) {
+                        progress.advance(1);
+                        return;
+                    }
+                    index += 1;
+                    let drawn = dispatch.drawn(c, index, &judging);
+                    if tx.send(drawn).is_err() {
+                        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+                    }
+                },
+            )
+        });
+        dispatch.run_stream(rx.into_iter(), &mut sink);
+        producer
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+    })?;
     let full = config.scope.vuids.is_empty()
         && !config.scope.valid_only
         && config.selection.is_whole_plan();
@@ -629,20 +636,12 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         let written: BTreeSet<&str> = lines.iter().map(|r| r.case.as_str()).collect();
         let mut evidence = crate::triage::evidence_cases(&triage, &used, &ran, &profile_name);
         evidence.retain(|c| !written.contains(c.name.as_str()));
-        for c in evidence {
-            if let Some(report) = crate::gate::gate(&c, &judging) {
-                let details = CaseDetails {
-                    violations: model::validate(&rules, &profile, &c).violations,
-                    layer_messages: vec![],
-                };
-                sink.write(&c, &report, &details, vec![]);
-                continue;
-            }
-            chunk.push(c);
-        }
-        if !chunk.is_empty() {
-            dispatch.run(&mut chunk, &mut sink);
-        }
+        let drawn: Vec<dispatch::Drawn> = evidence
+            .into_iter()
+            .enumerate()
+            .map(|(index, c)| dispatch.drawn(c, index, &judging))
+            .collect();
+        dispatch.run_stream(drawn.into_iter(), &mut sink);
     }
     if let Some((path, e)) = sink.error.take() {
         return Err(SessionError::io(
@@ -698,167 +697,6 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
     })
 }
 
-/// How a run's chunks go to the workers and their results to the judge.
-struct Dispatch<'a> {
-    jobs: usize,
-    timeout: Duration,
-    /// Times a failing, crashing or timed-out case is run again (stopping once its outcome changes).
-    retries: usize,
-    judging: &'a Judging<'a>,
-    progress: &'a dyn Progress,
-    /// The injection and its seed: each request carries the perturbed copy, the judge the case.
-    inject: Option<(crate::inject::Injection, u64)>,
-}
-
-/// A case held back from `results.jsonl` to be run again: its first report and details, and the
-/// outcome of every attempt so far.
-struct Retried {
-    /// The case as judged (the request's is the copy the driver runs, under `--inject`).
-    case: Case,
-    note: Option<crate::inject::CaseInjection>,
-    request: Request,
-    report: CaseReport,
-    details: CaseDetails,
-    attempts: Vec<Outcome>,
-}
-
-impl Dispatch<'_> {
-    /// Runs one chunk on a fresh set of workers (which keep their devices and pipelines warm for the
-    /// chunk), judging and writing each result as it arrives; failing cases are written once their
-    /// retries are done. A case whose recording, validated past the VUIDs the device
-    /// makes unavoidable, killed its worker (a layer whose later checks crash on the call, as 1.3.239's
-    /// core checks do for an update without a source) is recorded once more with validation stopping at
-    /// the first of them, and its report says so.
-    fn run(&self, chunk: &mut Vec<Case>, sink: &mut Sink) {
-        let cases: Vec<Case> = std::mem::take(chunk);
-        let mut notes = Vec::with_capacity(cases.len());
-        let requests: Vec<Request> = cases
-            .iter()
-            .enumerate()
-            .map(|(index, case)| {
-                let (run, note) = crate::inject::executed(self.inject.as_ref(), case, self.judging);
-                notes.push(note);
-                Request {
-                    index,
-                    execution: Execution::for_case(&run, self.judging.profile),
-                    case: run,
-                }
-            })
-            .collect();
-        let mut held: Vec<Retried> = Vec::new();
-        let mut revalidate: Vec<Request> = Vec::new();
-        // The chunk's index of each case to record again.
-        let mut again_of: Vec<usize> = Vec::new();
-        harness::run_in_workers(&requests, self.jobs, self.timeout, |resp| {
-            let k = resp.index.min(requests.len() - 1);
-            let (request, case, note) = (&requests[k], &cases[k], &notes[k]);
-            if matches!(resp.observation.status, harness::Status::Crash { .. })
-                && !request.execution.continue_past.is_empty()
-            {
-                again_of.push(k);
-                revalidate.push(Request {
-                    index: revalidate.len(),
-                    case: request.case.clone(),
-                    execution: Execution {
-                        continue_past: vec![],
-                        ..request.execution.clone()
-                    },
-                });
-                return;
-            }
-            let (report, details) = self.judged(case, note, &resp);
-            crate::pictures::for_failure(
-                &sink.out.join("failures"),
-                case,
-                &resp.observation,
-                &report,
-            );
-            if self.retries > 0 && report.outcome.is_unexpected() {
-                held.push(Retried {
-                    case: case.clone(),
-                    note: note.clone(),
-                    request: request.clone(),
-                    attempts: vec![report.outcome],
-                    report,
-                    details,
-                });
-                return;
-            }
-            sink.write(case, &report, &details, vec![]);
-            self.progress.advance(1);
-        });
-        if !revalidate.is_empty() {
-            harness::run_in_workers(&revalidate, self.jobs, self.timeout, |resp| {
-                let k = again_of[resp.index.min(revalidate.len() - 1)];
-                let (case, note) = (&cases[k], &notes[k]);
-                let (mut report, details) = self.judged(case, note, &resp);
-                let note = format!(
-                    "recorded with the layer's validation continuing past {} the worker died (the layer's \
-                     later checks or the driver's recording of the call), so it was recorded again with \
-                     validation stopping there",
-                    self.judging.profile_unavoidable().join(", ")
-                );
-                report.detail = if report.detail.is_empty() {
-                    note
-                } else {
-                    format!("{note}; {}", report.detail)
-                };
-                sink.write(case, &report, &details, vec![]);
-                self.progress.advance(1);
-            });
-        }
-        for _ in 0..self.retries {
-            // Run again the cases whose outcome has not changed yet.
-            let again: Vec<Request> = held
-                .iter()
-                .enumerate()
-                .filter(|(_, h)| h.attempts.iter().all(|o| *o == h.attempts[0]))
-                .map(|(k, h)| Request {
-                    index: k,
-                    ..h.request.clone()
-                })
-                .collect();
-            if again.is_empty() {
-                break;
-            }
-            harness::run_in_workers(&again, self.jobs, self.timeout, |resp| {
-                let Some(h) = held.get_mut(resp.index) else {
-                    return;
-                };
-                let (report, _) = self.judged(&h.case, &h.note, &resp);
-                h.attempts.push(report.outcome);
-            });
-        }
-        for h in held {
-            sink.write(&h.case, &h.report, &h.details, h.attempts);
-            self.progress.advance(1);
-        }
-    }
-
-    /// The report of one response and what the run keeps of it: `case` is the case as judged, `note`
-    /// what an injection did with it.
-    fn judged(
-        &self,
-        case: &Case,
-        note: &Option<crate::inject::CaseInjection>,
-        resp: &Response,
-    ) -> (CaseReport, CaseDetails) {
-        let judging = std::time::Instant::now();
-        let (mut report, verdict) = self.judging.judge_with_verdict(case, resp);
-        report.injection = note.clone();
-        report.phases = resp.phases.clone();
-        report
-            .phases
-            .insert("judge".into(), judging.elapsed().as_secs_f64() * 1000.0);
-        let details = CaseDetails {
-            violations: verdict.violations,
-            layer_messages: resp.observation.layer_messages.clone(),
-        };
-        (report, details)
-    }
-}
-
-/// `0..count` in slices of [`CHUNK`].
 fn slices(count: usize) -> impl Iterator<Item = std::ops::Range<usize>> {
     (0..count)
         .step_by(CHUNK)

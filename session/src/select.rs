@@ -120,10 +120,13 @@ pub fn read_case_folder(dir: &Path) -> Result<Vec<Case>, SessionError> {
             dir.display()
         )));
     }
+    // Parsed on every core (a rendered case's YAML is large), then taken in path order, so the first
+    // file at fault is the one reported.
+    let read = read_all(&files);
     let mut cases: Vec<Case> = Vec::with_capacity(files.len());
     let mut seen = std::collections::BTreeMap::new();
-    for f in files {
-        let case = crate::replay::read_case(&f)?;
+    for (f, case) in files.into_iter().zip(read) {
+        let case = case?;
         if let Some(first) = seen.insert(case.name.clone(), f.clone()) {
             return Err(SessionError::Usage(format!(
                 "case name `{}` is used by both {} and {}",
@@ -135,6 +138,32 @@ pub fn read_case_folder(dir: &Path) -> Result<Vec<Case>, SessionError> {
         cases.push(case);
     }
     Ok(cases)
+}
+
+/// Each file read as a case ([`crate::replay::read_case`]), in the order of `files`, the files
+/// shared out among the machine's cores.
+fn read_all(files: &[std::path::PathBuf]) -> Vec<Result<Case, SessionError>> {
+    let workers = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(files.len())
+        .max(1);
+    let chunk = files.len().div_ceil(workers);
+    std::thread::scope(|scope| {
+        let parts: Vec<_> = files
+            .chunks(chunk.max(1))
+            .map(|part| {
+                scope.spawn(move || {
+                    part.iter()
+                        .map(|f| crate::replay::read_case(f))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        parts
+            .into_iter()
+            .flat_map(|p| p.join().expect("reading case files does not panic"))
+            .collect()
+    })
 }
 
 #[cfg(test)]
