@@ -90,6 +90,29 @@ fn main() {
                 println!("cargo:rustc-link-lib=static:-bundle={a}");
             }
             println!("cargo:rustc-link-lib=dylib=stdc++");
+            // What the SPIR-V disk cache keys its entries by besides the source: the linked archives'
+            // sizes and modification times (a new shaderc package makes new entries).
+            let identity: Vec<String> = SHADERC_ARCHIVES
+                .iter()
+                .map(|a| {
+                    let m = std::fs::metadata(lib.join(format!("lib{a}.a")));
+                    let (len, modified) = m
+                        .map(|m| {
+                            let t = m
+                                .modified()
+                                .ok()
+                                .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+                                .map_or(0, |d| d.as_secs());
+                            (m.len(), t)
+                        })
+                        .unwrap_or((0, 0));
+                    format!("{a}:{len}:{modified}")
+                })
+                .collect();
+            println!(
+                "cargo:rustc-env=RTCONF_SHADERC_IDENTITY={}",
+                identity.join(",")
+            );
         }
         Err(e) => {
             eprintln!("error: {e}");

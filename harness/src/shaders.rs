@@ -144,7 +144,7 @@ fn words(name: &str, bytes: &[u8]) -> Result<Vec<u32>, HarnessError> {
 /// (Vulkan 1.2 target, so SPIR-V 1.5, as `glslangValidator --target-env vulkan1.2 -V` gives): `ext` is
 /// the stage's file extension (`rgen`, `rchit`, `comp`, …), `defines` the preprocessor names (`TRACE`,
 /// `NV`), `what` names the shader in errors. No process is spawned and no tool on PATH is needed.
-/// Results are memoised in this process by content.
+/// Results are memoised in this process by content, and on disk ([`disk`]) across processes.
 pub(crate) fn compile_glsl(
     what: &str,
     ext: &str,
@@ -164,6 +164,14 @@ pub(crate) fn compile_glsl(
     {
         return Ok(w.clone());
     }
+    let on_disk = disk::entry(ext, text, defines);
+    if let Some(w) = on_disk.as_deref().and_then(disk::read) {
+        MEMO.lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .get_or_insert_with(HashMap::new)
+            .insert(key, w.clone());
+        return Ok(w);
+    }
     let stage = glsl::Stage::of_extension(ext).ok_or_else(|| {
         HarnessError::Shader(format!(
             "{what}: no shader stage has the file extension `.{ext}`"
@@ -175,11 +183,72 @@ pub(crate) fn compile_glsl(
     }
     .map_err(|message| HarnessError::Shader(format!("{what}: {message}\n{text}")))?;
     let w = words(what, &bytes)?;
+    if let Some(path) = &on_disk {
+        disk::write(path, &bytes);
+    }
     MEMO.lock()
         .unwrap_or_else(|e| e.into_inner())
         .get_or_insert_with(HashMap::new)
         .insert(key, w.clone());
     Ok(w)
+}
+
+/// The SPIR-V the linked compiler made, kept across processes: each worker of a run, and every later
+/// run on the machine, finds a shader an earlier one compiled instead of compiling it again (the first
+/// compilation of each stage kind also pays glslang's start-up). An entry is a file named by the
+/// 128-bit fingerprint of the stage's extension, its defines, its source and the linked compiler's
+/// identity (its archives' sizes and times, from build.rs), in a folder under the temporary
+/// directory; it is written whole (a temporary file, then a rename) and read back only if it is a
+/// SPIR-V module (magic number, whole words). `RTCONF_SPIRV_CACHE=off` turns it off.
+mod disk {
+    use std::path::{Path, PathBuf};
+
+    /// SPIR-V's magic number, the first word of every module.
+    const MAGIC: u32 = 0x0723_0203;
+
+    /// The entry's path for a stage, or None when the cache is off.
+    pub(super) fn entry(ext: &str, text: &str, defines: &[&str]) -> Option<PathBuf> {
+        if std::env::var_os("RTCONF_SPIRV_CACHE").is_some_and(|v| v == "off") {
+            return None;
+        }
+        let identity = env!("RTCONF_SHADERC_IDENTITY");
+        let key = model::fingerprint::of(&(identity, ext, defines, text))?;
+        Some(
+            std::env::temp_dir()
+                .join("rtconf-spirv")
+                .join(format!("{key:032x}.spv")),
+        )
+    }
+
+    /// The entry's words, if it holds a module.
+    pub(super) fn read(path: &Path) -> Option<Vec<u32>> {
+        let bytes = std::fs::read(path).ok()?;
+        if bytes.len() < 20 || bytes.len() % 4 != 0 {
+            return None;
+        }
+        let words: Vec<u32> = bytes
+            .chunks_exact(4)
+            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+        (words[0] == MAGIC).then_some(words)
+    }
+
+    /// Writes an entry whole; a cache that cannot be written is only slower.
+    pub(super) fn write(path: &Path, bytes: &[u8]) {
+        let Some(dir) = path.parent() else { return };
+        if std::fs::create_dir_all(dir).is_err() {
+            return;
+        }
+        let staged = dir.join(format!(
+            ".{}.{}.tmp",
+            path.file_name().and_then(|n| n.to_str()).unwrap_or("entry"),
+            std::process::id()
+        ));
+        if std::fs::write(&staged, bytes).is_ok() && std::fs::rename(&staged, path).is_ok() {
+            return;
+        }
+        let _ = std::fs::remove_file(&staged);
+    }
 }
 
 /// The shaderc library's C interface, as much of it as [`compile_glsl`] uses (`shaderc/shaderc.h` of
@@ -379,6 +448,45 @@ pub(crate) fn module(dev: &VkDevice, code: &[u32]) -> Result<vk::ShaderModule, H
 #[cfg(test)]
 mod tests {
     use crate::error::SETUP_COMMAND;
+
+    #[test]
+    fn a_disk_entry_is_keyed_by_source_defines_and_stage_and_read_back_only_as_spir_v() {
+        let a = super::disk::entry("rgen", "void main() {}", &["TRACE"]);
+        let (Some(a), Some(b), Some(c), Some(again)) = (
+            a,
+            super::disk::entry("rgen", "void main() {}", &[]),
+            super::disk::entry("rmiss", "void main() {}", &["TRACE"]),
+            super::disk::entry("rgen", "void main() {}", &["TRACE"]),
+        ) else {
+            // The cache is off in this environment: nothing to key.
+            assert_eq!(std::env::var("RTCONF_SPIRV_CACHE").as_deref(), Ok("off"));
+            return;
+        };
+        assert_eq!(a, again);
+        assert!(a != b && a != c && b != c, "{a:?} {b:?} {c:?}");
+        let dir = tempfile::tempdir().expect("a temporary folder");
+        let path = dir.path().join("entry.spv");
+        let words = super::compile_glsl(
+            "the test shader",
+            "rmiss",
+            "#version 460\n#extension GL_EXT_ray_tracing : require\nvoid main() {}\n",
+            &[],
+        )
+        .expect("compiles");
+        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+        super::disk::write(&path, &bytes);
+        assert_eq!(super::disk::read(&path), Some(words.clone()));
+        // Torn or foreign files are not modules: a cut word, a wrong magic number.
+        std::fs::write(&path, &bytes[..bytes.len() - 1]).expect("writable");
+        assert_eq!(super::disk::read(&path), None);
+        let mut foreign = bytes.clone();
+        foreign[0] ^= 0xFF;
+        std::fs::write(&path, &foreign).expect("writable");
+        assert_eq!(super::disk::read(&path), None);
+        // Nothing but the entry was left in the folder (the staged file was renamed).
+        let left: Vec<_> = std::fs::read_dir(dir.path()).expect("reads").collect();
+        assert_eq!(left.len(), 1);
+    }
 
     const ALL: [ShaderKind; 8] = [
         ShaderKind::RaygenTrace,

@@ -396,6 +396,7 @@ pub fn run_in_workers_with(
         workers,
         timeout,
         requests.iter(),
+        |r| r,
         |r: &&Request| Some(*r),
         |_, r| {
             if let Some(r) = r {
@@ -408,8 +409,9 @@ pub fn run_in_workers_with(
 /// Runs a stream of jobs on `jobs` worker processes started at once (each makes its instance while
 /// the first jobs are still being drawn) and kept for the whole stream: `source` is drawn from by
 /// whichever worker is free, so a producer that generates jobs while earlier ones run keeps every
-/// worker busy. `request` says what a job runs (None: nothing — the job passes straight to
-/// `on_result`, in its turn). `on_result` gets each job back with its response, in completion order,
+/// worker busy. `prepare` is applied to each job by the thread that drew it, before it runs (work the
+/// producer need not do alone, such as the gate); `request` says what a job runs (None: nothing —
+/// the job passes straight to `on_result`, in its turn). `on_result` gets each job back with its response, in completion order,
 /// on the calling thread. A worker that crashes or hangs is replaced and its job reported `crash` or
 /// `timeout`.
 pub fn run_stream<J: Send>(
@@ -417,6 +419,7 @@ pub fn run_stream<J: Send>(
     jobs: usize,
     timeout: Duration,
     source: impl Iterator<Item = J> + Send,
+    prepare: impl Fn(J) -> J + Sync,
     request: impl Fn(&J) -> Option<&Request> + Sync,
     mut on_result: impl FnMut(J, Option<Response>),
 ) {
@@ -425,12 +428,13 @@ pub fn run_stream<J: Send>(
     std::thread::scope(|s| {
         for _ in 0..jobs.max(1) {
             let tx = tx.clone();
-            let (source, request) = (&source, &request);
+            let (source, prepare, request) = (&source, &prepare, &request);
             s.spawn(move || {
                 let mut worker: Option<Worker> = Worker::spawn(cmd).ok();
                 loop {
                     let next = source.lock().unwrap_or_else(|e| e.into_inner()).next();
                     let Some(job) = next else { break };
+                    let job = prepare(job);
                     let Some(req) = request(&job) else {
                         let _ = tx.send((job, None));
                         continue;

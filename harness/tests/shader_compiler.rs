@@ -1,7 +1,8 @@
 //! The harness compiles the GLSL it templates per case in its own process: every stage's templated
 //! source compiles for KHR and NV pipelines to SPIR-V 1.5 of that stage, and it still does in a child
 //! process whose PATH is empty and whose TMPDIR is a new folder (so no compiler on PATH and no shader
-//! cached on disk by an earlier run can serve it).
+//! cached on disk by an earlier run can serve it); with the SPIR-V disk cache on, the entries it leaves
+//! are whole modules in their own folder, and a torn one is compiled again.
 
 use generator::resources::{move_to_stage, valid_state};
 use harness::resource_glsl::{compile_stage, stage_glsl, stage_source};
@@ -13,6 +14,8 @@ use std::process::Command;
 /// Set in the child process the test starts with an empty PATH.
 const CHILD: &str = "RTCONF_SHADER_COMPILER_CHILD";
 const COMPILING_TEST: &str = "every_templated_stage_compiles_in_process";
+/// The source suffix a child uses instead of one unique to its process.
+const SUFFIX: &str = "RTCONF_SHADER_COMPILER_SUFFIX";
 
 const STAGES: [(Stage, u32); 6] = [
     (Stage::Raygen, 5313),
@@ -53,11 +56,15 @@ fn every_templated_stage_compiles_in_process() {
             "the child runs with an empty PATH"
         );
     }
-    let unique = format!(
-        "// compiled by process {} at {:?}\n",
-        std::process::id(),
-        std::time::SystemTime::now()
-    );
+    // The cache test's children share one suffix, so the second compiles what the first did.
+    let unique = match std::env::var(SUFFIX) {
+        Ok(shared) => format!("// {shared}\n"),
+        Err(_) => format!(
+            "// compiled by process {} at {:?}\n",
+            std::process::id(),
+            std::time::SystemTime::now()
+        ),
+    };
     let profile = lavapipe_profile();
     for (stage, khr_model) in STAGES {
         let mut st = valid_state(&profile, 3, 0x1ff);
@@ -81,28 +88,106 @@ fn every_templated_stage_compiles_in_process() {
     }
 }
 
-#[test]
-fn templated_stages_compile_with_an_empty_path_and_no_shader_cache() {
-    let tmp = tempfile::tempdir().expect("a temporary folder");
-    let out = Command::new(std::env::current_exe().expect("this test binary"))
-        .args(["--exact", COMPILING_TEST, "--test-threads", "1"])
+/// Runs the compiling test again in a child process with an empty PATH, `tmp` as its TMPDIR and the
+/// SPIR-V disk cache on or off; its output.
+fn child_compiles(tmp: &std::path::Path, cache: bool, suffix: Option<&str>) -> String {
+    child_run(tmp, cache, suffix, false)
+}
+
+/// [`child_compiles`], or with `expect_failure` a child that must fail.
+fn child_run(
+    tmp: &std::path::Path,
+    cache: bool,
+    suffix: Option<&str>,
+    expect_failure: bool,
+) -> String {
+    let mut cmd = Command::new(std::env::current_exe().expect("this test binary"));
+    match suffix {
+        Some(s) => cmd.env(SUFFIX, s),
+        None => cmd.env_remove(SUFFIX),
+    };
+    cmd.args(["--exact", COMPILING_TEST, "--test-threads", "1"])
         .env(CHILD, "1")
         .env("PATH", "")
-        .env("TMPDIR", tmp.path())
-        .output()
-        .expect("the test binary starts again");
+        .env("TMPDIR", tmp);
+    if cache {
+        cmd.env_remove("RTCONF_SPIRV_CACHE");
+    } else {
+        cmd.env("RTCONF_SPIRV_CACHE", "off");
+    }
+    let out = cmd.output().expect("the test binary starts again");
     let text = format!(
         "{}{}",
         String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr)
     );
+    if expect_failure {
+        assert!(!out.status.success(), "the child passed:\n{text}");
+        return text;
+    }
     assert!(out.status.success(), "the child failed:\n{text}");
     assert!(
         text.contains("1 passed; 0 failed"),
         "the child ran the compiling test:\n{text}"
     );
+    text
+}
+
+#[test]
+fn templated_stages_compile_with_an_empty_path_and_no_shader_cache() {
+    let tmp = tempfile::tempdir().expect("a temporary folder");
+    child_compiles(tmp.path(), false, None);
     let left: Vec<_> = std::fs::read_dir(tmp.path())
         .expect("the child's TMPDIR")
         .collect();
     assert!(left.is_empty(), "the compiler wrote no files: {left:?}");
+}
+
+#[test]
+fn the_spirv_disk_cache_holds_whole_modules_and_serves_a_second_process() {
+    let tmp = tempfile::tempdir().expect("a temporary folder");
+    let suffix = format!("cache test of process {}", std::process::id());
+    child_compiles(tmp.path(), true, Some(&suffix));
+    let top: Vec<String> = std::fs::read_dir(tmp.path())
+        .expect("the child's TMPDIR")
+        .map(|e| e.expect("an entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(top, ["rtconf-spirv"], "the cache keeps to its folder");
+    let entries: Vec<std::path::PathBuf> = std::fs::read_dir(tmp.path().join("rtconf-spirv"))
+        .expect("the cache folder")
+        .map(|e| e.expect("an entry").path())
+        .collect();
+    // Every templated stage, for KHR and NV: whole modules, no staged file left.
+    assert!(entries.len() >= STAGES.len() * 2, "{entries:?}");
+    for e in &entries {
+        assert!(e.extension().is_some_and(|x| x == "spv"), "{}", e.display());
+        let bytes = std::fs::read(e).expect("an entry reads");
+        assert!(bytes.len() % 4 == 0 && bytes.starts_with(&[0x03, 0x02, 0x23, 0x07]));
+    }
+    // A second process compiles the same stages from the entries (a torn one is compiled again).
+    std::fs::write(&entries[0], b"torn").expect("writable");
+    child_compiles(tmp.path(), true, Some(&suffix));
+    let again = std::fs::read(&entries[0]).expect("the torn entry was written again");
+    assert!(again.starts_with(&[0x03, 0x02, 0x23, 0x07]));
+    let after = std::fs::read_dir(tmp.path().join("rtconf-spirv"))
+        .expect("the cache folder")
+        .count();
+    assert_eq!(after, entries.len(), "the second process made no entry of its own");
+    // And the entries are what it uses: a module of another stage planted in an entry is what the
+    // next process gets (its execution model check fails).
+    let words = |p: &std::path::Path| -> Vec<u32> {
+        std::fs::read(p)
+            .expect("an entry reads")
+            .chunks_exact(4)
+            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect()
+    };
+    let (a, b) = entries
+        .iter()
+        .flat_map(|a| entries.iter().map(move |b| (a, b)))
+        .find(|(a, b)| execution_model(&words(a)) != execution_model(&words(b)))
+        .expect("entries of two stages");
+    std::fs::copy(b, a).expect("an entry is writable");
+    let text = child_run(tmp.path(), true, Some(&suffix), true);
+    assert!(text.contains("execution model"), "{text}");
 }

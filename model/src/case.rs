@@ -471,6 +471,9 @@ impl Case {
                         reads: vec![],
                     });
                 }
+                // The launch traced whole once, here: its misses give the records it reads, and a
+                // run's judgement of the records finds it kept (`crate::expected`).
+                let _ = crate::expected::of(&t.world, &t.call);
                 let reads = crate::semantics::undefined_reads(
                     crate::semantics::handle_size(profile),
                     &t.world,

@@ -7,6 +7,7 @@ pub mod accel;
 pub mod call;
 pub mod case;
 pub mod command;
+pub mod expected;
 pub mod fingerprint;
 pub mod flags;
 pub mod integrity;

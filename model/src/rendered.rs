@@ -5,7 +5,7 @@
 //! violation or an error outside its bound; a hole on a watertight edge is a warning.
 
 use crate::call::Call;
-use crate::semantics::{expected_launch, ExpectedLaunch};
+use crate::semantics::ExpectedLaunch;
 use crate::tracer::judge::{judge, RayJudgement, RayVerdict};
 use crate::tracer::record::{RayRecord, RecordOutcome};
 use crate::tracer::summary::Summary;
@@ -68,7 +68,7 @@ pub struct IdJudgement {
 #[derive(Debug, Clone)]
 pub struct LaunchJudgement {
     pub result: RenderedResult,
-    pub expected: ExpectedLaunch,
+    pub expected: std::sync::Arc<ExpectedLaunch>,
     pub ids: Vec<IdJudgement>,
 }
 
@@ -149,7 +149,8 @@ fn judge_nv(allowed: &AllowedOutcomes, record: &RayRecord) -> RayJudgement {
 /// model cannot state the expected output (dimensions unknown, scene undefined) or the words cannot
 /// be read as records.
 pub fn judge_records(body: &TraceBody, words: &[u32]) -> Result<LaunchJudgement, String> {
-    let expected = expected_launch(&body.world, &body.call)
+    // The gate of a valid case traced the launch already: its outcomes are kept for this.
+    let expected = crate::expected::of(&body.world, &body.call)
         .ok_or("the model cannot state the launch's expected records")?;
     let invocations = expected.invocations();
     if words.len() as u64 != invocations.saturating_mul(RayRecord::WORDS as u64) {

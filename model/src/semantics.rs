@@ -526,28 +526,12 @@ fn records_read_traced(world: &World, call: &Call) -> Vec<(Table, u64)> {
     );
     let rays = traced_rays(world, call);
     if !rays.is_empty() {
-        let mut stats = TracerStats::default();
-        let prepared = prepared(&world.launch.scene);
-        let mut seen: std::collections::HashSet<[u32; 13]> = std::collections::HashSet::new();
-        let mut misses_read: BTreeSet<u64> = BTreeSet::new();
-        for ray in &rays {
-            // A miss record already read needs no other ray traced to be read (launches share a few
-            // miss indices among many rays).
-            let record = miss_record(ray.miss_index);
-            if misses_read.contains(&record) || !seen.insert(ray_key(ray)) {
-                continue;
-            }
-            let miss = match &prepared {
-                Some(p) => {
-                    allowed_for_ray(world, call, p, ray, &mut stats).is_none_or(|a| a.miss.allowed)
-                }
-                None => true,
-            };
-            if miss {
-                misses_read.insert(record);
-                out.push((Table::Miss, record));
-            }
-        }
+        // A launch traced whole already (the gate of a valid case) knows its misses.
+        let misses = match crate::expected::kept(world, call) {
+            Some(e) => misses_of(&e),
+            None => misses_by_tracing(world, call, &rays),
+        };
+        out.extend(misses.into_iter().map(|m| (Table::Miss, m)));
     }
     out.extend(
         world
@@ -559,6 +543,45 @@ fn records_read_traced(world: &World, call: &Call) -> Vec<(Table, u64)> {
     out.sort();
     out.dedup();
     out
+}
+
+/// The miss records of the rays of a launch traced whole that a miss is allowed for, sorted.
+pub(crate) fn misses_of(e: &ExpectedLaunch) -> Vec<u64> {
+    let misses: BTreeSet<u64> = e
+        .rays
+        .iter()
+        .zip(&e.allowed)
+        .filter(|(_, a)| a.miss.allowed)
+        .map(|(ray, _)| miss_record(ray.miss_index))
+        .collect();
+    misses.into_iter().collect()
+}
+
+/// The miss records a miss is allowed for, found by tracing only until each miss record is known to
+/// be read (an undefined ray's, or any ray's of a scene the tracer refuses, counts as read), sorted.
+pub(crate) fn misses_by_tracing(world: &World, call: &Call, rays: &[Ray]) -> Vec<u64> {
+    let mut stats = TracerStats::default();
+    let prepared = prepared(&world.launch.scene);
+    let mut seen: std::collections::HashSet<[u32; 13]> = std::collections::HashSet::new();
+    let mut misses_read: BTreeSet<u64> = BTreeSet::new();
+    for ray in rays {
+        // A miss record already read needs no other ray traced to be read (launches share a few
+        // miss indices among many rays).
+        let record = miss_record(ray.miss_index);
+        if misses_read.contains(&record) || !seen.insert(ray_key(ray)) {
+            continue;
+        }
+        let miss = match &prepared {
+            Some(p) => {
+                allowed_for_ray(world, call, p, ray, &mut stats).is_none_or(|a| a.miss.allowed)
+            }
+            None => true,
+        };
+        if miss {
+            misses_read.insert(record);
+        }
+    }
+    misses_read.into_iter().collect()
 }
 
 /// The recursion depth the launch reaches (see [`crate::world::Launch::recursion_depth`]): 0 when it

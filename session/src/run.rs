@@ -115,8 +115,10 @@ impl RunOutcome {
     }
 }
 
-/// Cases generated ahead of the workers: bounds memory.
-const AHEAD: usize = 256;
+/// Cases generated and gated ahead of the workers: enough to keep them busy through a burst of slow
+/// generation, few enough that a case's expected launch, traced at its gate, is still kept
+/// (`model::expected`) when its result is judged.
+const AHEAD: usize = 32;
 
 /// Cases the generator draws of a spec at one call.
 const CHUNK: usize = 512;
@@ -606,7 +608,8 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
                         return;
                     }
                     index += 1;
-                    let drawn = dispatch.drawn(c, index, &judging);
+                    // Gated by the thread that draws it (in parallel with the others).
+                    let drawn = dispatch::Drawn::Ungated(c, index);
                     if tx.send(drawn).is_err() {
                         stop.store(true, std::sync::atomic::Ordering::Relaxed);
                     }

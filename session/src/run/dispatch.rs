@@ -21,6 +21,9 @@ pub(super) struct Job {
 
 /// What the run's producer hands the dispatch, in the plan's order.
 pub(super) enum Drawn {
+    /// A case not gated yet (the thread that draws it gates it, [`Dispatch::drawn`]), with the index
+    /// its job will carry.
+    Ungated(Case, usize),
     /// A case for the workers.
     Run(Job),
     /// A case the gate kept from the driver, with its report: written in its turn, never run.
@@ -98,26 +101,13 @@ impl Dispatch<'_> {
         let cmd = match harness::WorkerCommand::current_exe() {
             Ok(cmd) => cmd,
             Err(e) => {
+                let why = format!("cannot find the rtconf executable to start workers: {e}");
                 for d in drawn {
-                    match d {
-                        Drawn::Gated {
-                            case,
-                            report,
-                            details,
-                        } => self.write(sink, &case, &report, &details, vec![]),
-                        Drawn::Run(job) => {
-                            let lost = Response {
-                                index: job.request.index,
-                                name: job.case.name.clone(),
-                                observation: harness::Observation::crash(format!(
-                                    "cannot find the rtconf executable to start workers: {e}"
-                                )),
-                                millis: 0.0,
-                                phases: Default::default(),
-                            };
-                            self.take(job, &lost, sink, &mut later);
-                        }
-                    }
+                    let d = match d {
+                        Drawn::Ungated(case, index) => self.drawn(case, index, self.judging),
+                        d => d,
+                    };
+                    self.settle_without_workers(d, sink, &mut later, &why);
                 }
                 return self.finish(later, sink);
             }
@@ -127,9 +117,13 @@ impl Dispatch<'_> {
             self.jobs,
             self.timeout,
             drawn,
+            |d| match d {
+                Drawn::Ungated(case, index) => self.drawn(case, index, self.judging),
+                d => d,
+            },
             |d: &Drawn| match d {
                 Drawn::Run(job) => Some(&job.request),
-                Drawn::Gated { .. } => None,
+                Drawn::Gated { .. } | Drawn::Ungated(..) => None,
             },
             |d, resp| match (d, resp) {
                 (
@@ -151,9 +145,39 @@ impl Dispatch<'_> {
                     };
                     self.take(job, &lost, sink, &mut later)
                 }
+                (Drawn::Ungated(case, index), _) => {
+                    // Never left ungated by `prepare`; gated here should it be.
+                    let gated = self.drawn(case, index, self.judging);
+                    self.settle_without_workers(gated, sink, &mut later, "no worker ran the case");
+                }
             },
         );
         self.finish(later, sink);
+    }
+
+    /// A drawn case no worker ran: written if gated, else a crash with `why`.
+    fn settle_without_workers(&self, d: Drawn, sink: &mut Sink, later: &mut Later, why: &str) {
+        match d {
+            Drawn::Gated {
+                case,
+                report,
+                details,
+            } => self.write(sink, &case, &report, &details, vec![]),
+            Drawn::Run(job) => {
+                let lost = Response {
+                    index: job.request.index,
+                    name: job.case.name.clone(),
+                    observation: harness::Observation::crash(why),
+                    millis: 0.0,
+                    phases: Default::default(),
+                };
+                self.take(job, &lost, sink, later);
+            }
+            Drawn::Ungated(case, index) => {
+                let gated = self.drawn(case, index, self.judging);
+                self.settle_without_workers(gated, sink, later, why)
+            }
+        }
     }
 
     fn write(
