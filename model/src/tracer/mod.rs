@@ -12,6 +12,7 @@ pub mod band;
 mod bvh;
 mod conclude;
 pub mod judge;
+mod outside;
 mod prepare;
 pub mod record;
 pub mod sphere;

@@ -5,6 +5,7 @@
 use super::arith::{affine, map3, v3, BoundedF64, Dyadic, PlainF32, V3};
 use super::band::triangle_band;
 use super::conclude::conclude;
+use super::outside::robustly_outside;
 use super::prepare::{Item, PreparedScene, RayF64, WorldGeometry};
 use super::sphere::{sphere_band, sphere_reports, sphere_signs, SphereSigns};
 use super::triangle::{
@@ -120,8 +121,25 @@ fn classify_triangle(
             }
         }
     }
-    let world_f64 = map3(ids, |i| map3(w.vertices[i], |x| x.value));
     let radius = map3(ids, |i| w.static_radius[i]);
+    // The commonest miss, robustly outside two edges, certified before the band and the
+    // error-tracked edge functions (see `outside.rs`); the full classification finds it too.
+    if precision == Precision::F64WithExactFallback
+        && robustly_outside(
+            &inst.band,
+            &map3(ids, |i| w.vertices[i]),
+            &radius,
+            rf.origin,
+            rf.origin_norm,
+            rf.direction,
+        )
+    {
+        return TriangleOutcome {
+            evaluation: Evaluation::Filter,
+            ..miss(MissReason::Outside)
+        };
+    }
+    let world_f64 = map3(ids, |i| map3(w.vertices[i], |x| x.value));
     let band = triangle_band(&inst.band, &world_f64, &radius, rf.origin, rf.direction);
     let evaluate_exact = || {
         let world = pos.map(|p| dyadic_world(scene, w, p));
