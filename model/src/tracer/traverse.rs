@@ -14,7 +14,7 @@ use super::triangle::{
 };
 use super::watertight::{watertight_groups, TriangleHit};
 use super::*;
-use crate::scene::undefined::ray_problems;
+use crate::scene::undefined::{ray_problems, EXCLUSIVE_RAY_FLAGS};
 use crate::scene::{GeometryData, Problem, Ray, RayFlags, SceneInstance};
 use std::cmp::Ordering;
 
@@ -24,7 +24,8 @@ struct TriangleOutcome {
     class: PairClass,
     signs: Option<TriangleSigns>,
     values: Option<TriangleValues>,
-    band: Option<super::band::TriangleBand>,
+    /// The t and barycentric intervals (`triangle_intervals`), where the pair is no miss.
+    intervals: Option<(Interval, [Interval; 2])>,
     evaluation: Evaluation,
 }
 
@@ -98,7 +99,7 @@ fn classify_triangle(
         class: PairClass::ReqMiss(reason),
         signs: None,
         values: None,
-        band: None,
+        intervals: None,
         evaluation: Evaluation::None,
     };
     // Spec, "Ray Face Culling": a zero ray-space area is culled. Two coincident vertices give zero
@@ -183,11 +184,13 @@ fn classify_triangle(
             (x, Evaluation::F32)
         }
     };
+    let class = classify(&signs);
     TriangleOutcome {
-        class: classify(&signs),
+        class,
         signs: Some(signs),
         values: Some(values),
-        band: Some(band),
+        intervals: (!matches!(class, PairClass::ReqMiss(_)))
+            .then(|| triangle_intervals(&values, &band)),
         evaluation,
     }
 }
@@ -288,7 +291,7 @@ fn required_hit_t(
     if out.class != PairClass::ReqHit {
         return None;
     }
-    let (signs, values, band) = (out.signs?, out.values?, out.band?);
+    let (signs, (t, _)) = (out.signs?, out.intervals?);
     let culls_facing = !inst.flags.triangle_facing_cull_disable
         && (ray.flags.contains(RayFlags::CULL_BACK_FACING_TRIANGLES)
             || ray.flags.contains(RayFlags::CULL_FRONT_FACING_TRIANGLES));
@@ -305,7 +308,6 @@ fn required_hit_t(
             return None;
         }
     }
-    let (t, _) = triangle_intervals(&values, &band);
     t.hi.is_finite().then_some(t.hi)
 }
 
@@ -327,6 +329,33 @@ pub(super) struct MustRun {
     pub primitive: PrimitiveRef,
 }
 
+/// Every flag some exclusive pair of [`EXCLUSIVE_RAY_FLAGS`] names.
+const EXCLUSIVE_FLAGS: u32 = {
+    let mut bits = 0;
+    let mut i = 0;
+    while i < EXCLUSIVE_RAY_FLAGS.len() {
+        bits |= EXCLUSIVE_RAY_FLAGS[i].0 .0 | EXCLUSIVE_RAY_FLAGS[i].1 .0;
+        i += 1;
+    }
+    bits
+};
+
+/// Whether the ray has none of [`ray_problems`]' problems, tested without building them: finite
+/// origin and direction, a direction not zero, `0 ≤ tmin ≤ tmax` with tmin finite and tmax not NaN,
+/// known flags, and at most one flag of the exclusive pairs (so no pair). False decides nothing:
+/// `ray_problems` then says.
+fn plainly_defined(ray: &Ray) -> bool {
+    let finite3 = |v: &[f32; 3]| v[0].is_finite() && v[1].is_finite() && v[2].is_finite();
+    finite3(&ray.origin)
+        && finite3(&ray.direction)
+        && ray.direction != [0.0; 3]
+        && ray.tmin.is_finite()
+        && ray.tmin >= 0.0
+        && ray.tmin <= ray.tmax
+        && ray.flags.0 & !RayFlags::KNOWN == 0
+        && (ray.flags.0 & EXCLUSIVE_FLAGS).count_ones() <= 1
+}
+
 /// Traces one ray: the set of outcomes the spec allows. Fails with the ray's undefined things.
 pub fn trace_ray(
     scene: &PreparedScene,
@@ -335,9 +364,11 @@ pub fn trace_ray(
     config: &TracerConfig,
     stats: &mut TracerStats,
 ) -> Result<AllowedOutcomes, Vec<Problem>> {
-    let problems = ray_problems(ray, "ray");
-    if !problems.is_empty() {
-        return Err(problems);
+    if !plainly_defined(ray) {
+        let problems = ray_problems(ray, "ray");
+        if !problems.is_empty() {
+            return Err(problems);
+        }
     }
     stats.rays += 1;
     let rf = RayF64::of(ray);
@@ -428,7 +459,8 @@ pub fn trace_ray(
         (w.instance, w.geometry, n.item.primitive)
     });
 
-    let mut candidates: Vec<Candidate> = Vec::with_capacity(near.len());
+    // Allocated by the first candidate (most near pairs are misses).
+    let mut candidates: Vec<Candidate> = Vec::new();
     let hits = &mut scratch.hits;
     let mut must_run: Vec<MustRun> = Vec::new();
     for NearItem { item, outcome, .. } in near.drain(..) {
@@ -479,7 +511,6 @@ pub fn trace_ray(
                 };
                 let signs = out.signs.expect("classified");
                 let values = out.values.expect("classified");
-                let band = out.band.expect("classified");
                 if opacity_culled(ray, opaque) {
                     continue;
                 }
@@ -525,7 +556,7 @@ pub fn trace_ray(
                 } else {
                     reason
                 };
-                let (t, bary) = triangle_intervals(&values, &band);
+                let (t, bary) = out.intervals.expect("classified, no miss");
                 let (s, _) = values.sum;
                 let t_exact = values.plane.0 / s;
                 let bary_exact = [values.edge[1].0 / s, values.edge[2].0 / s];
@@ -711,4 +742,40 @@ pub fn trace_launch(
     rays.iter()
         .map(|r| trace_ray(scene, r, shaders, config, stats))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_plainly_defined_ray_has_no_problem() {
+        let values = [
+            0.0,
+            -0.0,
+            1.0,
+            -2.5,
+            1e30,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        let flags = [0, 1, 2, 3, 0x41, 0x100, 0x300, 0x400, 0x3FF];
+        let (mut plain, mut rays) = (0, 0);
+        for (i, &x) in values.iter().enumerate() {
+            for &y in &values {
+                for &f in &flags {
+                    let z = values[(i + 3) % values.len()];
+                    let mut ray = Ray::new([x, 1.0, z], [y, 0.0, 0.0], x.abs(), y);
+                    ray.flags = RayFlags(f);
+                    rays += 1;
+                    if plainly_defined(&ray) {
+                        plain += 1;
+                        assert!(ray_problems(&ray, "ray").is_empty(), "{ray:?}");
+                    }
+                }
+            }
+        }
+        assert!(plain > 0 && plain < rays, "{plain} of {rays}");
+    }
 }
