@@ -462,9 +462,15 @@ pub fn allowed_for_ray_with(
     allowed_for_ray_memo(world, call, prepared, ray, config, stats, &memo)
 }
 
-/// The hit groups of the hit records a launch's rays reached, by record index: a record's group
-/// depends on the world and call alone, so the rays of one launch share the memo.
-type HitRecordMemo = std::cell::RefCell<HashMap<u64, HitShaders, BuildHasherDefault<RayKeyHasher>>>;
+/// The hit groups of the hit records a launch's rays reached, by record index, and the last hit
+/// and miss records resolved (a launch's rays mostly reach the same few): a record's group depends
+/// on the world and call alone, so the rays of one launch share the memo.
+#[derive(Default)]
+struct HitRecordMemo {
+    hits: std::cell::RefCell<HashMap<u64, HitShaders, BuildHasherDefault<RayKeyHasher>>>,
+    last_hit: std::cell::Cell<Option<(u64, HitShaders)>>,
+    last_miss: std::cell::Cell<Option<(u64, MissShader)>>,
+}
 
 /// [`allowed_for_ray_with`], the hit records resolved through `memo`.
 fn allowed_for_ray_memo(
@@ -480,17 +486,30 @@ fn allowed_for_ray_memo(
     let hit = |i: u32, g: u32| {
         let inst = &scene.instances[i as usize];
         let record = hit_record(inst.sbt_record_offset, g, ray.sbt_offset, ray.sbt_stride);
-        if let Some(h) = memo.borrow().get(&record) {
-            return *h;
+        if let Some((r, h)) = memo.last_hit.get() {
+            if r == record {
+                return h;
+            }
         }
-        let h = hit_shaders(world, call, record);
-        memo.borrow_mut().insert(record, h);
+        let known = memo.hits.borrow().get(&record).copied();
+        let h = known.unwrap_or_else(|| {
+            let h = hit_shaders(world, call, record);
+            memo.hits.borrow_mut().insert(record, h);
+            h
+        });
+        memo.last_hit.set(Some((record, h)));
         h
     };
-    let table = ShaderTable {
-        hit: &hit,
-        miss: miss_shader(world, call, miss_record(ray.miss_index)),
+    let record = miss_record(ray.miss_index);
+    let miss = match memo.last_miss.get() {
+        Some((r, m)) if r == record => m,
+        _ => {
+            let m = miss_shader(world, call, record);
+            memo.last_miss.set(Some((record, m)));
+            m
+        }
     };
+    let table = ShaderTable { hit: &hit, miss };
     trace_ray(prepared, ray, &table, config, stats).ok()
 }
 

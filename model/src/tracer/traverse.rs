@@ -312,12 +312,15 @@ fn required_hit_t(
 }
 
 /// A primitive the ray's padded box test kept, with its classification when the traversal made
-/// one (an unculled triangle).
+/// one (an unculled triangle). Small, so the sort moves little.
 struct NearItem {
+    /// (instance, geometry, primitive): the order of the candidates.
+    key: (u32, u32, u32),
     item: Item,
     /// Its index in the prepared scene's items.
-    index: usize,
-    outcome: Option<TriangleOutcome>,
+    index: u32,
+    /// Its classification's index in the scratch outcomes, or `u32::MAX`.
+    outcome: u32,
     /// The cut it was kept at (its padded box met by the ray cut there): the final cut, if the
     /// same, would keep it again.
     kept_at: f64,
@@ -380,7 +383,11 @@ pub fn trace_ray(
     let cut = std::cell::Cell::new(f64::INFINITY);
     let mut may_cut: Option<bool> = None;
     let mut scratch = SCRATCH.with(|s| std::mem::take(&mut *s.borrow_mut()));
-    let near = &mut scratch.near;
+    let Scratch {
+        near,
+        hits,
+        outcomes,
+    } = &mut scratch;
     let mut far_count = 0u64;
     let far_test = config.far_test;
     // The BVH's shortcuts (brute force, the reference, goes without): a segment that meets an
@@ -398,9 +405,10 @@ pub fn trace_ray(
         let w = &scene.geometries[item.geometry as usize];
         if w.kind != PrimitiveKind::Triangle {
             near.push(NearItem {
+                key: (w.instance, w.geometry, item.primitive),
                 item,
-                index: i,
-                outcome: None,
+                index: i as u32,
+                outcome: u32::MAX,
                 kept_at: f64::INFINITY,
             });
             return;
@@ -426,9 +434,13 @@ pub fn trace_ray(
             }
         }
         near.push(NearItem {
+            key: (w.instance, w.geometry, item.primitive),
             item,
-            index: i,
-            outcome,
+            index: i as u32,
+            outcome: outcome.map_or(u32::MAX, |o| {
+                outcomes.push(o);
+                outcomes.len() as u32 - 1
+            }),
             kept_at: c,
         });
     };
@@ -449,21 +461,18 @@ pub fn trace_ray(
         near.retain(|n| {
             scene.geometries[n.item.geometry as usize].kind != PrimitiveKind::Triangle
                 || n.kept_at == cut_at
-                || !far(n.index, &cut_ray)
+                || !far(n.index as usize, &cut_ray)
         });
     }
     // A deterministic order, independent of the BVH.
     // (instance, geometry, primitive) is unique per item: an unstable sort gives the same order.
-    near.sort_unstable_by_key(|n| {
-        let w = &scene.geometries[n.item.geometry as usize];
-        (w.instance, w.geometry, n.item.primitive)
-    });
+    near.sort_unstable_by_key(|n| n.key);
 
     // Allocated by the first candidate (most near pairs are misses).
     let mut candidates: Vec<Candidate> = Vec::new();
-    let hits = &mut scratch.hits;
     let mut must_run: Vec<MustRun> = Vec::new();
     for NearItem { item, outcome, .. } in near.drain(..) {
+        let outcome = outcomes.get(outcome as usize).copied();
         let w = &scene.geometries[item.geometry as usize];
         let inst = &scene.scene.instances[w.instance as usize];
         // Spec, "Ray Mask Culling".
@@ -714,6 +723,7 @@ pub fn trace_ray(
     }
     let watertight = watertight_groups(scene, ray, &candidates, hits);
     hits.clear();
+    outcomes.clear();
     SCRATCH.with(|s| *s.borrow_mut() = scratch);
     Ok(conclude(
         scene, ray, shaders, candidates, must_run, watertight,
@@ -725,6 +735,8 @@ pub fn trace_ray(
 struct Scratch {
     near: Vec<NearItem>,
     hits: Vec<TriangleHit>,
+    /// The near items' classifications.
+    outcomes: Vec<TriangleOutcome>,
 }
 
 thread_local! {
