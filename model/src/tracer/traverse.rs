@@ -677,7 +677,7 @@ pub fn trace_ray(
                         primitive: prim,
                     });
                 }
-                let reports: Vec<AllowedReport> = sphere_reports(&signs, &band)
+                let reports: few::Few<AllowedReport, 2> = sphere_reports(&signs, &band)
                     .into_iter()
                     .map(|r| AllowedReport {
                         hit_kind: r.hit_kind,
