@@ -766,10 +766,14 @@ fn trace_distinct(
     let config = TracerConfig::default();
     if workers == 1 {
         let memo = HitRecordMemo::default();
-        return distinct
-            .iter()
-            .map(|&i| allowed_for_ray_memo(world, call, prepared, &rays[i], &config, stats, &memo))
-            .collect();
+        // Pushed into a Vec of the final size (a collect through Option would grow it by copies).
+        let mut all = Vec::with_capacity(distinct.len());
+        for &i in distinct {
+            all.push(allowed_for_ray_memo(
+                world, call, prepared, &rays[i], &config, stats, &memo,
+            )?);
+        }
+        return Some(all);
     }
     // Workers take chunks of distinct rays in turn, so an expensive part of the image does not
     // leave one worker behind; each chunk's outcomes are moved into their place once.
