@@ -781,36 +781,38 @@ fn trace_distinct(
     let next = std::sync::atomic::AtomicUsize::new(0);
     /// One worker's chunks (first distinct-ray index, outcomes), and its counters.
     type Part = (Vec<(usize, Vec<Option<AllowedOutcomes>>)>, TracerStats);
-    let parts: Vec<Part> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..workers)
-            .map(|_| {
-                scope.spawn(|| {
-                    let mut out = Vec::new();
-                    let mut stats = TracerStats::default();
-                    let memo = HitRecordMemo::default();
-                    loop {
-                        let start = next.fetch_add(CHUNK, std::sync::atomic::Ordering::Relaxed);
-                        if start >= distinct.len() {
-                            break;
-                        }
-                        let chunk = distinct[start..]
-                            .iter()
-                            .take(CHUNK)
-                            .map(|&i| {
-                                allowed_for_ray_memo(
-                                    world, call, prepared, &rays[i], &config, &mut stats, &memo,
-                                )
-                            })
-                            .collect();
-                        out.push((start, chunk));
-                    }
-                    (out, stats)
+    let work = || {
+        let mut out = Vec::new();
+        let mut stats = TracerStats::default();
+        let memo = HitRecordMemo::default();
+        loop {
+            let start = next.fetch_add(CHUNK, std::sync::atomic::Ordering::Relaxed);
+            if start >= distinct.len() {
+                break;
+            }
+            let chunk = distinct[start..]
+                .iter()
+                .take(CHUNK)
+                .map(|&i| {
+                    allowed_for_ray_memo(
+                        world, call, prepared, &rays[i], &config, &mut stats, &memo,
+                    )
                 })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| h.join().expect("a tracing worker does not panic"))
+                .collect();
+            out.push((start, chunk));
+        }
+        (out, stats)
+    };
+    // The calling thread is one of the workers.
+    let parts: Vec<Part> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (1..workers).map(|_| scope.spawn(&work)).collect();
+        let own = work();
+        std::iter::once(own)
+            .chain(
+                handles
+                    .into_iter()
+                    .map(|h| h.join().expect("a tracing worker does not panic")),
+            )
             .collect()
     });
     let mut chunks: Vec<(usize, Vec<Option<AllowedOutcomes>>)> = Vec::new();
