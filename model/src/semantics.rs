@@ -805,7 +805,7 @@ fn trace_distinct(
     };
     // The calling thread is one of the workers.
     let parts: Vec<Part> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (1..workers).map(|_| scope.spawn(&work)).collect();
+        let handles: Vec<_> = (1..workers).map(|_| scope.spawn(work)).collect();
         let own = work();
         std::iter::once(own)
             .chain(

@@ -100,7 +100,7 @@ fn outside_with(
     // compares false).
     let mixed = (edge[0] > 0.0 || edge[1] > 0.0 || edge[2] > 0.0)
         && (edge[0] < 0.0 || edge[1] < 0.0 || edge[2] < 0.0);
-    if !mixed || !(edge[0].is_finite() && edge[1].is_finite() && edge[2].is_finite()) {
+    if !(mixed && edge[0].is_finite() && edge[1].is_finite() && edge[2].is_finite()) {
         return false;
     }
     let d1_norm = d0.abs() + d1.abs() + d2.abs();
