@@ -8,7 +8,7 @@
 //! The error bound. World vertices `ŵ_k` are f64 values within `ε` (the largest error bound of their
 //! coordinates) of the exact `w_k`; `o`, `d` are exact. `â_k = fl(ŵ_k − o)` is within
 //! `δ = ε + u·|â|/(1 − u) ≤ ε + 2u·A` of `a_k = w_k − o`, componentwise, with `A` the largest
-//! `|â_{k,c}|`. With `ê_i = fl(d·fl(â_j × â_k))` (the `dot3`/`cross3` order):
+//! `|â_{k,c}|`. With `ê_i = fl(d·fl(â_j × â_k))` (in any order of its sums):
 //! - rounding: each cross component `fl(fl(xy) − fl(zw))` is within `(2u + u²)(|xy| + |zw|)` of
 //!   `xy − zw`, and `|xy| + |zw| ≤ 2A²`; the three-term dot adds `γ₃·Σ|d_c||ĉ_c|`; in all at most
 //!   `5.03u·D₁·2A² < 16u·D₁·A²`, `D₁ = Σ|d_c|`;
@@ -24,8 +24,9 @@
 //! `α_k = r_k + test_rel·len_k + r_o`; every edge band is a non-negative polynomial in these,
 //! increasing in each. With `L = max len_k`, `h` the longest side `|â_k − â_j|`, and `p₀` the
 //! computed `|â_0 × d|/|d|`: `|â_k × d|/|d| ≤ |â_0 × d|/|d| + |â_k − â_0|` and
-//! `|â_j × â_k| = |â_j × (â_k − â_j)| ≤ L·h`; a computed cross product's norm is within `4u` of
-//! the product of its factors' norms of the exact one, far below `10⁻¹²·L`, so every computed
+//! `|â_j × â_k| = |â_j × (â_k − â_j)| ≤ L·h`; a computed cross product's norm is within
+//! `6u·|x|·|y|` of the exact one (its factors `x`, `y`), and computed norms and sides within `4u`
+//! relative, all far below the `10⁻¹²·L` added here and the relative 10⁻⁹, so every computed
 //! `perp_k ≤ P̄ = (p₀ + h + 2·10⁻¹²·L)(1 + 10⁻⁹)` and `cross_i ≤ C̄ = (L·h + 2·10⁻¹²·L²)
 //! (1 + 10⁻⁹)`. `ᾱ = R + test_rel·L + r_o` (`R = max r_k`, the same operations, so at least every
 //! computed `α_k`) and `B̄ = |d|·(2ᾱP̄ + ᾱ² + P·(C̄ + 2ᾱL + ᾱ²))·SLACK` bounds every computed
