@@ -336,7 +336,7 @@ impl PreparedScene {
     /// `[tmin, limit]`, `limit` the cut for a lane of triangles only where `cut` is given, `tmax`
     /// otherwise (f32 lanes where they decide, else the f64 [`BoundBox::entry`]); the lanes met,
     /// nearer first, in `out`, and their number.
-    #[inline]
+    #[inline(always)]
     fn lane_entries(
         &self,
         n: usize,
