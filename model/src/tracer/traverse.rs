@@ -332,6 +332,13 @@ pub(super) struct MustRun {
     pub primitive: PrimitiveRef,
 }
 
+/// Whether item `i` is far from the ray (its far box's test; with the BVH's shortcut `quick`, a
+/// segment that meets its inner box first).
+#[inline(always)]
+fn far_item(scene: &PreparedScene, quick: bool, i: usize, ray: &RayF64) -> bool {
+    !(quick && scene.item_bounds[i].meets_inner(ray)) && scene.item_boxes[i].is_far(ray)
+}
+
 /// Every flag some exclusive pair of [`EXCLUSIVE_RAY_FLAGS`] names.
 const EXCLUSIVE_FLAGS: u32 = {
     let mut bits = 0;
@@ -393,9 +400,7 @@ pub fn trace_ray(
     // The BVH's shortcuts (brute force, the reference, goes without): a segment that meets an
     // item's inner box is not far from it.
     let quick = config.use_bvh && far_test;
-    let far = |i: usize, ray: &RayF64| {
-        !(quick && scene.item_bounds[i].meets_inner(ray)) && scene.item_boxes[i].is_far(ray)
-    };
+    let far = |i: usize, ray: &RayF64| far_item(scene, quick, i, ray);
     let mut visit = |i: usize| {
         let item = scene.items[i];
         if far_test && far(i, &rf) {
