@@ -462,9 +462,15 @@ pub fn allowed_for_ray_with(
     allowed_for_ray_memo(world, call, prepared, ray, config, stats, &memo)
 }
 
-/// The hit groups of the hit records a launch's rays reached, by record index: a record's group
-/// depends on the world and call alone, so the rays of one launch share the memo.
-type HitRecordMemo = std::cell::RefCell<HashMap<u64, HitShaders, BuildHasherDefault<RayKeyHasher>>>;
+/// The hit groups of the hit records a launch's rays reached, by record index, and the last hit
+/// and miss records resolved (a launch's rays mostly reach the same few): a record's group depends
+/// on the world and call alone, so the rays of one launch share the memo.
+#[derive(Default)]
+struct HitRecordMemo {
+    hits: std::cell::RefCell<HashMap<u64, HitShaders, BuildHasherDefault<RayKeyHasher>>>,
+    last_hit: std::cell::Cell<Option<(u64, HitShaders)>>,
+    last_miss: std::cell::Cell<Option<(u64, MissShader)>>,
+}
 
 /// [`allowed_for_ray_with`], the hit records resolved through `memo`.
 fn allowed_for_ray_memo(
@@ -480,17 +486,30 @@ fn allowed_for_ray_memo(
     let hit = |i: u32, g: u32| {
         let inst = &scene.instances[i as usize];
         let record = hit_record(inst.sbt_record_offset, g, ray.sbt_offset, ray.sbt_stride);
-        if let Some(h) = memo.borrow().get(&record) {
-            return *h;
+        if let Some((r, h)) = memo.last_hit.get() {
+            if r == record {
+                return h;
+            }
         }
-        let h = hit_shaders(world, call, record);
-        memo.borrow_mut().insert(record, h);
+        let known = memo.hits.borrow().get(&record).copied();
+        let h = known.unwrap_or_else(|| {
+            let h = hit_shaders(world, call, record);
+            memo.hits.borrow_mut().insert(record, h);
+            h
+        });
+        memo.last_hit.set(Some((record, h)));
         h
     };
-    let table = ShaderTable {
-        hit: &hit,
-        miss: miss_shader(world, call, miss_record(ray.miss_index)),
+    let record = miss_record(ray.miss_index);
+    let miss = match memo.last_miss.get() {
+        Some((r, m)) if r == record => m,
+        _ => {
+            let m = miss_shader(world, call, record);
+            memo.last_miss.set(Some((record, m)));
+            m
+        }
     };
+    let table = ShaderTable { hit: &hit, miss };
     trace_ray(prepared, ray, &table, config, stats).ok()
 }
 
@@ -770,10 +789,14 @@ fn trace_distinct(
     let config = TracerConfig::default();
     if workers == 1 {
         let memo = HitRecordMemo::default();
-        return distinct
-            .iter()
-            .map(|&i| allowed_for_ray_memo(world, call, prepared, &rays[i], &config, stats, &memo))
-            .collect();
+        // Pushed into a Vec of the final size (a collect through Option would grow it by copies).
+        let mut all = Vec::with_capacity(distinct.len());
+        for &i in distinct {
+            all.push(allowed_for_ray_memo(
+                world, call, prepared, &rays[i], &config, stats, &memo,
+            )?);
+        }
+        return Some(all);
     }
     // Workers take chunks of distinct rays in turn, so an expensive part of the image does not
     // leave one worker behind; each chunk's outcomes are moved into their place once.
@@ -781,36 +804,38 @@ fn trace_distinct(
     let next = std::sync::atomic::AtomicUsize::new(0);
     /// One worker's chunks (first distinct-ray index, outcomes), and its counters.
     type Part = (Vec<(usize, Vec<Option<AllowedOutcomes>>)>, TracerStats);
-    let parts: Vec<Part> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..workers)
-            .map(|_| {
-                scope.spawn(|| {
-                    let mut out = Vec::new();
-                    let mut stats = TracerStats::default();
-                    let memo = HitRecordMemo::default();
-                    loop {
-                        let start = next.fetch_add(CHUNK, std::sync::atomic::Ordering::Relaxed);
-                        if start >= distinct.len() {
-                            break;
-                        }
-                        let chunk = distinct[start..]
-                            .iter()
-                            .take(CHUNK)
-                            .map(|&i| {
-                                allowed_for_ray_memo(
-                                    world, call, prepared, &rays[i], &config, &mut stats, &memo,
-                                )
-                            })
-                            .collect();
-                        out.push((start, chunk));
-                    }
-                    (out, stats)
+    let work = || {
+        let mut out = Vec::new();
+        let mut stats = TracerStats::default();
+        let memo = HitRecordMemo::default();
+        loop {
+            let start = next.fetch_add(CHUNK, std::sync::atomic::Ordering::Relaxed);
+            if start >= distinct.len() {
+                break;
+            }
+            let chunk = distinct[start..]
+                .iter()
+                .take(CHUNK)
+                .map(|&i| {
+                    allowed_for_ray_memo(
+                        world, call, prepared, &rays[i], &config, &mut stats, &memo,
+                    )
                 })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| h.join().expect("a tracing worker does not panic"))
+                .collect();
+            out.push((start, chunk));
+        }
+        (out, stats)
+    };
+    // The calling thread is one of the workers.
+    let parts: Vec<Part> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (1..workers).map(|_| scope.spawn(work)).collect();
+        let own = work();
+        std::iter::once(own)
+            .chain(
+                handles
+                    .into_iter()
+                    .map(|h| h.join().expect("a tracing worker does not panic")),
+            )
             .collect()
     });
     let mut chunks: Vec<(usize, Vec<Option<AllowedOutcomes>>)> = Vec::new();

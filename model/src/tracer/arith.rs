@@ -345,7 +345,7 @@ pub fn cross3<T: Num>(a: &V3<T>, b: &V3<T>) -> V3<T> {
 }
 
 /// `d · (a × b)`.
-#[inline]
+#[inline(always)]
 pub fn triple<T: Num>(d: &V3<T>, a: &V3<T>, b: &V3<T>) -> T {
     dot3(d, &cross3(a, b))
 }

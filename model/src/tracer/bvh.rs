@@ -336,7 +336,7 @@ impl PreparedScene {
     /// `[tmin, limit]`, `limit` the cut for a lane of triangles only where `cut` is given, `tmax`
     /// otherwise (f32 lanes where they decide, else the f64 [`BoundBox::entry`]); the lanes met,
     /// nearer first, in `out`, and their number.
-    #[inline]
+    #[inline(always)]
     fn lane_entries(
         &self,
         n: usize,
@@ -420,8 +420,8 @@ impl PreparedScene {
         };
         let lane_ray = LaneRay::of(ray);
         // Each level leaves at most three nodes on the stack: a fixed stack holds any tree up to
-        // 64 levels deep, a Vec takes any excess.
-        let mut stack = [(0u32, 0f64); 192];
+        // 21 levels deep (4^21 leaves), a Vec takes any excess.
+        let mut stack = [(0u32, 0f64); 64];
         stack[0] = (0, entry);
         let mut depth = 1usize;
         let mut spill: Vec<(u32, f64)> = Vec::new();

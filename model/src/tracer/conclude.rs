@@ -64,7 +64,7 @@ pub(super) fn conclude(
             .filter(|&i| confirmable(i) && candidates[i].presence == Presence::Required)
     };
     let no_required = required().next().is_none();
-    let committable: Vec<usize> = (0..candidates.len())
+    let committable: few::Few<usize, 4> = (0..candidates.len())
         .filter(|&i| {
             confirmable(i) && (early(i) || required().all(|r| r == i || hulls(i).lo <= hulls(r).hi))
         })

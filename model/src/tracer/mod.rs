@@ -11,7 +11,9 @@ pub mod arith;
 pub mod band;
 mod bvh;
 mod conclude;
+pub mod few;
 pub mod judge;
+mod outside;
 mod prepare;
 pub mod record;
 pub mod sphere;
@@ -302,7 +304,8 @@ pub struct Candidate {
     pub confirmation: Confirmation,
     pub shaders: HitShaders,
     pub no_duplicate_any_hit: bool,
-    pub reports: Vec<AllowedReport>,
+    /// At most two for a triangle (its facings) or a sphere (entry and exit), kept inline.
+    pub reports: few::Few<AllowedReport, 2>,
 }
 
 impl Candidate {
@@ -365,7 +368,7 @@ pub struct AllowedOutcomes {
     /// Every primitive that may become a candidate, after culling.
     pub candidates: Vec<Candidate>,
     /// Indices into `candidates` of those that may be the committed hit.
-    pub committable: Vec<usize>,
+    pub committable: few::Few<usize, 4>,
     pub miss: MissRule,
     pub miss_shader: MissShader,
     /// SkipClosestHitShader was given.

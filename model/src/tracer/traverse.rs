@@ -5,6 +5,7 @@
 use super::arith::{affine, map3, v3, BoundedF64, Dyadic, PlainF32, V3};
 use super::band::triangle_band;
 use super::conclude::conclude;
+use super::outside::robustly_outside;
 use super::prepare::{Item, PreparedScene, RayF64, WorldGeometry};
 use super::sphere::{sphere_band, sphere_reports, sphere_signs, SphereSigns};
 use super::triangle::{
@@ -13,7 +14,7 @@ use super::triangle::{
 };
 use super::watertight::{watertight_groups, TriangleHit};
 use super::*;
-use crate::scene::undefined::ray_problems;
+use crate::scene::undefined::{ray_problems, EXCLUSIVE_RAY_FLAGS};
 use crate::scene::{GeometryData, Problem, Ray, RayFlags, SceneInstance};
 use std::cmp::Ordering;
 
@@ -23,7 +24,8 @@ struct TriangleOutcome {
     class: PairClass,
     signs: Option<TriangleSigns>,
     values: Option<TriangleValues>,
-    band: Option<super::band::TriangleBand>,
+    /// The t and barycentric intervals (`triangle_intervals`), where the pair is no miss.
+    intervals: Option<(Interval, [Interval; 2])>,
     evaluation: Evaluation,
 }
 
@@ -97,7 +99,7 @@ fn classify_triangle(
         class: PairClass::ReqMiss(reason),
         signs: None,
         values: None,
-        band: None,
+        intervals: None,
         evaluation: Evaluation::None,
     };
     // Spec, "Ray Face Culling": a zero ray-space area is culled. Two coincident vertices give zero
@@ -120,8 +122,25 @@ fn classify_triangle(
             }
         }
     }
-    let world_f64 = map3(ids, |i| map3(w.vertices[i], |x| x.value));
     let radius = map3(ids, |i| w.static_radius[i]);
+    // The commonest miss, robustly outside two edges, certified before the band and the
+    // error-tracked edge functions (see `outside.rs`); the full classification finds it too.
+    if precision == Precision::F64WithExactFallback
+        && robustly_outside(
+            &inst.band,
+            &map3(ids, |i| w.vertices[i]),
+            &radius,
+            rf.origin,
+            rf.origin_norm,
+            rf.direction,
+        )
+    {
+        return TriangleOutcome {
+            evaluation: Evaluation::Filter,
+            ..miss(MissReason::Outside)
+        };
+    }
+    let world_f64 = map3(ids, |i| map3(w.vertices[i], |x| x.value));
     let band = triangle_band(&inst.band, &world_f64, &radius, rf.origin, rf.direction);
     let evaluate_exact = || {
         let world = pos.map(|p| dyadic_world(scene, w, p));
@@ -165,11 +184,13 @@ fn classify_triangle(
             (x, Evaluation::F32)
         }
     };
+    let class = classify(&signs);
     TriangleOutcome {
-        class: classify(&signs),
+        class,
         signs: Some(signs),
         values: Some(values),
-        band: Some(band),
+        intervals: (!matches!(class, PairClass::ReqMiss(_)))
+            .then(|| triangle_intervals(&values, &band)),
         evaluation,
     }
 }
@@ -270,7 +291,7 @@ fn required_hit_t(
     if out.class != PairClass::ReqHit {
         return None;
     }
-    let (signs, values, band) = (out.signs?, out.values?, out.band?);
+    let (signs, (t, _)) = (out.signs?, out.intervals?);
     let culls_facing = !inst.flags.triangle_facing_cull_disable
         && (ray.flags.contains(RayFlags::CULL_BACK_FACING_TRIANGLES)
             || ray.flags.contains(RayFlags::CULL_FRONT_FACING_TRIANGLES));
@@ -287,17 +308,19 @@ fn required_hit_t(
             return None;
         }
     }
-    let (t, _) = triangle_intervals(&values, &band);
     t.hi.is_finite().then_some(t.hi)
 }
 
 /// A primitive the ray's padded box test kept, with its classification when the traversal made
-/// one (an unculled triangle).
+/// one (an unculled triangle). Small, so the sort moves little.
 struct NearItem {
+    /// (instance, geometry, primitive): the order of the candidates.
+    key: (u32, u32, u32),
     item: Item,
     /// Its index in the prepared scene's items.
-    index: usize,
-    outcome: Option<TriangleOutcome>,
+    index: u32,
+    /// Its classification's index in the scratch outcomes, or `u32::MAX`.
+    outcome: u32,
     /// The cut it was kept at (its padded box met by the ray cut there): the final cut, if the
     /// same, would keep it again.
     kept_at: f64,
@@ -309,6 +332,40 @@ pub(super) struct MustRun {
     pub primitive: PrimitiveRef,
 }
 
+/// Whether item `i` is far from the ray (its far box's test; with the BVH's shortcut `quick`, a
+/// segment that meets its inner box first).
+#[inline(always)]
+fn far_item(scene: &PreparedScene, quick: bool, i: usize, ray: &RayF64) -> bool {
+    !(quick && scene.item_bounds[i].meets_inner(ray)) && scene.item_boxes[i].is_far(ray)
+}
+
+/// Every flag some exclusive pair of [`EXCLUSIVE_RAY_FLAGS`] names.
+const EXCLUSIVE_FLAGS: u32 = {
+    let mut bits = 0;
+    let mut i = 0;
+    while i < EXCLUSIVE_RAY_FLAGS.len() {
+        bits |= EXCLUSIVE_RAY_FLAGS[i].0 .0 | EXCLUSIVE_RAY_FLAGS[i].1 .0;
+        i += 1;
+    }
+    bits
+};
+
+/// Whether the ray has none of [`ray_problems`]' problems, tested without building them: finite
+/// origin and direction, a direction not zero, `0 ≤ tmin ≤ tmax` with tmin finite and tmax not NaN,
+/// known flags, and at most one flag of the exclusive pairs (so no pair). False decides nothing:
+/// `ray_problems` then says.
+fn plainly_defined(ray: &Ray) -> bool {
+    let finite3 = |v: &[f32; 3]| v[0].is_finite() && v[1].is_finite() && v[2].is_finite();
+    finite3(&ray.origin)
+        && finite3(&ray.direction)
+        && ray.direction != [0.0; 3]
+        && ray.tmin.is_finite()
+        && ray.tmin >= 0.0
+        && ray.tmin <= ray.tmax
+        && ray.flags.0 & !RayFlags::KNOWN == 0
+        && (ray.flags.0 & EXCLUSIVE_FLAGS).count_ones() <= 1
+}
+
 /// Traces one ray: the set of outcomes the spec allows. Fails with the ray's undefined things.
 pub fn trace_ray(
     scene: &PreparedScene,
@@ -317,9 +374,11 @@ pub fn trace_ray(
     config: &TracerConfig,
     stats: &mut TracerStats,
 ) -> Result<AllowedOutcomes, Vec<Problem>> {
-    let problems = ray_problems(ray, "ray");
-    if !problems.is_empty() {
-        return Err(problems);
+    if !plainly_defined(ray) {
+        let problems = ray_problems(ray, "ray");
+        if !problems.is_empty() {
+            return Err(problems);
+        }
     }
     stats.rays += 1;
     let rf = RayF64::of(ray);
@@ -331,15 +390,17 @@ pub fn trace_ray(
     let cut = std::cell::Cell::new(f64::INFINITY);
     let mut may_cut: Option<bool> = None;
     let mut scratch = SCRATCH.with(|s| std::mem::take(&mut *s.borrow_mut()));
-    let near = &mut scratch.near;
+    let Scratch {
+        near,
+        hits,
+        outcomes,
+    } = &mut scratch;
     let mut far_count = 0u64;
     let far_test = config.far_test;
     // The BVH's shortcuts (brute force, the reference, goes without): a segment that meets an
     // item's inner box is not far from it.
     let quick = config.use_bvh && far_test;
-    let far = |i: usize, ray: &RayF64| {
-        !(quick && scene.item_bounds[i].meets_inner(ray)) && scene.item_boxes[i].is_far(ray)
-    };
+    let far = |i: usize, ray: &RayF64| far_item(scene, quick, i, ray);
     let mut visit = |i: usize| {
         let item = scene.items[i];
         if far_test && far(i, &rf) {
@@ -349,9 +410,10 @@ pub fn trace_ray(
         let w = &scene.geometries[item.geometry as usize];
         if w.kind != PrimitiveKind::Triangle {
             near.push(NearItem {
+                key: (w.instance, w.geometry, item.primitive),
                 item,
-                index: i,
-                outcome: None,
+                index: i as u32,
+                outcome: u32::MAX,
                 kept_at: f64::INFINITY,
             });
             return;
@@ -377,9 +439,13 @@ pub fn trace_ray(
             }
         }
         near.push(NearItem {
+            key: (w.instance, w.geometry, item.primitive),
             item,
-            index: i,
-            outcome,
+            index: i as u32,
+            outcome: outcome.map_or(u32::MAX, |o| {
+                outcomes.push(o);
+                outcomes.len() as u32 - 1
+            }),
             kept_at: c,
         });
     };
@@ -400,20 +466,18 @@ pub fn trace_ray(
         near.retain(|n| {
             scene.geometries[n.item.geometry as usize].kind != PrimitiveKind::Triangle
                 || n.kept_at == cut_at
-                || !far(n.index, &cut_ray)
+                || !far(n.index as usize, &cut_ray)
         });
     }
     // A deterministic order, independent of the BVH.
     // (instance, geometry, primitive) is unique per item: an unstable sort gives the same order.
-    near.sort_unstable_by_key(|n| {
-        let w = &scene.geometries[n.item.geometry as usize];
-        (w.instance, w.geometry, n.item.primitive)
-    });
+    near.sort_unstable_by_key(|n| n.key);
 
-    let mut candidates: Vec<Candidate> = Vec::with_capacity(near.len());
-    let hits = &mut scratch.hits;
+    // Allocated by the first candidate (most near pairs are misses).
+    let mut candidates: Vec<Candidate> = Vec::new();
     let mut must_run: Vec<MustRun> = Vec::new();
     for NearItem { item, outcome, .. } in near.drain(..) {
+        let outcome = outcomes.get(outcome as usize).copied();
         let w = &scene.geometries[item.geometry as usize];
         let inst = &scene.scene.instances[w.instance as usize];
         // Spec, "Ray Mask Culling".
@@ -461,7 +525,6 @@ pub fn trace_ray(
                 };
                 let signs = out.signs.expect("classified");
                 let values = out.values.expect("classified");
-                let band = out.band.expect("classified");
                 if opacity_culled(ray, opaque) {
                     continue;
                 }
@@ -507,7 +570,7 @@ pub fn trace_ray(
                 } else {
                     reason
                 };
-                let (t, bary) = triangle_intervals(&values, &band);
+                let (t, bary) = out.intervals.expect("classified, no miss");
                 let (s, _) = values.sum;
                 let t_exact = values.plane.0 / s;
                 let bary_exact = [values.edge[1].0 / s, values.edge[2].0 / s];
@@ -619,7 +682,7 @@ pub fn trace_ray(
                         primitive: prim,
                     });
                 }
-                let reports: Vec<AllowedReport> = sphere_reports(&signs, &band)
+                let reports: few::Few<AllowedReport, 2> = sphere_reports(&signs, &band)
                     .into_iter()
                     .map(|r| AllowedReport {
                         hit_kind: r.hit_kind,
@@ -665,6 +728,7 @@ pub fn trace_ray(
     }
     let watertight = watertight_groups(scene, ray, &candidates, hits);
     hits.clear();
+    outcomes.clear();
     SCRATCH.with(|s| *s.borrow_mut() = scratch);
     Ok(conclude(
         scene, ray, shaders, candidates, must_run, watertight,
@@ -676,6 +740,8 @@ pub fn trace_ray(
 struct Scratch {
     near: Vec<NearItem>,
     hits: Vec<TriangleHit>,
+    /// The near items' classifications.
+    outcomes: Vec<TriangleOutcome>,
 }
 
 thread_local! {
@@ -693,4 +759,40 @@ pub fn trace_launch(
     rays.iter()
         .map(|r| trace_ray(scene, r, shaders, config, stats))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_plainly_defined_ray_has_no_problem() {
+        let values = [
+            0.0,
+            -0.0,
+            1.0,
+            -2.5,
+            1e30,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        let flags = [0, 1, 2, 3, 0x41, 0x100, 0x300, 0x400, 0x3FF];
+        let (mut plain, mut rays) = (0, 0);
+        for (i, &x) in values.iter().enumerate() {
+            for &y in &values {
+                for &f in &flags {
+                    let z = values[(i + 3) % values.len()];
+                    let mut ray = Ray::new([x, 1.0, z], [y, 0.0, 0.0], x.abs(), y);
+                    ray.flags = RayFlags(f);
+                    rays += 1;
+                    if plainly_defined(&ray) {
+                        plain += 1;
+                        assert!(ray_problems(&ray, "ray").is_empty(), "{ray:?}");
+                    }
+                }
+            }
+        }
+        assert!(plain > 0 && plain < rays, "{plain} of {rays}");
+    }
 }

@@ -1,0 +1,81 @@
+//! A fixed amount of `model::semantics::expected_launch` work per triangle workload, for counting
+//! instructions per ray under callgrind: the 64x64 launch of the hand-made indirect case (as in
+//! `expected_launch.rs`), warmed once (prepared scene and its topology made), then
+//! `RTCONF_BENCH_PASSES` launches (default 4) inside [`measured`], the one function to collect.
+//!
+//! ```text
+//! cargo bench -p rtconf-model --bench launch_instructions --no-run
+//! RTCONF_BENCH_ONLY=grid taskset -c 0 valgrind --tool=callgrind --collect-atstart=no \
+//!     --toggle-collect='launch_instructions::measured' target/release/deps/launch_instructions-*
+//! ```
+//!
+//! `taskset -c 0` keeps the launch on one thread, so every instruction is under [`measured`];
+//! instructions per ray = callgrind's total / (passes × 4096). Run plainly it prints the launch
+//! count only (no timing: the rates are `expected_launch.rs`'s); `RTCONF_BENCH_DUMP=DIR` writes
+//! each workload's allowed outcomes and counters to `DIR/NAME.txt`, to diff before and after a
+//! change that must not change them.
+
+use model::case::Case;
+use model::scene::GeometryData;
+use model::tracer::workload::standard_workloads;
+use model::world::Contents;
+
+const SIDE: u32 = 64;
+
+fn hand_case() -> Case {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../cases/hand/trace-indirect-records-32.yaml");
+    let text = std::fs::read_to_string(&path).expect("the hand-made case");
+    Case::from_yaml("hand", &text).expect("the hand-made case parses")
+}
+
+/// The launches whose instructions are counted.
+#[inline(never)]
+fn measured(body: &model::case::TraceBody, passes: usize) -> usize {
+    let mut rays = 0;
+    for _ in 0..passes {
+        let e = model::semantics::expected_launch(&body.world, &body.call).expect("outcomes");
+        rays += e.stats.rays as usize;
+    }
+    rays
+}
+
+fn main() {
+    let passes: usize = std::env::var("RTCONF_BENCH_PASSES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(4);
+    let only = std::env::var("RTCONF_BENCH_ONLY").unwrap_or_default();
+    for w in standard_workloads(SIDE, false) {
+        let triangles = w.scene.bottom_levels.iter().all(|b| {
+            b.geometries
+                .iter()
+                .all(|g| matches!(g.data, GeometryData::Triangles(_)))
+        });
+        if !triangles || !w.name.contains(only.as_str()) {
+            continue;
+        }
+        let mut case = hand_case();
+        let t = case.as_trace_mut().expect("a trace case");
+        t.world.launch.scene = w.scene.clone();
+        t.world.launch.rays = w.rays.clone();
+        for b in &mut t.world.buffers {
+            for c in &mut b.contents {
+                if let Contents::TraceRaysIndirectCommand { width, height, .. } = c {
+                    *width = SIDE;
+                    *height = SIDE;
+                }
+            }
+        }
+        let body = case.as_trace().expect("a trace case").clone();
+        let warm = model::semantics::expected_launch(&body.world, &body.call).expect("outcomes");
+        if let Ok(dir) = std::env::var("RTCONF_BENCH_DUMP") {
+            // The launch's whole answer, to compare before and after a change of the tracer.
+            let path = std::path::Path::new(&dir).join(format!("{}.txt", w.name.replace(' ', "-")));
+            std::fs::write(&path, format!("{:#?}\n{:#?}", warm.allowed, warm.stats))
+                .expect("the dump is written");
+        }
+        let rays = measured(&body, passes);
+        println!("{:<24} {passes} launches, {rays} rays", w.name);
+    }
+}

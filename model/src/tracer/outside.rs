@@ -1,0 +1,318 @@
+//! A plain-f64 pre-test that certifies the commonest REQ-miss, a ray robustly outside two edges of
+//! a triangle, before the band and the error-tracked edge functions are computed: three edge
+//! functions in plain f64 with one a-priori error bound, against one upper bound of the three edge
+//! bands. Where it certifies, the exact signs of two edge functions against their bands are
+//! opposite, so the full classification (filter or exact) is `ReqMiss(Outside)` too; otherwise it
+//! decides nothing and the full classification runs.
+//!
+//! The error bound. World vertices `ŵ_k` are f64 values within `ε` (the largest error bound of their
+//! coordinates) of the exact `w_k`; `o`, `d` are exact. `â_k = fl(ŵ_k − o)` is within
+//! `δ = ε + u·|â|/(1 − u) ≤ ε + 2u·A` of `a_k = w_k − o`, componentwise, with `A` the largest
+//! `|â_{k,c}|`. With `ê_i = fl(d·fl(â_j × â_k))` (in any order of its sums):
+//! - rounding: each cross component `fl(fl(xy) − fl(zw))` is within `(2u + u²)(|xy| + |zw|)` of
+//!   `xy − zw`, and `|xy| + |zw| ≤ 2A²`; the three-term dot adds `γ₃·Σ|d_c||ĉ_c|`; in all at most
+//!   `5.03u·D₁·2A² < 16u·D₁·A²`, `D₁ = Σ|d_c|`;
+//! - input error: `|ab − âb̂| ≤ 2Aδ + δ²` per product, two per cross component, so
+//!   `|d·(a_j × a_k) − d·(â_j × â_k)| ≤ D₁·2·(2Aδ + δ²)`.
+//!
+//! `E = D₁·(2(2Aδ + δ²) + 16u·A²)` is evaluated with a relative slack of 10⁻⁹ (far above the
+//! rounding of its dozen non-negative operations) and an absolute `10⁻³⁰⁰` (far above the
+//! absolute error of subnormal results), so `|ê_i − e_i| ≤ E`.
+//!
+//! The band bound. [`super::band::triangle_band`] computes, from the same `â_k`, `len_k = |â_k|`,
+//! `perp_k = |â_k × d|/|d| + 10⁻¹²·len_k`, `cross_i = |â_j × â_k| + 10⁻¹²·len_j·len_k` and
+//! `α_k = r_k + test_rel·len_k + r_o`; every edge band is a non-negative polynomial in these,
+//! increasing in each. With `L = max len_k`, `h` the longest side `|â_k − â_j|`, and `p₀` the
+//! computed `|â_0 × d|/|d|`: `|â_k × d|/|d| ≤ |â_0 × d|/|d| + |â_k − â_0|` and
+//! `|â_j × â_k| = |â_j × (â_k − â_j)| ≤ L·h`; a computed cross product's norm is within
+//! `6u·|x|·|y|` of the exact one (its factors `x`, `y`), and computed norms and sides within `4u`
+//! relative, all far below the `10⁻¹²·L` added here and the relative 10⁻⁹, so every computed
+//! `perp_k ≤ P̄ = (p₀ + h + 2·10⁻¹²·L)(1 + 10⁻⁹)` and `cross_i ≤ C̄ = (L·h + 2·10⁻¹²·L²)
+//! (1 + 10⁻⁹)`. `ᾱ = R + test_rel·L + r_o` (`R = max r_k`, the same operations, so at least every
+//! computed `α_k`) and `B̄ = |d|·(2ᾱP̄ + ᾱ² + P·(C̄ + 2ᾱL + ᾱ²))·SLACK` bounds every computed
+//! `B_i` once a relative 10⁻⁹ covers the two evaluations' roundings (each under 30 operations on
+//! non-negative values, so within `(1 ± u)^30`).
+//!
+//! The test. `T = (B̄ + E)·(1 + 10⁻⁹) ≥ B̄ + E`; `ê_i > T` gives `e_i ≥ ê_i − E > B̄ ≥ B_i`
+//! (the band's Positive side), `ê_i < −T` gives `e_i < −B_i` (Negative). Non-finite values fail
+//! every comparison or are refused, so overflow and NaN decide nothing.
+
+use super::arith::BoundedF64;
+use super::band::{norm3, InstanceBand};
+
+/// Unit roundoff of f64.
+const U: f64 = f64::EPSILON / 2.0;
+
+/// Relative slack on each bound computed here (see the module comment).
+const GROW: f64 = 1.0 + 1e-9;
+
+/// Whether the exact edge functions of the pair are robustly on opposite sides of the bands of two
+/// of its edges (then the pair is `ReqMiss(Outside)` in every certified classification).
+#[inline]
+pub(crate) fn robustly_outside(
+    band: &InstanceBand,
+    world: &[[BoundedF64; 3]; 3],
+    static_radius: &[f64; 3],
+    origin: [f64; 3],
+    origin_norm: f64,
+    direction: [f64; 3],
+) -> bool {
+    outside_with(
+        band,
+        world,
+        static_radius,
+        origin,
+        origin_norm,
+        direction,
+        1.0,
+    )
+}
+
+/// [`robustly_outside`] (`origin_norm` is `norm3(origin)`) with both bounds multiplied by `scale` (1 is the proven test; a test's
+/// planted fault shrinks them).
+#[inline(always)]
+fn outside_with(
+    band: &InstanceBand,
+    world: &[[BoundedF64; 3]; 3],
+    static_radius: &[f64; 3],
+    origin: [f64; 3],
+    origin_norm: f64,
+    direction: [f64; 3],
+    scale: f64,
+) -> bool {
+    let mut a = [[0f64; 3]; 3];
+    let (mut big, mut eps) = (0f64, 0f64);
+    for k in 0..3 {
+        for c in 0..3 {
+            // As `triangle_band` computes it.
+            a[k][c] = world[k][c].value - origin[c];
+            big = big.max(a[k][c].abs());
+            eps = eps.max(world[k][c].error);
+        }
+    }
+    let [d0, d1, d2] = direction;
+    let e = |x: &[f64; 3], y: &[f64; 3]| {
+        d0 * (x[1] * y[2] - x[2] * y[1])
+            + d1 * (x[2] * y[0] - x[0] * y[2])
+            + d2 * (x[0] * y[1] - x[1] * y[0])
+    };
+    let edge = [e(&a[1], &a[2]), e(&a[2], &a[0]), e(&a[0], &a[1])];
+    // Signs that are not opposite at face value are not opposite certified either (and NaN
+    // compares false).
+    let mixed = (edge[0] > 0.0 || edge[1] > 0.0 || edge[2] > 0.0)
+        && (edge[0] < 0.0 || edge[1] < 0.0 || edge[2] < 0.0);
+    if !(mixed && edge[0].is_finite() && edge[1].is_finite() && edge[2].is_finite()) {
+        return false;
+    }
+    let d1_norm = d0.abs() + d1.abs() + d2.abs();
+    let delta = (eps + 2.0 * U * big) * GROW;
+    let error = d1_norm * (2.0 * (2.0 * big * delta + delta * delta) + 16.0 * U * big * big) * GROW
+        + 1e-300;
+    let square = |v: [f64; 3]| v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    // The largest of the three `norm3`s: the square root is monotone.
+    let len = square(a[0]).max(square(a[1])).max(square(a[2])).sqrt();
+    let side = |x: &[f64; 3], y: &[f64; 3]| square([x[0] - y[0], x[1] - y[1], x[2] - y[2]]);
+    let longest = side(&a[1], &a[0])
+        .max(side(&a[2], &a[1]))
+        .max(side(&a[0], &a[2]))
+        .sqrt();
+    let dn = norm3(direction);
+    let [x, y, z] = a[0];
+    let perp_0 = norm3([y * d2 - z * d1, z * d0 - x * d2, x * d1 - y * d0]) / dn;
+    let perp = (perp_0 + longest + 2e-12 * len) * GROW;
+    let cross = (len * longest + 2e-12 * len * len) * GROW;
+    let radius = static_radius[0].max(static_radius[1]).max(static_radius[2]);
+    // `band.origin_radius(origin)`, its norm given.
+    let alpha = radius + band.test_rel * len + band.origin_coef * (origin_norm + band.norm_t);
+    let p = band.direction_rel;
+    let edge_band = dn
+        * (2.0 * alpha * perp + alpha * alpha + p * (cross + 2.0 * alpha * len + alpha * alpha))
+        * (1.0 + 1e-9)
+        * GROW;
+    let t = (edge_band + error) * GROW * scale;
+    // Also false where `t` is NaN or infinite.
+    let positive = edge[0] > t || edge[1] > t || edge[2] > t;
+    let negative = edge[0] < -t || edge[1] < -t || edge[2] < -t;
+    positive && negative
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Transform3x4;
+    use crate::tracer::arith::{affine, sub3, triple, v3, Dyadic, Num};
+    use crate::tracer::band::{triangle_band, vertex_static_radius};
+    use std::cmp::Ordering;
+
+    /// A deterministic generator (64-bit LCG, high bits).
+    struct Lcg(u64);
+
+    impl Lcg {
+        fn unit(&mut self) -> f64 {
+            self.0 = self
+                .0
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+        fn range(&mut self, lo: f64, hi: f64) -> f64 {
+            lo + (hi - lo) * self.unit()
+        }
+    }
+
+    /// Over random triangles (random similarity-like instance transforms, scales from 1e-3 to 1e3)
+    /// and rays aimed at points near their edge lines — just inside and just outside the band —,
+    /// the pairs the pre-test with bounds scaled by `scale` calls outside, and of those the ones
+    /// whose exact edge signs against the band are not opposite on two edges (unsound).
+    fn verdicts(scale: f64, cases: usize) -> (usize, usize) {
+        let mut rng = Lcg(0x5eed_0017);
+        let (mut certified, mut unsound) = (0, 0);
+        for case in 0..cases {
+            let s = [1e-3, 1.0, 1e3][case % 3];
+            let transform = if case % 2 == 0 {
+                Transform3x4::IDENTITY
+            } else {
+                let (sn, cs) = rng.range(0.0, 6.0).sin_cos();
+                let t = [0; 3].map(|_| rng.range(-5.0, 5.0) * s);
+                Transform3x4([
+                    [cs as f32, -sn as f32, 0.0, t[0] as f32],
+                    [sn as f32, cs as f32, 0.0, t[1] as f32],
+                    [0.0, 0.0, 1.3, t[2] as f32],
+                ])
+            };
+            let band = InstanceBand::new(&transform);
+            let obj: [[f32; 3]; 3] =
+                [0; 3].map(|_| [0; 3].map(|_| (rng.range(-1.0, 1.0) * s) as f32));
+            let world = obj.map(|p| affine(&transform.0, &v3::<BoundedF64>(p)));
+            let radius = obj.map(|p| {
+                let o = p.map(|x| x as f64);
+                vertex_static_radius(&band, None, o, o)
+            });
+            let origin: [f32; 3] = [0; 3].map(|_| (rng.range(-8.0, 8.0) * s) as f32);
+            // A point on an edge line, nudged across it by a few band widths either way.
+            let (i, j) = [(0, 1), (1, 2), (2, 0)][(rng.unit() * 3.0) as usize];
+            let f = rng.range(-0.5, 1.5);
+            let wv = world.map(|v| v.map(|x| x.value));
+            let mut target = [0, 1, 2].map(|c| wv[i][c] + f * (wv[j][c] - wv[i][c]));
+            let centre = [0, 1, 2].map(|c| (wv[0][c] + wv[1][c] + wv[2][c]) / 3.0);
+            let nudge = rng.range(-1e-5, 1e-5) * [1.0, 1e-2, 1e-4][case % 3];
+            for c in 0..3 {
+                target[c] += nudge * (target[c] - centre[c]);
+            }
+            let direction: [f32; 3] = [0, 1, 2].map(|c| (target[c] - origin[c] as f64) as f32);
+            let (o64, d64) = (origin.map(|x| x as f64), direction.map(|x| x as f64));
+            if !outside_with(&band, &world, &radius, o64, norm3(o64), d64, scale) {
+                continue;
+            }
+            certified += 1;
+            let b = triangle_band(&band, &wv, &radius, o64, d64);
+            let exact: [[Dyadic; 3]; 3] = obj.map(|p| affine(&transform.0, &v3::<Dyadic>(p)));
+            let a = [0, 1, 2].map(|k| sub3(&exact[k], &v3(origin)));
+            let d = v3::<Dyadic>(direction);
+            let e = [
+                triple(&d, &a[1], &a[2]),
+                triple(&d, &a[2], &a[0]),
+                triple(&d, &a[0], &a[1]),
+            ];
+            let side = |k: usize| {
+                if e[k].sub(&Dyadic::from_f64(b.edge[k])).sign() == Some(Ordering::Greater) {
+                    1
+                } else if e[k].add(&Dyadic::from_f64(b.edge[k])).sign() == Some(Ordering::Less) {
+                    -1
+                } else {
+                    0
+                }
+            };
+            let sides = [side(0), side(1), side(2)];
+            if !(sides.contains(&1) && sides.contains(&-1)) {
+                unsound += 1;
+            }
+        }
+        (certified, unsound)
+    }
+
+    #[test]
+    fn what_the_pre_test_calls_outside_is_outside_exactly() {
+        let (certified, unsound) = verdicts(1.0, 20_000);
+        assert_eq!(unsound, 0);
+        // Most rays miss the edge line by more than the bounds: the test decides them.
+        assert!(certified > 5_000, "{certified}");
+    }
+
+    #[test]
+    fn the_pre_test_without_its_bounds_calls_band_pairs_outside() {
+        // The planted fault: bounds shrunk to 0 take the sign of the f64 value at face value.
+        let (_, unsound) = verdicts(0.0, 20_000);
+        assert!(unsound > 100, "{unsound}");
+    }
+
+    #[test]
+    fn on_the_standard_workloads_what_the_pre_test_calls_outside_the_filter_does() {
+        use crate::tracer::prepare::{PreparedScene, RayF64};
+        use crate::tracer::triangle::{classify, triangle_signs, MissReason, PairClass};
+        use crate::tracer::PrimitiveKind;
+        let (mut certified, mut pairs) = (0, 0);
+        for w in crate::tracer::workload::standard_workloads(12, false) {
+            let scene = PreparedScene::new(&w.scene).expect("a defined workload");
+            for ray in &w.rays {
+                let rf = RayF64::of(ray);
+                let mut near = Vec::new();
+                let cut = std::cell::Cell::new(f64::INFINITY);
+                scene.for_each_near(&rf, &mut 0, &mut 0, &cut, |i| near.push(i));
+                for i in near {
+                    let item = scene.items[i];
+                    let g = &scene.geometries[item.geometry as usize];
+                    if g.kind != PrimitiveKind::Triangle {
+                        continue;
+                    }
+                    let crate::scene::GeometryData::Triangles(t) = &scene.scene.bottom_levels
+                        [g.bottom_level as usize]
+                        .geometries[g.geometry as usize]
+                        .data
+                    else {
+                        unreachable!()
+                    };
+                    let ids = t.vertex_indices(item.primitive as usize);
+                    let world = ids.map(|k| g.vertices[k]);
+                    let radius = ids.map(|k| g.static_radius[k]);
+                    let inst = &scene.instances[g.instance as usize];
+                    pairs += 1;
+                    if !robustly_outside(
+                        &inst.band,
+                        &world,
+                        &radius,
+                        rf.origin,
+                        rf.origin_norm,
+                        rf.direction,
+                    ) {
+                        continue;
+                    }
+                    certified += 1;
+                    let band = triangle_band(
+                        &inst.band,
+                        &world.map(|v| v.map(|x| x.value)),
+                        &radius,
+                        rf.origin,
+                        rf.direction,
+                    );
+                    let (signs, _) = triangle_signs::<BoundedF64>(
+                        &world,
+                        &v3(ray.origin),
+                        &v3(ray.direction),
+                        ray.tmin,
+                        ray.tmax,
+                        &band,
+                    )
+                    .expect("the filter decides the workloads' pairs");
+                    assert_eq!(
+                        classify(&signs),
+                        PairClass::ReqMiss(MissReason::Outside),
+                        "{}: {ray:?}",
+                        w.name
+                    );
+                }
+            }
+        }
+        assert!(certified * 4 > pairs, "{certified} of {pairs}");
+    }
+}
