@@ -150,7 +150,12 @@ fn the_spirv_disk_cache_holds_whole_modules_and_serves_a_second_process() {
     child_compiles(tmp.path(), true, Some(&suffix));
     let top: Vec<String> = std::fs::read_dir(tmp.path())
         .expect("the child's TMPDIR")
-        .map(|e| e.expect("an entry").file_name().to_string_lossy().into_owned())
+        .map(|e| {
+            e.expect("an entry")
+                .file_name()
+                .to_string_lossy()
+                .into_owned()
+        })
         .collect();
     assert_eq!(top, ["rtconf-spirv"], "the cache keeps to its folder");
     let entries: Vec<std::path::PathBuf> = std::fs::read_dir(tmp.path().join("rtconf-spirv"))
@@ -172,7 +177,11 @@ fn the_spirv_disk_cache_holds_whole_modules_and_serves_a_second_process() {
     let after = std::fs::read_dir(tmp.path().join("rtconf-spirv"))
         .expect("the cache folder")
         .count();
-    assert_eq!(after, entries.len(), "the second process made no entry of its own");
+    assert_eq!(
+        after,
+        entries.len(),
+        "the second process made no entry of its own"
+    );
     // And the entries are what it uses: a module of another stage planted in an entry is what the
     // next process gets (its execution model check fails).
     let words = |p: &std::path::Path| -> Vec<u32> {
