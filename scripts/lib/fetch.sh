@@ -57,18 +57,20 @@ fetch_stage() {
 }
 
 fetch_commit() {
-    local stage=${1%/} dir=${2%/}
+    local stage=${1%/} dir=${2%/} stale=
     date -u +%Y-%m-%dT%H:%M:%SZ >"$stage/$fetch_marker"
     if [[ -e "$dir" || -L "$dir" ]]; then
         # An older directory (left incomplete by an interrupted run, or made for another set of
         # packages): move it aside first, so the rename below has a free name (rename(2) replaces
         # only an empty directory); it is removed at exit.
-        local stale
         stale=$(mktemp -u "$(dirname "$dir")/.$(basename "$dir").stale.XXXXXX")
         mv -T -- "$dir" "$stale"
         fetch_cleanup_paths+=("$stale")
     fi
     mv -T -- "$stage" "$dir"
+    # The new directory is in place: the old one goes now, not at exit, so what follows (a size
+    # check of the folder around it) sees only the new one.
+    [[ -z "$stale" ]] || rm -rf -- "$stale"
 }
 
 fetch_apt_dir=
