@@ -10,10 +10,8 @@
 //! median; `RTCONF_BENCH_ONLY=NAME` keeps the workloads whose name contains NAME).
 
 use model::case::Case;
-use model::scene::GeometryData;
 use model::tracer::workload::{run, standard_workloads};
 use model::tracer::{PreparedScene, TracerConfig};
-use model::world::Contents;
 use std::time::Instant;
 
 const SIDE: u32 = 64;
@@ -62,26 +60,10 @@ fn main() {
         "pairs/ray"
     );
     for w in standard_workloads(SIDE, false) {
-        let triangles = w.scene.bottom_levels.iter().all(|b| {
-            b.geometries
-                .iter()
-                .all(|g| matches!(g.data, GeometryData::Triangles(_)))
-        });
-        if !triangles || !w.name.contains(only.as_str()) {
+        if !w.triangles_only() || !w.name.contains(only.as_str()) {
             continue;
         }
-        let mut case = hand_case();
-        let t = case.as_trace_mut().expect("a trace case");
-        t.world.launch.scene = w.scene.clone();
-        t.world.launch.rays = w.rays.clone();
-        for b in &mut t.world.buffers {
-            for c in &mut b.contents {
-                if let Contents::TraceRaysIndirectCommand { width, height, .. } = c {
-                    *width = SIDE;
-                    *height = SIDE;
-                }
-            }
-        }
+        let case = w.as_launch_of(hand_case(), SIDE);
         let body = case.as_trace().expect("a trace case").clone();
         let ids = (SIDE * SIDE) as f64;
         // Warm-up: the prepared scene is made once.

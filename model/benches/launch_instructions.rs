@@ -16,9 +16,7 @@
 //! change that must not change them.
 
 use model::case::Case;
-use model::scene::GeometryData;
 use model::tracer::workload::standard_workloads;
-use model::world::Contents;
 
 const SIDE: u32 = 64;
 
@@ -47,26 +45,10 @@ fn main() {
         .unwrap_or(4);
     let only = std::env::var("RTCONF_BENCH_ONLY").unwrap_or_default();
     for w in standard_workloads(SIDE, false) {
-        let triangles = w.scene.bottom_levels.iter().all(|b| {
-            b.geometries
-                .iter()
-                .all(|g| matches!(g.data, GeometryData::Triangles(_)))
-        });
-        if !triangles || !w.name.contains(only.as_str()) {
+        if !w.triangles_only() || !w.name.contains(only.as_str()) {
             continue;
         }
-        let mut case = hand_case();
-        let t = case.as_trace_mut().expect("a trace case");
-        t.world.launch.scene = w.scene.clone();
-        t.world.launch.rays = w.rays.clone();
-        for b in &mut t.world.buffers {
-            for c in &mut b.contents {
-                if let Contents::TraceRaysIndirectCommand { width, height, .. } = c {
-                    *width = SIDE;
-                    *height = SIDE;
-                }
-            }
-        }
+        let case = w.as_launch_of(hand_case(), SIDE);
         let body = case.as_trace().expect("a trace case").clone();
         let warm = model::semantics::expected_launch(&body.world, &body.call).expect("outcomes");
         if let Ok(dir) = std::env::var("RTCONF_BENCH_DUMP") {

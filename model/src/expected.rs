@@ -99,22 +99,9 @@ mod tests {
         );
     }
 
-    fn case_files(dir: &std::path::Path, out: &mut Vec<std::path::PathBuf>) {
-        for entry in std::fs::read_dir(dir).expect("the cases folder reads") {
-            let path = entry.expect("a folder entry").path();
-            if path.is_dir() {
-                case_files(&path, out);
-            } else if path.extension().is_some_and(|e| e == "yaml") {
-                out.push(path);
-            }
-        }
-    }
-
     #[test]
     fn the_misses_of_a_launch_traced_whole_are_the_misses_found_by_tracing_until_known() {
-        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases");
-        let mut files = Vec::new();
-        case_files(&root, &mut files);
+        let files = crate::test_cases::repository_case_files();
         let (mut compared, mut with_misses) = (0, 0);
         for f in files {
             let text = std::fs::read_to_string(&f).expect("a case file reads");

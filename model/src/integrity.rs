@@ -283,22 +283,9 @@ mod tests {
         out
     }
 
-    fn case_files(dir: &std::path::Path, out: &mut Vec<std::path::PathBuf>) {
-        for entry in std::fs::read_dir(dir).expect("the cases folder reads") {
-            let path = entry.expect("a folder entry").path();
-            if path.is_dir() {
-                case_files(&path, out);
-            } else if path.extension().is_some_and(|e| e == "yaml") {
-                out.push(path);
-            }
-        }
-    }
-
     #[test]
     fn the_referencing_parts_find_what_the_whole_document_finds() {
-        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases");
-        let mut files = Vec::new();
-        case_files(&root, &mut files);
+        let files = crate::test_cases::repository_case_files();
         let mut compared = 0;
         let mut with_launch = 0;
         for f in files {

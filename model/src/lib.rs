@@ -30,3 +30,27 @@ pub use verdict::{Verdict, Violation};
 pub use world::World;
 pub mod scene;
 pub mod tracer;
+
+/// What the crate's unit tests share: the repository's case files.
+#[cfg(test)]
+pub(crate) mod test_cases {
+    /// Every `*.yaml` under the repository's `cases/`, in no particular order.
+    pub(crate) fn repository_case_files() -> Vec<std::path::PathBuf> {
+        fn walk(dir: &std::path::Path, out: &mut Vec<std::path::PathBuf>) {
+            for entry in std::fs::read_dir(dir).expect("the cases folder reads") {
+                let path = entry.expect("a folder entry").path();
+                if path.is_dir() {
+                    walk(&path, out);
+                } else if path.extension().is_some_and(|e| e == "yaml") {
+                    out.push(path);
+                }
+            }
+        }
+        let mut out = Vec::new();
+        walk(
+            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases"),
+            &mut out,
+        );
+        out
+    }
+}

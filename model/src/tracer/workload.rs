@@ -17,6 +17,39 @@ pub struct Workload {
     pub rays: Vec<Ray>,
 }
 
+impl Workload {
+    /// Whether every geometry of the workload is triangles (the hand-made trace case's pipeline has
+    /// one triangle hit group).
+    pub fn triangles_only(&self) -> bool {
+        self.scene.bottom_levels.iter().all(|b| {
+            b.geometries
+                .iter()
+                .all(|g| matches!(g.data, crate::scene::GeometryData::Triangles(_)))
+        })
+    }
+
+    /// The workload as a launch of `case` (a vkCmdTraceRaysIndirectKHR case): its scene and rays
+    /// put into the case's world and every indirect command of its buffers set to `side` x `side`.
+    pub fn as_launch_of(&self, mut case: crate::Case, side: u32) -> crate::Case {
+        if let Some(t) = case.as_trace_mut() {
+            t.world.launch.scene = self.scene.clone();
+            t.world.launch.rays = self.rays.clone();
+            for b in &mut t.world.buffers {
+                for c in &mut b.contents {
+                    if let crate::world::Contents::TraceRaysIndirectCommand {
+                        width, height, ..
+                    } = c
+                    {
+                        *width = side;
+                        *height = side;
+                    }
+                }
+            }
+        }
+        case
+    }
+}
+
 fn single(bl: crate::scene::BottomLevel) -> Scene {
     Scene {
         bottom_levels: vec![bl],
