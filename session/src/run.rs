@@ -1,5 +1,6 @@
-//! A conformance run: the plan's cases generated a chunk at a time, each gated (a valid case never
-//! hands undefined behaviour to a driver), dispatched to worker processes, judged once by the model
+//! A conformance run: the plan's cases generated on a producer thread while worker processes run the
+//! earlier ones, each gated (a valid case never hands undefined behaviour to a driver) and dispatched
+//! to a worker (`dispatch`), judged once by the model
 //! with what the device reported, compared with what the device did, and streamed to `results.jsonl`
 //! as it completes (failing cases run again to tell a flake, each with its status against the
 //! baseline); then `summary.json`, `junit.xml`, the HTML report, and shrunk regressions when asked.
@@ -584,8 +585,9 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         progress,
         inject: config.inject.map(|i| (i, config.scope.seed)),
     };
-    // The cases are generated and gated on a thread of their own, a bounded stretch ahead of the
-    // workers, which draw them as they are free; results are judged and written here as they come.
+    // The cases are generated on a thread of their own, a bounded stretch ahead of the workers; the
+    // thread that draws a case for a worker gates it; results are judged and written here as they
+    // come.
     let planned = std::thread::scope(|scope| {
         let (tx, rx) = std::sync::mpsc::sync_channel::<dispatch::Drawn>(AHEAD);
         let producer = scope.spawn(|| {
@@ -608,7 +610,6 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
                         return;
                     }
                     index += 1;
-                    // Gated by the thread that draws it (in parallel with the others).
                     let drawn = dispatch::Drawn::Ungated(c, index);
                     if tx.send(drawn).is_err() {
                         stop.store(true, std::sync::atomic::Ordering::Relaxed);
