@@ -103,10 +103,6 @@ impl Dispatch<'_> {
             Err(e) => {
                 let why = format!("cannot find the rtconf executable to start workers: {e}");
                 for d in drawn {
-                    let d = match d {
-                        Drawn::Ungated(case, index) => self.drawn(case, index, self.judging),
-                        d => d,
-                    };
                     self.settle_without_workers(d, sink, &mut later, &why);
                 }
                 return self.finish(later, sink);
@@ -145,10 +141,9 @@ impl Dispatch<'_> {
                     };
                     self.take(job, &lost, sink, &mut later)
                 }
-                (Drawn::Ungated(case, index), _) => {
-                    // Never left ungated by `prepare`; gated here should it be.
-                    let gated = self.drawn(case, index, self.judging);
-                    self.settle_without_workers(gated, sink, &mut later, "no worker ran the case");
+                // `prepare` gates every case; one left ungated is gated here and not run.
+                (d @ Drawn::Ungated(..), _) => {
+                    self.settle_without_workers(d, sink, &mut later, "no worker ran the case")
                 }
             },
         );
