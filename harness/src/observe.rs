@@ -81,7 +81,7 @@ pub struct TracedBuild {
     pub hits: Hits,
     /// The rays' records at the directly built structure: `model::tracer::record::RayRecord::WORDS`
     /// words per ray, in the order of `model::accel::check::check_rays`.
-    #[serde(default)]
+    #[serde(default, with = "model::bulk")]
     pub records: Vec<u32>,
     /// The layer's VUIDs for the direct build.
     pub direct_layer_vuids: Vec<String>,
@@ -94,7 +94,7 @@ pub struct TracedBuild {
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct IndirectBuild {
     pub hits: Hits,
-    #[serde(default)]
+    #[serde(default, with = "model::bulk")]
     pub records: Vec<u32>,
     pub layer_vuids: Vec<String>,
 }
@@ -118,6 +118,7 @@ pub struct RunningOn {
 pub enum Output {
     /// The ray records of a trace call run as valid: `model::tracer::record::RayRecord::WORDS` words
     /// per launch ID, x fastest.
+    #[serde(with = "model::bulk")]
     Words(Vec<u32>),
     /// The traced check of a build run as valid.
     Rays(TracedBuild),

@@ -4,6 +4,7 @@
 //! Pure and deterministic: the same case always gets the same verdict and the same expected output.
 
 pub mod accel;
+pub mod bulk;
 pub mod call;
 pub mod case;
 pub mod command;

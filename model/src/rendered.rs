@@ -256,9 +256,9 @@ pub fn judge_records(body: &TraceBody, words: &[u32]) -> Result<LaunchJudgement,
     })
 }
 
-/// Counts a verdict and keeps its words while there are few.
+/// Counts a verdict and keeps its words while there are few (the ray described only for those).
 fn note(result: &mut RenderedResult, id: usize, ray: Option<&crate::scene::Ray>, v: &RayVerdict) {
-    let at = match ray {
+    let at = || match ray {
         Some(r) => format!("launch ID {id} ({})", describe_ray(r)),
         None => format!("launch ID {id}"),
     };
@@ -267,13 +267,13 @@ fn note(result: &mut RenderedResult, id: usize, ray: Option<&crate::scene::Ray>,
         RayVerdict::Warn(w) => {
             result.warnings += 1;
             if result.first_warnings.len() < KEPT {
-                result.first_warnings.push(format!("{at}: {w}"));
+                result.first_warnings.push(format!("{}: {w}", at()));
             }
         }
         RayVerdict::Fail(f) => {
             result.failures += 1;
             if result.first_failures.len() < KEPT {
-                result.first_failures.push(format!("{at}: {f}"));
+                result.first_failures.push(format!("{}: {f}", at()));
             }
         }
     }

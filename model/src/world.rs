@@ -314,7 +314,7 @@ pub struct Launch {
     #[serde(default, skip_serializing_if = "scene_is_empty")]
     pub scene: Scene,
     /// Explicit rays, uploaded as they are.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[serde(default, skip_serializing_if = "Vec::is_empty", with = "crate::bulk")]
     pub rays: Vec<Ray>,
     /// Camera rays, after the explicit ones.
     #[serde(default, skip_serializing_if = "Option::is_none")]

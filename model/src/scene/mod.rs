@@ -121,7 +121,9 @@ pub enum GeometryData {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Indices {
+    #[serde(with = "crate::bulk")]
     U16(Vec<u16>),
+    #[serde(with = "crate::bulk")]
     U32(Vec<u32>),
 }
 
@@ -147,6 +149,7 @@ impl Indices {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Triangles {
+    #[serde(with = "crate::bulk")]
     pub positions: Vec<[f32; 3]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub indices: Option<Indices>,
@@ -211,7 +214,9 @@ pub struct Sphere {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Aabbs {
+    #[serde(with = "crate::bulk")]
     pub boxes: Vec<Aabb>,
+    #[serde(with = "crate::bulk")]
     pub spheres: Vec<Sphere>,
 }
 
