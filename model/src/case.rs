@@ -396,8 +396,12 @@ impl Case {
         }
     }
 
+    /// The case's YAML, its runs of numbers (a scene's coordinates) as flow sequences
+    /// ([`crate::compact`]).
     pub fn to_yaml(&self) -> String {
-        serde_yaml::to_string(self).expect("a case always serialises")
+        crate::compact::compact_numbers(
+            &serde_yaml::to_string(self).expect("a case always serialises"),
+        )
     }
 
     pub fn command(&self) -> CommandId {

@@ -8,6 +8,7 @@ pub mod bulk;
 pub mod call;
 pub mod case;
 pub mod command;
+pub mod compact;
 pub mod expected;
 pub mod fingerprint;
 pub mod flags;

@@ -69,7 +69,7 @@ pub(crate) fn pool_without_compute(
 pub struct Executor {
     inst: Arc<VkInstance>,
     devices: HashMap<String, Result<DeviceCache, HarnessError>>,
-    /// The keys of the devices made for one valid pipeline each, oldest first (at most
+    /// The keys of the devices made for one valid pipeline each, least recently used first (at most
     /// [`PIPELINE_DEVICES`] are kept).
     pipeline_devices: Vec<String>,
     /// Whether two pipelines made alike on one device get different group handles: measured on this
@@ -200,11 +200,20 @@ impl Executor {
 
     fn device(&mut self, world: &World, valid: bool) -> Result<&mut DeviceCache, HarnessError> {
         let key = self.case_device_key(world, valid);
-        if key != Self::device_key(world) && !self.devices.contains_key(&key) {
-            self.pipeline_devices.push(key.clone());
-            if self.pipeline_devices.len() > PIPELINE_DEVICES {
-                let oldest = self.pipeline_devices.remove(0);
-                self.devices.remove(&oldest);
+        if key != Self::device_key(world) {
+            // Least recently used last out: a device in use moves to the back.
+            match self.pipeline_devices.iter().position(|k| *k == key) {
+                Some(i) => {
+                    let used = self.pipeline_devices.remove(i);
+                    self.pipeline_devices.push(used);
+                }
+                None => {
+                    self.pipeline_devices.push(key.clone());
+                    if self.pipeline_devices.len() > PIPELINE_DEVICES {
+                        let oldest = self.pipeline_devices.remove(0);
+                        self.devices.remove(&oldest);
+                    }
+                }
             }
         }
         if !self.devices.contains_key(&key) {
