@@ -399,7 +399,7 @@ impl Case {
     /// The case's YAML, its runs of numbers (a scene's coordinates) as flow sequences
     /// ([`crate::compact`]).
     pub fn to_yaml(&self) -> String {
-        crate::compact::compact_numbers(
+        crate::compact::compact_yaml(
             &serde_yaml::to_string(self).expect("a case always serialises"),
         )
     }

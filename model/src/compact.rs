@@ -1,7 +1,9 @@
-//! serde_yaml's block output with every sequence of plain numbers written as one flow sequence on
-//! its key's line (`min: [-0.5, 1.0, 2.0]`, `- [0.0, 1.0, 0.0]`): a rendered scene's coordinates
-//! then take a line per vertex instead of four, the file a third of the bytes, and reading it back
-//! a fraction of the YAML scanner's tokens. The value read back is the same; only the layout differs.
+//! serde_yaml's block output with every sequence of plain words (numbers, names) written as one flow
+//! sequence on its key's line (`min: [-0.5, 1.0, 2.0]`, `- [0.0, 1.0, 0.0]`, `flags: [OPAQUE]`), and
+//! every sequence item that is a mapping of such values as one flow mapping (`- {origin: [0.0, 0.0,
+//! 4.0], direction: [0.0, 0.0, -1.0], tmin: 0.5, tmax: .inf}`): a rendered scene's coordinates then
+//! take a line per vertex or ray instead of four to ten, and reading the file back a fraction of the
+//! YAML scanner's work. The value read back is the same; only the layout differs.
 
 /// Whether `s` is a plain scalar serde_yaml writes for a number (decimal, exponent, `.inf`, `.nan`).
 fn is_number(s: &str) -> bool {
@@ -11,6 +13,15 @@ fn is_number(s: &str) -> bool {
                 .starts_with(|c: char| c.is_ascii_digit())
             && s.chars()
                 .all(|c| c.is_ascii_digit() || matches!(c, '-' | '+' | '.' | 'e' | 'E')))
+}
+
+/// Whether `s` is a plain scalar that reads the same inside a flow collection: a number, or a name
+/// of letters, digits and `_ . + -` that starts with a letter, digit or `_`.
+fn is_word(s: &str) -> bool {
+    is_number(s)
+        || (s.starts_with(|c: char| c.is_ascii_alphanumeric() || c == '_')
+            && s.chars()
+                .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '.' | '+' | '-')))
 }
 
 /// Whether a line's text ends in a block scalar's header (`key: |-`, `- >`, `|2`).
@@ -24,17 +35,37 @@ fn opens_block_scalar(body: &str) -> bool {
     header && (body == last || body.ends_with(&format!(": {last}")) || body == format!("- {last}"))
 }
 
+/// When line `k` opens a block scalar: it and the scalar's text (its deeper lines) copied as they
+/// are, and the line after them.
+fn copy_block_scalar(lines: &[&str], k: usize, out: &mut String) -> Option<usize> {
+    let at = indent(lines[k]);
+    if !opens_block_scalar(&lines[k][at..]) {
+        return None;
+    }
+    let mut next = k;
+    while next == k
+        || lines
+            .get(next)
+            .is_some_and(|l| l.trim().is_empty() || indent(l) > at)
+    {
+        out.push_str(lines[next]);
+        out.push('\n');
+        next += 1;
+    }
+    Some(next)
+}
+
 fn indent(line: &str) -> usize {
     line.len() - line.trim_start_matches(' ').len()
 }
 
-/// The number of a `- NUMBER` line at exactly `at` columns of indentation.
+/// The word of a `- WORD` line at exactly `at` columns of indentation.
 fn item_at(line: &str, at: usize) -> Option<&str> {
     if indent(line) != at {
         return None;
     }
     let n = line[at..].strip_prefix("- ")?;
-    is_number(n).then_some(n)
+    is_word(n).then_some(n)
 }
 
 /// The numbers of the sequence whose items stand at column `at` from line `from` on, and the line
@@ -54,8 +85,66 @@ fn numbers_from<'a>(lines: &[&'a str], from: usize, at: usize) -> Option<(Vec<&'
     (ends && !out.is_empty()).then_some((out, k))
 }
 
-/// `yaml` (serde_yaml's block output) with its sequences of numbers as flow sequences.
-pub fn compact_numbers(yaml: &str) -> String {
+/// `key: VALUE` with a name for key and a word or a flow sequence of words for value.
+fn entry(text: &str) -> Option<(&str, &str)> {
+    let (key, value) = text.split_once(": ")?;
+    let words = |v: &str| {
+        v.strip_prefix('[')
+            .and_then(|v| v.strip_suffix(']'))
+            .is_some_and(|inner| inner.split(", ").all(is_word))
+    };
+    (is_word(key) && !is_number(key) && (is_word(value) || words(value))).then_some((key, value))
+}
+
+/// `yaml` (serde_yaml's block output) with its sequences of words as flow sequences and its
+/// sequence items that map names to them as flow mappings.
+pub fn compact_yaml(yaml: &str) -> String {
+    flow_mappings(&flow_sequences(yaml))
+}
+
+/// Each `- KEY: VALUE` item whose further lines are `KEY: VALUE` two columns in, every value a word
+/// or a flow sequence of words, as one `- {KEY: VALUE, ...}` line.
+fn flow_mappings(yaml: &str) -> String {
+    let lines: Vec<&str> = yaml.lines().collect();
+    let mut out = String::with_capacity(yaml.len());
+    let mut k = 0;
+    while k < lines.len() {
+        if let Some(next) = copy_block_scalar(&lines, k, &mut out) {
+            k = next;
+            continue;
+        }
+        let line = lines[k];
+        let at = indent(line);
+        if let Some(first) = line[at..].strip_prefix("- ").and_then(entry) {
+            let mut entries = vec![first];
+            let mut next = k + 1;
+            while let Some(e) = lines
+                .get(next)
+                .filter(|l| indent(l) == at + 2)
+                .and_then(|l| entry(&l[at + 2..]))
+            {
+                entries.push(e);
+                next += 1;
+            }
+            if lines.get(next).is_none_or(|l| indent(l) <= at) {
+                out.push_str(&line[..at]);
+                out.push_str("- {");
+                let text: Vec<String> = entries.iter().map(|(k, v)| format!("{k}: {v}")).collect();
+                out.push_str(&text.join(", "));
+                out.push_str("}\n");
+                k = next;
+                continue;
+            }
+        }
+        out.push_str(line);
+        out.push('\n');
+        k += 1;
+    }
+    out
+}
+
+/// `yaml` (serde_yaml's block output) with its sequences of words as flow sequences.
+fn flow_sequences(yaml: &str) -> String {
     let lines: Vec<&str> = yaml.lines().collect();
     let mut out = String::with_capacity(yaml.len() / 2);
     let mut k = 0;
@@ -63,19 +152,8 @@ pub fn compact_numbers(yaml: &str) -> String {
         let line = lines[k];
         let at = indent(line);
         let body = &line[at..];
-        // A block scalar (`|`, `>-`, ...): its deeper lines are text, copied as they are.
-        if opens_block_scalar(body) {
-            out.push_str(line);
-            out.push('\n');
-            k += 1;
-            while let Some(l) = lines
-                .get(k)
-                .filter(|l| l.trim().is_empty() || indent(l) > at)
-            {
-                out.push_str(l);
-                out.push('\n');
-                k += 1;
-            }
+        if let Some(next) = copy_block_scalar(&lines, k, &mut out) {
+            k = next;
             continue;
         }
         // `KEY:` whose sequence stands at the key's column (serde_yaml writes it unindented), or
@@ -92,7 +170,7 @@ pub fn compact_numbers(yaml: &str) -> String {
             }
         }
         // `- - NUMBER` opening a sequence of numbers inside a sequence, its other items two columns in.
-        if let Some(first) = body.strip_prefix("- - ").filter(|n| is_number(n)) {
+        if let Some(first) = body.strip_prefix("- - ").filter(|n| is_word(n)) {
             if let Some((mut numbers, next)) = numbers_from(&lines, k + 1, at + 2).or(
                 // A one-number inner sequence: the next line leaves the column.
                 match lines.get(k + 1) {
@@ -122,26 +200,30 @@ mod tests {
     use super::*;
 
     #[test]
-    fn numbers_become_flow_sequences_and_read_back_the_same() {
+    fn words_become_flow_collections_and_read_back_the_same() {
         let value: serde_yaml::Value = serde_yaml::from_str(
-            "a:\n  positions: [[1.0, -2.5, .nan], [0.0, 1e-30, -.inf], [7.0]]\n  boxes:\n  - min: [-0.5, 1, 2]\n    max: [1.5, 2, 3]\n    name: x\n  words: [1, 2, 3]\n  mixed: [1, two, 3]\n  nested: [[1, 2], [a, 3]]\n  text: \"- 1\"\n  empty: []\n",
+            "a:\n  positions: [[1.0, -2.5, .nan], [0.0, 1e-30, -.inf], [7.0]]\n  boxes:\n  - min: [-0.5, 1, 2]\n    max: [1.5, 2, 3]\n    name: x\n  words: [1, 2, 3]\n  mixed: [1, two, 3]\n  spaced: [a b, c]\n  items: [{name: y, deep: {k: 1}}]\n  nested: [[1, 2], [a, 3]]\n  text: \"- 1\"\n  empty: []\n",
         )
         .unwrap();
         let block = serde_yaml::to_string(&value).unwrap();
-        let flow = compact_numbers(&block);
+        let flow = compact_yaml(&block);
         assert!(flow.contains("- [1.0, -2.5, .nan]"), "{flow}");
         assert!(flow.contains("- [7.0]"), "{flow}");
-        assert!(flow.contains("- min: [-0.5, 1, 2]"), "{flow}");
-        assert!(flow.contains("  max: [1.5, 2, 3]"), "{flow}");
+        assert!(
+            flow.contains("- {min: [-0.5, 1, 2], max: [1.5, 2, 3], name: x}"),
+            "{flow}"
+        );
         assert!(flow.contains("words: [1, 2, 3]"), "{flow}");
-        // Sequences holding anything but numbers stay as they were.
-        assert!(flow.contains("mixed:\n  - 1\n  - two\n  - 3"), "{flow}");
+        assert!(flow.contains("mixed: [1, two, 3]"), "{flow}");
+        // Sequences and mappings holding anything but words stay as they were.
+        assert!(flow.contains("spaced:\n  - a b\n  - c"), "{flow}");
+        assert!(flow.contains("- name: y\n    deep:\n      k: 1"), "{flow}");
         assert!(flow.lines().count() < block.lines().count());
         // Text in a block scalar is never touched.
-        let literal = "note: |-\n  k:\n  - 1\n  - 2\nwords:\n- 1\n";
+        let literal = "note: |-\n  k:\n  - 1\n  - a: 2\n    b: 3\nwords:\n- 1\n";
         assert_eq!(
-            compact_numbers(literal),
-            "note: |-\n  k:\n  - 1\n  - 2\nwords: [1]\n"
+            compact_yaml(literal),
+            "note: |-\n  k:\n  - 1\n  - a: 2\n    b: 3\nwords: [1]\n"
         );
         let back: serde_yaml::Value = serde_yaml::from_str(&flow).unwrap();
         // NaN is not equal to itself: compare the two texts' values through their YAML again.
@@ -157,7 +239,7 @@ mod tests {
                 continue;
             };
             let block = serde_yaml::to_string(&case).unwrap();
-            let flow = compact_numbers(&block);
+            let flow = compact_yaml(&block);
             let back = crate::Case::from_yaml("c", &flow).unwrap_or_else(|e| {
                 panic!("{}: {e}\n{flow}", path.display());
             });
