@@ -68,10 +68,10 @@ fn item_at(line: &str, at: usize) -> Option<&str> {
     is_word(n).then_some(n)
 }
 
-/// The numbers of the sequence whose items stand at column `at` from line `from` on, and the line
-/// after them; None unless every item of that sequence is a number (a following line at column `at`
+/// The words of the sequence whose items stand at column `at` from line `from` on, and the line
+/// after them; None unless every item of that sequence is a word (a following line at column `at`
 /// that is another item, or any deeper line, means the sequence holds something else).
-fn numbers_from<'a>(lines: &[&'a str], from: usize, at: usize) -> Option<(Vec<&'a str>, usize)> {
+fn words_from<'a>(lines: &[&'a str], from: usize, at: usize) -> Option<(Vec<&'a str>, usize)> {
     let mut out = Vec::new();
     let mut k = from;
     while let Some(n) = lines.get(k).and_then(|l| item_at(l, at)) {
@@ -102,97 +102,90 @@ pub fn compact_yaml(yaml: &str) -> String {
     flow_mappings(&flow_sequences(yaml))
 }
 
-/// Each `- KEY: VALUE` item whose further lines are `KEY: VALUE` two columns in, every value a word
-/// or a flow sequence of words, as one `- {KEY: VALUE, ...}` line.
-fn flow_mappings(yaml: &str) -> String {
+/// Each line of `yaml` copied, block scalars whole, except where `at` rewrites the lines from `k`
+/// on into `out` and says the line after them.
+fn rewrite(yaml: &str, at: impl Fn(&[&str], usize, &mut String) -> Option<usize>) -> String {
     let lines: Vec<&str> = yaml.lines().collect();
     let mut out = String::with_capacity(yaml.len());
     let mut k = 0;
     while k < lines.len() {
-        if let Some(next) = copy_block_scalar(&lines, k, &mut out) {
+        if let Some(next) =
+            copy_block_scalar(&lines, k, &mut out).or_else(|| at(&lines, k, &mut out))
+        {
             k = next;
             continue;
         }
-        let line = lines[k];
-        let at = indent(line);
-        if let Some(first) = line[at..].strip_prefix("- ").and_then(entry) {
-            let mut entries = vec![first];
-            let mut next = k + 1;
-            while let Some(e) = lines
-                .get(next)
-                .filter(|l| indent(l) == at + 2)
-                .and_then(|l| entry(&l[at + 2..]))
-            {
-                entries.push(e);
-                next += 1;
-            }
-            if lines.get(next).is_none_or(|l| indent(l) <= at) {
-                out.push_str(&line[..at]);
-                out.push_str("- {");
-                let text: Vec<String> = entries.iter().map(|(k, v)| format!("{k}: {v}")).collect();
-                out.push_str(&text.join(", "));
-                out.push_str("}\n");
-                k = next;
-                continue;
-            }
-        }
-        out.push_str(line);
+        out.push_str(lines[k]);
         out.push('\n');
         k += 1;
     }
     out
 }
 
+/// `indentation` then `items` joined by `, ` inside `open` and `close`, as one line.
+fn flow_line(out: &mut String, indentation: &str, open: &str, items: &[String], close: char) {
+    out.push_str(indentation);
+    out.push_str(open);
+    out.push_str(&items.join(", "));
+    out.push(close);
+    out.push('\n');
+}
+
+/// Each `- KEY: VALUE` item whose further lines are `KEY: VALUE` two columns in, every value a word
+/// or a flow sequence of words, as one `- {KEY: VALUE, ...}` line.
+fn flow_mappings(yaml: &str) -> String {
+    rewrite(yaml, |lines, k, out| {
+        let line = lines[k];
+        let at = indent(line);
+        let first = line[at..].strip_prefix("- ").and_then(entry)?;
+        let mut entries = vec![first];
+        let mut next = k + 1;
+        while let Some(e) = lines
+            .get(next)
+            .filter(|l| indent(l) == at + 2)
+            .and_then(|l| entry(&l[at + 2..]))
+        {
+            entries.push(e);
+            next += 1;
+        }
+        lines.get(next).is_none_or(|l| indent(l) <= at).then(|| {
+            let text: Vec<String> = entries.iter().map(|(k, v)| format!("{k}: {v}")).collect();
+            flow_line(out, &line[..at], "- {", &text, '}');
+            next
+        })
+    })
+}
+
 /// `yaml` (serde_yaml's block output) with its sequences of words as flow sequences.
 fn flow_sequences(yaml: &str) -> String {
-    let lines: Vec<&str> = yaml.lines().collect();
-    let mut out = String::with_capacity(yaml.len() / 2);
-    let mut k = 0;
-    while k < lines.len() {
+    rewrite(yaml, |lines, k, out| {
         let line = lines[k];
         let at = indent(line);
         let body = &line[at..];
-        if let Some(next) = copy_block_scalar(&lines, k, &mut out) {
-            k = next;
-            continue;
-        }
+        let owned = |words: Vec<&str>| words.into_iter().map(String::from).collect::<Vec<_>>();
         // `KEY:` whose sequence stands at the key's column (serde_yaml writes it unindented), or
         // `- KEY:` with the key two columns in.
         let key_column = if body.starts_with("- ") { at + 2 } else { at };
         if body.ends_with(':') && !body.contains(": ") && !body.starts_with(['"', '\'', '?']) {
-            if let Some((numbers, next)) = numbers_from(&lines, k + 1, key_column) {
-                out.push_str(line);
-                out.push_str(" [");
-                out.push_str(&numbers.join(", "));
-                out.push_str("]\n");
-                k = next;
-                continue;
+            if let Some((words, next)) = words_from(lines, k + 1, key_column) {
+                flow_line(out, line, " [", &owned(words), ']');
+                return Some(next);
             }
         }
-        // `- - NUMBER` opening a sequence of numbers inside a sequence, its other items two columns in.
-        if let Some(first) = body.strip_prefix("- - ").filter(|n| is_word(n)) {
-            if let Some((mut numbers, next)) = numbers_from(&lines, k + 1, at + 2).or(
-                // A one-number inner sequence: the next line leaves the column.
-                match lines.get(k + 1) {
-                    None => Some((Vec::new(), k + 1)),
-                    Some(l) if indent(l) <= at => Some((Vec::new(), k + 1)),
-                    _ => None,
-                },
-            ) {
-                numbers.insert(0, first);
-                out.push_str(&line[..at]);
-                out.push_str("- [");
-                out.push_str(&numbers.join(", "));
-                out.push_str("]\n");
-                k = next;
-                continue;
-            }
-        }
-        out.push_str(line);
-        out.push('\n');
-        k += 1;
-    }
-    out
+        // `- - WORD` opening a sequence of words inside a sequence, its other items two columns in.
+        let first = body.strip_prefix("- - ").filter(|n| is_word(n))?;
+        let (mut words, next) = words_from(lines, k + 1, at + 2).or(
+            // A one-word inner sequence: the next line leaves the column.
+            match lines.get(k + 1) {
+                None => Some((Vec::new(), k + 1)),
+                Some(l) if indent(l) <= at => Some((Vec::new(), k + 1)),
+                _ => None,
+            },
+        )?;
+        words.insert(0, first);
+        flow_line(out, &line[..at], "- [", &owned(words), ']');
+        Some(next)
+    })
 }
 
 #[cfg(test)]
