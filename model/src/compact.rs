@@ -242,6 +242,8 @@ mod tests {
                 "{}",
                 path.display()
             );
+            read += 1;
         }
+        assert!(read >= 20, "only {read} case files read");
     }
 }
