@@ -697,10 +697,10 @@ fn trace_distinct(
     distinct: &[usize],
     stats: &mut TracerStats,
 ) -> Option<Vec<AllowedOutcomes>> {
-    let workers = std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .min(distinct.len() / RAYS_PER_WORKER)
-        .max(1);
+    // Asked once per process: the standard library reads the cgroup's quota files at each call.
+    static CORES: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    let cores = *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let workers = cores.min(distinct.len() / RAYS_PER_WORKER).max(1);
     let config = TracerConfig::default();
     if workers == 1 {
         let memo = HitRecordMemo::default();

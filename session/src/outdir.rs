@@ -201,8 +201,11 @@ fn done_cases(results: &Path) -> BTreeSet<String> {
     }
 }
 
-/// Writes `bytes` to `path` whole or not at all: into `.NAME.tmp` beside it, synced, then renamed over
-/// it; on any error the temporary file is removed and `path` is untouched.
+/// Writes `bytes` to `path` whole or not at all: into `.NAME.tmp` beside it, then renamed over it;
+/// on any error the temporary file is removed and `path` is untouched. Not synced to the disk: the
+/// rename is whole for every reader and survives the process being killed, which is what a run
+/// folder needs (it is not kept across a power loss), and a sync per kept case made the run wait on
+/// the disk for every case that did not pass.
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     let name = path
         .file_name()
@@ -212,7 +215,7 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     let written = (|| {
         let mut f = std::fs::File::create(&tmp)?;
         f.write_all(bytes)?;
-        f.sync_all()?;
+        drop(f);
         std::fs::rename(&tmp, path)
     })();
     if written.is_err() {
