@@ -44,15 +44,11 @@ mod cbor_hex {
         let mut bytes = Vec::new();
         ciborium::into_writer(v, &mut bytes).map_err(serde::ser::Error::custom)?;
         const DIGITS: &[u8; 16] = b"0123456789abcdef";
-        let hex: String = bytes
-            .iter()
-            .flat_map(|b| {
-                [
-                    DIGITS[(b >> 4) as usize] as char,
-                    DIGITS[(b & 15) as usize] as char,
-                ]
-            })
-            .collect();
+        let mut hex = Vec::with_capacity(2 * bytes.len());
+        for b in &bytes {
+            hex.extend_from_slice(&[DIGITS[(b >> 4) as usize], DIGITS[(b & 15) as usize]]);
+        }
+        let hex = String::from_utf8(hex).expect("hex digits are ASCII");
         s.serialize_str(&hex)
     }
     pub fn deserialize<'de, T: serde::de::DeserializeOwned, D: serde::Deserializer<'de>>(
@@ -60,21 +56,35 @@ mod cbor_hex {
     ) -> Result<T, D::Error> {
         use serde::de::Error;
         let text = <std::borrow::Cow<'de, str> as serde::Deserialize>::deserialize(d)?;
-        let digit = |c: u8| match c {
-            b'0'..=b'9' => Ok(c - b'0'),
-            b'a'..=b'f' => Ok(c - b'a' + 10),
-            _ => Err(D::Error::custom(format!(
-                "the value is not hex digits (byte {c:#04x})"
-            ))),
+        // Each byte's digit value, or 16 for a byte that is not a lowercase hex digit.
+        const VALUE: [u8; 256] = {
+            let mut t = [16u8; 256];
+            let mut c = 0;
+            while c < 10 {
+                t[b'0' as usize + c] = c as u8;
+                c += 1;
+            }
+            let mut c = 0;
+            while c < 6 {
+                t[b'a' as usize + c] = 10 + c as u8;
+                c += 1;
+            }
+            t
         };
         if text.len() % 2 != 0 {
             return Err(D::Error::custom("the value's hex digits are odd in number"));
         }
-        let bytes = text
-            .as_bytes()
-            .chunks_exact(2)
-            .map(|p| Ok(digit(p[0])? << 4 | digit(p[1])?))
-            .collect::<Result<Vec<u8>, D::Error>>()?;
+        let mut bytes = Vec::with_capacity(text.len() / 2);
+        for p in text.as_bytes().chunks_exact(2) {
+            let (hi, lo) = (VALUE[p[0] as usize], VALUE[p[1] as usize]);
+            if hi > 15 || lo > 15 {
+                let c = if hi > 15 { p[0] } else { p[1] };
+                return Err(D::Error::custom(format!(
+                    "the value is not hex digits (byte {c:#04x})"
+                )));
+            }
+            bytes.push(hi << 4 | lo);
+        }
         ciborium::from_reader(bytes.as_slice())
             .map_err(|e| D::Error::custom(format!("the value does not read: {e}")))
     }
@@ -479,4 +489,43 @@ pub fn run_stream<J: Send>(
             on_result(job, r);
         }
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn response(words: Vec<u32>) -> Response {
+        let mut observation = Observation::with_status(Status::Ran);
+        observation.output = Some(crate::observe::Output::Words(words));
+        Response {
+            index: 3,
+            name: "c".into(),
+            observation,
+            millis: 1.5,
+            phases: BTreeMap::new(),
+        }
+    }
+
+    #[test]
+    fn a_response_reads_back_from_its_json_line() {
+        let r = response((0..1000).map(|i| i * 0x0101_0101).collect());
+        let line = serde_json::to_string(&r).unwrap();
+        assert!(!line.contains('\n'));
+        let back: Response = serde_json::from_str(&line).unwrap();
+        assert_eq!(back, r);
+    }
+
+    #[test]
+    fn digits_that_are_not_hex_are_an_error_naming_the_byte() {
+        let line = serde_json::to_string(&response(vec![7, 8])).unwrap();
+        let (head, tail) = line.split_once("\"observation\":\"").unwrap();
+        // The observation's first digit replaced by `g`, then the whole value one digit short.
+        let bad = format!("{head}\"observation\":\"g{}", &tail[1..]);
+        let e = serde_json::from_str::<Response>(&bad).unwrap_err();
+        assert!(e.to_string().contains("not hex digits (byte 0x67)"), "{e}");
+        let odd = format!("{head}\"observation\":\"{}", &tail[1..]);
+        let e = serde_json::from_str::<Response>(&odd).unwrap_err();
+        assert!(e.to_string().contains("odd in number"), "{e}");
+    }
 }

@@ -151,7 +151,8 @@ impl Executor {
     }
 
     /// Whether this driver gives two pipelines made alike on one device different shader group
-    /// handles, measured once on a device of `world`'s own with its pipeline made twice.
+    /// handles, measured once on a device of `world`'s own with a raygen-only pipeline of its kind
+    /// made twice.
     ///
     /// A driver that numbers handles in the order pipelines are made may build those numbers into each
     /// pipeline's code (lavapipe lowers a whole ray tracing pipeline into one compute shader that
@@ -168,16 +169,31 @@ impl Executor {
         let Some(p) = world.pipeline.as_ref() else {
             return false;
         };
-        let measured = VkDevice::new(
-            self.inst.clone(),
-            &world.device.extensions,
-            &world.device.features,
-            None,
-        )
-        .and_then(DeviceCache::new)
+        // The smallest pipeline of the world's kind answers as well as its own: its raygen group
+        // alone, tracing nothing, so the driver compiles little (lavapipe numbers every group).
+        let raygen_only = model::world::Pipeline {
+            api: p.api,
+            flags: Default::default(),
+            groups: vec![model::world::ShaderGroup::General {
+                stage: model::world::GeneralStage::Raygen,
+            }],
+            max_recursion_depth: p.max_recursion_depth.min(1),
+            dynamic_stack_size: false,
+            allow_cluster_acceleration_structures: false,
+        };
+        let measured = {
+            let _phase = crate::timing::span(crate::timing::Phase::Device);
+            VkDevice::new(
+                self.inst.clone(),
+                &world.device.extensions,
+                &world.device.features,
+                None,
+            )
+            .and_then(DeviceCache::new)
+        }
         .and_then(|mut cache| {
-            let first = cache.pipeline(p, true, false)?.handles.clone();
-            let second = cache.pipeline(p, true, true)?.handles.clone();
+            let first = cache.pipeline(&raygen_only, false, false)?.handles.clone();
+            let second = cache.pipeline(&raygen_only, false, true)?.handles.clone();
             Ok(first != second)
         });
         self.inst.collector.clear();
