@@ -14,21 +14,17 @@
 //! `cargo bench -p rtconf-harness --bench render_rays` (lavapipe through `VK_DRIVER_FILES`).
 
 use harness::{Driver, Execution, Executor, Status};
-use model::case::{Case, Intent};
+use model::case::Intent;
 use model::tracer::workload::standard_workloads;
-use model::world::Contents;
 use std::time::Instant;
 
 /// Launch side: 64x64 launch IDs, one camera ray each.
 const SIDE: u32 = 64;
 const PASSES: usize = 5;
 
-fn hand_case() -> Case {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../cases/hand/trace-indirect-records-32.yaml");
-    let text = std::fs::read_to_string(&path).expect("the hand-made case");
-    Case::from_yaml("hand", &text).expect("the hand-made case parses")
-}
+#[path = "../../model/benches/common/mod.rs"]
+mod common;
+use common::hand_case;
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -58,15 +54,10 @@ fn main() {
     let mut ratios = Vec::new();
     for w in standard_workloads(SIDE, false) {
         // The hand case's pipeline has one triangle hit group: the triangle workloads only.
-        let triangles = w.scene.bottom_levels.iter().all(|b| {
-            b.geometries
-                .iter()
-                .all(|g| matches!(g.data, model::scene::GeometryData::Triangles(_)))
-        });
-        if !triangles {
+        if !w.triangles_only() {
             continue;
         }
-        let mut case = hand_case();
+        let mut case = w.as_launch_of(hand_case(), SIDE);
         case.name = format!("bench-{}", w.name);
         let prims: usize = w
             .scene
@@ -84,17 +75,6 @@ fn main() {
                     .sum::<usize>()
             })
             .sum();
-        let t = case.as_trace_mut().expect("a trace case");
-        t.world.launch.scene = w.scene.clone();
-        t.world.launch.rays = w.rays.clone();
-        for b in &mut t.world.buffers {
-            for c in &mut b.contents {
-                if let Contents::TraceRaysIndirectCommand { width, height, .. } = c {
-                    *width = SIDE;
-                    *height = SIDE;
-                }
-            }
-        }
         let profile = harness_profile();
         if let Err(e) = case.runnable(&profile) {
             eprintln!("{}: not runnable: {e}", case.name);

@@ -9,19 +9,14 @@
 //! default 9; each rate is their
 //! median; `RTCONF_BENCH_ONLY=NAME` keeps the workloads whose name contains NAME).
 
-use model::case::Case;
 use model::tracer::workload::{run, standard_workloads};
 use model::tracer::{PreparedScene, TracerConfig};
 use std::time::Instant;
 
 const SIDE: u32 = 64;
 
-fn hand_case() -> Case {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../cases/hand/trace-indirect-records-32.yaml");
-    let text = std::fs::read_to_string(&path).expect("the hand-made case");
-    Case::from_yaml("hand", &text).expect("the hand-made case parses")
-}
+mod common;
+use common::hand_case;
 
 /// CPU seconds this process has used (all threads): a rate from it is less disturbed by other
 /// processes on a shared machine than one from wall time.

@@ -15,17 +15,12 @@
 //! each workload's allowed outcomes and counters to `DIR/NAME.txt`, to diff before and after a
 //! change that must not change them.
 
-use model::case::Case;
 use model::tracer::workload::standard_workloads;
 
 const SIDE: u32 = 64;
 
-fn hand_case() -> Case {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../cases/hand/trace-indirect-records-32.yaml");
-    let text = std::fs::read_to_string(&path).expect("the hand-made case");
-    Case::from_yaml("hand", &text).expect("the hand-made case parses")
-}
+mod common;
+use common::hand_case;
 
 /// The launches whose instructions are counted.
 #[inline(never)]
