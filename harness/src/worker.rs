@@ -509,7 +509,7 @@ mod tests {
 
     #[test]
     fn a_response_reads_back_from_its_json_line() {
-        let r = response((0..1000).map(|i| i * 0x0101_0101).collect());
+        let r = response((0..1000u32).map(|i| i.wrapping_mul(0x0101_0101)).collect());
         let line = serde_json::to_string(&r).unwrap();
         assert!(!line.contains('\n'));
         let back: Response = serde_json::from_str(&line).unwrap();
