@@ -396,8 +396,8 @@ impl Case {
         }
     }
 
-    /// The case's YAML, its runs of numbers (a scene's coordinates) as flow sequences
-    /// ([`crate::compact`]).
+    /// The case's YAML, its sequences of numbers and names on one line each and a ray or a box as one
+    /// flow mapping ([`crate::compact`]).
     pub fn to_yaml(&self) -> String {
         crate::compact::compact_yaml(
             &serde_yaml::to_string(self).expect("a case always serialises"),
