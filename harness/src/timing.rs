@@ -10,7 +10,8 @@ use std::time::Instant;
 /// One phase of a case's execution.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Phase {
-    /// Creating the VkDevice (and its per-device caches) for a new enabled state.
+    /// Creating the VkDevice (and its per-device caches) for a new enabled state, and destroying one
+    /// that makes room for it.
     Device,
     /// Buffers, memory, images, descriptors and the other objects of the case's world.
     Resources,

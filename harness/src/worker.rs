@@ -1,5 +1,5 @@
-//! Worker processes: each case runs in a child (`rtconf worker`) that reads [`Request`]s as JSON lines
-//! on stdin and writes [`Response`]s as JSON lines on stdout, so a driver crash or hang costs one case.
+//! Worker processes: each case runs in a child (`rtconf worker`) that reads [`Request`]s on stdin and
+//! writes [`Response`]s on stdout, one [`frame`] each, so a driver crash or hang costs one case.
 //! The driver comes from the environment variable [`DRIVER_ENV`] (`lavapipe`, `nvidia` or an ICD path).
 //! One request type carries a case of any command; the worker only observes.
 
@@ -8,7 +8,7 @@ use crate::observe::{Observation, Status};
 use crate::vk::Driver;
 use model::case::Case;
 use std::collections::BTreeMap;
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{BufReader, Read};
 use std::path::PathBuf;
 use std::process::{Child, ChildStdin, Command, Stdio};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
@@ -23,70 +23,72 @@ pub const DRIVER_ENV: &str = "RTCONF_DRIVER";
 pub struct Request {
     /// Position of the case in the batch given to the pool.
     pub index: usize,
-    /// Carried as the case's CBOR, in hex: JSON has no NaN, and build cases hold NaN coordinates
-    /// (inactive primitives); the case's YAML would do, but reading a rendered scene's YAML costs the
-    /// worker more than running it.
-    #[serde(with = "cbor_hex")]
     pub case: Case,
     #[serde(default)]
     pub execution: Execution,
 }
 
-/// A value as the runner and a worker hand it to each other inside a JSON line: its serde form in CBOR
-/// (self-describing, every float kept bit for bit), as hex digits. A rendered case's scene and its
-/// launch's ray records (tens of thousands of words) read several times faster so than as JSON
-/// numbers.
-mod cbor_hex {
-    pub fn serialize<T: serde::Serialize, S: serde::Serializer>(
-        v: &T,
-        s: S,
-    ) -> Result<S::Ok, S::Error> {
-        let mut bytes = Vec::new();
-        ciborium::into_writer(v, &mut bytes).map_err(serde::ser::Error::custom)?;
-        const DIGITS: &[u8; 16] = b"0123456789abcdef";
-        let mut hex = Vec::with_capacity(2 * bytes.len());
-        for b in &bytes {
-            hex.extend_from_slice(&[DIGITS[(b >> 4) as usize], DIGITS[(b & 15) as usize]]);
-        }
-        let hex = String::from_utf8(hex).expect("hex digits are ASCII");
-        s.serialize_str(&hex)
+/// The messages between the runner and a worker: a text line `rtconf-frame N` and then N bytes, the
+/// message's serde form in CBOR (self-describing, every float kept bit for bit — build cases hold NaN
+/// coordinates, which JSON has no word for — and a rendered launch's records one byte string, which
+/// [`model::bulk`] makes of them, instead of a number per word). Text lines that are not a frame's
+/// header are skipped: a test harness that is the worker prints its own.
+pub mod frame {
+    use std::io::{BufRead, Read, Write};
+
+    const HEADER: &[u8] = b"rtconf-frame ";
+
+    /// Writes `value` as one frame and flushes.
+    pub fn write<T: serde::Serialize>(out: &mut impl Write, value: &T) -> std::io::Result<()> {
+        let mut body = Vec::new();
+        ciborium::into_writer(value, &mut body).map_err(std::io::Error::other)?;
+        let mut header = HEADER.to_vec();
+        header.extend_from_slice(format!("{}\n", body.len()).as_bytes());
+        out.write_all(&header)?;
+        out.write_all(&body)?;
+        out.flush()
     }
-    pub fn deserialize<'de, T: serde::de::DeserializeOwned, D: serde::Deserializer<'de>>(
-        d: D,
-    ) -> Result<T, D::Error> {
-        use serde::de::Error;
-        let text = <std::borrow::Cow<'de, str> as serde::Deserialize>::deserialize(d)?;
-        // Each byte's digit value, or 16 for a byte that is not a lowercase hex digit.
-        const VALUE: [u8; 256] = {
-            let mut t = [16u8; 256];
-            let mut c = 0;
-            while c < 10 {
-                t[b'0' as usize + c] = c as u8;
-                c += 1;
+
+    /// The next frame's bytes, or None where the stream ends between frames. A header without a
+    /// length, or a stream that ends inside a frame, is an error; the body grows as its bytes arrive,
+    /// so a length that lies allocates nothing beyond what was sent.
+    pub fn read(input: &mut impl BufRead) -> std::io::Result<Option<Vec<u8>>> {
+        let mut line = Vec::new();
+        loop {
+            line.clear();
+            if input.read_until(b'\n', &mut line)? == 0 {
+                return Ok(None);
             }
-            let mut c = 0;
-            while c < 6 {
-                t[b'a' as usize + c] = 10 + c as u8;
-                c += 1;
+            let Some(at) = line.windows(HEADER.len()).position(|w| w == HEADER) else {
+                continue;
+            };
+            let digits = std::str::from_utf8(&line[at + HEADER.len()..])
+                .unwrap_or("")
+                .trim_end();
+            let len: u64 = digits.parse().map_err(|_| {
+                std::io::Error::new(
+                    std::io::ErrorKind::InvalidData,
+                    format!("a frame header without a length: {digits:?}"),
+                )
+            })?;
+            let mut body = Vec::new();
+            input.take(len).read_to_end(&mut body)?;
+            if body.len() as u64 != len {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::UnexpectedEof,
+                    format!(
+                        "the stream ended {} bytes into a {len}-byte frame",
+                        body.len()
+                    ),
+                ));
             }
-            t
-        };
-        if text.len() % 2 != 0 {
-            return Err(D::Error::custom("the value's hex digits are odd in number"));
+            return Ok(Some(body));
         }
-        let mut bytes = Vec::with_capacity(text.len() / 2);
-        for p in text.as_bytes().chunks_exact(2) {
-            let (hi, lo) = (VALUE[p[0] as usize], VALUE[p[1] as usize]);
-            if hi > 15 || lo > 15 {
-                let c = if hi > 15 { p[0] } else { p[1] };
-                return Err(D::Error::custom(format!(
-                    "the value is not hex digits (byte {c:#04x})"
-                )));
-            }
-            bytes.push(hi << 4 | lo);
-        }
-        ciborium::from_reader(bytes.as_slice())
-            .map_err(|e| D::Error::custom(format!("the value does not read: {e}")))
+    }
+
+    /// A frame's bytes read as `T`.
+    pub fn decode<T: serde::de::DeserializeOwned>(body: &[u8]) -> Result<T, String> {
+        ciborium::from_reader(body).map_err(|e| e.to_string())
     }
 }
 
@@ -96,7 +98,6 @@ pub struct Response {
     /// Position of the case in the batch given to the pool.
     pub index: usize,
     pub name: String,
-    #[serde(with = "cbor_hex")]
     pub observation: Observation,
     /// Wall time of the case in the worker, in milliseconds.
     pub millis: f64,
@@ -119,7 +120,7 @@ impl Request {
     }
 }
 
-/// The worker loop: one [`Request`] per stdin line, one [`Response`] per stdout line. Returns the exit
+/// The worker loop: one [`Request`] per frame on stdin, one [`Response`] per frame on stdout. Returns the exit
 /// code.
 pub fn worker_main() -> i32 {
     let driver = Driver::parse(&std::env::var(DRIVER_ENV).unwrap_or_else(|_| "lavapipe".into()));
@@ -127,21 +128,24 @@ pub fn worker_main() -> i32 {
     // runner's drawing of the first cases.
     let mut executor: Option<Result<Executor, crate::HarnessError>> =
         Some(Executor::new(driver.clone()));
-    let stdin = std::io::stdin();
-    let mut stdout = std::io::stdout();
-    for line in stdin.lock().lines() {
-        let Ok(line) = line else { return 2 };
-        if line.trim().is_empty() {
-            continue;
-        }
+    let mut stdin = std::io::stdin().lock();
+    let mut stdout = std::io::stdout().lock();
+    loop {
+        let body = match frame::read(&mut stdin) {
+            Ok(Some(body)) => body,
+            Ok(None) => return 0,
+            Err(_) => return 2,
+        };
         let started = Instant::now();
         let _ = crate::timing::take();
-        let (index, name, observation) = match serde_json::from_str::<Request>(&line) {
+        let (index, name, observation) = match frame::decode::<Request>(&body) {
             Err(e) => {
-                let index = serde_json::from_str::<serde_json::Value>(&line)
-                    .ok()
-                    .and_then(|v| v.get("index").and_then(|i| i.as_u64()))
-                    .map_or(usize::MAX, |i| i as usize);
+                /// The part of a request that still reads when the rest does not.
+                #[derive(serde::Deserialize)]
+                struct Index {
+                    index: usize,
+                }
+                let index = frame::decode::<Index>(&body).map_or(usize::MAX, |i| i.index);
                 let obs = Observation::crash(format!("worker could not read its request: {e}"));
                 (index, String::new(), obs)
             }
@@ -168,17 +172,10 @@ pub fn worker_main() -> i32 {
             millis: started.elapsed().as_secs_f64() * 1000.0,
             phases: crate::timing::take(),
         };
-        let Ok(text) = serde_json::to_string(&response) else {
-            return 3;
-        };
-        if writeln!(stdout, "{text}")
-            .and_then(|_| stdout.flush())
-            .is_err()
-        {
+        if frame::write(&mut stdout, &response).is_err() {
             return 4;
         }
     }
-    0
 }
 
 /// Environment variable that turns on fault injection for the pool's and the runner's own tests: a case
@@ -235,7 +232,8 @@ impl WorkerCommand {
 struct Worker {
     child: Child,
     stdin: ChildStdin,
-    lines: Receiver<String>,
+    /// The worker's responses, read and decoded on a thread of their own.
+    responses: Receiver<Response>,
     stderr: Arc<Mutex<Vec<u8>>>,
 }
 
@@ -260,12 +258,15 @@ impl Worker {
             .stderr
             .take()
             .ok_or_else(|| std::io::Error::other("worker has no stderr"))?;
-        let (tx, lines) = mpsc::channel();
+        let (tx, responses) = mpsc::channel();
         std::thread::spawn(move || {
-            for line in BufReader::new(stdout).lines() {
-                let Ok(line) = line else { break };
-                if tx.send(line).is_err() {
-                    break;
+            let mut stdout = BufReader::with_capacity(1 << 16, stdout);
+            // A frame that does not read as a response is not one (it is skipped, as text is).
+            while let Ok(Some(body)) = frame::read(&mut stdout) {
+                if let Ok(r) = frame::decode::<Response>(&body) {
+                    if tx.send(r).is_err() {
+                        break;
+                    }
                 }
             }
         });
@@ -288,7 +289,7 @@ impl Worker {
         Ok(Worker {
             child,
             stdin,
-            lines,
+            responses,
             stderr,
         })
     }
@@ -316,15 +317,7 @@ fn run_one(w: &mut Worker, req: &Request, timeout: Duration) -> Outcome {
     let started = Instant::now();
     let lost =
         |status: Status| Outcome::Lost(req.lost(status, started.elapsed().as_secs_f64() * 1000.0));
-    let Ok(text) = serde_json::to_string(req) else {
-        return lost(Status::Crash {
-            message: "the case could not be serialised".into(),
-        });
-    };
-    if writeln!(w.stdin, "{text}")
-        .and_then(|_| w.stdin.flush())
-        .is_err()
-    {
+    if frame::write(&mut w.stdin, req).is_err() {
         return lost(Status::Crash {
             message: format!(
                 "the worker exited before taking the case; stderr: {}",
@@ -334,17 +327,10 @@ fn run_one(w: &mut Worker, req: &Request, timeout: Duration) -> Outcome {
     }
     loop {
         let left = timeout.saturating_sub(started.elapsed());
-        match w.lines.recv_timeout(left) {
-            // Other output (a test harness's own text) is not a result; a result may follow it on a line.
-            Ok(line) => {
-                let Some(start) = line.find('{') else {
-                    continue;
-                };
-                return match serde_json::from_str::<Response>(&line[start..]) {
-                    Ok(r) if r.index == req.index => Outcome::Done(r),
-                    Ok(_) | Err(_) => continue,
-                };
-            }
+        match w.responses.recv_timeout(left) {
+            Ok(r) if r.index == req.index => return Outcome::Done(r),
+            // An earlier case's answer that came after its timeout.
+            Ok(_) => continue,
             Err(RecvTimeoutError::Timeout) => {
                 return lost(Status::Timeout {
                     seconds: timeout.as_secs_f64(),
@@ -508,24 +494,44 @@ mod tests {
     }
 
     #[test]
-    fn a_response_reads_back_from_its_json_line() {
+    fn a_response_reads_back_from_its_frame_with_text_around_it() {
         let r = response((0..1000u32).map(|i| i.wrapping_mul(0x0101_0101)).collect());
-        let line = serde_json::to_string(&r).unwrap();
-        assert!(!line.contains('\n'));
-        let back: Response = serde_json::from_str(&line).unwrap();
-        assert_eq!(back, r);
+        let mut stream = b"running 1 test\n".to_vec();
+        frame::write(&mut stream, &r).unwrap();
+        stream.extend_from_slice(b"\ntest worker_entry ... ok\n");
+        frame::write(&mut stream, &response(vec![])).unwrap();
+        let mut input = stream.as_slice();
+        let first = frame::read(&mut input).unwrap().expect("a frame");
+        assert_eq!(frame::decode::<Response>(&first).unwrap(), r);
+        let second = frame::read(&mut input).unwrap().expect("a frame");
+        assert_eq!(
+            frame::decode::<Response>(&second).unwrap(),
+            response(vec![])
+        );
+        assert!(frame::read(&mut input).unwrap().is_none());
     }
 
     #[test]
-    fn digits_that_are_not_hex_are_an_error_naming_the_byte() {
-        let line = serde_json::to_string(&response(vec![7, 8])).unwrap();
-        let (head, tail) = line.split_once("\"observation\":\"").unwrap();
-        // The observation's first digit replaced by `g`, then the whole value one digit short.
-        let bad = format!("{head}\"observation\":\"g{}", &tail[1..]);
-        let e = serde_json::from_str::<Response>(&bad).unwrap_err();
-        assert!(e.to_string().contains("not hex digits (byte 0x67)"), "{e}");
-        let odd = format!("{head}\"observation\":\"{}", &tail[1..]);
-        let e = serde_json::from_str::<Response>(&odd).unwrap_err();
-        assert!(e.to_string().contains("odd in number"), "{e}");
+    fn a_cut_frame_or_a_header_without_a_length_is_an_error() {
+        let mut stream = Vec::new();
+        frame::write(&mut stream, &response(vec![7, 8])).unwrap();
+        let cut = &stream[..stream.len() - 3];
+        let e = frame::read(&mut &cut[..]).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::UnexpectedEof);
+        assert!(e.to_string().contains("bytes into a"), "{e}");
+        // A length far beyond what was sent allocates only what arrives, then says so.
+        let lie = b"rtconf-frame 18446744073709551615\nabc";
+        let e = frame::read(&mut &lie[..]).unwrap_err();
+        assert!(e.to_string().contains("ended 3 bytes into"), "{e}");
+        let e = frame::read(&mut &b"rtconf-frame twelve\n"[..]).unwrap_err();
+        assert!(e.to_string().contains("without a length"), "{e}");
+    }
+
+    #[test]
+    fn a_frame_that_is_not_the_expected_message_is_an_error_naming_it() {
+        let mut stream = Vec::new();
+        frame::write(&mut stream, &"just a string").unwrap();
+        let body = frame::read(&mut stream.as_slice()).unwrap().unwrap();
+        assert!(frame::decode::<Response>(&body).is_err());
     }
 }

@@ -227,7 +227,10 @@ impl Executor {
                     self.pipeline_devices.push(key.clone());
                     if self.pipeline_devices.len() > PIPELINE_DEVICES {
                         let oldest = self.pipeline_devices.remove(0);
-                        self.devices.remove(&oldest);
+                        // Destroying a device (and what its cache holds) is the driver's work, as
+                        // making one is.
+                        let _phase = crate::timing::span(crate::timing::Phase::Device);
+                        drop(self.devices.remove(&oldest));
                     }
                 }
             }
@@ -269,11 +272,12 @@ pub(crate) fn unrealisable_command_buffer(
             .get_physical_device_queue_family_properties(inst.physical)
     };
     let any = |f: vk::QueueFlags| families.iter().any(|p| p.queue_flags.intersects(f));
-    let protected_memory = inst
-        .device_features()
-        .iter()
-        .any(|(k, on)| *on && k.ends_with("::protectedMemory"));
     if cbs.protected {
+        // Asked only here: reading every feature structure costs more than most cases' recording.
+        let protected_memory = inst
+            .device_features()
+            .iter()
+            .any(|(k, on)| *on && k.ends_with("::protectedMemory"));
         let why = "a protected command buffer comes from a pool created with VK_COMMAND_POOL_CREATE_PROTECTED_BIT, \
              which needs the protectedMemory feature (VUID-VkCommandPoolCreateInfo-flags-02860) and a queue \
              created with VK_DEVICE_QUEUE_CREATE_PROTECTED_BIT";

@@ -198,11 +198,11 @@ fn run(
     // The plan's bytes: records pre-filled (outcome NOT_RUN) where they are read back, the rays
     // buffer, the callables.
     if plan.io.fill_output {
-        let fill: Vec<u8> = std::iter::repeat_n(RayRecord::PREFILL, plan.io.records)
-            .flatten()
+        let record: Vec<u8> = RayRecord::PREFILL
+            .iter()
             .flat_map(|w| w.to_le_bytes())
             .collect();
-        out.write(0, &fill);
+        out.write(0, &record.repeat(plan.io.records));
     }
     rays.write(0, &plan.io.rays);
     calls.write(0, &plan.io.callables);

@@ -376,27 +376,24 @@ impl Allocation {
     pub(crate) fn read_u32s(&self, count: usize) -> Vec<u32> {
         self.sync(false);
         let n = count.min((self.size / 4) as usize);
-        let mut bytes = vec![0u8; n * 4];
+        // The words are copied as bytes straight into their vector (host byte order, as the device
+        // wrote them).
+        let mut words = vec![0u32; n];
+        let len = (n * 4) as u64;
         for p in &self.pieces {
-            let (lo, hi) = (
-                p.at.min(bytes.len() as u64),
-                (p.at + p.len).min(bytes.len() as u64),
-            );
+            let (lo, hi) = (p.at.min(len), (p.at + p.len).min(len));
             if lo < hi {
-                // SAFETY: lo..hi lies inside this piece's mapped range.
+                // SAFETY: lo..hi lies inside this piece's mapped range and inside `words`' n * 4 bytes.
                 unsafe {
                     std::ptr::copy_nonoverlapping(
                         p.ptr,
-                        bytes.as_mut_ptr().add(lo as usize),
+                        words.as_mut_ptr().cast::<u8>().add(lo as usize),
                         (hi - lo) as usize,
                     )
                 };
             }
         }
-        bytes
-            .chunks_exact(4)
-            .map(|c| u32::from_ne_bytes([c[0], c[1], c[2], c[3]]))
-            .collect()
+        words
     }
 
     /// Flushes host writes (`to_device`) or invalidates host caches before reading, on non-coherent memory.
