@@ -230,13 +230,13 @@ pub fn prepared(scene: &Scene) -> Option<Arc<PreparedScene>> {
 /// Whether two scenes are identical bit for bit (−0 and +0 differ, a NaN equals the same NaN).
 pub fn same_scene(a: &Scene, b: &Scene) -> bool {
     fn floats(a: &[f32], b: &[f32]) -> bool {
-        // Blocks compared without an early exit inside, so the comparison runs in vector lanes.
-        a.len() == b.len()
-            && a.chunks(64).zip(b.chunks(64)).all(|(x, y)| {
-                x.iter()
-                    .zip(y)
-                    .fold(true, |same, (p, q)| same & (p.to_bits() == q.to_bits()))
-            })
+        /// The bytes of the floats (their bits in memory order), compared as one block.
+        fn bytes(v: &[f32]) -> &[u8] {
+            // SAFETY: an f32 is four initialised bytes without padding; u8 needs no alignment, and
+            // the slice covers exactly the floats' memory.
+            unsafe { std::slice::from_raw_parts(v.as_ptr().cast::<u8>(), std::mem::size_of_val(v)) }
+        }
+        a.len() == b.len() && bytes(a) == bytes(b)
     }
     fn transform(a: &crate::scene::Transform3x4, b: &crate::scene::Transform3x4) -> bool {
         floats(a.0.as_flattened(), b.0.as_flattened())
@@ -637,36 +637,26 @@ pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
     let dims = call.dimensions(world)?;
     let rays = traced_rays(world, call);
     let mut stats = TracerStats::default();
-    let mut allowed: Vec<AllowedOutcomes> = Vec::with_capacity(rays.len());
+    let mut allowed: Vec<AllowedOutcomes> = Vec::new();
     if !rays.is_empty() {
         let prepared = prepared(&world.launch.scene)?;
         // The first launch ray of each distinct ray, and for every ray the distinct one it is.
-        let mut memo: HashMap<[u32; 13], usize, BuildHasherDefault<RayKeyHasher>> =
-            HashMap::with_capacity_and_hasher(rays.len(), Default::default());
-        let mut distinct: Vec<usize> = Vec::new();
-        let of: Vec<usize> = rays
-            .iter()
-            .enumerate()
-            .map(|(i, ray)| {
-                *memo.entry(ray_key(ray)).or_insert_with(|| {
-                    distinct.push(i);
-                    distinct.len() - 1
-                })
-            })
-            .collect();
+        let (distinct, of) = distinct_rays(&rays);
         let mut traced = trace_distinct(world, call, &prepared, &rays, &distinct, &mut stats)?;
         if distinct.len() == rays.len() {
             // Every ray is distinct (the usual launch): the outcomes are in launch order already.
             allowed = traced;
         } else {
             // The last launch ray of a distinct ray takes its outcomes, the others a copy.
-            let mut last = vec![usize::MAX; distinct.len()];
+            let mut last = vec![u32::MAX; distinct.len()];
             for (i, &d) in of.iter().enumerate() {
-                last[d] = i;
+                last[d as usize] = i as u32;
             }
             let mut traced: Vec<Option<AllowedOutcomes>> = traced.drain(..).map(Some).collect();
+            allowed.reserve_exact(rays.len());
             for (i, &d) in of.iter().enumerate() {
-                let a = if last[d] == i {
+                let d = d as usize;
+                let a = if last[d] == i as u32 {
                     traced[d].take()
                 } else {
                     traced[d].clone()
@@ -683,6 +673,37 @@ pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
     })
 }
 
+/// The index of the first of each distinct ray of `rays`, and for every ray the position of its
+/// distinct one in that list. The memo's table is the thread's, kept between launches (a table
+/// made afresh for each launch of thousands of rays costs as much as tracing a few of them).
+fn distinct_rays(rays: &[Ray]) -> (Vec<u32>, Vec<u32>) {
+    type Memo = HashMap<[u32; 13], u32, BuildHasherDefault<RayKeyHasher>>;
+    thread_local! {
+        static MEMO: std::cell::RefCell<Memo> = std::cell::RefCell::new(Memo::default());
+    }
+    MEMO.with(|memo| {
+        let mut memo = memo.borrow_mut();
+        memo.clear();
+        memo.reserve(rays.len());
+        let mut distinct: Vec<u32> = Vec::new();
+        let of = rays
+            .iter()
+            .enumerate()
+            .map(|(i, ray)| {
+                *memo.entry(ray_key(ray)).or_insert_with(|| {
+                    distinct.push(i as u32);
+                    distinct.len() as u32 - 1
+                })
+            })
+            .collect();
+        // A launch far larger than the usual leaves no table of its size behind.
+        if memo.capacity() > 1 << 16 {
+            *memo = Memo::default();
+        }
+        (distinct, of)
+    })
+}
+
 /// Distinct rays per worker below which a launch is traced on one thread (a thread costs about
 /// as much as tracing a few dozen rays).
 const RAYS_PER_WORKER: usize = 256;
@@ -694,7 +715,7 @@ fn trace_distinct(
     call: &Call,
     prepared: &PreparedScene,
     rays: &[Ray],
-    distinct: &[usize],
+    distinct: &[u32],
     stats: &mut TracerStats,
 ) -> Option<Vec<AllowedOutcomes>> {
     // Asked once per process: the standard library reads the cgroup's quota files at each call.
@@ -708,41 +729,52 @@ fn trace_distinct(
         let mut all = Vec::with_capacity(distinct.len());
         for &i in distinct {
             all.push(allowed_for_ray_memo(
-                world, call, prepared, &rays[i], &config, stats, &memo,
+                world,
+                call,
+                prepared,
+                &rays[i as usize],
+                &config,
+                stats,
+                &memo,
             )?);
         }
         return Some(all);
     }
     // Workers take chunks of distinct rays in turn, so an expensive part of the image does not
-    // leave one worker behind; each chunk's outcomes are moved into their place once.
+    // leave one worker behind; each writes its chunk's outcomes straight into their places.
     const CHUNK: usize = 32;
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    /// One worker's chunks (first distinct-ray index, outcomes), and its counters.
-    type Part = (Vec<(usize, Vec<Option<AllowedOutcomes>>)>, TracerStats);
+    let mut slots: Vec<Option<AllowedOutcomes>> = Vec::new();
+    slots.resize_with(distinct.len(), || None);
+    let undefined = std::sync::atomic::AtomicBool::new(false);
+    let chunks = Mutex::new(slots.chunks_mut(CHUNK).zip(distinct.chunks(CHUNK)));
     let work = || {
-        let mut out = Vec::new();
         let mut stats = TracerStats::default();
         let memo = HitRecordMemo::default();
         loop {
-            let start = next.fetch_add(CHUNK, std::sync::atomic::Ordering::Relaxed);
-            if start >= distinct.len() {
+            let next = chunks.lock().unwrap_or_else(|e| e.into_inner()).next();
+            let Some((out, ids)) = next else { break };
+            if undefined.load(std::sync::atomic::Ordering::Relaxed) {
                 break;
             }
-            let chunk = distinct[start..]
-                .iter()
-                .take(CHUNK)
-                .map(|&i| {
-                    allowed_for_ray_memo(
-                        world, call, prepared, &rays[i], &config, &mut stats, &memo,
-                    )
-                })
-                .collect();
-            out.push((start, chunk));
+            for (slot, &i) in out.iter_mut().zip(ids) {
+                *slot = allowed_for_ray_memo(
+                    world,
+                    call,
+                    prepared,
+                    &rays[i as usize],
+                    &config,
+                    &mut stats,
+                    &memo,
+                );
+                if slot.is_none() {
+                    undefined.store(true, std::sync::atomic::Ordering::Relaxed);
+                }
+            }
         }
-        (out, stats)
+        stats
     };
     // The calling thread is one of the workers.
-    let parts: Vec<Part> = std::thread::scope(|scope| {
+    let parts: Vec<TracerStats> = std::thread::scope(|scope| {
         let handles: Vec<_> = (1..workers).map(|_| scope.spawn(work)).collect();
         let own = work();
         std::iter::once(own)
@@ -753,17 +785,16 @@ fn trace_distinct(
             )
             .collect()
     });
-    let mut chunks: Vec<(usize, Vec<Option<AllowedOutcomes>>)> = Vec::new();
-    for (out, part) in parts {
-        stats.merge(&part);
-        chunks.extend(out);
+    for part in &parts {
+        stats.merge(part);
     }
-    chunks.sort_unstable_by_key(|c| c.0);
-    let mut all = Vec::with_capacity(distinct.len());
-    for (_, chunk) in chunks {
-        for a in chunk {
-            all.push(a?);
-        }
+    if undefined.into_inner() {
+        return None;
+    }
+    // Every slot was filled (no ray was undefined).
+    let mut all = Vec::with_capacity(slots.len());
+    for slot in slots {
+        all.push(slot?);
     }
     Some(all)
 }
