@@ -477,7 +477,7 @@ pub fn trace_ray(
     let mut candidates: Vec<Candidate> = Vec::new();
     let mut must_run: Vec<MustRun> = Vec::new();
     for NearItem { item, outcome, .. } in near.drain(..) {
-        let outcome = outcomes.get(outcome as usize).copied();
+        let outcome = outcomes.get(outcome as usize);
         let w = &scene.geometries[item.geometry as usize];
         let inst = &scene.scene.instances[w.instance as usize];
         // Spec, "Ray Mask Culling".
@@ -505,9 +505,16 @@ pub fn trace_ray(
         stats.pair_tests += 1;
         match w.kind {
             PrimitiveKind::Triangle => {
-                let out = outcome.unwrap_or_else(|| {
-                    classify_triangle(scene, w, item.primitive, ray, &rf, config.precision)
-                });
+                // Classified while traversing, or now (read in place, not copied).
+                let computed;
+                let out = match outcome {
+                    Some(o) => o,
+                    None => {
+                        computed =
+                            classify_triangle(scene, w, item.primitive, ray, &rf, config.precision);
+                        &computed
+                    }
+                };
                 out.evaluation.count(stats);
                 let (presence, reason) = match out.class {
                     PairClass::ReqHit => {
