@@ -477,7 +477,10 @@ impl Case {
                 }
                 // The launch traced whole once, here: its misses give the records it reads, and a
                 // run's judgement of the records finds it kept (`crate::expected`).
-                let _ = crate::expected::of(&t.world, &t.call);
+                if let Some(e) = crate::expected::of(&t.world, &t.call) {
+                    // The records it may reach, from the same outcomes where they tell them.
+                    crate::semantics::prime_hit_reach(&t.world, &t.call, &e);
+                }
                 let reads = crate::semantics::undefined_reads(
                     crate::semantics::handle_size(profile),
                     &t.world,

@@ -69,7 +69,6 @@ pub fn traced_rays(world: &World, call: &Call) -> Vec<Ray> {
 /// and every procedural geometry of an instance the ray's mask and flags do not cull (boxes may be
 /// enlarged without bound, so any of them may run its intersection shader).
 pub fn ray_reach(prepared: &PreparedScene, ray: &Ray) -> Vec<(u32, u32, GeometryKind)> {
-    let scene = prepared.scene();
     let any = |_: u32, _: u32| HitShaders::procedural(0, None);
     let table = ShaderTable {
         hit: &any,
@@ -81,16 +80,33 @@ pub fn ray_reach(prepared: &PreparedScene, ray: &Ray) -> Vec<(u32, u32, Geometry
     let mut out: BTreeSet<(u32, u32, GeometryKind)> = BTreeSet::new();
     let mut stats = TracerStats::default();
     if let Ok(allowed) = trace_ray(prepared, ray, &table, &TracerConfig::default(), &mut stats) {
-        for c in &allowed.candidates {
-            if c.kind == crate::tracer::PrimitiveKind::Triangle {
-                out.insert((
-                    c.primitive.instance,
-                    c.primitive.geometry,
-                    GeometryKind::Triangles,
-                ));
-            }
-        }
+        out.extend(triangle_reach(&allowed));
     }
+    out.extend(procedural_reach(prepared.scene(), ray));
+    out.into_iter().collect()
+}
+
+/// The triangle half of [`ray_reach`]: the (instance, geometry) of every triangle candidate.
+fn triangle_reach(
+    allowed: &AllowedOutcomes,
+) -> impl Iterator<Item = (u32, u32, GeometryKind)> + '_ {
+    allowed
+        .candidates
+        .iter()
+        .filter(|c| c.kind == crate::tracer::PrimitiveKind::Triangle)
+        .map(|c| {
+            (
+                c.primitive.instance,
+                c.primitive.geometry,
+                GeometryKind::Triangles,
+            )
+        })
+}
+
+/// The procedural half of [`ray_reach`]: every procedural geometry with an active box of an instance
+/// the ray's mask and flags do not cull (no tracing needed).
+fn procedural_reach(scene: &Scene, ray: &Ray) -> Vec<(u32, u32, GeometryKind)> {
+    let mut out = Vec::new();
     for (i, inst) in scene.instances.iter().enumerate() {
         let Some(b) = inst.bottom_level else { continue };
         if inst.mask as u32 & ray.cull_mask & 0xFF == 0 || ray.flags.contains(RayFlags::SKIP_AABBS)
@@ -122,11 +138,11 @@ pub fn ray_reach(prepared: &PreparedScene, ray: &Ray) -> Vec<(u32, u32, Geometry
             let culled = (ray.flags.contains(RayFlags::CULL_OPAQUE) && opaque)
                 || (ray.flags.contains(RayFlags::CULL_NO_OPAQUE) && !opaque);
             if !culled {
-                out.insert((i as u32, g as u32, GeometryKind::Aabbs));
+                out.push((i as u32, g as u32, GeometryKind::Aabbs));
             }
         }
     }
-    out.into_iter().collect()
+    out
 }
 
 /// A hash of a scene's content (bit patterns), the key of the prepared-scene memo.
@@ -353,13 +369,95 @@ pub fn launch_hit_reach(
         return vec![];
     }
     let keys: Vec<[u32; 13]> = rays.iter().map(ray_key).collect();
-    // The generator, the gate, the rules and the judgement of one case each ask for the same launch's
-    // reach, the generator and the gate a whole chunk of cases apart; a launch traced once serves
-    // them all, found by the fingerprint of its scene and traced rays.
-    static MEMO: crate::fingerprint::Memo<Vec<(u64, GeometryKind)>, 4096> =
-        crate::fingerprint::Memo::new();
     let fingerprint = crate::fingerprint::of_with_words(&launch.scene, keys.as_flattened());
-    MEMO.get_or(fingerprint, || traced_hit_reach(launch, &rays, &keys))
+    HIT_REACH.get_or(fingerprint, || traced_hit_reach(launch, &rays, &keys))
+}
+
+/// Launches' hit reach by the fingerprint of their scene and traced rays: the generator, the gate,
+/// the rules and the judgement of one case each ask for the same launch's reach, the generator and
+/// the gate a whole chunk of cases apart; a launch traced once (or its reach found from its allowed
+/// outcomes, [`prime_hit_reach`]) serves them all.
+static HIT_REACH: crate::fingerprint::Memo<Vec<(u64, GeometryKind)>, 4096> =
+    crate::fingerprint::Memo::new();
+
+/// Keeps a valid launch's [`reached_hit_records`] found from its allowed outcomes, where they give
+/// the same answer as tracing with the generic table [`ray_reach`] uses, so the gate does not trace
+/// the launch a second time. They do where the hit table the launch really has gives every ray the
+/// same cut as the generic table (which has no any-hit shader): the triangles a trace keeps as
+/// candidates depend on the shader table only through that cut (`tracer::cut_allowed_for`); the
+/// procedural half needs no tracing. Where some ray's cut differs, nothing is kept and the reach is
+/// traced when asked.
+pub fn prime_hit_reach(world: &World, call: &Call, expected: &ExpectedLaunch) {
+    if launch_ids(world, call) == Some(0) {
+        return;
+    }
+    if let Some(reach) = derived_hit_reach(world, call, expected) {
+        let keys: Vec<[u32; 13]> = expected.rays.iter().map(ray_key).collect();
+        let fingerprint =
+            crate::fingerprint::of_with_words(&world.launch.scene, keys.as_flattened());
+        let _ = HIT_REACH.get_or(fingerprint, || reach);
+    }
+}
+
+/// [`traced_hit_reach`] of the launch's rays found from their allowed outcomes, or None where some
+/// ray's cut differs between its own hit table and the generic one (see [`prime_hit_reach`]).
+fn derived_hit_reach(
+    world: &World,
+    call: &Call,
+    expected: &ExpectedLaunch,
+) -> Option<Vec<(u64, GeometryKind)>> {
+    if expected.rays.is_empty() || expected.allowed.len() != expected.rays.len() {
+        return None;
+    }
+    let prepared = prepared(&world.launch.scene)?;
+    let scene = &world.launch.scene;
+    // The cut depends on the ray's flags and on the hit records it resolves: asked once per
+    // (flags, sbtOffset, sbtStride).
+    let mut same_cut: HashMap<(u32, u32, u32), bool> = HashMap::new();
+    let generic_hit = |_: u32, _: u32| HitShaders::procedural(0, None);
+    let miss = MissShader {
+        zero_group: false,
+        group: 0,
+    };
+    let generic = ShaderTable {
+        hit: &generic_hit,
+        miss,
+    };
+    for ray in &expected.rays {
+        let same = *same_cut
+            .entry((ray.flags.0, ray.sbt_offset, ray.sbt_stride))
+            .or_insert_with(|| {
+                let hit = |i: u32, g: u32| {
+                    let inst = &scene.instances[i as usize];
+                    hit_shaders(
+                        world,
+                        call,
+                        hit_record(inst.sbt_record_offset, g, ray.sbt_offset, ray.sbt_stride),
+                    )
+                };
+                let own = ShaderTable { hit: &hit, miss };
+                crate::tracer::cut_allowed_for(&prepared, ray, &own)
+                    == crate::tracer::cut_allowed_for(&prepared, ray, &generic)
+            });
+        if !same {
+            return None;
+        }
+    }
+    let mut out: BTreeSet<(u64, GeometryKind)> = BTreeSet::new();
+    let mut seen: HashMap<[u32; 13], (), BuildHasherDefault<RayKeyHasher>> = HashMap::default();
+    for (ray, allowed) in expected.rays.iter().zip(&expected.allowed) {
+        if seen.insert(ray_key(ray), ()).is_some() {
+            continue;
+        }
+        for (i, g, kind) in triangle_reach(allowed).chain(procedural_reach(scene, ray)) {
+            let inst = &scene.instances[i as usize];
+            out.insert((
+                hit_record(inst.sbt_record_offset, g, ray.sbt_offset, ray.sbt_stride),
+                kind,
+            ));
+        }
+    }
+    Some(out.into_iter().collect())
 }
 
 /// [`launch_hit_reach`] traced: the union of the distinct rays' [`ray_reach`] as hit records.
@@ -824,5 +922,104 @@ impl std::hash::Hasher for RayKeyHasher {
     fn write_usize(&mut self, x: usize) {
         self.write_u32(x as u32);
         self.write_u32((x as u64 >> 32) as u32);
+    }
+}
+
+#[cfg(test)]
+mod hit_reach_tests {
+    use super::*;
+
+    /// The traced reach of a valid case's launch (what the gate computed before the outcomes could
+    /// tell it), and the reach found from the outcomes, where they may.
+    fn both(
+        t: &crate::TraceBody,
+    ) -> Option<(Vec<(u64, GeometryKind)>, Option<Vec<(u64, GeometryKind)>>)> {
+        let e = expected_launch(&t.world, &t.call)?;
+        let keys: Vec<[u32; 13]> = e.rays.iter().map(ray_key).collect();
+        let traced = traced_hit_reach(&t.world.launch, &e.rays, &keys);
+        Some((traced, derived_hit_reach(&t.world, &t.call, &e)))
+    }
+
+    fn hand_case() -> crate::Case {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../cases/hand/trace-indirect-records-32.yaml");
+        let text = std::fs::read_to_string(path).expect("the hand case reads");
+        crate::Case::from_yaml("hand", &text).expect("the hand case parses")
+    }
+
+    #[test]
+    fn the_reach_found_from_the_outcomes_is_the_traced_reach() {
+        let mut found = 0;
+        let mut traced_only = 0;
+        let mut bodies: Vec<(String, crate::TraceBody)> = Vec::new();
+        for path in crate::test_cases::repository_case_files() {
+            let Ok(text) = std::fs::read_to_string(&path) else {
+                continue;
+            };
+            let Ok(case) = crate::Case::from_yaml("repo", &text) else {
+                continue;
+            };
+            if case.intent != crate::Intent::Valid {
+                continue;
+            }
+            if let Some(t) = case.as_trace() {
+                bodies.push((path.display().to_string(), t.clone()));
+            }
+        }
+        // The standard workloads as launches of the hand-made case, with rays that cull, skip, end
+        // at their first hit or are forced opaque, so the cut and the culling vary.
+        for w in crate::tracer::workload::standard_workloads(8, false) {
+            for flags in [0u32, 0x1, 0x2, 0x4, 0x10, 0x20, 0x40, 0x80, 0x100, 0x200] {
+                let mut case = w.as_launch_of(hand_case(), 8);
+                let t = case.as_trace_mut().expect("a trace case");
+                for r in &mut t.world.launch.rays {
+                    r.flags = crate::scene::RayFlags(flags);
+                }
+                bodies.push((format!("{} flags {flags:#x}", w.name), t.clone()));
+            }
+        }
+        for (what, t) in &bodies {
+            let Some((traced, derived)) = both(t) else {
+                continue;
+            };
+            match derived {
+                Some(d) => {
+                    assert_eq!(d, traced, "{what}");
+                    found += 1;
+                }
+                None => traced_only += 1,
+            }
+        }
+        assert!(
+            found >= 40,
+            "{found} launches compared ({traced_only} left to tracing)"
+        );
+    }
+
+    #[test]
+    fn an_any_hit_shader_on_a_non_opaque_geometry_leaves_the_reach_to_tracing() {
+        // The hand case with its hit group given an any-hit shader and its geometries made non-opaque:
+        // the own table forbids the cut the generic one makes, so nothing is found from the outcomes.
+        let w = &crate::tracer::workload::standard_workloads(8, false)[1];
+        let mut case = w.as_launch_of(hand_case(), 8);
+        let t = case.as_trace_mut().expect("a trace case");
+        for bl in &mut t.world.launch.scene.bottom_levels {
+            for g in &mut bl.geometries {
+                g.flags.opaque = false;
+            }
+        }
+        let p = t
+            .world
+            .pipeline
+            .as_mut()
+            .expect("the hand case has a pipeline");
+        for g in &mut p.groups {
+            if let crate::world::ShaderGroup::TrianglesHit { any_hit, .. } = g {
+                *any_hit = true;
+            }
+        }
+        let (traced, derived) = both(t).expect("the launch's outcomes");
+        assert!(derived.is_none());
+        assert!(!traced.is_empty());
     }
 }

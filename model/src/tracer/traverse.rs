@@ -244,6 +244,12 @@ fn confirmation(opaque: bool, shaders: &HitShaders, primitive: u32) -> Confirmat
     }
 }
 
+/// Whether [`trace_ray`] cuts behind a required hit for `ray` with `shaders` (see `cut_allowed`): the
+/// one way the shader table decides which triangles a trace keeps as candidates.
+pub fn cut_allowed_for(scene: &PreparedScene, ray: &Ray, shaders: &ShaderTable<'_>) -> bool {
+    cut_allowed(scene, ray, shaders)
+}
+
 /// Whether a cut behind a required hit is allowed for the ray: it may not end at its first hit, and
 /// no primitive of the scene runs an any-hit shader for it (opaque, or a hit group without one).
 fn cut_allowed(scene: &PreparedScene, ray: &Ray, shaders: &ShaderTable<'_>) -> bool {
