@@ -929,11 +929,12 @@ impl std::hash::Hasher for RayKeyHasher {
 mod hit_reach_tests {
     use super::*;
 
+    /// Hit records with the kind of geometry they are reached from.
+    type Reach = Vec<(u64, GeometryKind)>;
+
     /// The traced reach of a valid case's launch (what the gate computed before the outcomes could
     /// tell it), and the reach found from the outcomes, where they may.
-    fn both(
-        t: &crate::TraceBody,
-    ) -> Option<(Vec<(u64, GeometryKind)>, Option<Vec<(u64, GeometryKind)>>)> {
+    fn both(t: &crate::TraceBody) -> Option<(Reach, Option<Reach>)> {
         let e = expected_launch(&t.world, &t.call)?;
         let keys: Vec<[u32; 13]> = e.rays.iter().map(ray_key).collect();
         let traced = traced_hit_reach(&t.world.launch, &e.rays, &keys);
