@@ -473,7 +473,15 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         harness::select_layer(dir)?;
     }
     let layer = harness::validation_layer()?;
-    let set = sources::registry_for_layer(&config.from, Some(&layer))?;
+    // The driver's check — an instance made with the layer, tens of milliseconds — runs beside the
+    // reading of the registry; a registry that does not read is still the error reported first.
+    let driver = Driver::parse(&config.driver);
+    let (set, checked) = std::thread::scope(|s| {
+        let check = s.spawn(|| harness::check_driver(&driver));
+        let set = sources::registry_for_layer(&config.from, Some(&layer));
+        (set, check.join())
+    });
+    let set = set?;
     let mut warnings = Vec::new();
     if set.version.as_deref() != Some(layer.version.as_str()) {
         warnings.push(format!(
@@ -484,8 +492,7 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
     }
     let rules = RuleSet::from_vuids(&set);
     // The driver first: a path that is not a driver is never taken for a profile's name.
-    let driver = Driver::parse(&config.driver);
-    harness::check_driver(&driver)?;
+    checked.unwrap_or_else(|panic| std::panic::resume_unwind(panic))?;
     let profile_name = config
         .profile
         .clone()
