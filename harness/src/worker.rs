@@ -305,7 +305,30 @@ impl Worker {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
+
+    /// Ends a worker that has answered all its cases: its stdin closes and it exits; one still
+    /// running `grace` later is killed (a driver's teardown after a lost device may never return,
+    /// and every answer is already in). Whether it had to be killed.
+    fn finish(self, grace: Duration) -> bool {
+        let Worker {
+            mut child, stdin, ..
+        } = self;
+        drop(stdin);
+        let closed = Instant::now();
+        while closed.elapsed() < grace {
+            match child.try_wait() {
+                Ok(Some(_)) | Err(_) => return false,
+                Ok(None) => std::thread::sleep(Duration::from_millis(5)),
+            }
+        }
+        let _ = child.kill();
+        let _ = child.wait();
+        true
+    }
 }
+
+/// How long a worker whose stdin has closed may take to exit before it is killed.
+const EXIT_GRACE: Duration = Duration::from_secs(10);
 
 enum Outcome {
     Done(Response),
@@ -464,9 +487,7 @@ pub fn run_stream<J: Send>(
                     let _ = tx.send((job, Some(response)));
                 }
                 if let Some(w) = worker.take() {
-                    drop(w.stdin);
-                    let mut child = w.child;
-                    let _ = child.wait();
+                    w.finish(EXIT_GRACE);
                 }
             });
         }
@@ -525,6 +546,36 @@ mod tests {
         assert!(e.to_string().contains("ended 3 bytes into"), "{e}");
         let e = frame::read(&mut &b"rtconf-frame twelve\n"[..]).unwrap_err();
         assert!(e.to_string().contains("without a length"), "{e}");
+    }
+
+    fn shell(script: &str) -> WorkerCommand {
+        WorkerCommand {
+            program: "sh".into(),
+            args: vec!["-c".into(), script.into()],
+            env: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn a_worker_that_exits_when_its_stdin_closes_is_not_killed() {
+        let w = Worker::spawn(&shell("cat > /dev/null")).expect("sh starts");
+        let started = Instant::now();
+        assert!(!w.finish(Duration::from_secs(20)));
+        assert!(started.elapsed() < Duration::from_secs(10));
+    }
+
+    #[test]
+    fn a_worker_that_outlives_its_stdin_is_killed_after_the_grace() {
+        // Ignores the end of its input and keeps running, as a driver's hung teardown would.
+        let w =
+            Worker::spawn(&shell("cat > /dev/null; while :; do sleep 1; done")).expect("sh starts");
+        let started = Instant::now();
+        assert!(w.finish(Duration::from_millis(300)));
+        let took = started.elapsed();
+        assert!(
+            took >= Duration::from_millis(300) && took < Duration::from_secs(10),
+            "{took:?}"
+        );
     }
 
     #[test]
