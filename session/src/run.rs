@@ -652,7 +652,12 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
             .enumerate()
             .map(|(index, c)| dispatch.drawn(c, index, &judging))
             .collect();
-        dispatch.run_stream(drawn.into_iter(), &mut sink);
+        // A few evidence cases start no more workers than they can use.
+        let evidence_dispatch = Dispatch {
+            jobs: dispatch.jobs.min(drawn.len()).max(1),
+            ..dispatch
+        };
+        evidence_dispatch.run_stream(drawn.into_iter(), &mut sink);
     }
     if let Some((path, e)) = sink.error.take() {
         return Err(SessionError::io(
