@@ -69,14 +69,7 @@ pub fn traced_rays(world: &World, call: &Call) -> Vec<Ray> {
 /// and every procedural geometry of an instance the ray's mask and flags do not cull (boxes may be
 /// enlarged without bound, so any of them may run its intersection shader).
 pub fn ray_reach(prepared: &PreparedScene, ray: &Ray) -> Vec<(u32, u32, GeometryKind)> {
-    let any = |_: u32, _: u32| HitShaders::procedural(0, None);
-    let table = ShaderTable {
-        hit: &any,
-        miss: MissShader {
-            zero_group: false,
-            group: 0,
-        },
-    };
+    let table = generic_table();
     let mut out: BTreeSet<(u32, u32, GeometryKind)> = BTreeSet::new();
     let mut stats = TracerStats::default();
     if let Ok(allowed) = trace_ray(prepared, ray, &table, &TracerConfig::default(), &mut stats) {
@@ -84,6 +77,22 @@ pub fn ray_reach(prepared: &PreparedScene, ray: &Ray) -> Vec<(u32, u32, Geometry
     }
     out.extend(procedural_reach(prepared.scene(), ray));
     out.into_iter().collect()
+}
+
+/// The hit group [`ray_reach`] traces every geometry with: an intersection shader, no any-hit.
+fn generic_hit(_: u32, _: u32) -> HitShaders {
+    HitShaders::procedural(0, None)
+}
+
+/// The shader table of [`ray_reach`]: [`generic_hit`] everywhere.
+fn generic_table() -> ShaderTable<'static> {
+    ShaderTable {
+        hit: &generic_hit,
+        miss: MissShader {
+            zero_group: false,
+            group: 0,
+        },
+    }
 }
 
 /// The triangle half of [`ray_reach`]: the (instance, geometry) of every triangle candidate.
@@ -124,19 +133,8 @@ fn procedural_reach(scene: &Scene, ray: &Ray) -> Vec<(u32, u32, GeometryKind)> {
             if a.boxes.iter().all(|b| b.is_inactive()) {
                 continue;
             }
-            let opaque = if ray.flags.contains(RayFlags::OPAQUE) {
-                true
-            } else if ray.flags.contains(RayFlags::NO_OPAQUE) {
-                false
-            } else if inst.flags.force_opaque {
-                true
-            } else if inst.flags.force_no_opaque {
-                false
-            } else {
-                geometry.flags.opaque
-            };
-            let culled = (ray.flags.contains(RayFlags::CULL_OPAQUE) && opaque)
-                || (ray.flags.contains(RayFlags::CULL_NO_OPAQUE) && !opaque);
+            let opaque = crate::tracer::opacity(ray, inst, geometry.flags.opaque);
+            let culled = crate::tracer::opacity_culled(ray, opaque);
             if !culled {
                 out.push((i as u32, g as u32, GeometryKind::Aabbs));
             }
@@ -391,8 +389,8 @@ pub fn prime_hit_reach(world: &World, call: &Call, expected: &ExpectedLaunch) {
     if launch_ids(world, call) == Some(0) {
         return;
     }
-    if let Some(reach) = derived_hit_reach(world, call, expected) {
-        let keys: Vec<[u32; 13]> = expected.rays.iter().map(ray_key).collect();
+    let keys: Vec<[u32; 13]> = expected.rays.iter().map(ray_key).collect();
+    if let Some(reach) = derived_hit_reach(world, call, expected, &keys) {
         let fingerprint =
             crate::fingerprint::of_with_words(&world.launch.scene, keys.as_flattened());
         let _ = HIT_REACH.get_or(fingerprint, || reach);
@@ -405,6 +403,7 @@ fn derived_hit_reach(
     world: &World,
     call: &Call,
     expected: &ExpectedLaunch,
+    keys: &[[u32; 13]],
 ) -> Option<Vec<(u64, GeometryKind)>> {
     if expected.rays.is_empty() || expected.allowed.len() != expected.rays.len() {
         return None;
@@ -414,15 +413,7 @@ fn derived_hit_reach(
     // The cut depends on the ray's flags and on the hit records it resolves: asked once per
     // (flags, sbtOffset, sbtStride).
     let mut same_cut: HashMap<(u32, u32, u32), bool> = HashMap::new();
-    let generic_hit = |_: u32, _: u32| HitShaders::procedural(0, None);
-    let miss = MissShader {
-        zero_group: false,
-        group: 0,
-    };
-    let generic = ShaderTable {
-        hit: &generic_hit,
-        miss,
-    };
+    let generic = generic_table();
     for ray in &expected.rays {
         let same = *same_cut
             .entry((ray.flags.0, ray.sbt_offset, ray.sbt_stride))
@@ -435,7 +426,10 @@ fn derived_hit_reach(
                         hit_record(inst.sbt_record_offset, g, ray.sbt_offset, ray.sbt_stride),
                     )
                 };
-                let own = ShaderTable { hit: &hit, miss };
+                let own = ShaderTable {
+                    hit: &hit,
+                    miss: generic.miss,
+                };
                 crate::tracer::cut_allowed_for(&prepared, ray, &own)
                     == crate::tracer::cut_allowed_for(&prepared, ray, &generic)
             });
@@ -443,21 +437,9 @@ fn derived_hit_reach(
             return None;
         }
     }
-    let mut out: BTreeSet<(u64, GeometryKind)> = BTreeSet::new();
-    let mut seen: HashMap<[u32; 13], (), BuildHasherDefault<RayKeyHasher>> = HashMap::default();
-    for (ray, allowed) in expected.rays.iter().zip(&expected.allowed) {
-        if seen.insert(ray_key(ray), ()).is_some() {
-            continue;
-        }
-        for (i, g, kind) in triangle_reach(allowed).chain(procedural_reach(scene, ray)) {
-            let inst = &scene.instances[i as usize];
-            out.insert((
-                hit_record(inst.sbt_record_offset, g, ray.sbt_offset, ray.sbt_stride),
-                kind,
-            ));
-        }
-    }
-    Some(out.into_iter().collect())
+    Some(hit_reach_of(scene, &expected.rays, keys, |k, ray| {
+        triangle_reach(&expected.allowed[k]).chain(procedural_reach(scene, ray))
+    }))
 }
 
 /// [`launch_hit_reach`] traced: the union of the distinct rays' [`ray_reach`] as hit records.
@@ -469,14 +451,26 @@ fn traced_hit_reach(
     let Some(prepared) = prepared(&launch.scene) else {
         return vec![];
     };
-    let scene = &launch.scene;
+    hit_reach_of(&launch.scene, rays, keys, |_, ray| {
+        ray_reach(&prepared, ray)
+    })
+}
+
+/// The hit records of the (instance, geometry, kind) triples `reach` gives for each distinct ray
+/// (`reach` gets the ray's index in `rays`; `keys` are the rays' [`ray_key`]s).
+fn hit_reach_of<R: IntoIterator<Item = (u32, u32, GeometryKind)>>(
+    scene: &Scene,
+    rays: &[Ray],
+    keys: &[[u32; 13]],
+    mut reach: impl FnMut(usize, &Ray) -> R,
+) -> Vec<(u64, GeometryKind)> {
     let mut out: BTreeSet<(u64, GeometryKind)> = BTreeSet::new();
-    let mut seen: std::collections::HashSet<[u32; 13]> = std::collections::HashSet::new();
-    for (ray, key) in rays.iter().zip(keys) {
-        if !seen.insert(*key) {
+    let mut seen: HashMap<[u32; 13], (), BuildHasherDefault<RayKeyHasher>> = HashMap::default();
+    for (k, (ray, key)) in rays.iter().zip(keys).enumerate() {
+        if seen.insert(*key, ()).is_some() {
             continue;
         }
-        for (i, g, kind) in ray_reach(&prepared, ray) {
+        for (i, g, kind) in reach(k, ray) {
             let inst = &scene.instances[i as usize];
             out.insert((
                 hit_record(inst.sbt_record_offset, g, ray.sbt_offset, ray.sbt_stride),
@@ -938,7 +932,7 @@ mod hit_reach_tests {
         let e = expected_launch(&t.world, &t.call)?;
         let keys: Vec<[u32; 13]> = e.rays.iter().map(ray_key).collect();
         let traced = traced_hit_reach(&t.world.launch, &e.rays, &keys);
-        Some((traced, derived_hit_reach(&t.world, &t.call, &e)))
+        Some((traced, derived_hit_reach(&t.world, &t.call, &e, &keys)))
     }
 
     fn hand_case() -> crate::Case {

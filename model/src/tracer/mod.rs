@@ -24,7 +24,7 @@ mod watertight;
 pub mod workload;
 
 pub use prepare::{PreparedScene, PrimitiveKind};
-pub use traverse::{cut_allowed_for, trace_launch, trace_ray};
+pub use traverse::{cut_allowed_for, opacity, opacity_culled, trace_launch, trace_ray};
 pub use triangle::{Interval, MissReason, PairClass, VaryReason};
 
 use serde::{Deserialize, Serialize};

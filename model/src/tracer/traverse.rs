@@ -207,7 +207,7 @@ impl OptionTransform for Option<&crate::scene::Transform3x4> {
 
 /// Opacity of a candidate (spec, "Ray Opacity Culling"): ray flags beat the instance's FORCE_*
 /// flags, which beat the geometry's OPAQUE bit.
-pub(super) fn opacity(ray: &Ray, inst: &SceneInstance, geometry_opaque: bool) -> bool {
+pub fn opacity(ray: &Ray, inst: &SceneInstance, geometry_opaque: bool) -> bool {
     if ray.flags.contains(RayFlags::OPAQUE) {
         true
     } else if ray.flags.contains(RayFlags::NO_OPAQUE) {
@@ -222,7 +222,7 @@ pub(super) fn opacity(ray: &Ray, inst: &SceneInstance, geometry_opaque: bool) ->
 }
 
 /// Whether opacity culling drops the candidate (spec, "Ray Opacity Culling").
-pub(super) fn opacity_culled(ray: &Ray, opaque: bool) -> bool {
+pub fn opacity_culled(ray: &Ray, opaque: bool) -> bool {
     (ray.flags.contains(RayFlags::CULL_OPAQUE) && opaque)
         || (ray.flags.contains(RayFlags::CULL_NO_OPAQUE) && !opaque)
 }
