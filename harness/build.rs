@@ -8,8 +8,10 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// (source file, output name, extra glslang arguments). Each is compiled twice: as is (GL_EXT_ray_tracing,
-/// for KHR pipelines) and with `-DNV` into `<name>_nv` (GL_NV_ray_tracing, for VK_NV_ray_tracing pipelines).
+/// (source file, output name, extra glslang arguments). Each is compiled four times: as is
+/// (GL_EXT_ray_tracing, for KHR pipelines), with `-DNV` into `<name>_nv` (GL_NV_ray_tracing, for
+/// VK_NV_ray_tracing pipelines), and both again with `-DINTERFACE_ONLY` into `<name>_interface` and
+/// `<name>_nv_interface` (the bodies of cases that are recorded and never run).
 const SHADERS: &[(&str, &str, &[&str])] = &[
     ("raygen.rgen", "raygen_trace", &["-DTRACE"]),
     ("raygen.rgen", "raygen_plain", &[]),
@@ -131,8 +133,15 @@ fn main() {
         .flat_map(|&(src, name, args)| {
             let mut nv_args: Vec<&str> = args.to_vec();
             nv_args.push("-DNV");
+            let interface = |a: &[&'static str]| {
+                let mut a = a.to_vec();
+                a.push("-DINTERFACE_ONLY");
+                a
+            };
             [
                 (src, name.to_string(), args.to_vec()),
+                (src, format!("{name}_interface"), interface(args)),
+                (src, format!("{name}_nv_interface"), interface(&nv_args)),
                 (src, format!("{name}_nv"), nv_args),
             ]
         })

@@ -9,7 +9,7 @@ use crate::{emit_device, emit_expectation, Expectation};
 use harness::plan::pipeline::GroupType;
 use harness::plan::scene::{GeometryDataPlan, AABB_STRIDE, VERTEX_STRIDE};
 use harness::plan::trace::{BufferWrite, TraceCall, TracePlan};
-use harness::plan::{Barrier, CallPlan, ShaderKind, Step};
+use harness::plan::{Barrier, CallPlan, ShaderBody, ShaderKind, Step};
 use model::flags::{BufferCreate, BufferUsage, PipelineCreate};
 use model::tracer::record::RayRecord;
 use model::world::{CommandBufferLevel, HandleRef, MemoryBinding, PipelineApi};
@@ -54,9 +54,13 @@ pub(crate) fn emit(
             }
         }
     }
-    e.line("/* The SPIR-V of the harness's shaders (harness/shaders/, glslangValidator --target-env vulkan1.2). */");
+    let body = t.pipeline.as_ref().map_or(ShaderBody::Full, |p| p.body);
+    e.line(&format!("/* The SPIR-V of the harness's shaders (harness/shaders/, glslangValidator --target-env vulkan1.2{}). */", match body {
+        ShaderBody::Full => "",
+        ShaderBody::InterfaceOnly => " -DINTERFACE_ONLY: the case is recorded, never submitted",
+    }));
     for k in &kinds {
-        let words = harness::plan::spirv(*k, PipelineApi::Khr).map_err(|e| e.to_string())?;
+        let words = harness::plan::spirv(*k, PipelineApi::Khr, body).map_err(|e| e.to_string())?;
         c::words(e, &format!("spirv_{}", k.output_name()), &words);
     }
     for (k, b) in t.buffers.iter().enumerate() {

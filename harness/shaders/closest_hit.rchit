@@ -4,6 +4,8 @@
 // with a second payload (location 1), so the nested result never reaches the record, while its depth
 // is at most the launch's extra recursion (binding 2's header): the deepest trace is then at depth
 // 1 + extraRecursion. Without TRACE (pipelines of launches that trace no ray) it has no scene binding.
+// With -DINTERFACE_ONLY (cases only recorded, never submitted) main is the least code that uses what
+// the full main uses: the layer reads the same interface, the driver compiles far less.
 #version 460
 #ifdef NV
 // vkCmdTraceRaysNV pipelines: the same shader in GL_NV_ray_tracing (SPV_NV_ray_tracing) names.
@@ -88,6 +90,15 @@ layout(location = 1) rayPayloadEXT Payload nested;
 #endif
 
 void main() {
+#ifdef INTERFACE_ONLY
+    // Recorded, never run (an invalid case): one use of each variable the full body uses.
+    payload.outcome = uint(gl_InstanceID) + uint(gl_InstanceCustomIndexEXT) + GEOMETRY_INDEX
+        + uint(gl_PrimitiveID) + gl_HitKindEXT + floatBitsToUint(gl_HitTEXT + attribs.x);
+#ifdef TRACE
+    nested.depth = payload.depth + rays.extraRecursion;
+    traceRayEXT(scene, 0u, 0xFFu, 0u, 0u, 0u, vec3(0.0), 0.0, vec3(0.0, 0.0, 1.0), 1.0, 1);
+#endif
+#else
     payload.outcome = 2u;
     payload.group = GROUP;
     payload.instance = uint(gl_InstanceID);
@@ -109,5 +120,6 @@ void main() {
         traceRayEXT(scene, r.flags, r.cullMask, r.sbtOffset, r.sbtStride, r.missIndex,
                     r.origin.xyz, r.origin.w, r.direction.xyz, r.direction.w, 1);
     }
+#endif
 #endif
 }

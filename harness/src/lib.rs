@@ -27,10 +27,11 @@ pub use observe::{Observation, Output, RunningOn, Status, TraceCheck};
 pub use probe::probe;
 pub use vk::{select_layer, validation_layer, Driver, LayerInfo, LayerMessage, VALIDATION_LAYER};
 
-/// The GLSL the harness makes of a resource state's accesses, stage by stage, and its compilation: for
-/// tests that template every stage.
+/// The GLSL the harness makes of a resource state's accesses, stage by stage, its compilation with
+/// either body, and what a layer reads of the module: for tests that template every stage.
 pub mod resource_glsl {
     pub use crate::realise::resources::{compile_stage, stage_glsl, stage_source};
+    pub use crate::shaders::{module_interface, ModuleInterface, ShaderBody};
 }
 pub use worker::{
     run_in_workers, run_in_workers_with, run_stream, worker_main, Request, Response, WorkerCommand,

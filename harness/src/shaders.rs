@@ -7,7 +7,7 @@
 use crate::error::{vkfail, HarnessError};
 use crate::vk::VkDevice;
 use ash::vk;
-use std::collections::HashMap;
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::sync::Mutex;
 
 include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
@@ -29,6 +29,39 @@ pub enum ShaderKind {
     Callable,
 }
 
+/// What a shader's `main` does. A case that is only recorded under the layer (invalid: never
+/// submitted) runs no shader, and the layer reads a module's interface (the variables its entry point
+/// uses, its capabilities), never its code's effects; lavapipe's pipeline creation time grows with the
+/// code. So such a case gets the interface-only body (`-DINTERFACE_ONLY`): one use of each variable
+/// the full body uses, the scene's trace kept, nothing computed. A test compares the two bodies'
+/// interfaces for every kind and API.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+pub enum ShaderBody {
+    /// The body that writes the records: every case that runs.
+    Full,
+    /// The least code with the full body's interface: cases that are never submitted.
+    InterfaceOnly,
+}
+
+impl ShaderBody {
+    /// The body of a case run as valid (submitted) or only recorded.
+    pub fn for_run(run_valid: bool) -> ShaderBody {
+        if run_valid {
+            ShaderBody::Full
+        } else {
+            ShaderBody::InterfaceOnly
+        }
+    }
+
+    /// The preprocessor names that select the body.
+    pub(crate) fn defines(self) -> &'static [&'static str] {
+        match self {
+            ShaderBody::Full => &[],
+            ShaderBody::InterfaceOnly => &["INTERFACE_ONLY"],
+        }
+    }
+}
+
 /// Which ray tracing extension a module is written for: GL_EXT_ray_tracing (SPV_KHR_ray_tracing) for KHR
 /// pipelines, GL_NV_ray_tracing (SPV_NV_ray_tracing, `-DNV`) for `vkCreateRayTracingPipelinesNV`.
 pub use model::world::PipelineApi as ShaderApi;
@@ -48,12 +81,18 @@ impl ShaderKind {
         }
     }
 
-    /// The output name of the variant for `api` (`<name>_nv` for NV).
-    pub(crate) fn variant_name(self, api: ShaderApi) -> String {
-        match api {
-            ShaderApi::Khr => self.output_name().to_string(),
-            ShaderApi::Nv => format!("{}_nv", self.output_name()),
-        }
+    /// The output name of the variant for `api` and `body` (`<name>`, `<name>_nv`, then
+    /// `_interface` for the interface-only body), as build.rs names it.
+    pub fn variant_name(self, api: ShaderApi, body: ShaderBody) -> String {
+        let nv = match api {
+            ShaderApi::Khr => "",
+            ShaderApi::Nv => "_nv",
+        };
+        let interface = match body {
+            ShaderBody::Full => "",
+            ShaderBody::InterfaceOnly => "_interface",
+        };
+        format!("{}{nv}{interface}", self.output_name())
     }
 
     /// The GLSL file, its text and the defines of the kind's variant.
@@ -105,9 +144,13 @@ const _: () = {
     assert!(R::T == 7 && R::BARYCENTRICS == 8 && R::GEOMETRY_INDEX == 4);
 };
 
-/// The SPIR-V words of a shader kind for a pipeline API.
-pub(crate) fn spirv(kind: ShaderKind, api: ShaderApi) -> Result<Vec<u32>, HarnessError> {
-    let name = kind.variant_name(api);
+/// The SPIR-V words of a shader kind for a pipeline API and body.
+pub(crate) fn spirv(
+    kind: ShaderKind,
+    api: ShaderApi,
+    body: ShaderBody,
+) -> Result<Vec<u32>, HarnessError> {
+    let name = kind.variant_name(api, body);
     match PRECOMPILED
         .iter()
         .find(|(n, _)| *n == name)
@@ -121,6 +164,7 @@ pub(crate) fn spirv(kind: ShaderKind, api: ShaderApi) -> Result<Vec<u32>, Harnes
             if api == ShaderApi::Nv {
                 defines.push("NV");
             }
+            defines.extend(body.defines());
             compile_glsl(file, ext, text, &defines)
         }
     }
@@ -445,6 +489,170 @@ pub(crate) fn module(dev: &VkDevice, code: &[u32]) -> Result<vk::ShaderModule, H
     .map_err(vkfail("vkCreateShaderModule"))
 }
 
+/// What a validation layer reads of a module without running it: the execution model, the
+/// capabilities and extensions, the specialisation constant IDs, and each module-scope variable the
+/// entry point statically uses, as its storage class with its set, binding, location and built-in
+/// decorations. Static use is found as a layer finds it: the instructions of the functions the entry
+/// point reaches through calls that name the variable (loads, stores, access chains, atomics, array
+/// lengths, texel pointers, copies, traces and callable executions — the NV ones by their payload's
+/// location). OpEntryPoint's list is not used: glslang lists every module-scope variable there.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ModuleInterface {
+    pub model: u32,
+    pub capabilities: BTreeSet<u32>,
+    pub extensions: BTreeSet<String>,
+    pub spec_ids: BTreeSet<u32>,
+    /// (storage class, set, binding, location, built-in), u32::MAX where not decorated.
+    pub variables: BTreeSet<[u32; 5]>,
+}
+
+/// The [`ModuleInterface`] of a SPIR-V module's first entry point, read from its words alone (a
+/// truncated instruction ends the reading).
+pub fn module_interface(words: &[u32]) -> ModuleInterface {
+    const NONE: u32 = u32::MAX;
+    // SPIR-V opcodes and storage classes read here.
+    const OP_EXTENSION: u32 = 10;
+    const OP_ENTRY_POINT: u32 = 15;
+    const OP_CAPABILITY: u32 = 17;
+    const OP_FUNCTION: u32 = 54;
+    const OP_FUNCTION_END: u32 = 56;
+    const OP_FUNCTION_CALL: u32 = 57;
+    const OP_VARIABLE: u32 = 59;
+    const OP_DECORATE: u32 = 71;
+    const OP_TRACE_NV: u32 = 5337;
+    const OP_EXECUTE_CALLABLE_NV: u32 = 5344;
+    const RAY_PAYLOAD: u32 = 5338;
+    const CALLABLE_DATA: u32 = 5328;
+    let text = |ws: &[u32]| -> String {
+        let b: Vec<u8> = ws.iter().flat_map(|w| w.to_le_bytes()).collect();
+        String::from_utf8_lossy(b.split(|&c| c == 0).next().unwrap_or(&[])).into_owned()
+    };
+    let mut out = ModuleInterface {
+        model: NONE,
+        capabilities: BTreeSet::new(),
+        extensions: BTreeSet::new(),
+        spec_ids: BTreeSet::new(),
+        variables: BTreeSet::new(),
+    };
+    let mut entry = NONE;
+    let mut decorations: BTreeMap<u32, [u32; 4]> = BTreeMap::new();
+    // Module-scope variables: id → storage class.
+    let mut globals: BTreeMap<u32, u32> = BTreeMap::new();
+    // Per function: the ids its instructions use as pointers or callees, and the NV payload and
+    // callable data locations it names.
+    let mut functions: BTreeMap<u32, (BTreeSet<u32>, BTreeSet<(u32, u32)>)> = BTreeMap::new();
+    let mut current: Option<u32> = None;
+    let mut i = 5;
+    while i < words.len() {
+        let count = ((words[i] >> 16) as usize).max(1);
+        if i + count > words.len() {
+            break;
+        }
+        let inst = &words[i..i + count];
+        let op = inst[0] & 0xFFFF;
+        let operand = |k: usize| inst.get(k).copied();
+        match op {
+            OP_CAPABILITY if count == 2 => {
+                out.capabilities.insert(inst[1]);
+            }
+            OP_EXTENSION => {
+                out.extensions.insert(text(&inst[1..]));
+            }
+            OP_ENTRY_POINT if count >= 4 && entry == NONE => {
+                out.model = inst[1];
+                entry = inst[2];
+            }
+            OP_DECORATE if count >= 4 => {
+                let d = decorations.entry(inst[1]).or_insert([NONE; 4]);
+                match inst[2] {
+                    1 => {
+                        out.spec_ids.insert(inst[3]);
+                    }
+                    34 => d[0] = inst[3],
+                    33 => d[1] = inst[3],
+                    30 => d[2] = inst[3],
+                    11 => d[3] = inst[3],
+                    _ => {}
+                }
+            }
+            OP_VARIABLE if count >= 4 && current.is_none() => {
+                globals.insert(inst[2], inst[3]);
+            }
+            OP_FUNCTION if count >= 3 => {
+                current = Some(inst[2]);
+                functions.entry(inst[2]).or_default();
+            }
+            OP_FUNCTION_END => current = None,
+            _ => {
+                if let Some(f) = current.and_then(|f| functions.get_mut(&f)) {
+                    let (ids, locations) = f;
+                    // The operand positions that name a variable (or a callee) per opcode.
+                    let named: &[usize] = match op {
+                        // OpFunctionCall: the callee and the arguments.
+                        OP_FUNCTION_CALL => &[3, 4, 5, 6, 7, 8, 9, 10],
+                        // OpImageTexelPointer, OpLoad, OpAccessChain, OpInBoundsAccessChain,
+                        // OpPtrAccessChain, OpArrayLength, OpCopyObject: the pointer.
+                        60 | 61 | 65 | 66 | 67 | 68 | 83 => &[3],
+                        // OpStore, OpCopyMemory, OpCopyMemorySized: the target and the source.
+                        62 | 63 | 64 => &[1, 2],
+                        // OpAtomicStore: the pointer.
+                        228 => &[1],
+                        // The other atomics (load, exchanges, arithmetic, flags): the pointer.
+                        227 | 229..=242 | 318 => &[3],
+                        319 => &[1],
+                        // OpTraceRayKHR: the structure and the payload.
+                        4445 => &[1, 11],
+                        // OpExecuteCallableKHR: the callable data.
+                        4446 => &[2],
+                        // OpTraceNV: the structure (the payload is a location, below).
+                        OP_TRACE_NV => &[1],
+                        _ => &[],
+                    };
+                    ids.extend(named.iter().filter_map(|&k| operand(k)));
+                    match op {
+                        OP_TRACE_NV => locations.extend(operand(11).map(|l| (RAY_PAYLOAD, l))),
+                        OP_EXECUTE_CALLABLE_NV => {
+                            locations.extend(operand(2).map(|l| (CALLABLE_DATA, l)))
+                        }
+                        _ => {}
+                    }
+                }
+            }
+        }
+        i += count;
+    }
+    // The functions the entry point reaches, and what they name.
+    let mut reached: BTreeSet<u32> = BTreeSet::new();
+    let mut pending = vec![entry];
+    let mut used: BTreeSet<u32> = BTreeSet::new();
+    while let Some(f) = pending.pop() {
+        if !reached.insert(f) {
+            continue;
+        }
+        let Some((ids, locations)) = functions.get(&f) else {
+            continue;
+        };
+        for &id in ids {
+            if functions.contains_key(&id) {
+                pending.push(id);
+            } else if globals.contains_key(&id) {
+                used.insert(id);
+            }
+        }
+        for &(class, location) in locations {
+            used.extend(globals.iter().filter_map(|(&id, &c)| {
+                let d = decorations.get(&id)?;
+                (c == class && d[2] == location).then_some(id)
+            }));
+        }
+    }
+    for id in used {
+        let d = decorations.get(&id).copied().unwrap_or([NONE; 4]);
+        out.variables.insert([globals[&id], d[0], d[1], d[2], d[3]]);
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use crate::error::SETUP_COMMAND;
@@ -570,13 +778,16 @@ mod tests {
             .collect();
         for k in ALL {
             for api in [ShaderApi::Khr, ShaderApi::Nv] {
-                let (file, text, args) = k.source();
-                let mut defines: Vec<&str> =
-                    args.iter().map(|a| a.trim_start_matches("-D")).collect();
-                if api == ShaderApi::Nv {
-                    defines.push("NV");
+                for body in BODIES {
+                    let (file, text, args) = k.source();
+                    let mut defines: Vec<&str> =
+                        args.iter().map(|a| a.trim_start_matches("-D")).collect();
+                    if api == ShaderApi::Nv {
+                        defines.push("NV");
+                    }
+                    defines.extend(body.defines());
+                    variants.push((k.variant_name(api, body), file, text, defines));
                 }
-                variants.push((k.variant_name(api), file, text, defines));
             }
         }
         assert_eq!(variants.len(), PRECOMPILED.len(), "one per build.rs module");
@@ -637,9 +848,9 @@ mod tests {
     fn every_shader_kind_has_spirv_for_both_apis() {
         const RAY_TRACING_NV: u32 = 5340;
         const RAY_TRACING_KHR: u32 = 4479;
-        for k in ALL {
-            for api in [ShaderApi::Khr, ShaderApi::Nv] {
-                let words = spirv(k, api).unwrap();
+        for (k, api, body) in every_variant() {
+            {
+                let words = spirv(k, api, body).unwrap();
                 assert_eq!(
                     words[0], 0x0723_0203,
                     "{k:?} {api:?} starts with the SPIR-V magic number"
@@ -652,9 +863,60 @@ mod tests {
                 };
                 assert!(
                     caps.contains(&want),
-                    "{k:?} {api:?} declares capability {want}: {caps:?}"
+                    "{k:?} {api:?} {body:?} declares capability {want}: {caps:?}"
                 );
             }
         }
+    }
+
+    const BODIES: [ShaderBody; 2] = [ShaderBody::Full, ShaderBody::InterfaceOnly];
+
+    fn every_variant() -> Vec<(ShaderKind, ShaderApi, ShaderBody)> {
+        ALL.iter()
+            .flat_map(|&k| {
+                [ShaderApi::Khr, ShaderApi::Nv]
+                    .into_iter()
+                    .flat_map(move |api| BODIES.map(|b| (k, api, b)))
+            })
+            .collect()
+    }
+
+    /// The interface-only body of every kind, for both APIs, has the full body's interface, and is
+    /// smaller where the full body computes anything.
+    #[test]
+    fn an_interface_only_body_has_the_full_bodys_interface() {
+        let mut smaller = 0;
+        for k in ALL {
+            for api in [ShaderApi::Khr, ShaderApi::Nv] {
+                let full = spirv(k, api, ShaderBody::Full).unwrap();
+                let only = spirv(k, api, ShaderBody::InterfaceOnly).unwrap();
+                let (f, o) = (module_interface(&full), module_interface(&only));
+                assert!(
+                    !f.variables.is_empty() && f.model != u32::MAX,
+                    "{k:?} {api:?}: the interface is read"
+                );
+                assert_eq!(f, o, "{k:?} {api:?}: the same interface");
+                smaller += usize::from(only.len() < full.len());
+            }
+        }
+        // Raygen, closest-hit, any-hit and intersection, both variants each where they have two.
+        assert!(
+            smaller >= 12,
+            "{smaller} interface-only modules are smaller"
+        );
+    }
+
+    /// The reader of interfaces sees a planted difference: a binding the other body does not use.
+    #[test]
+    fn the_interface_reader_sees_a_binding_used_by_one_body_only() {
+        let text = "#version 460\n#extension GL_EXT_ray_tracing : require\n\
+            layout(set = 0, binding = 1, std430) buffer A { uint a[]; };\n\
+            layout(set = 0, binding = 2, std430) buffer B { uint b[]; };\n\
+            void main() {\n#ifdef BOTH\n    b[0] = 1u;\n#endif\n    a[0] = 1u;\n}\n";
+        let one = compile_glsl("planted", "rgen", text, &[]).unwrap();
+        let both = compile_glsl("planted", "rgen", text, &["BOTH"]).unwrap();
+        let (one, both) = (module_interface(&one), module_interface(&both));
+        assert_ne!(one, both);
+        assert_eq!(one.variables.len() + 1, both.variables.len());
     }
 }

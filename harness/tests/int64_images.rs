@@ -12,7 +12,7 @@ mod common;
 use common::{body, executor, world};
 use generator::{generate, CaseSpec, GenError};
 use harness::observe::DeviceLack;
-use harness::resource_glsl::{compile_stage, stage_glsl, stage_source};
+use harness::resource_glsl::{compile_stage, stage_glsl, stage_source, ShaderBody};
 use harness::Status;
 use model::case::{Case, Intent};
 use model::resources::{Numeric, Op};
@@ -139,9 +139,11 @@ fn the_worlds_are_exactly_their_vuid_and_their_shaders_compile() {
                 let api = body(&c).world.pipeline.as_ref().expect("a pipeline").api;
                 assert_eq!(api == PipelineApi::Nv, command.is_nv());
                 for trace in [false, true] {
-                    let words = compile_stage(&glsl, stage, trace, api)
-                        .unwrap_or_else(|e| panic!("{target} {stage:?}: {e:?}\n{glsl}"));
-                    assert_eq!(words[0], 0x0723_0203, "{target}: SPIR-V magic");
+                    for shader_body in [ShaderBody::Full, ShaderBody::InterfaceOnly] {
+                        let words = compile_stage(&glsl, stage, trace, api, shader_body)
+                            .unwrap_or_else(|e| panic!("{target} {stage:?}: {e:?}\n{glsl}"));
+                        assert_eq!(words[0], 0x0723_0203, "{target}: SPIR-V magic");
+                    }
                 }
                 checked += 1;
             }

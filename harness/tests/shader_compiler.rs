@@ -5,7 +5,7 @@
 //! are whole modules in their own folder, and a torn one is compiled again.
 
 use generator::resources::{move_to_stage, valid_state};
-use harness::resource_glsl::{compile_stage, stage_glsl, stage_source};
+use harness::resource_glsl::{compile_stage, stage_glsl, stage_source, ShaderBody};
 use model::resources::Stage;
 use model::world::PipelineApi;
 use model::DeviceProfile;
@@ -72,9 +72,12 @@ fn every_templated_stage_compiles_in_process() {
         let (glsl, _) = stage_glsl(&st, stage, stage_source(stage).0).expect("expressible");
         let glsl = format!("{glsl}{unique}");
         for api in [PipelineApi::Khr, PipelineApi::Nv] {
-            for trace in [false, true] {
-                let words = compile_stage(&glsl, stage, trace, api)
-                    .unwrap_or_else(|e| panic!("{stage:?} {api:?} trace {trace}: {e}"));
+            for (trace, body) in [false, true]
+                .into_iter()
+                .flat_map(|t| [ShaderBody::Full, ShaderBody::InterfaceOnly].map(|b| (t, b)))
+            {
+                let words = compile_stage(&glsl, stage, trace, api, body)
+                    .unwrap_or_else(|e| panic!("{stage:?} {api:?} trace {trace} {body:?}: {e}"));
                 assert_eq!(words[0], 0x0723_0203, "{stage:?} {api:?}: SPIR-V magic");
                 assert_eq!(words[1], 0x0001_0500, "{stage:?} {api:?}: SPIR-V 1.5");
                 // SPV_NV_ray_tracing's execution models are SPV_KHR_ray_tracing's values.

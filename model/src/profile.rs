@@ -110,10 +110,10 @@ impl DeviceProfile {
         if let Some(v) = self.features.get(name) {
             return *v;
         }
-        let member = name.rsplit("::").next().unwrap_or(name);
+        let member = last_segment(name);
         self.features
             .iter()
-            .any(|(k, v)| *v && k.rsplit("::").next() == Some(member))
+            .any(|(k, v)| *v && last_segment_is(k, member))
     }
 
     /// A property looked up by `Struct::member` or by member name alone (first match in key order).
@@ -121,10 +121,10 @@ impl DeviceProfile {
         if let Some(v) = self.properties.get(name) {
             return Some(v);
         }
-        let member = name.rsplit("::").next().unwrap_or(name);
+        let member = last_segment(name);
         self.properties
             .iter()
-            .find(|(k, _)| k.rsplit("::").next() == Some(member))
+            .find(|(k, _)| last_segment_is(k, member))
             .map(|(_, v)| v)
     }
 
@@ -361,9 +361,59 @@ fn flatten_properties(st: &str, members: &Value, out: &mut BTreeMap<String, Prop
     }
 }
 
+/// The member name of `Struct::member` (the text after the last `::`; the whole name without one).
+fn last_segment(name: &str) -> &str {
+    name.rfind("::").map_or(name, |i| &name[i + 2..])
+}
+
+/// Whether `key`'s member name ([`last_segment`]) is `member` (itself a member name): compared
+/// from the end, with no searcher built per key (the profile's lookups by member name scan every key).
+fn last_segment_is(key: &str, member: &str) -> bool {
+    match key.strip_suffix(member) {
+        Some("") => true,
+        Some(rest) => rest.ends_with("::") && !member.starts_with(':'),
+        None => false,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The member-name comparison is the one `rsplit("::")` defines, on names with and without a
+    /// struct, with colons in odd places, and on near misses.
+    #[test]
+    fn member_names_compare_as_the_text_after_the_last_double_colon() {
+        let names = [
+            "rayQuery",
+            "VkPhysicalDeviceRayQueryFeaturesKHR::rayQuery",
+            "a::b::rayQuery",
+            "xrayQuery",
+            "a::xrayQuery",
+            "a:::rayQuery",
+            ":rayQuery",
+            "a:b",
+            "a::",
+            "::",
+            "",
+            "rayQuery::",
+            "b",
+            "a::b",
+            "a:::b",
+            ":b",
+        ];
+        for key in names {
+            for name in names {
+                let member = last_segment(name);
+                assert_eq!(member, name.rsplit("::").next().unwrap_or(name), "{name}");
+                assert_eq!(
+                    last_segment_is(key, member),
+                    key.rsplit("::").next() == Some(member),
+                    "key {key:?}, member {member:?}"
+                );
+            }
+        }
+    }
 
     const SMALL: &str = r#"{
       "capabilities": {"device": {

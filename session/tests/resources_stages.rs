@@ -2,14 +2,17 @@
 //! validation layer: a valid state's accesses placed in each stage a generated launch executes run
 //! silently and leave the model's output words; an Unknown-format read placed in each stage draws its
 //! rule from the layer (statically used by a bound shader, reached or not); accesses in a stage the
-//! pipeline lacks are unsupported; and every stage's templated GLSL compiles for NV pipelines too.
+//! pipeline lacks are unsupported; and every stage's templated GLSL compiles for NV pipelines too, its
+//! interface-only body with the full body's interface.
 
 mod common;
 
 use common::{body, committed, world, Lavapipe};
 use generator::resources::{launch_stages, move_to_stage, valid_state};
 use generator::{generate, CaseSpec};
-use harness::resource_glsl::{compile_stage, stage_glsl, stage_source};
+use harness::resource_glsl::{
+    compile_stage, module_interface, stage_glsl, stage_source, ShaderBody,
+};
 use harness::Status;
 use model::case::Case;
 use model::resources::Stage;
@@ -140,9 +143,24 @@ fn every_stage_template_compiles_for_khr_and_nv() {
         assert!(glsl.contains("layout(set = 1, binding = 0)"), "{stage:?}");
         for api in [PipelineApi::Khr, PipelineApi::Nv] {
             for trace in [false, true] {
-                let words = compile_stage(&glsl, stage, trace, api)
-                    .unwrap_or_else(|e| panic!("{stage:?} {api:?} trace {trace}: {e:?}"));
-                assert_eq!(words[0], 0x0723_0203, "{stage:?} {api:?}: SPIR-V magic");
+                let [full, only] = [ShaderBody::Full, ShaderBody::InterfaceOnly].map(|body| {
+                    compile_stage(&glsl, stage, trace, api, body).unwrap_or_else(|e| {
+                        panic!("{stage:?} {api:?} trace {trace} {body:?}: {e:?}")
+                    })
+                });
+                assert_eq!(full[0], 0x0723_0203, "{stage:?} {api:?}: SPIR-V magic");
+                // The state's accesses are used by both bodies: the layer reads the same module
+                // interface (and the set 1 binding is in it).
+                let interface = module_interface(&full);
+                assert!(
+                    interface.variables.iter().any(|v| v[1] == 1),
+                    "{stage:?} {api:?} trace {trace}: {interface:?}"
+                );
+                assert_eq!(
+                    interface,
+                    module_interface(&only),
+                    "{stage:?} {api:?} trace {trace}"
+                );
             }
         }
     }

@@ -192,8 +192,16 @@ impl Executor {
             .and_then(DeviceCache::new)
         }
         .and_then(|mut cache| {
-            let first = cache.pipeline(&raygen_only, false, false)?.handles.clone();
-            let second = cache.pipeline(&raygen_only, false, true)?.handles.clone();
+            // Handles name groups, not code: the interface-only body is the cheapest to make.
+            let body = crate::shaders::ShaderBody::InterfaceOnly;
+            let first = cache
+                .pipeline(&raygen_only, false, body, false)?
+                .handles
+                .clone();
+            let second = cache
+                .pipeline(&raygen_only, false, body, true)?
+                .handles
+                .clone();
             Ok(first != second)
         });
         self.inst.collector.clear();

@@ -9,6 +9,7 @@ use crate::error::HarnessError;
 use crate::observe::{Observation, Output, Status};
 use crate::plan::{Barrier, Step};
 use crate::realise::{DeviceCache, Tlas, RAY_RECORD_SIZE};
+use crate::shaders::ShaderBody;
 use crate::timing::{span, Phase};
 use crate::vk::commands::{begin_render_pass, memory_barrier, Commands};
 use crate::vk::descriptors::{storage_write, structure_write, whole};
@@ -153,6 +154,7 @@ fn run(
     let plan = crate::plan::TracePlan::of(case, valid)?;
     let _phase = span(Phase::Resources);
     let trace = plan.traces;
+    let body = ShaderBody::for_run(valid);
     let api = plan.api;
     let words = plan.io.records * RayRecord::WORDS;
     let pipeline = world.pipeline.as_ref();
@@ -161,11 +163,11 @@ fn run(
     if !world.resources.is_empty() {
         let harness_set = cache.layouts(trace, api)?.set;
         *res = Some(
-            crate::realise::resources::Realised::new(cache, world, trace, harness_set)
+            crate::realise::resources::Realised::new(cache, world, trace, body, harness_set)
                 .map_err(|e| refused_for_invalid_use(e, valid))?,
         );
     }
-    *buffers = cache.case_buffers(&plan.buffers, pipeline.map(|p| (p, trace)))?;
+    *buffers = cache.case_buffers(&plan.buffers, pipeline.map(|p| (p, trace, body)))?;
     let (tlas, spheres) = match &plan.scene {
         Some(scene) => {
             let _phase = span(Phase::Structures);
@@ -177,7 +179,7 @@ fn run(
     let layouts = cache.layouts(trace, api)?;
     let (vk_pipeline, stack_size) = match pipeline {
         Some(p) => {
-            let real = cache.pipeline(p, trace, false)?;
+            let real = cache.pipeline(p, trace, body, false)?;
             (Some(real.pipeline), real.default_stack_size)
         }
         None => (None, 0),

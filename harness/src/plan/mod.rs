@@ -12,7 +12,7 @@ pub mod pipeline;
 pub mod scene;
 pub mod trace;
 
-pub use crate::shaders::ShaderKind;
+pub use crate::shaders::{ShaderBody, ShaderKind};
 pub use build::BuildPlan;
 pub use device::{DevicePlan, FeatureStruct};
 pub use pipeline::{GroupPlan, PipelinePlan, StagePlan};
@@ -154,9 +154,13 @@ impl CallPlan {
     }
 }
 
-/// The SPIR-V words of one of the harness's shaders for a pipeline API.
-pub fn spirv(kind: ShaderKind, api: PipelineApi) -> Result<Vec<u32>, HarnessError> {
-    crate::shaders::spirv(kind, api)
+/// The SPIR-V words of one of the harness's shaders for a pipeline API and body.
+pub fn spirv(
+    kind: ShaderKind,
+    api: PipelineApi,
+    body: ShaderBody,
+) -> Result<Vec<u32>, HarnessError> {
+    crate::shaders::spirv(kind, api, body)
 }
 
 /// A step as a person reads it.

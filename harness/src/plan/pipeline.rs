@@ -3,7 +3,7 @@
 //! and the groups naming their stages, the flags, recursion depth and dynamic state — what
 //! `realise::pipeline` creates and the C export writes.
 
-use super::ShaderKind;
+use super::{ShaderBody, ShaderKind};
 use crate::error::HarnessError;
 use ash::vk;
 use model::world::{GeneralStage, Pipeline, PipelineApi, ShaderGroup};
@@ -77,6 +77,9 @@ pub struct PipelinePlan {
     pub library: bool,
     pub stages: Vec<StagePlan>,
     pub groups: Vec<GroupPlan>,
+    /// The body of every stage's module: the full one, or the interface-only one of a case that is
+    /// never submitted.
+    pub body: ShaderBody,
 }
 
 /// The library interface of a pipeline library: the payload is twelve words (see
@@ -86,9 +89,9 @@ pub const MAX_HIT_ATTRIBUTE_SIZE: u32 = 8;
 
 impl PipelinePlan {
     /// The plan of a pipeline description; `trace` picks the raygen and closest-hit that trace into the
-    /// scene. A procedural group without an intersection shader is unsupported (no valid pipeline has
-    /// one).
-    pub fn of(p: &Pipeline, trace: bool) -> Result<PipelinePlan, HarnessError> {
+    /// scene, `body` the modules' bodies. A procedural group without an intersection shader is
+    /// unsupported (no valid pipeline has one).
+    pub fn of(p: &Pipeline, trace: bool, body: ShaderBody) -> Result<PipelinePlan, HarnessError> {
         let (raygen, closest) = if trace {
             (ShaderKind::RaygenTrace, ShaderKind::ClosestHitTrace)
         } else {
@@ -191,6 +194,7 @@ impl PipelinePlan {
                 && flags.contains(vk::PipelineCreateFlags::LIBRARY_KHR),
             stages,
             groups,
+            body,
         })
     }
 }

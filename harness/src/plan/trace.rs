@@ -7,6 +7,7 @@
 use super::pipeline::PipelinePlan;
 use super::scene::ScenePlan;
 use super::Barrier;
+use super::ShaderBody;
 use super::{step_text, Step};
 use crate::error::HarnessError;
 use ash::vk;
@@ -443,7 +444,7 @@ impl TracePlan {
         let pipeline = world
             .pipeline
             .as_ref()
-            .map(|p| PipelinePlan::of(p, traces))
+            .map(|p| PipelinePlan::of(p, traces, ShaderBody::for_run(run_valid)))
             .transpose()?;
         if traces {
             match api {

@@ -5,6 +5,7 @@
 use super::DeviceCache;
 use crate::error::HarnessError;
 use crate::plan::trace::{BufferPlan, BufferWrite};
+use crate::shaders::ShaderBody;
 use crate::vk::memory::{Allocation, SparsePlan};
 use ash::vk;
 use model::call::BUFFER_PLACEMENT_ALIGNMENT;
@@ -63,7 +64,7 @@ impl DeviceCache {
     pub(crate) fn case_buffers(
         &mut self,
         buffers: &[BufferPlan],
-        pipeline: Option<(&Pipeline, bool)>,
+        pipeline: Option<(&Pipeline, bool, ShaderBody)>,
     ) -> Result<Vec<(String, Allocation)>, HarnessError> {
         let mut out: Vec<(String, Allocation)> = Vec::new();
         let r = self.case_buffers_into(buffers, pipeline, &mut out);
@@ -79,12 +80,12 @@ impl DeviceCache {
     fn case_buffers_into(
         &mut self,
         buffers: &[BufferPlan],
-        pipeline: Option<(&Pipeline, bool)>,
+        pipeline: Option<(&Pipeline, bool, ShaderBody)>,
         out: &mut Vec<(String, Allocation)>,
     ) -> Result<(), HarnessError> {
         use model::world::MemoryBinding;
         let hs = match pipeline {
-            Some((p, _)) if p.api == PipelineApi::Nv => self.dev.limits.nv_handle_size,
+            Some((p, _, _)) if p.api == PipelineApi::Nv => self.dev.limits.nv_handle_size,
             _ => self.dev.limits.handle_size,
         } as usize;
         let needs_foreign = buffers.iter().any(|b| {
@@ -99,11 +100,11 @@ impl DeviceCache {
             })
         });
         let own: Vec<u8> = match pipeline {
-            Some((p, trace)) => self.pipeline(p, trace, false)?.handles.clone(),
+            Some((p, trace, body)) => self.pipeline(p, trace, body, false)?.handles.clone(),
             None => Vec::new(),
         };
         let foreign: Vec<u8> = match (pipeline, needs_foreign) {
-            (Some((p, trace)), true) => self.pipeline(p, trace, true)?.handles.clone(),
+            (Some((p, trace, body)), true) => self.pipeline(p, trace, body, true)?.handles.clone(),
             (None, true) => {
                 return Err(HarnessError::NotRealised(
                     "foreign handles need a pipeline description to copy".into(),
@@ -112,7 +113,7 @@ impl DeviceCache {
             _ => Vec::new(),
         };
         // KHR calls name buffers by device address; vkCmdTraceRaysNV names them by handle and needs none.
-        let wants_address = pipeline.is_none_or(|(p, _)| p.api == PipelineApi::Khr);
+        let wants_address = pipeline.is_none_or(|(p, _, _)| p.api == PipelineApi::Khr);
         if !self.dev.has_feature("bufferDeviceAddress") && wants_address && !buffers.is_empty() {
             return Err(HarnessError::NotRealised(
                 "the case does not enable bufferDeviceAddress, so the harness cannot give its buffers addresses".into(),

@@ -14,7 +14,7 @@ pub(crate) use pipeline::{Layouts, RealPipeline};
 pub(crate) use scene::{Scene, Tlas};
 
 use crate::error::{vkfail, HarnessError};
-use crate::shaders::ShaderKind;
+use crate::shaders::{ShaderBody, ShaderKind};
 use crate::vk::commands::Commands;
 use crate::vk::memory::Allocation;
 use crate::vk::VkDevice;
@@ -23,7 +23,7 @@ use std::collections::HashMap;
 
 /// Per-device objects the harness reuses across cases.
 pub(crate) struct DeviceCache {
-    modules: HashMap<(ShaderKind, bool), vk::ShaderModule>,
+    modules: HashMap<(ShaderKind, bool, ShaderBody), vk::ShaderModule>,
     layouts: HashMap<(bool, bool), Layouts>,
     pipelines: HashMap<String, Result<RealPipeline, HarnessError>>,
     scenes: HashMap<String, Result<Scene, HarnessError>>,

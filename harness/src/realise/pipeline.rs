@@ -22,7 +22,7 @@ macro_rules! group_infos {
     };
 }
 use crate::error::{vkfail, HarnessError};
-use crate::shaders::{self, ShaderKind};
+use crate::shaders::{self, ShaderBody, ShaderKind};
 use ash::vk;
 use model::world::{Pipeline, PipelineApi};
 
@@ -93,13 +93,15 @@ impl DeviceCache {
         &mut self,
         kind: ShaderKind,
         api: PipelineApi,
+        body: ShaderBody,
     ) -> Result<vk::ShaderModule, HarnessError> {
-        if let Some(m) = self.modules.get(&(kind, api == PipelineApi::Nv)) {
+        let key = (kind, api == PipelineApi::Nv, body);
+        if let Some(m) = self.modules.get(&key) {
             return Ok(*m);
         }
-        let code = shaders::spirv(kind, api)?;
+        let code = shaders::spirv(kind, api, body)?;
         let m = shaders::module(&self.dev, &code)?;
-        self.modules.insert((kind, api == PipelineApi::Nv), m);
+        self.modules.insert(key, m);
         Ok(m)
     }
 
@@ -138,11 +140,13 @@ impl DeviceCache {
         Ok(l)
     }
 
-    /// The pipeline for a description (cached); `foreign` makes a second, distinct pipeline of it.
+    /// The pipeline for a description with modules of `body` (cached); `foreign` makes a second,
+    /// distinct pipeline of it.
     pub(crate) fn pipeline(
         &mut self,
         p: &Pipeline,
         trace: bool,
+        body: ShaderBody,
         foreign: bool,
     ) -> Result<&RealPipeline, HarnessError> {
         // A case with a resource state runs its own pipeline (see `resource_pipeline`).
@@ -153,11 +157,11 @@ impl DeviceCache {
             return Ok(self.resource_pipeline.as_ref().expect("checked"));
         }
         let key = format!(
-            "{}|{trace}|{foreign}",
+            "{}|{trace}|{body:?}|{foreign}",
             serde_json::to_string(p).unwrap_or_default()
         );
         if !self.pipelines.contains_key(&key) {
-            let made = self.create_pipeline(p, trace);
+            let made = self.create_pipeline(p, trace, body);
             self.pipelines.insert(key.clone(), made);
         }
         match &self.pipelines[&key] {
@@ -166,9 +170,14 @@ impl DeviceCache {
         }
     }
 
-    fn create_pipeline(&mut self, p: &Pipeline, trace: bool) -> Result<RealPipeline, HarnessError> {
+    fn create_pipeline(
+        &mut self,
+        p: &Pipeline,
+        trace: bool,
+        body: ShaderBody,
+    ) -> Result<RealPipeline, HarnessError> {
         let layout = self.layouts(trace, p.api)?.pipeline;
-        self.create_pipeline_with(p, trace, layout, &[])
+        self.create_pipeline_with(p, trace, body, layout, &[])
     }
 
     /// The pipeline for a description with `layout` and, for each shader kind `modules`
@@ -179,6 +188,7 @@ impl DeviceCache {
         &mut self,
         p: &Pipeline,
         trace: bool,
+        body: ShaderBody,
         layout: vk::PipelineLayout,
         modules: &[(ShaderKind, vk::ShaderModule)],
     ) -> Result<RealPipeline, HarnessError> {
@@ -200,13 +210,13 @@ impl DeviceCache {
         // The plan's stages (each a module of its kind, a templated one where `modules` has it) and
         // groups: ([group index, any-hit rule], stage flag, module) per stage, and per group (type,
         // [general, closest, any, intersection]).
-        let plan = crate::plan::PipelinePlan::of(p, trace)?;
+        let plan = crate::plan::PipelinePlan::of(p, trace, body)?;
         let mut stage_list: Vec<([u32; 2], vk::ShaderStageFlags, vk::ShaderModule)> =
             Vec::with_capacity(plan.stages.len());
         for st in &plan.stages {
             let m = match modules.iter().find(|(k, _)| *k == st.shader) {
                 Some(&(_, m)) => m,
-                None => self.module(st.shader, api)?,
+                None => self.module(st.shader, api, body)?,
             };
             stage_list.push((
                 [st.group, st.any_hit_rule],

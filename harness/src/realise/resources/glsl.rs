@@ -707,14 +707,16 @@ pub(crate) fn patch_narrow_writes(
     Ok(())
 }
 
-/// Compiles a stage's GLSL to SPIR-V words (with `-DTRACE` when `trace`, and `-DNV` for
-/// VK_NV_ray_tracing pipelines, as build.rs compiles the harness's own shaders) through the one shader
-/// path, [`shaders::compile_glsl`].
+/// Compiles a stage's GLSL to SPIR-V words (with `-DTRACE` when `trace`, `-DNV` for
+/// VK_NV_ray_tracing pipelines and `-DINTERFACE_ONLY` for the interface-only body, as build.rs
+/// compiles the harness's own shaders) through the one shader path, [`shaders::compile_glsl`]. The
+/// injected accesses come before the body, whichever it is.
 pub fn compile_stage(
     glsl: &str,
     stage: Stage,
     trace: bool,
     api: PipelineApi,
+    body: shaders::ShaderBody,
 ) -> Result<Vec<u32>, HarnessError> {
     let (_, ext) = stage_source(stage);
     let mut defines = Vec::new();
@@ -724,6 +726,7 @@ pub fn compile_stage(
     if api == PipelineApi::Nv {
         defines.push("NV");
     }
+    defines.extend(body.defines());
     shaders::compile_glsl(
         &format!("the resource {stage:?} shader"),
         ext,

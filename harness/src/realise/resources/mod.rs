@@ -58,7 +58,7 @@ use objects::renew_command_buffers;
 
 use crate::error::HarnessError;
 use crate::realise::DeviceCache;
-use crate::shaders::ShaderKind;
+use crate::shaders::{ShaderBody, ShaderKind};
 use crate::vk::memory::Allocation;
 use ash::vk;
 use model::resources::*;
@@ -275,6 +275,8 @@ struct PipelineKey {
     /// The pipeline description as JSON (its flags with DESCRIPTOR_BUFFER_BIT_EXT where the state asks).
     description: String,
     trace: bool,
+    /// The body of the stages that are not templated (the templated ones are in `modules`).
+    body: ShaderBody,
     /// The realised pipeline layout's key.
     layout: String,
     /// The templated module of each stage kind, as SPIR-V.
@@ -394,11 +396,12 @@ impl Realised {
         cache: &mut DeviceCache,
         world: &World,
         trace: bool,
+        body: ShaderBody,
         harness_set: vk::DescriptorSetLayout,
     ) -> Result<Realised, HarnessError> {
         renew_command_buffers(cache)?;
         let mut r = Realised::empty();
-        match r.build(cache, world, trace, harness_set) {
+        match r.build(cache, world, trace, body, harness_set) {
             Ok(()) => Ok(r),
             Err(e) => {
                 // The case's own pipeline (never used by a command buffer) goes with its objects.

@@ -169,6 +169,7 @@ impl Realised {
         cache: &mut DeviceCache,
         world: &World,
         trace: bool,
+        body: ShaderBody,
         harness_set: vk::DescriptorSetLayout,
     ) -> Result<(), HarnessError> {
         if let Some(why) = unsupported(world) {
@@ -851,7 +852,7 @@ impl Realised {
         // The pipeline with the templated stages (KHR or NV GLSL by the pipeline's API).
         let mut codes = Vec::with_capacity(sources.len());
         for (stage, glsl, narrow) in &sources {
-            let mut code = compile_stage(glsl, *stage, trace, api)?;
+            let mut code = compile_stage(glsl, *stage, trace, api, body)?;
             patch_narrow_writes(&mut code, narrow).map_err(|e| {
                 HarnessError::Failed(format!(
                     "patching the {stage:?} shader's narrow writes: {e}"
@@ -874,6 +875,7 @@ impl Realised {
             .map(|layout| super::PipelineKey {
                 description: serde_json::to_string(&p).unwrap_or_default(),
                 trace,
+                body,
                 layout,
                 modules: codes.clone(),
             });
@@ -889,7 +891,7 @@ impl Realised {
             let m = crate::shaders::module(&cache.dev, code)?;
             self.modules.push((*kind, m));
         }
-        let rp = cache.create_pipeline_with(&p, trace, self.harness_layout, &self.modules)?;
+        let rp = cache.create_pipeline_with(&p, trace, body, self.harness_layout, &self.modules)?;
         if let Some(k) = key {
             cache.shared_resources.pipelines.insert(k, rp.clone());
             self.shared_pipeline = true;
