@@ -4,12 +4,13 @@
 //! generates (lavapipe's, and the H200's with its vkCmdTraceRaysNV cases) is described — its scene
 //! (bottom levels, instance records, spheres), rays and records as the model states them, its steps
 //! around exactly one call, its call list naming the scene's builds; a command buffer of a pool without
-//! compute (the H200's transfer families) holding the call alone — and the buffer plans write shader
-//! records and indirect commands where the world says.
+//! compute (the H200's transfer families) holding the call alone, its pipeline's shader bodies full
+//! exactly when it is submitted — and the buffer plans write shader records and indirect commands
+//! where the world says.
 
 use harness::plan::scene::{GeometryDataPlan, ScenePlan};
 use harness::plan::trace::{buffer_plans, BufferWrite, TracePlan, RAY_RECORD_SIZE};
-use harness::plan::{CallPlan, PlanBody, Step};
+use harness::plan::{CallPlan, PlanBody, ShaderBody, Step};
 use harness::Execution;
 use model::accel::world::{AddressResolver, SyntheticAddresses};
 use model::flags::QueueFlags;
@@ -103,6 +104,15 @@ fn check_trace_plan(case: &Case, exec: &Execution) -> Result<TracePlan, String> 
     };
     let world = &body.world;
     assert_eq!(t.traces, world.launch.traces(), "{}", case.name);
+    // Only a case that is submitted runs its shaders: the others get the interface-only bodies.
+    if let Some(p) = &t.pipeline {
+        let want = if exec.run_valid {
+            ShaderBody::Full
+        } else {
+            ShaderBody::InterfaceOnly
+        };
+        assert_eq!(p.body, want, "{}", case.name);
+    }
     if world
         .command_buffer
         .pool_queue
