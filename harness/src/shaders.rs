@@ -709,20 +709,6 @@ mod tests {
 
     use super::*;
 
-    /// The SPIR-V capability instruction (opcode 17) operands a module declares.
-    fn capabilities(words: &[u32]) -> Vec<u32> {
-        let mut out = Vec::new();
-        let mut i = 5;
-        while i < words.len() {
-            let (count, op) = ((words[i] >> 16) as usize, words[i] & 0xFFFF);
-            if op == 17 && count == 2 {
-                out.push(words[i + 1]);
-            }
-            i += count.max(1);
-        }
-        out
-    }
-
     /// A module without what only names its compiler: the generator word and the OpSourceExtension
     /// instructions (opcode 4) shaderc adds for its own preprocessing (`GL_GOOGLE_*`).
     fn without_compiler_marks(words: &[u32]) -> Vec<u32> {
@@ -855,7 +841,7 @@ mod tests {
                     words[0], 0x0723_0203,
                     "{k:?} {api:?} starts with the SPIR-V magic number"
                 );
-                let caps = capabilities(&words);
+                let caps = module_interface(&words).capabilities;
                 let want = if api == ShaderApi::Nv {
                     RAY_TRACING_NV
                 } else {

@@ -5,7 +5,9 @@
 //! are whole modules in their own folder, and a torn one is compiled again.
 
 use generator::resources::{move_to_stage, valid_state};
-use harness::resource_glsl::{compile_stage, stage_glsl, stage_source, ShaderBody};
+use harness::resource_glsl::{
+    compile_stage, module_interface, stage_glsl, stage_source, ShaderBody,
+};
 use model::resources::Stage;
 use model::world::PipelineApi;
 use model::DeviceProfile;
@@ -30,19 +32,6 @@ fn lavapipe_profile() -> DeviceProfile {
     let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../profiles/lavapipe.json");
     let text = std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
     DeviceProfile::from_profiles_json("lavapipe", &text).expect("the lavapipe profile")
-}
-
-/// The execution model of a module's first OpEntryPoint (opcode 15).
-fn execution_model(words: &[u32]) -> Option<u32> {
-    let mut i = 5;
-    while i < words.len() {
-        let (count, op) = ((words[i] >> 16) as usize, words[i] & 0xFFFF);
-        if op == 15 {
-            return words.get(i + 1).copied();
-        }
-        i += count.max(1);
-    }
-    None
 }
 
 /// What the child runs (and the parent too, with its own PATH): each stage's template for a valid
@@ -82,8 +71,8 @@ fn every_templated_stage_compiles_in_process() {
                 assert_eq!(words[1], 0x0001_0500, "{stage:?} {api:?}: SPIR-V 1.5");
                 // SPV_NV_ray_tracing's execution models are SPV_KHR_ray_tracing's values.
                 assert_eq!(
-                    execution_model(&words),
-                    Some(khr_model),
+                    module_interface(&words).model,
+                    khr_model,
                     "{stage:?} {api:?}: the stage's execution model"
                 );
             }
@@ -197,7 +186,7 @@ fn the_spirv_disk_cache_holds_whole_modules_and_serves_a_second_process() {
     let (a, b) = entries
         .iter()
         .flat_map(|a| entries.iter().map(move |b| (a, b)))
-        .find(|(a, b)| execution_model(&words(a)) != execution_model(&words(b)))
+        .find(|(a, b)| module_interface(&words(a)).model != module_interface(&words(b)).model)
         .expect("entries of two stages");
     std::fs::copy(b, a).expect("an entry is writable");
     let text = child_run(tmp.path(), true, Some(&suffix), true);
