@@ -538,9 +538,10 @@ pub fn module_interface(words: &[u32]) -> ModuleInterface {
     let mut decorations: BTreeMap<u32, [u32; 4]> = BTreeMap::new();
     // Module-scope variables: id → storage class.
     let mut globals: BTreeMap<u32, u32> = BTreeMap::new();
-    // Per function: the ids its instructions use as pointers or callees, and the NV payload and
-    // callable data locations it names.
-    let mut functions: BTreeMap<u32, (BTreeSet<u32>, BTreeSet<(u32, u32)>)> = BTreeMap::new();
+    // Per function: the ids its instructions use as pointers or callees, and the (storage class,
+    // location) of the NV payloads and callable data it names.
+    type Uses = (BTreeSet<u32>, BTreeSet<(u32, u32)>);
+    let mut functions: BTreeMap<u32, Uses> = BTreeMap::new();
     let mut current: Option<u32> = None;
     let mut i = 5;
     while i < words.len() {
@@ -594,7 +595,7 @@ pub fn module_interface(words: &[u32]) -> ModuleInterface {
                         // OpPtrAccessChain, OpArrayLength, OpCopyObject: the pointer.
                         60 | 61 | 65 | 66 | 67 | 68 | 83 => &[3],
                         // OpStore, OpCopyMemory, OpCopyMemorySized: the target and the source.
-                        62 | 63 | 64 => &[1, 2],
+                        62..=64 => &[1, 2],
                         // OpAtomicStore: the pointer.
                         228 => &[1],
                         // The other atomics (load, exchanges, arithmetic, flags): the pointer.
