@@ -112,6 +112,12 @@ fn check_trace_plan(case: &Case, exec: &Execution) -> Result<TracePlan, String> 
             ShaderBody::InterfaceOnly
         };
         assert_eq!(p.body, want, "{}", case.name);
+        // The plan as a person reads it says so.
+        let said = plan
+            .describe()
+            .iter()
+            .any(|l| l.contains("interface-only shader bodies"));
+        assert_eq!(said, !exec.run_valid, "{}", case.name);
     }
     if world
         .command_buffer

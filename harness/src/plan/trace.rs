@@ -643,7 +643,7 @@ impl TracePlan {
         }
         if let Some(p) = &self.pipeline {
             out.push(format!(
-                "vkCreateRayTracingPipelines{}: {} stages, {} groups, maxRecursionDepth {}, flags {}{}",
+                "vkCreateRayTracingPipelines{}: {} stages, {} groups, maxRecursionDepth {}, flags {}{}{}",
                 if p.api == PipelineApi::Nv { "NV" } else { "KHR" },
                 p.stages.len(),
                 p.groups.len(),
@@ -653,6 +653,10 @@ impl TracePlan {
                     ", dynamic stack size"
                 } else {
                     ""
+                },
+                match p.body {
+                    ShaderBody::Full => "",
+                    ShaderBody::InterfaceOnly => ", interface-only shader bodies (never submitted)",
                 }
             ));
             if self.foreign_pipeline {
