@@ -368,7 +368,7 @@ pub fn launch_hit_reach(
     }
     let keys: Vec<[u32; 13]> = rays.iter().map(ray_key).collect();
     let fingerprint = crate::fingerprint::of_with_words(&launch.scene, keys.as_flattened());
-    HIT_REACH.get_or(fingerprint, || traced_hit_reach(launch, &rays, &keys))
+    HIT_REACH.get_or(fingerprint, || traced_hit_reach(launch, &rays))
 }
 
 /// Launches' hit reach by the fingerprint of their scene and traced rays: the generator, the gate,
@@ -389,8 +389,8 @@ pub fn prime_hit_reach(world: &World, call: &Call, expected: &ExpectedLaunch) {
     if launch_ids(world, call) == Some(0) {
         return;
     }
-    let keys: Vec<[u32; 13]> = expected.rays.iter().map(ray_key).collect();
-    if let Some(reach) = derived_hit_reach(world, call, expected, &keys) {
+    if let Some(reach) = derived_hit_reach(world, call, expected) {
+        let keys: Vec<[u32; 13]> = expected.rays.iter().map(ray_key).collect();
         let fingerprint =
             crate::fingerprint::of_with_words(&world.launch.scene, keys.as_flattened());
         let _ = HIT_REACH.get_or(fingerprint, || reach);
@@ -403,7 +403,6 @@ fn derived_hit_reach(
     world: &World,
     call: &Call,
     expected: &ExpectedLaunch,
-    keys: &[[u32; 13]],
 ) -> Option<Vec<(u64, GeometryKind)>> {
     if expected.rays.is_empty() || expected.allowed.len() != expected.rays.len() {
         return None;
@@ -437,39 +436,31 @@ fn derived_hit_reach(
             return None;
         }
     }
-    Some(hit_reach_of(scene, &expected.rays, keys, |k, ray| {
+    Some(hit_reach_of(scene, &expected.rays, |k, ray| {
         triangle_reach(&expected.allowed[k]).chain(procedural_reach(scene, ray))
     }))
 }
 
 /// [`launch_hit_reach`] traced: the union of the distinct rays' [`ray_reach`] as hit records.
-fn traced_hit_reach(
-    launch: &crate::world::Launch,
-    rays: &[Ray],
-    keys: &[[u32; 13]],
-) -> Vec<(u64, GeometryKind)> {
+fn traced_hit_reach(launch: &crate::world::Launch, rays: &[Ray]) -> Vec<(u64, GeometryKind)> {
     let Some(prepared) = prepared(&launch.scene) else {
         return vec![];
     };
-    hit_reach_of(&launch.scene, rays, keys, |_, ray| {
-        ray_reach(&prepared, ray)
-    })
+    hit_reach_of(&launch.scene, rays, |_, ray| ray_reach(&prepared, ray))
 }
 
 /// The hit records of the (instance, geometry, kind) triples `reach` gives for each distinct ray
-/// (`reach` gets the ray's index in `rays`; `keys` are the rays' [`ray_key`]s).
+/// ([`distinct_rays`]; `reach` gets the ray's index in `rays`).
 fn hit_reach_of<R: IntoIterator<Item = (u32, u32, GeometryKind)>>(
     scene: &Scene,
     rays: &[Ray],
-    keys: &[[u32; 13]],
     mut reach: impl FnMut(usize, &Ray) -> R,
 ) -> Vec<(u64, GeometryKind)> {
     let mut out: BTreeSet<(u64, GeometryKind)> = BTreeSet::new();
-    let mut seen: HashMap<[u32; 13], (), BuildHasherDefault<RayKeyHasher>> = HashMap::default();
-    for (k, (ray, key)) in rays.iter().zip(keys).enumerate() {
-        if seen.insert(*key, ()).is_some() {
-            continue;
-        }
+    let (distinct, _) = distinct_rays(rays);
+    for k in distinct {
+        let k = k as usize;
+        let ray = &rays[k];
         for (i, g, kind) in reach(k, ray) {
             let inst = &scene.instances[i as usize];
             out.insert((
@@ -930,9 +921,8 @@ mod hit_reach_tests {
     /// tell it), and the reach found from the outcomes, where they may.
     fn both(t: &crate::TraceBody) -> Option<(Reach, Option<Reach>)> {
         let e = expected_launch(&t.world, &t.call)?;
-        let keys: Vec<[u32; 13]> = e.rays.iter().map(ray_key).collect();
-        let traced = traced_hit_reach(&t.world.launch, &e.rays, &keys);
-        Some((traced, derived_hit_reach(&t.world, &t.call, &e, &keys)))
+        let traced = traced_hit_reach(&t.world.launch, &e.rays);
+        Some((traced, derived_hit_reach(&t.world, &t.call, &e)))
     }
 
     fn hand_case() -> crate::Case {
