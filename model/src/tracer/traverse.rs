@@ -244,15 +244,10 @@ fn confirmation(opaque: bool, shaders: &HitShaders, primitive: u32) -> Confirmat
     }
 }
 
-/// Whether [`trace_ray`] cuts behind a required hit for `ray` with `shaders` (see `cut_allowed`): the
-/// one way the shader table decides which triangles a trace keeps as candidates.
+/// Whether a cut behind a required hit is allowed for the ray with `shaders`: it may not end at its
+/// first hit, and no primitive of the scene runs an any-hit shader for it (opaque, or a hit group
+/// without one). The one way the shader table decides which triangles [`trace_ray`] keeps as candidates.
 pub fn cut_allowed_for(scene: &PreparedScene, ray: &Ray, shaders: &ShaderTable<'_>) -> bool {
-    cut_allowed(scene, ray, shaders)
-}
-
-/// Whether a cut behind a required hit is allowed for the ray: it may not end at its first hit, and
-/// no primitive of the scene runs an any-hit shader for it (opaque, or a hit group without one).
-fn cut_allowed(scene: &PreparedScene, ray: &Ray, shaders: &ShaderTable<'_>) -> bool {
     if ray.flags.contains(RayFlags::TERMINATE_ON_FIRST_HIT) {
         return false;
     }
@@ -439,7 +434,8 @@ pub fn trace_ray(
             .as_ref()
             .and_then(|out| required_hit_t(scene, w, ray, out))
         {
-            if t_hi < cut.get() && *may_cut.get_or_insert_with(|| cut_allowed(scene, ray, shaders))
+            if t_hi < cut.get()
+                && *may_cut.get_or_insert_with(|| cut_allowed_for(scene, ray, shaders))
             {
                 cut.set(t_hi);
             }
