@@ -11,7 +11,8 @@ use std::process::Command;
 /// (source file, output name, extra glslang arguments). Each is compiled four times: as is
 /// (GL_EXT_ray_tracing, for KHR pipelines), with `-DNV` into `<name>_nv` (GL_NV_ray_tracing, for
 /// VK_NV_ray_tracing pipelines), and both again with `-DINTERFACE_ONLY` into `<name>_interface` and
-/// `<name>_nv_interface` (the bodies of cases that are recorded and never run).
+/// `<name>_nv_interface` (the bodies of cases that are recorded and never run; the harness removes
+/// their trace instructions as it loads them, `shaders::ShaderBody::module_words`).
 const SHADERS: &[(&str, &str, &[&str])] = &[
     ("raygen.rgen", "raygen_trace", &["-DTRACE"]),
     ("raygen.rgen", "raygen_plain", &[]),

@@ -57,7 +57,7 @@ pub(crate) fn emit(
     let body = t.pipeline.as_ref().map_or(ShaderBody::Full, |p| p.body);
     e.line(&format!("/* The SPIR-V of the harness's shaders (harness/shaders/, glslangValidator --target-env vulkan1.2{}). */", match body {
         ShaderBody::Full => "",
-        ShaderBody::InterfaceOnly => " -DINTERFACE_ONLY: the case is recorded, never submitted",
+        ShaderBody::InterfaceOnly => " -DINTERFACE_ONLY, its trace instructions removed: the case is recorded, never submitted",
     }));
     for k in &kinds {
         let words = harness::plan::spirv(*k, PipelineApi::Khr, body).map_err(|e| e.to_string())?;

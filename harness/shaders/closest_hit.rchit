@@ -91,7 +91,8 @@ layout(location = 1) rayPayloadEXT Payload nested;
 
 void main() {
 #ifdef INTERFACE_ONLY
-    // Recorded, never run (an invalid case): one use of each variable the full body uses.
+    // Recorded, never run (an invalid case): one use of each variable the full body uses (the trace's
+    // instruction is removed from the SPIR-V by the harness; the scene's load stays).
     payload.outcome = uint(gl_InstanceID) + uint(gl_InstanceCustomIndexEXT) + GEOMETRY_INDEX
         + uint(gl_PrimitiveID) + gl_HitKindEXT + floatBitsToUint(gl_HitTEXT + attribs.x);
 #ifdef TRACE

@@ -33,8 +33,9 @@ pub enum ShaderKind {
 /// submitted) runs no shader, and the layer reads a module's interface (the variables its entry point
 /// uses, its capabilities), never its code's effects; lavapipe's pipeline creation time grows with the
 /// code. So such a case gets the interface-only body (`-DINTERFACE_ONLY`): one use of each variable
-/// the full body uses, the scene's trace kept, nothing computed. A test compares the two bodies'
-/// interfaces for every kind and API.
+/// the full body uses, nothing computed, and no trace: the source traces the scene once, and
+/// [`ShaderBody::module_words`] removes the instruction, keeping the scene's load. A test compares
+/// the two bodies' interfaces for every kind and API.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
 pub enum ShaderBody {
     /// The body that writes the records: every case that runs.
@@ -58,6 +59,15 @@ impl ShaderBody {
         match self {
             ShaderBody::Full => &[],
             ShaderBody::InterfaceOnly => &["INTERFACE_ONLY"],
+        }
+    }
+
+    /// The module of the body from what glslang made of its source with [`ShaderBody::defines`]:
+    /// as it is for the full body, [`without_traces`] for the interface-only one.
+    pub(crate) fn module_words(self, words: Vec<u32>) -> Vec<u32> {
+        match self {
+            ShaderBody::Full => words,
+            ShaderBody::InterfaceOnly => without_traces(&words),
         }
     }
 }
@@ -151,23 +161,32 @@ pub(crate) fn spirv(
     body: ShaderBody,
 ) -> Result<Vec<u32>, HarnessError> {
     let name = kind.variant_name(api, body);
-    match PRECOMPILED
+    let compiled = match PRECOMPILED
         .iter()
         .find(|(n, _)| *n == name)
         .and_then(|(_, b)| *b)
     {
         Some(b) => words(&name, b),
-        None => {
-            let (file, text, args) = kind.source();
-            let ext = file.rsplit('.').next().unwrap_or(file);
-            let mut defines: Vec<&str> = args.iter().map(|a| a.trim_start_matches("-D")).collect();
-            if api == ShaderApi::Nv {
-                defines.push("NV");
-            }
-            defines.extend(body.defines());
-            compile_glsl(file, ext, text, &defines)
-        }
+        None => compile_source(kind, api, body),
+    };
+    compiled.map(|w| body.module_words(w))
+}
+
+/// What glslang makes of a kind's source for an API and body (before [`ShaderBody::module_words`]),
+/// compiled in this process: for a build whose precompiled modules are missing.
+fn compile_source(
+    kind: ShaderKind,
+    api: ShaderApi,
+    body: ShaderBody,
+) -> Result<Vec<u32>, HarnessError> {
+    let (file, text, args) = kind.source();
+    let ext = file.rsplit('.').next().unwrap_or(file);
+    let mut defines: Vec<&str> = args.iter().map(|a| a.trim_start_matches("-D")).collect();
+    if api == ShaderApi::Nv {
+        defines.push("NV");
     }
+    defines.extend(body.defines());
+    compile_glsl(file, ext, text, &defines)
 }
 
 /// SPIR-V bytes as words, checked for the size of a module.
@@ -477,6 +496,33 @@ mod glsl {
             Ok(std::slice::from_raw_parts(bytes.cast::<u8>(), len).to_vec())
         }
     }
+}
+
+/// The interface-only module of compiled interface-only SPIR-V: every trace instruction removed
+/// (OpTraceRayKHR, OpTraceNV, OpTraceRayMotionNV; none has a result). The loads of the scene that fed
+/// them stay, and so does the scene's static use — a load names the variable —; each payload is
+/// stored by the interface-only body, so its use stays too. Lavapipe inlines the whole traversal,
+/// with every hit group's shaders, at each trace; without one a pipeline is its stages alone. A
+/// truncated instruction ends the module there.
+pub(crate) fn without_traces(words: &[u32]) -> Vec<u32> {
+    const OP_TRACE_NV: u32 = 5337;
+    const OP_TRACE_RAY_MOTION_NV: u32 = 5339;
+    const OP_TRACE_RAY_KHR: u32 = 4445;
+    let mut out = Vec::with_capacity(words.len());
+    out.extend_from_slice(&words[..words.len().min(5)]);
+    let mut i = 5;
+    while i < words.len() {
+        let count = (words[i] >> 16) as usize;
+        if count == 0 || i + count > words.len() {
+            break;
+        }
+        let op = words[i] & 0xFFFF;
+        if !matches!(op, OP_TRACE_RAY_KHR | OP_TRACE_NV | OP_TRACE_RAY_MOTION_NV) {
+            out.extend_from_slice(&words[i..i + count]);
+        }
+        i += count;
+    }
+    out
 }
 
 /// A shader module of SPIR-V words on a device; the caller destroys it.
@@ -868,7 +914,20 @@ mod tests {
             .collect()
     }
 
-    /// The interface-only body of every kind, for both APIs, has the full body's interface, and is
+    /// The trace instructions of a module.
+    fn traces(words: &[u32]) -> usize {
+        let mut n = 0;
+        let mut i = 5;
+        while i < words.len() {
+            let count = (words[i] >> 16) as usize;
+            n += usize::from(matches!(words[i] & 0xFFFF, 4445 | 5337 | 5339));
+            i += count.max(1);
+        }
+        n
+    }
+
+    /// The interface-only body of every kind, for both APIs, has the full body's interface, no
+    /// trace (its source's traces edited out, the interface the same before and after), and is
     /// smaller where the full body computes anything.
     #[test]
     fn an_interface_only_body_has_the_full_bodys_interface() {
@@ -884,6 +943,19 @@ mod tests {
                 );
                 assert_eq!(f, o, "{k:?} {api:?}: the same interface");
                 smaller += usize::from(only.len() < full.len());
+                assert_eq!(traces(&only), 0, "{k:?} {api:?}: no trace is left");
+                if matches!(k, ShaderKind::RaygenTrace | ShaderKind::ClosestHitTrace) {
+                    // The interface-only source traces the scene (its load of it stays) and the
+                    // full one does: both before the edit.
+                    assert!(traces(&full) > 0, "{k:?} {api:?}: the full body traces");
+                    let compiled = compile_source(k, api, ShaderBody::InterfaceOnly).unwrap();
+                    assert!(traces(&compiled) > 0, "{k:?} {api:?}: its source traces");
+                    assert_eq!(
+                        module_interface(&compiled),
+                        o,
+                        "{k:?} {api:?}: the edit keeps it"
+                    );
+                }
             }
         }
         // Raygen, closest-hit, any-hit and intersection, both variants each where they have two.
