@@ -54,10 +54,27 @@ pub fn details_path(out: &Path, case: &str) -> PathBuf {
     out.join("details").join(format!("{case}.json"))
 }
 
+/// The folders of a run folder this process has made (or found): each is made once, not once per
+/// case file written into it.
+#[derive(Debug, Default)]
+pub struct MadeFolders(std::collections::HashSet<PathBuf>);
+
+impl MadeFolders {
+    /// Makes `dir` and its parents unless this process made them already.
+    pub fn make(&mut self, dir: &Path) -> std::io::Result<()> {
+        if !self.0.contains(dir) {
+            std::fs::create_dir_all(dir)?;
+            self.0.insert(dir.to_path_buf());
+        }
+        Ok(())
+    }
+}
+
 /// Writes what a run keeps of a case that did not pass (nothing for a pass): each file whole or not
 /// at all. The first file that could not be written, with its error.
 pub fn keep(
     out: &Path,
+    folders: &mut MadeFolders,
     case: &Case,
     report: &CaseReport,
     status: Status,
@@ -73,7 +90,7 @@ pub fn keep(
         (&d, details.into_bytes()),
     ] {
         if let Some(dir) = file.parent() {
-            std::fs::create_dir_all(dir).map_err(|e| (dir.to_path_buf(), e))?;
+            folders.make(dir).map_err(|e| (dir.to_path_buf(), e))?;
         }
         crate::outdir::write_atomically(file, &bytes).map_err(|e| (file.clone(), e))?;
     }

@@ -279,6 +279,8 @@ struct Sink<'a> {
     results: std::fs::File,
     /// The first write that failed: the file and the error.
     error: Option<(PathBuf, std::io::Error)>,
+    /// The case folders made so far.
+    folders: crate::details::MadeFolders,
     expectations: &'a Expectations,
     triage: &'a Triage,
     progress: &'a dyn Progress,
@@ -308,7 +310,7 @@ impl Sink<'_> {
                 &attempts
             },
         );
-        if let Err(e) = keep(&self.out, case, report, status, details) {
+        if let Err(e) = keep(&self.out, &mut self.folders, case, report, status, details) {
             self.error.get_or_insert(e);
             self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
             return;
@@ -574,6 +576,7 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         results_path: results_path.clone(),
         results,
         error: None,
+        folders: Default::default(),
         expectations: &expectations,
         triage: &triage,
         progress,

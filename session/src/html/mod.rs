@@ -72,6 +72,17 @@ pub fn write_report(out: &Path) -> Result<PathBuf, SessionError> {
     let img = dir.join("img");
     std::fs::create_dir_all(&img).map_err(|e| SessionError::io(img.display().to_string(), e))?;
     let mut entries = Vec::new();
+    // The files of each case folder, listed once (a run keeps thousands; probing each name a case may
+    // have in every folder would be tens of thousands of lookups).
+    let listed: Vec<(&str, std::collections::HashSet<std::ffi::OsString>)> = CASE_FOLDERS
+        .iter()
+        .map(|folder| {
+            let names = std::fs::read_dir(out.join(folder))
+                .map(|d| d.filter_map(|e| e.ok().map(|e| e.file_name())).collect())
+                .unwrap_or_default();
+            (*folder, names)
+        })
+        .collect();
     for line in read_lines(&out.join("results.jsonl"))? {
         if line.status == Status::Pass {
             continue;
@@ -79,16 +90,20 @@ pub fn write_report(out: &Path) -> Result<PathBuf, SessionError> {
         let name = line.report.case.clone();
         let mut yaml = None;
         let mut pictures = Vec::new();
-        for folder in CASE_FOLDERS {
+        for (folder, names) in &listed {
             let base = out.join(folder);
-            if yaml.is_none() {
+            let has = |file: &str| names.contains(std::ffi::OsStr::new(file));
+            if yaml.is_none() && has(&format!("{name}.yaml")) {
                 if let Ok(text) = std::fs::read_to_string(base.join(format!("{name}.yaml"))) {
                     yaml = Some((format!("{folder}/{name}.yaml"), text));
                 }
             }
             for (label, suffix) in PICTURES {
                 let from = base.join(format!("{name}{suffix}"));
-                if from.is_file() && !pictures.iter().any(|(l, _)| *l == label) {
+                if has(&format!("{name}{suffix}"))
+                    && from.is_file()
+                    && !pictures.iter().any(|(l, _)| *l == label)
+                {
                     let file = format!("{name}{suffix}");
                     std::fs::copy(&from, img.join(&file))
                         .map_err(|e| SessionError::io(from.display().to_string(), e))?;
