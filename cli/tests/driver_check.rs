@@ -1,5 +1,5 @@
 //! The driver is checked once, up front, by `run` and `replay`: a missing manifest, a manifest that is
-//! not JSON, one whose library does not exist or is not a shared object each exit 2 naming the file and
+//! not JSON, one whose library does not exist, is not a shared object or is not a driver each exit 2 naming the file and
 //! what is wrong — not 139 "crash" results, `ERROR_OUT_OF_HOST_MEMORY`, or a missing profile.
 
 mod common;
@@ -108,4 +108,39 @@ fn a_manifest_naming_a_file_that_is_not_a_library_is_named() {
 fn lavapipe_passes_the_check() {
     let r = rtconf(&["replay", HAND, "--driver", "lavapipe"]);
     assert_eq!(r.code, 0, "{}", r.all());
+}
+
+/// A shared object this process has loaded (the C library), from /proc/self/maps.
+fn some_shared_object() -> String {
+    let maps = std::fs::read_to_string("/proc/self/maps").expect("/proc/self/maps");
+    maps.lines()
+        .filter_map(|l| l.split_whitespace().nth(5))
+        .find(|p| p.contains("libc.so"))
+        .expect("the C library is mapped")
+        .to_string()
+}
+
+#[test]
+fn a_library_that_is_not_a_driver_is_named_with_the_failing_call() {
+    // The run's check is its first worker's instance, made while the registry is read; replay makes
+    // its own. Both say the same thing, naming the manifest, the library and the call that failed.
+    let dir = tempfile::tempdir().unwrap();
+    let lib = some_shared_object();
+    let icd = write(
+        dir.path(),
+        "not-a-driver.json",
+        &format!(
+            r#"{{"file_format_version": "1.0.0", "ICD": {{"library_path": "{lib}", "api_version": "1.3.0"}}}}"#
+        ),
+    );
+    for r in both(&icd) {
+        assert_eq!(r.code, 2, "{}", r.all());
+        assert!(
+            r.stderr.contains(&format!(
+                "`{icd}` names the library `{lib}`, with which vkCreateInstance fails"
+            )),
+            "{}",
+            r.all()
+        );
+    }
 }

@@ -18,6 +18,32 @@ pub struct CheckedDriver {
 
 /// Checks `driver` (see the module documentation).
 pub fn check_driver(driver: &Driver) -> Result<CheckedDriver, HarnessError> {
+    let (manifest, library) = check_manifest(driver)?;
+    let instance = VkInstance::new(driver.clone(), true)
+        .map_err(|e| instance_failure(&manifest, &library, e))?;
+    Ok(CheckedDriver {
+        manifest,
+        library,
+        device: instance.device_name(),
+    })
+}
+
+/// What the check says of an instance that could not be made with the manifest's library: a Vulkan
+/// error names the manifest and the library; any other error is itself.
+pub fn instance_failure(manifest: &Path, library: &str, e: HarnessError) -> HarnessError {
+    match e {
+        HarnessError::Vulkan { what, result } => HarnessError::Manifest {
+            path: manifest.display().to_string(),
+            problem: format!("names the library `{library}`, with which {what} fails ({result:?})"),
+        },
+        e => e,
+    }
+}
+
+/// The check's first half, which loads nothing: the manifest exists, is JSON and names a library
+/// that exists and is a shared object (a bare name is left to the dynamic loader). The manifest's
+/// path and the library it names.
+pub fn check_manifest(driver: &Driver) -> Result<(PathBuf, String), HarnessError> {
     let manifest = driver.icd_path();
     let shown = manifest.display().to_string();
     let bad = |problem: String| HarnessError::Manifest {
@@ -65,15 +91,5 @@ pub fn check_driver(driver: &Driver) -> Result<CheckedDriver, HarnessError> {
             Ok(()) => {}
         }
     }
-    let instance = VkInstance::new(driver.clone(), true).map_err(|e| match e {
-        HarnessError::Vulkan { what, result } => bad(format!(
-            "names the library `{library}`, with which {what} fails ({result:?})"
-        )),
-        e => e,
-    })?;
-    Ok(CheckedDriver {
-        manifest,
-        library,
-        device: instance.device_name(),
-    })
+    Ok((manifest, library))
 }

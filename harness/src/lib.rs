@@ -20,7 +20,7 @@ pub mod timing;
 pub(crate) mod vk;
 pub mod worker;
 
-pub use driver_check::{check_driver, CheckedDriver};
+pub use driver_check::{check_driver, check_manifest, instance_failure, CheckedDriver};
 pub use error::HarnessError;
 pub use execute::{Execution, Executor};
 pub use observe::{Observation, Output, RunningOn, Status, TraceCheck};
@@ -34,5 +34,6 @@ pub mod resource_glsl {
     pub use crate::shaders::{module_interface, ModuleInterface, ShaderBody};
 }
 pub use worker::{
-    run_in_workers, run_in_workers_with, run_stream, worker_main, Request, Response, WorkerCommand,
+    run_in_workers, run_in_workers_with, run_stream, run_stream_on, worker_main, Request, Response,
+    StartedWorkers, WorkerCommand,
 };

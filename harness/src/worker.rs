@@ -92,6 +92,14 @@ pub mod frame {
     }
 }
 
+/// A worker's first frame: whether it could make its executor (the instance with the validation layer
+/// on its driver) and, if so, the device that instance enumerates; else the error, as text. The pool
+/// that started the worker reads it where a driver check would have made an instance of its own.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Ready {
+    pub executor: Result<String, String>,
+}
+
 /// One case's result on a worker's stdout, as the pool reports it.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Response {
@@ -130,6 +138,23 @@ pub fn worker_main() -> i32 {
         Some(Executor::new(driver.clone()));
     let mut stdin = std::io::stdin().lock();
     let mut stdout = std::io::stdout().lock();
+    let ready = Ready {
+        executor: match &executor {
+            Some(Ok(e)) => Ok(e.running_on().device),
+            // Said as the driver check says it: naming the manifest and its library.
+            Some(Err(e)) => Err(match crate::driver_check::check_manifest(&driver) {
+                Ok((manifest, library)) => {
+                    crate::driver_check::instance_failure(&manifest, &library, e.clone())
+                        .to_string()
+                }
+                Err(bad) => bad.to_string(),
+            }),
+            None => Err("no executor".into()),
+        },
+    };
+    if frame::write(&mut stdout, &ready).is_err() {
+        return 4;
+    }
     loop {
         let body = match frame::read(&mut stdin) {
             Ok(Some(body)) => body,
@@ -234,6 +259,8 @@ struct Worker {
     stdin: ChildStdin,
     /// The worker's responses, read and decoded on a thread of their own.
     responses: Receiver<Response>,
+    /// Its [`Ready`] frame, the first it writes.
+    ready: Receiver<Ready>,
     stderr: Arc<Mutex<Vec<u8>>>,
 }
 
@@ -259,14 +286,18 @@ impl Worker {
             .take()
             .ok_or_else(|| std::io::Error::other("worker has no stderr"))?;
         let (tx, responses) = mpsc::channel();
+        let (ready_tx, ready) = mpsc::channel();
         std::thread::spawn(move || {
             let mut stdout = BufReader::with_capacity(1 << 16, stdout);
-            // A frame that does not read as a response is not one (it is skipped, as text is).
+            // A frame that does not read as a response or as the worker's readiness is neither (it is
+            // skipped, as text is).
             while let Ok(Some(body)) = frame::read(&mut stdout) {
                 if let Ok(r) = frame::decode::<Response>(&body) {
                     if tx.send(r).is_err() {
                         break;
                     }
+                } else if let Ok(r) = frame::decode::<Ready>(&body) {
+                    let _ = ready_tx.send(r);
                 }
             }
         });
@@ -290,6 +321,7 @@ impl Worker {
             child,
             stdin,
             responses,
+            ready,
             stderr,
         })
     }
@@ -425,6 +457,61 @@ pub fn run_in_workers_with(
     );
 }
 
+/// Worker processes started ahead of the stream they will run, so that each loads its driver and the
+/// layer while the runner is still reading the registry and drawing the first cases. The first one's
+/// [`Ready`] frame answers for the instance a driver check would make ([`StartedWorkers::ready`]).
+/// Workers never handed to a stream are killed when this is dropped.
+pub struct StartedWorkers {
+    cmd: WorkerCommand,
+    /// One per job; `Err` where the process could not be started (each job of such a slot says so).
+    workers: Vec<Result<Worker, String>>,
+}
+
+impl StartedWorkers {
+    /// Starts `jobs` (at least one) `cmd` processes.
+    pub fn start(cmd: &WorkerCommand, jobs: usize) -> StartedWorkers {
+        StartedWorkers {
+            cmd: cmd.clone(),
+            workers: (0..jobs.max(1))
+                .map(|_| {
+                    Worker::spawn(cmd)
+                        .map_err(|e| format!("cannot start worker {}: {e}", cmd.program.display()))
+                })
+                .collect(),
+        }
+    }
+
+    /// Whether the first worker made its executor (an instance of its driver under the validation
+    /// layer): the device it enumerates, or what went wrong — the worker's own words, or that it
+    /// could not start, exited before it was ready, or was not ready within `timeout`.
+    pub fn ready(&self, timeout: Duration) -> Result<String, String> {
+        let w = match self.workers.first() {
+            Some(Ok(w)) => w,
+            Some(Err(e)) => return Err(e.clone()),
+            None => return Err("no worker was started".into()),
+        };
+        match w.ready.recv_timeout(timeout) {
+            Ok(r) => r.executor,
+            Err(RecvTimeoutError::Timeout) => Err(format!(
+                "the worker did not make its instance within {:.1} s",
+                timeout.as_secs_f64()
+            )),
+            Err(RecvTimeoutError::Disconnected) => Err(format!(
+                "the worker exited before it made its instance: {}",
+                w.stderr_tail()
+            )),
+        }
+    }
+}
+
+impl Drop for StartedWorkers {
+    fn drop(&mut self) {
+        for w in self.workers.drain(..).flatten() {
+            w.stop();
+        }
+    }
+}
+
 /// Runs a stream of jobs on `jobs` worker processes started at once (each makes its instance while
 /// the first jobs are still being drawn) and kept for the whole stream: `source` is drawn from by
 /// whichever worker is free, so a producer that generates jobs while earlier ones run keeps every
@@ -440,16 +527,37 @@ pub fn run_stream<J: Send>(
     source: impl Iterator<Item = J> + Send,
     prepare: impl Fn(J) -> J + Sync,
     request: impl Fn(&J) -> Option<&Request> + Sync,
+    on_result: impl FnMut(J, Option<Response>),
+) {
+    run_stream_on(
+        StartedWorkers::start(cmd, jobs),
+        timeout,
+        source,
+        prepare,
+        request,
+        on_result,
+    )
+}
+
+/// [`run_stream`] on workers already started, one job slot each.
+pub fn run_stream_on<J: Send>(
+    mut started: StartedWorkers,
+    timeout: Duration,
+    source: impl Iterator<Item = J> + Send,
+    prepare: impl Fn(J) -> J + Sync,
+    request: impl Fn(&J) -> Option<&Request> + Sync,
     mut on_result: impl FnMut(J, Option<Response>),
 ) {
     let source = Mutex::new(source);
     let (tx, rx) = mpsc::channel::<(J, Option<Response>)>();
+    let slots: Vec<Result<Worker, String>> = started.workers.drain(..).collect();
+    let cmd = &started.cmd;
     std::thread::scope(|s| {
-        for _ in 0..jobs.max(1) {
+        for slot in slots {
             let tx = tx.clone();
             let (source, prepare, request) = (&source, &prepare, &request);
             s.spawn(move || {
-                let mut worker: Option<Worker> = Worker::spawn(cmd).ok();
+                let mut worker: Option<Worker> = slot.ok();
                 loop {
                     let next = source.lock().unwrap_or_else(|e| e.into_inner()).next();
                     let Some(job) = next else { break };
@@ -576,6 +684,33 @@ mod tests {
             took >= Duration::from_millis(300) && took < Duration::from_secs(10),
             "{took:?}"
         );
+    }
+
+    #[test]
+    fn a_started_worker_that_is_never_ready_is_said_to_be_so() {
+        // One that exits without a word, and one that never answers.
+        let gone = StartedWorkers::start(&shell("echo the loader is missing >&2; exit 3"), 1);
+        let e = gone.ready(Duration::from_secs(20)).unwrap_err();
+        assert!(e.contains("exited before it made its instance"), "{e}");
+        let mute = StartedWorkers::start(&shell("sleep 30"), 2);
+        let started = Instant::now();
+        let e = mute.ready(Duration::from_millis(200)).unwrap_err();
+        assert!(e.contains("did not make its instance within 0.2 s"), "{e}");
+        drop(mute);
+        // Dropped unused, the mute workers are killed, not waited for.
+        assert!(started.elapsed() < Duration::from_secs(10));
+    }
+
+    #[test]
+    fn a_ready_frame_reads_as_readiness_and_never_as_a_response() {
+        let mut stream = Vec::new();
+        let ready = Ready {
+            executor: Ok("llvmpipe".into()),
+        };
+        frame::write(&mut stream, &ready).unwrap();
+        let body = frame::read(&mut stream.as_slice()).unwrap().unwrap();
+        assert!(frame::decode::<Response>(&body).is_err());
+        assert_eq!(frame::decode::<Ready>(&body).unwrap(), ready);
     }
 
     #[test]

@@ -475,15 +475,18 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         harness::select_layer(dir)?;
     }
     let layer = harness::validation_layer()?;
-    // The driver's check — an instance made with the layer, tens of milliseconds — runs beside the
-    // reading of the registry; a registry that does not read is still the error reported first.
+    // The driver's check: its manifest here (nothing loaded), then the instance the run's first worker
+    // makes with the layer — the workers start now and load the driver while the registry is read;
+    // a registry that does not read is still the error reported first. Without the executable to
+    // start workers from, the instance is made here, as `replay` checks.
     let driver = Driver::parse(&config.driver);
-    let (set, checked) = std::thread::scope(|s| {
-        let check = s.spawn(|| harness::check_driver(&driver));
-        let set = sources::registry_for_layer(&config.from, Some(&layer));
-        (set, check.join())
-    });
-    let set = set?;
+    let manifest = harness::check_manifest(&driver);
+    std::env::set_var(harness::worker::DRIVER_ENV, &config.driver);
+    let workers = match (&manifest, harness::WorkerCommand::current_exe()) {
+        (Ok(_), Ok(cmd)) => Some(harness::StartedWorkers::start(&cmd, config.jobs)),
+        _ => None,
+    };
+    let set = sources::registry_for_layer(&config.from, Some(&layer))?;
     let mut warnings = Vec::new();
     if set.version.as_deref() != Some(layer.version.as_str()) {
         warnings.push(format!(
@@ -494,7 +497,14 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
     }
     let rules = RuleSet::from_vuids(&set);
     // The driver first: a path that is not a driver is never taken for a profile's name.
-    checked.unwrap_or_else(|panic| std::panic::resume_unwind(panic))?;
+    manifest?;
+    match &workers {
+        Some(s) => s
+            .ready(Duration::from_secs(config.timeout))
+            .map(drop)
+            .map_err(harness::HarnessError::Failed)?,
+        None => drop(harness::check_driver(&driver)?),
+    }
     let profile_name = config
         .profile
         .clone()
@@ -581,7 +591,6 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         triage: &triage,
         progress,
     };
-    std::env::set_var(harness::worker::DRIVER_ENV, &config.driver);
     let judging = Judging {
         rules: &rules,
         profile: &profile,
@@ -627,7 +636,7 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
                 },
             )
         });
-        dispatch.run_stream(rx.into_iter(), &mut sink);
+        dispatch.run_stream(rx.into_iter(), &mut sink, workers);
         producer
             .join()
             .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
@@ -660,7 +669,7 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
             jobs: dispatch.jobs.min(drawn.len()).max(1),
             ..dispatch
         };
-        evidence_dispatch.run_stream(drawn.into_iter(), &mut sink);
+        evidence_dispatch.run_stream(drawn.into_iter(), &mut sink, None);
     }
     if let Some((path, e)) = sink.error.take() {
         return Err(SessionError::io(

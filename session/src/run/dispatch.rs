@@ -93,24 +93,32 @@ impl Dispatch<'_> {
         }
     }
 
-    /// Runs a stream of drawn cases on one set of workers kept for the whole stream, judging and
-    /// writing each result as it arrives (a gated case is written in its turn); then the cases to
-    /// record again and the retries.
-    pub(super) fn run_stream(&self, drawn: impl Iterator<Item = Drawn> + Send, sink: &mut Sink) {
+    /// Runs a stream of drawn cases on one set of workers kept for the whole stream — `started`
+    /// where the run started them ahead, else `jobs` started here —, judging and writing each result
+    /// as it arrives (a gated case is written in its turn); then the cases to record again and the
+    /// retries.
+    pub(super) fn run_stream(
+        &self,
+        drawn: impl Iterator<Item = Drawn> + Send,
+        sink: &mut Sink,
+        started: Option<harness::StartedWorkers>,
+    ) {
         let mut later = Later::default();
-        let cmd = match harness::WorkerCommand::current_exe() {
-            Ok(cmd) => cmd,
-            Err(e) => {
-                let why = format!("cannot find the rtconf executable to start workers: {e}");
-                for d in drawn {
-                    self.settle_without_workers(d, sink, &mut later, &why);
+        let started = match started {
+            Some(s) => s,
+            None => match harness::WorkerCommand::current_exe() {
+                Ok(cmd) => harness::StartedWorkers::start(&cmd, self.jobs),
+                Err(e) => {
+                    let why = format!("cannot find the rtconf executable to start workers: {e}");
+                    for d in drawn {
+                        self.settle_without_workers(d, sink, &mut later, &why);
+                    }
+                    return self.finish(later, sink);
                 }
-                return self.finish(later, sink);
-            }
+            },
         };
-        harness::run_stream(
-            &cmd,
-            self.jobs,
+        harness::run_stream_on(
+            started,
             self.timeout,
             drawn,
             |d| match d {
