@@ -55,10 +55,10 @@ fn a_missing_manifest_is_named_before_any_profile() {
 #[test]
 fn a_manifest_naming_a_missing_library_is_named_with_the_library() {
     let dir = tempfile::tempdir().unwrap();
-    let icd = write(
+    let icd = manifest_naming(
         dir.path(),
         "missing-lib.json",
-        r#"{"file_format_version": "1.0.0", "ICD": {"library_path": "/nonexistent/libvulkan_x.so", "api_version": "1.3.0"}}"#,
+        "/nonexistent/libvulkan_x.so",
     );
     for r in both(&icd) {
         assert_eq!(r.code, 2, "{}", r.all());
@@ -91,17 +91,22 @@ fn a_garbled_manifest_is_named_with_where_it_stops_being_json() {
 fn a_manifest_naming_a_file_that_is_not_a_library_is_named() {
     let dir = tempfile::tempdir().unwrap();
     let lib = write(dir.path(), "libfake.so", "not a shared object");
-    let icd = write(
-        dir.path(),
-        "fake.json",
-        &format!(
-            r#"{{"file_format_version": "1.0.0", "ICD": {{"library_path": "{lib}", "api_version": "1.3.0"}}}}"#
-        ),
-    );
+    let icd = manifest_naming(dir.path(), "fake.json", &lib);
     for r in both(&icd) {
         assert_eq!(r.code, 2, "{}", r.all());
         assert!(r.stderr.contains("is not a shared object"), "{}", r.all());
     }
+}
+
+/// Writes an ICD manifest `name` in `dir` naming `library`; its path.
+fn manifest_naming(dir: &std::path::Path, name: &str, library: &str) -> String {
+    write(
+        dir,
+        name,
+        &format!(
+            r#"{{"file_format_version": "1.0.0", "ICD": {{"library_path": "{library}", "api_version": "1.3.0"}}}}"#
+        ),
+    )
 }
 
 #[test]
@@ -126,13 +131,7 @@ fn a_library_that_is_not_a_driver_is_named_with_the_failing_call() {
     // its own. Both say the same thing, naming the manifest, the library and the call that failed.
     let dir = tempfile::tempdir().unwrap();
     let lib = some_shared_object();
-    let icd = write(
-        dir.path(),
-        "not-a-driver.json",
-        &format!(
-            r#"{{"file_format_version": "1.0.0", "ICD": {{"library_path": "{lib}", "api_version": "1.3.0"}}}}"#
-        ),
-    );
+    let icd = manifest_naming(dir.path(), "not-a-driver.json", &lib);
     for r in both(&icd) {
         assert_eq!(r.code, 2, "{}", r.all());
         assert!(
