@@ -128,30 +128,29 @@ impl Request {
     }
 }
 
-/// The worker loop: one [`Request`] per frame on stdin, one [`Response`] per frame on stdout. Returns the exit
-/// code.
+/// The worker loop: first a [`Ready`] frame, then one [`Response`] per [`Request`] frame on stdin.
+/// Returns the exit code.
 pub fn worker_main() -> i32 {
     let driver = Driver::parse(&std::env::var(DRIVER_ENV).unwrap_or_else(|_| "lavapipe".into()));
     // Made before the first request arrives: the instance (and the layer's start-up) overlaps the
-    // runner's drawing of the first cases.
-    let mut executor: Option<Result<Executor, crate::HarnessError>> =
-        Some(Executor::new(driver.clone()));
-    let mut stdin = std::io::stdin().lock();
-    let mut stdout = std::io::stdout().lock();
+    // runner's reading of the registry and drawing of the first cases.
+    let first = Executor::new(driver.clone());
     let ready = Ready {
-        executor: match &executor {
-            Some(Ok(e)) => Ok(e.running_on().device),
+        executor: match &first {
+            Ok(e) => Ok(e.running_on().device),
             // Said as the driver check says it: naming the manifest and its library.
-            Some(Err(e)) => Err(match crate::driver_check::check_manifest(&driver) {
+            Err(e) => Err(match crate::driver_check::check_manifest(&driver) {
                 Ok((manifest, library)) => {
                     crate::driver_check::instance_failure(&manifest, &library, e.clone())
                         .to_string()
                 }
                 Err(bad) => bad.to_string(),
             }),
-            None => Err("no executor".into()),
         },
     };
+    let mut executor: Option<Result<Executor, crate::HarnessError>> = Some(first);
+    let mut stdin = std::io::stdin().lock();
+    let mut stdout = std::io::stdout().lock();
     if frame::write(&mut stdout, &ready).is_err() {
         return 4;
     }
