@@ -204,7 +204,7 @@ fn run(
             .iter()
             .flat_map(|w| w.to_le_bytes())
             .collect();
-        out.write(0, &record.repeat(plan.io.records));
+        out.write_repeated(0, &record, plan.io.records);
     }
     rays.write(0, &plan.io.rays);
     calls.write(0, &plan.io.callables);

@@ -355,6 +355,31 @@ impl Allocation {
 
     /// Copies `bytes` to `offset`, cutting what would fall past the end of the buffer or onto unbound pages.
     pub(crate) fn write(&self, offset: u64, bytes: &[u8]) {
+        self.copy_in(offset, bytes);
+        self.sync(true);
+    }
+
+    /// Writes `pattern` `count` times from `offset` on (clipped to the allocation like
+    /// [`Allocation::write`]), through a buffer of at most 64 KiB instead of the whole repetition.
+    pub(crate) fn write_repeated(&self, offset: u64, pattern: &[u8], count: usize) {
+        if pattern.is_empty() || count == 0 {
+            return;
+        }
+        let per_chunk = ((64 << 10) / pattern.len()).clamp(1, count);
+        let chunk = pattern.repeat(per_chunk);
+        let mut at = offset;
+        let mut left = count;
+        while left > 0 && at < self.size {
+            let n = left.min(per_chunk);
+            self.copy_in(at, &chunk[..n * pattern.len()]);
+            at = at.saturating_add((n * pattern.len()) as u64);
+            left -= n;
+        }
+        self.sync(true);
+    }
+
+    /// Copies `bytes` to `offset` (clipped to the allocation) without flushing.
+    fn copy_in(&self, offset: u64, bytes: &[u8]) {
         let end = offset.saturating_add(bytes.len() as u64).min(self.size);
         for p in &self.pieces {
             let (lo, hi) = (offset.max(p.at), end.min(p.at + p.len));
@@ -370,7 +395,6 @@ impl Allocation {
                 )
             };
         }
-        self.sync(true);
     }
 
     pub(crate) fn read_u32s(&self, count: usize) -> Vec<u32> {
@@ -428,5 +452,43 @@ impl Allocation {
                 dev.device.free_memory(p.memory, None);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::vk::{Driver, VkInstance};
+    use std::collections::BTreeSet;
+    use std::sync::Arc;
+
+    /// A pattern written repeatedly reads back as the whole repetition, across the 64 KiB pieces it is
+    /// written in, and a repetition longer than the allocation is cut at its end (lavapipe).
+    #[test]
+    fn a_pattern_written_repeatedly_reads_back_whole_and_cut_at_the_end() {
+        let inst = Arc::new(VkInstance::new(Driver::Lavapipe, false).expect("lavapipe"));
+        let dev = VkDevice::new(inst, &BTreeSet::new(), &BTreeSet::new(), None).expect("a device");
+        let pattern: Vec<u8> = (0u8..112)
+            .map(|b| b.wrapping_mul(7).wrapping_add(3))
+            .collect();
+        // 1,500 copies: 168,000 bytes, three pieces of at most 64 KiB.
+        let count = 1500;
+        let size = (pattern.len() * count) as u64;
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let whole = Allocation::new(&dev, size, usage, vk::BufferCreateFlags::empty(), 1).unwrap();
+        whole.write(0, &vec![0u8; size as usize]);
+        whole.write_repeated(0, &pattern, count);
+        let words = whole.read_u32s((size / 4) as usize);
+        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+        assert_eq!(bytes, pattern.repeat(count));
+        whole.destroy(&dev);
+        // Half the size: the writes stop at the end, and what is there is the repetition's start.
+        let half =
+            Allocation::new(&dev, size / 2, usage, vk::BufferCreateFlags::empty(), 1).unwrap();
+        half.write_repeated(0, &pattern, count);
+        let words = half.read_u32s((size / 8) as usize);
+        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+        assert_eq!(bytes[..], pattern.repeat(count)[..bytes.len()]);
+        half.destroy(&dev);
     }
 }
