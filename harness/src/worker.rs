@@ -325,6 +325,12 @@ impl Worker {
         })
     }
 
+    /// [`Worker::spawn`], its failure said as a case's crash says it.
+    fn start(cmd: &WorkerCommand) -> Result<Worker, String> {
+        Worker::spawn(cmd)
+            .map_err(|e| format!("cannot start worker {}: {e}", cmd.program.display()))
+    }
+
     fn stderr_tail(&self) -> String {
         let k = self.stderr.lock().unwrap_or_else(|e| e.into_inner());
         let text = String::from_utf8_lossy(&k).into_owned();
@@ -471,12 +477,7 @@ impl StartedWorkers {
     pub fn start(cmd: &WorkerCommand, jobs: usize) -> StartedWorkers {
         StartedWorkers {
             cmd: cmd.clone(),
-            workers: (0..jobs.max(1))
-                .map(|_| {
-                    Worker::spawn(cmd)
-                        .map_err(|e| format!("cannot start worker {}: {e}", cmd.program.display()))
-                })
-                .collect(),
+            workers: (0..jobs.max(1)).map(|_| Worker::start(cmd)).collect(),
         }
     }
 
@@ -566,15 +567,10 @@ pub fn run_stream_on<J: Send>(
                         continue;
                     };
                     if worker.is_none() {
-                        match Worker::spawn(cmd) {
+                        match Worker::start(cmd) {
                             Ok(w) => worker = Some(w),
-                            Err(e) => {
-                                let status = Status::Crash {
-                                    message: format!(
-                                        "cannot start worker {}: {e}",
-                                        cmd.program.display()
-                                    ),
-                                };
+                            Err(message) => {
+                                let status = Status::Crash { message };
                                 let lost = req.lost(status, 0.0);
                                 let _ = tx.send((job, Some(lost)));
                                 continue;
