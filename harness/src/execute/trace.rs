@@ -70,9 +70,7 @@ pub(super) fn trace(ctx: &mut Executor, case: &model::TraceBody, run_valid: bool
                 .device
                 .reset_command_buffer(cache.cmds.secondary, vk::CommandBufferResetFlags::empty());
         }
-        for (_, a) in buffers {
-            a.destroy(&cache.dev);
-        }
+        cache.give_back_case_buffers(buffers);
     }
     collector.set_abort(false);
     collector.clear();
@@ -192,6 +190,7 @@ fn run(
     let ray_count = plan.io.rays.len().saturating_sub(16) / RAY_RECORD_SIZE;
     let callable_count = plan.io.callables.len().saturating_sub(16) / 4;
     cache.io_buffers(words, ray_count, callable_count)?;
+    let set = cache.harness_set(layouts.set)?;
     let (out, rays, calls) = (
         cache.output.as_ref().expect("made above"),
         cache.rays.as_ref().expect("made above"),
@@ -210,19 +209,6 @@ fn run(
     calls.write(0, &plan.io.callables);
 
     let d = &cache.dev.device;
-    // Descriptor set.
-    // SAFETY: the pool's sets are not in use (previous cases finished).
-    let set = unsafe {
-        d.reset_descriptor_pool(cache.descriptor_pool, vk::DescriptorPoolResetFlags::empty())
-            .map_err(|r| HarnessError::Failed(format!("vkResetDescriptorPool: {r:?}")))?;
-        let sl = [layouts.set];
-        d.allocate_descriptor_sets(
-            &vk::DescriptorSetAllocateInfo::default()
-                .descriptor_pool(cache.descriptor_pool)
-                .set_layouts(&sl),
-        )
-        .map_err(|r| HarnessError::Failed(format!("vkAllocateDescriptorSets: {r:?}")))?[0]
-    };
     let spheres = spheres.unwrap_or(cache.no_spheres.as_ref().expect("made above").buffer);
     // The records binding covers exactly the launch's records: the any-hit and intersection shaders
     // bound their writes by its length.

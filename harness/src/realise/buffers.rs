@@ -1,6 +1,7 @@
 //! A trace world's buffers on the device, from their plan ([`BufferPlan`]): placed at 4096-aligned
 //! addresses, bound as the world says (whole, sparse in pieces, or not at all), with their writes
-//! made (shader group handles of the bound or a foreign pipeline, indirect commands).
+//! made (shader group handles of the bound or a foreign pipeline, indirect commands). A finished
+//! case's whole-bound buffers are kept ([`SpareBuffers`]) for later cases that ask for the same kind.
 
 use super::DeviceCache;
 use crate::error::HarnessError;
@@ -10,6 +11,58 @@ use crate::vk::memory::{Allocation, SparsePlan};
 use ash::vk;
 use model::call::BUFFER_PLACEMENT_ALIGNMENT;
 use model::world::{HandleRef, Pipeline, PipelineApi};
+
+/// Case buffers a finished case gave back, kept (mapped, bound to their own memory) for a later
+/// case of the same device that asks for a buffer of the same size, usage and create flags: taken
+/// instead of a fresh buffer, memory and binding, and zeroed first, so the case sees what a fresh
+/// allocation holds. Only whole-bound buffers of at most [`SpareBuffers::LARGEST`] bytes are kept,
+/// at most [`SpareBuffers::COUNT`] of them; the others are destroyed when given back.
+#[derive(Default)]
+pub(crate) struct SpareBuffers {
+    kept: Vec<Allocation>,
+}
+
+impl SpareBuffers {
+    /// The largest buffer kept (zeroing it on reuse stays far cheaper than a fresh one).
+    const LARGEST: u64 = 1 << 20;
+    /// The most buffers kept.
+    const COUNT: usize = 32;
+
+    /// A kept buffer made as asked, zeroed, or None.
+    fn take(
+        &mut self,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+        flags: vk::BufferCreateFlags,
+    ) -> Option<Allocation> {
+        let at = self
+            .kept
+            .iter()
+            .position(|a| a.made_as(size, usage, flags))?;
+        let a = self.kept.swap_remove(at);
+        a.zero();
+        Some(a)
+    }
+
+    /// Keeps `a` for a later case, or destroys it. The GPU no longer uses it.
+    pub(crate) fn give_back(&mut self, a: Allocation, dev: &crate::vk::VkDevice) {
+        let keep = self.kept.len() < Self::COUNT
+            && a.size <= Self::LARGEST
+            && a.made_as(a.size, a.usage(), a.flags());
+        if keep {
+            self.kept.push(a);
+        } else {
+            a.destroy(dev);
+        }
+    }
+
+    /// Destroys every kept buffer.
+    pub(crate) fn destroy(&mut self, dev: &crate::vk::VkDevice) {
+        for a in self.kept.drain(..) {
+            a.destroy(dev);
+        }
+    }
+}
 
 impl DeviceCache {
     /// Why a sparse buffer cannot be made validly here, if it cannot: the features its flags need must be
@@ -69,12 +122,18 @@ impl DeviceCache {
         let mut out: Vec<(String, Allocation)> = Vec::new();
         let r = self.case_buffers_into(buffers, pipeline, &mut out);
         if let Err(e) = r {
-            for (_, a) in out {
-                a.destroy(&self.dev);
-            }
+            self.give_back_case_buffers(out);
             return Err(e);
         }
         Ok(out)
+    }
+
+    /// Gives a case's buffers back once the GPU no longer uses them: kept for later cases where they
+    /// may be ([`SpareBuffers`]), else destroyed.
+    pub(crate) fn give_back_case_buffers(&mut self, buffers: Vec<(String, Allocation)>) {
+        for (_, a) in buffers {
+            self.spare.give_back(a, &self.dev);
+        }
     }
 
     fn case_buffers_into(
@@ -156,7 +215,16 @@ impl DeviceCache {
                         )))
                     }
                 }
-                Allocation::new(&self.dev, b.size, usage, flags, BUFFER_PLACEMENT_ALIGNMENT)?
+                match self.spare.take(b.size, usage, flags) {
+                    Some(a) => a,
+                    None => Allocation::new(
+                        &self.dev,
+                        b.size,
+                        usage,
+                        flags,
+                        BUFFER_PLACEMENT_ALIGNMENT,
+                    )?,
+                }
             };
             for w in &b.writes {
                 match w {
@@ -178,5 +246,52 @@ impl DeviceCache {
             out.push((b.name.clone(), a));
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::vk::{Driver, VkDevice, VkInstance};
+    use std::collections::BTreeSet;
+    use std::sync::Arc;
+
+    /// A buffer given back is taken again only for its own size, usage and flags, and then holds
+    /// zeros whatever the case before wrote; what is past the limits is destroyed, not kept (lavapipe).
+    #[test]
+    fn a_spare_buffer_is_taken_only_as_made_and_zeroed() {
+        let inst = Arc::new(VkInstance::new(Driver::Lavapipe, false).expect("lavapipe"));
+        let dev = VkDevice::new(inst, &BTreeSet::new(), &BTreeSet::new(), None).expect("a device");
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let none = vk::BufferCreateFlags::empty();
+        let a = Allocation::new(&dev, 240, usage, none, BUFFER_PLACEMENT_ALIGNMENT).unwrap();
+        a.write(0, &[0xAB; 240]);
+        let buffer = a.buffer;
+        let mut spare = SpareBuffers::default();
+        spare.give_back(a, &dev);
+        assert!(spare.take(160, usage, none).is_none(), "another size");
+        let other_usage = usage | vk::BufferUsageFlags::TRANSFER_SRC;
+        assert!(spare.take(240, other_usage, none).is_none(), "another usage");
+        let flags = vk::BufferCreateFlags::PROTECTED;
+        assert!(spare.take(240, usage, flags).is_none(), "other flags");
+        let again = spare.take(240, usage, none).expect("the same kind is taken");
+        assert_eq!(again.buffer, buffer);
+        assert_eq!(again.read_u32s(60), vec![0u32; 60]);
+        assert!(spare.take(240, usage, none).is_none(), "taken once");
+        // Larger than kept: destroyed when given back.
+        let big = SpareBuffers::LARGEST + 4;
+        let b = Allocation::new(&dev, big, usage, none, 1).unwrap();
+        spare.give_back(b, &dev);
+        assert!(spare.kept.is_empty());
+        // At most COUNT kept.
+        for _ in 0..SpareBuffers::COUNT + 3 {
+            let c = Allocation::new(&dev, 64, usage, none, 1).unwrap();
+            spare.give_back(c, &dev);
+        }
+        assert_eq!(spare.kept.len(), SpareBuffers::COUNT);
+        spare.give_back(again, &dev);
+        assert_eq!(spare.kept.len(), SpareBuffers::COUNT);
+        spare.destroy(&dev);
+        assert!(spare.kept.is_empty());
     }
 }

@@ -32,7 +32,11 @@ pub(crate) struct DeviceCache {
     /// The command pool, the primary and secondary buffers cases are recorded into, the fence, and
     /// the empty render pass.
     pub(crate) cmds: Commands,
-    pub(crate) descriptor_pool: vk::DescriptorPool,
+    /// The pool of the harness's descriptor sets: one per set layout (`harness_sets`).
+    descriptor_pool: vk::DescriptorPool,
+    /// The harness's descriptor set of each set layout cases used, kept across cases and written anew
+    /// by each (no case's command buffer outlives its case).
+    harness_sets: Vec<(vk::DescriptorSetLayout, vk::DescriptorSet)>,
     /// Output records and rays, reused and grown as needed.
     pub(crate) output: Option<Allocation>,
     pub(crate) rays: Option<Allocation>,
@@ -40,6 +44,8 @@ pub(crate) struct DeviceCache {
     pub(crate) callables: Option<Allocation>,
     /// The spheres buffer bound when the case builds no scene (the binding is always written).
     pub(crate) no_spheres: Option<Allocation>,
+    /// Finished cases' buffers kept for later cases.
+    spare: buffers::SpareBuffers,
     /// Set when a submission ended in DEVICE_LOST or a timeout: nothing may be recorded on this device
     /// again, and dropping it neither waits for it nor resets what is pending on it.
     pub(crate) lost: bool,
@@ -52,6 +58,10 @@ pub(crate) struct DeviceCache {
     pub(crate) shared_resources: resources::Shared,
     pub(crate) dev: VkDevice,
 }
+
+/// The harness's set layouts a device may have ([`DeviceCache::layouts`]: KHR or NV, read-back or not),
+/// each with its one set in the pool.
+const HARNESS_SETS: u32 = 4;
 
 /// The ray data the raygen shader reads: std430 `Ray` (64 bytes) after a 16-byte header.
 pub(crate) use crate::plan::trace::RAY_RECORD_SIZE;
@@ -107,6 +117,7 @@ impl Drop for DeviceCache {
         if let Some(a) = self.no_spheres.take() {
             a.destroy(&self.dev);
         }
+        self.spare.destroy(&self.dev);
     }
 }
 
@@ -118,24 +129,24 @@ impl DeviceCache {
             let cmds = Commands::new(&dev)?;
             let mut sizes = vec![vk::DescriptorPoolSize {
                 ty: vk::DescriptorType::STORAGE_BUFFER,
-                descriptor_count: 10,
+                descriptor_count: 5 * HARNESS_SETS,
             }];
             if dev.accel.is_some() {
                 sizes.push(vk::DescriptorPoolSize {
                     ty: vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
-                    descriptor_count: 2,
+                    descriptor_count: HARNESS_SETS,
                 });
             }
             if dev.nv.is_some() {
                 sizes.push(vk::DescriptorPoolSize {
                     ty: vk::DescriptorType::ACCELERATION_STRUCTURE_NV,
-                    descriptor_count: 2,
+                    descriptor_count: HARNESS_SETS,
                 });
             }
             let descriptor_pool = d
                 .create_descriptor_pool(
                     &vk::DescriptorPoolCreateInfo::default()
-                        .max_sets(2)
+                        .max_sets(HARNESS_SETS)
                         .pool_sizes(&sizes),
                     None,
                 )
@@ -148,16 +159,47 @@ impl DeviceCache {
                 scene_order: Vec::new(),
                 cmds,
                 descriptor_pool,
+                harness_sets: Vec::new(),
                 output: None,
                 rays: None,
                 callables: None,
                 no_spheres: None,
+                spare: buffers::SpareBuffers::default(),
                 lost: false,
                 resource_pipeline: None,
                 shared_resources: resources::Shared::default(),
                 dev,
             })
         }
+    }
+
+    /// The harness's descriptor set of `layout`, allocated the first time a case asks for it. Where the
+    /// pool holds no more sets it is reset and the sets allocated anew: no set is in use between cases.
+    pub(crate) fn harness_set(
+        &mut self,
+        layout: vk::DescriptorSetLayout,
+    ) -> Result<vk::DescriptorSet, HarnessError> {
+        if let Some(&(_, set)) = self.harness_sets.iter().find(|(l, _)| *l == layout) {
+            return Ok(set);
+        }
+        let d = &self.dev.device;
+        let layouts = [layout];
+        let info = vk::DescriptorSetAllocateInfo::default()
+            .descriptor_pool(self.descriptor_pool)
+            .set_layouts(&layouts);
+        // SAFETY: the pool's sets are not in use (the cases that wrote them finished).
+        let set = match unsafe { d.allocate_descriptor_sets(&info) } {
+            Ok(s) => s[0],
+            Err(_) => unsafe {
+                d.reset_descriptor_pool(self.descriptor_pool, vk::DescriptorPoolResetFlags::empty())
+                    .map_err(vkfail("vkResetDescriptorPool"))?;
+                self.harness_sets.clear();
+                d.allocate_descriptor_sets(&info)
+                    .map_err(vkfail("vkAllocateDescriptorSets"))?[0]
+            },
+        };
+        self.harness_sets.push((layout, set));
+        Ok(set)
     }
 
     /// Submits the primary command buffer and waits for it. A lost device or a submission that does not

@@ -26,6 +26,8 @@ pub(crate) struct Allocation {
     pub(crate) size: u64,
     /// The usage it was made with (its device address is asked for only with SHADER_DEVICE_ADDRESS).
     usage: vk::BufferUsageFlags,
+    /// The create flags it was made with.
+    flags: vk::BufferCreateFlags,
     pieces: Vec<Piece>,
     /// The device, kept only when the memory is not HOST_COHERENT (to flush and invalidate).
     non_coherent: Option<ash::Device>,
@@ -219,6 +221,7 @@ impl Allocation {
             address,
             size,
             usage,
+            flags,
             pieces: vec![Piece {
                 memory,
                 at: 0,
@@ -227,7 +230,7 @@ impl Allocation {
             }],
             non_coherent: (!coherent).then(|| d.clone()),
         };
-        a.write(0, &vec![0u8; size as usize]);
+        a.zero();
         Ok(a)
     }
 
@@ -248,6 +251,7 @@ impl Allocation {
             address: 0,
             size,
             usage,
+            flags,
             pieces: Vec::new(),
             non_coherent: None,
         };
@@ -335,7 +339,7 @@ impl Allocation {
                     .map_err(vkfail("vkWaitForFences (sparse binding)"))?;
                 d.reset_fences(&[fence]).map_err(vkfail("vkResetFences"))?;
             }
-            self.write(0, &vec![0u8; self.size as usize]);
+            self.zero();
         }
         self.address = address_of(dev, self.buffer, self.usage);
         if dev.has_feature("bufferDeviceAddress") && self.address % BUFFER_PLACEMENT_ALIGNMENT != 0
@@ -351,6 +355,39 @@ impl Allocation {
     /// The memory objects behind the buffer (one, two for a scattered sparse buffer, none when unbound).
     pub(crate) fn memory_count(&self) -> usize {
         self.pieces.len()
+    }
+
+    /// Whether this is a buffer of `size` bytes made with `usage` and `flags`, bound whole to one memory
+    /// object of its own (what [`Allocation::new`] makes): one that may stand in for a fresh one of those.
+    pub(crate) fn made_as(
+        &self,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+        flags: vk::BufferCreateFlags,
+    ) -> bool {
+        self.size == size
+            && self.usage == usage
+            && self.flags == flags
+            && self.pieces.len() == 1
+            && !flags.contains(vk::BufferCreateFlags::SPARSE_BINDING)
+    }
+
+    pub(crate) fn usage(&self) -> vk::BufferUsageFlags {
+        self.usage
+    }
+
+    pub(crate) fn flags(&self) -> vk::BufferCreateFlags {
+        self.flags
+    }
+
+    /// Sets every bound byte of the buffer to zero (what a fresh allocation holds).
+    pub(crate) fn zero(&self) {
+        for p in &self.pieces {
+            let n = p.len.min(self.size.saturating_sub(p.at));
+            // SAFETY: the piece's mapped range is `len` bytes from `ptr`, and n <= len.
+            unsafe { std::ptr::write_bytes(p.ptr, 0, n as usize) };
+        }
+        self.sync(true);
     }
 
     /// Copies `bytes` to `offset`, cutting what would fall past the end of the buffer or onto unbound pages.
