@@ -320,10 +320,15 @@ fn ray_bytes(world: &World, capacity: usize) -> Vec<u8> {
     for r in &rays {
         let [ox, oy, oz] = r.origin;
         let [dx, dy, dz] = r.direction;
-        for f in [ox, oy, oz, r.tmin, dx, dy, dz, r.tmax] {
-            bytes.extend_from_slice(&f.to_le_bytes());
-        }
-        for v in [
+        let words = [
+            ox.to_bits(),
+            oy.to_bits(),
+            oz.to_bits(),
+            r.tmin.to_bits(),
+            dx.to_bits(),
+            dy.to_bits(),
+            dz.to_bits(),
+            r.tmax.to_bits(),
             r.sbt_offset,
             r.sbt_stride,
             r.miss_index,
@@ -332,9 +337,13 @@ fn ray_bytes(world: &World, capacity: usize) -> Vec<u8> {
             0,
             0,
             0,
-        ] {
-            bytes.extend_from_slice(&v.to_le_bytes());
+        ];
+        // One record of RAY_RECORD_SIZE bytes, appended at once.
+        let mut record = [0u8; RAY_RECORD_SIZE];
+        for (at, w) in record.chunks_exact_mut(4).zip(words) {
+            at.copy_from_slice(&w.to_le_bytes());
         }
+        bytes.extend_from_slice(&record);
     }
     bytes
 }
