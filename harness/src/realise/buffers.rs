@@ -252,16 +252,13 @@ impl DeviceCache {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::vk::{Driver, VkDevice, VkInstance};
-    use std::collections::BTreeSet;
-    use std::sync::Arc;
+    use crate::vk::plain_lavapipe_device;
 
     /// A buffer given back is taken again only for its own size, usage and flags, and then holds
     /// zeros whatever the case before wrote; what is past the limits is destroyed, not kept (lavapipe).
     #[test]
     fn a_spare_buffer_is_taken_only_as_made_and_zeroed() {
-        let inst = Arc::new(VkInstance::new(Driver::Lavapipe, false).expect("lavapipe"));
-        let dev = VkDevice::new(inst, &BTreeSet::new(), &BTreeSet::new(), None).expect("a device");
+        let dev = plain_lavapipe_device();
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let none = vk::BufferCreateFlags::empty();
         let a = Allocation::new(&dev, 240, usage, none, BUFFER_PLACEMENT_ALIGNMENT).unwrap();

@@ -495,16 +495,13 @@ impl Allocation {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::vk::{Driver, VkInstance};
-    use std::collections::BTreeSet;
-    use std::sync::Arc;
+    use crate::vk::plain_lavapipe_device;
 
     /// A pattern written repeatedly reads back as the whole repetition, across the 64 KiB pieces it is
     /// written in, and a repetition longer than the allocation is cut at its end (lavapipe).
     #[test]
     fn a_pattern_written_repeatedly_reads_back_whole_and_cut_at_the_end() {
-        let inst = Arc::new(VkInstance::new(Driver::Lavapipe, false).expect("lavapipe"));
-        let dev = VkDevice::new(inst, &BTreeSet::new(), &BTreeSet::new(), None).expect("a device");
+        let dev = plain_lavapipe_device();
         let pattern: Vec<u8> = (0u8..112)
             .map(|b| b.wrapping_mul(7).wrapping_add(3))
             .collect();

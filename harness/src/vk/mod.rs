@@ -19,3 +19,12 @@ pub use instance::{
     select_layer, validation_layer, Driver, LayerInfo, LayerMessage, VALIDATION_LAYER,
 };
 pub(crate) use instance::{Collector, VkInstance};
+
+/// A lavapipe device with no extension or feature enabled, without the layer: for unit tests of the
+/// plumbing.
+#[cfg(test)]
+pub(crate) fn plain_lavapipe_device() -> VkDevice {
+    let inst = std::sync::Arc::new(VkInstance::new(Driver::Lavapipe, false).expect("lavapipe"));
+    let none = std::collections::BTreeSet::new();
+    VkDevice::new(inst, &none, &none, None).expect("a device")
+}
