@@ -12,8 +12,9 @@ use ash::vk;
 use model::call::BUFFER_PLACEMENT_ALIGNMENT;
 use model::world::{HandleRef, Pipeline, PipelineApi};
 
-/// Case buffers a finished case gave back, kept (mapped, bound to their own memory) for a later
-/// case of the same device that asks for a buffer of the same size, usage and create flags: taken
+/// Case buffers a finished case gave back, kept (mapped, bound to their own memory, placed at
+/// [`BUFFER_PLACEMENT_ALIGNMENT`] as every case buffer is) for a later case of the same device that
+/// asks for a buffer of the same size, usage and create flags: taken
 /// instead of a fresh buffer, memory and binding, and zeroed first, so the case sees what a fresh
 /// allocation holds. Only whole-bound buffers of at most [`SpareBuffers::LARGEST`] bytes are kept,
 /// at most [`SpareBuffers::COUNT`] of them; the others are destroyed when given back.
