@@ -25,11 +25,11 @@ pub(super) enum Drawn {
     /// its job will carry.
     Ungated(Case, usize),
     /// A case for the workers.
-    Run(Job),
+    Run(Box<Job>),
     /// A case the gate kept from the driver, with its report: written in its turn, never run.
     Gated {
         case: Case,
-        report: CaseReport,
+        report: Box<CaseReport>,
         details: CaseDetails,
     },
 }
@@ -74,9 +74,9 @@ impl Dispatch<'_> {
                     layer_messages: vec![],
                 },
                 case,
-                report,
+                report: Box::new(report),
             },
-            None => Drawn::Run(self.job(case, index)),
+            None => Drawn::Run(Box::new(self.job(case, index))),
         }
     }
 
@@ -138,7 +138,7 @@ impl Dispatch<'_> {
                     },
                     _,
                 ) => self.write(sink, &case, &report, &details, vec![]),
-                (Drawn::Run(job), Some(resp)) => self.take(job, &resp, sink, &mut later),
+                (Drawn::Run(job), Some(resp)) => self.take(*job, &resp, sink, &mut later),
                 (Drawn::Run(job), None) => {
                     let lost = Response {
                         index: job.request.index,
@@ -147,7 +147,7 @@ impl Dispatch<'_> {
                         millis: 0.0,
                         phases: Default::default(),
                     };
-                    self.take(job, &lost, sink, &mut later)
+                    self.take(*job, &lost, sink, &mut later)
                 }
                 // `prepare` gates every case; one left ungated is gated here and not run.
                 (d @ Drawn::Ungated(..), _) => {
@@ -174,7 +174,7 @@ impl Dispatch<'_> {
                     millis: 0.0,
                     phases: Default::default(),
                 };
-                self.take(job, &lost, sink, later);
+                self.take(*job, &lost, sink, later);
             }
             Drawn::Ungated(case, index) => {
                 let gated = self.drawn(case, index, self.judging);
