@@ -187,9 +187,11 @@ impl DeviceCache {
         let info = vk::DescriptorSetAllocateInfo::default()
             .descriptor_pool(self.descriptor_pool)
             .set_layouts(&layouts);
-        // SAFETY: the pool's sets are not in use (the cases that wrote them finished).
+        // SAFETY: the pool's sets are not in use (the cases that wrote them finished, and their
+        // command buffers were reset), so the pool may be reset as well as allocated from.
         let set = match unsafe { d.allocate_descriptor_sets(&info) } {
             Ok(s) => s[0],
+            // SAFETY: as above.
             Err(_) => unsafe {
                 d.reset_descriptor_pool(self.descriptor_pool, vk::DescriptorPoolResetFlags::empty())
                     .map_err(vkfail("vkResetDescriptorPool"))?;
