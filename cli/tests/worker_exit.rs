@@ -42,7 +42,10 @@ fn a_worker_that_ran_a_case_ends_by_itself_with_status_0_once_its_stdin_closes()
         frame::decode(&frame::read(&mut stdout).unwrap().expect("a response")).unwrap();
     assert_eq!(response.index, 7);
     assert_eq!(response.observation.status, Status::Ran, "{response:?}");
-    assert!(response.observation.output.is_some(), "the launch was read back");
+    assert!(
+        response.observation.output.is_some(),
+        "the launch was read back"
+    );
     drop(stdin);
     let closed = Instant::now();
     let status = loop {

@@ -269,10 +269,15 @@ mod tests {
         spare.give_back(a, &dev);
         assert!(spare.take(160, usage, none).is_none(), "another size");
         let other_usage = usage | vk::BufferUsageFlags::TRANSFER_SRC;
-        assert!(spare.take(240, other_usage, none).is_none(), "another usage");
+        assert!(
+            spare.take(240, other_usage, none).is_none(),
+            "another usage"
+        );
         let flags = vk::BufferCreateFlags::PROTECTED;
         assert!(spare.take(240, usage, flags).is_none(), "other flags");
-        let again = spare.take(240, usage, none).expect("the same kind is taken");
+        let again = spare
+            .take(240, usage, none)
+            .expect("the same kind is taken");
         assert_eq!(again.buffer, buffer);
         assert_eq!(again.read_u32s(60), vec![0u32; 60]);
         assert!(spare.take(240, usage, none).is_none(), "taken once");

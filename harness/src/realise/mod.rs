@@ -193,8 +193,11 @@ impl DeviceCache {
             Ok(s) => s[0],
             // SAFETY: as above.
             Err(_) => unsafe {
-                d.reset_descriptor_pool(self.descriptor_pool, vk::DescriptorPoolResetFlags::empty())
-                    .map_err(vkfail("vkResetDescriptorPool"))?;
+                d.reset_descriptor_pool(
+                    self.descriptor_pool,
+                    vk::DescriptorPoolResetFlags::empty(),
+                )
+                .map_err(vkfail("vkResetDescriptorPool"))?;
                 self.harness_sets.clear();
                 d.allocate_descriptor_sets(&info)
                     .map_err(vkfail("vkAllocateDescriptorSets"))?[0]
