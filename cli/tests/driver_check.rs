@@ -24,15 +24,19 @@ fn both(driver: &str) -> [Ran; 2] {
     ]
 }
 
+/// [`both`], each asserted to exit 2 with `said` on stderr; the runs, for what a test asks beside.
+fn both_refuse(driver: &str, said: &str) -> [Ran; 2] {
+    let runs = both(driver);
+    for r in &runs {
+        assert_eq!(r.code, 2, "{}", r.all());
+        assert!(r.stderr.contains(said), "{}", r.all());
+    }
+    runs
+}
+
 #[test]
 fn a_missing_manifest_is_named_before_any_profile() {
-    for r in both("/missing/path") {
-        assert_eq!(r.code, 2, "{}", r.all());
-        assert!(
-            r.stderr.contains("`/missing/path` does not exist"),
-            "{}",
-            r.all()
-        );
+    for r in both_refuse("/missing/path", "`/missing/path` does not exist") {
         assert!(!r.stderr.contains("profile"), "{}", r.all());
     }
     // Without --profile the driver's path used to be taken for a profile's name.
@@ -60,29 +64,17 @@ fn a_manifest_naming_a_missing_library_is_named_with_the_library() {
         "missing-lib.json",
         "/nonexistent/libvulkan_x.so",
     );
-    for r in both(&icd) {
-        assert_eq!(r.code, 2, "{}", r.all());
-        assert!(
-            r.stderr.contains(&format!(
-                "`{icd}` names the library /nonexistent/libvulkan_x.so, which does not exist"
-            )),
-            "{}",
-            r.all()
-        );
-    }
+    both_refuse(
+        &icd,
+        &format!("`{icd}` names the library /nonexistent/libvulkan_x.so, which does not exist"),
+    );
 }
 
 #[test]
 fn a_garbled_manifest_is_named_with_where_it_stops_being_json() {
     let dir = tempfile::tempdir().unwrap();
     let icd = write(dir.path(), "garbled.json", "{\"ICD\": {\"library_path\": ");
-    for r in both(&icd) {
-        assert_eq!(r.code, 2, "{}", r.all());
-        assert!(
-            r.stderr.contains(&format!("`{icd}` is not JSON")),
-            "{}",
-            r.all()
-        );
+    for r in both_refuse(&icd, &format!("`{icd}` is not JSON")) {
         assert!(r.stderr.contains("line 1 column"), "{}", r.all());
     }
 }
@@ -92,10 +84,7 @@ fn a_manifest_naming_a_file_that_is_not_a_library_is_named() {
     let dir = tempfile::tempdir().unwrap();
     let lib = write(dir.path(), "libfake.so", "not a shared object");
     let icd = manifest_naming(dir.path(), "fake.json", &lib);
-    for r in both(&icd) {
-        assert_eq!(r.code, 2, "{}", r.all());
-        assert!(r.stderr.contains("is not a shared object"), "{}", r.all());
-    }
+    both_refuse(&icd, "is not a shared object");
 }
 
 /// Writes an ICD manifest `name` in `dir` naming `library`; its path.
@@ -132,14 +121,8 @@ fn a_library_that_is_not_a_driver_is_named_with_the_failing_call() {
     let dir = tempfile::tempdir().unwrap();
     let lib = some_shared_object();
     let icd = manifest_naming(dir.path(), "not-a-driver.json", &lib);
-    for r in both(&icd) {
-        assert_eq!(r.code, 2, "{}", r.all());
-        assert!(
-            r.stderr.contains(&format!(
-                "`{icd}` names the library `{lib}`, with which vkCreateInstance fails"
-            )),
-            "{}",
-            r.all()
-        );
-    }
+    both_refuse(
+        &icd,
+        &format!("`{icd}` names the library `{lib}`, with which vkCreateInstance fails"),
+    );
 }
