@@ -22,7 +22,7 @@ pub mod worker;
 
 pub use driver_check::{check_driver, check_manifest, instance_failure, CheckedDriver};
 pub use error::HarnessError;
-pub use execute::{Execution, Executor};
+pub use execute::{Affinity, Execution, Executor};
 pub use observe::{Observation, Output, RunningOn, Status, TraceCheck};
 pub use probe::probe;
 pub use vk::{select_layer, validation_layer, Driver, LayerInfo, LayerMessage, VALIDATION_LAYER};

@@ -3,7 +3,7 @@
 //! The driver comes from the environment variable [`DRIVER_ENV`] (`lavapipe`, `nvidia` or an ICD path).
 //! One request type carries a case of any command; the worker only observes.
 
-use crate::execute::{Execution, Executor};
+use crate::execute::{Affinity, Execution, Executor};
 use crate::observe::{Observation, Status};
 use crate::vk::Driver;
 use model::case::Case;
@@ -542,31 +542,125 @@ pub fn run_stream<J: Send>(
         source,
         prepare,
         request,
+        |_| None,
         on_result,
     )
 }
 
-/// [`run_stream`] on workers already started, one job slot each.
+/// How many drawn jobs a free worker looks through for one whose device or pipeline it already has
+/// ([`Lookahead`]).
+const LOOKAHEAD: usize = 16;
+
+/// The jobs drawn from a stream and not yet taken, and which worker took each device and pipeline
+/// key ([`Affinity`]) first. A free worker takes, within the first [`LOOKAHEAD`] jobs, one of a
+/// pipeline it has run, else one of a device it has and a pipeline no worker has, else one of a
+/// device no worker has, else the oldest job (no worker waits while there is work). So each worker
+/// makes its own share of the devices, their first views of a format and the pipelines, instead of
+/// every worker making them all; the jobs run in another order, and their results come back in
+/// completion order as before.
+struct Lookahead<J> {
+    queue: std::collections::VecDeque<(J, Option<Affinity>)>,
+    devices: std::collections::HashMap<u64, usize>,
+    pipelines: std::collections::HashMap<u64, usize>,
+    exhausted: bool,
+}
+
+impl<J> Lookahead<J> {
+    fn new() -> Lookahead<J> {
+        Lookahead {
+            queue: Default::default(),
+            devices: Default::default(),
+            pipelines: Default::default(),
+            exhausted: false,
+        }
+    }
+
+    /// How well a job suits `worker`: 3 a job without a key or of a pipeline it ran, 2 of its
+    /// device and a pipeline nobody ran, 1 of a device nobody has, 0 another worker's.
+    fn suits(&self, worker: usize, key: &Option<Affinity>) -> u8 {
+        let Some(k) = key else { return 3 };
+        match (self.pipelines.get(&k.pipeline), self.devices.get(&k.device)) {
+            (Some(&w), _) if w == worker => 3,
+            (None, Some(&w)) if w == worker => 2,
+            (None, None) => 1,
+            _ => 0,
+        }
+    }
+
+    /// The next job for `worker`, drawing from `source` as needed (see [`Lookahead`]); None once
+    /// the source and the queue are empty.
+    fn take(
+        &mut self,
+        worker: usize,
+        source: &mut dyn Iterator<Item = J>,
+        affinity: &dyn Fn(&J) -> Option<Affinity>,
+    ) -> Option<J> {
+        loop {
+            let best = (0..self.queue.len())
+                .map(|i| (self.suits(worker, &self.queue[i].1), i))
+                .fold(None, |best: Option<(u8, usize)>, (score, i)| match best {
+                    Some((b, _)) if b >= score => best,
+                    _ => Some((score, i)),
+                });
+            let settled = match best {
+                Some((3, _)) => true,
+                // A worker that has nothing yet has nothing to look further for.
+                Some((score, _)) => {
+                    score >= 2
+                        || self.exhausted
+                        || self.queue.len() >= LOOKAHEAD
+                        || (score == 1 && !self.devices.values().any(|&w| w == worker))
+                }
+                None => self.exhausted,
+            };
+            if settled {
+                let (_, at) = best?;
+                let (job, key) = self.queue.remove(at).expect("an index of the queue");
+                if let Some(k) = key {
+                    self.devices.entry(k.device).or_insert(worker);
+                    self.pipelines.entry(k.pipeline).or_insert(worker);
+                }
+                return Some(job);
+            }
+            match source.next() {
+                Some(job) => {
+                    let key = affinity(&job);
+                    self.queue.push_back((job, key));
+                }
+                None => self.exhausted = true,
+            }
+        }
+    }
+}
+
+/// [`run_stream`] on workers already started, one job slot each; `affinity` keys the jobs whose
+/// device or pipeline a worker keeps for later jobs ([`Lookahead`]: such jobs go to one worker
+/// where that costs no worker a wait).
 pub fn run_stream_on<J: Send>(
     mut started: StartedWorkers,
     timeout: Duration,
     source: impl Iterator<Item = J> + Send,
     prepare: impl Fn(J) -> J + Sync,
     request: impl Fn(&J) -> Option<&Request> + Sync,
+    affinity: impl Fn(&J) -> Option<Affinity> + Sync,
     mut on_result: impl FnMut(J, Option<Response>),
 ) {
-    let source = Mutex::new(source);
+    let source = Mutex::new((source, Lookahead::new()));
     let (tx, rx) = mpsc::channel::<(J, Option<Response>)>();
     let slots: Vec<Result<Worker, String>> = started.workers.drain(..).collect();
     let cmd = &started.cmd;
     std::thread::scope(|s| {
-        for slot in slots {
+        for (number, slot) in slots.into_iter().enumerate() {
             let tx = tx.clone();
-            let (source, prepare, request) = (&source, &prepare, &request);
+            let (source, prepare, request, affinity) = (&source, &prepare, &request, &affinity);
             s.spawn(move || {
                 let mut worker: Option<Worker> = slot.ok();
                 loop {
-                    let next = source.lock().unwrap_or_else(|e| e.into_inner()).next();
+                    let next = {
+                        let mut guard = source.lock().unwrap_or_else(|e| e.into_inner());
+                        let (source, lookahead) = &mut *guard;
+                        lookahead.take(number, source, affinity)
+                    };
                     let Some(job) = next else { break };
                     let job = prepare(job);
                     let Some(req) = request(&job) else {
@@ -622,6 +716,64 @@ mod tests {
             millis: 1.5,
             phases: BTreeMap::new(),
         }
+    }
+
+    /// Jobs `(number, device, pipeline)`; a job numbered 0 has no key.
+    fn keyed(jobs: &[(u32, u64, u64)]) -> Vec<(u32, Option<Affinity>)> {
+        jobs.iter()
+            .map(|&(n, device, pipeline)| (n, (n != 0).then_some(Affinity { device, pipeline })))
+            .collect()
+    }
+
+    #[test]
+    fn a_worker_takes_its_own_pipelines_and_devices_first_and_never_waits_for_them() {
+        // Two devices; pipelines 10 and 11 on device 1, 20 on device 2.
+        let jobs = keyed(&[
+            (1, 1, 10),
+            (2, 2, 20),
+            (3, 1, 11),
+            (4, 2, 20),
+            (5, 1, 10),
+            (6, 1, 11),
+            (7, 2, 20),
+            (0, 0, 0),
+            (8, 1, 10),
+            (9, 1, 10),
+            (10, 1, 10),
+        ]);
+        let keys: BTreeMap<u32, Option<Affinity>> = jobs.iter().copied().collect();
+        let mut source = jobs.into_iter().map(|(n, _)| n);
+        let affinity = |n: &u32| keys[n];
+        let mut ahead = Lookahead::new();
+        let mut took: Vec<(usize, u32)> = Vec::new();
+        // Workers 0 and 1 free in turn.
+        for turn in 0.. {
+            let w = turn % 2;
+            match ahead.take(w, &mut source, &affinity) {
+                Some(n) => took.push((w, n)),
+                None => break,
+            }
+        }
+        let mut all: Vec<u32> = took.iter().map(|&(_, n)| n).collect();
+        all.sort();
+        // Every job once: no worker was refused one while any was left.
+        assert_eq!(all, (0..=10).collect::<Vec<u32>>(), "{took:?}");
+        let worker_of = |n: u32| took.iter().find(|t| t.1 == n).unwrap().0;
+        // Worker 0 took the first job (device 1, pipeline 10): the other jobs of that pipeline
+        // and of device 1 follow it; worker 1 took device 2's first and keeps it.
+        assert_eq!(worker_of(1), 0);
+        assert_eq!(worker_of(2), 1);
+        for n in [3, 5, 6, 8] {
+            assert_eq!(worker_of(n), 0, "job {n}: {took:?}");
+        }
+        for n in [4, 7] {
+            assert_eq!(worker_of(n), 1, "job {n}: {took:?}");
+        }
+        // The keyless job went to the first worker free for it; at the end, with nothing of its
+        // own left, worker 1 took one of worker 0's rather than wait.
+        assert_eq!(worker_of(0), 1);
+        assert_eq!(worker_of(9), 1, "{took:?}");
+        assert_eq!(worker_of(10), 0, "{took:?}");
     }
 
     #[test]

@@ -79,6 +79,15 @@ pub struct Executor {
     pub gpu_timeout: Duration,
 }
 
+/// The keys of what a worker keeps between cases ([`Executor::affinity`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Affinity {
+    /// The case's device.
+    pub device: u64,
+    /// The case's pipeline on that device.
+    pub pipeline: u64,
+}
+
 /// The most devices of one valid pipeline each an executor keeps.
 const PIPELINE_DEVICES: usize = 8;
 
@@ -111,6 +120,29 @@ impl Executor {
             Some(q) => format!("{device} pool {:#x}", q.0),
             None => device,
         }
+    }
+
+    /// What a worker keeps from `case` for later cases: the key of its device ([`Executor::device_key`])
+    /// and of its pipeline on that device, hashed; None for a case that keeps nothing (a build case
+    /// makes its own device). Cases of one key are best run by one worker (see
+    /// [`crate::worker::run_stream_on`]): a second worker would make the device, its first views of
+    /// each format and the pipeline again.
+    pub fn affinity(case: &Case) -> Option<Affinity> {
+        use std::hash::{Hash, Hasher};
+        let trace = case.as_trace()?;
+        let world = &trace.world;
+        // SipHash with fixed keys: the same case gets the same key in every run.
+        let hash = |parts: &[&str]| {
+            let mut h = std::collections::hash_map::DefaultHasher::new();
+            parts.hash(&mut h);
+            h.finish()
+        };
+        let device = Self::device_key(world);
+        let pipeline = serde_json::to_string(&world.pipeline).unwrap_or_default();
+        Some(Affinity {
+            device: hash(&[&device]),
+            pipeline: hash(&[&device, &pipeline]),
+        })
     }
 
     /// Runs one case and reports what the layer said and what the device produced (see

@@ -129,6 +129,11 @@ impl Dispatch<'_> {
                 Drawn::Run(job) => Some(&job.request),
                 Drawn::Gated { .. } | Drawn::Ungated(..) => None,
             },
+            |d: &Drawn| match d {
+                Drawn::Ungated(case, _) => harness::Executor::affinity(case),
+                Drawn::Run(job) => harness::Executor::affinity(&job.request.case),
+                Drawn::Gated { .. } => None,
+            },
             |d, resp| match (d, resp) {
                 (
                     Drawn::Gated {
