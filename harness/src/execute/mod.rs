@@ -131,7 +131,7 @@ impl Executor {
         use std::hash::{Hash, Hasher};
         let trace = case.as_trace()?;
         let world = &trace.world;
-        // SipHash with fixed keys: the same case gets the same key in every run.
+        // Only this process compares the keys: equal strings, equal keys.
         let hash = |parts: &[&str]| {
             let mut h = std::collections::hash_map::DefaultHasher::new();
             parts.hash(&mut h);
