@@ -4,7 +4,7 @@
 //! geometry flags), a top-level structure over the plan's instance records (an inactive instance
 //! references 0), as KHR or NV acceleration structures, and the spheres buffer the intersection
 //! shader reads. Built once per content (a hash of the scene) and kept for the next cases on the
-//! device.
+//! device; for a case that is only recorded, its objects are made and its builds left out.
 
 use super::DeviceCache;
 use crate::error::{vkfail, HarnessError};
@@ -98,14 +98,24 @@ pub(crate) fn sized_structure(
 }
 
 impl DeviceCache {
-    /// The built scene of a case's scene plan (cached by the content of `scene`, the model's scene the
-    /// plan was made from): its top level and spheres buffer.
+    /// The scene of a case's scene plan (cached by the content of `scene`, the model's scene the
+    /// plan was made from): its top level and spheres buffer. With `build` false — a case that is
+    /// only recorded, never submitted — every object is made as for a built scene but the builds are
+    /// not recorded: no ray will read the structures, and what the layer checks of a bound
+    /// structure at record time is its handle and memory, not its content. A built scene of the same
+    /// content serves such a case too; an unbuilt one never serves a case that builds.
     pub(crate) fn scene(
         &mut self,
         scene: &model::scene::Scene,
         plan: &ScenePlan,
+        build: bool,
     ) -> Result<(Tlas, vk::Buffer), HarnessError> {
-        let key = format!("{:?}|{:016x}", plan.api, model::semantics::scene_key(scene));
+        let built_key = format!("{:?}|{:016x}", plan.api, model::semantics::scene_key(scene));
+        let key = if build || self.scenes.contains_key(&built_key) {
+            built_key
+        } else {
+            format!("{built_key}|unbuilt")
+        };
         if !self.scenes.contains_key(&key) {
             // Every earlier case waited for its submission: no kept scene is in use.
             while self.scene_order.len() >= KEPT_SCENES {
@@ -114,7 +124,7 @@ impl DeviceCache {
                     self.destroy_scene(s);
                 }
             }
-            let built = self.build_scene(plan);
+            let built = self.build_scene(plan, build);
             self.scenes.insert(key.clone(), built);
             self.scene_order.push(key.clone());
         }
@@ -124,7 +134,7 @@ impl DeviceCache {
         }
     }
 
-    fn build_scene(&mut self, scene: &ScenePlan) -> Result<Scene, HarnessError> {
+    fn build_scene(&mut self, scene: &ScenePlan, build: bool) -> Result<Scene, HarnessError> {
         let mut built = Scene {
             tlas: Tlas::Khr(vk::AccelerationStructureKHR::null()),
             spheres: vk::Buffer::null(),
@@ -133,7 +143,7 @@ impl DeviceCache {
             nv_memory: Vec::new(),
             buffers: Vec::new(),
         };
-        let result = self.build_scene_into(scene, &mut built);
+        let result = self.build_scene_into(scene, &mut built, build);
         match result {
             Ok(()) => Ok(built),
             Err(e) => {
@@ -147,6 +157,7 @@ impl DeviceCache {
         &mut self,
         scene: &ScenePlan,
         built: &mut Scene,
+        build: bool,
     ) -> Result<(), HarnessError> {
         let bytes = scene.sphere_bytes();
         // Every allocation on a device with bufferDeviceAddress is asked for its address, which needs
@@ -166,7 +177,7 @@ impl DeviceCache {
                     "the case traces rays but does not enable VK_NV_ray_tracing".into(),
                 ));
             };
-            return self.build_nv_scene_into(&nv, scene, built);
+            return self.build_nv_scene_into(&nv, scene, built, build);
         }
         let Some(accel) = self.dev.accel.clone() else {
             return Err(HarnessError::NotRealised(
@@ -180,7 +191,7 @@ impl DeviceCache {
                 "the case traces rays but does not enable accelerationStructure and bufferDeviceAddress".into(),
             ));
         }
-        self.build_khr_scene_into(&accel, scene, built)
+        self.build_khr_scene_into(&accel, scene, built, build)
     }
 
     fn build_khr_scene_into(
@@ -188,6 +199,7 @@ impl DeviceCache {
         accel: &ash::khr::acceleration_structure::Device,
         scene: &ScenePlan,
         built: &mut Scene,
+        build: bool,
     ) -> Result<(), HarnessError> {
         let dev = &self.dev;
         let input_usage = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
@@ -317,6 +329,9 @@ impl DeviceCache {
         built.buffers.push(storage);
         built.buffers.push(scratch);
 
+        if !build {
+            return Ok(());
+        }
         // Record: every BLAS, a barrier, the TLAS; submit and wait.
         let d = &dev.device;
         let cb = self.cmds.cb;
@@ -374,6 +389,7 @@ impl DeviceCache {
         nv: &ash::nv::ray_tracing::Device,
         scene: &ScenePlan,
         built: &mut Scene,
+        build: bool,
     ) -> Result<(), HarnessError> {
         let dev = &self.dev;
         let usage = vk::BufferUsageFlags::RAY_TRACING_NV;
@@ -526,6 +542,9 @@ impl DeviceCache {
             .instance_count(scene.instances.len() as u32);
         let (tlas, tlas_scratch) = make(tlas_info, built)?;
         built.tlas = Tlas::Nv(tlas);
+        if !build {
+            return Ok(());
+        }
 
         let d = &self.dev.device;
         let cb = self.cmds.cb;
@@ -617,4 +636,50 @@ pub(crate) fn instance_buffer(
         })
         .collect();
     Allocation::filled(dev, &bytes, 64, usage, 256)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::vk::{Driver, VkInstance};
+    use model::scene::{build, Scene};
+
+    /// A scene made for a case that is only recorded is never handed to a case that builds: the
+    /// latter gets a structure of its own, which then serves the recorded cases too (lavapipe).
+    #[test]
+    fn an_unbuilt_scene_serves_only_recorded_cases() {
+        let inst = std::sync::Arc::new(VkInstance::new(Driver::Lavapipe, false).expect("lavapipe"));
+        let names = |n: &[&str]| n.iter().map(|s| s.to_string()).collect();
+        let dev = VkDevice::new(
+            inst,
+            &names(&[
+                "VK_KHR_acceleration_structure",
+                "VK_KHR_buffer_device_address",
+                "VK_KHR_deferred_host_operations",
+            ]),
+            &names(&["accelerationStructure", "bufferDeviceAddress"]),
+            None,
+        )
+        .expect("a device with acceleration structures");
+        let mut cache = DeviceCache::new(dev).expect("a device cache");
+        let scene = Scene {
+            bottom_levels: vec![build::icosphere(0, 1.0)],
+            instances: vec![SceneInstance::of(0)],
+        };
+        let plan = ScenePlan::of(&scene, PipelineApi::Khr);
+        let (recorded, _) = cache.scene(&scene, &plan, false).expect("made");
+        assert_eq!(
+            cache.scene(&scene, &plan, false).expect("kept").0,
+            recorded,
+            "kept for the next recorded case"
+        );
+        let (submitted, _) = cache.scene(&scene, &plan, true).expect("built");
+        assert_ne!(submitted, recorded, "a case that builds gets its own");
+        assert_eq!(cache.scene(&scene, &plan, true).expect("kept").0, submitted);
+        assert_eq!(
+            cache.scene(&scene, &plan, false).expect("kept").0,
+            submitted,
+            "the built one serves recorded cases once it exists"
+        );
+    }
 }
