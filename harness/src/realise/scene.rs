@@ -4,7 +4,7 @@
 //! geometry flags), a top-level structure over the plan's instance records (an inactive instance
 //! references 0), as KHR or NV acceleration structures, and the spheres buffer the intersection
 //! shader reads. Built once per content (a hash of the scene) and kept for the next cases on the
-//! device; for a case that is only recorded, its objects are made and its builds left out.
+//! device; for a case that is only recorded, only its top level is made, and not built.
 
 use super::DeviceCache;
 use crate::error::{vkfail, HarnessError};
@@ -64,24 +64,35 @@ pub(crate) fn sized_structure(
             &mut sizes,
         )
     };
-    let storage_usage = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_STORAGE_KHR
-        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
     let scratch_usage =
         vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-    let none = vk::BufferCreateFlags::empty();
-    let storage = Allocation::new(
-        dev,
-        sizes.acceleration_structure_size.max(storage_min),
-        storage_usage,
-        none,
-        256,
-    )?;
+    let (structure, storage) = structure_on_storage(dev, accel, ty, &sizes, storage_min)?;
     let scratch = Allocation::new(
         dev,
         sizes.build_scratch_size.max(1),
         scratch_usage,
-        none,
+        vk::BufferCreateFlags::empty(),
         scratch_align,
+    )?;
+    Ok((structure, storage, scratch))
+}
+
+/// A structure of `ty` created on a storage buffer of its size (at least `storage_min` bytes).
+fn structure_on_storage(
+    dev: &VkDevice,
+    accel: &ash::khr::acceleration_structure::Device,
+    ty: vk::AccelerationStructureTypeKHR,
+    sizes: &vk::AccelerationStructureBuildSizesInfoKHR,
+    storage_min: u64,
+) -> Result<(vk::AccelerationStructureKHR, Allocation), HarnessError> {
+    let storage_usage = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_STORAGE_KHR
+        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+    let storage = Allocation::new(
+        dev,
+        sizes.acceleration_structure_size.max(storage_min),
+        storage_usage,
+        vk::BufferCreateFlags::empty(),
+        256,
     )?;
     // SAFETY: the storage buffer holds `acceleration_structure_size` bytes.
     let structure = unsafe {
@@ -93,17 +104,24 @@ pub(crate) fn sized_structure(
             None,
         )
     }
-    .map_err(vkfail("vkCreateAccelerationStructureKHR"))?;
-    Ok((structure, storage, scratch))
+    .map_err(vkfail("vkCreateAccelerationStructureKHR"));
+    match structure {
+        Ok(s) => Ok((s, storage)),
+        Err(e) => {
+            storage.destroy(dev);
+            Err(e)
+        }
+    }
 }
 
 impl DeviceCache {
     /// The scene of a case's scene plan (cached by the content of `scene`, the model's scene the
     /// plan was made from): its top level and spheres buffer. With `build` false — a case that is
-    /// only recorded, never submitted — every object is made as for a built scene but the builds are
-    /// not recorded: no ray will read the structures, and what the layer checks of a bound
-    /// structure at record time is its handle and memory, not its content. A built scene of the same
-    /// content serves such a case too; an unbuilt one never serves a case that builds.
+    /// only recorded, never submitted — only the top level (sized for the instances, on its own
+    /// memory) and the spheres buffer are made, and nothing is built: no ray will read the
+    /// structure, and what the layer checks of a bound structure at record time is its handle and
+    /// memory, not its content. A built scene of the same content serves such a case too; an unbuilt
+    /// one never serves a case that builds.
     pub(crate) fn scene(
         &mut self,
         scene: &model::scene::Scene,
@@ -205,6 +223,41 @@ impl DeviceCache {
         let input_usage = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
             | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
         let scratch_align = (dev.limits.scratch_alignment as u64).max(256);
+        if !build {
+            // What the trace command sees of the scene is its top level (the descriptor): only that
+            // is made, sized for the instances; no bottom level, input or scratch for builds that
+            // will not be recorded.
+            let geometry = [vk::AccelerationStructureGeometryKHR::default()
+                .geometry_type(vk::GeometryTypeKHR::INSTANCES)
+                .geometry(vk::AccelerationStructureGeometryDataKHR {
+                    instances: vk::AccelerationStructureGeometryInstancesDataKHR::default(),
+                })];
+            let info = vk::AccelerationStructureBuildGeometryInfoKHR::default()
+                .ty(vk::AccelerationStructureTypeKHR::TOP_LEVEL)
+                .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
+                .geometries(&geometry);
+            let mut sizes = vk::AccelerationStructureBuildSizesInfoKHR::default();
+            // SAFETY: a valid instances geometry (its address is ignored here) and one count.
+            unsafe {
+                accel.get_acceleration_structure_build_sizes(
+                    vk::AccelerationStructureBuildTypeKHR::DEVICE,
+                    &info,
+                    &[scene.instances.len() as u32],
+                    &mut sizes,
+                )
+            };
+            let (tlas, storage) = structure_on_storage(
+                dev,
+                accel,
+                vk::AccelerationStructureTypeKHR::TOP_LEVEL,
+                &sizes,
+                0,
+            )?;
+            built.structures.push(tlas);
+            built.tlas = Tlas::Khr(tlas);
+            built.buffers.push(storage);
+            return Ok(());
+        }
         let none = vk::BufferCreateFlags::empty();
         let input = &scene.input;
         let inputs = Allocation::new(dev, input.len() as u64, input_usage, none, 256)?;
@@ -329,9 +382,6 @@ impl DeviceCache {
         built.buffers.push(storage);
         built.buffers.push(scratch);
 
-        if !build {
-            return Ok(());
-        }
         // Record: every BLAS, a barrier, the TLAS; submit and wait.
         let d = &dev.device;
         let cb = self.cmds.cb;
@@ -394,13 +444,9 @@ impl DeviceCache {
         let dev = &self.dev;
         let usage = vk::BufferUsageFlags::RAY_TRACING_NV;
         let none = vk::BufferCreateFlags::empty();
-        let input = &scene.input;
-        let inputs = Allocation::new(dev, input.len() as u64, usage, none, 256)?;
-        inputs.write(0, input);
-        let input_buffer = inputs.buffer;
-        built.buffers.push(inputs);
 
-        // Creates a structure for `info`, binds it to fresh memory and makes a scratch buffer for its build.
+        // Creates a structure for `info`, binds it to fresh memory and, where it will be built, makes
+        // a scratch buffer for its build.
         let make = |info: vk::AccelerationStructureInfoNV,
                     built: &mut Scene|
          -> Result<(vk::AccelerationStructureNV, vk::Buffer), HarnessError> {
@@ -452,6 +498,9 @@ impl DeviceCache {
             // SAFETY: fresh memory of the required type and size.
             unsafe { nv.bind_acceleration_structure_memory(&bind) }
                 .map_err(vkfail("vkBindAccelerationStructureMemoryNV"))?;
+            if !build {
+                return Ok((s, vk::Buffer::null()));
+            }
             let scratch_buf = Allocation::new(
                 dev,
                 scratch.size.max(1),
@@ -463,6 +512,21 @@ impl DeviceCache {
             built.buffers.push(scratch_buf);
             Ok((s, b))
         };
+        if !build {
+            // What the trace command sees of the scene is its top level (the descriptor): only that
+            // is made, sized for the instances; no bottom level, input or scratch for builds that
+            // will not be recorded.
+            let info = vk::AccelerationStructureInfoNV::default()
+                .ty(vk::AccelerationStructureTypeNV::TOP_LEVEL)
+                .instance_count(scene.instances.len() as u32);
+            built.tlas = Tlas::Nv(make(info, built)?.0);
+            return Ok(());
+        }
+        let input = &scene.input;
+        let inputs = Allocation::new(dev, input.len() as u64, usage, none, 256)?;
+        inputs.write(0, input);
+        let input_buffer = inputs.buffer;
+        built.buffers.push(inputs);
 
         let mut handles = Vec::new();
         let mut blas_builds: Vec<(Vec<vk::GeometryNV>, vk::AccelerationStructureNV, vk::Buffer)> =
@@ -542,9 +606,6 @@ impl DeviceCache {
             .instance_count(scene.instances.len() as u32);
         let (tlas, tlas_scratch) = make(tlas_info, built)?;
         built.tlas = Tlas::Nv(tlas);
-        if !build {
-            return Ok(());
-        }
 
         let d = &self.dev.device;
         let cb = self.cmds.cb;
