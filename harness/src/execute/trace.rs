@@ -169,7 +169,7 @@ fn run(
     let (tlas, spheres) = match &plan.scene {
         Some(scene) => {
             let _phase = span(Phase::Structures);
-            // A case that is only recorded has its structures made, not built (see `DeviceCache::scene`).
+            // A case that is only recorded gets its top level made, not built (see `DeviceCache::scene`).
             let (t, s) = cache.scene(&world.launch.scene, scene, valid)?;
             (Some(t), Some(s))
         }
