@@ -47,9 +47,7 @@ impl SpareBuffers {
 
     /// Keeps `a` for a later case, or destroys it. The GPU no longer uses it.
     pub(crate) fn give_back(&mut self, a: Allocation, dev: &crate::vk::VkDevice) {
-        let keep = self.kept.len() < Self::COUNT
-            && a.size <= Self::LARGEST
-            && a.made_as(a.size, a.usage(), a.flags());
+        let keep = self.kept.len() < Self::COUNT && a.size <= Self::LARGEST && a.whole_bound();
         if keep {
             self.kept.push(a);
         } else {

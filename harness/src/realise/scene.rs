@@ -702,26 +702,21 @@ pub(crate) fn instance_buffer(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::vk::{Driver, VkInstance};
+    use crate::vk::lavapipe_device;
     use model::scene::{build, Scene};
 
     /// A scene made for a case that is only recorded is never handed to a case that builds: the
     /// latter gets a structure of its own, which then serves the recorded cases too (lavapipe).
     #[test]
     fn an_unbuilt_scene_serves_only_recorded_cases() {
-        let inst = std::sync::Arc::new(VkInstance::new(Driver::Lavapipe, false).expect("lavapipe"));
-        let names = |n: &[&str]| n.iter().map(|s| s.to_string()).collect();
-        let dev = VkDevice::new(
-            inst,
-            &names(&[
+        let dev = lavapipe_device(
+            &[
                 "VK_KHR_acceleration_structure",
                 "VK_KHR_buffer_device_address",
                 "VK_KHR_deferred_host_operations",
-            ]),
-            &names(&["accelerationStructure", "bufferDeviceAddress"]),
-            None,
-        )
-        .expect("a device with acceleration structures");
+            ],
+            &["accelerationStructure", "bufferDeviceAddress"],
+        );
         let mut cache = DeviceCache::new(dev).expect("a device cache");
         let scene = Scene {
             bottom_levels: vec![build::icosphere(0, 1.0)],

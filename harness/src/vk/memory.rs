@@ -365,19 +365,12 @@ impl Allocation {
         usage: vk::BufferUsageFlags,
         flags: vk::BufferCreateFlags,
     ) -> bool {
-        self.size == size
-            && self.usage == usage
-            && self.flags == flags
-            && self.pieces.len() == 1
-            && !flags.contains(vk::BufferCreateFlags::SPARSE_BINDING)
+        self.size == size && self.usage == usage && self.flags == flags && self.whole_bound()
     }
 
-    pub(crate) fn usage(&self) -> vk::BufferUsageFlags {
-        self.usage
-    }
-
-    pub(crate) fn flags(&self) -> vk::BufferCreateFlags {
-        self.flags
+    /// Whether the buffer is bound whole to one memory object of its own (not sparse).
+    pub(crate) fn whole_bound(&self) -> bool {
+        self.pieces.len() == 1 && !self.flags.contains(vk::BufferCreateFlags::SPARSE_BINDING)
     }
 
     /// Sets every bound byte of the buffer to zero (what a fresh allocation holds).

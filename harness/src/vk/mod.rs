@@ -24,7 +24,13 @@ pub(crate) use instance::{Collector, VkInstance};
 /// plumbing.
 #[cfg(test)]
 pub(crate) fn plain_lavapipe_device() -> VkDevice {
+    lavapipe_device(&[], &[])
+}
+
+/// A lavapipe device with `extensions` and `features` enabled, without the layer: for unit tests.
+#[cfg(test)]
+pub(crate) fn lavapipe_device(extensions: &[&str], features: &[&str]) -> VkDevice {
     let inst = std::sync::Arc::new(VkInstance::new(Driver::Lavapipe, false).expect("lavapipe"));
-    let none = std::collections::BTreeSet::new();
-    VkDevice::new(inst, &none, &none, None).expect("a device")
+    let names = |n: &[&str]| n.iter().map(|s| s.to_string()).collect();
+    VkDevice::new(inst, &names(extensions), &names(features), None).expect("a device")
 }
