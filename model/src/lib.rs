@@ -12,6 +12,7 @@ pub mod compact;
 pub mod expected;
 pub mod fingerprint;
 pub mod flags;
+pub(crate) mod helpers;
 pub mod integrity;
 pub mod locate;
 pub mod profile;

@@ -11,7 +11,7 @@ use crate::tracer::{
 };
 use crate::world::{GeometryKind, HandleRef, ShaderGroup, World};
 use std::collections::{BTreeSet, HashMap};
-use std::hash::BuildHasherDefault;
+use std::hash::{BuildHasherDefault, Hasher};
 use std::sync::{Arc, Mutex};
 
 mod reads;
@@ -757,31 +757,50 @@ pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
 }
 
 /// The index of the first of each distinct ray of `rays`, and for every ray the position of its
-/// distinct one in that list. The memo's table is the thread's, kept between launches (a table
-/// made afresh for each launch of thousands of rays costs as much as tracing a few of them).
+/// distinct one in that list. The table is an open-addressed one of 8-byte slots (a hash tag and a
+/// distinct ray's number) at most half full, the thread's, kept between launches: for a launch of
+/// thousands of rays it stays in the cache, where a map holding the 52-byte keys would not, and a
+/// tag that matches is confirmed by comparing the two rays' keys in full.
 fn distinct_rays(rays: &[Ray]) -> (Vec<u32>, Vec<u32>) {
-    type Memo = HashMap<[u32; 13], u32, BuildHasherDefault<RayKeyHasher>>;
     thread_local! {
-        static MEMO: std::cell::RefCell<Memo> = std::cell::RefCell::new(Memo::default());
+        static TABLE: std::cell::RefCell<Vec<(u32, u32)>> = const { std::cell::RefCell::new(Vec::new()) };
     }
-    MEMO.with(|memo| {
-        let mut memo = memo.borrow_mut();
-        memo.clear();
-        memo.reserve(rays.len());
+    TABLE.with(|table| {
+        let mut table = table.borrow_mut();
+        let size = (2 * rays.len()).next_power_of_two().max(16);
+        let mask = size - 1;
+        table.clear();
+        table.resize(size, (0, 0));
         let mut distinct: Vec<u32> = Vec::new();
-        let of = rays
-            .iter()
-            .enumerate()
-            .map(|(i, ray)| {
-                *memo.entry(ray_key(ray)).or_insert_with(|| {
-                    distinct.push(i as u32);
-                    distinct.len() as u32 - 1
-                })
-            })
-            .collect();
+        let mut of = Vec::with_capacity(rays.len());
+        for (i, ray) in rays.iter().enumerate() {
+            let key = ray_key(ray);
+            let mut hasher = RayKeyHasher::default();
+            key.iter().for_each(|&w| hasher.write_u32(w));
+            let h = hasher.finish();
+            let tag = (h >> 32) as u32;
+            let mut at = h as usize & mask;
+            // A slot's second field is the distinct ray's number plus one; 0 is an empty slot.
+            let d = loop {
+                match table[at] {
+                    (_, 0) => {
+                        distinct.push(i as u32);
+                        table[at] = (tag, distinct.len() as u32);
+                        break distinct.len() as u32 - 1;
+                    }
+                    (t, n)
+                        if t == tag && ray_key(&rays[distinct[n as usize - 1] as usize]) == key =>
+                    {
+                        break n - 1;
+                    }
+                    _ => at = (at + 1) & mask,
+                }
+            };
+            of.push(d);
+        }
         // A launch far larger than the usual leaves no table of its size behind.
-        if memo.capacity() > 1 << 16 {
-            *memo = Memo::default();
+        if table.capacity() > 1 << 17 {
+            *table = Vec::new();
         }
         (distinct, of)
     })
@@ -830,6 +849,8 @@ fn trace_distinct(
     slots.resize_with(distinct.len(), || None);
     let undefined = std::sync::atomic::AtomicBool::new(false);
     let chunks = Mutex::new(slots.chunks_mut(CHUNK).zip(distinct.chunks(CHUNK)));
+    // Each run's counters, summed below.
+    let parts: Mutex<Vec<TracerStats>> = Mutex::new(Vec::new());
     let work = || {
         let mut stats = TracerStats::default();
         let memo = HitRecordMemo::default();
@@ -854,32 +875,18 @@ fn trace_distinct(
                 }
             }
         }
-        stats
+        parts.lock().unwrap_or_else(|e| e.into_inner()).push(stats);
     };
-    // The calling thread is one of the workers.
-    let parts: Vec<TracerStats> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (1..workers).map(|_| scope.spawn(work)).collect();
-        let own = work();
-        std::iter::once(own)
-            .chain(
-                handles
-                    .into_iter()
-                    .map(|h| h.join().expect("a tracing worker does not panic")),
-            )
-            .collect()
-    });
-    for part in &parts {
+    // The calling thread is one of the workers; the others are the process's helper threads.
+    crate::helpers::run_beside(workers - 1, &work);
+    for part in parts.into_inner().unwrap_or_else(|e| e.into_inner()).iter() {
         stats.merge(part);
     }
     if undefined.into_inner() {
         return None;
     }
-    // Every slot was filled (no ray was undefined).
-    let mut all = Vec::with_capacity(slots.len());
-    for slot in slots {
-        all.push(slot?);
-    }
-    Some(all)
+    // Every slot was filled (no ray was undefined); collected in place, without a second buffer.
+    slots.into_iter().collect()
 }
 
 /// A hasher for [`ray_key`]s (the memo of distinct rays): a multiply-rotate mix of the words,

@@ -39,14 +39,16 @@ const LANE_MARGIN: f64 = 1.0 / 1_048_576.0;
 /// Largest magnitude of a corner, pad or origin component the lane test takes.
 const LANE_RANGE: f64 = (1u64 << 60) as f64;
 
-/// Four boxes in f32 lanes: corners per axis, and the lane pad `base + slope·|o|`.
+/// Four boxes in f32 lanes: corners per axis, and one pad `base + slope·|o|` for every lane (the
+/// largest of the lanes' own: a wider box keeps the lane test sound). 104 bytes, so a
+/// [`WideNode`] fits two cache lines.
 #[derive(Debug, Clone, Copy)]
-#[repr(C, align(64))]
+#[repr(C)]
 pub(crate) struct LaneBounds {
     lo: [[f32; 4]; 3],
     hi: [[f32; 4]; 3],
-    pad_base: [f32; 4],
-    pad_slope: [f32; 4],
+    pad_base: f32,
+    pad_slope: f32,
 }
 
 impl LaneBounds {
@@ -60,8 +62,8 @@ impl LaneBounds {
         let mut l = LaneBounds {
             lo: [[0.0; 4]; 3],
             hi: [[0.0; 4]; 3],
-            pad_base: [0.0; 4],
-            pad_slope: [0.0; 4],
+            pad_base: 0.0,
+            pad_slope: 0.0,
         };
         let mut fast = true;
         for (lane, b) in boxes.iter().enumerate() {
@@ -78,8 +80,8 @@ impl LaneBounds {
             let grow = 1.0 + margin;
             let base = (b.pad_base as f64 * grow + margin * reach + 2f64.powi(-100)) * grow;
             let slope = (b.pad_slope as f64 * grow + margin) * grow;
-            l.pad_base[lane] = f32_up(base);
-            l.pad_slope[lane] = f32_up(slope);
+            l.pad_base = l.pad_base.max(f32_up(base));
+            l.pad_slope = l.pad_slope.max(f32_up(slope));
             // Also NaN fails these.
             fast &= reach <= LANE_RANGE && base <= LANE_RANGE && slope <= 1024.0;
         }
@@ -92,16 +94,9 @@ impl LaneBounds {
     #[cfg(target_arch = "x86_64")]
     fn entries(&self, r: &LaneRay, far: [f32; 4]) -> ([f32; 4], u32) {
         use std::arch::x86_64::*;
-        // SAFETY: SSE is part of x86_64; the loads read 16-byte aligned lanes of `self` (align 64,
-        // every lane array at a multiple of 16 bytes).
+        // SAFETY: SSE is part of x86_64; the unaligned loads read four f32 lanes of `self`.
         unsafe {
-            let pad = _mm_add_ps(
-                _mm_load_ps(self.pad_base.as_ptr()),
-                _mm_mul_ps(
-                    _mm_load_ps(self.pad_slope.as_ptr()),
-                    _mm_set1_ps(r.origin_norm),
-                ),
-            );
+            let pad = _mm_set1_ps(self.pad_base + self.pad_slope * r.origin_norm);
             // Negation is exact: `face + (−pad)` rounds as `face − pad`.
             let neg_pad = _mm_sub_ps(_mm_setzero_ps(), pad);
             let mut near = _mm_set1_ps(r.tmin);
@@ -115,11 +110,11 @@ impl LaneBounds {
                 let o = _mm_set1_ps(r.origin[k]);
                 let inv = _mm_set1_ps(r.inv_direction[k]);
                 let t_in = _mm_mul_ps(
-                    _mm_sub_ps(_mm_add_ps(_mm_load_ps(first.as_ptr()), inward), o),
+                    _mm_sub_ps(_mm_add_ps(_mm_loadu_ps(first.as_ptr()), inward), o),
                     inv,
                 );
                 let t_out = _mm_mul_ps(
-                    _mm_sub_ps(_mm_add_ps(_mm_load_ps(last.as_ptr()), outward), o),
+                    _mm_sub_ps(_mm_add_ps(_mm_loadu_ps(last.as_ptr()), outward), o),
                     inv,
                 );
                 // No NaN reaches the lane test: max and min are the comparisons they stand for.
@@ -138,10 +133,7 @@ impl LaneBounds {
     #[cfg(not(target_arch = "x86_64"))]
     #[allow(clippy::needless_range_loop)] // lanes of several arrays indexed together
     fn entries(&self, r: &LaneRay, mut far: [f32; 4]) -> ([f32; 4], u32) {
-        let mut pad = [0f32; 4];
-        for l in 0..4 {
-            pad[l] = self.pad_base[l] + self.pad_slope[l] * r.origin_norm;
-        }
+        let pad = [self.pad_base + self.pad_slope * r.origin_norm; 4];
         let mut near = [r.tmin; 4];
         for k in 0..3 {
             let (first, last, s) = if r.positive[k] {
@@ -202,7 +194,9 @@ impl LaneRay {
 }
 
 /// A node of the four-wide tree: up to four lanes, each a child node (interior) or an item (leaf).
+/// Two cache lines (the traversal's memory traffic is mostly nodes), aligned to them.
 #[derive(Debug, Clone, Copy)]
+#[repr(C, align(64))]
 pub(crate) struct WideNode {
     bounds: LaneBounds,
     /// Per lane: the child's index in the tree (interior) or the item's index (leaf).
@@ -216,6 +210,11 @@ pub(crate) struct WideNode {
     /// Bit `lane`: every item below the lane is a triangle.
     lane_triangles: u8,
 }
+
+const _: () = assert!(
+    std::mem::size_of::<WideNode>() == 128,
+    "a node is two cache lines"
+);
 
 /// The four-wide tree: node 0 the root, with the root's own bound, and each node's lanes' f64
 /// bounds beside it.
@@ -262,7 +261,6 @@ impl WideTree {
             unsafe {
                 _mm_prefetch(p, _MM_HINT_T0);
                 _mm_prefetch(p.add(64), _MM_HINT_T0);
-                _mm_prefetch(p.add(128), _MM_HINT_T0);
             }
         }
     }
