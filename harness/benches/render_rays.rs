@@ -3,7 +3,7 @@
 //! as a vkCmdTraceRaysIndirectKHR launch of the hand-made case on lavapipe (structures, pipeline and
 //! shader table cached after a warm-up, so a pass is record, submit and read back the 28-word
 //! records), and by the model (`expected_launch`: the allowed outcomes of every launch ID, the
-//! prepared scene cached likewise). Each rate is the median of five passes; the ratio is the oracle's
+//! prepared scene cached likewise). Each rate is the median of fifteen passes; the ratio is the oracle's
 //! rate over lavapipe's, and `paired` the median of the passes' own ratios (each pass times the two
 //! back to back, so a change in the machine's load between passes moves both sides alike). Also the share of ray/primitive tests that needed the exact fallback, and
 //! whether lavapipe's records pass the judgement. Lavapipe runs llvmpipe on every core, and the model
@@ -20,7 +20,7 @@ use std::time::Instant;
 
 /// Launch side: 64x64 launch IDs, one camera ray each.
 const SIDE: u32 = 64;
-const PASSES: usize = 5;
+const PASSES: usize = 15;
 
 #[path = "../../model/benches/common/mod.rs"]
 mod common;
