@@ -762,6 +762,16 @@ pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
 /// thousands of rays it stays in the cache, where a map holding the 52-byte keys would not, and a
 /// tag that matches is confirmed by comparing the two rays' keys in full.
 fn distinct_rays(rays: &[Ray]) -> (Vec<u32>, Vec<u32>) {
+    distinct_rays_hashed(rays, |key| {
+        let mut hasher = RayKeyHasher::default();
+        key.iter().for_each(|&w| hasher.write_u32(w));
+        hasher.finish()
+    })
+}
+
+/// [`distinct_rays`] with the keys hashed by `hash` (a test's hash that sends every key to one slot
+/// with one tag: the probing and the comparison of keys decide everything).
+fn distinct_rays_hashed(rays: &[Ray], hash: impl Fn(&[u32; 13]) -> u64) -> (Vec<u32>, Vec<u32>) {
     thread_local! {
         static TABLE: std::cell::RefCell<Vec<(u32, u32)>> = const { std::cell::RefCell::new(Vec::new()) };
     }
@@ -775,9 +785,7 @@ fn distinct_rays(rays: &[Ray]) -> (Vec<u32>, Vec<u32>) {
         let mut of = Vec::with_capacity(rays.len());
         for (i, ray) in rays.iter().enumerate() {
             let key = ray_key(ray);
-            let mut hasher = RayKeyHasher::default();
-            key.iter().for_each(|&w| hasher.write_u32(w));
-            let h = hasher.finish();
+            let h = hash(&key);
             let tag = (h >> 32) as u32;
             let mut at = h as usize & mask;
             // A slot's second field is the distinct ray's number plus one; 0 is an empty slot.
@@ -914,6 +922,75 @@ impl std::hash::Hasher for RayKeyHasher {
     fn write_usize(&mut self, x: usize) {
         self.write_u32(x as u32);
         self.write_u32((x as u64 >> 32) as u32);
+    }
+}
+
+#[cfg(test)]
+mod distinct_ray_tests {
+    use super::*;
+
+    /// The first of each distinct ray and every ray's distinct one, by comparing each ray's key with
+    /// that of every distinct ray found before it.
+    fn by_comparison(rays: &[Ray]) -> (Vec<u32>, Vec<u32>) {
+        let mut distinct: Vec<u32> = Vec::new();
+        let of = rays
+            .iter()
+            .enumerate()
+            .map(|(i, r)| {
+                match distinct
+                    .iter()
+                    .position(|&d| ray_key(&rays[d as usize]) == ray_key(r))
+                {
+                    Some(k) => k as u32,
+                    None => {
+                        distinct.push(i as u32);
+                        distinct.len() as u32 - 1
+                    }
+                }
+            })
+            .collect();
+        (distinct, of)
+    }
+
+    /// Rays drawn with repeats from a few dozen, some a bit apart from another (tmax one ULP
+    /// higher, −0 for +0, another miss index): the table finds the same distinct rays as comparing
+    /// them all, launch after launch of different sizes (its slots reused), also when every key
+    /// hashes alike.
+    #[test]
+    fn the_table_of_distinct_rays_finds_what_comparing_every_pair_finds() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 33) as usize
+        };
+        let mut pool = Vec::new();
+        for k in 0..40 {
+            let base = Ray::new([0.0, k as f32, 1.0], [0.0, 0.0, -1.0], 0.0, 10.0);
+            pool.push(base);
+            pool.push(Ray {
+                tmax: f32::from_bits(10.0f32.to_bits() + 1),
+                ..base
+            });
+            pool.push(Ray {
+                miss_index: 1,
+                ..base
+            });
+        }
+        pool.push(Ray::new([-0.0, 0.0, 1.0], [0.0, 0.0, -1.0], 0.0, 10.0));
+        for len in [3000, 7, 1, 600, 5000] {
+            let rays: Vec<Ray> = (0..len).map(|_| pool[next() % pool.len()]).collect();
+            let (distinct, of) = distinct_rays(&rays);
+            let (expect_distinct, expect_of) = by_comparison(&rays);
+            assert_eq!(distinct, expect_distinct, "launch of {len}");
+            assert_eq!(of, expect_of, "launch of {len}");
+            // Every key hashed alike: one chain of slots, each tag matching, the keys deciding.
+            let colliding = distinct_rays_hashed(&rays, |_| 7);
+            assert_eq!(colliding, (expect_distinct, expect_of), "launch of {len}");
+            // The near twins stayed apart: more distinct rays than base rays were drawn.
+            assert!(len < 600 || distinct.len() > 40, "launch of {len}");
+        }
     }
 }
 
