@@ -81,7 +81,7 @@ pub struct RunArgs {
     /// Registry sources for the rules (default: the installed registry, the layer's own version).
     #[arg(long = "from")]
     from: Vec<PathBuf>,
-    /// Triage files (default: triage/layer-<the layer's version>.yaml and triage/<driver>.yaml, where present).
+    /// Triage files (default: triage/layer-VERSION.yaml for the layer's VERSION and triage/DRIVER.yaml, where present).
     #[arg(long)]
     triage: Vec<PathBuf>,
     /// The validation layer build to use: a directory with its manifest, or an unpacked package root

@@ -4,7 +4,7 @@
 
 use crate::call::Address;
 
-/// `VkBuildAccelerationStructureFlagsKHR` as a bit mask (names in [`BuildFlags::NAMES`]).
+/// `VkBuildAccelerationStructureFlagsKHR` as a bit mask.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(transparent)]
 pub struct BuildFlags(pub u32);

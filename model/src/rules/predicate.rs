@@ -1,5 +1,5 @@
 //! Executable predicates: the closed set of checks a rule row can run, each evaluated against a
-//! prepared [`Context`](super::Context) with no string work.
+//! prepared [`Context`] with no string work.
 
 use super::Context;
 use crate::call::{Call, Param, Table};

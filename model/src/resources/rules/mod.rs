@@ -1,6 +1,6 @@
 //! The resource-access rules the trace commands share with draw/dispatch: which VUID tag is which
 //! [`ResourceRule`] (the text decides between versions' wordings), and what each rule checks in a
-//! world's [`ResourceState`](super::ResourceState).
+//! world's [`ResourceState`].
 //!
 //! Rules whose resources no captured driver exposes (QCOM image processing and tile shading, cubic
 //! filtering, ARM tensors) are executable here all the same; their row carries a note saying they
