@@ -19,7 +19,8 @@
 //!   neither; the reference tracer's judging is the oracle's and printed on its own line
 //!   (`run judge over gpu`; the oracle's speed against lavapipe is `--bench render_rays`);
 //! - `run time <phase>`: where each run's case time went (`summary.json` `time`), seconds summed
-//!   over the cases.
+//!   over the cases, and `runner-cpu`: the CPU seconds of the runner process itself (generating,
+//!   judging and writing, beside the workers).
 //!
 //! The run's lavapipe shader cache (Mesa's, on disk) is warm after the first run on a machine: the
 //! harness makes each valid pipeline as the same code every time (see `harness::Executor`), so the
@@ -205,7 +206,7 @@ fn end_to_end(s: &Selection, out: &Path) -> (f64, usize, BTreeMap<String, f64>) 
     .expect("summary.json parses");
     let cases = summary["cases"].as_u64().unwrap_or(0) as usize;
     let seconds = summary["seconds"].as_f64().unwrap_or(f64::NAN);
-    let time: BTreeMap<String, f64> = summary["time"]
+    let mut time: BTreeMap<String, f64> = summary["time"]
         .as_object()
         .map(|o| {
             o.iter()
@@ -213,6 +214,10 @@ fn end_to_end(s: &Selection, out: &Path) -> (f64, usize, BTreeMap<String, f64>) 
                 .collect()
         })
         .unwrap_or_default();
+    // The runner's own CPU (generation, judging, writing), beside the workers' phases.
+    if let Some(cpu) = summary["runner_cpu_seconds"].as_f64() {
+        time.insert("runner-cpu".into(), cpu);
+    }
     assert!(cases > 0, "{}: the run made no case", s.name);
     (seconds, cases, time)
 }

@@ -179,6 +179,8 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Merged, SessionError> {
     // The farm's wall time is its slowest shard's; memory is per machine.
     summary.seconds = summaries.iter().map(|s| s.seconds).fold(0.0, f64::max);
     summary.runner_peak_rss_kib = summaries.iter().filter_map(|s| s.runner_peak_rss_kib).max();
+    // CPU adds up over the shards' runners (a shard without the figure leaves the sum unknown).
+    summary.runner_cpu_seconds = summaries.iter().map(|s| s.runner_cpu_seconds).sum();
     summary.write(&out.join("summary.json"))?;
     write_junit(&results_path, &out.join("junit.xml"), &summary)?;
     let report = crate::html::write_report(out).map_err(|e| e.to_string());

@@ -88,6 +88,10 @@ pub struct Summary {
     pub expectations: Vec<String>,
     /// Peak resident memory of the runner process itself (workers excluded), in KiB (Linux).
     pub runner_peak_rss_kib: Option<u64>,
+    /// CPU time of the runner process itself (all its threads: generation, judging, writing; the
+    /// workers excluded), in seconds, over the same span as `seconds`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub runner_cpu_seconds: Option<f64>,
     /// Wall time of the run, in seconds.
     pub seconds: f64,
     /// Where the cases' time went, in seconds summed over the cases (so over the workers, which run

@@ -705,6 +705,7 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         summary.inject = Some(crate::inject::totals(i, &results_path)?);
     }
     summary.runner_peak_rss_kib = peak_rss_kib();
+    summary.runner_cpu_seconds = runner_cpu_seconds();
     summary.seconds = started.elapsed().as_secs_f64();
     summary.write(&config.out.join("summary.json"))?;
     write_junit(&results_path, &config.out.join("junit.xml"), &summary)?;
@@ -732,6 +733,18 @@ fn slices(count: usize) -> impl Iterator<Item = std::ops::Range<usize>> {
 }
 
 /// `VmHWM` of this process from /proc (None elsewhere).
+/// CPU seconds (user and system) of this process's threads so far; workers are other processes.
+fn runner_cpu_seconds() -> Option<f64> {
+    // SAFETY: an all-zero rusage is a valid value of the plain C struct.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: getrusage writes one rusage through a valid pointer.
+    if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) } != 0 {
+        return None;
+    }
+    let seconds = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
+    Some(seconds(usage.ru_utime) + seconds(usage.ru_stime))
+}
+
 fn peak_rss_kib() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;

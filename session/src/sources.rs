@@ -30,8 +30,16 @@ pub fn sources_or_default(from: &[PathBuf]) -> Vec<PathBuf> {
 
 /// Loads the union of the sources, with a message that says how to install the registry if missing.
 pub fn load_sources(from: &[PathBuf]) -> Result<vk_registry::vuid::VuidSet, SessionError> {
+    load_sources_where(from, &|_| true)
+}
+
+/// [`load_sources`] with the VUIDs whose scope `keep` accepts (`vk_registry::source::load_union_where`).
+pub fn load_sources_where(
+    from: &[PathBuf],
+    keep: &dyn Fn(&str) -> bool,
+) -> Result<vk_registry::vuid::VuidSet, SessionError> {
     let paths = sources_or_default(from);
-    vk_registry::source::load_union(&paths).map_err(|e| SessionError::Registry {
+    vk_registry::source::load_union_where(&paths, keep).map_err(|e| SessionError::Registry {
         problem: e.to_string(),
         hint: if from.is_empty() {
             format!(
@@ -83,12 +91,15 @@ pub fn default_profile_name(driver: &str) -> String {
 /// The registry a run judges with when no source is named: the installed one if it is of the layer's
 /// version, else `target/registry/<layer version>/usr/share/vulkan/registry` (what
 /// `scripts/fetch-registry.sh` unpacks), so the model's VUIDs are the layer's. An explicit `--from`
-/// is used as given.
+/// is used as given. Only the VUIDs of the scopes the rule table models
+/// ([`model::rules::modelled_scope`]) are read: a rule table and the version are what its callers
+/// take from it, and the other scopes' thousands of records are most of a registry's reading time.
 pub fn registry_for_layer(
     from: &[PathBuf],
     layer: Option<&harness::LayerInfo>,
 ) -> Result<vk_registry::vuid::VuidSet, SessionError> {
-    let installed = load_sources(from)?;
+    let modelled = &model::rules::modelled_scope;
+    let installed = load_sources_where(from, modelled)?;
     let Some(layer) = layer else {
         return Ok(installed);
     };
@@ -100,7 +111,7 @@ pub fn registry_for_layer(
         .join(&layer.version)
         .join("usr/share/vulkan/registry");
     if fetched.join("validusage.json").is_file() {
-        return load_sources(&[fetched]);
+        return load_sources_where(&[fetched], modelled);
     }
     Err(SessionError::Registry {
         problem: format!(

@@ -19,7 +19,7 @@ fn every_modelled_vuid_of_the_installed_registry_has_exactly_one_row() {
     let rows: Vec<&str> = rules.rows.iter().map(|r| r.vuid.as_str()).collect();
     assert_eq!(rows, expected);
     // Every row, of any command, executes through its predicate.
-    for r in &rules.rows {
+    for r in rules.rows.iter() {
         assert!(
             (r.status == Status::Executable) == r.predicate.is_some(),
             "{}",

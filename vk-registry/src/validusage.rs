@@ -41,12 +41,29 @@ struct Entry<'a> {
 
 /// Read a validusage.json file.
 pub fn load(path: &Path) -> Result<VuidSet, RegistryError> {
+    load_where(path, &|_| true)
+}
+
+/// Read a validusage.json file, keeping the VUIDs whose scope `keep` accepts (see [`parse_where`]).
+pub fn load_where(path: &Path, keep: &dyn Fn(&str) -> bool) -> Result<VuidSet, RegistryError> {
     let text = read_to_string(path)?;
-    parse(&text, &path.display().to_string())
+    parse_where(&text, &path.display().to_string(), keep)
 }
 
 /// Parse validusage.json text; `origin` names the source in errors and in the set.
 pub fn parse(text: &str, origin: &str) -> Result<VuidSet, RegistryError> {
+    parse_where(text, origin, &|_| true)
+}
+
+/// [`parse`], keeping only the VUIDs whose scope (the command or structure their id names)
+/// `keep` accepts: the others' text is never normalised nor their condition key read, so an
+/// error in them is not reported (the whole document's JSON still is). A run judges with a few
+/// scopes of the registry's thousands.
+pub fn parse_where(
+    text: &str,
+    origin: &str,
+    keep: &dyn Fn(&str) -> bool,
+) -> Result<VuidSet, RegistryError> {
     let doc: Doc = match serde_json::from_str(text) {
         Ok(d) => d,
         Err(e) => return Err(locate_json_error(text, origin, e)),
@@ -65,6 +82,11 @@ pub fn parse(text: &str, origin: &str) -> Result<VuidSet, RegistryError> {
         conds.sort_by(|a, b| a.0 .0.cmp(&b.0 .0));
         for (cond_key, entries) in conds {
             let key: &str = &cond_key.0;
+            // An id that is no VUID is kept, to be reported below.
+            let kept = |e: &Entry| crate::vuid::split_vuid(&e.vuid).is_none_or(|p| keep(p.scope));
+            if !entries.iter().any(kept) {
+                continue;
+            }
             let cond = match cond_cache.get(key) {
                 Some(c) => c.clone(),
                 None => {
@@ -84,6 +106,9 @@ pub fn parse(text: &str, origin: &str) -> Result<VuidSet, RegistryError> {
                 }
             };
             for (i, e) in entries.iter().enumerate() {
+                if !kept(e) {
+                    continue;
+                }
                 let cond = match &e.condition {
                     Some(c) => Condition::parse(c).map_err(|(off, msg)| {
                         json_path_error(

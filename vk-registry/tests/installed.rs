@@ -262,3 +262,30 @@ fn truncated_installed_vk_xml_never_panics() {
         assert!(e.location().is_some(), "{e}");
     }
 }
+
+/// Reading only some scopes gives exactly the full reading's records of those scopes (and its
+/// version), for the ray tracing scopes, one other scope, and no scope at all.
+#[test]
+fn a_scoped_reading_is_the_full_one_filtered() {
+    let full = installed_vuids();
+    let path = common::installed_dir();
+    type Keep<'a> = &'a dyn Fn(&str) -> bool;
+    let pickers: [(&str, Keep); 3] = [
+        ("ray tracing", &|s: &str| {
+            s.starts_with("vkCmdTraceRays")
+                || s == "vkCmdBuildAccelerationStructuresIndirectKHR"
+                || s == "VkStridedDeviceAddressRegionKHR"
+        }),
+        ("one struct", &|s: &str| s == "VkImageViewCreateInfo"),
+        ("none", &|_: &str| false),
+    ];
+    for (name, keep) in pickers {
+        let scoped = vk_registry::source::load_vuids_where(&path, keep)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let want: Vec<_> = full.records.iter().filter(|r| keep(&r.scope)).collect();
+        let got: Vec<_> = scoped.records.iter().collect();
+        assert_eq!(got, want, "{name}");
+        assert_eq!(scoped.version, full.version, "{name}");
+        assert!(name == "none" || !got.is_empty(), "{name} keeps records");
+    }
+}

@@ -235,6 +235,11 @@ fn prototypes_are_found_past_long_prose_lines_and_conditions_too_deep_are_locate
     assert!(e.to_string().len() < 300, "{e}");
 }
 
+/// A cut in the middle of the document's JSON.
+fn cut_json(text: &str) -> usize {
+    text.len() / 2
+}
+
 #[test]
 fn garbled_json_gives_line_column_or_json_path() {
     let text = common::fixture_text("validusage_1_3.json");
@@ -289,6 +294,17 @@ fn garbled_json_gives_line_column_or_json_path() {
         e.to_string().contains("$.validation.vkCmdToyDispatch"),
         "{e}"
     );
+    // ... read only where its scope is kept: another scope's reading does not see it, and the
+    // JSON itself is still read whole
+    let others = |s: &str| s != "vkCmdToyDispatch";
+    let set = validusage::parse_where(&bad, "v.json", &others).expect("the other scopes read");
+    assert!(!set.records.is_empty());
+    assert!(set.records.iter().all(|r| others(&r.scope)));
+    assert!(validusage::parse_where(&bad, "v.json", &|s| s == "vkCmdToyDispatch").is_err());
+    assert!(validusage::parse_where(&text[..cut_json(&text)], "v.json", &others).is_err());
+    // an id that is no VUID has no scope to skip it by
+    let bad = text.replacen("VUID-VkToyRegion-stride-00003", "NOT-A-VUID", 1);
+    assert!(validusage::parse_where(&bad, "v.json", &|s| s == "vkCmdToyDispatch").is_err());
     // missing validation
     let e = validusage::parse("{\"version info\": {}}", "v.json").unwrap_err();
     assert!(e.to_string().contains("validation"), "{e}");

@@ -347,10 +347,12 @@ pub fn print_summary(s: &Summary, out: &Path, not_expressible: usize, verbose: b
         );
     }
     println!(
-        "time:    {:.1} s, {:.0} cases/s, runner peak RSS {} KiB",
+        "time:    {:.1} s, {:.0} cases/s, runner peak RSS {} KiB, runner CPU {} s",
         s.seconds,
         s.cases as f64 / s.seconds.max(1e-9),
-        s.runner_peak_rss_kib.map_or("?".into(), |k| k.to_string())
+        s.runner_peak_rss_kib.map_or("?".into(), |k| k.to_string()),
+        s.runner_cpu_seconds
+            .map_or("?".into(), |c| format!("{c:.2}"))
     );
     if !s.time.is_empty() {
         let total: f64 = s.time.values().sum();

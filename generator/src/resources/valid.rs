@@ -23,8 +23,8 @@ pub(super) fn formats_with(
         .into_iter()
         .filter(|f| formats::info(f).is_some_and(|i| i.width <= 32))
         .filter(|f| {
-            let s = feats(profile, f, u);
-            need.iter().all(|b| s.contains(*b)) && not.iter().all(|b| !s.contains(*b))
+            let has = |b: &&str| formats::has_bit(profile, f, u, b) == Some(true);
+            need.iter().all(has) && !not.iter().any(has)
         })
         .map(String::from)
         .collect()

@@ -108,36 +108,82 @@ pub enum Usage {
 /// The feature names (without `VK_FORMAT_FEATURE_` / `VK_FORMAT_FEATURE_2_`) the device has for the
 /// format, derived bits included; None when the profile does not report the format.
 pub fn features(profile: &DeviceProfile, format: &str, usage: Usage) -> Option<BTreeSet<String>> {
+    let raw = reported_bits(profile, format, usage)?;
+    let mut set: BTreeSet<String> = raw.iter().map(|n| unprefixed(n).to_string()).collect();
+    if !lists_flags2(raw) {
+        let named = |b: &str| set.contains(b);
+        let derived: Vec<&str> = DERIVED_BITS
+            .into_iter()
+            .filter(|bit| derived_bit(profile, format, bit, named))
+            .collect();
+        set.extend(derived.into_iter().map(String::from));
+    }
+    Some(set)
+}
+
+/// Whether `bit` (a name as [`features`] gives them) is among the format's features: the same
+/// answer as `features(..)` containing it, without building the set (the generator asks this of
+/// every format of the profile for every case). None when the profile does not report the format.
+pub fn has_bit(profile: &DeviceProfile, format: &str, usage: Usage, bit: &str) -> Option<bool> {
+    let raw = reported_bits(profile, format, usage)?;
+    let named = |b: &str| raw.iter().any(|n| unprefixed(n) == b);
+    Some(named(bit) || (!lists_flags2(raw) && derived_bit(profile, format, bit, named)))
+}
+
+/// The bits [`derived_bit`] derives where the profile lists no `VK_FORMAT_FEATURE_2_` name.
+const DERIVED_BITS: [&str; 3] = [
+    "STORAGE_READ_WITHOUT_FORMAT_BIT",
+    "STORAGE_WRITE_WITHOUT_FORMAT_BIT",
+    "SAMPLED_IMAGE_DEPTH_COMPARISON_BIT",
+];
+
+/// Whether a bit of [`DERIVED_BITS`] follows from what the profile carries (the module's text);
+/// `named` says whether the profile names a bit for the format. False for any other bit.
+fn derived_bit(
+    profile: &DeviceProfile,
+    format: &str,
+    bit: &str,
+    named: impl Fn(&str) -> bool,
+) -> bool {
+    let storage = || named("STORAGE_IMAGE_BIT") || named("STORAGE_TEXEL_BUFFER_BIT");
+    match bit {
+        "STORAGE_READ_WITHOUT_FORMAT_BIT" => {
+            storage() && profile.has_feature("shaderStorageImageReadWithoutFormat")
+        }
+        "STORAGE_WRITE_WITHOUT_FORMAT_BIT" => {
+            storage() && profile.has_feature("shaderStorageImageWriteWithoutFormat")
+        }
+        "SAMPLED_IMAGE_DEPTH_COMPARISON_BIT" => {
+            named("SAMPLED_IMAGE_BIT") && info(format).is_some_and(|i| i.depth)
+        }
+        _ => false,
+    }
+}
+
+/// The feature names the profile lists for the format and usage, as listed.
+fn reported_bits<'a>(
+    profile: &'a DeviceProfile,
+    format: &str,
+    usage: Usage,
+) -> Option<&'a BTreeSet<String>> {
     let ff = profile.formats.get(format)?;
-    let raw = match usage {
+    Some(match usage {
         Usage::Optimal => &ff.optimal_tiling,
         Usage::Linear => &ff.linear_tiling,
         Usage::Buffer => &ff.buffer,
-    };
-    let mut set: BTreeSet<String> = raw
-        .iter()
-        .map(|n| {
-            let n = n
-                .strip_prefix("VK_FORMAT_FEATURE_2_")
-                .or_else(|| n.strip_prefix("VK_FORMAT_FEATURE_"))
-                .unwrap_or(n);
-            n.to_string()
-        })
-        .collect();
-    let explicit2 = raw.iter().any(|n| n.starts_with("VK_FORMAT_FEATURE_2_"));
-    if !explicit2 {
-        let storage = set.contains("STORAGE_IMAGE_BIT") || set.contains("STORAGE_TEXEL_BUFFER_BIT");
-        if storage && profile.has_feature("shaderStorageImageReadWithoutFormat") {
-            set.insert("STORAGE_READ_WITHOUT_FORMAT_BIT".into());
-        }
-        if storage && profile.has_feature("shaderStorageImageWriteWithoutFormat") {
-            set.insert("STORAGE_WRITE_WITHOUT_FORMAT_BIT".into());
-        }
-        if info(format).is_some_and(|i| i.depth) && set.contains("SAMPLED_IMAGE_BIT") {
-            set.insert("SAMPLED_IMAGE_DEPTH_COMPARISON_BIT".into());
-        }
-    }
-    Some(set)
+    })
+}
+
+/// Whether the profile lists `VkFormatFeatureFlags2` names (then nothing is derived).
+fn lists_flags2(raw: &BTreeSet<String>) -> bool {
+    raw.iter().any(|n| n.starts_with("VK_FORMAT_FEATURE_2_"))
+}
+
+/// A feature name without its `VK_FORMAT_FEATURE_2_` or `VK_FORMAT_FEATURE_` prefix.
+fn unprefixed(n: &str) -> &str {
+    n.strip_prefix("VK_FORMAT_FEATURE_2_")
+        .or_else(|| n.strip_prefix("VK_FORMAT_FEATURE_"))
+        .unwrap_or(n)
 }
 
 /// The formats the profile reports, in name order.
@@ -148,6 +194,76 @@ pub fn reported(profile: &DeviceProfile) -> Vec<&str> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `has_bit` answers as the set `features` builds, for every format, usage and bit of the
+    /// lavapipe profile (and the derived bits, and one bit no format has), with each derivation's
+    /// feature on and off, and with every name a `VK_FORMAT_FEATURE_2_` one.
+    #[test]
+    fn a_bit_test_agrees_with_the_feature_set() {
+        let text = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../profiles/lavapipe.json"
+        ))
+        .expect("the lavapipe profile");
+        let base = crate::profile::DeviceProfile::from_profiles_json("lavapipe", &text)
+            .expect("the lavapipe profile parses");
+        let mut variants = vec![base.clone()];
+        for flip in [true, false] {
+            let mut p = base.clone();
+            for (k, v) in p.features.iter_mut() {
+                if k.ends_with("WithoutFormat") {
+                    *v = flip;
+                }
+            }
+            variants.push(p);
+        }
+        // Every name as a `VK_FORMAT_FEATURE_2_` one: nothing is derived.
+        let mut flags2 = base.clone();
+        for ff in flags2.formats.values_mut() {
+            for set in [
+                &mut ff.linear_tiling,
+                &mut ff.optimal_tiling,
+                &mut ff.buffer,
+            ] {
+                *set = set
+                    .iter()
+                    .map(|n| format!("VK_FORMAT_FEATURE_2_{}", unprefixed(n)))
+                    .collect();
+            }
+        }
+        variants.push(flags2);
+        let (mut asked, mut present) = (0, 0);
+        for p in &variants {
+            let mut bits: BTreeSet<String> = DERIVED_BITS.iter().map(|b| b.to_string()).collect();
+            bits.insert("NO_SUCH_BIT".into());
+            for ff in p.formats.values() {
+                for set in [&ff.linear_tiling, &ff.optimal_tiling, &ff.buffer] {
+                    bits.extend(set.iter().map(|n| unprefixed(n).to_string()));
+                }
+            }
+            for f in p.formats.keys() {
+                for u in [Usage::Optimal, Usage::Linear, Usage::Buffer] {
+                    let set = features(p, f, u).expect("a reported format");
+                    for b in &bits {
+                        asked += 1;
+                        let has = has_bit(p, f, u, b).expect("a reported format");
+                        present += has as usize;
+                        assert_eq!(has, set.contains(b), "{f} {u:?} {b}");
+                    }
+                }
+            }
+        }
+        assert!(present > 0 && present < asked, "{present} of {asked}");
+        assert_eq!(
+            has_bit(
+                &base,
+                "VK_FORMAT_NO_SUCH",
+                Usage::Optimal,
+                "SAMPLED_IMAGE_BIT"
+            ),
+            None
+        );
+    }
 
     #[test]
     fn ycbcr_formats_are_told_from_their_names() {

@@ -191,11 +191,12 @@ impl Row {
     }
 }
 
-/// The rule table for one loaded registry version.
+/// The rule table for one loaded registry version. Cloned for every generated spec's strategy, so
+/// the rows are shared, not copied.
 #[derive(Debug, Clone)]
 pub struct RuleSet {
     pub version: Option<String>,
-    pub rows: Vec<Row>,
+    pub rows: std::sync::Arc<[Row]>,
 }
 
 impl RuleSet {
