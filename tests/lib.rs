@@ -129,11 +129,7 @@ impl Lavapipe {
 
     /// One case run and judged as a run does (the gate, the execution, one verdict, the comparison).
     pub fn run(&mut self, case: &model::Case) -> session::CaseReport {
-        let judging = session::run::Judging {
-            rules: &self.rules,
-            profile: &self.profile,
-            triage: &self.triage,
-        };
+        let judging = session::run::Judging::new(&self.rules, &self.profile, &self.triage);
         judging
             .run_here(&mut self.executor, case, harness::TraceCheck::Auto)
             .report

@@ -148,11 +148,7 @@ pub fn detect(config: &DetectConfig) -> Result<Detection, SessionError> {
     let profile = sources::profile_for(&profile_name)?;
     let triage = sources::triage_for(&config.triage, Some(&layer.version), &driver)?;
     std::env::set_var(harness::worker::DRIVER_ENV, &config.driver);
-    let judging = Judging {
-        rules: &rules,
-        profile: &profile,
-        triage: &triage,
-    };
+    let judging = Judging::new(&rules, &profile, &triage);
     let spec = CaseSpec::rendered(config.command);
     let cases = generator::generate(
         &profile,

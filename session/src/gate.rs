@@ -21,7 +21,7 @@ pub(crate) fn gate(case: &Case, judging: &Judging) -> Option<CaseReport> {
         return Some(not_realisable(case, &at, &why));
     }
     if case.as_trace().is_some() && case.runs_as_valid(judging.profile) {
-        let verdict = judging.rules.judge(judging.profile, &case.body);
+        let verdict = judging.verdict(&case.body);
         if !verdict.is_valid() {
             let vuids: Vec<&str> = verdict.vuids().into_iter().collect();
             return Some(case_error(

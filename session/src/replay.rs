@@ -66,11 +66,7 @@ pub fn replay(case: &Case, config: &ReplayConfig) -> Result<Replayed, SessionErr
     harness::check_driver(&driver)?;
     let profile = sources::profile_for(config.profile.as_deref().unwrap_or(&case.profile))?;
     let triage = sources::triage_for(&[], Some(&layer.version), &driver)?;
-    let judging = Judging {
-        rules: &rules,
-        profile: &profile,
-        triage: &triage,
-    };
+    let judging = Judging::new(&rules, &profile, &triage);
     // What it runs on comes from an instance of this process (as the driver check makes one); the
     // case itself runs in a worker process, so a driver that dies or hangs gives a crash or timeout.
     let running_on = Executor::new(driver)?.running_on();

@@ -132,6 +132,51 @@ pub struct Judging<'a> {
     pub rules: &'a RuleSet,
     pub profile: &'a DeviceProfile,
     pub triage: &'a Triage,
+    /// The rule table prepared per command and enabled extensions ([`RuleSet::prepare`]): the
+    /// profile is the run's, so each preparation serves every later case with the same key.
+    prepared: std::sync::Mutex<PreparedRules<'a>>,
+}
+
+/// Prepared rule tables by (command, the device's enabled extensions).
+type PreparedRules<'a> = std::collections::HashMap<
+    (model::CommandId, BTreeSet<String>),
+    std::sync::Arc<model::rules::Judge<'a>>,
+>;
+
+impl<'a> Judging<'a> {
+    pub fn new(rules: &'a RuleSet, profile: &'a DeviceProfile, triage: &'a Triage) -> Judging<'a> {
+        Judging {
+            rules,
+            profile,
+            triage,
+            prepared: Default::default(),
+        }
+    }
+
+    /// The model's verdict on a call: [`RuleSet::judge`] with the run's profile, the preparation
+    /// kept for the next call of the same command on a device with the same extensions.
+    pub fn verdict(&self, body: &model::case::Body) -> Verdict {
+        let key = (body.command(), body.device().extensions.clone());
+        let found = self
+            .prepared
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .get(&key)
+            .cloned();
+        let judge = found.unwrap_or_else(|| {
+            let judge = std::sync::Arc::new(self.rules.prepare(
+                self.profile,
+                body.device(),
+                body.command(),
+            ));
+            self.prepared
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .insert(key, judge.clone());
+            judge
+        });
+        judge.judge(body)
+    }
 }
 
 impl Judging<'_> {
@@ -149,7 +194,7 @@ impl Judging<'_> {
     /// [`Judging::judge`], with the verdict it compared.
     pub fn judge_with_verdict(&self, case: &Case, resp: &Response) -> (CaseReport, Verdict) {
         let ran = as_run(case, &resp.observation);
-        let verdict = self.rules.judge(self.profile, &ran.body);
+        let verdict = self.verdict(&ran.body);
         let report = compare(
             &ran,
             self.profile,
@@ -186,7 +231,7 @@ impl Judging<'_> {
         if let Some(report) = crate::gate::gate(case, self) {
             return Ran {
                 case: case.clone(),
-                verdict: model::validate(self.rules, self.profile, case),
+                verdict: self.verdict(&case.body),
                 observation: None,
                 report,
             };
@@ -199,7 +244,7 @@ impl Judging<'_> {
         let observation = executor.execute(case, &exec);
         let millis = started.elapsed().as_secs_f64() * 1000.0;
         let ran = as_run(case, &observation).into_owned();
-        let verdict = self.rules.judge(self.profile, &ran.body);
+        let verdict = self.verdict(&ran.body);
         let report = compare(
             &ran,
             self.profile,
@@ -226,7 +271,7 @@ impl Judging<'_> {
         if let Some(report) = crate::gate::gate(case, self) {
             return Ran {
                 case: case.clone(),
-                verdict: model::validate(self.rules, self.profile, case),
+                verdict: self.verdict(&case.body),
                 observation: None,
                 report,
             };
@@ -251,7 +296,7 @@ impl Judging<'_> {
             phases: Default::default(),
         });
         let ran = as_run(case, &resp.observation).into_owned();
-        let verdict = self.rules.judge(self.profile, &ran.body);
+        let verdict = self.verdict(&ran.body);
         let report = compare(
             &ran,
             self.profile,
@@ -591,11 +636,7 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         triage: &triage,
         progress,
     };
-    let judging = Judging {
-        rules: &rules,
-        profile: &profile,
-        triage: &triage,
-    };
+    let judging = Judging::new(&rules, &profile, &triage);
     let dispatch = Dispatch {
         jobs: config.jobs,
         timeout: Duration::from_secs(config.timeout),

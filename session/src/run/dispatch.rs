@@ -70,7 +70,7 @@ impl Dispatch<'_> {
         match crate::gate::gate(&case, judging) {
             Some(report) => Drawn::Gated {
                 details: CaseDetails {
-                    violations: model::validate(judging.rules, judging.profile, &case).violations,
+                    violations: judging.verdict(&case.body).violations,
                     layer_messages: vec![],
                 },
                 case,

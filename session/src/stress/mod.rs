@@ -459,11 +459,7 @@ pub fn stress(config: &StressConfig) -> Result<StressSummary, SessionError> {
     std::fs::create_dir_all(&config.out)
         .map_err(|e| SessionError::io(config.out.display().to_string(), e))?;
     std::env::set_var(harness::worker::DRIVER_ENV, &config.driver);
-    let judging = Judging {
-        rules: &rules,
-        profile: &profile,
-        triage: &triage,
-    };
+    let judging = Judging::new(&rules, &profile, &triage);
 
     // Generate, prove and lay out every family's cases; gate each.
     let mut totals: Vec<Totals> = Vec::new();

@@ -37,11 +37,7 @@ impl Lavapipe {
 
     /// Runs and judges one case in this process, as a run does (the gate first).
     pub fn run(&mut self, case: &Case, check: TraceCheck) -> Ran {
-        let judging = Judging {
-            rules: &self.rules,
-            profile: &self.profile,
-            triage: &self.triage,
-        };
+        let judging = Judging::new(&self.rules, &self.profile, &self.triage);
         judging.run_here(&mut self.executor, case, check)
     }
 }
