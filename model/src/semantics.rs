@@ -850,20 +850,34 @@ fn trace_distinct(
         }
         return Some(all);
     }
-    // Workers take chunks of distinct rays in turn, so an expensive part of the image does not
-    // leave one worker behind; each writes its chunk's outcomes straight into their places.
+    // The distinct rays in chunks, the chunks in one contiguous segment per worker: a worker traces
+    // its own segment from the front (neighbouring rays meet the same nodes and items, in its own
+    // core's cache — and launch after launch of one scene, the same ones), then takes chunks from the
+    // back of the others', so an expensive part of the image does not leave one worker behind. Each
+    // writes its chunk's outcomes straight into their places.
     const CHUNK: usize = 32;
     let mut slots: Vec<Option<AllowedOutcomes>> = Vec::new();
     slots.resize_with(distinct.len(), || None);
     let undefined = std::sync::atomic::AtomicBool::new(false);
-    let chunks = Mutex::new(slots.chunks_mut(CHUNK).zip(distinct.chunks(CHUNK)));
+    let mut chunks = slots.chunks_mut(CHUNK).zip(distinct.chunks(CHUNK));
+    let per_worker = chunks.len().div_ceil(workers);
+    let segments: Vec<Mutex<std::collections::VecDeque<_>>> = (0..workers)
+        .map(|_| Mutex::new(chunks.by_ref().take(per_worker).collect()))
+        .collect();
+    let lock = |k: usize| segments[k].lock().unwrap_or_else(|e| e.into_inner());
+    // The order the runs start in (the calling thread's, which starts at once, is usually first).
+    let started = std::sync::atomic::AtomicUsize::new(0);
     // Each run's counters, summed below.
     let parts: Mutex<Vec<TracerStats>> = Mutex::new(Vec::new());
     let work = || {
         let mut stats = TracerStats::default();
         let memo = HitRecordMemo::default();
+        let home = started.fetch_add(1, std::sync::atomic::Ordering::Relaxed) % workers;
         loop {
-            let next = chunks.lock().unwrap_or_else(|e| e.into_inner()).next();
+            // One segment locked at a time (the home guard is gone before another is taken).
+            let own = lock(home).pop_front();
+            let next =
+                own.or_else(|| (1..workers).find_map(|k| lock((home + k) % workers).pop_back()));
             let Some((out, ids)) = next else { break };
             if undefined.load(std::sync::atomic::Ordering::Relaxed) {
                 break;
