@@ -1,0 +1,437 @@
+//! A valid launch's expected output: each distinct ray of the launch traced once, the distinct
+//! rays shared out over the calling thread and the process's helper threads, each resolving the
+//! launch's hit records through a memo.
+
+use super::*;
+
+/// The hit groups of the hit records a launch's rays reached, by record index, and the last hit
+/// and miss records resolved (a launch's rays mostly reach the same few): a record's group depends
+/// on the world and call alone, so the rays of one launch share the memo.
+#[derive(Default)]
+pub(super) struct HitRecordMemo {
+    hits: std::cell::RefCell<HashMap<u64, HitShaders, BuildHasherDefault<RayKeyHasher>>>,
+    last_hit: std::cell::Cell<Option<(u64, HitShaders)>>,
+    last_miss: std::cell::Cell<Option<(u64, MissShader)>>,
+}
+
+/// [`allowed_for_ray_with`], the hit records resolved through `memo`.
+pub(super) fn allowed_for_ray_memo(
+    world: &World,
+    call: &Call,
+    prepared: &PreparedScene,
+    ray: &Ray,
+    config: &TracerConfig,
+    stats: &mut TracerStats,
+    memo: &HitRecordMemo,
+) -> Option<AllowedOutcomes> {
+    let scene = &world.launch.scene;
+    let hit = |i: u32, g: u32| {
+        let inst = &scene.instances[i as usize];
+        let record = hit_record(inst.sbt_record_offset, g, ray.sbt_offset, ray.sbt_stride);
+        if let Some((r, h)) = memo.last_hit.get() {
+            if r == record {
+                return h;
+            }
+        }
+        let known = memo.hits.borrow().get(&record).copied();
+        let h = known.unwrap_or_else(|| {
+            let h = hit_shaders(world, call, record);
+            memo.hits.borrow_mut().insert(record, h);
+            h
+        });
+        memo.last_hit.set(Some((record, h)));
+        h
+    };
+    let record = miss_record(ray.miss_index);
+    let miss = match memo.last_miss.get() {
+        Some((r, m)) if r == record => m,
+        _ => {
+            let m = miss_shader(world, call, record);
+            memo.last_miss.set(Some((record, m)));
+            m
+        }
+    };
+    let table = ShaderTable { hit: &hit, miss };
+    trace_ray(prepared, ray, &table, config, stats).ok()
+}
+
+/// What a valid launch may write: its dimensions, and for each traced ray (launch ID `i` traces ray
+/// `i % rays.len()`) the outcomes the spec allows. No rays: every launch ID writes the
+/// [`crate::tracer::record::RayRecord::no_shader`] record.
+#[derive(Debug, Clone)]
+pub struct ExpectedLaunch {
+    pub dimensions: [u32; 3],
+    pub rays: Vec<Ray>,
+    /// `allowed[k]` for `rays[k]`.
+    pub allowed: Vec<AllowedOutcomes>,
+    /// The tracer's counters for the launch's distinct rays (memoised per distinct ray).
+    pub stats: TracerStats,
+}
+
+impl ExpectedLaunch {
+    /// The ray index launch ID `id` traces, None when the launch traces no ray.
+    pub fn ray_of(&self, id: usize) -> Option<usize> {
+        (!self.rays.is_empty()).then(|| id % self.rays.len())
+    }
+
+    /// The number of launch IDs (saturating at u64::MAX): the model holds one outcome set per ray,
+    /// never one per launch ID (an indirect command may state 2^96 invocations).
+    pub fn invocations(&self) -> u64 {
+        self.dimensions
+            .iter()
+            .map(|&d| d as u64)
+            .fold(1, u64::saturating_mul)
+    }
+}
+
+/// The expected output of a valid call, or None when the dimensions are not known or the scene is
+/// undefined. Each distinct ray is traced once; large launches are traced on every core the
+/// machine offers (each ray's outcomes depend on nothing else, and the counters are sums, so the
+/// answer is the same however the rays are shared out).
+pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
+    let dims = call.dimensions(world)?;
+    let rays = traced_rays(world, call);
+    let mut stats = TracerStats::default();
+    let mut allowed: Vec<AllowedOutcomes> = Vec::new();
+    if !rays.is_empty() {
+        let prepared = prepared(&world.launch.scene)?;
+        // The first launch ray of each distinct ray, and for every ray the distinct one it is.
+        let (distinct, of) = distinct_rays(&rays);
+        let mut traced = trace_distinct(world, call, &prepared, &rays, &distinct, &mut stats)?;
+        if distinct.len() == rays.len() {
+            // Every ray is distinct (the usual launch): the outcomes are in launch order already.
+            allowed = traced;
+        } else {
+            // The last launch ray of a distinct ray takes its outcomes, the others a copy.
+            let mut last = vec![u32::MAX; distinct.len()];
+            for (i, &d) in of.iter().enumerate() {
+                last[d as usize] = i as u32;
+            }
+            let mut traced: Vec<Option<AllowedOutcomes>> = traced.drain(..).map(Some).collect();
+            allowed.reserve_exact(rays.len());
+            for (i, &d) in of.iter().enumerate() {
+                let d = d as usize;
+                let a = if last[d] == i as u32 {
+                    traced[d].take()
+                } else {
+                    traced[d].clone()
+                };
+                allowed.push(a.expect("a distinct ray's outcomes are taken once, last"));
+            }
+        }
+    }
+    Some(ExpectedLaunch {
+        dimensions: dims,
+        rays,
+        allowed,
+        stats,
+    })
+}
+
+/// The index of the first of each distinct ray of `rays`, and for every ray the position of its
+/// distinct one in that list. The table is an open-addressed one of 8-byte slots (a hash tag and a
+/// distinct ray's number) at most half full, the thread's, kept between launches: for a launch of
+/// thousands of rays it stays in the cache, where a map holding the 52-byte keys would not, and a
+/// tag that matches is confirmed by comparing the two rays' keys in full.
+pub(super) fn distinct_rays(rays: &[Ray]) -> (Vec<u32>, Vec<u32>) {
+    distinct_rays_hashed(rays, |key| {
+        let mut hasher = RayKeyHasher::default();
+        key.iter().for_each(|&w| hasher.write_u32(w));
+        hasher.finish()
+    })
+}
+
+/// [`distinct_rays`] with the keys hashed by `hash` (a test's hash that sends every key to one slot
+/// with one tag: the probing and the comparison of keys decide everything).
+fn distinct_rays_hashed(rays: &[Ray], hash: impl Fn(&[u32; 13]) -> u64) -> (Vec<u32>, Vec<u32>) {
+    thread_local! {
+        static TABLE: std::cell::RefCell<Vec<(u32, u32)>> = const { std::cell::RefCell::new(Vec::new()) };
+    }
+    TABLE.with(|table| {
+        let mut table = table.borrow_mut();
+        let size = (2 * rays.len()).next_power_of_two().max(16);
+        let mask = size - 1;
+        table.clear();
+        table.resize(size, (0, 0));
+        let mut distinct: Vec<u32> = Vec::new();
+        let mut of = Vec::with_capacity(rays.len());
+        for (i, ray) in rays.iter().enumerate() {
+            let key = ray_key(ray);
+            let h = hash(&key);
+            let tag = (h >> 32) as u32;
+            let mut at = h as usize & mask;
+            // A slot's second field is the distinct ray's number plus one; 0 is an empty slot.
+            let d = loop {
+                match table[at] {
+                    (_, 0) => {
+                        distinct.push(i as u32);
+                        table[at] = (tag, distinct.len() as u32);
+                        break distinct.len() as u32 - 1;
+                    }
+                    (t, n)
+                        if t == tag && ray_key(&rays[distinct[n as usize - 1] as usize]) == key =>
+                    {
+                        break n - 1;
+                    }
+                    _ => at = (at + 1) & mask,
+                }
+            };
+            of.push(d);
+        }
+        // A launch far larger than the usual leaves no table of its size behind.
+        if table.capacity() > 1 << 17 {
+            *table = Vec::new();
+        }
+        (distinct, of)
+    })
+}
+
+/// Distinct rays per worker below which a launch is traced on one thread (a thread costs about
+/// as much as tracing a few dozen rays).
+const RAYS_PER_WORKER: usize = 256;
+
+/// The outcomes of `rays[distinct[k]]` for each k, or None when one is undefined; the counters
+/// summed into `stats`.
+fn trace_distinct(
+    world: &World,
+    call: &Call,
+    prepared: &PreparedScene,
+    rays: &[Ray],
+    distinct: &[u32],
+    stats: &mut TracerStats,
+) -> Option<Vec<AllowedOutcomes>> {
+    // Asked once per process: the standard library reads the cgroup's quota files at each call.
+    static CORES: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    let cores = *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let workers = cores.min(distinct.len() / RAYS_PER_WORKER).max(1);
+    trace_distinct_on(workers, world, call, prepared, rays, distinct, stats)
+}
+
+/// [`trace_distinct`] on `workers` threads (the calling one among them).
+fn trace_distinct_on(
+    workers: usize,
+    world: &World,
+    call: &Call,
+    prepared: &PreparedScene,
+    rays: &[Ray],
+    distinct: &[u32],
+    stats: &mut TracerStats,
+) -> Option<Vec<AllowedOutcomes>> {
+    let config = TracerConfig::default();
+    if workers == 1 {
+        let memo = HitRecordMemo::default();
+        // Pushed into a Vec of the final size (a collect through Option would grow it by copies).
+        let mut all = Vec::with_capacity(distinct.len());
+        for &i in distinct {
+            all.push(allowed_for_ray_memo(
+                world,
+                call,
+                prepared,
+                &rays[i as usize],
+                &config,
+                stats,
+                &memo,
+            )?);
+        }
+        return Some(all);
+    }
+    // The distinct rays in chunks, the chunks in one contiguous segment per worker: a worker traces
+    // its own segment from the front (neighbouring rays meet the same nodes and items, in its own
+    // core's cache — and launch after launch of one scene, the same ones), then takes chunks from the
+    // back of the others', so an expensive part of the image does not leave one worker behind. Each
+    // writes its chunk's outcomes straight into their places.
+    const CHUNK: usize = 32;
+    let mut slots: Vec<Option<AllowedOutcomes>> = Vec::new();
+    slots.resize_with(distinct.len(), || None);
+    let undefined = std::sync::atomic::AtomicBool::new(false);
+    let mut chunks = slots.chunks_mut(CHUNK).zip(distinct.chunks(CHUNK));
+    let per_worker = chunks.len().div_ceil(workers);
+    let segments: Vec<Mutex<std::collections::VecDeque<_>>> = (0..workers)
+        .map(|_| Mutex::new(chunks.by_ref().take(per_worker).collect()))
+        .collect();
+    let lock = |k: usize| segments[k].lock().unwrap_or_else(|e| e.into_inner());
+    // The order the runs start in (the calling thread's, which starts at once, is usually first).
+    let started = std::sync::atomic::AtomicUsize::new(0);
+    // Each run's counters, summed below.
+    let parts: Mutex<Vec<TracerStats>> = Mutex::new(Vec::new());
+    let work = || {
+        let mut stats = TracerStats::default();
+        let memo = HitRecordMemo::default();
+        let home = started.fetch_add(1, std::sync::atomic::Ordering::Relaxed) % workers;
+        loop {
+            // One segment locked at a time (the home guard is gone before another is taken).
+            let own = lock(home).pop_front();
+            let next =
+                own.or_else(|| (1..workers).find_map(|k| lock((home + k) % workers).pop_back()));
+            let Some((out, ids)) = next else { break };
+            if undefined.load(std::sync::atomic::Ordering::Relaxed) {
+                break;
+            }
+            for (slot, &i) in out.iter_mut().zip(ids) {
+                *slot = allowed_for_ray_memo(
+                    world,
+                    call,
+                    prepared,
+                    &rays[i as usize],
+                    &config,
+                    &mut stats,
+                    &memo,
+                );
+                if slot.is_none() {
+                    undefined.store(true, std::sync::atomic::Ordering::Relaxed);
+                }
+            }
+        }
+        parts.lock().unwrap_or_else(|e| e.into_inner()).push(stats);
+    };
+    // The calling thread is one of the workers; the others are the process's helper threads.
+    crate::helpers::run_beside(workers - 1, &work);
+    for part in parts.into_inner().unwrap_or_else(|e| e.into_inner()).iter() {
+        stats.merge(part);
+    }
+    if undefined.into_inner() {
+        return None;
+    }
+    // Every slot was filled (no ray was undefined); collected in place, without a second buffer.
+    slots.into_iter().collect()
+}
+
+/// A hasher for [`ray_key`]s (the memo of distinct rays): a multiply-rotate mix of the words,
+/// deterministic; keys are still compared in full, so a collision costs time, never an answer.
+#[derive(Default)]
+struct RayKeyHasher(u64);
+
+impl std::hash::Hasher for RayKeyHasher {
+    fn finish(&self) -> u64 {
+        let h = self.0;
+        (h ^ (h >> 29)).wrapping_mul(0xBF58_476D_1CE4_E5B9) ^ (h >> 32)
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        let mut words = bytes.chunks_exact(4);
+        for w in &mut words {
+            self.write_u32(u32::from_le_bytes([w[0], w[1], w[2], w[3]]));
+        }
+        for b in words.remainder() {
+            self.write_u32(*b as u32);
+        }
+    }
+    fn write_u32(&mut self, x: u32) {
+        self.0 = (self.0.rotate_left(5) ^ x as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    }
+    fn write_usize(&mut self, x: usize) {
+        self.write_u32(x as u32);
+        self.write_u32((x as u64 >> 32) as u32);
+    }
+}
+
+#[cfg(test)]
+mod distinct_ray_tests {
+    use super::*;
+
+    /// The first of each distinct ray and every ray's distinct one, by comparing each ray's key with
+    /// that of every distinct ray found before it.
+    fn by_comparison(rays: &[Ray]) -> (Vec<u32>, Vec<u32>) {
+        let mut distinct: Vec<u32> = Vec::new();
+        let of = rays
+            .iter()
+            .enumerate()
+            .map(|(i, r)| {
+                match distinct
+                    .iter()
+                    .position(|&d| ray_key(&rays[d as usize]) == ray_key(r))
+                {
+                    Some(k) => k as u32,
+                    None => {
+                        distinct.push(i as u32);
+                        distinct.len() as u32 - 1
+                    }
+                }
+            })
+            .collect();
+        (distinct, of)
+    }
+
+    /// Rays drawn with repeats from a few dozen, some a bit apart from another (tmax one ULP
+    /// higher, −0 for +0, another miss index): the table finds the same distinct rays as comparing
+    /// them all, launch after launch of different sizes (its slots reused), also when every key
+    /// hashes alike.
+    #[test]
+    fn the_table_of_distinct_rays_finds_what_comparing_every_pair_finds() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 33) as usize
+        };
+        let mut pool = Vec::new();
+        for k in 0..40 {
+            let base = Ray::new([0.0, k as f32, 1.0], [0.0, 0.0, -1.0], 0.0, 10.0);
+            pool.push(base);
+            pool.push(Ray {
+                tmax: f32::from_bits(10.0f32.to_bits() + 1),
+                ..base
+            });
+            pool.push(Ray {
+                miss_index: 1,
+                ..base
+            });
+        }
+        pool.push(Ray::new([-0.0, 0.0, 1.0], [0.0, 0.0, -1.0], 0.0, 10.0));
+        for len in [3000, 7, 1, 600, 5000] {
+            let rays: Vec<Ray> = (0..len).map(|_| pool[next() % pool.len()]).collect();
+            let (distinct, of) = distinct_rays(&rays);
+            let (expect_distinct, expect_of) = by_comparison(&rays);
+            assert_eq!(distinct, expect_distinct, "launch of {len}");
+            assert_eq!(of, expect_of, "launch of {len}");
+            // Every key hashed alike: one chain of slots, each tag matching, the keys deciding.
+            let colliding = distinct_rays_hashed(&rays, |_| 7);
+            assert_eq!(colliding, (expect_distinct, expect_of), "launch of {len}");
+            // The near twins stayed apart: more distinct rays than base rays were drawn.
+            assert!(len < 600 || distinct.len() > 40, "launch of {len}");
+        }
+    }
+}
+
+#[cfg(test)]
+mod shared_out_tests {
+    use super::*;
+
+    /// However many workers share a launch's distinct rays out (segments of one chunk or of many,
+    /// more workers than chunks), every ray gets the outcomes and counters one thread gives it.
+    #[test]
+    fn every_worker_count_gives_the_outcomes_of_one_thread() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../cases/hand/trace-indirect-records-32.yaml");
+        let text = std::fs::read_to_string(path).expect("the hand-made case");
+        let mut case = crate::Case::from_yaml("hand", &text).expect("the hand-made case parses");
+        let workload = crate::tracer::workload::standard_workloads(24, false)
+            .into_iter()
+            .find(|w| w.name.starts_with("icosphere"))
+            .expect("the icosphere workload");
+        let body = case.as_trace_mut().expect("a trace case");
+        body.world.launch.scene = workload.scene.clone();
+        let (world, call) = (&body.world, &body.call);
+        let prepared = prepared(&world.launch.scene).expect("a defined scene");
+        let rays = &workload.rays;
+        let distinct: Vec<u32> = (0..rays.len() as u32).collect();
+        let mut one_stats = TracerStats::default();
+        let one = trace_distinct_on(1, world, call, &prepared, rays, &distinct, &mut one_stats)
+            .expect("defined rays");
+        assert_eq!(one.len(), rays.len());
+        assert!(
+            one.iter().any(|o| !o.candidates.is_empty()),
+            "some ray hits"
+        );
+        // 576 rays in 18 chunks: segments of 9, 6, 4 and 1 chunks, and workers without any.
+        for workers in [2, 3, 5, 18, 40] {
+            let mut stats = TracerStats::default();
+            let many =
+                trace_distinct_on(workers, world, call, &prepared, rays, &distinct, &mut stats)
+                    .expect("defined rays");
+            assert!(many == one, "{workers} workers");
+            assert_eq!(stats.rays, one_stats.rays, "{workers} workers");
+            assert_eq!(stats.pair_tests, one_stats.pair_tests, "{workers} workers");
+        }
+    }
+}
