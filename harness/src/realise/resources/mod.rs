@@ -48,6 +48,7 @@
 
 mod descriptor_buffer;
 mod glsl;
+mod images;
 mod objects;
 mod ycbcr;
 
