@@ -97,7 +97,10 @@ pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
         let prepared = prepared(&world.launch.scene)?;
         // The first launch ray of each distinct ray, and for every ray the distinct one it is.
         let (distinct, of) = distinct_rays(&rays);
-        let mut traced = trace_distinct(world, call, &prepared, &rays, &distinct, &mut stats)?;
+        let workers = workers_for(distinct.len());
+        let mut traced = trace_distinct(
+            workers, world, call, &prepared, &rays, &distinct, &mut stats,
+        )?;
         if distinct.len() == rays.len() {
             // Every ray is distinct (the usual launch): the outcomes are in launch order already.
             allowed = traced;
@@ -190,25 +193,18 @@ fn distinct_rays_hashed(rays: &[Ray], hash: impl Fn(&[u32; 13]) -> u64) -> (Vec<
 /// as much as tracing a few dozen rays).
 const RAYS_PER_WORKER: usize = 256;
 
-/// The outcomes of `rays[distinct[k]]` for each k, or None when one is undefined; the counters
-/// summed into `stats`.
-fn trace_distinct(
-    world: &World,
-    call: &Call,
-    prepared: &PreparedScene,
-    rays: &[Ray],
-    distinct: &[u32],
-    stats: &mut TracerStats,
-) -> Option<Vec<AllowedOutcomes>> {
+/// How many threads trace a launch of `distinct` distinct rays: every core the process may use, one per
+/// [`RAYS_PER_WORKER`] rays at most.
+fn workers_for(distinct: usize) -> usize {
     // Asked once per process: the standard library reads the cgroup's quota files at each call.
     static CORES: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
     let cores = *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    let workers = cores.min(distinct.len() / RAYS_PER_WORKER).max(1);
-    trace_distinct_on(workers, world, call, prepared, rays, distinct, stats)
+    cores.min(distinct / RAYS_PER_WORKER).max(1)
 }
 
-/// [`trace_distinct`] on `workers` threads (the calling one among them).
-fn trace_distinct_on(
+/// The outcomes of `rays[distinct[k]]` for each k, or None when one is undefined, traced on `workers`
+/// threads (the calling one among them); the counters summed into `stats`.
+fn trace_distinct(
     workers: usize,
     world: &World,
     call: &Call,
@@ -416,7 +412,7 @@ mod shared_out_tests {
         let rays = &workload.rays;
         let distinct: Vec<u32> = (0..rays.len() as u32).collect();
         let mut one_stats = TracerStats::default();
-        let one = trace_distinct_on(1, world, call, &prepared, rays, &distinct, &mut one_stats)
+        let one = trace_distinct(1, world, call, &prepared, rays, &distinct, &mut one_stats)
             .expect("defined rays");
         assert_eq!(one.len(), rays.len());
         assert!(
@@ -426,9 +422,8 @@ mod shared_out_tests {
         // 576 rays in 18 chunks: segments of 9, 6, 4 and 1 chunks, and workers without any.
         for workers in [2, 3, 5, 18, 40] {
             let mut stats = TracerStats::default();
-            let many =
-                trace_distinct_on(workers, world, call, &prepared, rays, &distinct, &mut stats)
-                    .expect("defined rays");
+            let many = trace_distinct(workers, world, call, &prepared, rays, &distinct, &mut stats)
+                .expect("defined rays");
             assert!(many == one, "{workers} workers");
             assert_eq!(stats.rays, one_stats.rays, "{workers} workers");
             assert_eq!(stats.pair_tests, one_stats.pair_tests, "{workers} workers");
