@@ -144,6 +144,7 @@ type PreparedRules<'a> = std::collections::HashMap<
 >;
 
 impl<'a> Judging<'a> {
+    /// The judging of a run with these rules, the run's profile and its triage.
     pub fn new(rules: &'a RuleSet, profile: &'a DeviceProfile, triage: &'a Triage) -> Judging<'a> {
         Judging {
             rules,
