@@ -7,6 +7,7 @@
 
 use std::any::Any;
 use std::panic::{catch_unwind, resume_unwind, AssertUnwindSafe};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Condvar, Mutex, MutexGuard, OnceLock};
 
 /// A closure lent to the helpers, its lifetime erased: [`run_beside`] does not return while a helper
@@ -41,6 +42,37 @@ struct Helpers {
     finished: Condvar,
     /// Held for the whole of a call: one call at a time uses the helpers.
     busy: Mutex<()>,
+    /// The number of the last call that lent a closure (`State::call`), read without the lock by a
+    /// helper that waits for the next call awake.
+    posted: AtomicU64,
+    /// Helpers running the current closure (`State::running`), read without the lock by a caller
+    /// that waits for them awake.
+    active: AtomicUsize,
+}
+
+/// How long a helper stays awake for the next call, and a caller for its helpers to finish, before
+/// sleeping: waking a sleeping thread costs tens of microseconds on a virtual machine (about as
+/// long as tracing fifty rays), and the calls of one launch follow each other closely.
+const AWAKE: std::time::Duration = std::time::Duration::from_micros(200);
+
+/// How long a caller whose own share is done waits awake for its helpers (their last pieces of
+/// work), before sleeping.
+const JOIN_AWAKE: std::time::Duration = std::time::Duration::from_micros(1000);
+
+/// Spins until `done` holds or `awake` has passed; whether `done` held.
+fn spin_until(awake: std::time::Duration, done: impl Fn() -> bool) -> bool {
+    let start = std::time::Instant::now();
+    loop {
+        for _ in 0..64 {
+            if done() {
+                return true;
+            }
+            std::hint::spin_loop();
+        }
+        if start.elapsed() > awake {
+            return done();
+        }
+    }
 }
 
 fn helpers() -> &'static Helpers {
@@ -50,6 +82,8 @@ fn helpers() -> &'static Helpers {
         lent: Condvar::new(),
         finished: Condvar::new(),
         busy: Mutex::new(()),
+        posted: AtomicU64::new(0),
+        active: AtomicUsize::new(0),
     })
 }
 
@@ -62,6 +96,7 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 fn helper_loop(h: &'static Helpers) {
     let mut last_call = 0u64;
     loop {
+        spin_until(AWAKE, || h.posted.load(Ordering::Acquire) != last_call);
         let job = {
             let mut s = lock(&h.state);
             loop {
@@ -69,6 +104,7 @@ fn helper_loop(h: &'static Helpers) {
                     Some(job) if s.call != last_call && s.wanted > 0 => {
                         s.wanted -= 1;
                         s.running += 1;
+                        h.active.store(s.running, Ordering::Release);
                         last_call = s.call;
                         break job;
                     }
@@ -84,6 +120,7 @@ fn helper_loop(h: &'static Helpers) {
             s.panic.get_or_insert(p);
         }
         s.running -= 1;
+        h.active.store(s.running, Ordering::Release);
         if s.running == 0 {
             h.finished.notify_all();
         }
@@ -139,6 +176,7 @@ pub(crate) fn run_beside(extra: usize, work: &(dyn Fn() + Sync)) {
         s.call = s.call.wrapping_add(1);
         s.wanted = extra;
         s.panic = None;
+        h.posted.store(s.call, Ordering::Release);
         h.lent.notify_all();
     }
     let own = catch_unwind(AssertUnwindSafe(work));
@@ -147,6 +185,11 @@ pub(crate) fn run_beside(extra: usize, work: &(dyn Fn() + Sync)) {
         // Helpers not started by now are not needed: `work` found nothing left for them.
         s.job = None;
         s.wanted = 0;
+        if s.running > 0 {
+            drop(s);
+            spin_until(JOIN_AWAKE, || h.active.load(Ordering::Acquire) == 0);
+            s = lock(&h.state);
+        }
         while s.running > 0 {
             s = h.finished.wait(s).unwrap_or_else(|e| e.into_inner());
         }

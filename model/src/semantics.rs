@@ -11,7 +11,7 @@ use crate::tracer::{
 };
 use crate::world::{GeometryKind, HandleRef, ShaderGroup, World};
 use std::collections::{BTreeSet, HashMap};
-use std::hash::{BuildHasherDefault, Hasher};
+use std::hash::BuildHasherDefault;
 use std::sync::{Arc, Mutex};
 
 mod launch;

@@ -9,7 +9,7 @@ use super::*;
 /// on the world and call alone, so the rays of one launch share the memo.
 #[derive(Default)]
 pub(super) struct HitRecordMemo {
-    hits: std::cell::RefCell<HashMap<u64, HitShaders, BuildHasherDefault<RayKeyHasher>>>,
+    hits: std::cell::RefCell<HashMap<u64, HitShaders, BuildHasherDefault<RecordHasher>>>,
     last_hit: std::cell::Cell<Option<(u64, HitShaders)>>,
     last_miss: std::cell::Cell<Option<(u64, MissShader)>>,
 }
@@ -90,13 +90,15 @@ impl ExpectedLaunch {
 /// answer is the same however the rays are shared out).
 pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
     let dims = call.dimensions(world)?;
-    let rays = traced_rays(world, call);
+    let (rays, found) = rays_beside_prepared(world, call, &dims);
     let mut stats = TracerStats::default();
     let mut allowed: Vec<AllowedOutcomes> = Vec::new();
     if !rays.is_empty() {
-        let prepared = prepared(&world.launch.scene)?;
         // The first launch ray of each distinct ray, and for every ray the distinct one it is.
-        let (distinct, of) = distinct_rays(&rays);
+        let (prepared, (distinct, of)) = match found {
+            Some((p, d)) => (p?, d),
+            None => (prepared(&world.launch.scene)?, distinct_rays(&rays)),
+        };
         let workers = workers_for(distinct.len());
         let mut traced = trace_distinct(
             workers, world, call, &prepared, &rays, &distinct, &mut stats,
@@ -131,22 +133,95 @@ pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
     })
 }
 
+/// The first launch ray of each distinct ray, and for every ray the distinct one it is.
+type DistinctRays = (Vec<u32>, Vec<u32>);
+
+/// A launch's prepared scene (None: undefined) and distinct rays, found beside its rays.
+type FoundBeside = (Option<Arc<PreparedScene>>, DistinctRays);
+
+/// The launch's traced rays; for a launch of a size that is traced on more than one thread, also the
+/// scene's prepared form (None: undefined) and the distinct rays, found at once on two threads: the
+/// prepared scene's memo compares the scene's data in full (a pass over every vertex), as long as
+/// making and sorting out a few thousand rays. A smaller launch finds them after its rays, where
+/// it has any.
+fn rays_beside_prepared(
+    world: &World,
+    call: &Call,
+    dims: &[u32; 3],
+) -> (Vec<Ray>, Option<FoundBeside>) {
+    let ids = dims.iter().map(|&d| d as u64).fold(1, u64::saturating_mul);
+    if workers_for(usize::try_from(ids).unwrap_or(usize::MAX)) == 1 {
+        return (traced_rays(world, call), None);
+    }
+    let rays: Mutex<Option<(Vec<Ray>, DistinctRays)>> = Mutex::new(None);
+    let found: Mutex<Option<Option<Arc<PreparedScene>>>> = Mutex::new(None);
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    // Each run takes the parts left: a helper that starts late leaves both to the caller.
+    let work = || loop {
+        match next.fetch_add(1, std::sync::atomic::Ordering::Relaxed) {
+            0 => {
+                let r = traced_rays(world, call);
+                let d = distinct_rays(&r);
+                *rays.lock().unwrap_or_else(|e| e.into_inner()) = Some((r, d));
+            }
+            1 => {
+                let p = prepared(&world.launch.scene);
+                *found.lock().unwrap_or_else(|e| e.into_inner()) = Some(p);
+            }
+            _ => break,
+        }
+    };
+    crate::helpers::run_beside(1, &work);
+    let (r, d) = rays
+        .into_inner()
+        .unwrap_or_else(|e| e.into_inner())
+        .expect("every part is done before run_beside returns");
+    let p = found
+        .into_inner()
+        .unwrap_or_else(|e| e.into_inner())
+        .expect("every part is done before run_beside returns");
+    (r, Some((p, d)))
+}
+
 /// The index of the first of each distinct ray of `rays`, and for every ray the position of its
 /// distinct one in that list. The table is an open-addressed one of 8-byte slots (a hash tag and a
 /// distinct ray's number) at most half full, the thread's, kept between launches: for a launch of
 /// thousands of rays it stays in the cache, where a map holding the 52-byte keys would not, and a
 /// tag that matches is confirmed by comparing the two rays' keys in full.
-pub(super) fn distinct_rays(rays: &[Ray]) -> (Vec<u32>, Vec<u32>) {
-    distinct_rays_hashed(rays, |key| {
-        let mut hasher = RayKeyHasher::default();
-        key.iter().for_each(|&w| hasher.write_u32(w));
-        hasher.finish()
-    })
+pub(super) fn distinct_rays(rays: &[Ray]) -> DistinctRays {
+    distinct_rays_hashed(rays, ray_key_hash)
+}
+
+/// A hash of a [`ray_key`]: its words in pairs, three independent folded multiplies and one to
+/// join them (a short dependency chain; a launch hashes every ray before the first is traced).
+/// Deterministic; keys are still compared in full, so a collision costs time, never an answer.
+fn ray_key_hash(key: &[u32; 13]) -> u64 {
+    let pair = |i: usize| key[i] as u64 | (key[i + 1] as u64) << 32;
+    let fold = |a: u64, b: u64| {
+        let p = a as u128 * b as u128;
+        p as u64 ^ (p >> 64) as u64
+    };
+    let a = fold(
+        pair(0) ^ 0x243F_6A88_85A3_08D3,
+        pair(2) ^ 0x1319_8A2E_0370_7344,
+    );
+    let b = fold(
+        pair(4) ^ 0xA409_3822_299F_31D0,
+        pair(6) ^ 0x082E_FA98_EC4E_6C89,
+    );
+    let c = fold(
+        pair(8) ^ 0x4528_21E6_38D0_1377,
+        pair(10) ^ 0xBE54_66CF_34E9_0C6C,
+    );
+    fold(
+        a ^ c ^ 0xC0AC_29B7_C97C_50DD,
+        b ^ key[12] as u64 ^ 0x3F84_D5B5_B547_0917,
+    )
 }
 
 /// [`distinct_rays`] with the keys hashed by `hash` (a test's hash that sends every key to one slot
 /// with one tag: the probing and the comparison of keys decide everything).
-fn distinct_rays_hashed(rays: &[Ray], hash: impl Fn(&[u32; 13]) -> u64) -> (Vec<u32>, Vec<u32>) {
+fn distinct_rays_hashed(rays: &[Ray], hash: impl Fn(&[u32; 13]) -> u64) -> DistinctRays {
     thread_local! {
         static TABLE: std::cell::RefCell<Vec<(u32, u32)>> = const { std::cell::RefCell::new(Vec::new()) };
     }
@@ -292,12 +367,12 @@ fn trace_distinct(
     slots.into_iter().collect()
 }
 
-/// A hasher for [`ray_key`]s (the memo of distinct rays): a multiply-rotate mix of the words,
-/// deterministic; keys are still compared in full, so a collision costs time, never an answer.
+/// A hasher for the hit record memo's record indices: a multiply-rotate mix of the words,
+/// deterministic (the map compares keys in full, so a collision costs time, never an answer).
 #[derive(Default)]
-struct RayKeyHasher(u64);
+struct RecordHasher(u64);
 
-impl std::hash::Hasher for RayKeyHasher {
+impl std::hash::Hasher for RecordHasher {
     fn finish(&self) -> u64 {
         let h = self.0;
         (h ^ (h >> 29)).wrapping_mul(0xBF58_476D_1CE4_E5B9) ^ (h >> 32)
