@@ -475,8 +475,16 @@ pub fn trace_ray(
     // (instance, geometry, primitive) is unique per item: an unstable sort gives the same order.
     near.sort_unstable_by_key(|n| n.key);
 
-    // Allocated by the first candidate (most near pairs are misses).
+    // Allocated by the first candidate (most near pairs are misses), for one only: most rays that
+    // have any have one, and a launch keeps every ray's candidates (a Vec's first push would make
+    // room for four).
     let mut candidates: Vec<Candidate> = Vec::new();
+    let push_candidate = |candidates: &mut Vec<Candidate>, c: Candidate| {
+        if candidates.capacity() == 0 {
+            candidates.reserve_exact(1);
+        }
+        candidates.push(c);
+    };
     let mut must_run: Vec<MustRun> = Vec::new();
     for NearItem { item, outcome, .. } in near.drain(..) {
         let outcome = outcomes.get(outcome as usize);
@@ -609,18 +617,21 @@ pub fn trace_ray(
                     signs,
                 });
                 let hit_shaders = hit_shaders();
-                candidates.push(Candidate {
-                    primitive: prim,
-                    kind: PrimitiveKind::Triangle,
-                    custom_index: inst.custom_index,
-                    presence,
-                    vary_reason: reason,
-                    opaque,
-                    confirmation: confirmation(opaque, &hit_shaders, item.primitive),
-                    shaders: hit_shaders,
-                    no_duplicate_any_hit: geometry.flags.no_duplicate_any_hit,
-                    reports,
-                });
+                push_candidate(
+                    &mut candidates,
+                    Candidate {
+                        primitive: prim,
+                        kind: PrimitiveKind::Triangle,
+                        custom_index: inst.custom_index,
+                        presence,
+                        vary_reason: reason,
+                        opaque,
+                        confirmation: confirmation(opaque, &hit_shaders, item.primitive),
+                        shaders: hit_shaders,
+                        no_duplicate_any_hit: geometry.flags.no_duplicate_any_hit,
+                        reports,
+                    },
+                );
             }
             PrimitiveKind::Aabb => {
                 let hit_shaders = hit_shaders();
@@ -712,26 +723,29 @@ pub fn trace_ray(
                 } else {
                     stats.vary += 1;
                 }
-                candidates.push(Candidate {
-                    primitive: prim,
-                    kind: PrimitiveKind::Aabb,
-                    custom_index: inst.custom_index,
-                    presence: if required {
-                        Presence::Required
-                    } else {
-                        Presence::Possible
+                push_candidate(
+                    &mut candidates,
+                    Candidate {
+                        primitive: prim,
+                        kind: PrimitiveKind::Aabb,
+                        custom_index: inst.custom_index,
+                        presence: if required {
+                            Presence::Required
+                        } else {
+                            Presence::Possible
+                        },
+                        vary_reason: if required {
+                            None
+                        } else {
+                            Some(VaryReason::Procedural)
+                        },
+                        opaque,
+                        confirmation: confirmation(opaque, &hit_shaders, item.primitive),
+                        shaders: hit_shaders,
+                        no_duplicate_any_hit: geometry.flags.no_duplicate_any_hit,
+                        reports,
                     },
-                    vary_reason: if required {
-                        None
-                    } else {
-                        Some(VaryReason::Procedural)
-                    },
-                    opaque,
-                    confirmation: confirmation(opaque, &hit_shaders, item.primitive),
-                    shaders: hit_shaders,
-                    no_duplicate_any_hit: geometry.flags.no_duplicate_any_hit,
-                    reports,
-                });
+                );
             }
         }
     }
