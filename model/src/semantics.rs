@@ -6,8 +6,8 @@
 use crate::call::{Call, Table};
 use crate::scene::{GeometryData, Ray, RayFlags, Scene};
 use crate::tracer::{
-    trace_ray, AllowedOutcomes, HitShaders, MissShader, PreparedScene, ShaderTable, TracerConfig,
-    TracerStats,
+    trace_ray, trace_rays, AllowedOutcomes, HitShaders, MissShader, PreparedScene, ShaderTable,
+    TracerConfig, TracerStats,
 };
 use crate::world::{GeometryKind, HandleRef, ShaderGroup, World};
 use std::collections::{BTreeSet, HashMap};

@@ -24,35 +24,76 @@ pub(super) fn allowed_for_ray_memo(
     stats: &mut TracerStats,
     memo: &HitRecordMemo,
 ) -> Option<AllowedOutcomes> {
+    let mut answer = None;
+    allowed_for_rays_memo(
+        world,
+        call,
+        prepared,
+        &[ray],
+        config,
+        stats,
+        memo,
+        |_, a| answer = a,
+    );
+    answer
+}
+
+/// [`allowed_for_ray_memo`] of each ray, traced together ([`crate::tracer::trace_rays`]): `answer`
+/// gets each ray's index and outcomes (None: undefined), in order.
+#[allow(clippy::too_many_arguments)] // the one-ray form's arguments, and where the answers go
+pub(super) fn allowed_for_rays_memo(
+    world: &World,
+    call: &Call,
+    prepared: &PreparedScene,
+    rays: &[&Ray],
+    config: &TracerConfig,
+    stats: &mut TracerStats,
+    memo: &HitRecordMemo,
+    mut answer: impl FnMut(usize, Option<AllowedOutcomes>),
+) {
     let scene = &world.launch.scene;
-    let hit = |i: u32, g: u32| {
-        let inst = &scene.instances[i as usize];
-        let record = hit_record(inst.sbt_record_offset, g, ray.sbt_offset, ray.sbt_stride);
-        if let Some((r, h)) = memo.last_hit.get() {
-            if r == record {
-                return h;
+    let hit_for = |ray: &Ray| {
+        let (sbt_offset, sbt_stride) = (ray.sbt_offset, ray.sbt_stride);
+        move |i: u32, g: u32| {
+            let inst = &scene.instances[i as usize];
+            let record = hit_record(inst.sbt_record_offset, g, sbt_offset, sbt_stride);
+            if let Some((r, h)) = memo.last_hit.get() {
+                if r == record {
+                    return h;
+                }
+            }
+            let known = memo.hits.borrow().get(&record).copied();
+            let h = known.unwrap_or_else(|| {
+                let h = hit_shaders(world, call, record);
+                memo.hits.borrow_mut().insert(record, h);
+                h
+            });
+            memo.last_hit.set(Some((record, h)));
+            h
+        }
+    };
+    let miss_for = |ray: &Ray| {
+        let record = miss_record(ray.miss_index);
+        match memo.last_miss.get() {
+            Some((r, m)) if r == record => m,
+            _ => {
+                let m = miss_shader(world, call, record);
+                memo.last_miss.set(Some((record, m)));
+                m
             }
         }
-        let known = memo.hits.borrow().get(&record).copied();
-        let h = known.unwrap_or_else(|| {
-            let h = hit_shaders(world, call, record);
-            memo.hits.borrow_mut().insert(record, h);
-            h
-        });
-        memo.last_hit.set(Some((record, h)));
-        h
     };
-    let record = miss_record(ray.miss_index);
-    let miss = match memo.last_miss.get() {
-        Some((r, m)) if r == record => m,
-        _ => {
-            let m = miss_shader(world, call, record);
-            memo.last_miss.set(Some((record, m)));
-            m
-        }
-    };
-    let table = ShaderTable { hit: &hit, miss };
-    trace_ray(prepared, ray, &table, config, stats).ok()
+    let hits: Vec<_> = rays.iter().map(|r| hit_for(r)).collect();
+    let tables: Vec<ShaderTable> = rays
+        .iter()
+        .zip(&hits)
+        .map(|(r, hit)| ShaderTable {
+            hit,
+            miss: miss_for(r),
+        })
+        .collect();
+    let pairs: Vec<(&Ray, &ShaderTable)> = rays.iter().copied().zip(&tables).collect();
+    trace_rays(prepared, &pairs, config, stats, |k, a| answer(k, a.ok()));
 }
 
 /// What a valid launch may write: its dimensions, and for each traced ray (launch ID `i` traces ray
@@ -293,18 +334,22 @@ fn trace_distinct(
         let memo = HitRecordMemo::default();
         // Pushed into a Vec of the final size (a collect through Option would grow it by copies).
         let mut all = Vec::with_capacity(distinct.len());
-        for &i in distinct {
-            all.push(allowed_for_ray_memo(
-                world,
-                call,
-                prepared,
-                &rays[i as usize],
-                &config,
-                stats,
-                &memo,
-            )?);
-        }
-        return Some(all);
+        let mut defined = true;
+        let traced: Vec<&Ray> = distinct.iter().map(|&i| &rays[i as usize]).collect();
+        allowed_for_rays_memo(
+            world,
+            call,
+            prepared,
+            &traced,
+            &config,
+            stats,
+            &memo,
+            |_, a| match a {
+                Some(a) if defined => all.push(a),
+                _ => defined = false,
+            },
+        );
+        return defined.then_some(all);
     }
     // The distinct rays in chunks, the chunks in one contiguous segment per worker: a worker traces
     // its own segment from the front (neighbouring rays meet the same nodes and items, in its own
@@ -338,20 +383,22 @@ fn trace_distinct(
             if undefined.load(std::sync::atomic::Ordering::Relaxed) {
                 break;
             }
-            for (slot, &i) in out.iter_mut().zip(ids) {
-                *slot = allowed_for_ray_memo(
-                    world,
-                    call,
-                    prepared,
-                    &rays[i as usize],
-                    &config,
-                    &mut stats,
-                    &memo,
-                );
-                if slot.is_none() {
-                    undefined.store(true, std::sync::atomic::Ordering::Relaxed);
-                }
-            }
+            let traced: Vec<&Ray> = ids.iter().map(|&i| &rays[i as usize]).collect();
+            allowed_for_rays_memo(
+                world,
+                call,
+                prepared,
+                &traced,
+                &config,
+                &mut stats,
+                &memo,
+                |k, a| {
+                    if a.is_none() {
+                        undefined.store(true, std::sync::atomic::Ordering::Relaxed);
+                    }
+                    out[k] = a;
+                },
+            );
         }
         parts.lock().unwrap_or_else(|e| e.into_inner()).push(stats);
     };

@@ -158,7 +158,7 @@ impl LaneBounds {
 }
 
 /// The ray as the lane test takes it.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct LaneRay {
     origin: [f32; 3],
     inv_direction: [f32; 3],
@@ -326,6 +326,24 @@ impl WideTree {
     }
 }
 
+impl PreparedScene {
+    /// Asks the cache for what the far test of item `i` reads first (a hint: no effect on any
+    /// result).
+    #[inline]
+    fn prefetch_item(&self, i: usize) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(b) = self.item_bounds.get(i) {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            let p = b as *const ItemBounds as *const i8;
+            // SAFETY: a prefetch reads nothing; the addresses lie within the item's bounds.
+            unsafe {
+                _mm_prefetch(p, _MM_HINT_T0);
+                _mm_prefetch(p.add(std::mem::size_of::<ItemBounds>() - 1), _MM_HINT_T0);
+            }
+        }
+    }
+}
+
 /// Items of a leaf, or children of a node, a ray may meet: at most four.
 type Lanes = [(f64, u32, bool); 4];
 
@@ -393,7 +411,9 @@ impl PreparedScene {
     /// may lower as it goes; see `traverse::trace_ray`). Nodes are tested with their bounds (the
     /// lane test, or [`BoundBox::entry`]), so a node is skipped only where every item below it is
     /// far; items are first tested so too, and those found far (counted in `far_rejections`) or
-    /// behind the cut are not visited.
+    /// behind the cut are not visited. (The tracer walks with [`PreparedScene::walk_step`], several
+    /// rays in turn.)
+    #[cfg(test)]
     pub(crate) fn for_each_near(
         &self,
         ray: &RayF64,
@@ -402,76 +422,148 @@ impl PreparedScene {
         cut: &std::cell::Cell<f64>,
         mut visit: impl FnMut(usize),
     ) {
+        let mut walk = Walk::default();
+        if self.walk_start(&mut walk, ray, nodes_visited, cut) {
+            while self.walk_step(
+                &mut walk,
+                ray,
+                nodes_visited,
+                far_rejections,
+                cut,
+                &mut visit,
+            ) {}
+        }
+    }
+
+    /// Starts `walk` (whatever it held) for `ray` (`for_each_near`'s walk, a step at a time); false
+    /// when the ray misses the root's bound (nothing to walk). The walk is set in place: it holds
+    /// its stack, a kilobyte, which a return by value would copy.
+    pub(crate) fn walk_start(
+        &self,
+        walk: &mut Walk,
+        ray: &RayF64,
+        nodes_visited: &mut u64,
+        cut: &std::cell::Cell<f64>,
+    ) -> bool {
+        walk.depth = 0;
+        walk.spill.clear();
+        walk.pending_len = 0;
         let (Some(root), Some(root_bound)) = (self.tree.nodes.first(), self.tree.root_bound) else {
-            return;
-        };
-        let limit = |triangles_only: bool, c: f64| {
-            if triangles_only && c < ray.tmax {
-                c
-            } else {
-                ray.tmax
-            }
+            return false;
         };
         *nodes_visited += 1;
-        let Some(entry) = root_bound.entry(ray, limit(root.triangles_only, cut.get())) else {
-            return;
+        let limit = if root.triangles_only && cut.get() < ray.tmax {
+            cut.get()
+        } else {
+            ray.tmax
         };
-        let lane_ray = LaneRay::of(ray);
-        // Each level leaves at most three nodes on the stack: a fixed stack holds any tree up to
-        // 21 levels deep (4^21 leaves), a Vec takes any excess.
-        let mut stack = [(0u32, 0f64); 64];
-        stack[0] = (0, entry);
-        let mut depth = 1usize;
-        let mut spill: Vec<(u32, f64)> = Vec::new();
+        let Some(entry) = root_bound.entry(ray, limit) else {
+            return false;
+        };
+        walk.lane_ray = LaneRay::of(ray);
+        walk.stack[0] = (0, entry);
+        walk.depth = 1;
+        true
+    }
+
+    /// One node of the walk: a leaf's items visited, or an interior node's children met by the ray
+    /// pushed (and asked of the cache); false when no node is left. Several rays' walks stepped in
+    /// turn each find their next node fetched while the others' were tested.
+    #[inline(always)]
+    pub(crate) fn walk_step(
+        &self,
+        walk: &mut Walk,
+        ray: &RayF64,
+        nodes_visited: &mut u64,
+        far_rejections: &mut u64,
+        cut: &std::cell::Cell<f64>,
+        visit: &mut impl FnMut(usize),
+    ) -> bool {
+        if walk.pending_len > 0 {
+            let len = walk.pending_len as usize;
+            walk.pending_len = 0;
+            for &(e, i, triangle) in &walk.pending[..len] {
+                // Behind the cut: `visit` would leave the triangle out as well.
+                if triangle && e > cut.get() {
+                    continue;
+                }
+                visit(i as usize);
+            }
+            return true;
+        }
+        let (n, entry) = if let Some(x) = walk.spill.pop() {
+            x
+        } else if walk.depth > 0 {
+            walk.depth -= 1;
+            walk.stack[walk.depth]
+        } else {
+            return false;
+        };
+        let node = &self.tree.nodes[n as usize];
+        let c = cut.get();
+        // The cut may have fallen since the node was pushed: its entry t past the cut is a
+        // miss of the cut ray.
+        if node.triangles_only && entry > c {
+            return true;
+        }
         let mut lanes: Lanes = [(0.0, 0, false); 4];
-        loop {
-            let (n, entry) = if let Some(x) = spill.pop() {
-                x
-            } else if depth > 0 {
-                depth -= 1;
-                stack[depth]
+        if node.leaf {
+            // The leaf's items by entry t, nearer first (a nearer required hit may cut the
+            // others before they are classified), visited at the walk's next step: their bounds
+            // are asked of the cache now, and arrive while other rays' walks step.
+            let len = self.lane_entries(n as usize, ray, &walk.lane_ray, None, &mut walk.pending);
+            *far_rejections += node.count as u64 - len as u64;
+            for &(_, i, _) in &walk.pending[..len] {
+                self.prefetch_item(i as usize);
+            }
+            walk.pending_len = len as u8;
+            return true;
+        }
+        *nodes_visited += node.count as u64;
+        let len = self.lane_entries(
+            n as usize,
+            ray,
+            &walk.lane_ray,
+            (c < ray.tmax).then_some(c),
+            &mut lanes,
+        );
+        // The nearest child is popped first; the others are fetched while it is traversed.
+        for &(e, child, _) in lanes[..len].iter().rev() {
+            self.tree.prefetch(child);
+            if walk.depth < walk.stack.len() {
+                walk.stack[walk.depth] = (child, e);
+                walk.depth += 1;
             } else {
-                break;
-            };
-            let node = &self.tree.nodes[n as usize];
-            let c = cut.get();
-            // The cut may have fallen since the node was pushed: its entry t past the cut is a
-            // miss of the cut ray.
-            if node.triangles_only && entry > c {
-                continue;
+                walk.spill.push((child, e));
             }
-            if node.leaf {
-                // The leaf's items by entry t, nearer first (a nearer required hit may cut the
-                // others before they are classified).
-                let len = self.lane_entries(n as usize, ray, &lane_ray, None, &mut lanes);
-                *far_rejections += node.count as u64 - len as u64;
-                for &(e, i, triangle) in &lanes[..len] {
-                    // Behind the cut: `visit` would leave the triangle out as well.
-                    if triangle && e > cut.get() {
-                        continue;
-                    }
-                    visit(i as usize);
-                }
-                continue;
-            }
-            *nodes_visited += node.count as u64;
-            let len = self.lane_entries(
-                n as usize,
-                ray,
-                &lane_ray,
-                (c < ray.tmax).then_some(c),
-                &mut lanes,
-            );
-            // The nearest child is popped first; the others are fetched while it is traversed.
-            for &(e, child, _) in lanes[..len].iter().rev() {
-                self.tree.prefetch(child);
-                if depth < stack.len() {
-                    stack[depth] = (child, e);
-                    depth += 1;
-                } else {
-                    spill.push((child, e));
-                }
-            }
+        }
+        true
+    }
+}
+
+/// Where one ray's walk through the tree stands: the nodes still to visit with their entry t
+/// (none until [`PreparedScene::walk_start`]).
+pub(crate) struct Walk {
+    lane_ray: LaneRay,
+    /// Each level leaves at most three nodes on the stack: a fixed stack holds any tree up to 21
+    /// levels deep (4^21 leaves), `spill` takes any excess.
+    stack: [(u32, f64); 64],
+    depth: usize,
+    spill: Vec<(u32, f64)>,
+    /// The items of the last leaf reached, nearer first, to visit at the next step.
+    pending: Lanes,
+    pending_len: u8,
+}
+
+impl Default for Walk {
+    fn default() -> Walk {
+        Walk {
+            lane_ray: LaneRay::default(),
+            stack: [(0, 0.0); 64],
+            depth: 0,
+            spill: Vec::new(),
+            pending: [(0.0, 0, false); 4],
+            pending_len: 0,
         }
     }
 }

@@ -10,6 +10,7 @@
 pub mod arith;
 pub mod band;
 mod bvh;
+mod candidates;
 mod conclude;
 pub mod few;
 pub mod judge;
@@ -24,7 +25,7 @@ mod watertight;
 pub mod workload;
 
 pub use prepare::{PreparedScene, PrimitiveKind};
-pub use traverse::{cut_allowed_for, opacity, opacity_culled, trace_launch, trace_ray};
+pub use traverse::{cut_allowed_for, opacity, opacity_culled, trace_launch, trace_ray, trace_rays};
 pub use triangle::{Interval, MissReason, PairClass, VaryReason};
 
 use serde::{Deserialize, Serialize};

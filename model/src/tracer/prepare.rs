@@ -306,7 +306,7 @@ impl ItemBounds {
 }
 
 /// A ray in f64 (exact conversions).
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct RayF64 {
     pub origin: [f64; 3],
     pub direction: [f64; 3],

@@ -1,18 +1,18 @@
-//! One ray through a prepared scene: candidates after culling (spec, "Ray Intersection Culling")
-//! and confirmation ("Ray Intersection Confirmation"); `conclude.rs` turns them into the set of
-//! committed hits, miss rule and invocation counts the traversal may produce.
+//! Rays through a prepared scene: each ray's walk through the BVH (several rays' walks in turn),
+//! the pairs it keeps classified (spec, "Ray Intersection Culling", "Ray Intersection
+//! Confirmation"); `candidates.rs` turns what a walk kept into the ray's candidates and
+//! `conclude.rs` those into the committed hits, miss rule and invocation counts it may produce.
 
 use super::arith::{affine, map3, v3, BoundedF64, Dyadic, PlainF32, V3};
 use super::band::triangle_band;
-use super::conclude::conclude;
+use super::candidates::outcomes_of_near;
 use super::outside::robustly_outside;
 use super::prepare::{Item, PreparedScene, RayF64, WorldGeometry};
-use super::sphere::{sphere_band, sphere_reports, sphere_signs, SphereSigns};
 use super::triangle::{
     classify, triangle_intervals, triangle_signs, MissReason, PairClass, TriangleSigns,
-    TriangleValues, VaryReason,
+    TriangleValues,
 };
-use super::watertight::{watertight_groups, TriangleHit};
+use super::watertight::TriangleHit;
 use super::*;
 use crate::scene::undefined::{ray_problems, EXCLUSIVE_RAY_FLAGS};
 use crate::scene::{GeometryData, Problem, Ray, RayFlags, SceneInstance};
@@ -20,18 +20,18 @@ use std::cmp::Ordering;
 
 /// The outcome of one (ray, triangle) pair.
 #[derive(Clone, Copy)]
-struct TriangleOutcome {
-    class: PairClass,
-    signs: Option<TriangleSigns>,
-    values: Option<TriangleValues>,
+pub(super) struct TriangleOutcome {
+    pub(super) class: PairClass,
+    pub(super) signs: Option<TriangleSigns>,
+    pub(super) values: Option<TriangleValues>,
     /// The t and barycentric intervals (`triangle_intervals`), where the pair is no miss.
-    intervals: Option<(Interval, [Interval; 2])>,
-    evaluation: Evaluation,
+    pub(super) intervals: Option<(Interval, [Interval; 2])>,
+    pub(super) evaluation: Evaluation,
 }
 
 /// Which arithmetic decided a pair's signs (the counter it adds to).
 #[derive(Clone, Copy, PartialEq, Eq)]
-enum Evaluation {
+pub(super) enum Evaluation {
     /// Decided before any arithmetic (degenerate or in-plane).
     None,
     Filter,
@@ -40,7 +40,7 @@ enum Evaluation {
 }
 
 impl Evaluation {
-    fn count(self, stats: &mut TracerStats) {
+    pub(super) fn count(self, stats: &mut TracerStats) {
         match self {
             Evaluation::None => {}
             Evaluation::Filter => stats.filter_decided += 1,
@@ -80,7 +80,7 @@ fn f32_world(scene: &PreparedScene, w: &WorldGeometry, v: [f32; 3]) -> V3<PlainF
     affine(&inst.transform.0, &as_space)
 }
 
-fn classify_triangle(
+pub(super) fn classify_triangle(
     scene: &PreparedScene,
     w: &WorldGeometry,
     primitive: u32,
@@ -227,7 +227,7 @@ pub fn opacity_culled(ray: &Ray, opaque: bool) -> bool {
         || (ray.flags.contains(RayFlags::CULL_NO_OPAQUE) && !opaque)
 }
 
-fn confirmation(opaque: bool, shaders: &HitShaders, primitive: u32) -> Confirmation {
+pub(super) fn confirmation(opaque: bool, shaders: &HitShaders, primitive: u32) -> Confirmation {
     if opaque {
         Confirmation::Opaque
     } else if !shaders.has_any_hit() {
@@ -314,17 +314,17 @@ fn required_hit_t(
 
 /// A primitive the ray's padded box test kept, with its classification when the traversal made
 /// one (an unculled triangle). Small, so the sort moves little.
-struct NearItem {
+pub(super) struct NearItem {
     /// (instance, geometry, primitive): the order of the candidates.
-    key: (u32, u32, u32),
-    item: Item,
+    pub(super) key: (u32, u32, u32),
+    pub(super) item: Item,
     /// Its index in the prepared scene's items.
-    index: u32,
+    pub(super) index: u32,
     /// Its classification's index in the scratch outcomes, or `u32::MAX`.
-    outcome: u32,
+    pub(super) outcome: u32,
     /// The cut it was kept at (its padded box met by the ray cut there): the final cut, if the
     /// same, would keep it again.
-    kept_at: f64,
+    pub(super) kept_at: f64,
 }
 
 /// A procedural primitive the intersection shader must run for.
@@ -336,7 +336,7 @@ pub(super) struct MustRun {
 /// Whether item `i` is far from the ray (its far box's test; with the BVH's shortcut `quick`, a
 /// segment that meets its inner box first).
 #[inline(always)]
-fn far_item(scene: &PreparedScene, quick: bool, i: usize, ray: &RayF64) -> bool {
+pub(super) fn far_item(scene: &PreparedScene, quick: bool, i: usize, ray: &RayF64) -> bool {
     !(quick && scene.item_bounds[i].meets_inner(ray)) && scene.item_boxes[i].is_far(ray)
 }
 
@@ -375,37 +375,188 @@ pub fn trace_ray(
     config: &TracerConfig,
     stats: &mut TracerStats,
 ) -> Result<AllowedOutcomes, Vec<Problem>> {
-    if !plainly_defined(ray) {
-        let problems = ray_problems(ray, "ray");
-        if !problems.is_empty() {
-            return Err(problems);
-        }
-    }
-    stats.rays += 1;
-    let rf = RayF64::of(ray);
-    // The cut: the least upper t bound of a triangle that must be a candidate and must be confirmed
-    // (so the committed hit is at most there). Behind it an opaque triangle, or one without any-hit,
-    // is unobservable: where no primitive of the scene runs any-hit for this ray and the trace may
-    // not end at its first hit, a triangle whose padded box the ray cut at the cut misses is left
-    // out — in every mode alike (the BVH skips whole nodes of such triangles as the cut falls).
-    let cut = std::cell::Cell::new(f64::INFINITY);
-    let mut may_cut: Option<bool> = None;
-    let mut scratch = SCRATCH.with(|s| std::mem::take(&mut *s.borrow_mut()));
-    let Scratch {
-        near,
-        hits,
-        outcomes,
-    } = &mut scratch;
-    let mut far_count = 0u64;
-    let far_test = config.far_test;
+    let mut answer = None;
+    trace_rays(scene, &[(ray, shaders)], config, stats, |_, a| {
+        answer = Some(a)
+    });
+    answer.expect("an answer for the ray")
+}
+
+/// Rays whose walks through the BVH [`trace_rays`] takes in turn.
+const INTERLEAVED: usize = 4;
+
+/// [`trace_ray`] of each ray with its shader table, the answers handed to `answer` with the ray's
+/// index, in order. Up to [`INTERLEAVED`] rays walk the BVH together, one node of each in turn:
+/// while one ray's nodes and items are tested, the next node of each other ray, asked of the cache
+/// when it was pushed, arrives from memory (one walk alone waits for each of its nodes). Each ray's
+/// walk and answer are its own, as if traced alone.
+pub fn trace_rays(
+    scene: &PreparedScene,
+    rays: &[(&Ray, &ShaderTable<'_>)],
+    config: &TracerConfig,
+    stats: &mut TracerStats,
+    mut answer: impl FnMut(usize, Result<AllowedOutcomes, Vec<Problem>>),
+) {
     // The BVH's shortcuts (brute force, the reference, goes without): a segment that meets an
     // item's inner box is not far from it.
-    let quick = config.use_bvh && far_test;
-    let far = |i: usize, ray: &RayF64| far_item(scene, quick, i, ray);
-    let mut visit = |i: usize| {
+    let quick = config.use_bvh && config.far_test;
+    // The thread's slots, kept between calls: a ray's trace starts in place, on the buffers and
+    // stack the slot's last ray left.
+    let mut slots = SLOTS.with(|s| std::mem::take(&mut *s.borrow_mut()));
+    if slots.len() < INTERLEAVED.min(rays.len()) {
+        slots.resize_with(INTERLEAVED.min(rays.len()), Default::default);
+    }
+    for (g, group) in rays.chunks(INTERLEAVED).enumerate() {
+        let mut undefined: [Option<Vec<Problem>>; INTERLEAVED] = std::array::from_fn(|_| None);
+        let mut walking = false;
+        for (k, (slot, &(ray, _))) in slots.iter_mut().zip(group).enumerate() {
+            match slot.start(ray, stats) {
+                Ok(()) => {
+                    slot.walking = quick
+                        && scene.walk_start(&mut slot.walk, &slot.rf, &mut slot.nodes, &slot.cut);
+                    walking |= slot.walking;
+                }
+                Err(problems) => undefined[k] = Some(problems),
+            }
+        }
+        while walking {
+            walking = false;
+            for (slot, &(ray, shaders)) in slots.iter_mut().zip(group) {
+                let Slot {
+                    rf,
+                    cut,
+                    kept,
+                    nodes,
+                    far,
+                    walk,
+                    walking: this,
+                    ..
+                } = slot;
+                if !*this {
+                    continue;
+                }
+                let mut visit = |i: usize| kept.visit(scene, ray, shaders, rf, config, cut, i);
+                *this = scene.walk_step(walk, rf, nodes, far, cut, &mut visit);
+                walking |= *this;
+            }
+        }
+        if !quick {
+            for (k, (slot, &(ray, shaders))) in slots.iter_mut().zip(group).enumerate() {
+                if undefined[k].is_none() {
+                    for i in 0..scene.items.len() {
+                        slot.kept
+                            .visit(scene, ray, shaders, &slot.rf, config, &slot.cut, i);
+                    }
+                }
+            }
+        }
+        for (k, (slot, &(ray, shaders))) in slots.iter_mut().zip(group).enumerate() {
+            let a = match undefined[k].take() {
+                None => Ok(slot.finish(scene, ray, shaders, config, stats)),
+                Some(problems) => Err(problems),
+            };
+            answer(g * INTERLEAVED + k, a);
+        }
+    }
+    SLOTS.with(|s| *s.borrow_mut() = slots);
+}
+
+/// One ray's trace under way, in a slot the thread keeps for the next ray: the ray in f64, its cut,
+/// what its walk has kept, and the walk.
+///
+/// The cut: the least upper t bound of a triangle that must be a candidate and must be confirmed
+/// (so the committed hit is at most there). Behind it an opaque triangle, or one without any-hit,
+/// is unobservable: where no primitive of the scene runs any-hit for this ray and the trace may
+/// not end at its first hit, a triangle whose padded box the ray cut at the cut misses is left
+/// out — in every mode alike (the BVH skips whole nodes of such triangles as the cut falls).
+#[derive(Default)]
+struct Slot {
+    rf: RayF64,
+    cut: std::cell::Cell<f64>,
+    kept: Kept,
+    /// The walk's counters.
+    nodes: u64,
+    far: u64,
+    walk: super::bvh::Walk,
+    /// The walk has nodes or items left.
+    walking: bool,
+}
+
+/// What a ray's visits keep: the near items, whether a cut is allowed (asked once), the count of
+/// items found far.
+#[derive(Default)]
+struct Kept {
+    may_cut: Option<bool>,
+    scratch: Scratch,
+    far_count: u64,
+}
+
+impl Slot {
+    /// Starts the trace of a defined ray; fails with an undefined ray's undefined things.
+    fn start(&mut self, ray: &Ray, stats: &mut TracerStats) -> Result<(), Vec<Problem>> {
+        self.walking = false;
+        if !plainly_defined(ray) {
+            let problems = ray_problems(ray, "ray");
+            if !problems.is_empty() {
+                return Err(problems);
+            }
+        }
+        stats.rays += 1;
+        self.rf = RayF64::of(ray);
+        self.cut.set(f64::INFINITY);
+        self.kept.may_cut = None;
+        self.kept.far_count = 0;
+        self.nodes = 0;
+        self.far = 0;
+        Ok(())
+    }
+
+    /// The allowed outcomes from the near items the walk kept, the ray cut at its cut; the slot's
+    /// buffers are left empty for the next ray.
+    fn finish(
+        &mut self,
+        scene: &PreparedScene,
+        ray: &Ray,
+        shaders: &ShaderTable<'_>,
+        config: &TracerConfig,
+        stats: &mut TracerStats,
+    ) -> AllowedOutcomes {
+        stats.nodes_visited += self.nodes;
+        stats.far_rejections += self.far + self.kept.far_count;
+        outcomes_of_near(
+            scene,
+            ray,
+            shaders,
+            config,
+            &self.rf,
+            self.cut.get(),
+            &mut self.kept.scratch,
+            stats,
+        )
+    }
+}
+
+impl Kept {
+    /// Visits item `i` of the walk of `ray`: left out when far, or behind the cut; else kept, a
+    /// triangle not culled classified at once (a required hit lowers the cut).
+    #[allow(clippy::too_many_arguments)] // one ray's parts, borrowed apart from its walk
+    #[inline(always)]
+    fn visit(
+        &mut self,
+        scene: &PreparedScene,
+        ray: &Ray,
+        shaders: &ShaderTable<'_>,
+        rf: &RayF64,
+        config: &TracerConfig,
+        cut: &std::cell::Cell<f64>,
+        i: usize,
+    ) {
+        let quick = config.use_bvh && config.far_test;
+        let far = |i: usize, ray: &RayF64| far_item(scene, quick, i, ray);
+        let Scratch { near, outcomes, .. } = &mut self.scratch;
         let item = scene.items[i];
-        if far_test && far(i, &rf) {
-            far_count += 1;
+        if config.far_test && far(i, rf) {
+            self.far_count += 1;
             return;
         }
         let w = &scene.geometries[item.geometry as usize];
@@ -422,20 +573,22 @@ pub fn trace_ray(
         // Behind the cut already: the final cut, never above it, leaves it out too.
         let c = cut.get();
         if c < rf.tmax {
-            let mut cut_ray = rf;
+            let mut cut_ray = *rf;
             cut_ray.tmax = c;
             if far(i, &cut_ray) {
                 return;
             }
         }
         let outcome = triangle_unculled(scene, w, ray)
-            .then(|| classify_triangle(scene, w, item.primitive, ray, &rf, config.precision));
+            .then(|| classify_triangle(scene, w, item.primitive, ray, rf, config.precision));
         if let Some(t_hi) = outcome
             .as_ref()
             .and_then(|out| required_hit_t(scene, w, ray, out))
         {
             if t_hi < cut.get()
-                && *may_cut.get_or_insert_with(|| cut_allowed_for(scene, ray, shaders))
+                && *self
+                    .may_cut
+                    .get_or_insert_with(|| cut_allowed_for(scene, ray, shaders))
             {
                 cut.set(t_hi);
             }
@@ -450,325 +603,20 @@ pub fn trace_ray(
             }),
             kept_at: c,
         });
-    };
-    if quick {
-        let (mut nodes, mut far) = (0, 0);
-        scene.for_each_near(&rf, &mut nodes, &mut far, &cut, &mut visit);
-        stats.nodes_visited += nodes;
-        stats.far_rejections += far;
-    } else {
-        (0..scene.items.len()).for_each(&mut visit);
     }
-    stats.far_rejections += far_count;
-    // What the cut leaves out of what was kept before it fell.
-    let cut_at = cut.get();
-    if cut_at < rf.tmax {
-        let mut cut_ray = rf;
-        cut_ray.tmax = cut_at;
-        near.retain(|n| {
-            scene.geometries[n.item.geometry as usize].kind != PrimitiveKind::Triangle
-                || n.kept_at == cut_at
-                || !far(n.index as usize, &cut_ray)
-        });
-    }
-    // A deterministic order, independent of the BVH.
-    // (instance, geometry, primitive) is unique per item: an unstable sort gives the same order.
-    near.sort_unstable_by_key(|n| n.key);
-
-    // Allocated by the first candidate (most near pairs are misses), for one only: most rays that
-    // have any have one, and a launch keeps every ray's candidates (a Vec's first push would make
-    // room for four).
-    let mut candidates: Vec<Candidate> = Vec::new();
-    let push_candidate = |candidates: &mut Vec<Candidate>, c: Candidate| {
-        if candidates.capacity() == 0 {
-            candidates.reserve_exact(1);
-        }
-        candidates.push(c);
-    };
-    let mut must_run: Vec<MustRun> = Vec::new();
-    for NearItem { item, outcome, .. } in near.drain(..) {
-        let outcome = outcomes.get(outcome as usize);
-        let w = &scene.geometries[item.geometry as usize];
-        let inst = &scene.scene.instances[w.instance as usize];
-        // Spec, "Ray Mask Culling".
-        if inst.mask as u32 & ray.cull_mask & 0xFF == 0 {
-            continue;
-        }
-        // Spec, "Ray Primitive Culling".
-        let skip = match w.kind {
-            PrimitiveKind::Triangle => RayFlags::SKIP_TRIANGLES,
-            PrimitiveKind::Aabb => RayFlags::SKIP_AABBS,
-        };
-        if ray.flags.contains(skip) {
-            continue;
-        }
-        let geometry =
-            &scene.scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize];
-        let prim = PrimitiveRef {
-            instance: w.instance,
-            geometry: w.geometry,
-            primitive: item.primitive,
-        };
-        let opaque = opacity(ray, inst, geometry.flags.opaque);
-        // Resolved where a candidate needs it (most near pairs are misses).
-        let hit_shaders = || (shaders.hit)(w.instance, w.geometry);
-        stats.pair_tests += 1;
-        match w.kind {
-            PrimitiveKind::Triangle => {
-                // Classified while traversing, or now (read in place, not copied).
-                let computed;
-                let out = match outcome {
-                    Some(o) => o,
-                    None => {
-                        computed =
-                            classify_triangle(scene, w, item.primitive, ray, &rf, config.precision);
-                        &computed
-                    }
-                };
-                out.evaluation.count(stats);
-                let (presence, reason) = match out.class {
-                    PairClass::ReqHit => {
-                        stats.req_hit += 1;
-                        (Presence::Required, None)
-                    }
-                    PairClass::Vary(r) => {
-                        stats.vary += 1;
-                        (Presence::Possible, Some(r))
-                    }
-                    PairClass::ReqMiss(_) => {
-                        stats.req_miss += 1;
-                        continue;
-                    }
-                };
-                let signs = out.signs.expect("classified");
-                let values = out.values.expect("classified");
-                if opacity_culled(ray, opaque) {
-                    continue;
-                }
-                // Spec, "Ray Face Culling": facing in the bottom level's space, from the sign of
-                // S and of det(A); FLIP_FACING reverses it.
-                let front = signs.orientation.map(|o| {
-                    let world_negative = o == Ordering::Less;
-                    (world_negative != scene.instances[w.instance as usize].det_negative)
-                        != inst.flags.flip_facing
-                });
-                const BOTH: [u32; 2] = [0xFE, 0xFF];
-                let facings: &[u32] = match front {
-                    Some(true) => &BOTH[..1],
-                    Some(false) => &BOTH[1..],
-                    None => &BOTH,
-                };
-                let culls = !inst.flags.triangle_facing_cull_disable;
-                let mut kept = [0u32; 2];
-                let mut count = 0;
-                for &k in facings {
-                    let culled = culls
-                        && ((k == 0xFF
-                            && ray.flags.contains(RayFlags::CULL_BACK_FACING_TRIANGLES))
-                            || (k == 0xFE
-                                && ray.flags.contains(RayFlags::CULL_FRONT_FACING_TRIANGLES)));
-                    if !culled {
-                        kept[count] = k;
-                        count += 1;
-                    }
-                }
-                let kinds = &kept[..count];
-                let facing_vary = count < facings.len() && front.is_none();
-                if kinds.is_empty() {
-                    continue;
-                }
-                let presence = if facing_vary {
-                    Presence::Possible
-                } else {
-                    presence
-                };
-                let reason = if facing_vary {
-                    Some(VaryReason::Facing)
-                } else {
-                    reason
-                };
-                let (t, bary) = out.intervals.expect("classified, no miss");
-                let (s, _) = values.sum;
-                let t_exact = values.plane.0 / s;
-                let bary_exact = [values.edge[1].0 / s, values.edge[2].0 / s];
-                let single = kinds.len() == 1;
-                let reports = kinds
-                    .iter()
-                    .map(|&k| AllowedReport {
-                        hit_kind: k,
-                        t,
-                        barycentrics: Some(bary),
-                        t_exact,
-                        barycentrics_exact: Some(bary_exact),
-                        required: presence == Presence::Required && single,
-                    })
-                    .collect();
-                let GeometryData::Triangles(tri) = &geometry.data else {
-                    unreachable!()
-                };
-                hits.push(TriangleHit {
-                    candidate: candidates.len(),
-                    bottom_level: w.bottom_level,
-                    class: w.transform_class,
-                    vertices: tri.vertices(item.primitive as usize),
-                    world: tri
-                        .vertex_indices(item.primitive as usize)
-                        .map(|i| map3(w.vertices[i], |x| x.value)),
-                    signs,
-                });
-                let hit_shaders = hit_shaders();
-                push_candidate(
-                    &mut candidates,
-                    Candidate {
-                        primitive: prim,
-                        kind: PrimitiveKind::Triangle,
-                        custom_index: inst.custom_index,
-                        presence,
-                        vary_reason: reason,
-                        opaque,
-                        confirmation: confirmation(opaque, &hit_shaders, item.primitive),
-                        shaders: hit_shaders,
-                        no_duplicate_any_hit: geometry.flags.no_duplicate_any_hit,
-                        reports,
-                    },
-                );
-            }
-            PrimitiveKind::Aabb => {
-                let hit_shaders = hit_shaders();
-                if opacity_culled(ray, opaque) || !hit_shaders.has_intersection() {
-                    stats.req_miss += 1;
-                    continue;
-                }
-                let GeometryData::Aabbs(a) = &geometry.data else {
-                    unreachable!()
-                };
-                let sphere = a.spheres[item.primitive as usize];
-                let band = sphere_band(
-                    &scene.instances[w.instance as usize].band,
-                    &sphere,
-                    rf.origin,
-                    rf.direction,
-                );
-                let m = &inst.transform.0;
-                let exact = |stats: &mut TracerStats| -> SphereSigns {
-                    stats.exact_evaluations += 1;
-                    sphere_signs::<Dyadic>(
-                        m,
-                        &sphere,
-                        ray.origin,
-                        ray.direction,
-                        ray.tmin,
-                        ray.tmax,
-                        &band,
-                    )
-                    .expect("exact arithmetic decides every sign")
-                };
-                let signs = match config.precision {
-                    Precision::ExactOnly => exact(stats),
-                    Precision::F64WithExactFallback => {
-                        match sphere_signs::<BoundedF64>(
-                            m,
-                            &sphere,
-                            ray.origin,
-                            ray.direction,
-                            ray.tmin,
-                            ray.tmax,
-                            &band,
-                        ) {
-                            Some(s) => {
-                                stats.filter_decided += 1;
-                                s
-                            }
-                            None => exact(stats),
-                        }
-                    }
-                    Precision::F32FilterOnly => {
-                        stats.f32_evaluations += 1;
-                        sphere_signs::<PlainF32>(
-                            m,
-                            &sphere,
-                            ray.origin,
-                            ray.direction,
-                            ray.tmin,
-                            ray.tmax,
-                            &band,
-                        )
-                        .expect("f32 signs are taken at face value")
-                    }
-                };
-                if signs.must_run {
-                    must_run.push(MustRun {
-                        t_hi: band.t0.hi.max(band.t1.lo),
-                        primitive: prim,
-                    });
-                }
-                let reports: few::Few<AllowedReport, 2> = sphere_reports(&signs, &band)
-                    .into_iter()
-                    .map(|r| AllowedReport {
-                        hit_kind: r.hit_kind,
-                        t: r.t,
-                        barycentrics: None,
-                        t_exact: r.t.mid(),
-                        barycentrics_exact: None,
-                        required: r.required && signs.must_run,
-                    })
-                    .collect();
-                if reports.is_empty() {
-                    stats.req_miss += 1;
-                    continue;
-                }
-                let required = reports.iter().any(|r| r.required);
-                if required {
-                    stats.req_hit += 1;
-                } else {
-                    stats.vary += 1;
-                }
-                push_candidate(
-                    &mut candidates,
-                    Candidate {
-                        primitive: prim,
-                        kind: PrimitiveKind::Aabb,
-                        custom_index: inst.custom_index,
-                        presence: if required {
-                            Presence::Required
-                        } else {
-                            Presence::Possible
-                        },
-                        vary_reason: if required {
-                            None
-                        } else {
-                            Some(VaryReason::Procedural)
-                        },
-                        opaque,
-                        confirmation: confirmation(opaque, &hit_shaders, item.primitive),
-                        shaders: hit_shaders,
-                        no_duplicate_any_hit: geometry.flags.no_duplicate_any_hit,
-                        reports,
-                    },
-                );
-            }
-        }
-    }
-    let watertight = watertight_groups(scene, ray, &candidates, hits);
-    hits.clear();
-    outcomes.clear();
-    SCRATCH.with(|s| *s.borrow_mut() = scratch);
-    Ok(conclude(
-        scene, ray, shaders, candidates, must_run, watertight,
-    ))
 }
-
 /// Buffers one ray's trace needs and none keeps, reused by the next ray of the thread.
 #[derive(Default)]
-struct Scratch {
-    near: Vec<NearItem>,
-    hits: Vec<TriangleHit>,
+pub(super) struct Scratch {
+    pub(super) near: Vec<NearItem>,
+    pub(super) hits: Vec<TriangleHit>,
     /// The near items' classifications.
-    outcomes: Vec<TriangleOutcome>,
+    pub(super) outcomes: Vec<TriangleOutcome>,
 }
 
 thread_local! {
-    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
+    /// The thread's slots for rays under way ([`trace_rays`]).
+    static SLOTS: std::cell::RefCell<Vec<Slot>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 /// Traces every ray of a launch (one shader table for all, e.g. uniform SBT parameters).

@@ -1,0 +1,329 @@
+//! From the near items one ray's walk kept to its allowed outcomes: the cut applied, mask,
+//! primitive, opacity and facing culling (spec, "Ray Culling"), each remaining pair's reports and
+//! confirmation, the watertight groups, and `conclude.rs`'s committed hits.
+
+use super::arith::{map3, BoundedF64, Dyadic, PlainF32};
+use super::conclude::conclude;
+use super::prepare::{PreparedScene, RayF64};
+use super::sphere::{sphere_band, sphere_reports, sphere_signs, SphereSigns};
+use super::traverse::{
+    classify_triangle, confirmation, far_item, opacity, opacity_culled, MustRun, NearItem, Scratch,
+};
+use super::triangle::{PairClass, VaryReason};
+use super::watertight::{watertight_groups, TriangleHit};
+use super::*;
+use crate::scene::{GeometryData, Ray, RayFlags};
+use std::cmp::Ordering;
+
+/// The allowed outcomes of `ray` (`rf` in f64, cut at `cut_at`) from the near items in `scratch`,
+/// which is left empty for the next ray.
+#[allow(clippy::too_many_arguments)] // one ray's trace, its buffers and the counters
+pub(super) fn outcomes_of_near(
+    scene: &PreparedScene,
+    ray: &Ray,
+    shaders: &ShaderTable<'_>,
+    config: &TracerConfig,
+    rf: &RayF64,
+    cut_at: f64,
+    scratch: &mut Scratch,
+    stats: &mut TracerStats,
+) -> AllowedOutcomes {
+    let quick = config.use_bvh && config.far_test;
+    let Scratch {
+        near,
+        hits,
+        outcomes,
+    } = scratch;
+    // What the cut leaves out of what was kept before it fell.
+    if cut_at < rf.tmax {
+        let mut cut_ray = *rf;
+        cut_ray.tmax = cut_at;
+        near.retain(|n| {
+            scene.geometries[n.item.geometry as usize].kind != PrimitiveKind::Triangle
+                || n.kept_at == cut_at
+                || !far_item(scene, quick, n.index as usize, &cut_ray)
+        });
+    }
+    // A deterministic order, independent of the BVH.
+    // (instance, geometry, primitive) is unique per item: an unstable sort gives the same order.
+    near.sort_unstable_by_key(|n| n.key);
+
+    // Allocated by the first candidate (most near pairs are misses), for one only: most rays that
+    // have any have one, and a launch keeps every ray's candidates (a Vec's first push would make
+    // room for four).
+    let mut candidates: Vec<Candidate> = Vec::new();
+    let push_candidate = |candidates: &mut Vec<Candidate>, c: Candidate| {
+        if candidates.capacity() == 0 {
+            candidates.reserve_exact(1);
+        }
+        candidates.push(c);
+    };
+    let mut must_run: Vec<MustRun> = Vec::new();
+    for NearItem { item, outcome, .. } in near.drain(..) {
+        let outcome = outcomes.get(outcome as usize);
+        let w = &scene.geometries[item.geometry as usize];
+        let inst = &scene.scene.instances[w.instance as usize];
+        // Spec, "Ray Mask Culling".
+        if inst.mask as u32 & ray.cull_mask & 0xFF == 0 {
+            continue;
+        }
+        // Spec, "Ray Primitive Culling".
+        let skip = match w.kind {
+            PrimitiveKind::Triangle => RayFlags::SKIP_TRIANGLES,
+            PrimitiveKind::Aabb => RayFlags::SKIP_AABBS,
+        };
+        if ray.flags.contains(skip) {
+            continue;
+        }
+        let geometry =
+            &scene.scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize];
+        let prim = PrimitiveRef {
+            instance: w.instance,
+            geometry: w.geometry,
+            primitive: item.primitive,
+        };
+        let opaque = opacity(ray, inst, geometry.flags.opaque);
+        // Resolved where a candidate needs it (most near pairs are misses).
+        let hit_shaders = || (shaders.hit)(w.instance, w.geometry);
+        stats.pair_tests += 1;
+        match w.kind {
+            PrimitiveKind::Triangle => {
+                // Classified while traversing, or now (read in place, not copied).
+                let computed;
+                let out = match outcome {
+                    Some(o) => o,
+                    None => {
+                        computed =
+                            classify_triangle(scene, w, item.primitive, ray, rf, config.precision);
+                        &computed
+                    }
+                };
+                out.evaluation.count(stats);
+                let (presence, reason) = match out.class {
+                    PairClass::ReqHit => {
+                        stats.req_hit += 1;
+                        (Presence::Required, None)
+                    }
+                    PairClass::Vary(r) => {
+                        stats.vary += 1;
+                        (Presence::Possible, Some(r))
+                    }
+                    PairClass::ReqMiss(_) => {
+                        stats.req_miss += 1;
+                        continue;
+                    }
+                };
+                let signs = out.signs.expect("classified");
+                let values = out.values.expect("classified");
+                if opacity_culled(ray, opaque) {
+                    continue;
+                }
+                // Spec, "Ray Face Culling": facing in the bottom level's space, from the sign of
+                // S and of det(A); FLIP_FACING reverses it.
+                let front = signs.orientation.map(|o| {
+                    let world_negative = o == Ordering::Less;
+                    (world_negative != scene.instances[w.instance as usize].det_negative)
+                        != inst.flags.flip_facing
+                });
+                const BOTH: [u32; 2] = [0xFE, 0xFF];
+                let facings: &[u32] = match front {
+                    Some(true) => &BOTH[..1],
+                    Some(false) => &BOTH[1..],
+                    None => &BOTH,
+                };
+                let culls = !inst.flags.triangle_facing_cull_disable;
+                let mut kept = [0u32; 2];
+                let mut count = 0;
+                for &k in facings {
+                    let culled = culls
+                        && ((k == 0xFF
+                            && ray.flags.contains(RayFlags::CULL_BACK_FACING_TRIANGLES))
+                            || (k == 0xFE
+                                && ray.flags.contains(RayFlags::CULL_FRONT_FACING_TRIANGLES)));
+                    if !culled {
+                        kept[count] = k;
+                        count += 1;
+                    }
+                }
+                let kinds = &kept[..count];
+                let facing_vary = count < facings.len() && front.is_none();
+                if kinds.is_empty() {
+                    continue;
+                }
+                let presence = if facing_vary {
+                    Presence::Possible
+                } else {
+                    presence
+                };
+                let reason = if facing_vary {
+                    Some(VaryReason::Facing)
+                } else {
+                    reason
+                };
+                let (t, bary) = out.intervals.expect("classified, no miss");
+                let (s, _) = values.sum;
+                let t_exact = values.plane.0 / s;
+                let bary_exact = [values.edge[1].0 / s, values.edge[2].0 / s];
+                let single = kinds.len() == 1;
+                let reports = kinds
+                    .iter()
+                    .map(|&k| AllowedReport {
+                        hit_kind: k,
+                        t,
+                        barycentrics: Some(bary),
+                        t_exact,
+                        barycentrics_exact: Some(bary_exact),
+                        required: presence == Presence::Required && single,
+                    })
+                    .collect();
+                let GeometryData::Triangles(tri) = &geometry.data else {
+                    unreachable!()
+                };
+                hits.push(TriangleHit {
+                    candidate: candidates.len(),
+                    bottom_level: w.bottom_level,
+                    class: w.transform_class,
+                    vertices: tri.vertices(item.primitive as usize),
+                    world: tri
+                        .vertex_indices(item.primitive as usize)
+                        .map(|i| map3(w.vertices[i], |x| x.value)),
+                    signs,
+                });
+                let hit_shaders = hit_shaders();
+                push_candidate(
+                    &mut candidates,
+                    Candidate {
+                        primitive: prim,
+                        kind: PrimitiveKind::Triangle,
+                        custom_index: inst.custom_index,
+                        presence,
+                        vary_reason: reason,
+                        opaque,
+                        confirmation: confirmation(opaque, &hit_shaders, item.primitive),
+                        shaders: hit_shaders,
+                        no_duplicate_any_hit: geometry.flags.no_duplicate_any_hit,
+                        reports,
+                    },
+                );
+            }
+            PrimitiveKind::Aabb => {
+                let hit_shaders = hit_shaders();
+                if opacity_culled(ray, opaque) || !hit_shaders.has_intersection() {
+                    stats.req_miss += 1;
+                    continue;
+                }
+                let GeometryData::Aabbs(a) = &geometry.data else {
+                    unreachable!()
+                };
+                let sphere = a.spheres[item.primitive as usize];
+                let band = sphere_band(
+                    &scene.instances[w.instance as usize].band,
+                    &sphere,
+                    rf.origin,
+                    rf.direction,
+                );
+                let m = &inst.transform.0;
+                let exact = |stats: &mut TracerStats| -> SphereSigns {
+                    stats.exact_evaluations += 1;
+                    sphere_signs::<Dyadic>(
+                        m,
+                        &sphere,
+                        ray.origin,
+                        ray.direction,
+                        ray.tmin,
+                        ray.tmax,
+                        &band,
+                    )
+                    .expect("exact arithmetic decides every sign")
+                };
+                let signs = match config.precision {
+                    Precision::ExactOnly => exact(stats),
+                    Precision::F64WithExactFallback => {
+                        match sphere_signs::<BoundedF64>(
+                            m,
+                            &sphere,
+                            ray.origin,
+                            ray.direction,
+                            ray.tmin,
+                            ray.tmax,
+                            &band,
+                        ) {
+                            Some(s) => {
+                                stats.filter_decided += 1;
+                                s
+                            }
+                            None => exact(stats),
+                        }
+                    }
+                    Precision::F32FilterOnly => {
+                        stats.f32_evaluations += 1;
+                        sphere_signs::<PlainF32>(
+                            m,
+                            &sphere,
+                            ray.origin,
+                            ray.direction,
+                            ray.tmin,
+                            ray.tmax,
+                            &band,
+                        )
+                        .expect("f32 signs are taken at face value")
+                    }
+                };
+                if signs.must_run {
+                    must_run.push(MustRun {
+                        t_hi: band.t0.hi.max(band.t1.lo),
+                        primitive: prim,
+                    });
+                }
+                let reports: few::Few<AllowedReport, 2> = sphere_reports(&signs, &band)
+                    .into_iter()
+                    .map(|r| AllowedReport {
+                        hit_kind: r.hit_kind,
+                        t: r.t,
+                        barycentrics: None,
+                        t_exact: r.t.mid(),
+                        barycentrics_exact: None,
+                        required: r.required && signs.must_run,
+                    })
+                    .collect();
+                if reports.is_empty() {
+                    stats.req_miss += 1;
+                    continue;
+                }
+                let required = reports.iter().any(|r| r.required);
+                if required {
+                    stats.req_hit += 1;
+                } else {
+                    stats.vary += 1;
+                }
+                push_candidate(
+                    &mut candidates,
+                    Candidate {
+                        primitive: prim,
+                        kind: PrimitiveKind::Aabb,
+                        custom_index: inst.custom_index,
+                        presence: if required {
+                            Presence::Required
+                        } else {
+                            Presence::Possible
+                        },
+                        vary_reason: if required {
+                            None
+                        } else {
+                            Some(VaryReason::Procedural)
+                        },
+                        opaque,
+                        confirmation: confirmation(opaque, &hit_shaders, item.primitive),
+                        shaders: hit_shaders,
+                        no_duplicate_any_hit: geometry.flags.no_duplicate_any_hit,
+                        reports,
+                    },
+                );
+            }
+        }
+    }
+    let watertight = watertight_groups(scene, ray, &candidates, hits);
+    hits.clear();
+    outcomes.clear();
+    conclude(scene, ray, shaders, candidates, must_run, watertight)
+}
