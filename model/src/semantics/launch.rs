@@ -330,21 +330,23 @@ fn trace_distinct(
     stats: &mut TracerStats,
 ) -> Option<Vec<AllowedOutcomes>> {
     let config = TracerConfig::default();
+    // The outcomes of the distinct rays `ids` (indices into `rays`), traced together, to `answer`.
+    let trace_ids = |ids: &[u32],
+                     stats: &mut TracerStats,
+                     memo: &HitRecordMemo,
+                     answer: &mut dyn FnMut(usize, Option<AllowedOutcomes>)| {
+        let traced: Vec<&Ray> = ids.iter().map(|&i| &rays[i as usize]).collect();
+        allowed_for_rays_memo(world, call, prepared, &traced, &config, stats, memo, answer);
+    };
     if workers == 1 {
-        let memo = HitRecordMemo::default();
         // Pushed into a Vec of the final size (a collect through Option would grow it by copies).
         let mut all = Vec::with_capacity(distinct.len());
         let mut defined = true;
-        let traced: Vec<&Ray> = distinct.iter().map(|&i| &rays[i as usize]).collect();
-        allowed_for_rays_memo(
-            world,
-            call,
-            prepared,
-            &traced,
-            &config,
+        trace_ids(
+            distinct,
             stats,
-            &memo,
-            |_, a| match a {
+            &HitRecordMemo::default(),
+            &mut |_, a| match a {
                 Some(a) if defined => all.push(a),
                 _ => defined = false,
             },
@@ -383,22 +385,12 @@ fn trace_distinct(
             if undefined.load(std::sync::atomic::Ordering::Relaxed) {
                 break;
             }
-            let traced: Vec<&Ray> = ids.iter().map(|&i| &rays[i as usize]).collect();
-            allowed_for_rays_memo(
-                world,
-                call,
-                prepared,
-                &traced,
-                &config,
-                &mut stats,
-                &memo,
-                |k, a| {
-                    if a.is_none() {
-                        undefined.store(true, std::sync::atomic::Ordering::Relaxed);
-                    }
-                    out[k] = a;
-                },
-            );
+            trace_ids(ids, &mut stats, &memo, &mut |k, a| {
+                if a.is_none() {
+                    undefined.store(true, std::sync::atomic::Ordering::Relaxed);
+                }
+                out[k] = a;
+            });
         }
         parts.lock().unwrap_or_else(|e| e.into_inner()).push(stats);
     };

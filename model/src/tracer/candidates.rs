@@ -2,17 +2,17 @@
 //! primitive, opacity and facing culling (spec, "Ray Culling"), each remaining pair's reports and
 //! confirmation, the watertight groups, and `conclude.rs`'s committed hits.
 
-use super::arith::{map3, BoundedF64, Dyadic, PlainF32};
+use super::arith::{map3, BoundedF64, Dyadic, Num, PlainF32};
 use super::conclude::conclude;
 use super::prepare::{PreparedScene, RayF64};
-use super::sphere::{sphere_band, sphere_reports, sphere_signs, SphereSigns};
+use super::sphere::{sphere_band, sphere_reports, sphere_signs, SphereBand, SphereSigns};
 use super::traverse::{
     classify_triangle, confirmation, far_item, opacity, opacity_culled, MustRun, NearItem, Scratch,
 };
 use super::triangle::{PairClass, VaryReason};
 use super::watertight::{watertight_groups, TriangleHit};
 use super::*;
-use crate::scene::{GeometryData, Ray, RayFlags};
+use crate::scene::{GeometryData, Ray, RayFlags, Sphere};
 use std::cmp::Ordering;
 
 /// The allowed outcomes of `ray` (`rf` in f64, cut at `cut_at`) from the near items in `scratch`,
@@ -225,29 +225,13 @@ pub(super) fn outcomes_of_near(
                 let m = &inst.transform.0;
                 let exact = |stats: &mut TracerStats| -> SphereSigns {
                     stats.exact_evaluations += 1;
-                    sphere_signs::<Dyadic>(
-                        m,
-                        &sphere,
-                        ray.origin,
-                        ray.direction,
-                        ray.tmin,
-                        ray.tmax,
-                        &band,
-                    )
-                    .expect("exact arithmetic decides every sign")
+                    sphere_signs_in::<Dyadic>(m, &sphere, ray, &band)
+                        .expect("exact arithmetic decides every sign")
                 };
                 let signs = match config.precision {
                     Precision::ExactOnly => exact(stats),
                     Precision::F64WithExactFallback => {
-                        match sphere_signs::<BoundedF64>(
-                            m,
-                            &sphere,
-                            ray.origin,
-                            ray.direction,
-                            ray.tmin,
-                            ray.tmax,
-                            &band,
-                        ) {
+                        match sphere_signs_in::<BoundedF64>(m, &sphere, ray, &band) {
                             Some(s) => {
                                 stats.filter_decided += 1;
                                 s
@@ -257,16 +241,8 @@ pub(super) fn outcomes_of_near(
                     }
                     Precision::F32FilterOnly => {
                         stats.f32_evaluations += 1;
-                        sphere_signs::<PlainF32>(
-                            m,
-                            &sphere,
-                            ray.origin,
-                            ray.direction,
-                            ray.tmin,
-                            ray.tmax,
-                            &band,
-                        )
-                        .expect("f32 signs are taken at face value")
+                        sphere_signs_in::<PlainF32>(m, &sphere, ray, &band)
+                            .expect("f32 signs are taken at face value")
                     }
                 };
                 if signs.must_run {
@@ -326,4 +302,23 @@ pub(super) fn outcomes_of_near(
     hits.clear();
     outcomes.clear();
     conclude(scene, ray, shaders, candidates, must_run, watertight)
+}
+
+/// The signs of `ray` against `sphere` of the instance transform `m` in the arithmetic `N`, None where
+/// it cannot decide them.
+fn sphere_signs_in<N: Num>(
+    m: &[[f32; 4]; 3],
+    sphere: &Sphere,
+    ray: &Ray,
+    band: &SphereBand,
+) -> Option<SphereSigns> {
+    sphere_signs::<N>(
+        m,
+        sphere,
+        ray.origin,
+        ray.direction,
+        ray.tmin,
+        ray.tmax,
+        band,
+    )
 }
