@@ -131,12 +131,12 @@ impl ExpectedLaunch {
 /// answer is the same however the rays are shared out).
 pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
     let dims = call.dimensions(world)?;
-    let (rays, found) = rays_beside_prepared(world, call, &dims);
+    let rays = traced_rays(world, call);
     let mut stats = TracerStats::default();
     let mut allowed: Vec<AllowedOutcomes> = Vec::new();
     if !rays.is_empty() {
         // The first launch ray of each distinct ray, and for every ray the distinct one it is.
-        let (prepared, (distinct, of)) = match found {
+        let (prepared, (distinct, of)) = match prepared_beside_distinct(world, &rays) {
             Some((p, d)) => (p?, d),
             None => (prepared(&world.launch.scene)?, distinct_rays(&rays)),
         };
@@ -177,33 +177,26 @@ pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
 /// The first launch ray of each distinct ray, and for every ray the distinct one it is.
 type DistinctRays = (Vec<u32>, Vec<u32>);
 
-/// A launch's prepared scene (None: undefined) and distinct rays, found beside its rays.
-type FoundBeside = (Option<Arc<PreparedScene>>, DistinctRays);
+/// A launch's prepared scene (None: undefined) and distinct rays.
+type Found = (Option<Arc<PreparedScene>>, DistinctRays);
 
-/// The launch's traced rays; for a launch of a size that is traced on more than one thread, also the
-/// scene's prepared form (None: undefined) and the distinct rays, found at once on two threads: the
-/// prepared scene's memo compares the scene's data in full (a pass over every vertex), as long as
-/// making and sorting out a few thousand rays. A smaller launch finds them after its rays, where
-/// it has any.
-fn rays_beside_prepared(
-    world: &World,
-    call: &Call,
-    dims: &[u32; 3],
-) -> (Vec<Ray>, Option<FoundBeside>) {
-    let ids = dims.iter().map(|&d| d as u64).fold(1, u64::saturating_mul);
-    if workers_for(usize::try_from(ids).unwrap_or(usize::MAX)) == 1 {
-        return (traced_rays(world, call), None);
+/// For rays enough to be traced on more than one thread, the scene's prepared form (None: undefined)
+/// and the distinct rays, found at once on two threads: the prepared scene's memo compares the
+/// scene's data in full (a pass over every vertex), about as long as sorting out a few thousand
+/// rays. None for fewer rays, which find them one after the other.
+fn prepared_beside_distinct(world: &World, rays: &[Ray]) -> Option<Found> {
+    if workers_for(rays.len()) == 1 {
+        return None;
     }
-    let rays: Mutex<Option<(Vec<Ray>, DistinctRays)>> = Mutex::new(None);
+    let distinct: Mutex<Option<DistinctRays>> = Mutex::new(None);
     let found: Mutex<Option<Option<Arc<PreparedScene>>>> = Mutex::new(None);
     let next = std::sync::atomic::AtomicUsize::new(0);
     // Each run takes the parts left: a helper that starts late leaves both to the caller.
     let work = || loop {
         match next.fetch_add(1, std::sync::atomic::Ordering::Relaxed) {
             0 => {
-                let r = traced_rays(world, call);
-                let d = distinct_rays(&r);
-                *rays.lock().unwrap_or_else(|e| e.into_inner()) = Some((r, d));
+                let d = distinct_rays(rays);
+                *distinct.lock().unwrap_or_else(|e| e.into_inner()) = Some(d);
             }
             1 => {
                 let p = prepared(&world.launch.scene);
@@ -213,7 +206,7 @@ fn rays_beside_prepared(
         }
     };
     crate::helpers::run_beside(1, &work);
-    let (r, d) = rays
+    let d = distinct
         .into_inner()
         .unwrap_or_else(|e| e.into_inner())
         .expect("every part is done before run_beside returns");
@@ -221,7 +214,7 @@ fn rays_beside_prepared(
         .into_inner()
         .unwrap_or_else(|e| e.into_inner())
         .expect("every part is done before run_beside returns");
-    (r, Some((p, d)))
+    Some((p, d))
 }
 
 /// The index of the first of each distinct ray of `rays`, and for every ray the position of its
