@@ -50,9 +50,9 @@ struct Helpers {
     active: AtomicUsize,
 }
 
-/// How long a helper stays awake for the next call, and a caller for its helpers to finish, before
-/// sleeping: waking a sleeping thread costs tens of microseconds on a virtual machine (about as
-/// long as tracing fifty rays), and the calls of one launch follow each other closely.
+/// How long a helper stays awake for the next call before sleeping: waking a sleeping thread costs
+/// tens of microseconds on a virtual machine (about as long as tracing fifty rays), and the calls of
+/// one launch follow each other within microseconds.
 const AWAKE: std::time::Duration = std::time::Duration::from_micros(50);
 
 /// How long a caller whose own share is done waits awake for its helpers (their last pieces of
