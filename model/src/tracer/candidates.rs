@@ -28,7 +28,7 @@ pub(super) fn outcomes_of_near(
     scratch: &mut Scratch,
     stats: &mut TracerStats,
 ) -> AllowedOutcomes {
-    let quick = config.use_bvh && config.far_test;
+    let quick = config.walks_bvh();
     let Scratch {
         near,
         hits,

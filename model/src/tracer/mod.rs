@@ -55,6 +55,12 @@ pub struct TracerConfig {
 }
 
 impl TracerConfig {
+    /// Whether rays walk the BVH with its shortcuts (a segment that meets an item's inner box is
+    /// not far from it): the BVH and the far test both on. Brute force, the reference, goes without.
+    pub fn walks_bvh(&self) -> bool {
+        self.use_bvh && self.far_test
+    }
+
     /// The default settings with another precision.
     pub fn with_precision(precision: Precision) -> TracerConfig {
         TracerConfig {

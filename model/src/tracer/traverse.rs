@@ -397,9 +397,7 @@ pub fn trace_rays(
     stats: &mut TracerStats,
     mut answer: impl FnMut(usize, Result<AllowedOutcomes, Vec<Problem>>),
 ) {
-    // The BVH's shortcuts (brute force, the reference, goes without): a segment that meets an
-    // item's inner box is not far from it.
-    let quick = config.use_bvh && config.far_test;
+    let quick = config.walks_bvh();
     // The thread's slots, kept between calls: a ray's trace starts in place, on the buffers and
     // stack the slot's last ray left.
     let mut slots = SLOTS.with(|s| std::mem::take(&mut *s.borrow_mut()));
@@ -551,7 +549,7 @@ impl Kept {
         cut: &std::cell::Cell<f64>,
         i: usize,
     ) {
-        let quick = config.use_bvh && config.far_test;
+        let quick = config.walks_bvh();
         let far = |i: usize, ray: &RayF64| far_item(scene, quick, i, ray);
         let Scratch { near, outcomes, .. } = &mut self.scratch;
         let item = scene.items[i];
@@ -619,7 +617,8 @@ thread_local! {
     static SLOTS: std::cell::RefCell<Vec<Slot>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
-/// Traces every ray of a launch (one shader table for all, e.g. uniform SBT parameters).
+/// Traces every ray of a launch (one shader table for all, e.g. uniform SBT parameters), several at
+/// a time ([`trace_rays`]); fails with the first undefined ray's problems.
 pub fn trace_launch(
     scene: &PreparedScene,
     rays: &[Ray],
@@ -627,9 +626,20 @@ pub fn trace_launch(
     config: &TracerConfig,
     stats: &mut TracerStats,
 ) -> Result<Vec<AllowedOutcomes>, Vec<Problem>> {
-    rays.iter()
-        .map(|r| trace_ray(scene, r, shaders, config, stats))
-        .collect()
+    let pairs: Vec<(&Ray, &ShaderTable)> = rays.iter().map(|r| (r, shaders)).collect();
+    let mut all = Vec::with_capacity(rays.len());
+    let mut undefined = None;
+    trace_rays(scene, &pairs, config, stats, |_, a| match a {
+        Ok(a) if undefined.is_none() => all.push(a),
+        Ok(_) => {}
+        Err(problems) => {
+            undefined.get_or_insert(problems);
+        }
+    });
+    match undefined {
+        Some(problems) => Err(problems),
+        None => Ok(all),
+    }
 }
 
 #[cfg(test)]
