@@ -186,7 +186,7 @@ pub struct TriangleBand {
 /// Slack on every f64-computed bound, so its own rounding never makes it smaller than stated.
 const SLACK: f64 = 1.0 + 1e-9;
 
-fn cross_f64(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+pub(crate) fn cross_f64(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [
         a[1] * b[2] - a[2] * b[1],
         a[2] * b[0] - a[0] * b[2],
@@ -201,7 +201,18 @@ fn cross_f64(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 /// `|d·(Δa × b)| = |Δa·(b × d)| ≤ |Δa|·|d|·|b⊥|` (`b⊥` the part of `b` perpendicular to `d`):
 /// `|Δe| ≤ |d|(α|b⊥| + β|a⊥| + αβ) + P|d|(|a × b| + α|b| + β|a| + αβ)`. The perpendicular parts
 /// keep the band proportional to the triangle's size seen from the ray, not to its distance.
-/// Likewise `|ΔN| ≤ Σ α_i |a_j × a_k| + Σ α_i α_j |a_k| + α_0 α_1 α_2`.
+/// Likewise `|ΔN| ≤ Σ α_i |a_j × a_k| + Σ α_i α_j |a_k| + α_0 α_1 α_2` for `N` as the triple
+/// product of the moved vertices. A watertight test does not compute it so: it interpolates the
+/// numerator of t from its edge functions (`N = Σ e_i·a_{i,z}/d_z` in the sheared frame), each
+/// rounded on its own, and that rounding is no single perturbation of the vertices. In the
+/// sheared frame a vertex's x and y are its offset from the ray's line seen along the ray, at most
+/// `√3·|a_k⊥|`, so an edge function's products and difference round by at most
+/// `12u·|a_j⊥|·|a_k⊥|` (`e_i` by `|d_z|` times that), and the weights `|a_{i,z}/d_z| ≤ √3·|a_i|/|d|`
+/// and the sum's own products bring `N`'s share to under `52u·Σ |a_j⊥|·|a_k⊥|·|a_i|`; the plane
+/// band adds `2·test_rel·Σ |a_j⊥|·|a_k⊥|·|a_i|` (64u times the safety factor and κ). Beside the
+/// first term it is negligible where the triangle is small seen from afar (`|a_j⊥|·|a_k⊥|` tiny
+/// beside `|a_j × a_k|`) and decides t where it is a needle seen from close (`|a_j × a_k|` tiny
+/// beside the offsets).
 pub fn triangle_band(
     band: &InstanceBand,
     world: &[[f64; 3]; 3],
@@ -225,12 +236,13 @@ pub fn triangle_band(
     let alpha = map3([0, 1, 2], |k| {
         static_radius[k] + band.test_rel * len[k] + r_o
     });
+    let (edge_floor, plane_floor) = underflow_floor(band, len[0].max(len[1]).max(len[2]), dn);
     let edge = map3([0, 1, 2], |i| {
         let (j, k) = ((i + 1) % 3, (i + 2) % 3);
         let (aj, ak) = (alpha[j], alpha[k]);
         let vertices = aj * perp[k] + ak * perp[j] + aj * ak;
         let tilt = p * (cross[i] + aj * len[k] + ak * len[j] + aj * ak);
-        dn * (vertices + tilt) * SLACK
+        (dn * (vertices + tilt) + edge_floor) * SLACK
     });
     let plane = (alpha[0] * cross[0]
         + alpha[1] * cross[1]
@@ -238,7 +250,13 @@ pub fn triangle_band(
         + alpha[0] * alpha[1] * len[2]
         + alpha[1] * alpha[2] * len[0]
         + alpha[0] * alpha[2] * len[1]
-        + alpha[0] * alpha[1] * alpha[2])
+        + alpha[0] * alpha[1] * alpha[2]
+        + plane_floor
+        + 2.0
+            * band.test_rel
+            * (perp[1] * perp[2] * len[0]
+                + perp[2] * perp[0] * len[1]
+                + perp[0] * perp[1] * len[2]))
         * SLACK;
     TriangleBand {
         sum: (edge[0] + edge[1] + edge[2]) * SLACK,
@@ -246,6 +264,92 @@ pub fn triangle_band(
         plane,
         t_rel: BAND_SAFETY_FACTOR * 4.0 * U32,
     }
+}
+
+/// Whether an f32 implementation's watertight test of one (ray, triangle) pair stays clear of
+/// overflow, where the band's error analysis holds. That analysis bounds each rounding relative to
+/// its operands; an overflowing product has no such bound (it becomes infinite, and what the test
+/// then decides is anyone's guess), so such a pair is VARY: an implementation may hit or miss it,
+/// at any t (spec, "Ray Intersection Candidate Determination": inaccuracies are expected, and
+/// nothing bounds them there; [`super::triangle::VaryReason::Range`]). Underflow is bounded and
+/// enters the band instead ([`underflow_floor`]).
+///
+/// With `hi` the largest distance from the ray origin to a vertex and `|d|` the direction's
+/// length, in the space the test runs in (world space, or the instance's, where distances and
+/// `|d|` grow by at most `‖A⁻¹‖` and shrink by at most `‖A‖`; both are folded in), f32 ending at
+/// 2^128, two ways of computing cover the others' orders of magnitude:
+/// - the sheared frame of the test (Woop, Benthin, Wald 2013) multiplies x and y components by
+///   at most 2 and divides z by the direction's largest component, at least `|d|/√3`; edge
+///   functions are differences of two products of sheared x and y, at most `8·hi²` (under 2^117
+///   while `hi ≤ 2^57`); the numerator of t sums three edge functions times a sheared z, at most
+///   `24·√3·hi³/|d| < 2^6·hi³/|d|` (under 2^121 while `hi³/|d| ≤ 2^115`);
+/// - directly, `e = d·(a_j × a_k)` or `d·n` from a normal made of the edges (at most
+///   `2^5·|d|·hi²`, under 2^125 while `|d|·hi² ≤ 2^120`) and `N = a_0·(a_1 × a_2)` (at most
+///   `2^3·hi³`, under 2^123 while `hi³ ≤ 2^120`).
+///
+/// The comparisons are made on squares (no square root). A NaN or an infinity fails them.
+pub fn within_f32_range(
+    band: &InstanceBand,
+    world: &[[f64; 3]; 3],
+    origin: [f64; 3],
+    direction: [f64; 3],
+) -> bool {
+    let dist2 = map3([0, 1, 2], |k| {
+        let a = map3([0, 1, 2], |c| world[k][c] - origin[c]);
+        a[0] * a[0] + a[1] * a[1] + a[2] * a[2]
+    });
+    let d2 =
+        direction[0] * direction[0] + direction[1] * direction[1] + direction[2] * direction[2];
+    let grow2 = band.norm_a_inv.max(1.0).powi(2);
+    let hi2 = dist2[0].max(dist2[1]).max(dist2[2]) * grow2;
+    let (d2_lo, d2_hi) = (d2 / band.norm_a.max(1.0).powi(2), d2 * grow2);
+    let cube2 = hi2 * hi2 * hi2;
+    hi2 <= RANGE_EDGE_HI2
+        && cube2 <= RANGE_SHEARED_HI2 * d2_lo
+        && cube2 <= RANGE_DIRECT_HI2
+        && d2_hi * hi2 * hi2 <= RANGE_DIRECT_HI2
+}
+
+/// `hi ≤ 2^57`, squared: 2^114 (see [`within_f32_range`]).
+const RANGE_EDGE_HI2: f64 = 2.076_918_743_413_931e34;
+/// `hi³/|d| ≤ 2^115`, squared: 2^230.
+const RANGE_SHEARED_HI2: f64 = 1.725_436_586_697_641e69;
+/// `hi³ ≤ 2^120` and `|d|·hi² ≤ 2^120`, squared: 2^240.
+const RANGE_DIRECT_HI2: f64 = 1.766_847_064_778_384_3e72;
+/// 2^-141 and 2^-140, the coefficients of [`underflow_floor`].
+const FLOOR_EDGE: f64 = 3.587_324_068_671_532e-43;
+const FLOOR_PLANE: f64 = 7.174_648_137_343_064e-43;
+
+/// What underflow adds to the band of one pair: `(edge, plane)`, the absolute amounts by which an
+/// f32 implementation's edge functions and plane distance may stray beyond the relative bounds of
+/// [`triangle_band`] when products fall below f32's normal range (2^-126), where rounding is off
+/// by up to 2^-150 absolute instead of a relative u. `hi` is the largest distance from the origin
+/// to a vertex, `dn` the direction's length (world space).
+///
+/// Two ways of computing cover the others' orders of magnitude:
+/// - directly, `e = d·(a_j × a_k)` or `d·n` from a normal made of the edges, and
+///   `N = a_0·(a_1 × a_2)`: a cross product's components stray by 2^-149, the dot product adds
+///   three more 2^-150: `e` by at most `2^-148·(1 + |d|)`, `N` by at most `2^-147·(1 + hi)`;
+/// - in the sheared frame of the test (see [`within_f32_range`]), computing a sheared x or y
+///   (`a_x − S_x·a_z`) may underflow by 2^-150, so an edge function (`U = C_x·B_y − C_y·B_x`,
+///   components at most `2·hi`) strays by at most `2^-148 + 2^-146·hi`; the numerator of t
+///   (`U·A_z + V·B_z + W·C_z`, sheared z at most `2·hi/|d_z|`, which may itself underflow by
+///   2^-150 against an edge function of at most `8·hi²`) by at most
+///   `2^-145·hi/|d_z| + 2^-148 + 2^-145·hi²`; the shear has determinant `1/d_z`, so the world
+///   quantities are those times `d_z` (`|d_z| ≤ |d|`): `e` by at most `|d|·(2^-148 + 2^-146·hi)`,
+///   `N` by at most `2^-145·hi + 2^-148·|d| + 2^-145·hi²·|d|`.
+///
+/// Taken here as `e: 2^-141·(1 + |d|·(1 + hi))` and `N: 2^-140·(1 + hi + |d| + hi²·|d|)`, a factor
+/// of 2^5 over every term. In the instance's space distances and `|d|` grow by at most `‖A⁻¹‖`,
+/// and triple products there are the world's divided by `det A`, at most `‖A‖³`: both are folded
+/// in. At unit scale the floor is some 2^-100 of the band and decides nothing.
+pub fn underflow_floor(band: &InstanceBand, hi: f64, dn: f64) -> (f64, f64) {
+    let grow = band.norm_a_inv.max(1.0);
+    let world = band.norm_a.max(1.0).powi(3);
+    let (hi, dn) = (hi * grow, dn * grow);
+    let edge = FLOOR_EDGE * (1.0 + dn * (1.0 + hi)) * world;
+    let plane = FLOOR_PLANE * (1.0 + hi + dn + hi * hi * dn) * world;
+    (edge, plane)
 }
 
 /// The pad by which a primitive's world box is widened for one ray: no conformant implementation
@@ -289,6 +393,15 @@ pub fn far_pad_scaled(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn range_and_floor_constants_are_the_powers_of_two_they_name() {
+        assert_eq!(RANGE_EDGE_HI2, 2f64.powi(114));
+        assert_eq!(RANGE_SHEARED_HI2, 2f64.powi(230));
+        assert_eq!(RANGE_DIRECT_HI2, 2f64.powi(240));
+        assert_eq!(FLOOR_EDGE, 2f64.powi(-141));
+        assert_eq!(FLOOR_PLANE, 2f64.powi(-140));
+    }
 
     #[test]
     fn spectral_norm_bound_is_above_and_close() {

@@ -32,13 +32,15 @@
 //! computed `α_k`) and `B̄ = |d|·(2ᾱP̄ + ᾱ² + P·(C̄ + 2ᾱL + ᾱ²))·SLACK` bounds every computed
 //! `B_i` once a relative 10⁻⁹ covers the two evaluations' roundings (each under 30 operations on
 //! non-negative values, so within `(1 ± u)^30`).
+//! Both add [`super::band::underflow_floor`]'s edge term, the same increasing function of the
+//! largest distance (`L`) and `|d|`.
 //!
 //! The test. `T = (B̄ + E)·(1 + 10⁻⁹) ≥ B̄ + E`; `ê_i > T` gives `e_i ≥ ê_i − E > B̄ ≥ B_i`
 //! (the band's Positive side), `ê_i < −T` gives `e_i < −B_i` (Negative). Non-finite values fail
 //! every comparison or are refused, so overflow and NaN decide nothing.
 
 use super::arith::BoundedF64;
-use super::band::{norm3, InstanceBand};
+use super::band::{norm3, underflow_floor, InstanceBand};
 
 /// Unit roundoff of f64.
 const U: f64 = f64::EPSILON / 2.0;
@@ -125,8 +127,9 @@ fn outside_with(
     // `band.origin_radius(origin)`, its norm given.
     let alpha = radius + band.test_rel * len + band.origin_coef * (origin_norm + band.norm_t);
     let p = band.direction_rel;
-    let edge_band = dn
+    let edge_band = (dn
         * (2.0 * alpha * perp + alpha * alpha + p * (cross + 2.0 * alpha * len + alpha * alpha))
+        + underflow_floor(band, len, dn).0)
         * (1.0 + 1e-9)
         * GROW;
     let t = (edge_band + error) * GROW * scale;

@@ -4,13 +4,13 @@
 //! `conclude.rs` those into the committed hits, miss rule and invocation counts it may produce.
 
 use super::arith::{affine, map3, v3, BoundedF64, Dyadic, PlainF32, V3};
-use super::band::triangle_band;
+use super::band::{cross_f64, triangle_band, within_f32_range};
 use super::candidates::outcomes_of_near;
 use super::outside::robustly_outside;
 use super::prepare::{Item, PreparedScene, RayF64, WorldGeometry};
 use super::triangle::{
-    classify, triangle_intervals, triangle_signs, MissReason, PairClass, TriangleSigns,
-    TriangleValues,
+    classify, triangle_intervals, triangle_signs, EdgeSide, MissReason, PairClass, TriangleSigns,
+    TriangleValues, WindowSide,
 };
 use super::watertight::TriangleHit;
 use super::*;
@@ -122,6 +122,10 @@ pub(super) fn classify_triangle(
             }
         }
     }
+    let world_f64 = map3(ids, |i| map3(w.vertices[i], |x| x.value));
+    if !within_f32_range(&inst.band, &world_f64, rf.origin, rf.direction) {
+        return beyond_f32_range(&world_f64, rf.origin, rf.direction);
+    }
     let radius = map3(ids, |i| w.static_radius[i]);
     // The commonest miss, robustly outside two edges, certified before the band and the
     // error-tracked edge functions (see `outside.rs`); the full classification finds it too.
@@ -140,7 +144,6 @@ pub(super) fn classify_triangle(
             ..miss(MissReason::Outside)
         };
     }
-    let world_f64 = map3(ids, |i| map3(w.vertices[i], |x| x.value));
     let band = triangle_band(&inst.band, &world_f64, &radius, rf.origin, rf.direction);
     let evaluate_exact = || {
         let world = pos.map(|p| dyadic_world(scene, w, p));
@@ -192,6 +195,38 @@ pub(super) fn classify_triangle(
         intervals: (!matches!(class, PairClass::ReqMiss(_)))
             .then(|| triangle_intervals(&values, &band)),
         evaluation,
+    }
+}
+
+/// A pair whose f32 test leaves f32's normal range: every sign unknown, every quantity unbounded.
+/// Its values are the plain f64 edge functions, sum and plane distance (the t and barycentrics a
+/// report's error is measured from), with an infinite error bound: nothing is decided from them.
+fn beyond_f32_range(
+    world: &[[f64; 3]; 3],
+    origin: [f64; 3],
+    direction: [f64; 3],
+) -> TriangleOutcome {
+    let a = map3([0, 1, 2], |k| map3([0, 1, 2], |c| world[k][c] - origin[c]));
+    let cross = cross_f64;
+    let dot = |x: [f64; 3], y: [f64; 3]| x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
+    let edge = map3([0, 1, 2], |i| {
+        dot(direction, cross(a[(i + 1) % 3], a[(i + 2) % 3]))
+    });
+    let unbounded = |x: f64| (x, f64::INFINITY);
+    TriangleOutcome {
+        class: PairClass::Vary(VaryReason::Range),
+        signs: Some(TriangleSigns {
+            edges: [EdgeSide::Band; 3],
+            orientation: None,
+            window: WindowSide::Band,
+        }),
+        values: Some(TriangleValues {
+            edge: edge.map(unbounded),
+            sum: unbounded(edge[0] + edge[1] + edge[2]),
+            plane: unbounded(dot(a[0], cross(a[1], a[2]))),
+        }),
+        intervals: Some((Interval::ALL, [Interval::ALL; 2])),
+        evaluation: Evaluation::None,
     }
 }
 
