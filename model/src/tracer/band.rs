@@ -111,6 +111,10 @@ pub struct InstanceBand {
     /// The f64 inverse of the 3x3 part (for object-space constants).
     pub a_inv: [[f64; 3]; 3],
     pub translation: [f64; 3],
+    /// `max(1, ‖A⁻¹‖)`: the most an object-space distance exceeds its world one.
+    pub grow: f64,
+    /// `max(1, ‖A‖)`: the most a world distance exceeds its object-space one.
+    pub shrink: f64,
 }
 
 impl InstanceBand {
@@ -137,6 +141,8 @@ impl InstanceBand {
             test_rel: sf * ETA_TEST * kappa,
             a_inv,
             translation: m.translation_f64(),
+            grow: norm_a_inv.max(1.0),
+            shrink: norm_a.max(1.0),
         }
     }
 
@@ -300,9 +306,17 @@ pub fn within_f32_range(
     });
     let d2 =
         direction[0] * direction[0] + direction[1] * direction[1] + direction[2] * direction[2];
-    let grow2 = band.norm_a_inv.max(1.0).powi(2);
-    let hi2 = dist2[0].max(dist2[1]).max(dist2[2]) * grow2;
-    let (d2_lo, d2_hi) = (d2 / band.norm_a.max(1.0).powi(2), d2 * grow2);
+    let hi2 = dist2[0].max(dist2[1]).max(dist2[2]);
+    range_holds(hi2, d2, band.grow, band.shrink)
+}
+
+/// [`within_f32_range`]'s conditions for a largest squared world distance `hi2` (or any bound of
+/// it: they only tighten as it grows) and squared direction length `d2`, through an instance that
+/// grows object-space distances by at most `grow` and shrinks them by at most `shrink`.
+pub fn range_holds(hi2: f64, d2: f64, grow: f64, shrink: f64) -> bool {
+    let grow2 = grow * grow;
+    let hi2 = hi2 * grow2;
+    let (d2_lo, d2_hi) = (d2 / (shrink * shrink), d2 * grow2);
     let cube2 = hi2 * hi2 * hi2;
     hi2 <= RANGE_EDGE_HI2
         && cube2 <= RANGE_SHEARED_HI2 * d2_lo
@@ -343,10 +357,10 @@ const FLOOR_PLANE: f64 = 7.174_648_137_343_064e-43;
 /// of 2^5 over every term. In the instance's space distances and `|d|` grow by at most `‖A⁻¹‖`,
 /// and triple products there are the world's divided by `det A`, at most `‖A‖³`: both are folded
 /// in. At unit scale the floor is some 2^-100 of the band and decides nothing.
+#[inline]
 pub fn underflow_floor(band: &InstanceBand, hi: f64, dn: f64) -> (f64, f64) {
-    let grow = band.norm_a_inv.max(1.0);
-    let world = band.norm_a.max(1.0).powi(3);
-    let (hi, dn) = (hi * grow, dn * grow);
+    let world = band.shrink * band.shrink * band.shrink;
+    let (hi, dn) = (hi * band.grow, dn * band.grow);
     let edge = FLOOR_EDGE * (1.0 + dn * (1.0 + hi)) * world;
     let plane = FLOOR_PLANE * (1.0 + hi + dn + hi * hi * dn) * world;
     (edge, plane)

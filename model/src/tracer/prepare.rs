@@ -317,6 +317,9 @@ pub(crate) struct RayF64 {
     pub inv_direction: [f64; 3],
     /// No direction component is 0.
     pub oblique: bool,
+    /// Every triangle of the scene keeps an f32 test of this ray in range
+    /// ([`PreparedScene::in_f32_range`]); false until that is known, and each pair is asked.
+    pub in_f32_range: bool,
 }
 
 impl RayF64 {
@@ -331,6 +334,7 @@ impl RayF64 {
             tmin: ray.tmin as f64,
             tmax: ray.tmax as f64,
             origin_norm: norm3(origin),
+            in_f32_range: false,
         }
     }
 }
@@ -379,6 +383,18 @@ pub struct PreparedScene {
     pub(crate) all_opaque: bool,
     /// `(bottom level, transform class)` → topology, built on first use.
     pub(crate) topology: HashMap<(u32, u32), OnceLock<Topology>>,
+    /// The least and greatest coordinate of every triangle's world vertices, and the largest
+    /// `grow` and `shrink` of their instances' bands: what [`PreparedScene::in_f32_range`] asks.
+    pub(crate) triangle_extent: Option<TriangleExtent>,
+}
+
+/// See [`PreparedScene::triangle_extent`].
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct TriangleExtent {
+    lo: [f64; 3],
+    hi: [f64; 3],
+    grow: f64,
+    shrink: f64,
 }
 
 impl std::fmt::Debug for PreparedScene {
@@ -591,7 +607,29 @@ impl PreparedScene {
                 &scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize];
             inst.flags.force_opaque || (!inst.flags.force_no_opaque && geometry.flags.opaque)
         });
+        let mut triangle_extent: Option<TriangleExtent> = None;
+        for w in geometries
+            .iter()
+            .filter(|w| w.kind == PrimitiveKind::Triangle)
+        {
+            let band = &instances[w.instance as usize].band;
+            for v in &w.vertices {
+                let e = triangle_extent.get_or_insert(TriangleExtent {
+                    lo: [f64::INFINITY; 3],
+                    hi: [f64::NEG_INFINITY; 3],
+                    grow: 1.0,
+                    shrink: 1.0,
+                });
+                for c in 0..3 {
+                    e.lo[c] = e.lo[c].min(v[c].value);
+                    e.hi[c] = e.hi[c].max(v[c].value);
+                }
+                e.grow = e.grow.max(band.grow);
+                e.shrink = e.shrink.max(band.shrink);
+            }
+        }
         Ok(PreparedScene {
+            triangle_extent,
             all_opaque,
             scene: scene.clone(),
             instances,
@@ -603,6 +641,29 @@ impl PreparedScene {
             procedural,
             topology,
         })
+    }
+
+    /// Whether an f32 test of `ray` against every triangle of the scene stays clear of overflow
+    /// ([`super::band::within_f32_range`] for every pair at once: the farthest corner of the
+    /// vertices' extent bounds every vertex's distance from the origin, and the instances' largest
+    /// `grow` and `shrink` bound each one's). A scene without triangles: true.
+    pub(crate) fn in_f32_range(&self, ray: &RayF64) -> bool {
+        let Some(e) = &self.triangle_extent else {
+            return true;
+        };
+        let far = |c: usize| {
+            (e.lo[c] - ray.origin[c])
+                .abs()
+                .max((e.hi[c] - ray.origin[c]).abs())
+        };
+        let hi2 = far(0) * far(0) + far(1) * far(1) + far(2) * far(2);
+        let d = ray.direction;
+        super::band::range_holds(
+            hi2,
+            d[0] * d[0] + d[1] * d[1] + d[2] * d[2],
+            e.grow,
+            e.shrink,
+        )
     }
 
     /// The scene this was prepared from.

@@ -123,7 +123,7 @@ pub(super) fn classify_triangle(
         }
     }
     let world_f64 = map3(ids, |i| map3(w.vertices[i], |x| x.value));
-    if !within_f32_range(&inst.band, &world_f64, rf.origin, rf.direction) {
+    if !rf.in_f32_range && !within_f32_range(&inst.band, &world_f64, rf.origin, rf.direction) {
         return beyond_f32_range(&world_f64, rf.origin, rf.direction);
     }
     let radius = map3(ids, |i| w.static_radius[i]);
@@ -443,7 +443,7 @@ pub fn trace_rays(
         let mut undefined: [Option<Vec<Problem>>; INTERLEAVED] = std::array::from_fn(|_| None);
         let mut walking = false;
         for (k, (slot, &(ray, _))) in slots.iter_mut().zip(group).enumerate() {
-            match slot.start(ray, stats) {
+            match slot.start(scene, ray, stats) {
                 Ok(()) => {
                     slot.walking = quick
                         && scene.walk_start(&mut slot.walk, &slot.rf, &mut slot.nodes, &slot.cut);
@@ -526,7 +526,12 @@ struct Kept {
 
 impl Slot {
     /// Starts the trace of a defined ray; fails with an undefined ray's undefined things.
-    fn start(&mut self, ray: &Ray, stats: &mut TracerStats) -> Result<(), Vec<Problem>> {
+    fn start(
+        &mut self,
+        scene: &PreparedScene,
+        ray: &Ray,
+        stats: &mut TracerStats,
+    ) -> Result<(), Vec<Problem>> {
         self.walking = false;
         if !plainly_defined(ray) {
             let problems = ray_problems(ray, "ray");
@@ -536,6 +541,7 @@ impl Slot {
         }
         stats.rays += 1;
         self.rf = RayF64::of(ray);
+        self.rf.in_f32_range = scene.in_f32_range(&self.rf);
         self.cut.set(f64::INFINITY);
         self.kept.may_cut = None;
         self.kept.far_count = 0;
