@@ -620,9 +620,9 @@ impl PreparedScene {
                     grow: 1.0,
                     shrink: 1.0,
                 });
-                for c in 0..3 {
-                    e.lo[c] = e.lo[c].min(v[c].value);
-                    e.hi[c] = e.hi[c].max(v[c].value);
+                for ((lo, hi), x) in e.lo.iter_mut().zip(&mut e.hi).zip(v) {
+                    *lo = lo.min(x.value);
+                    *hi = hi.max(x.value);
                 }
                 e.grow = e.grow.max(band.grow);
                 e.shrink = e.shrink.max(band.shrink);
