@@ -42,9 +42,9 @@ pub enum HarnessError {
     /// A creation or allocation the driver refused for want of memory.
     #[error("{0}")]
     OutOfMemory(String),
-    /// A submission did not finish in time; the device is not used again.
-    #[error("TIMEOUT: {0}")]
-    Timeout(String),
+    /// A submission did not finish within `seconds`; the device is not used again.
+    #[error("TIMEOUT: {message}")]
+    Timeout { seconds: f64, message: String },
 }
 
 impl HarnessError {

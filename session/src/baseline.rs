@@ -5,7 +5,8 @@
 //! **Baseline** (`--baseline FILE`): one expected failure per line, `KEY,STATUS`, where `KEY` is a case
 //! name or a VUID (`VUID-…`) and `STATUS` the raw outcome expected (`fail`, `crash` or `timeout`, any
 //! case). `*` in a key stands for any run of characters. A VUID key matches a case that targets the
-//! VUID or on which model and layer disagree about it.
+//! VUID or on which model and layer disagree about it. A case that several lines match expects any of
+//! their statuses (a driver bug that loses the device on one run and hangs on another).
 //!
 //! **Skips** and **flakes** (`--skips FILE`, `--flakes FILE`): one regular expression per line, searched
 //! (unanchored, as deqp-runner does) in the case's name and in the VUID it targets. Skipped cases are
@@ -284,14 +285,18 @@ impl Expectations {
         matches_any(&self.skips, name, target)
     }
 
-    /// The baseline entry that expects a failure of this case, if any.
-    pub fn expected(&self, report: &CaseReport) -> Option<&BaselineEntry> {
+    /// The baseline entries that expect a failure of this case (a case whose driver bug shows
+    /// one way or another, a lost device or a hang, is listed once with each).
+    pub fn expected<'a>(
+        &'a self,
+        report: &'a CaseReport,
+    ) -> impl Iterator<Item = &'a BaselineEntry> + 'a {
         let disagreement: BTreeSet<&String> = {
             let m: BTreeSet<&String> = report.model.iter().collect();
             let l: BTreeSet<&String> = report.layer.iter().collect();
             m.symmetric_difference(&l).copied().collect()
         };
-        self.baseline.iter().find(|e| {
+        self.baseline.iter().filter(move |e| {
             if e.key.starts_with("VUID-") {
                 report
                     .target
@@ -310,10 +315,11 @@ impl Expectations {
         if attempts.windows(2).any(|w| w[0] != w[1]) {
             return Status::Flake;
         }
-        let expected = self.expected(report).map(|e| e.outcome);
+        let mut expected = self.expected(report).map(|e| e.outcome).peekable();
+        let any_expected = expected.peek().is_some();
         match report.outcome {
             o @ (Outcome::Fail | Outcome::Crash | Outcome::Timeout) => {
-                if expected == Some(o) {
+                if expected.any(|e| e == o) {
                     Status::ExpectedFail
                 } else if matches_any(&self.flakes, &report.case, report.target.as_deref()) {
                     Status::Flake
@@ -325,7 +331,7 @@ impl Expectations {
                     }
                 }
             }
-            Outcome::Pass | Outcome::Triaged if expected.is_some() => Status::UnexpectedPass,
+            Outcome::Pass | Outcome::Triaged if any_expected => Status::UnexpectedPass,
             Outcome::Pass => Status::Pass,
             Outcome::Triaged => Status::Triaged,
             Outcome::Unsupported | Outcome::NotRealised => Status::Skip,
@@ -502,6 +508,22 @@ mod tests {
         );
         assert!(Status::UnexpectedPass.is_failure() && Status::Missing.is_failure());
         assert!(!Status::Flake.is_failure() && !Status::ExpectedFail.is_failure());
+    }
+
+    #[test]
+    fn a_case_listed_with_two_statuses_expects_either() {
+        let x = expectations("lost-or-hung,crash\nlost-or-hung,timeout\n", "");
+        for (o, want) in [
+            (Outcome::Crash, Status::ExpectedFail),
+            (Outcome::Timeout, Status::ExpectedFail),
+            (Outcome::Fail, Status::Fail),
+            (Outcome::Pass, Status::UnexpectedPass),
+        ] {
+            let r = report("lost-or-hung", o, None, &[]);
+            assert_eq!(x.status(&r, &[o]), want, "{o:?}");
+        }
+        let other = report("another", Outcome::Timeout, None, &[]);
+        assert_eq!(x.status(&other, &[Outcome::Timeout]), Status::Timeout);
     }
 
     #[test]

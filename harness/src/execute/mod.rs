@@ -371,7 +371,9 @@ fn failure(e: HarnessError) -> Observation {
     match e {
         HarnessError::NotRealised(s) => Observation::not_realised(s),
         HarnessError::DeviceLacks { lack, reason } => Observation::unsupported(lack, reason),
-        HarnessError::Timeout(_) => Observation::with_status(Status::Timeout { seconds: 0.0 }),
+        HarnessError::Timeout { seconds, .. } => {
+            Observation::with_status(Status::Timeout { seconds })
+        }
         HarnessError::Failed(s) => Observation::crash(s),
         HarnessError::OutOfMemory(s) => Observation::out_of_memory(s),
         e => Observation::crash(e.to_string()),
@@ -391,5 +393,19 @@ impl Executor {
             return Observation::crash(format!("{} is not a trace case", case.name));
         };
         trace::trace(self, body, run_valid)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_gpu_timeout_reports_how_long_the_harness_waited() {
+        let o = failure(HarnessError::Timeout {
+            seconds: 20.0,
+            message: "the GPU did not finish within 20s".into(),
+        });
+        assert_eq!(o.status, Status::Timeout { seconds: 20.0 });
     }
 }

@@ -236,9 +236,10 @@ impl DeviceCache {
                 Ok(()) => {}
                 Err(vk::Result::TIMEOUT) => {
                     self.lost = true;
-                    return Err(HarnessError::Timeout(format!(
-                        "the GPU did not finish within {timeout:?}"
-                    )));
+                    return Err(HarnessError::Timeout {
+                        seconds: timeout.as_secs_f64(),
+                        message: format!("the GPU did not finish within {timeout:?}"),
+                    });
                 }
                 Err(r) => {
                     self.lost |= r == vk::Result::ERROR_DEVICE_LOST;
