@@ -198,7 +198,7 @@ pub(super) fn classify_triangle(
     }
 }
 
-/// A pair whose f32 test leaves f32's normal range: every sign unknown, every quantity unbounded.
+/// A pair whose f32 test may overflow: every sign unknown, every quantity unbounded.
 /// Its values are the plain f64 edge functions, sum and plane distance (the t and barycentrics a
 /// report's error is measured from), with an infinite error bound: nothing is decided from them.
 fn beyond_f32_range(
@@ -207,10 +207,9 @@ fn beyond_f32_range(
     direction: [f64; 3],
 ) -> TriangleOutcome {
     let a = map3([0, 1, 2], |k| map3([0, 1, 2], |c| world[k][c] - origin[c]));
-    let cross = cross_f64;
     let dot = |x: [f64; 3], y: [f64; 3]| x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
     let edge = map3([0, 1, 2], |i| {
-        dot(direction, cross(a[(i + 1) % 3], a[(i + 2) % 3]))
+        dot(direction, cross_f64(a[(i + 1) % 3], a[(i + 2) % 3]))
     });
     let unbounded = |x: f64| (x, f64::INFINITY);
     TriangleOutcome {
@@ -223,7 +222,7 @@ fn beyond_f32_range(
         values: Some(TriangleValues {
             edge: edge.map(unbounded),
             sum: unbounded(edge[0] + edge[1] + edge[2]),
-            plane: unbounded(dot(a[0], cross(a[1], a[2]))),
+            plane: unbounded(dot(a[0], cross_f64(a[1], a[2]))),
         }),
         intervals: Some((Interval::ALL, [Interval::ALL; 2])),
         evaluation: Evaluation::None,

@@ -211,8 +211,8 @@ pub enum VaryReason {
     Procedural,
     /// The facing is uncertain and a facing cull flag applies.
     Facing,
-    /// An f32 test of the pair overflows or underflows (vertices too near or too far from the ray
-    /// origin for its scale, see `band::within_f32_range`): hit or miss, at any t.
+    /// An f32 test of the pair may overflow (vertices too far from the ray origin for the
+    /// direction's length, see `band::within_f32_range`): hit or miss, at any t.
     Range,
 }
 
