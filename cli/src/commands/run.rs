@@ -249,9 +249,7 @@ pub fn run(a: RunArgs) -> super::Exit {
         a.verbose,
     );
     if outcome.summary.cases == 0 {
-        eprintln!(
-            "rtconf: the run made no case: nothing was checked (the VUIDs selected have no executable mutation on this profile, or --count made none)"
-        );
+        eprintln!("rtconf: {}", no_case_reason(&outcome.not_expressible));
     }
     Ok(outcome.exit_code())
 }
@@ -394,12 +392,27 @@ pub fn print_summary(s: &Summary, out: &Path, not_expressible: usize, verbose: b
     );
     println!(
         "verdict: {}",
-        if s.unexpected() == 0 {
+        if s.cases == 0 {
+            "nothing checked".to_string()
+        } else if s.unexpected() == 0 {
             "as expected".to_string()
         } else {
             format!("{} unexpected result(s)", s.unexpected())
         }
     );
+}
+
+/// Why a run made no case: the profile's reason where every spec selected was inexpressible on it
+/// (the first such spec named, with how many there were), else what else leaves a selection empty.
+fn no_case_reason(not_expressible: &[String]) -> String {
+    match not_expressible {
+        [] => "the run made no case: nothing was checked (the VUIDs selected have no executable mutation on this profile, or --count made none)".into(),
+        [only] => format!("the run made no case: nothing was checked; the one spec selected is not expressible on the profile: {only}"),
+        [first, rest @ ..] => format!(
+            "the run made no case: nothing was checked; the {} specs selected are not expressible on the profile (all with --verbose), the first: {first}",
+            rest.len() + 1
+        ),
+    }
 }
 
 /// The disagreements the triage explained, by kind and direction, and its stale entries.
