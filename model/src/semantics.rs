@@ -17,7 +17,7 @@ use std::sync::{Arc, Mutex};
 mod launch;
 mod reads;
 use launch::{allowed_for_ray_memo, distinct_rays, HitRecordMemo};
-pub use launch::{expected_launch, ExpectedLaunch};
+pub use launch::{expected_launch, ExpectedLaunch, PerRay};
 pub use reads::records_read;
 #[cfg(test)]
 pub(crate) use reads::{misses_by_tracing, misses_of};

@@ -103,8 +103,8 @@ pub(super) fn allowed_for_rays_memo(
 pub struct ExpectedLaunch {
     pub dimensions: [u32; 3],
     pub rays: Vec<Ray>,
-    /// `allowed[k]` for `rays[k]`.
-    pub allowed: Vec<AllowedOutcomes>,
+    /// `allowed[k]` for `rays[k]`, held once per distinct ray.
+    pub allowed: PerRay<AllowedOutcomes>,
     /// The tracer's counters for the launch's distinct rays (memoised per distinct ray).
     pub stats: TracerStats,
 }
@@ -125,6 +125,73 @@ impl ExpectedLaunch {
     }
 }
 
+/// One value per ray of a launch, held once per distinct ray: a launch of many copies of one ray (an
+/// explicit ray list repeated, a ray through a closed fan's vertex in every launch ID) keeps one set
+/// of outcomes, not one per copy, so its memory follows its distinct rays, not its launch size.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PerRay<T> {
+    /// The values of the distinct rays, in order of first appearance.
+    distinct: Vec<T>,
+    /// For each ray its distinct one's index in `distinct`; empty where every ray is distinct
+    /// (ray `k`'s value is then `distinct[k]`).
+    of: Vec<u32>,
+}
+
+impl<T> Default for PerRay<T> {
+    fn default() -> PerRay<T> {
+        PerRay {
+            distinct: Vec::new(),
+            of: Vec::new(),
+        }
+    }
+}
+
+impl<T> PerRay<T> {
+    /// The values of the distinct rays, and for each ray the index of its distinct one.
+    pub fn new(distinct: Vec<T>, of: Vec<u32>) -> PerRay<T> {
+        debug_assert!(of.iter().all(|&d| (d as usize) < distinct.len()));
+        let identity = of.len() == distinct.len();
+        PerRay {
+            distinct,
+            of: if identity { Vec::new() } else { of },
+        }
+    }
+
+    /// The number of rays.
+    pub fn len(&self) -> usize {
+        if self.of.is_empty() {
+            self.distinct.len()
+        } else {
+            self.of.len()
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The value of each ray, in ray order.
+    pub fn iter(&self) -> impl Iterator<Item = &T> + '_ {
+        (0..self.len()).map(move |k| &self[k])
+    }
+
+    /// The number of values held: one per distinct ray.
+    pub fn distinct_len(&self) -> usize {
+        self.distinct.len()
+    }
+}
+
+impl<T> std::ops::Index<usize> for PerRay<T> {
+    type Output = T;
+    fn index(&self, k: usize) -> &T {
+        if self.of.is_empty() {
+            &self.distinct[k]
+        } else {
+            &self.distinct[self.of[k] as usize]
+        }
+    }
+}
+
 /// The expected output of a valid call, or None when the dimensions are not known or the scene is
 /// undefined. Each distinct ray is traced once; large launches are traced on every core the
 /// machine offers (each ray's outcomes depend on nothing else, and the counters are sums, so the
@@ -133,7 +200,7 @@ pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
     let dims = call.dimensions(world)?;
     let rays = traced_rays(world, call);
     let mut stats = TracerStats::default();
-    let mut allowed: Vec<AllowedOutcomes> = Vec::new();
+    let mut allowed = PerRay::default();
     if !rays.is_empty() {
         // The first launch ray of each distinct ray, and for every ray the distinct one it is.
         let (prepared, (distinct, of)) = match prepared_beside_distinct(world, &rays) {
@@ -141,30 +208,10 @@ pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
             None => (prepared(&world.launch.scene)?, distinct_rays(&rays)),
         };
         let workers = workers_for(distinct.len());
-        let mut traced = trace_distinct(
+        let traced = trace_distinct(
             workers, world, call, &prepared, &rays, &distinct, &mut stats,
         )?;
-        if distinct.len() == rays.len() {
-            // Every ray is distinct (the usual launch): the outcomes are in launch order already.
-            allowed = traced;
-        } else {
-            // The last launch ray of a distinct ray takes its outcomes, the others a copy.
-            let mut last = vec![u32::MAX; distinct.len()];
-            for (i, &d) in of.iter().enumerate() {
-                last[d as usize] = i as u32;
-            }
-            let mut traced: Vec<Option<AllowedOutcomes>> = traced.drain(..).map(Some).collect();
-            allowed.reserve_exact(rays.len());
-            for (i, &d) in of.iter().enumerate() {
-                let d = d as usize;
-                let a = if last[d] == i as u32 {
-                    traced[d].take()
-                } else {
-                    traced[d].clone()
-                };
-                allowed.push(a.expect("a distinct ray's outcomes are taken once, last"));
-            }
-        }
+        allowed = PerRay::new(traced, of);
     }
     Some(ExpectedLaunch {
         dimensions: dims,
@@ -535,5 +582,62 @@ mod shared_out_tests {
             assert_eq!(stats.rays, one_stats.rays, "{workers} workers");
             assert_eq!(stats.pair_tests, one_stats.pair_tests, "{workers} workers");
         }
+    }
+}
+
+#[cfg(test)]
+mod per_ray_tests {
+    use super::*;
+
+    fn hand_case() -> crate::Case {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../cases/hand/trace-indirect-records-32.yaml");
+        let text = std::fs::read_to_string(path).expect("the hand-made case");
+        crate::Case::from_yaml("hand", &text).expect("the hand-made case parses")
+    }
+
+    /// A launch of many copies of a few rays keeps one outcome set per distinct ray, and each copy
+    /// reads the set its own ray traced alone gives.
+    #[test]
+    fn copies_of_a_ray_share_one_outcome_set_that_is_the_rays_own() {
+        let workload = crate::tracer::workload::standard_workloads(64, false)
+            .into_iter()
+            .find(|w| w.name.starts_with("icosphere"))
+            .expect("the icosphere workload");
+        // A 64x64 launch whose 4096 rays are copies of three of the workload's, hit and miss.
+        let mut case = workload.as_launch_of(hand_case(), 64);
+        let body = case.as_trace_mut().expect("a trace case");
+        let few: Vec<Ray> = [0, 2080, 4095]
+            .map(|k| body.world.launch.rays[k].clone())
+            .to_vec();
+        body.world.launch.rays = (0..4096)
+            .map(|i| few[(i * 7) % few.len()].clone())
+            .collect();
+        let many = expected_launch(&body.world, &body.call).expect("a defined launch");
+        assert_eq!(many.allowed.len(), 4096);
+        assert!(
+            many.allowed.iter().any(|a| !a.candidates.is_empty()),
+            "some copy hits"
+        );
+        assert!(
+            many.allowed.distinct_len() <= few.len(),
+            "{} outcome sets held for {} distinct rays",
+            many.allowed.distinct_len(),
+            few.len()
+        );
+        let mut alone = TracerStats::default();
+        let p = prepared(&body.world.launch.scene).expect("a defined scene");
+        for (k, ray) in body.world.launch.rays.iter().enumerate().step_by(97) {
+            let own = allowed_for_ray(&body.world, &body.call, &p, ray, &mut alone)
+                .expect("a defined ray");
+            assert_eq!(many.allowed[k], own, "ray {k}");
+        }
+        // Every ray distinct: the outcomes are held as they are, one per ray.
+        let all = PerRay::new(vec!['a', 'b', 'c'], vec![0, 1, 2]);
+        assert_eq!(all.iter().collect::<String>(), "abc");
+        assert_eq!((all.len(), all.distinct_len()), (3, 3));
+        let shared = PerRay::new(vec!['a', 'b'], vec![0, 1, 1, 0]);
+        assert_eq!(shared.iter().collect::<String>(), "abba");
+        assert_eq!((shared.len(), shared.distinct_len()), (4, 2));
     }
 }

@@ -61,7 +61,7 @@ pub(crate) fn misses_of(e: &ExpectedLaunch) -> Vec<u64> {
     let misses: BTreeSet<u64> = e
         .rays
         .iter()
-        .zip(&e.allowed)
+        .zip(e.allowed.iter())
         .filter(|(_, a)| a.miss.allowed)
         .map(|(ray, _)| miss_record(ray.miss_index))
         .collect();
