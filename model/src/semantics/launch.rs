@@ -607,12 +607,8 @@ mod per_ray_tests {
         // A 64x64 launch whose 4096 rays are copies of three of the workload's, hit and miss.
         let mut case = workload.as_launch_of(hand_case(), 64);
         let body = case.as_trace_mut().expect("a trace case");
-        let few: Vec<Ray> = [0, 2080, 4095]
-            .map(|k| body.world.launch.rays[k].clone())
-            .to_vec();
-        body.world.launch.rays = (0..4096)
-            .map(|i| few[(i * 7) % few.len()].clone())
-            .collect();
+        let few: Vec<Ray> = [0, 2080, 4095].map(|k| body.world.launch.rays[k]).to_vec();
+        body.world.launch.rays = (0..4096).map(|i| few[(i * 7) % few.len()]).collect();
         let many = expected_launch(&body.world, &body.call).expect("a defined launch");
         assert_eq!(many.allowed.len(), 4096);
         assert!(
