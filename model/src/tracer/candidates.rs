@@ -248,7 +248,7 @@ pub(super) fn outcomes_of_near(
                 if signs.must_run {
                     must_run.push(MustRun {
                         t_hi: band.t0.hi.max(band.t1.lo),
-                        primitive: prim,
+                        candidate: None,
                     });
                 }
                 let reports: few::Few<AllowedReport, 2> = sphere_reports(&signs, &band)
@@ -265,6 +265,12 @@ pub(super) fn outcomes_of_near(
                 if reports.is_empty() {
                     stats.req_miss += 1;
                     continue;
+                }
+                if signs.must_run {
+                    if let Some(m) = must_run.last_mut() {
+                        // Pushed next: its index among the candidates.
+                        m.candidate = Some(candidates.len());
+                    }
                 }
                 let required = reports.iter().any(|r| r.required);
                 if required {

@@ -22,12 +22,6 @@ pub(super) fn conclude(
     watertight: Vec<WatertightGroup>,
 ) -> AllowedOutcomes {
     let tofh = ray.flags.contains(RayFlags::TERMINATE_ON_FIRST_HIT);
-    // Per candidate: confirmable, may end the trace early, and the hull of its t intervals.
-    struct Facts {
-        confirmable: bool,
-        early: bool,
-        hull: Interval,
-    }
     let fact = |c: &Candidate| {
         let ok = c.confirmation.confirms();
         Facts {
@@ -57,23 +51,15 @@ pub(super) fn conclude(
         &many
     };
     let confirmable = |i: usize| facts[i].confirmable;
-    let early = |i: usize| facts[i].early;
     let hulls = |i: usize| facts[i].hull;
-    let required = || {
-        (0..candidates.len())
-            .filter(|&i| confirmable(i) && candidates[i].presence == Presence::Required)
-    };
-    let no_required = required().next().is_none();
+    let required = |i: usize| confirmable(i) && candidates[i].presence == Presence::Required;
+    let order = Order::of(facts, required);
+    let no_required = order.required_hi.count == 0;
     let committable: few::Few<usize, 4> = (0..candidates.len())
-        .filter(|&i| {
-            confirmable(i) && (early(i) || required().all(|r| r == i || hulls(i).lo <= hulls(r).hi))
-        })
+        .filter(|&i| order.committable(facts, i, required(i)))
         .collect();
     // A candidate must be processed when nothing can end the trace or shrink tmax below it first.
-    let must_process = |i: Option<usize>, t_hi: f64| -> bool {
-        (0..candidates.len())
-            .all(|c| Some(c) == i || !confirmable(c) || (!early(c) && hulls(c).lo > t_hi))
-    };
+    let must_process = |i: Option<usize>, t_hi: f64| order.must_process(facts, i, t_hi);
     // Any-hit: at most once per candidate with NO_DUPLICATE_ANY_HIT, unbounded otherwise; with
     // TerminateOnFirstHit every accepting invocation ends the trace.
     let mut any_hit_max: Option<u32> = Some(0);
@@ -118,10 +104,7 @@ pub(super) fn conclude(
     }
     let intersection_min = must_run
         .iter()
-        .filter(|m| {
-            let own = candidates.iter().position(|c| c.primitive == m.primitive);
-            must_process(own, m.t_hi)
-        })
+        .filter(|m| must_process(m.candidate, m.t_hi))
         .count() as u32;
     let discouraged = no_required && watertight.iter().any(|g| g.expect_hit);
     let vary = candidates.iter().any(|c| c.presence == Presence::Possible)
@@ -147,5 +130,212 @@ pub(super) fn conclude(
         },
         watertight,
         vary,
+    }
+}
+
+/// Per candidate: confirmable, may end the trace early, and the hull of its t intervals.
+#[derive(Debug, Clone, Copy)]
+struct Facts {
+    confirmable: bool,
+    early: bool,
+    hull: Interval,
+}
+
+/// The least two keys over a set of candidates, the least with its candidate, and the members whose
+/// key is NaN counted apart: the least over the set without any one member, in O(1). (A ray may have
+/// thousands of candidates — an ill-conditioned instance's band is wide — and each asks about all
+/// the others.)
+#[derive(Debug, Default, Clone, Copy)]
+struct Least {
+    count: usize,
+    nan: usize,
+    least: Option<(usize, f64)>,
+    second: Option<f64>,
+}
+
+impl Least {
+    fn add(&mut self, i: usize, key: f64) {
+        self.count += 1;
+        if key.is_nan() {
+            self.nan += 1;
+            return;
+        }
+        match self.least {
+            Some((_, l)) if key >= l => {
+                if self.second.is_none_or(|s| key < s) {
+                    self.second = Some(key);
+                }
+            }
+            _ => {
+                self.second = self.least.map(|(_, l)| l);
+                self.least = Some((i, key));
+            }
+        }
+    }
+
+    /// The set without `member` (one of it, with its key; None: the whole set): how many members
+    /// are left, how many of those have a NaN key, and the least key that is not NaN.
+    fn without(&self, member: Option<(usize, f64)>) -> (usize, usize, Option<f64>) {
+        let Some((i, key)) = member else {
+            return (self.count, self.nan, self.least.map(|(_, l)| l));
+        };
+        if key.is_nan() {
+            return (self.count - 1, self.nan - 1, self.least.map(|(_, l)| l));
+        }
+        let least = match self.least {
+            Some((j, _)) if j == i => self.second,
+            other => other.map(|(_, l)| l),
+        };
+        (self.count - 1, self.nan, least)
+    }
+}
+
+/// What the committed-hit and must-process rules ask of the other candidates, gathered once: the t
+/// hulls' upper ends of the required confirmable candidates, the number of confirmable candidates
+/// that may end the trace early, and the lower ends of the other confirmable ones.
+struct Order {
+    required_hi: Least,
+    early: usize,
+    late_lo: Least,
+}
+
+impl Order {
+    fn of(facts: &[Facts], required: impl Fn(usize) -> bool) -> Order {
+        let mut o = Order {
+            required_hi: Least::default(),
+            early: 0,
+            late_lo: Least::default(),
+        };
+        for (i, f) in facts.iter().enumerate() {
+            if !f.confirmable {
+                continue;
+            }
+            if required(i) {
+                o.required_hi.add(i, f.hull.hi);
+            }
+            if f.early {
+                o.early += 1;
+            } else {
+                o.late_lo.add(i, f.hull.lo);
+            }
+        }
+        o
+    }
+
+    /// Whether candidate `i` may be the committed hit: confirmable, and it may end the trace early or
+    /// its t may be at most that of every other required confirmable candidate (`hull.lo ≤ hull.hi`
+    /// of each).
+    fn committable(&self, facts: &[Facts], i: usize, required: bool) -> bool {
+        let f = &facts[i];
+        if !f.confirmable {
+            return false;
+        }
+        if f.early {
+            return true;
+        }
+        let (left, nan, least) = self.required_hi.without(required.then_some((i, f.hull.hi)));
+        left == 0 || (!f.hull.lo.is_nan() && nan == 0 && least.is_none_or(|m| f.hull.lo <= m))
+    }
+
+    /// Whether candidate `i` (None: a primitive that is no candidate) must be processed up to
+    /// `t_hi`: no other confirmable candidate may end the trace early, and every other confirmable
+    /// one lies beyond `t_hi`.
+    fn must_process(&self, facts: &[Facts], i: Option<usize>, t_hi: f64) -> bool {
+        let own = i.map(|i| (i, facts[i]));
+        let own_early = own.is_some_and(|(_, f)| f.confirmable && f.early);
+        if self.early > usize::from(own_early) {
+            return false;
+        }
+        let skip = own
+            .filter(|(_, f)| f.confirmable && !f.early)
+            .map(|(i, f)| (i, f.hull.lo));
+        let (left, nan, least) = self.late_lo.without(skip);
+        if t_hi.is_nan() {
+            return left == 0;
+        }
+        nan == 0 && least.is_none_or(|m| m > t_hi)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The rules as first written, each asking every other candidate in turn: the reference
+    /// [`Order`] must agree with.
+    fn committable_by_pairs(facts: &[Facts], required: &[bool], i: usize) -> bool {
+        facts[i].confirmable
+            && (facts[i].early
+                || (0..facts.len()).all(|r| {
+                    !(facts[r].confirmable && required[r])
+                        || r == i
+                        || facts[i].hull.lo <= facts[r].hull.hi
+                }))
+    }
+
+    fn must_process_by_pairs(facts: &[Facts], i: Option<usize>, t_hi: f64) -> bool {
+        (0..facts.len()).all(|c| {
+            Some(c) == i || !facts[c].confirmable || (!facts[c].early && facts[c].hull.lo > t_hi)
+        })
+    }
+
+    #[test]
+    fn the_gathered_order_answers_as_asking_every_other_candidate() {
+        // Keys from a small set with ties, infinities and NaN, so every branch of Least is met.
+        let keys = [
+            f64::NEG_INFINITY,
+            -1.0,
+            0.0,
+            0.5,
+            0.5,
+            1.0,
+            2.0,
+            f64::INFINITY,
+            f64::NAN,
+        ];
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = |n: usize| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % n as u64) as usize
+        };
+        let mut checked = (0, 0);
+        for round in 0..4000 {
+            let n = 1 + next(if round % 10 == 0 { 40 } else { 7 });
+            let facts: Vec<Facts> = (0..n)
+                .map(|_| Facts {
+                    confirmable: next(5) != 0,
+                    early: next(6) == 0,
+                    hull: Interval {
+                        lo: keys[next(keys.len())],
+                        hi: keys[next(keys.len())],
+                    },
+                })
+                .collect();
+            let required: Vec<bool> = (0..n).map(|_| next(3) != 0).collect();
+            let order = Order::of(&facts, |i| facts[i].confirmable && required[i]);
+            for i in 0..n {
+                let req = facts[i].confirmable && required[i];
+                assert_eq!(
+                    order.committable(&facts, i, req),
+                    committable_by_pairs(&facts, &required, i),
+                    "committable {i} of {facts:?} required {required:?}"
+                );
+                for t in keys {
+                    for own in [Some(i), None] {
+                        assert_eq!(
+                            order.must_process(&facts, own, t),
+                            must_process_by_pairs(&facts, own, t),
+                            "must_process {own:?} at {t} of {facts:?}"
+                        );
+                        checked.1 += usize::from(must_process_by_pairs(&facts, own, t));
+                    }
+                }
+                checked.0 += usize::from(committable_by_pairs(&facts, &required, i));
+            }
+        }
+        // Both answers were met often.
+        assert!(checked.0 > 1000 && checked.1 > 1000, "{checked:?}");
     }
 }

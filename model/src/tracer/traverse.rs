@@ -364,7 +364,8 @@ pub(super) struct NearItem {
 /// A procedural primitive the intersection shader must run for.
 pub(super) struct MustRun {
     pub t_hi: f64,
-    pub primitive: PrimitiveRef,
+    /// Its index among the ray's candidates, None where it is none (its sphere is missed).
+    pub candidate: Option<usize>,
 }
 
 /// Whether item `i` is far from the ray (its far box's test; with the BVH's shortcut `quick`, a
