@@ -70,13 +70,7 @@ pub fn of(world: &World, call: &Call) -> Option<Arc<ExpectedLaunch>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn hand_case() -> crate::Case {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../cases/hand/trace-indirect-records-32.yaml");
-        let text = std::fs::read_to_string(&path).expect("the hand case reads");
-        crate::Case::from_yaml("hand", &text).expect("the hand case parses")
-    }
+    use crate::test_cases::hand_case;
 
     #[test]
     fn a_kept_launch_is_the_computed_one_and_a_changed_ray_is_not_found() {

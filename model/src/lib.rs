@@ -56,4 +56,12 @@ pub(crate) mod test_cases {
         );
         out
     }
+
+    /// The hand-made vkCmdTraceRaysIndirectKHR case, `cases/hand/trace-indirect-records-32.yaml`.
+    pub(crate) fn hand_case() -> crate::Case {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../cases/hand/trace-indirect-records-32.yaml");
+        let text = std::fs::read_to_string(path).expect("the hand-made case reads");
+        crate::Case::from_yaml("hand", &text).expect("the hand-made case parses")
+    }
 }

@@ -638,6 +638,7 @@ pub fn undefined_reads(handle_size: u64, world: &World, call: &Call) -> Vec<Stri
 #[cfg(test)]
 mod hit_reach_tests {
     use super::*;
+    use crate::test_cases::hand_case;
 
     /// Hit records with the kind of geometry they are reached from.
     type Reach = Vec<(u64, GeometryKind)>;
@@ -648,13 +649,6 @@ mod hit_reach_tests {
         let e = expected_launch(&t.world, &t.call)?;
         let traced = traced_hit_reach(&t.world.launch, &e.rays);
         Some((traced, derived_hit_reach(&t.world, &t.call, &e)))
-    }
-
-    fn hand_case() -> crate::Case {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../cases/hand/trace-indirect-records-32.yaml");
-        let text = std::fs::read_to_string(path).expect("the hand case reads");
-        crate::Case::from_yaml("hand", &text).expect("the hand case parses")
     }
 
     #[test]

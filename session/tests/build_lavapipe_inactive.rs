@@ -68,10 +68,7 @@ fn lavapipe_drops_a_primitive_beside_an_inactive_triangle() {
 #[test]
 fn lavapipe_loses_an_active_box_before_an_inactive_one() {
     let _one = common::DEVICE.lock().unwrap_or_else(|e| e.into_inner());
-    let case = committed("build/lavapipe-inactive-aabb-drops-box.yaml");
-    let mut lvp = Lavapipe::new();
-    let ran = lvp.run(&case, TraceCheck::Auto);
-    assert_eq!(status(&ran), &Status::Ran);
+    let (mut lvp, case, ran) = ran_committed("build/lavapipe-inactive-aabb-drops-box.yaml");
     // FIXME(lavapipe, Mesa 25.0.7): a fixed driver hits box 0 with the rays through it and the case
     // passes.
     assert!(traced(&ran).hits.iter().all(|h| h.is_none()));
@@ -118,10 +115,7 @@ fn lavapipe_loses_an_active_box_before_an_inactive_one() {
 #[test]
 fn which_boxes_lavapipe_loses_beside_an_inactive_one_depends_on_the_ray() {
     let _one = common::DEVICE.lock().unwrap_or_else(|e| e.into_inner());
-    let case = committed("build/lavapipe-inactive-aabb-ray-dependent.yaml");
-    let mut lvp = Lavapipe::new();
-    let ran = lvp.run(&case, TraceCheck::Auto);
-    assert_eq!(status(&ran), &Status::Ran);
+    let (_, case, ran) = ran_committed("build/lavapipe-inactive-aabb-ray-dependent.yaml");
     let hits = &traced(&ran).hits;
     // FIXME(lavapipe, Mesa 25.0.7): a fixed driver runs box 3's intersection shader for check ray 6
     // (which enters the box and its sphere) as it does for ray 5, and the case passes.
@@ -159,4 +153,14 @@ fn which_boxes_lavapipe_loses_beside_an_inactive_one_depends_on_the_ray() {
             "ray 5 hitting box {primitive}"
         );
     }
+}
+
+/// A committed build case run on lavapipe with its check traced (it must run), with the executor
+/// for more runs.
+fn ran_committed(path: &str) -> (Lavapipe, model::Case, session::run::Ran) {
+    let case = committed(path);
+    let mut lvp = Lavapipe::new();
+    let ran = lvp.run(&case, TraceCheck::Auto);
+    assert_eq!(status(&ran), &Status::Ran, "{path}");
+    (lvp, case, ran)
 }

@@ -551,10 +551,7 @@ mod shared_out_tests {
     /// more workers than chunks), every ray gets the outcomes and counters one thread gives it.
     #[test]
     fn every_worker_count_gives_the_outcomes_of_one_thread() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../cases/hand/trace-indirect-records-32.yaml");
-        let text = std::fs::read_to_string(path).expect("the hand-made case");
-        let mut case = crate::Case::from_yaml("hand", &text).expect("the hand-made case parses");
+        let mut case = crate::test_cases::hand_case();
         let workload = crate::tracer::workload::standard_workloads(24, false)
             .into_iter()
             .find(|w| w.name.starts_with("icosphere"))
@@ -588,13 +585,7 @@ mod shared_out_tests {
 #[cfg(test)]
 mod per_ray_tests {
     use super::*;
-
-    fn hand_case() -> crate::Case {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../cases/hand/trace-indirect-records-32.yaml");
-        let text = std::fs::read_to_string(path).expect("the hand-made case");
-        crate::Case::from_yaml("hand", &text).expect("the hand-made case parses")
-    }
+    use crate::test_cases::hand_case;
 
     /// A launch of many copies of a few rays keeps one outcome set per distinct ray, and each copy
     /// reads the set its own ray traced alone gives.
