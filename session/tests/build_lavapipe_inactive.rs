@@ -73,16 +73,7 @@ fn lavapipe_loses_an_active_box_before_an_inactive_one() {
     // passes.
     assert!(traced(&ran).hits.iter().all(|h| h.is_none()));
     assert!(!mismatches(&ran).is_empty());
-    assert_eq!(
-        deviation(&case, &traced(&ran).records).as_deref(),
-        Some(INACTIVE_AABB_DROPS)
-    );
-    assert_eq!(
-        ran.report.outcome,
-        Outcome::Triaged,
-        "{}",
-        ran.report.detail
-    );
+    assert_triaged_as_aabb_drops(&case, &ran);
     // A device that hits the inactive box is no deviation.
     let mut wrong = traced(&ran).records.clone();
     wrong[R::OUTCOME] = R::HIT;
@@ -131,17 +122,8 @@ fn which_boxes_lavapipe_loses_beside_an_inactive_one_depends_on_the_ray() {
         "{failing:?}"
     );
     // No one set of dropped boxes explains ray 5's hit and ray 6's miss; ray by ray they are.
+    assert_triaged_as_aabb_drops(&case, &ran);
     let records = traced(&ran).records.clone();
-    assert_eq!(
-        deviation(&case, &records).as_deref(),
-        Some(INACTIVE_AABB_DROPS)
-    );
-    assert_eq!(
-        ran.report.outcome,
-        Outcome::Triaged,
-        "{}",
-        ran.report.detail
-    );
     // Ray by ray still fails a hit the model does not allow: ray 5's hit moved to a box it never
     // enters, or to the inactive box.
     for primitive in [0, 1] {
@@ -163,4 +145,18 @@ fn ran_committed(path: &str) -> (Lavapipe, model::Case, session::run::Ran) {
     let ran = lvp.run(&case, TraceCheck::Auto);
     assert_eq!(status(&ran), &Status::Ran, "{path}");
     (lvp, case, ran)
+}
+
+/// The model names the records' deviation inactive-aabb-drops-primitives, and the run triaged it.
+fn assert_triaged_as_aabb_drops(case: &model::Case, ran: &session::run::Ran) {
+    assert_eq!(
+        deviation(case, &traced(ran).records).as_deref(),
+        Some(INACTIVE_AABB_DROPS)
+    );
+    assert_eq!(
+        ran.report.outcome,
+        Outcome::Triaged,
+        "{}",
+        ran.report.detail
+    );
 }
