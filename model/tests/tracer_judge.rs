@@ -45,6 +45,12 @@ fn verdict(allowed: &AllowedOutcomes, r: &RayRecord) -> RayVerdict {
     judge(allowed, &back).verdict
 }
 
+/// [`verdict`] of a record holding a NaN (which no record equals): judged as read back from its words.
+fn words_verdict(allowed: &AllowedOutcomes, r: &RayRecord) -> RayVerdict {
+    let back = RayRecord::from_words(&r.to_words()).expect("well-formed");
+    judge(allowed, &back).verdict
+}
+
 fn is_fail(v: &RayVerdict) -> bool {
     matches!(v, RayVerdict::Fail(_))
 }
@@ -145,6 +151,46 @@ fn t_off_by_twice_its_bound_fails() {
     r.barycentrics[0] =
         0.25 + 2.0 * out.candidates[0].reports[0].barycentrics.unwrap()[0].radius() as f32;
     assert!(is_fail(&verdict(&out, &r)));
+}
+
+/// A NaN barycentric fails wherever the model bounds it; where the pair's f32 test may overflow
+/// (VARY, `VaryReason::Range`: every quantity unbounded, as lavapipe showed with coordinates near
+/// 1e20, `rtconf stress --family extreme-scale --seed 90033 --size small`) it is an allowed outcome.
+#[test]
+fn a_nan_barycentric_passes_only_where_the_pair_may_overflow() {
+    let (scene, ray, rec) = centre();
+    let out = trace(&scene, &ray);
+    let mut r = rec.clone();
+    r.barycentrics[0] = f32::NAN;
+    assert!(is_fail(&words_verdict(&out, &r)));
+    // The unit triangle scaled by 2^70, seen from 2^70 above along a direction of length 2^60.
+    let s = 2f32.powi(70);
+    let far = one_instance(BottomLevel {
+        geometries: vec![tri_geometry(
+            vec![[0.0, 0.0, 0.0], [s, 0.0, 0.0], [0.0, s, 0.0]],
+            true,
+        )],
+    });
+    let ray = Ray::new(
+        [0.25 * s, 0.25 * s, s],
+        [0.0, 0.0, -(2f32.powi(60))],
+        0.0,
+        f32::INFINITY,
+    );
+    let out = trace(&far, &ray);
+    assert_eq!(
+        out.candidates[0].vary_reason,
+        Some(model::tracer::VaryReason::Range)
+    );
+    let mut r = hit(0, 0, 0, 0xFE, 2f32.powi(10), f32::NAN, 0.25, 0);
+    assert!(
+        !is_fail(&words_verdict(&out, &r)),
+        "{:?}",
+        words_verdict(&out, &r)
+    );
+    // Its t still may not be NaN: no test of t against [tmin, tmax] keeps a NaN.
+    r.t = f32::NAN;
+    assert!(is_fail(&words_verdict(&out, &r)));
 }
 
 #[test]
