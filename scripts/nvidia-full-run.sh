@@ -9,7 +9,7 @@
 #       copy the checkout with those two folders to the NVIDIA machine.
 #
 #   there (the NVIDIA machine, as root, in the copied checkout):
-#     bash scripts/nvidia-full-run.sh --out DIR [--count N] [--valid-count N] [--commit SHA]
+#     bash scripts/nvidia-full-run.sh --out DIR [--count N] [--valid-count N] [--seed S] [--commit SHA]
 #                                     [--phases LIST] [--phase-timeout S] [--stress-timeout S]
 #                                     [--tar FILE]
 #       probe   rtconf probe of the live device into profiles/nvidia-h200.json (every run below uses it)
@@ -36,7 +36,7 @@ set -uo pipefail
 repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$repo_root"
 
-out="" count=4 valid_count=100 commit="" tar_file="" phase_timeout=300 stress_timeout=3600
+out="" count=4 valid_count=100 seed="" commit="" tar_file="" phase_timeout=300 stress_timeout=3600
 phases="probe trace build render trace-1.4.309 build-1.4.309 findings stress detect"
 prepare=0
 while [[ $# -gt 0 ]]; do
@@ -45,6 +45,7 @@ while [[ $# -gt 0 ]]; do
         --out) out=$2; shift 2 ;;
         --count) count=$2; shift 2 ;;
         --valid-count) valid_count=$2; shift 2 ;;
+        --seed) seed=$2; shift 2 ;;
         --commit) commit=$2; shift 2 ;;
         --phases) phases=$2; shift 2 ;;
         --phase-timeout) phase_timeout=$2; shift 2 ;;
@@ -95,7 +96,7 @@ bin="$repo_root/.gl/bin/rtconf"
     if command -v nvidia-smi >/dev/null; then
         echo "- GPU: $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null | head -1)"
     fi
-    echo "- script: \`bash scripts/nvidia-full-run.sh --out DIR --count $count --valid-count $valid_count --phases '$phases'\`"
+    echo "- script: \`bash scripts/nvidia-full-run.sh --out DIR --count $count --valid-count $valid_count${seed:+ --seed $seed} --phases '$phases'\`"
     echo
     echo "| phase | command | exit | seconds | cases | pass | triaged | unsupported | not-realised | fail | crash | timeout | case-error | stale triage |"
     echo "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
@@ -150,6 +151,8 @@ phase() {
 
 run_args=(--driver nvidia --profile "$profile" --jobs "$(nproc 2>/dev/null || echo 4)"
           --baseline baselines/nvidia-h200.csv)
+# Another seed draws other cases (the baseline names the default seed's known findings).
+[[ -n "$seed" ]] && run_args+=(--seed "$seed")
 for p in $phases; do
     case "$p" in
         probe)
