@@ -249,7 +249,8 @@ const DEVIATIONS: &[(&str, RangeRewrite)] = &[
 /// (a vertex whose X is NaN): lavapipe (Mesa 25.0.7) keeps such a triangle in its BVH, and its NaN bounds
 /// make primitives elsewhere in the tree unreachable (which ones depends on the tree, so the model cannot
 /// name them). Under it the device's records must pass the judgement against the structure with some
-/// primitives dropped, the fewest that explain them. Only named when the exact judgements fail.
+/// primitives dropped, the fewest that explain them — one set for every ray, or where none explains
+/// them all, a set per failing ray (`drops_per_ray`). Only named when the exact judgements fail.
 pub const INACTIVE_TRIANGLE_DROPS: &str = "inactive-triangle-drops-primitives";
 
 /// The twin of [`INACTIVE_TRIANGLE_DROPS`] for AABB geometry: lavapipe (Mesa 25.0.7) keeps a box whose
