@@ -4,7 +4,7 @@
 //! a hole in a watertight group is a quality warning (the spec says "should").
 
 use super::record::{RayRecord, RecordOutcome};
-use super::{AllowedOutcomes, AllowedReport, Candidate, PrimitiveKind, PrimitiveRef};
+use super::{AllowedOutcomes, AllowedReport, Candidate, Interval, PrimitiveKind, PrimitiveRef};
 use serde::{Deserialize, Serialize};
 
 /// The verdict on one ray.
@@ -338,8 +338,7 @@ fn measure(
                 bound = bound.max(bi[k].radius());
                 // An unbounded interval decides nothing (a pair whose f32 test may overflow,
                 // `VaryReason::Range`): there an overflowed division's NaN is an outcome too.
-                let unbounded = bi[k].lo == f64::NEG_INFINITY && bi[k].hi == f64::INFINITY;
-                if !(bi[k].contains(x) || (unbounded && x.is_nan())) {
+                if !(bi[k].contains(x) || (bi[k] == Interval::ALL && x.is_nan())) {
                     findings.push(RayVerdict::Fail(format!(
                         "barycentric {} = {} outside [{}, {}]",
                         ["b", "c"][k],
