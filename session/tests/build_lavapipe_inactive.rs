@@ -4,6 +4,8 @@
 //! `model::accel::check::deviation` names both cases after judging the records against each deviation's
 //! structure. Its AABB twin: an active box
 //! before an inactive one (minimum X NaN) is lost, `cases/build/lavapipe-inactive-aabb-drops-box.yaml`.
+//! And a geometry hidden whole beside an exact fit that is a coincidence
+//! (`cases/build/lavapipe-first-vertex-twice-hidden-geometry.yaml`).
 
 mod common;
 
@@ -158,5 +160,60 @@ fn assert_triaged_as_aabb_drops(case: &model::Case, ran: &session::run::Ran) {
         Outcome::Triaged,
         "{}",
         ran.report.detail
+    );
+}
+
+/// An exact fit by another deviation can be a coincidence. In
+/// `cases/build/lavapipe-first-vertex-twice-hidden-geometry.yaml` the inactive triangle of geometry 1
+/// hides all of geometry 0 from lavapipe's rays, and ignoring geometry 0's firstVertex would move it
+/// away from every check ray: both fit, both are named, and the inactive-triangle entry triages the case
+/// by its alternative. With geometry 0's own NaN vertex made finite only the drops fit.
+#[test]
+fn a_geometry_hidden_by_an_inactive_triangle_is_named_beside_a_coincidental_exact_fit() {
+    let _one = common::DEVICE.lock().unwrap_or_else(|e| e.into_inner());
+    let path = "build/lavapipe-first-vertex-twice-hidden-geometry.yaml";
+    let (mut lvp, case, ran) = ran_committed(path);
+    assert_eq!(
+        deviation(&case, &traced(&ran).records),
+        Some(format!(
+            "indexed-first-vertex-ignored|first-vertex-applied-twice+{INACTIVE_TRIANGLE_DROPS}"
+        ))
+    );
+    assert_eq!(
+        ran.report.outcome,
+        Outcome::Triaged,
+        "{}",
+        ran.report.detail
+    );
+    let entries: Vec<&str> = ran.report.triage.iter().map(|m| m.entry.as_str()).collect();
+    assert!(
+        entries.iter().any(|e| e.contains(INACTIVE_TRIANGLE_DROPS)),
+        "{entries:?}"
+    );
+    // Geometry 0 is hidden whole: straight rays through the centroid of its primitive 1 where the model
+    // puts it (vertices 6, 7, 5) and where firstVertex applied twice puts it (8, 9, 7) both miss.
+    let origins = [[3.0, -1.0 / 6.0, -5.0], [5.0, -1.0 / 6.0, -5.0]];
+    let hits = lvp
+        .executor
+        .probe_rays(&case, &origins, TraceCheck::Auto)
+        .unwrap();
+    // FIXME(lavapipe, Mesa 25.0.7): a fixed driver hits geometry 0 at the second origin.
+    assert_eq!(hits, vec![None, None]);
+
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../cases")
+        .join(path);
+    let text = std::fs::read_to_string(&file).unwrap();
+    let nan = "      offset: 32\n      values: [.nan, -0.5, 0.0]";
+    assert!(text.contains(nan));
+    let finite = text.replace(nan, "      offset: 32\n      values: [0.0, -0.5, 0.0]");
+    let finite = model::Case::from_yaml(path, &finite).unwrap();
+    let ran = lvp.run(&finite, TraceCheck::Auto);
+    assert_eq!(status(&ran), &Status::Ran);
+    assert_eq!(
+        deviation(&finite, &traced(&ran).records),
+        Some(format!(
+            "first-vertex-applied-twice+{INACTIVE_TRIANGLE_DROPS}"
+        ))
     );
 }

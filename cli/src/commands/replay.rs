@@ -28,8 +28,9 @@ pub struct ReplayArgs {
     /// Print what the replay found as one JSON object instead.
     #[arg(long)]
     json: bool,
-    /// Trace cases run as valid: write the ray records read back to this file (little-endian u32
-    /// words, 28 per launch ID), as an exported program's `--records` does.
+    /// Cases run as valid: write the ray records read back to this file (little-endian u32 words, 28
+    /// per launch ID of a trace, per ray of a build's traced check), as an exported program's
+    /// `--records` does.
     #[arg(long)]
     records: Option<PathBuf>,
     /// Seconds the case may take in its worker process (at least 1).
@@ -79,13 +80,14 @@ pub fn run(a: ReplayArgs) -> super::Exit {
     let replayed = session::replay(&case, &config)?;
     let r = &replayed.ran;
     if let Some(path) = &a.records {
+        // A valid trace's launch records, or a valid build's traced check's.
         let words = r
             .observation
             .as_ref()
-            .and_then(|o| o.words())
+            .and_then(|o| o.words().or_else(|| o.traced().map(|t| &t.records[..])))
             .ok_or_else(|| {
                 session::SessionError::Usage(format!(
-                    "--records: {} read no ray records back (only a trace case run as valid does)",
+                    "--records: {} read no ray records back (only a case run as valid does: a trace's launch, a build's traced check)",
                     r.case.name
                 ))
             })?;
@@ -274,7 +276,9 @@ fn print_traced(body: &model::AccelBody, t: &TracedBuild, deviation: Option<&str
         println!("         the model cannot judge these rays: {e}");
     }
     if let Some(d) = deviation {
-        println!("         the device's records are exactly those of the build under `{d}`");
+        // Alternatives are separated by `|`; a `+…-drops-primitives` one explains them up to dropped
+        // primitives (model::accel::check::deviation).
+        println!("         the device's records are those of the build under `{d}`");
     }
     if !t.direct_layer_vuids.is_empty() {
         println!(

@@ -216,7 +216,7 @@ impl Triage {
         self.entries
             .iter()
             .filter(|e| e.concerns(case))
-            .find(|e| matches!(&e.observed, Observed::Output(p) if p.matches(key)))
+            .find(|e| matches!(&e.observed, Observed::Output(p) if output_matches(p, key)))
             .map(|e| e.matched(key, None))
     }
 }
@@ -241,4 +241,17 @@ pub fn unused(
         .partition(|e| e.observed.touches(exercised));
     let ids = |v: Vec<&TriageEntry>| v.into_iter().map(TriageEntry::id).collect();
     (ids(stale), ids(unexercised))
+}
+
+/// Whether an output entry's pattern explains `key`: the key whole, or one of the alternatives it
+/// names (`COMMAND:A|B`, each deviation explaining the records on its own, see
+/// `model::accel::check::deviation`) with its command, `COMMAND:A` or `COMMAND:B`.
+fn output_matches(pattern: &Pattern, key: &str) -> bool {
+    pattern.matches(key)
+        || key.split_once(':').is_some_and(|(command, names)| {
+            names.contains('|')
+                && names
+                    .split('|')
+                    .any(|name| pattern.matches(&format!("{command}:{name}")))
+        })
 }

@@ -179,6 +179,50 @@ fn a_driver_bug_explains_output_deviations_and_no_vuid() {
 }
 
 #[test]
+fn an_output_entry_explains_a_key_by_any_one_of_its_alternatives() {
+    let entry_for = |pattern: &str| {
+        triage(&entry(
+            &format!("output: \"vkCmdBuildAccelerationStructuresIndirectKHR:{pattern}\""),
+            "driver-bug",
+        ))
+    };
+    let facts = CaseFacts {
+        name: "build-valid-1-0",
+        command: CommandId::BuildAccelerationStructuresIndirect,
+        target: None,
+        model: &[],
+        layer: &[],
+        layer_other: &[],
+        problems: &[],
+    };
+    let key = |names: &str| format!("vkCmdBuildAccelerationStructuresIndirectKHR:{names}");
+    let twice_hidden = key(
+        "indexed-first-vertex-ignored|first-vertex-applied-twice+inactive-triangle-drops-primitives",
+    );
+    // The second alternative, by its own name, not the key's end.
+    let exact = entry_for("first-vertex-applied-twice+inactive-triangle-drops-primitives");
+    assert!(exact.explain_output(&facts, &twice_hidden).is_some());
+    let first = entry_for("indexed-first-vertex-ignored");
+    assert!(first.explain_output(&facts, &twice_hidden).is_some());
+    // A name that is part of an alternative only matches where the pattern says so.
+    let bare = entry_for("first-vertex-applied-twice");
+    assert!(bare.explain_output(&facts, &twice_hidden).is_none());
+    assert!(bare
+        .explain_output(
+            &facts,
+            &key("indexed-first-vertex-ignored|first-vertex-applied-twice")
+        )
+        .is_some());
+    // A key without alternatives is matched whole, as before.
+    assert!(first
+        .explain_output(&facts, &key("first-vertex-applied-twice"))
+        .is_none());
+    assert!(first
+        .explain_output(&facts, &key("indexed-first-vertex-ignored"))
+        .is_some());
+}
+
+#[test]
 fn kinds_admit_only_their_directions_with_a_located_error() {
     for (observed, kind) in [
         (format!("layer-extra: {V}"), "layer-gap"),
