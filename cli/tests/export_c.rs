@@ -3,8 +3,10 @@
 //! program reports the VUIDs `rtconf replay` observed; a valid rendered trace case of
 //! vkCmdTraceRaysKHR and of vkCmdTraceRaysIndirectKHR builds its scene from the plan's bytes, reads
 //! its ray records back, exits 0 and its records are replay's; one expected value planted wrong in
-//! the emitted tables makes the program exit 1. The NVIDIA DEVICE_LOST evidence cases export to C that
-//! compiles (and passes on lavapipe); what the writer does not handle is refused with the reason.
+//! the emitted tables makes the program exit 1. A valid build's program repeats the traced check, and
+//! lavapipe's build findings reproduce in C as in replay (records and verdict alike). The NVIDIA
+//! DEVICE_LOST evidence cases export to C that compiles (and passes on lavapipe); what the writer does
+//! not handle is refused with the reason.
 
 #[path = "common/folders.rs"]
 mod common;
@@ -615,5 +617,105 @@ fn cases_the_writer_does_not_handle_are_refused_with_the_reason() {
         &common::repo().join("cases/nvidia-h200/vkCmdTraceRaysNV-None-08114-121-0.yaml"),
         "nv",
         "VK_NV_ray_tracing cases are not exported yet",
+    );
+}
+
+/// A valid build's program repeats the harness's traced check: lavapipe's build findings export to C
+/// whose output verdict, exit status and check records are replay's (the findings' programs exit 1,
+/// a build lavapipe gets right exits 0), and the program's judge catches one planted fault in records
+/// the device wrote: a hit on an unambiguous ray turned into a miss.
+#[test]
+fn build_findings_export_their_traced_check_as_replay_runs_it() {
+    let dir = fresh_dir("export-c-build-check");
+    let repo = common::repo();
+    let cases = [
+        ("aabbs-valid", true),
+        ("lavapipe-inactive-aabb-drops-box", false),
+        ("lavapipe-inactive-triangle-drops-primitive", false),
+        ("indexed-first-vertex-shifted-primitives", false),
+        ("lavapipe-first-vertex-twice-hidden-geometry", false),
+    ];
+    for (name, passes) in cases {
+        let case = repo.join(format!("cases/build/{name}.yaml"));
+        let records = dir.join(format!("{name}.replay.bin"));
+        let r = replay(&case, Some(&records));
+        let out = dir.join(name);
+        let p = export_build_run(&case, &out);
+        same_verdict(name, &p, &r);
+        assert_eq!(p.output, Some(passes), "{name}\n{}", p.stdout);
+        assert_eq!(
+            words(&out.join("records.bin")),
+            words(&records),
+            "{name}\n{}",
+            p.stdout
+        );
+        assert!(
+            p.stdout
+                .contains("traced with ray query, one invocation each"),
+            "{name}\n{}",
+            p.stdout
+        );
+    }
+
+    // A valid build lavapipe gets right whose check hits (drawn as `rtconf gen` draws it), its records
+    // judged by its program without running anything: as read back they pass; with one hit turned
+    // into a miss they fail, naming that ray.
+    let drawn = dir.join("drawn");
+    let g = rtconf(
+        &[
+            "gen",
+            "--valid",
+            "--command",
+            "vkCmdBuildAccelerationStructuresIndirectKHR",
+            "--count",
+            "12",
+            "--out",
+            drawn.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(g.status.success(), "{}", text(&g));
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&drawn)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    files.sort();
+    let (case, good, hit) = files
+        .iter()
+        .find_map(|case| {
+            let records = case.with_extension("bin");
+            let r = replay(case, Some(&records));
+            if r["outcome"] != "pass" {
+                return None;
+            }
+            let good = words(&records);
+            let hit = (0..good.len() / 28).find(|&i| good[i * 28] == 2)?;
+            Some((case.clone(), good, hit))
+        })
+        .expect("a drawn valid build that lavapipe passes and whose check hits");
+    let out = dir.join("drawn-program");
+    let p = export_build_run(&case, &out);
+    assert_eq!(p.output, Some(true), "{}", p.stdout);
+    assert_eq!(words(&out.join("records.bin")), good, "{}", p.stdout);
+    let judge = |records: &[u32], file: &str| {
+        let path = out.join(file);
+        let bytes: Vec<u8> = records.iter().flat_map(|w| w.to_le_bytes()).collect();
+        std::fs::write(&path, bytes).unwrap();
+        Command::new(out.join("repro"))
+            .args(["--judge", path.to_str().unwrap()])
+            .output()
+            .expect("the program judges a records file")
+    };
+    let as_read = judge(&good, "good.bin");
+    assert_eq!(as_read.status.code(), Some(0), "{}", text(&as_read));
+    let mut missed = good.clone();
+    missed[hit * 28] = 1;
+    let planted = judge(&missed, "missed.bin");
+    assert_eq!(planted.status.code(), Some(1), "{}", text(&planted));
+    assert_eq!(
+        failing_ids(&String::from_utf8_lossy(&planted.stdout)),
+        BTreeSet::from([hit]),
+        "{}",
+        text(&planted)
     );
 }

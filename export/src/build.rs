@@ -1,7 +1,8 @@
 //! The C `main` of a build case: the device (with what the harness adds for its traced check), the
 //! buffers with their memory images and the device addresses written into them, the acceleration
 //! structures at their buffer ranges, the build infos, the sizes the device reports, then the plan's
-//! steps with the indirect build recorded under the layer (never submitted).
+//! steps with the indirect build recorded under the layer (never submitted); for a case run as valid,
+//! then the traced check of its build ([`crate::check`]).
 
 use crate::c::{self, Emitter};
 use crate::{emit_device, emit_expectation, Expectation};
@@ -52,9 +53,30 @@ pub(crate) fn emit(
             }
         }
     }
+    let check = expect.build_check.as_ref();
+    if let Some(c) = check {
+        crate::check::data(e, c)?;
+    }
     e.line("");
-    e.open("int main(void) {");
+    e.open("int main(int argc, char **argv) {");
+    e.line("/* ./repro [--records FILE]: FILE receives the traced check's records (little-endian words).");
+    e.line(" * ./repro --judge FILE: judges the records in FILE against the model's tables, runs nothing. */");
+    e.line("const char *records_path = argc > 2 && strcmp(argv[1], \"--records\") == 0 ? argv[2] : NULL;");
+    e.line("(void)records_path;");
+    if let Some(c) = check {
+        e.line("if (argc > 2 && strcmp(argv[1], \"--judge\") == 0)");
+        e.line(&format!(
+            "    return judge_file(&launch_rules, argv[2], {}ull);",
+            c.plan.rays.len()
+        ));
+    }
     emit_expectation(e, plan, expect);
+    if let Some(c) = check {
+        e.line(&format!(
+            "printf(\"         then info 0 is built directly and the check's {} rays are traced at it and judged per ray\\n\");",
+            c.plan.rays.len()
+        ));
+    }
     e.line("printf(\"         (judged with the sizes in the case file; rtconf replay judges with the device's)\\n\");");
     e.line("start(1);");
     e.line("printf(\"calls:\\n\");");
@@ -176,8 +198,17 @@ pub(crate) fn emit(
     }
     infos(e, b, &addr)?;
     steps(e, b)?;
-    e.line("printf(\"verdict: %s\\n\", differ ? \"the layer departs from the model\" : \"the layer reports what the model expects\");");
-    e.line("return differ ? 1 : 0;");
+    match check {
+        Some(c) => {
+            crate::check::run(e, b, c)?;
+            e.line("printf(\"verdict: %s\\n\", differ ? \"the layer departs from the model\" : output_differs ? \"the device's build departs from the model\" : \"the layer and the device do what the model expects\");");
+            e.line("return differ || output_differs ? 1 : 0;");
+        }
+        None => {
+            e.line("printf(\"verdict: %s\\n\", differ ? \"the layer departs from the model\" : \"the layer reports what the model expects\");");
+            e.line("return differ ? 1 : 0;");
+        }
+    }
     e.close("}");
     Ok(())
 }

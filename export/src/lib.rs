@@ -7,6 +7,7 @@
 
 mod build;
 mod c;
+mod check;
 mod records;
 mod trace;
 
@@ -25,8 +26,21 @@ pub struct Expectation {
     pub violations: Vec<String>,
     /// What the model allows each ray of a valid launch (trace cases run as valid and read back).
     pub launch: Option<model::semantics::ExpectedLaunch>,
+    /// A build case run as valid: the harness's traced check of it and what the model allows each
+    /// of the check's rays.
+    pub build_check: Option<BuildCheckExpectation>,
     /// How the case came about (its intent, seed, file), for the program's header.
     pub about: Vec<String>,
+}
+
+/// The traced check of a valid build (`harness::accel_check`) as the program repeats it: the case's
+/// first info built directly with the ranges the model reads from memory, the check's rays traced at
+/// the result with ray query, and what the model allows each ray (`model::accel::check::BuildCheck`).
+#[derive(Debug, Clone)]
+pub struct BuildCheckExpectation {
+    pub plan: harness::plan::check::CheckPlan,
+    /// One per ray of `plan`, in its order.
+    pub allowed: Vec<model::tracer::AllowedOutcomes>,
 }
 
 /// An exported program.

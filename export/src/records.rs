@@ -1,12 +1,11 @@
-//! The model's expectation of a valid launch's ray records, as compact C tables the program judges
-//! the records it reads back by (`judge_records` in `runtime.c`): per distinct ray what
-//! `model::semantics::expected_launch` allows — whether it may miss and by which group, the invocation
+//! The model's expectation of ray records, as compact C tables the program judges the records it
+//! reads back by (`judge_records` in `runtime.c`): per distinct ray of a valid launch (or per ray of a
+//! build's traced check) what the model allows — whether it may miss and by which group, the invocation
 //! count bounds, the candidates (which may be committed, with their group, custom index and each
 //! hit kind's t and barycentric intervals; which run any-hit) and the watertight groups that must not
 //! be hit twice — the same decisions `model::tracer::judge` makes on them.
 
 use crate::c::Emitter;
-use model::semantics::ExpectedLaunch;
 use model::tracer::{AllowedOutcomes, Interval};
 
 /// A C double literal (exact: Rust's shortest round-trip form, read back by the C compiler).
@@ -37,15 +36,20 @@ fn no_shader_allowed(a: &AllowedOutcomes) -> bool {
     miss_silent || hit_silent
 }
 
-/// Writes the tables of `launch` (`ray_rules`, `candidates`, `reports`, `watertight`, `members`) and
-/// their counts.
-pub(crate) fn tables(e: &mut Emitter, launch: &ExpectedLaunch) {
-    let mut rules = Vec::with_capacity(launch.allowed.len());
+/// Writes the tables (`ray_rules`, `candidates`, `reports`, `watertight`, `members`) of the rays whose
+/// allowed outcomes `allowed` gives, in order, and their counts; `source` names where they come from
+/// (the comment above the tables).
+pub(crate) fn tables<'a>(
+    e: &mut Emitter,
+    allowed: impl ExactSizeIterator<Item = &'a AllowedOutcomes>,
+    source: &str,
+) {
+    let mut rules = Vec::with_capacity(allowed.len());
     let mut candidates = Vec::new();
     let mut reports = Vec::new();
     let mut groups = Vec::new();
     let mut members = Vec::new();
-    for (k, a) in launch.allowed.iter().enumerate() {
+    for (k, a) in allowed.enumerate() {
         let first_candidate = candidates.len();
         for (i, c) in a.candidates.iter().enumerate() {
             let first_report = reports.len();
@@ -105,10 +109,10 @@ pub(crate) fn tables(e: &mut Emitter, launch: &ExpectedLaunch) {
             a.watertight.len()
         ));
     }
-    e.line(
-        "/* What the model allows each distinct ray (model::semantics::expected_launch), judged as",
-    );
-    e.line(" * model::tracer::judge judges: launch ID i traces ray i % ray_rule_count. */");
+    e.line(&format!(
+        "/* What the model allows each {source}, judged as model::tracer::judge judges:"
+    ));
+    e.line(" * launch ID i traces ray i % ray_rule_count. */");
     let table = |e: &mut Emitter, ty: &str, name: &str, rows: &[String], empty: &str| {
         e.line(&format!(
             "static const struct {ty} {name}[{}] = {{",

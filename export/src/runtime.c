@@ -489,6 +489,19 @@ HELPER int report_layer(const char *const *expected, int expected_count) {
     return differ;
 }
 
+/* Prints the layer's messages since the last clear_messages about the harness's own calls (`what`), which
+ * must draw no error, and clears them; returns how many errors there were. */
+HELPER int report_own_calls(const char *what) {
+    int errors = 0;
+    for (int i = 0; i < message_count; i++) {
+        printf("  [%s] %s\n    %s\n", messages[i].severity, messages[i].id, messages[i].text);
+        errors += strcmp(messages[i].severity, "error") == 0;
+    }
+    printf("         %s: %s\n", what, errors ? "the layer reported errors" : "no layer error");
+    clear_messages();
+    return errors;
+}
+
 /* The spec's default pipeline stack size ("Ray Tracing Pipeline Stack"): raygen + min(1, depth) x
  * max(closest hit, miss, intersection + any hit) + max(0, depth - 1) x max(closest hit, miss) + 2 x
  * callable, each the largest stack size of its kind (general stages count in all three general kinds). */

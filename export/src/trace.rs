@@ -86,7 +86,11 @@ pub(crate) fn emit(
     }
     let launch = expect.launch.as_ref().filter(|_| read_back(t).is_some());
     if let Some(l) = launch {
-        crate::records::tables(e, l);
+        crate::records::tables(
+            e,
+            l.allowed.iter(),
+            "distinct ray (model::semantics::expected_launch)",
+        );
     }
     e.line("");
     e.open("int main(int argc, char **argv) {");

@@ -1,6 +1,7 @@
 //! `rtconf export`: a case's plan written as a standalone C program for a bug report — the model's
-//! verdict and, for a valid trace case, what it allows each ray's record, on the case's profile
-//! written in, the plan the harness would run ([`harness::plan::CallPlan`]) as its calls.
+//! verdict and, for a valid trace case or a build run as valid (its traced check), what it allows
+//! each ray's record, on the case's profile written in, the plan the harness would run
+//! ([`harness::plan::CallPlan`]) as its calls.
 
 use crate::error::SessionError;
 use crate::sources;
@@ -66,12 +67,34 @@ pub fn export(case: &Case, from: &[PathBuf], out: &Path) -> Result<Exported, Ses
     if plan.command.is_trace() && !exec.run_valid {
         about.push("invalid: recorded under the layer, which drops it; never submitted".into());
     }
-    if !plan.command.is_trace() && exec.run_valid {
-        about.push(
-            "the harness also builds this case directly and traces rays at the result; that check is not part of this program"
-                .into(),
-        );
-    }
+    // A build run as valid: the program repeats the harness's traced check of it (a direct build
+    // with the ranges the model reads, the check's rays traced with ray query) and judges each ray.
+    let build_check = match case.as_accel() {
+        Some(body) if exec.run_valid => {
+            let plan = harness::plan::check::CheckPlan::of(body)?;
+            let check = model::accel::check::BuildCheck::of(body).map_err(|e| {
+                SessionError::Usage(format!(
+                    "{}: the model cannot check its build: {e}",
+                    case.name
+                ))
+            })?;
+            if check.rays != plan.rays {
+                return Err(SessionError::Usage(format!(
+                    "{}: the harness's check rays are not the model's",
+                    case.name
+                )));
+            }
+            about.push(
+                "valid build: also built directly with the ranges the model reads, and the check's rays traced at it with ray query and judged"
+                    .into(),
+            );
+            Some(export::BuildCheckExpectation {
+                plan,
+                allowed: check.allowed,
+            })
+        }
+        _ => None,
+    };
     let expectation = export::Expectation {
         model_vuids: verdict.vuids().into_iter().map(String::from).collect(),
         violations: verdict
@@ -80,6 +103,7 @@ pub fn export(case: &Case, from: &[PathBuf], out: &Path) -> Result<Exported, Ses
             .map(|v| format!("{} at {}: {}", v.vuid, v.context, v.problem))
             .collect(),
         launch,
+        build_check,
         about,
     };
     let program =

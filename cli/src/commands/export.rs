@@ -7,7 +7,9 @@
 //! exits 0 when they agree); a valid one submitted, its ray records read back and judged per launch
 //! ID against the model's expectation embedded as tables (exit 1 on a REQ violation; `./repro
 //! --records FILE` also writes the records, `./repro --judge FILE` judges a records file and runs
-//! nothing). A build case records its build under the layer.
+//! nothing). A build case records its build under the layer; one run as valid then repeats the
+//! harness's traced check: info 0 built directly with the ranges the model reads, the check's rays
+//! traced at it with ray query and each record judged (exit 1 when the device's build departs).
 
 use clap::Args;
 use std::path::PathBuf;
@@ -20,6 +22,9 @@ records the harness's steps under the validation layer.
   invalid case:  the layer drops the call; prints the layer's VUIDs beside the model's, exit 0 when they agree.
   valid trace:   submits the launch, reads its ray records back and judges each launch ID against the \
 model's expectation embedded as tables; exit 1 on a REQ violation, naming the launch IDs.
+  valid build:   records the indirect build under the layer, then builds info 0 directly with the ranges \
+the model reads and traces the check's rays at it with ray query (as rtconf's harness does), judging each \
+ray's record; exit 1 when the device's build departs from the model (a device without ray query: not checked).
   ./repro --records FILE   also writes the records read back (as `rtconf replay --records FILE`)
   ./repro --judge FILE     judges a records file against the tables and runs nothing
 Exit status of the program: 0 agrees with the model, 1 does not (a lost device included), 2 cannot run.
@@ -51,7 +56,9 @@ pub fn run(a: ExportArgs) -> super::Exit {
     );
     println!(
         "run:   ./repro   ({})",
-        if exported.run_valid {
+        if exported.run_valid && case.as_accel().is_some() {
+            "records the indirect build under the validation layer, then builds info 0 directly, traces the check's rays at it with ray query and judges each record against the model's; --records FILE writes them"
+        } else if exported.run_valid {
             "runs the call for real and judges its records per launch ID against the model's; --records FILE writes them"
         } else {
             "records the call under the validation layer, which drops it, and prints the VUIDs reported"

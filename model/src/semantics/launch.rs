@@ -171,7 +171,7 @@ impl<T> PerRay<T> {
     }
 
     /// The value of each ray, in ray order.
-    pub fn iter(&self) -> impl Iterator<Item = &T> + '_ {
+    pub fn iter(&self) -> impl ExactSizeIterator<Item = &T> + '_ {
         (0..self.len()).map(move |k| &self[k])
     }
 
