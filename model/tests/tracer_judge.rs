@@ -83,6 +83,31 @@ fn the_true_record_passes() {
     assert_eq!(j.t_error_ulps, Some(1.0));
 }
 
+/// Barycentric errors are counted in ULPs of the larger of the exact value and 1/2: next to an edge
+/// (an exact coordinate of 1e-30) an error of 2^-24 is one such ULP, where ULPs of the value itself
+/// would make it about 1e22; at 1/2 and above they are the value's own ULPs.
+#[test]
+fn barycentric_ulps_are_counted_at_the_scale_of_the_coordinates() {
+    let scene = one_instance(unit_triangle());
+    let half_ulp = 2f32.powi(-24);
+    for (x, y, b, c, ulps) in [
+        (0.5f32, 1e-30f32, 0.5f32, half_ulp, 1.0),
+        (0.75, 0.125, 0.75 + 2.0 * 2f32.powi(-24), 0.125, 2.0),
+        (0.25, 0.25, 0.25 + half_ulp, 0.25, 1.0),
+    ] {
+        let ray = down(x, y);
+        let out = trace(&scene, &ray);
+        let j = judge(&out, &hit(0, 0, 0, 0xFE, 1.0, b, c, 0));
+        let seen = j
+            .bary_error_ulps
+            .expect("a triangle hit measures its barycentrics");
+        assert!(
+            (seen - ulps).abs() < 1e-3,
+            "ray at ({x}, {y}), record ({b}, {c}): {seen} ulps, expected {ulps}"
+        );
+    }
+}
+
 #[test]
 fn a_hit_turned_into_a_miss_fails() {
     let (scene, ray, _) = centre();

@@ -31,13 +31,20 @@ pub struct RayJudgement {
     /// |t − t_exact| in f32 ULPs of t_exact, and relative to the bound (1.0 = at the bound).
     pub t_error_ulps: Option<f64>,
     pub t_error_rel: Option<f64>,
-    /// max over (b, c) of |x − x_exact|, absolute and in f32 ULPs of x_exact.
+    /// max over (b, c) of |x − x_exact|, absolute and in f32 ULPs of x_exact where |x_exact| ≥ 1/2,
+    /// else of 1/2 ([`BARY_ULP_FLOOR`]).
     pub bary_error_abs: Option<f64>,
     pub bary_error_ulps: Option<f64>,
     /// The bounds used: half widths of the t and barycentric intervals.
     pub t_bound: Option<f64>,
     pub bary_bound: Option<f64>,
 }
+
+/// The least magnitude whose ULP measures a barycentric's error: the three barycentrics sum to one and
+/// are computed together, so an f32 implementation's rounding error in one is at the scale of the
+/// largest (at least 1/3), not of its own value. ULPs of the value itself would count an error of
+/// 1e-8 in a coordinate of 1e-30 (a ray through an edge) as about 1e22 ULPs.
+pub const BARY_ULP_FLOOR: f64 = 0.5;
 
 /// The size of one f32 ULP at `x`.
 pub fn f32_ulp(x: f64) -> f64 {
@@ -334,7 +341,7 @@ fn measure(
                 let x = record.barycentrics[k] as f64;
                 let e = (x - be[k]).abs();
                 worst = worst.max(e);
-                worst_ulps = worst_ulps.max(e / f32_ulp(be[k]));
+                worst_ulps = worst_ulps.max(e / f32_ulp(be[k].abs().max(BARY_ULP_FLOOR)));
                 bound = bound.max(bi[k].radius());
                 // An unbounded interval decides nothing (a pair whose f32 test may overflow,
                 // `VaryReason::Range`): there an overflowed division's NaN is an outcome too.
