@@ -622,8 +622,9 @@ fn cases_the_writer_does_not_handle_are_refused_with_the_reason() {
 
 /// A valid build's program repeats the harness's traced check: lavapipe's build findings export to C
 /// whose output verdict, exit status and check records are replay's (the findings' programs exit 1,
-/// a build lavapipe gets right exits 0), and the program's judge catches one planted fault in records
-/// the device wrote: a hit on an unambiguous ray turned into a miss.
+/// a build lavapipe gets right exits 0), with ray query and with the pipeline (`RTCONF_REPRO_CHECK=
+/// pipeline` beside `rtconf replay --check pipeline`), and the program's judge catches one planted
+/// fault in records the device wrote: a hit on an unambiguous ray turned into a miss.
 #[test]
 fn build_findings_export_their_traced_check_as_replay_runs_it() {
     let dir = fresh_dir("export-c-build-check");
@@ -654,6 +655,42 @@ fn build_findings_export_their_traced_check_as_replay_runs_it() {
                 .contains("traced with ray query, one invocation each"),
             "{name}\n{}",
             p.stdout
+        );
+        // The pipeline path (a device without ray query takes it) gives replay's records too.
+        let by_pipeline = dir.join(format!("{name}.replay-pipeline.bin"));
+        let o = rtconf(
+            &[
+                "replay",
+                case.to_str().unwrap(),
+                "--check",
+                "pipeline",
+                "--records",
+                by_pipeline.to_str().unwrap(),
+            ],
+            &[],
+        );
+        assert!(matches!(o.status.code(), Some(0 | 1)), "{}", text(&o));
+        let run = Command::new(out.join("repro"))
+            .args(["--records", "pipeline.bin"])
+            .env("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json")
+            .env("RTCONF_REPRO_CHECK", "pipeline")
+            .current_dir(&out)
+            .output()
+            .expect("the reproducer runs");
+        let stdout = String::from_utf8_lossy(&run.stdout);
+        assert!(
+            stdout.contains("traced with a ray tracing pipeline, one launch ID each"),
+            "{name}\n{stdout}"
+        );
+        assert_eq!(
+            run.status.code(),
+            Some(if passes { 0 } else { 1 }),
+            "{name}\n{stdout}"
+        );
+        assert_eq!(
+            words(&out.join("pipeline.bin")),
+            words(&by_pipeline),
+            "{name}\n{stdout}"
         );
     }
 

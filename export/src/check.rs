@@ -1,9 +1,11 @@
 //! The traced check of a valid build case in C, as `harness::accel_check` runs it: the case's first
 //! info built directly (vkCmdBuildAccelerationStructuresKHR) with the ranges the model reads from
 //! memory — a top-level case's one-triangle bottom level `blas` first —, a bottom-level result put
-//! into a one-instance top level, then the check's rays traced at it by the ray query compute shader
-//! (`harness/shaders/check_query.comp`), each writing its 28-word record, read back and judged against
-//! what the model allows the ray (`judge_records` in `runtime.c`). The device's build of such a case
+//! into a one-instance top level, then the check's rays traced at it — by the ray query compute shader
+//! (`harness/shaders/check_query.comp`), or where the device lacks ray query (or
+//! `RTCONF_REPRO_CHECK=pipeline` asks) by the pipeline of `harness/shaders/check.*` —, each writing its
+//! 28-word record, read back and judged against what the model allows the ray (`judge_records` in
+//! `runtime.c`). The device's build of such a case
 //! is what a driver bug in it shows: a ray that misses a primitive the model must hit.
 
 use crate::c::{self, Emitter};
@@ -32,10 +34,17 @@ pub(crate) fn data(e: &mut Emitter, check: &BuildCheckExpectation) -> Result<(),
         ));
     }
     let spirv = harness::plan::check::ray_query_spirv().map_err(|e| e.to_string())?;
-    e.line("/* The traced check: the ray query shader (harness/shaders/check_query.comp) as SPIR-V, the");
+    let [raygen, miss, closest_hit, intersection] =
+        harness::plan::check::pipeline_spirv().map_err(|e| e.to_string())?;
+    e.line("/* The traced check: the ray query shader (harness/shaders/check_query.comp) and the pipeline's");
+    e.line(" * raygen, miss, closest-hit and intersection shaders (harness/shaders/check.*) as SPIR-V, the");
     e.line(" * check's rays (origin and tmin, direction and tmax per ray), the sphere table of the built boxes");
     e.line(" * (per geometry its first sphere, then centre and radius per box), and each ray's first record. */");
     c::words(e, "check_spirv", &spirv);
+    c::words(e, "check_raygen", &raygen);
+    c::words(e, "check_miss", &miss);
+    c::words(e, "check_closest_hit", &closest_hit);
+    c::words(e, "check_intersection", &intersection);
     c::le_words(e, "check_rays", &check.plan.ray_bytes());
     c::le_words(e, "check_spheres", &check.plan.spheres);
     c::words(e, "record_prefill", &RayRecord::PREFILL);
@@ -52,7 +61,8 @@ pub(crate) fn data(e: &mut Emitter, check: &BuildCheckExpectation) -> Result<(),
 }
 
 /// The check in `main`, after the case's own steps: sets `output_differs` (declared here) when a
-/// record breaks what the model allows; on a device without ray query it says so and checks nothing.
+/// record breaks what the model allows; a device with neither ray query nor a ray tracing pipeline
+/// is told so and checked no further.
 pub(crate) fn run(
     e: &mut Emitter,
     b: &BuildPlan,
@@ -67,9 +77,9 @@ pub(crate) fn run(
     };
     let rays = plan.rays.len();
     e.line("int output_differs = 0;");
-    e.line("printf(\"check:   the harness's traced check: info 0 built directly with the ranges the model reads, its rays traced with ray query\\n\");");
-    e.open("if (!has_extension(\"VK_KHR_ray_query\")) {");
-    e.line("printf(\"output:  not checked: the device lacks VK_KHR_ray_query (rtconf's harness traces the rays with a ray tracing pipeline there; `rtconf replay` runs it)\\n\");");
+    e.line("printf(\"check:   the harness's traced check: info 0 built directly with the ranges the model reads, its rays traced with %s\\n\", check_by_query ? \"ray query\" : \"a ray tracing pipeline\");");
+    e.open("if (!check_by_query && !check_by_pipeline) {");
+    e.line("printf(\"output:  not checked: the device has neither VK_KHR_ray_query nor VK_KHR_ray_tracing_pipeline\\n\");");
     e.close("}");
     e.open("else {");
     e.line("const VkBufferUsageFlags build_input = VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR | VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT;");
@@ -96,7 +106,7 @@ pub(crate) fn run(
     } else {
         one_instance_top(e, dst);
     }
-    trace_rays(e, rays);
+    trace_rays(e, rays, plan.procedural);
     e.close("}");
     Ok(())
 }
@@ -226,9 +236,10 @@ fn one_instance_top(e: &mut Emitter, dst: usize) {
     e.close("}");
 }
 
-/// The rays traced with the ray query shader at `check_scene`, one invocation each; their records
-/// read back, written to `records_path` when given, and judged.
-fn trace_rays(e: &mut Emitter, rays: usize) {
+/// The rays traced at `check_scene`, one invocation each, with ray query or the pipeline (every
+/// geometry through hit record 0: the triangles' hit group, or the procedural one for a build of
+/// boxes); their records read back, written to `records_path` when given, and judged.
+fn trace_rays(e: &mut Emitter, rays: usize, procedural: bool) {
     e.open("{");
     e.line("const VkBufferUsageFlags check_usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT;");
     e.line("struct buffer rays = make_buffer(sizeof check_rays, check_usage, 0, 1);");
@@ -249,7 +260,7 @@ fn trace_rays(e: &mut Emitter, rays: usize) {
     e.line("bindings[i].binding = i;");
     e.line("bindings[i].descriptorType = i == 0 ? VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;");
     e.line("bindings[i].descriptorCount = 1;");
-    e.line("bindings[i].stageFlags = VK_SHADER_STAGE_COMPUTE_BIT;");
+    e.line("bindings[i].stageFlags = check_by_query ? VK_SHADER_STAGE_COMPUTE_BIT : VK_SHADER_STAGE_RAYGEN_BIT_KHR | VK_SHADER_STAGE_INTERSECTION_BIT_KHR;");
     e.close("}");
     e.line("VkDescriptorSetLayoutCreateInfo layout_info = {VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};");
     e.line("layout_info.bindingCount = 4;");
@@ -291,6 +302,7 @@ fn trace_rays(e: &mut Emitter, rays: usize) {
     e.line("pipeline_layout_info.pSetLayouts = &set_layout;");
     e.line("VkPipelineLayout pipeline_layout;");
     e.line("CHECK(vkCreatePipelineLayout(device, &pipeline_layout_info, NULL, &pipeline_layout));");
+    e.open("if (check_by_query) {");
     e.line("VkShaderModuleCreateInfo module_info = {VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};");
     e.line("module_info.codeSize = sizeof check_spirv;");
     e.line("module_info.pCode = check_spirv;");
@@ -316,6 +328,10 @@ fn trace_rays(e: &mut Emitter, rays: usize) {
     e.line(&format!(
         "step(\"vkCmdDispatch: the check's {rays} ray(s) traced with ray query, one invocation each; submitted and waited for\");"
     ));
+    e.close("}");
+    e.open("else {");
+    pipeline_trace(e, rays, procedural);
+    e.close("}");
     e.line("if (report_own_calls(\"the check's rays\")) differ = 1;");
     e.line("const uint32_t *got = read_words(&records);");
     e.line(&format!(
@@ -333,4 +349,85 @@ fn trace_rays(e: &mut Emitter, rays: usize) {
         "    printf(\"output:  matches the model ({rays} rays)\\n\");"
     ));
     e.close("}");
+}
+
+/// The pipeline path of [`trace_rays`] (as `harness::accel_check::pipeline` makes it): raygen, miss,
+/// closest-hit and intersection stages; groups raygen, miss, triangles (closest-hit) and procedural
+/// (closest-hit and intersection); a table of three regions (raygen, miss, the hit group) each one
+/// record of the handle size aligned to the handle alignment, at base-aligned offsets.
+fn pipeline_trace(e: &mut Emitter, rays: usize, procedural: bool) {
+    e.line("VkPhysicalDeviceRayTracingPipelinePropertiesKHR rt_props = {VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_PROPERTIES_KHR};");
+    e.line(
+        "VkPhysicalDeviceProperties2 rt_props2 = {VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};",
+    );
+    e.line("rt_props2.pNext = &rt_props;");
+    e.line("vkGetPhysicalDeviceProperties2(physical, &rt_props2);");
+    e.line("const uint32_t *const codes[4] = {check_raygen, check_miss, check_closest_hit, check_intersection};");
+    e.line("const size_t sizes[4] = {sizeof check_raygen, sizeof check_miss, sizeof check_closest_hit, sizeof check_intersection};");
+    e.line("const VkShaderStageFlagBits kinds[4] = {VK_SHADER_STAGE_RAYGEN_BIT_KHR, VK_SHADER_STAGE_MISS_BIT_KHR, VK_SHADER_STAGE_CLOSEST_HIT_BIT_KHR, VK_SHADER_STAGE_INTERSECTION_BIT_KHR};");
+    e.line("VkPipelineShaderStageCreateInfo stages[4];");
+    e.line("memset(stages, 0, sizeof stages);");
+    e.open("for (int i = 0; i < 4; i++) {");
+    e.line("VkShaderModuleCreateInfo module_info = {VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};");
+    e.line("module_info.codeSize = sizes[i];");
+    e.line("module_info.pCode = codes[i];");
+    e.line("stages[i].sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO;");
+    e.line("stages[i].stage = kinds[i];");
+    e.line("stages[i].pName = \"main\";");
+    e.line("CHECK(vkCreateShaderModule(device, &module_info, NULL, &stages[i].module));");
+    e.close("}");
+    e.line("VkRayTracingShaderGroupCreateInfoKHR groups[4];");
+    e.line("memset(groups, 0, sizeof groups);");
+    e.line("const VkRayTracingShaderGroupTypeKHR group_types[4] = {VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, VK_RAY_TRACING_SHADER_GROUP_TYPE_GENERAL_KHR, VK_RAY_TRACING_SHADER_GROUP_TYPE_TRIANGLES_HIT_GROUP_KHR, VK_RAY_TRACING_SHADER_GROUP_TYPE_PROCEDURAL_HIT_GROUP_KHR};");
+    e.open("for (uint32_t i = 0; i < 4; i++) {");
+    e.line("groups[i].sType = VK_STRUCTURE_TYPE_RAY_TRACING_SHADER_GROUP_CREATE_INFO_KHR;");
+    e.line("groups[i].type = group_types[i];");
+    e.line("groups[i].generalShader = i < 2 ? i : VK_SHADER_UNUSED_KHR;");
+    e.line("groups[i].closestHitShader = i < 2 ? VK_SHADER_UNUSED_KHR : 2;");
+    e.line("groups[i].anyHitShader = VK_SHADER_UNUSED_KHR;");
+    e.line("groups[i].intersectionShader = i == 3 ? 3 : VK_SHADER_UNUSED_KHR;");
+    e.close("}");
+    e.line("VkRayTracingPipelineCreateInfoKHR rt_info = {VK_STRUCTURE_TYPE_RAY_TRACING_PIPELINE_CREATE_INFO_KHR};");
+    e.line("rt_info.stageCount = 4;");
+    e.line("rt_info.pStages = stages;");
+    e.line("rt_info.groupCount = 4;");
+    e.line("rt_info.pGroups = groups;");
+    e.line("rt_info.maxPipelineRayRecursionDepth = 1;");
+    e.line("rt_info.layout = pipeline_layout;");
+    e.line("VkPipeline check_pipeline;");
+    e.line("CHECK(pvkCreateRayTracingPipelinesKHR(device, VK_NULL_HANDLE, VK_NULL_HANDLE, 1, &rt_info, NULL, &check_pipeline));");
+    e.line("const VkDeviceSize handle = rt_props.shaderGroupHandleSize;");
+    e.line("uint8_t handles[4 * 256];");
+    e.line("if (handle == 0 || handle > 256) { fprintf(stderr, \"rtconf reproducer: a shader group handle of %llu bytes\\n\", (unsigned long long)handle); return 2; }");
+    e.line("CHECK(pvkGetRayTracingShaderGroupHandlesKHR(device, check_pipeline, 0, 4, (size_t)(4 * handle), handles));");
+    e.line("VkDeviceSize handle_align = rt_props.shaderGroupHandleAlignment ? rt_props.shaderGroupHandleAlignment : 1;");
+    e.line("VkDeviceSize base_align = rt_props.shaderGroupBaseAlignment ? rt_props.shaderGroupBaseAlignment : 1;");
+    e.line("VkDeviceSize record = (handle + handle_align - 1) / handle_align * handle_align;");
+    e.line("VkDeviceSize region = (record + base_align - 1) / base_align * base_align;");
+    e.line("struct buffer table = make_buffer(3 * region, VK_BUFFER_USAGE_SHADER_BINDING_TABLE_BIT_KHR | VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT, 0, base_align);");
+    e.line("write_bytes(&table, 0, handles, (size_t)handle);");
+    e.line("write_bytes(&table, region, handles + handle, (size_t)handle);");
+    e.line(&format!(
+        "write_bytes(&table, 2 * region, handles + {} * handle, (size_t)handle); /* the {} hit group */",
+        if procedural { 3 } else { 2 },
+        if procedural { "procedural" } else { "triangles" }
+    ));
+    e.line("VkStridedDeviceAddressRegionKHR raygen_region = {table.address, record, record};");
+    e.line(
+        "VkStridedDeviceAddressRegionKHR miss_region = {table.address + region, record, record};",
+    );
+    e.line("VkStridedDeviceAddressRegionKHR hit_region = {table.address + 2 * region, record, record};");
+    e.line("VkStridedDeviceAddressRegionKHR callable_region = {0, 0, 0};");
+    e.line("begin_one_time(primary);");
+    e.line("vkCmdBindPipeline(primary, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, check_pipeline);");
+    e.line("vkCmdBindDescriptorSets(primary, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, pipeline_layout, 0, 1, &set, 0, NULL);");
+    e.line(&format!(
+        "pvkCmdTraceRaysKHR(primary, &raygen_region, &miss_region, &hit_region, &callable_region, {rays}, 1, 1);"
+    ));
+    e.line("memory_barrier(primary, VK_PIPELINE_STAGE_RAY_TRACING_SHADER_BIT_KHR, VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_HOST_BIT, VK_ACCESS_HOST_READ_BIT);");
+    e.line("CHECK(vkEndCommandBuffer(primary));");
+    e.line("submit_and_wait(primary);");
+    e.line(&format!(
+        "step(\"vkCmdTraceRaysKHR: the check's {rays} ray(s) traced with a ray tracing pipeline, one launch ID each; submitted and waited for\");"
+    ));
 }

@@ -155,7 +155,11 @@ pub(crate) fn emit_device(e: &mut Emitter, d: &DevicePlan, check_extras: bool) {
         e.line(" * query where the device has it, else a ray tracing pipeline. */");
         e.line("VkPhysicalDeviceRayQueryFeaturesKHR check_query = {VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_QUERY_FEATURES_KHR};");
         e.line("VkPhysicalDeviceRayTracingPipelineFeaturesKHR check_pipeline = {VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_FEATURES_KHR};");
-        e.line("if (has_extension(\"VK_KHR_ray_query\")) {");
+        e.line("/* RTCONF_REPRO_CHECK=pipeline asks for the pipeline where ray query exists too (as `rtconf replay --check pipeline`). */");
+        e.line("const char *check_asked = getenv(\"RTCONF_REPRO_CHECK\");");
+        e.line("int check_by_query = 0, check_by_pipeline = 0;");
+        e.line("if (!(check_asked && strcmp(check_asked, \"pipeline\") == 0) && has_extension(\"VK_KHR_ray_query\")) {");
+        e.line("    check_by_query = 1;");
         if !has("VK_KHR_ray_query") {
             e.line("    extensions[extension_count++] = \"VK_KHR_ray_query\";");
         }
@@ -165,6 +169,7 @@ pub(crate) fn emit_device(e: &mut Emitter, d: &DevicePlan, check_extras: bool) {
             e.line("    feature_chain = &check_query;");
         }
         e.line("} else if (has_extension(\"VK_KHR_ray_tracing_pipeline\")) {");
+        e.line("    check_by_pipeline = 1;");
         if !has("VK_KHR_ray_tracing_pipeline") {
             e.line("    extensions[extension_count++] = \"VK_KHR_ray_tracing_pipeline\";");
         }
@@ -176,6 +181,8 @@ pub(crate) fn emit_device(e: &mut Emitter, d: &DevicePlan, check_extras: bool) {
         e.line("}");
         e.line("(void)check_query;");
         e.line("(void)check_pipeline;");
+        e.line("(void)check_by_query;");
+        e.line("(void)check_by_pipeline;");
     }
     let bda = d
         .features

@@ -68,7 +68,8 @@ pub fn export(case: &Case, from: &[PathBuf], out: &Path) -> Result<Exported, Ses
         about.push("invalid: recorded under the layer, which drops it; never submitted".into());
     }
     // A build run as valid: the program repeats the harness's traced check of it (a direct build
-    // with the ranges the model reads, the check's rays traced with ray query) and judges each ray.
+    // with the ranges the model reads, the check's rays traced with ray query or the check
+    // pipeline) and judges each ray.
     let build_check = match case.as_accel() {
         Some(body) if exec.run_valid => {
             let plan = harness::plan::check::CheckPlan::of(body)?;
@@ -85,7 +86,7 @@ pub fn export(case: &Case, from: &[PathBuf], out: &Path) -> Result<Exported, Ses
                 )));
             }
             about.push(
-                "valid build: also built directly with the ranges the model reads, and the check's rays traced at it with ray query and judged"
+                "valid build: also built directly with the ranges the model reads, and the check's rays traced at it (ray query, else the check pipeline) and judged"
                     .into(),
             );
             Some(export::BuildCheckExpectation {

@@ -9,7 +9,8 @@
 //! --records FILE` also writes the records, `./repro --judge FILE` judges a records file and runs
 //! nothing). A build case records its build under the layer; one run as valid then repeats the
 //! harness's traced check: info 0 built directly with the ranges the model reads, the check's rays
-//! traced at it with ray query and each record judged (exit 1 when the device's build departs).
+//! traced at it (ray query, else the check pipeline) and each record judged (exit 1 when the device's
+//! build departs).
 
 use clap::Args;
 use std::path::PathBuf;
@@ -23,8 +24,9 @@ records the harness's steps under the validation layer.
   valid trace:   submits the launch, reads its ray records back and judges each launch ID against the \
 model's expectation embedded as tables; exit 1 on a REQ violation, naming the launch IDs.
   valid build:   records the indirect build under the layer, then builds info 0 directly with the ranges \
-the model reads and traces the check's rays at it with ray query (as rtconf's harness does), judging each \
-ray's record; exit 1 when the device's build departs from the model (a device without ray query: not checked).
+the model reads and traces the check's rays at it with ray query, or a ray tracing pipeline where the device \
+lacks it or RTCONF_REPRO_CHECK=pipeline asks (as rtconf's harness does), judging each ray's record; exit 1 \
+when the device's build departs from the model.
   ./repro --records FILE   also writes the records read back (as `rtconf replay --records FILE`)
   ./repro --judge FILE     judges a records file against the tables and runs nothing
 Exit status of the program: 0 agrees with the model, 1 does not (a lost device included), 2 cannot run.
@@ -57,7 +59,7 @@ pub fn run(a: ExportArgs) -> super::Exit {
     println!(
         "run:   ./repro   ({})",
         if exported.run_valid && case.as_accel().is_some() {
-            "records the indirect build under the validation layer, then builds info 0 directly, traces the check's rays at it with ray query and judges each record against the model's; --records FILE writes them"
+            "records the indirect build under the validation layer, then builds info 0 directly, traces the check's rays at it (ray query, else a pipeline) and judges each record against the model's; --records FILE writes them"
         } else if exported.run_valid {
             "runs the call for real and judges its records per launch ID against the model's; --records FILE writes them"
         } else {

@@ -389,6 +389,11 @@ pub(crate) fn ray_query_spirv() -> Result<Vec<u32>, HarnessError> {
     ray_query::compile_trace_shader()
 }
 
+/// The SPIR-V of the pipeline check's raygen, miss, closest-hit and intersection shaders.
+pub(crate) fn pipeline_spirv() -> Result<[Vec<u32>; 4], HarnessError> {
+    pipeline::pipeline_shaders()
+}
+
 /// The SPIR-V of one of the check's shaders: compiled by build.rs from `shaders/` (`name` in its
 /// table), or at first use from `text` where the build had no glslangValidator.
 fn check_spirv(name: &str, file: &str, text: &str) -> Result<Vec<u32>, HarnessError> {

@@ -13,7 +13,7 @@ use ash::vk;
 
 /// SPIR-V of the pipeline check's four shaders (raygen, miss, closest-hit, intersection:
 /// `shaders/check.*`).
-fn pipeline_shaders() -> Result<[Vec<u32>; 4], HarnessError> {
+pub(super) fn pipeline_shaders() -> Result<[Vec<u32>; 4], HarnessError> {
     use super::check_spirv as c;
     Ok([
         c(

@@ -115,3 +115,9 @@ fn first_build(case: &AccelBody) -> Result<(Vec<RangeInfo>, Vec<BuiltPrimitive>)
 pub fn ray_query_spirv() -> Result<Vec<u32>, HarnessError> {
     crate::accel_check::ray_query_spirv()
 }
+
+/// The SPIR-V of the pipeline check's shaders, for devices without ray query: raygen, miss,
+/// closest-hit (both hit groups) and intersection (`shaders/check.*`).
+pub fn pipeline_spirv() -> Result<[Vec<u32>; 4], HarnessError> {
+    crate::accel_check::pipeline_spirv()
+}
