@@ -635,6 +635,7 @@ fn build_findings_export_their_traced_check_as_replay_runs_it() {
         ("lavapipe-inactive-triangle-drops-primitive", false),
         ("indexed-first-vertex-shifted-primitives", false),
         ("lavapipe-first-vertex-twice-hidden-geometry", false),
+        ("lavapipe-fourth-component-weights-translation", false),
     ];
     for (name, passes) in cases {
         let case = repo.join(format!("cases/build/{name}.yaml"));

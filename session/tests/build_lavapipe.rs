@@ -171,3 +171,52 @@ fn invalid_builds_under_the_layer_agree_with_the_model_or_are_known_layer_gaps()
     }
     assert!(table.len() >= 20, "{} VUIDs exercised", table.len());
 }
+
+/// lavapipe weights a geometry transform's translation by the fourth component of a four-component
+/// vertex (`cases/build/lavapipe-fourth-component-weights-translation.yaml`, where primitiveOffsets
+/// off the vertices read that component from other bytes, and firstVertex is applied twice too):
+/// the model names the deviation exactly and the run triages it. Without the geometry transforms both
+/// readings of the fourth component agree, and only the firstVertex deviation is left to name.
+#[test]
+fn lavapipe_weights_the_translation_by_a_vertex_fourth_component() {
+    use model::accel::check::FOURTH_COMPONENT_WEIGHTS_TRANSLATION as WEIGHTS;
+    let _one = DEVICE.lock().unwrap_or_else(|e| e.into_inner());
+    let path = "build/lavapipe-fourth-component-weights-translation.yaml";
+    let case = common::committed(path);
+    let mut lvp = Lavapipe::new();
+    let ran = lvp.run(&case, TraceCheck::Auto);
+    assert_eq!(status(&ran), &Status::Ran);
+    assert!(!mismatches(&ran).is_empty());
+    assert_eq!(
+        deviation(&case, &traced(&ran).records),
+        Some(format!("first-vertex-applied-twice+{WEIGHTS}"))
+    );
+    assert_eq!(
+        ran.report.outcome,
+        session::Outcome::Triaged,
+        "{}",
+        ran.report.detail
+    );
+    assert!(
+        ran.report.triage.iter().any(|m| m.entry.contains(WEIGHTS)),
+        "{:?}",
+        ran.report.triage
+    );
+
+    let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../cases")
+        .join(path);
+    let text = std::fs::read_to_string(file).unwrap();
+    let transforms =
+        regex::Regex::new(r"transform_data:\n          buffer: input\n          offset: \d+")
+            .unwrap();
+    assert_eq!(transforms.find_iter(&text).count(), 3);
+    let untransformed = transforms.replace_all(&text, "transform_data: 0");
+    let plain = model::Case::from_yaml(path, &untransformed).unwrap();
+    let ran = lvp.run(&plain, TraceCheck::Auto);
+    assert_eq!(status(&ran), &Status::Ran);
+    assert_eq!(
+        deviation(&plain, &traced(&ran).records).as_deref(),
+        Some("first-vertex-applied-twice")
+    );
+}

@@ -83,6 +83,11 @@ impl VertexFormat {
             VertexFormat::R32g32Sfloat | VertexFormat::R16g16Sfloat => 2,
         }
     }
+    /// The format has a fourth component (after the position's three), which the specification
+    /// gives no meaning.
+    pub fn has_fourth(self) -> bool {
+        self == VertexFormat::R16g16b16a16Sfloat
+    }
     /// Bytes of one whole vertex element.
     pub fn size(self) -> u64 {
         match self {

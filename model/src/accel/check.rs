@@ -245,6 +245,63 @@ const DEVIATIONS: &[(&str, RangeRewrite)] = &[
     }),
 ];
 
+/// A deviation in how a vertex is read rather than where: the geometry transform applied to (x, y, z, A)
+/// for a four-component vertex format, A its fourth component, with no divide — the transform's
+/// translation weighted by A — where the model reads the position as the first three components and
+/// transforms that point (lavapipe, Mesa 25.0.7: src/gallium/frontends/lavapipe/
+/// lvp_acceleration_structure.c sums matrix[comp][col] × coords[col] over four columns, coords[3] the
+/// format's fourth component). The specification gives that component no meaning; no reading of it
+/// as part of the position (ignored, or a homogeneous coordinate) gives this.
+pub const FOURTH_COMPONENT_WEIGHTS_TRANSLATION: &str = "fourth-component-weights-translation";
+
+/// The structure `scene` (the model's, of `info` and `ranges`) as built under
+/// [`FOURTH_COMPONENT_WEIGHTS_TRANSLATION`]: each transformed triangle of a four-component format
+/// placed in the transform's space, its positions summed over the four columns in f32 as that build
+/// does, with no transform left. None where no vertex's fourth component is other than 1 (both
+/// readings agree).
+fn fourth_component_weighted(
+    mem: &Memory,
+    info: &BuildGeometryInfo,
+    ranges: &[RangeInfo],
+    scene: &Scene,
+) -> Option<Scene> {
+    let fourth = super::semantics::transformed_fourth_components(mem, info, ranges).ok()?;
+    if !fourth.iter().flatten().flatten().any(|w| *w != 1.0) {
+        return None;
+    }
+    let mut alt = scene.clone();
+    let geometries = &mut alt.bottom_levels.first_mut()?.geometries;
+    let mut at = 0;
+    for (geometry, range) in geometries.iter_mut().zip(ranges) {
+        let count = range.primitive_count as usize;
+        let weights = fourth.get(at..at + count)?;
+        at += count;
+        let crate::scene::GeometryData::Triangles(t) = &mut geometry.data else {
+            continue;
+        };
+        let (Some(m), true) = (t.transform, weights.iter().all(Option::is_some)) else {
+            continue;
+        };
+        let m = m.0;
+        for (p, w) in weights.iter().enumerate() {
+            let w = (*w)?;
+            for (k, a) in w.iter().enumerate() {
+                let v = t.positions.get_mut(3 * p + k)?;
+                let c = [v[0], v[1], v[2], *a];
+                *v = [0, 1, 2].map(|r| {
+                    let mut sum = 0.0f32;
+                    for (col, x) in c.iter().enumerate() {
+                        sum += m[r][col] * x;
+                    }
+                    sum
+                });
+            }
+        }
+        t.transform = None;
+    }
+    Some(alt)
+}
+
 /// A relaxation that may follow a range deviation (or none), for structures holding an inactive triangle
 /// (a vertex whose X is NaN): lavapipe (Mesa 25.0.7) keeps such a triangle in its BVH, and its NaN bounds
 /// make primitives elsewhere in the tree unreachable (which ones depends on the tree, so the model cannot
@@ -407,11 +464,13 @@ pub fn deviation(case: &AccelBody, words: &[u32]) -> Option<String> {
         b.size = b.size.saturating_add(4096);
     }
     let padded_mem = padded.memory();
-    // Each candidate: its name, the scene it builds and the relaxation its inactive primitives allow.
+    // Each candidate: its name, the scene it builds and the relaxation its inactive primitives allow;
+    // each range deviation (none included) also with its vertices read as
+    // FOURTH_COMPONENT_WEIGHTS_TRANSLATION reads them, where that differs.
     let identity: RangeRewrite = |_, r| r;
-    let candidates: Vec<(&str, Scene, Option<&str>)> = std::iter::once(("none", identity))
+    let candidates: Vec<(String, Scene, Option<&str>)> = std::iter::once(("none", identity))
         .chain(DEVIATIONS.iter().copied())
-        .filter_map(|(name, f)| {
+        .flat_map(|(name, f)| {
             let alt: Vec<RangeInfo> = info
                 .geometries
                 .iter()
@@ -419,9 +478,11 @@ pub fn deviation(case: &AccelBody, words: &[u32]) -> Option<String> {
                 .map(|(g, r)| f(&g.data, *r))
                 .collect();
             if name != "none" && alt == ranges {
-                return None;
+                return vec![];
             }
-            let (scene, alt_prims) = scene_of(&padded_mem, info, &alt).ok()?;
+            let Ok((scene, alt_prims)) = scene_of(&padded_mem, info, &alt) else {
+                return vec![];
+            };
             let inactive_of = |aabb: bool| {
                 alt_prims.iter().any(|p| {
                     !p.active
@@ -439,26 +500,35 @@ pub fn deviation(case: &AccelBody, words: &[u32]) -> Option<String> {
             } else {
                 None
             };
-            Some((name, scene, inactive))
+            let weighted = fourth_component_weighted(&padded_mem, info, &alt, &scene).map(|w| {
+                let named = match name {
+                    "none" => FOURTH_COMPONENT_WEIGHTS_TRANSLATION.to_string(),
+                    n => format!("{n}+{FOURTH_COMPONENT_WEIGHTS_TRANSLATION}"),
+                };
+                (named, w, inactive)
+            });
+            std::iter::once((name.to_string(), scene, inactive))
+                .chain(weighted)
+                .collect()
         })
         .collect();
     let exact: Vec<&str> = candidates
         .iter()
         .filter(|(name, scene, _)| {
-            *name != "none"
+            name != "none"
                 && allowed_outcomes(scene, &rays)
                     .is_ok_and(|(a, _)| all_pass(&a, &records).iter().all(|p| *p))
         })
-        .map(|c| c.0)
+        .map(|c| c.0.as_str())
         .collect();
     let relaxed: Vec<(&str, usize, &str)> = candidates
         .iter()
-        .filter(|(name, _, _)| !exact.contains(name))
+        .filter(|(name, _, _)| !exact.contains(&name.as_str()))
         .filter_map(|(name, scene, inactive)| {
             let relaxation = (*inactive)?;
             let drops = fewest_drops(scene, &rays, &records)
                 .or_else(|| drops_per_ray(scene, &rays, &records))?;
-            Some((*name, drops, relaxation))
+            Some((name.as_str(), drops, relaxation))
         })
         .collect();
     let fewest = relaxed.iter().map(|r| r.1).min();

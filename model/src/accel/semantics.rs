@@ -107,6 +107,79 @@ pub fn largest_range_record(world: &BuildWorld, call: &BuildIndirect, i: usize) 
         })
 }
 
+/// Where vertex `k` of primitive `p` of a triangle geometry is read: index (or 3p + k, without
+/// indices) plus firstVertex, times the stride, from the vertex data (plus primitiveOffset without
+/// indices).
+fn vertex_address(
+    vertex_data: &Address,
+    stride: u64,
+    index_type: IndexType,
+    indices: &[u32],
+    range: &RangeInfo,
+    (p, k): (u32, usize),
+    ctx: &str,
+) -> Result<Address, ReadError> {
+    Ok(if index_type == IndexType::None {
+        let n = range.first_vertex as u64 + 3 * p as u64 + k as u64;
+        offset(
+            vertex_data,
+            element(range.primitive_offset as u64, n, stride, ctx)?,
+        )
+    } else {
+        let n = indices[3 * p as usize + k] as u64 + range.first_vertex as u64;
+        offset(vertex_data, element(0, n, stride, ctx)?)
+    })
+}
+
+/// Per built primitive, in [`build_primitives`]' order, the fourth component of each vertex of a
+/// triangle read in a four-component format under a geometry transform; None for every other
+/// primitive. The specification does not say what that component means: the model's position is the
+/// first three (an affine transform of a point in 3D, as DirectX Raytracing states for the same
+/// format), so a build may only read it otherwise, which `check::deviation` asks.
+pub fn transformed_fourth_components(
+    mem: &Memory,
+    info: &BuildGeometryInfo,
+    ranges: &[RangeInfo],
+) -> Result<Vec<Option<[f32; 3]>>, ReadError> {
+    let mut out = Vec::new();
+    for (g, (geom, range)) in info.geometries.iter().zip(ranges).enumerate() {
+        let ctx = format!("pGeometries[{g}]");
+        match &geom.data {
+            GeometryData::Triangles {
+                vertex_format,
+                vertex_data,
+                vertex_stride,
+                index_type,
+                transform_data,
+                ..
+            } if !transform_data.is_null() && vertex_format.has_fourth() => {
+                let indices = range_indices(mem, &geom.data, range, &ctx)?;
+                for p in 0..range.primitive_count {
+                    let mut w = [1.0f32; 3];
+                    for (k, x) in w.iter_mut().enumerate() {
+                        let a = vertex_address(
+                            vertex_data,
+                            *vertex_stride,
+                            *index_type,
+                            &indices,
+                            range,
+                            (p, k),
+                            &ctx,
+                        )?;
+                        let bytes = mem
+                            .read(&a, vertex_format.size())
+                            .ok_or_else(|| err(ctx.clone(), "vertex lies outside every buffer"))?;
+                        *x = half_to_f32(u16::from_le_bytes([bytes[6], bytes[7]]));
+                    }
+                    out.push(Some(w));
+                }
+            }
+            _ => out.extend((0..range.primitive_count).map(|_| None)),
+        }
+    }
+    Ok(out)
+}
+
 fn read_vertex(
     mem: &Memory,
     fmt: VertexFormat,
@@ -278,15 +351,15 @@ pub fn build_primitives(
                     let mut tri = [[0.0f32; 3]; 3];
                     let mut active = true;
                     for (k, v) in tri.iter_mut().enumerate() {
-                        let a = if *index_type == IndexType::None {
-                            let n = range.first_vertex as u64 + 3 * p as u64 + k as u64;
-                            let at =
-                                element(range.primitive_offset as u64, n, *vertex_stride, &ctx)?;
-                            offset(vertex_data, at)
-                        } else {
-                            let n = indices[3 * p as usize + k] as u64 + range.first_vertex as u64;
-                            offset(vertex_data, element(0, n, *vertex_stride, &ctx)?)
-                        };
+                        let a = vertex_address(
+                            vertex_data,
+                            *vertex_stride,
+                            *index_type,
+                            &indices,
+                            range,
+                            (p, k),
+                            &ctx,
+                        )?;
                         let raw = read_vertex(mem, *vertex_format, &a, &ctx)?;
                         active &= !raw[0].is_nan();
                         *v = transform.as_ref().map_or(raw, |m| transform_point(m, raw));
