@@ -17,6 +17,8 @@
 #       build   vkCmdBuildAccelerationStructuresIndirectKHR, layer 1.3.239
 #       render  valid cases only, --valid-count per command (rendered scenes judged by the tracer), 1.3.239
 #       trace-1.4.309, build-1.4.309   the same under trixie's 1.4.309 layer and its own registry
+#       lavapipe-findings  lavapipe's build findings (cases/build/lavapipe-*.yaml and the first-vertex evidence) on
+#               NVIDIA, then as the exported C programs --prepare compiled (.gl/bin/repro-build/; the pipeline check)
 #       findings  the driver findings kept under cases/nvidia-h200/device-lost/ (and their reduced variants), twice each,
 #               then the same cases as the exported C programs --prepare compiled (.gl/bin/repro/)
 #       detect  rtconf detect: seeded faults by kind and size (the suite's detection against run time)
@@ -37,7 +39,7 @@ repo_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$repo_root"
 
 out="" count=4 valid_count=100 seed="" commit="" tar_file="" phase_timeout=300 stress_timeout=3600
-phases="probe trace build render trace-1.4.309 build-1.4.309 findings stress detect"
+phases="probe trace build render trace-1.4.309 build-1.4.309 lavapipe-findings findings stress detect"
 prepare=0
 while [[ $# -gt 0 ]]; do
     case "$1" in
@@ -51,10 +53,14 @@ while [[ $# -gt 0 ]]; do
         --phase-timeout) phase_timeout=$2; shift 2 ;;
         --stress-timeout) stress_timeout=$2; shift 2 ;;
         --tar) tar_file=$2; shift 2 ;;
-        -h|--help) sed -n '2,33p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        -h|--help) sed -n '2,35p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "nvidia-full-run: unknown argument $1 (see --help)" >&2; exit 2 ;;
     esac
 done
+
+# lavapipe's build findings (triage/lavapipe.yaml's evidence): on NVIDIA, does the device build them as
+# the model does?
+lavapipe_build_findings="cases/build/lavapipe-*.yaml cases/build/indexed-first-vertex-shifted-primitives.yaml"
 
 if [[ $prepare -eq 1 ]]; then
     set -e
@@ -72,6 +78,17 @@ if [[ $prepare -eq 1 ]]; then
             echo "nvidia-full-run: .gl/bin/repro/$n"
         else
             echo "nvidia-full-run: $n: not exported ($(target/release/rtconf export "$c" --out "target/repro/$n" 2>&1 | tail -1))"
+        fi
+    done
+    # lavapipe's build findings as C too: on NVIDIA (no ray query) their traced check takes the pipeline.
+    mkdir -p .gl/bin/repro-build
+    for c in $lavapipe_build_findings; do
+        n=$(basename "$c" .yaml)
+        if target/release/rtconf export "$c" --out "target/repro-build/$n" >/dev/null 2>&1 \
+            && cc -O1 "target/repro-build/$n/repro.c" -lvulkan -o ".gl/bin/repro-build/$n"; then
+            echo "nvidia-full-run: .gl/bin/repro-build/$n"
+        else
+            echo "nvidia-full-run: $n: not exported ($(target/release/rtconf export "$c" --out "target/repro-build/$n" 2>&1 | tail -1))"
         fi
     done
     echo "nvidia-full-run: ready; carry .gl and .gl-1.4.309 with the checkout, then run with --out there"
@@ -186,6 +203,25 @@ for p in $phases; do
                 rc=$?
                 verdict=$(grep -E '^(verdict|records):' "$out/repro/$n.log" | tr '\n' ' ' | tr '|' '/')
                 echo "| repro $n | \`.gl/bin/repro/$n\` (exported C) | $rc | $((SECONDS - started)) | $verdict | | | | | | | | | |" >>"$readme"
+            done
+            ;;
+        lavapipe-findings)
+            # lavapipe's build findings run on NVIDIA (laid out for lavapipe, judged with this device's
+            # profile), then as the standalone programs --prepare made of them.
+            mkdir -p "$out/lavapipe-findings-cases" "$out/repro-build"
+            # shellcheck disable=SC2086 # the list is globs
+            cp $lavapipe_build_findings "$out/lavapipe-findings-cases/"
+            phase lavapipe-findings 1.3.239 run --driver nvidia --profile "$profile" --jobs 4 \
+                --timeout 20 --cases "$out/lavapipe-findings-cases" --out "$out/lavapipe-findings"
+            for r in .gl/bin/repro-build/*; do
+                [[ -x "$r" ]] || continue
+                n=$(basename "$r")
+                started=$SECONDS
+                RTCONF_BIN="$r" timeout --kill-after=5 30 bash scripts/nvidia-run.sh -- \
+                    --records "$out/repro-build/$n.records" >"$out/repro-build/$n.log" 2>&1
+                rc=$?
+                verdict=$(grep -E '^(check|output|verdict):' "$out/repro-build/$n.log" | tr '\n' ' ' | tr '|' '/')
+                echo "| repro-build $n | \`.gl/bin/repro-build/$n\` (exported C) | $rc | $((SECONDS - started)) | $verdict | | | | | | | | | |" >>"$readme"
             done
             ;;
         stress)
