@@ -176,7 +176,9 @@ fn invalid_builds_under_the_layer_agree_with_the_model_or_are_known_layer_gaps()
 /// vertex (`cases/build/lavapipe-fourth-component-weights-translation.yaml`, where primitiveOffsets
 /// off the vertices read that component from other bytes, and firstVertex is applied twice too):
 /// the model names the deviation exactly and the run triages it. Without the geometry transforms both
-/// readings of the fourth component agree, and only the firstVertex deviation is left to name.
+/// readings of the fourth component agree, and only the firstVertex deviation is left to name. Beside
+/// an inactive triangle (`cases/build/lavapipe-fourth-component-beside-inactive.yaml`) the same reading
+/// with the dropped primitives explains the records.
 #[test]
 fn lavapipe_weights_the_translation_by_a_vertex_fourth_component() {
     use model::accel::check::FOURTH_COMPONENT_WEIGHTS_TRANSLATION as WEIGHTS;
@@ -218,5 +220,29 @@ fn lavapipe_weights_the_translation_by_a_vertex_fourth_component() {
     assert_eq!(
         deviation(&plain, &traced(&ran).records).as_deref(),
         Some("first-vertex-applied-twice")
+    );
+
+    // Beside an inactive triangle (its X NaN), that reading places the inactive vertex with its NaN
+    // kept to X, and the drops next to it explain the rest.
+    let beside = common::committed("build/lavapipe-fourth-component-beside-inactive.yaml");
+    let ran = lvp.run(&beside, TraceCheck::Auto);
+    assert_eq!(status(&ran), &Status::Ran);
+    assert_eq!(
+        deviation(&beside, &traced(&ran).records),
+        Some(format!(
+            "first-vertex-applied-twice+{WEIGHTS}+{}",
+            model::accel::check::INACTIVE_TRIANGLE_DROPS
+        ))
+    );
+    assert_eq!(
+        ran.report.outcome,
+        session::Outcome::Triaged,
+        "{}",
+        ran.report.detail
+    );
+    assert!(
+        ran.report.triage.iter().any(|m| m.entry.contains(WEIGHTS)),
+        "{:?}",
+        ran.report.triage
     );
 }

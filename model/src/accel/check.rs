@@ -287,14 +287,23 @@ fn fourth_component_weighted(
             let w = (*w)?;
             for (k, a) in w.iter().enumerate() {
                 let v = t.positions.get_mut(3 * p + k)?;
-                let c = [v[0], v[1], v[2], *a];
-                *v = [0, 1, 2].map(|r| {
+                // An inactive vertex (X NaN) stays inactive, its other coordinates finite as the
+                // scene keeps them: the NaN is not carried into them.
+                let inactive = v[0].is_nan();
+                let c = [if inactive { 0.0 } else { v[0] }, v[1], v[2], *a];
+                let placed = [0, 1, 2].map(|r| {
                     let mut sum = 0.0f32;
                     for (col, x) in c.iter().enumerate() {
                         sum += m[r][col] * x;
                     }
                     sum
                 });
+                *v = if inactive {
+                    let finite = |x: f32| if x.is_finite() { x } else { 0.0 };
+                    [f32::NAN, finite(placed[1]), finite(placed[2])]
+                } else {
+                    placed
+                };
             }
         }
         t.transform = None;
