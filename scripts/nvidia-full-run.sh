@@ -170,6 +170,23 @@ run_args=(--driver nvidia --profile "$profile" --jobs "$(nproc 2>/dev/null || ec
           --baseline baselines/nvidia-h200.csv)
 # Another seed draws other cases (the baseline names the default seed's known findings).
 [[ -n "$seed" ]] && run_args+=(--seed "$seed")
+# The exported programs of .gl/bin/KIND/ (--prepare made them), each run once under the layer with its
+# records written to DIR/KIND/; one README row each, with the lines of its log that PATTERN takes.
+run_programs() {
+    local kind=$1 pattern=$2 r n started rc verdict
+    mkdir -p "$out/$kind"
+    for r in .gl/bin/"$kind"/*; do
+        [[ -x "$r" ]] || continue
+        n=$(basename "$r")
+        started=$SECONDS
+        RTCONF_BIN="$r" timeout --kill-after=5 30 bash scripts/nvidia-run.sh -- \
+            --records "$out/$kind/$n.records" >"$out/$kind/$n.log" 2>&1
+        rc=$?
+        verdict=$(grep -E "$pattern" "$out/$kind/$n.log" | tr '\n' ' ' | tr '|' '/')
+        echo "| $kind $n | \`.gl/bin/$kind/$n\` (exported C) | $rc | $((SECONDS - started)) | $verdict | | | | | | | | | |" >>"$readme"
+    done
+}
+
 for p in $phases; do
     case "$p" in
         probe)
@@ -193,36 +210,17 @@ for p in $phases; do
             phase findings 1.3.239 run --driver nvidia --profile "$profile" --jobs 4 --retries 1 \
                 --timeout 20 --cases cases/nvidia-h200/device-lost --out "$out/findings"
             # The same cases as the standalone programs a bug report carries (--prepare made them).
-            mkdir -p "$out/repro"
-            for r in .gl/bin/repro/*; do
-                [[ -x "$r" ]] || continue
-                n=$(basename "$r")
-                started=$SECONDS
-                RTCONF_BIN="$r" timeout --kill-after=5 30 bash scripts/nvidia-run.sh -- \
-                    --records "$out/repro/$n.records" >"$out/repro/$n.log" 2>&1
-                rc=$?
-                verdict=$(grep -E '^(verdict|records):' "$out/repro/$n.log" | tr '\n' ' ' | tr '|' '/')
-                echo "| repro $n | \`.gl/bin/repro/$n\` (exported C) | $rc | $((SECONDS - started)) | $verdict | | | | | | | | | |" >>"$readme"
-            done
+            run_programs repro '^(verdict|records):'
             ;;
         lavapipe-findings)
             # lavapipe's build findings run on NVIDIA (laid out for lavapipe, judged with this device's
             # profile), then as the standalone programs --prepare made of them.
-            mkdir -p "$out/lavapipe-findings-cases" "$out/repro-build"
+            mkdir -p "$out/lavapipe-findings-cases"
             # shellcheck disable=SC2086 # the list is globs
             cp $lavapipe_build_findings "$out/lavapipe-findings-cases/"
             phase lavapipe-findings 1.3.239 run --driver nvidia --profile "$profile" --jobs 4 \
                 --timeout 20 --cases "$out/lavapipe-findings-cases" --out "$out/lavapipe-findings"
-            for r in .gl/bin/repro-build/*; do
-                [[ -x "$r" ]] || continue
-                n=$(basename "$r")
-                started=$SECONDS
-                RTCONF_BIN="$r" timeout --kill-after=5 30 bash scripts/nvidia-run.sh -- \
-                    --records "$out/repro-build/$n.records" >"$out/repro-build/$n.log" 2>&1
-                rc=$?
-                verdict=$(grep -E '^(check|output|verdict):' "$out/repro-build/$n.log" | tr '\n' ' ' | tr '|' '/')
-                echo "| repro-build $n | \`.gl/bin/repro-build/$n\` (exported C) | $rc | $((SECONDS - started)) | $verdict | | | | | | | | | |" >>"$readme"
-            done
+            run_programs repro-build '^(check|output|verdict):'
             ;;
         stress)
             if "$bin" help stress >/dev/null 2>&1; then

@@ -268,22 +268,7 @@ fn trace_rays(e: &mut Emitter, rays: usize, procedural: bool) {
     e.line("VkDescriptorSetLayout set_layout;");
     e.line("CHECK(vkCreateDescriptorSetLayout(device, &layout_info, NULL, &set_layout));");
     e.line("VkDescriptorPoolSize pool_sizes[2] = {{VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR, 1}, {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 3}};");
-    e.line(
-        "VkDescriptorPoolCreateInfo pool_info = {VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};",
-    );
-    e.line("pool_info.maxSets = 1;");
-    e.line("pool_info.poolSizeCount = 2;");
-    e.line("pool_info.pPoolSizes = pool_sizes;");
-    e.line("VkDescriptorPool descriptor_pool;");
-    e.line("CHECK(vkCreateDescriptorPool(device, &pool_info, NULL, &descriptor_pool));");
-    e.line(
-        "VkDescriptorSetAllocateInfo set_alloc = {VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};",
-    );
-    e.line("set_alloc.descriptorPool = descriptor_pool;");
-    e.line("set_alloc.descriptorSetCount = 1;");
-    e.line("set_alloc.pSetLayouts = &set_layout;");
-    e.line("VkDescriptorSet set;");
-    e.line("CHECK(vkAllocateDescriptorSets(device, &set_alloc, &set));");
+    e.line("VkDescriptorSet set = one_set(set_layout, pool_sizes, 2, 1);");
     e.line("VkDescriptorBufferInfo buffer_infos[3] = {{rays.buffer, 0, VK_WHOLE_SIZE}, {records.buffer, 0, VK_WHOLE_SIZE}, {spheres.buffer, 0, VK_WHOLE_SIZE}};");
     e.line("VkWriteDescriptorSetAccelerationStructureKHR structure_write = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET_ACCELERATION_STRUCTURE_KHR, NULL, 1, &check_scene};");
     e.line("VkWriteDescriptorSet writes[4];");

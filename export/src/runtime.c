@@ -489,6 +489,24 @@ HELPER int report_layer(const char *const *expected, int expected_count) {
     return differ;
 }
 
+/* A descriptor pool of `count` pool sizes and `max_sets` sets, and one set of `layout` from it. */
+HELPER VkDescriptorSet one_set(VkDescriptorSetLayout layout, const VkDescriptorPoolSize *sizes, uint32_t count,
+                               uint32_t max_sets) {
+    VkDescriptorPoolCreateInfo pool_info = {VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+    pool_info.maxSets = max_sets;
+    pool_info.poolSizeCount = count;
+    pool_info.pPoolSizes = sizes;
+    VkDescriptorPool descriptor_pool;
+    CHECK(vkCreateDescriptorPool(device, &pool_info, NULL, &descriptor_pool));
+    VkDescriptorSetAllocateInfo set_alloc = {VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+    set_alloc.descriptorPool = descriptor_pool;
+    set_alloc.descriptorSetCount = 1;
+    set_alloc.pSetLayouts = &layout;
+    VkDescriptorSet set;
+    CHECK(vkAllocateDescriptorSets(device, &set_alloc, &set));
+    return set;
+}
+
 /* Prints the layer's messages since the last clear_messages about the harness's own calls (`what`), which
  * must draw no error, and clears them; returns how many errors there were. */
 HELPER int report_own_calls(const char *what) {

@@ -609,25 +609,10 @@ fn io_and_set(e: &mut Emitter, t: &TracePlan) {
     e.line("write_bytes(&rays, 0, rays_bytes, sizeof rays_bytes);");
     e.line("write_bytes(&callables, 0, callables_bytes, sizeof callables_bytes);");
     e.line("VkDescriptorPoolSize pool_sizes[2] = {{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 8}, {VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR, 2}};");
-    e.line(
-        "VkDescriptorPoolCreateInfo pool_info = {VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};",
-    );
-    e.line("pool_info.maxSets = 2;");
     e.line(&format!(
-        "pool_info.poolSizeCount = {};",
+        "VkDescriptorSet set = one_set(set_layout, pool_sizes, {}, 2);",
         if t.scene.is_some() { 2 } else { 1 }
     ));
-    e.line("pool_info.pPoolSizes = pool_sizes;");
-    e.line("VkDescriptorPool descriptor_pool;");
-    e.line("CHECK(vkCreateDescriptorPool(device, &pool_info, NULL, &descriptor_pool));");
-    e.line(
-        "VkDescriptorSetAllocateInfo set_alloc = {VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};",
-    );
-    e.line("set_alloc.descriptorPool = descriptor_pool;");
-    e.line("set_alloc.descriptorSetCount = 1;");
-    e.line("set_alloc.pSetLayouts = &set_layout;");
-    e.line("VkDescriptorSet set;");
-    e.line("CHECK(vkAllocateDescriptorSets(device, &set_alloc, &set));");
     e.line("/* Binding 1 covers exactly the launch's records: the any-hit and intersection shaders bound their writes by its length. */");
     e.line(&format!(
         "VkDescriptorBufferInfo infos[4] = {{{{output.buffer, 0, {out_size}}}, {{rays.buffer, 0, VK_WHOLE_SIZE}}, {{callables.buffer, 0, VK_WHOLE_SIZE}}, {{spheres.buffer, 0, VK_WHOLE_SIZE}}}};"

@@ -193,17 +193,7 @@ fn lavapipe_weights_the_translation_by_a_vertex_fourth_component() {
         deviation(&case, &traced(&ran).records),
         Some(format!("first-vertex-applied-twice+{WEIGHTS}"))
     );
-    assert_eq!(
-        ran.report.outcome,
-        session::Outcome::Triaged,
-        "{}",
-        ran.report.detail
-    );
-    assert!(
-        ran.report.triage.iter().any(|m| m.entry.contains(WEIGHTS)),
-        "{:?}",
-        ran.report.triage
-    );
+    assert_triaged_by(&ran, WEIGHTS);
 
     let file = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../cases")
@@ -234,6 +224,11 @@ fn lavapipe_weights_the_translation_by_a_vertex_fourth_component() {
             model::accel::check::INACTIVE_TRIANGLE_DROPS
         ))
     );
+    assert_triaged_by(&ran, WEIGHTS);
+}
+
+/// The run triaged the case by an entry whose pattern names `name`.
+fn assert_triaged_by(ran: &session::run::Ran, name: &str) {
     assert_eq!(
         ran.report.outcome,
         session::Outcome::Triaged,
@@ -241,7 +236,7 @@ fn lavapipe_weights_the_translation_by_a_vertex_fourth_component() {
         ran.report.detail
     );
     assert!(
-        ran.report.triage.iter().any(|m| m.entry.contains(WEIGHTS)),
+        ran.report.triage.iter().any(|m| m.entry.contains(name)),
         "{:?}",
         ran.report.triage
     );

@@ -143,38 +143,63 @@ pub fn transformed_fourth_components(
 ) -> Result<Vec<Option<[f32; 3]>>, ReadError> {
     let mut out = Vec::new();
     for (g, (geom, range)) in info.geometries.iter().zip(ranges).enumerate() {
-        let ctx = format!("pGeometries[{g}]");
-        match &geom.data {
+        let format = match &geom.data {
             GeometryData::Triangles {
                 vertex_format,
-                vertex_data,
-                vertex_stride,
-                index_type,
                 transform_data,
                 ..
-            } if !transform_data.is_null() && vertex_format.has_fourth() => {
-                let indices = range_indices(mem, &geom.data, range, &ctx)?;
-                for p in 0..range.primitive_count {
-                    let mut w = [1.0f32; 3];
-                    for (k, x) in w.iter_mut().enumerate() {
-                        let a = vertex_address(
-                            vertex_data,
-                            *vertex_stride,
-                            *index_type,
-                            &indices,
-                            range,
-                            (p, k),
-                            &ctx,
-                        )?;
-                        let bytes = mem
-                            .read(&a, vertex_format.size())
-                            .ok_or_else(|| err(ctx.clone(), "vertex lies outside every buffer"))?;
-                        *x = half_to_f32(u16::from_le_bytes([bytes[6], bytes[7]]));
-                    }
-                    out.push(Some(w));
-                }
+            } if !transform_data.is_null() && vertex_format.has_fourth() => *vertex_format,
+            _ => {
+                out.extend((0..range.primitive_count).map(|_| None));
+                continue;
             }
-            _ => out.extend((0..range.primitive_count).map(|_| None)),
+        };
+        let ctx = format!("pGeometries[{g}]");
+        let addresses = triangle_vertex_addresses(mem, &geom.data, range, &ctx)?;
+        for corners in addresses.chunks_exact(3) {
+            let mut w = [1.0f32; 3];
+            for (x, a) in w.iter_mut().zip(corners) {
+                let bytes = mem
+                    .read(a, format.size())
+                    .ok_or_else(|| err(ctx.clone(), "vertex lies outside every buffer"))?;
+                *x = half_to_f32(u16::from_le_bytes([bytes[6], bytes[7]]));
+            }
+            out.push(Some(w));
+        }
+    }
+    Ok(out)
+}
+
+/// Where each vertex of each primitive of a triangle geometry's range is read, three per primitive in
+/// order ([`vertex_address`]); none for other geometry.
+fn triangle_vertex_addresses(
+    mem: &Memory,
+    data: &GeometryData,
+    range: &RangeInfo,
+    ctx: &str,
+) -> Result<Vec<Address>, ReadError> {
+    let GeometryData::Triangles {
+        vertex_data,
+        vertex_stride,
+        index_type,
+        ..
+    } = data
+    else {
+        return Ok(vec![]);
+    };
+    let indices = range_indices(mem, data, range, ctx)?;
+    let mut out = Vec::new();
+    for p in 0..range.primitive_count {
+        for k in 0..3 {
+            out.push(vertex_address(
+                vertex_data,
+                *vertex_stride,
+                *index_type,
+                &indices,
+                range,
+                (p, k),
+                ctx,
+            )?);
         }
     }
     Ok(out)
@@ -328,9 +353,6 @@ pub fn build_primitives(
         match &geom.data {
             GeometryData::Triangles {
                 vertex_format,
-                vertex_data,
-                vertex_stride,
-                index_type,
                 transform_data,
                 ..
             } => {
@@ -346,21 +368,12 @@ pub fn build_primitives(
                     }
                     Some(m)
                 };
-                let indices = range_indices(mem, &geom.data, range, &ctx)?;
-                for p in 0..range.primitive_count {
+                let addresses = triangle_vertex_addresses(mem, &geom.data, range, &ctx)?;
+                for (p, corners) in (0..range.primitive_count).zip(addresses.chunks_exact(3)) {
                     let mut tri = [[0.0f32; 3]; 3];
                     let mut active = true;
-                    for (k, v) in tri.iter_mut().enumerate() {
-                        let a = vertex_address(
-                            vertex_data,
-                            *vertex_stride,
-                            *index_type,
-                            &indices,
-                            range,
-                            (p, k),
-                            &ctx,
-                        )?;
-                        let raw = read_vertex(mem, *vertex_format, &a, &ctx)?;
+                    for (v, a) in tri.iter_mut().zip(corners) {
+                        let raw = read_vertex(mem, *vertex_format, a, &ctx)?;
                         active &= !raw[0].is_nan();
                         *v = transform.as_ref().map_or(raw, |m| transform_point(m, raw));
                     }
