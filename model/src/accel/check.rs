@@ -439,8 +439,10 @@ fn drop_primitive(scene: &mut Scene, p: &PrimitiveRef) {
 }
 
 /// The names, joined by `|` (each alternative explains the records on its own), of the deviations
-/// that explain a valid case's failing records: first those (see [`DEVIATIONS`]) that explain them
-/// exactly — the same rays judged against the structure built under the deviation all pass —, then,
+/// that explain a valid case's failing records: first those (see [`DEVIATIONS`], each also read as
+/// [`FOURTH_COMPONENT_WEIGHTS_TRANSLATION`] where that differs, named `X+fourth-component-weights-
+/// translation`) that explain them exactly — the same rays judged against the structure built under
+/// the deviation all pass —, then,
 /// where the structure built holds an inactive triangle, the deviations (none included) that explain
 /// them up to the fewest dropped primitives, named with `+` [`INACTIVE_TRIANGLE_DROPS`]
 /// (`inactive-triangle-drops-primitives` alone for none; [`INACTIVE_AABB_DROPS`] where the inactive
