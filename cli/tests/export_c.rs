@@ -290,7 +290,10 @@ fn rendered_trace_cases_run_as_c_and_their_records_are_replays() {
 fn failing_ids(stdout: &str) -> BTreeSet<usize> {
     stdout
         .lines()
-        .filter_map(|l| l.strip_prefix("  launch ID "))
+        .filter_map(|l| {
+            l.strip_prefix("  launch ID ")
+                .or_else(|| l.strip_prefix("  check ray "))
+        })
         .filter_map(|l| l.split([' ', ':']).next()?.parse().ok())
         .collect()
 }

@@ -64,6 +64,7 @@ pub(crate) fn emit(
     e.line("const char *records_path = argc > 2 && strcmp(argv[1], \"--records\") == 0 ? argv[2] : NULL;");
     e.line("(void)records_path;");
     if let Some(c) = check {
+        e.line("record_of = \"check ray\";");
         e.line("if (argc > 2 && strcmp(argv[1], \"--judge\") == 0)");
         e.line(&format!(
             "    return judge_file(&launch_rules, argv[2], {}ull);",

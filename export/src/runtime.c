@@ -554,6 +554,8 @@ HELPER uint32_t default_stack_size(VkPipeline pipeline, const VkRayTracingShader
 /* ---- A valid launch's ray records (model/src/tracer/record.rs: 28 words per launch ID) judged against
  * the model's tables, as model::tracer::judge judges them. ---- */
 #define RECORD_WORDS 28
+/* What one record stands for in what the judge prints: a launch ID, or a ray of a build's check. */
+static const char *record_of = "launch ID";
 #define SEEN_SLOTS 4
 #define OUTCOME_NOT_RUN 0xFFFFFFFFu
 #define OUTCOME_MISS 1u
@@ -621,7 +623,7 @@ HELPER const struct candidate_rule *find_candidate(const struct launch_rules *l,
     do {                                                                                          \
         fails++;                                                                                  \
         if (print) {                                                                              \
-            printf("  launch ID %llu (ray %u): ", (unsigned long long)id, ray);                   \
+            printf("  %s %llu (ray %u): ", record_of, (unsigned long long)id, ray);               \
             printf(__VA_ARGS__);                                                                  \
             printf("\n");                                                                         \
         }                                                                                         \
@@ -767,8 +769,8 @@ HELPER uint64_t judge_records(const struct launch_rules *l, const uint32_t *word
         failed += fails > 0;
     }
     if (failed > 20)
-        printf("  ... and %llu more launch IDs\n", (unsigned long long)(failed - 20));
-    printf("records: %llu launch IDs judged (%llu REQ, %llu VARY), %llu violate the model\n", (unsigned long long)ids,
+        printf("  ... and %llu more %ss\n", (unsigned long long)(failed - 20), record_of);
+    printf("records: %llu %ss judged (%llu REQ, %llu VARY), %llu violate the model\n", (unsigned long long)ids, record_of,
            (unsigned long long)(ids - vary), (unsigned long long)vary, (unsigned long long)failed);
     return failed;
 }
@@ -800,9 +802,9 @@ HELPER int judge_file(const struct launch_rules *l, const char *path, uint64_t i
     uint64_t failed = judge_records(l, w, ids);
     free(w);
     if (failed)
-        printf("output:  DIFFERS from the model at %llu launch ID(s)\n", (unsigned long long)failed);
+        printf("output:  DIFFERS from the model at %llu %s(s)\n", (unsigned long long)failed, record_of);
     else
-        printf("output:  matches the model (%llu launch IDs)\n", (unsigned long long)ids);
+        printf("output:  matches the model (%llu %ss)\n", (unsigned long long)ids, record_of);
     return failed ? 1 : 0;
 }
 
