@@ -71,6 +71,14 @@ pub fn export(case: &Case, from: &[PathBuf], out: &Path) -> Result<Exported, Ses
     // with the ranges the model reads, the check's rays traced with ray query or the check
     // pipeline) and judges each ray.
     let build_check = match case.as_accel() {
+        // The harness checks a build of one info only (`harness::accel_check`), and so does the program.
+        Some(body) if exec.run_valid && body.call.infos.len() != 1 => {
+            about.push(
+                "valid build of several infos: the harness's traced check handles one info, so neither it nor this program traces rays at the result"
+                    .into(),
+            );
+            None
+        }
         Some(body) if exec.run_valid => {
             let plan = harness::plan::check::CheckPlan::of(body)?;
             let check = model::accel::check::BuildCheck::of(body).map_err(|e| {
