@@ -94,7 +94,6 @@ pub(crate) fn run(
     e.line("props2.pNext = &as_props;");
     e.line("vkGetPhysicalDeviceProperties2(physical, &props2);");
     e.line("VkDeviceSize scratch_align = as_props.minAccelerationStructureScratchOffsetAlignment > 256 ? as_props.minAccelerationStructureScratchOffsetAlignment : 256;");
-    e.line("const VkPipelineStageFlags build_stage = VK_PIPELINE_STAGE_ACCELERATION_STRUCTURE_BUILD_BIT_KHR;");
     e.line("clear_messages();");
     if let Some(k) = blas {
         blas_triangle(e, k);
@@ -133,12 +132,7 @@ fn blas_triangle(e: &mut Emitter, k: usize) {
     e.line(&format!("info.dstAccelerationStructure = structures[{k}];"));
     e.line("info.scratchData.deviceAddress = scratch.address;");
     e.line("VkAccelerationStructureBuildRangeInfoKHR range = {1, 0, 0, 0};");
-    e.line("const VkAccelerationStructureBuildRangeInfoKHR *ranges = &range;");
-    e.line("begin_one_time(primary);");
-    e.line("pvkCmdBuildAccelerationStructuresKHR(primary, 1, &info, &ranges);");
-    e.line("memory_barrier(primary, build_stage, VK_ACCESS_ACCELERATION_STRUCTURE_WRITE_BIT_KHR, build_stage, VK_ACCESS_ACCELERATION_STRUCTURE_READ_BIT_KHR);");
-    e.line("CHECK(vkEndCommandBuffer(primary));");
-    e.line("submit_and_wait(primary);");
+    e.line("build_and_wait(&info, &range);");
     e.line(&format!(
         "step({});",
         c::string(&format!(
@@ -172,12 +166,7 @@ fn direct_build(e: &mut Emitter, plan: &harness::plan::check::CheckPlan, dst: us
             ranges.join(", ")
         }
     ));
-    e.line("const VkAccelerationStructureBuildRangeInfoKHR *check_range_list = check_ranges;");
-    e.line("begin_one_time(primary);");
-    e.line("pvkCmdBuildAccelerationStructuresKHR(primary, 1, &infos[0], &check_range_list);");
-    e.line("memory_barrier(primary, build_stage, VK_ACCESS_ACCELERATION_STRUCTURE_WRITE_BIT_KHR, build_stage | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_ACCELERATION_STRUCTURE_READ_BIT_KHR);");
-    e.line("CHECK(vkEndCommandBuffer(primary));");
-    e.line("submit_and_wait(primary);");
+    e.line("build_and_wait(&infos[0], check_ranges);");
     e.line(&format!(
         "step({});",
         c::string(&format!(
@@ -221,12 +210,7 @@ fn one_instance_top(e: &mut Emitter, dst: usize) {
     e.line("info.dstAccelerationStructure = check_scene;");
     e.line("info.scratchData.deviceAddress = scratch.address;");
     e.line("VkAccelerationStructureBuildRangeInfoKHR range = {1, 0, 0, 0};");
-    e.line("const VkAccelerationStructureBuildRangeInfoKHR *ranges = &range;");
-    e.line("begin_one_time(primary);");
-    e.line("pvkCmdBuildAccelerationStructuresKHR(primary, 1, &info, &ranges);");
-    e.line("memory_barrier(primary, build_stage, VK_ACCESS_ACCELERATION_STRUCTURE_WRITE_BIT_KHR, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_ACCELERATION_STRUCTURE_READ_BIT_KHR);");
-    e.line("CHECK(vkEndCommandBuffer(primary));");
-    e.line("submit_and_wait(primary);");
+    e.line("build_and_wait(&info, &range);");
     e.line(&format!(
         "step({});",
         c::string(&format!(

@@ -489,6 +489,20 @@ HELPER int report_layer(const char *const *expected, int expected_count) {
     return differ;
 }
 
+/* Builds one structure directly and waits: `info` with `ranges`, its writes made visible to later
+ * builds and compute shaders (what the build check reads it with). */
+HELPER void build_and_wait(const VkAccelerationStructureBuildGeometryInfoKHR *info,
+                           const VkAccelerationStructureBuildRangeInfoKHR *ranges) {
+    begin_one_time(primary);
+    pvkCmdBuildAccelerationStructuresKHR(primary, 1, info, &ranges);
+    memory_barrier(primary, VK_PIPELINE_STAGE_ACCELERATION_STRUCTURE_BUILD_BIT_KHR,
+                   VK_ACCESS_ACCELERATION_STRUCTURE_WRITE_BIT_KHR,
+                   VK_PIPELINE_STAGE_ACCELERATION_STRUCTURE_BUILD_BIT_KHR | VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                   VK_ACCESS_ACCELERATION_STRUCTURE_READ_BIT_KHR);
+    CHECK(vkEndCommandBuffer(primary));
+    submit_and_wait(primary);
+}
+
 /* A descriptor pool of `count` pool sizes and `max_sets` sets, and one set of `layout` from it. */
 HELPER VkDescriptorSet one_set(VkDescriptorSetLayout layout, const VkDescriptorPoolSize *sizes, uint32_t count,
                                uint32_t max_sets) {
