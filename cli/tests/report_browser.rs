@@ -230,10 +230,12 @@ fn the_report_loads_in_chromium_and_shows_the_summary_counts() {
         "{crash}"
     );
     let unexpected = section("stride-expected-to-fail");
-    let details: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(run.join("details/stride-expected-to-fail.json")).unwrap(),
-    )
-    .unwrap();
+    let details: serde_json::Value = std::fs::read_to_string(run.join("details.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .find(|d| d["case"] == "stride-expected-to-fail")
+        .expect("the case's details line");
     let message = details["layer_messages"][0]["text"].as_str().unwrap();
     assert!(message.len() > 300, "a message worth checking in full");
     assert!(

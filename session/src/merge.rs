@@ -2,7 +2,7 @@
 //! `results.jsonl`, `caselist.txt`, `summary.json`, `junit.xml`, the case files and details, and the
 //! HTML report — what one unsharded run would have written.
 
-use crate::details::CASE_FOLDERS;
+use crate::details::{CASE_FOLDERS, DETAILS_FILE};
 use crate::error::SessionError;
 use crate::report::{summarise, write_junit, RunIdentity, Summary};
 use std::collections::{BTreeMap, BTreeSet};
@@ -156,10 +156,23 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Merged, SessionError> {
         )
         .map_err(io(&path))?;
     }
+    let mut details = Vec::new();
     for dir in inputs {
-        for folder in CASE_FOLDERS.iter().chain(&["details"]) {
+        for folder in CASE_FOLDERS {
             copy_files(&dir.join(folder), &out.join(folder))?;
         }
+        // Whole lines only: a torn last line of one input must not run into the next one's first.
+        if let Ok(text) = std::fs::read(dir.join(DETAILS_FILE)) {
+            let whole = text
+                .iter()
+                .rposition(|&b| b == b'\n')
+                .map_or(0, |at| at + 1);
+            details.extend_from_slice(&text[..whole]);
+        }
+    }
+    if !details.is_empty() {
+        let path = out.join(DETAILS_FILE);
+        crate::outdir::write_atomically(&path, &details).map_err(io(&path))?;
     }
     let who = RunIdentity {
         driver: first.driver.clone(),

@@ -1,7 +1,7 @@
 //! A run's output directory: a new run starts it clean (the files of an earlier run into the same
 //! `--out` are removed, never mixed in); a resumed run must have been started with the same parameters
-//! (`run.json`), and first repairs what a stop left (a torn last line of `results.jsonl`, half-written
-//! failure files). Failure files are written whole or not at all (a temporary file, then a rename).
+//! (`run.json`), and first repairs what a stop left (a torn last line of `results.jsonl` and of
+//! `details.jsonl`, half-written failure files). Failure files are written whole or not at all (a temporary file, then a rename).
 
 use crate::compare::CaseReport;
 use crate::error::SessionError;
@@ -44,19 +44,18 @@ pub struct RunParameters {
 }
 
 /// The files a run writes into its directory (besides its folders).
-const RUN_FILES: [&str; 5] = [
+const RUN_FILES: [&str; 6] = [
     "results.jsonl",
+    crate::details::DETAILS_FILE,
     "summary.json",
     "junit.xml",
     "run.json",
     "caselist.txt",
 ];
 
-/// The folders a run writes into its directory: the case files it keeps, their details, the report.
+/// The folders a run writes into its directory: the case files it keeps, the report.
 fn run_folders() -> impl Iterator<Item = &'static str> {
-    crate::details::CASE_FOLDERS
-        .into_iter()
-        .chain(["details", "report"])
+    crate::details::CASE_FOLDERS.into_iter().chain(["report"])
 }
 
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> SessionError + '_ {
@@ -96,6 +95,7 @@ pub fn prepare(
             }
         }
         repair_results(&results)?;
+        cut_torn_line(&out.join(crate::details::DETAILS_FILE))?;
         return Ok(done_cases(&results));
     }
     if resume && results.exists() {
@@ -140,6 +140,28 @@ fn differing(before: &serde_json::Value, now: &RunParameters) -> Option<(String,
         }
     }
     None
+}
+
+/// Cuts a file of lines after its last newline (a line an interrupted run left unfinished), so
+/// that lines appended next start on a line of their own. A missing file is left missing.
+fn cut_torn_line(path: &Path) -> Result<(), SessionError> {
+    let bytes = match std::fs::read(path) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(io(path)(e)),
+    };
+    let whole = bytes
+        .iter()
+        .rposition(|&b| b == b'\n')
+        .map_or(0, |at| at + 1);
+    if whole < bytes.len() {
+        let f = std::fs::OpenOptions::new()
+            .write(true)
+            .open(path)
+            .map_err(io(path))?;
+        f.set_len(whole as u64).map_err(io(path))?;
+    }
+    Ok(())
 }
 
 /// Cuts `results.jsonl` after its last complete line that is a case's report: a stop in the middle of
@@ -271,12 +293,32 @@ mod tests {
     }
 
     #[test]
+    fn a_torn_details_line_is_cut_so_the_next_line_starts_whole() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join(crate::details::DETAILS_FILE);
+        let line = crate::details::details_line("a", &Default::default());
+        std::fs::write(&p, format!("{line}{}", &line[..10])).unwrap();
+        cut_torn_line(&p).unwrap();
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), line);
+        cut_torn_line(&p).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(&p).unwrap(),
+            line,
+            "whole lines stay"
+        );
+        let read = crate::details::read_details(dir.path());
+        assert_eq!(read.len(), 1);
+        assert!(read.contains_key("a"));
+    }
+
+    #[test]
     fn a_new_run_removes_what_an_earlier_run_left() {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path();
         std::fs::create_dir_all(out.join("failures")).unwrap();
         for f in [
             "results.jsonl",
+            "details.jsonl",
             "summary.json",
             "junit.xml",
             "failures/old-case.yaml",
@@ -286,6 +328,7 @@ mod tests {
         std::fs::write(out.join("keep.txt"), "not the run's").unwrap();
         assert!(prepare(out, &params(), false).unwrap().is_empty());
         assert!(!out.join("results.jsonl").exists());
+        assert!(!out.join("details.jsonl").exists());
         assert!(!out.join("failures/old-case.yaml").exists());
         assert!(
             out.join("keep.txt").exists(),

@@ -315,14 +315,16 @@ impl Judging<'_> {
     }
 }
 
-/// Where a run writes: `results.jsonl` (appended and flushed per case), the case files of the cases that
-/// did not pass and their details.
+/// Where a run writes: `results.jsonl` and `details.jsonl` (appended and flushed per case), the case
+/// files of the cases that did not pass.
 struct Sink<'a> {
     /// Set when a write fails.
     stop: &'a std::sync::atomic::AtomicBool,
     out: PathBuf,
     results_path: PathBuf,
     results: std::fs::File,
+    /// `details.jsonl`, opened (for appending) at the first case kept.
+    details: Option<std::fs::File>,
     /// The first write that failed: the file and the error.
     error: Option<(PathBuf, std::io::Error)>,
     /// The case folders made so far.
@@ -356,7 +358,14 @@ impl Sink<'_> {
                 &attempts
             },
         );
-        if let Err(e) = keep(&self.out, &mut self.folders, case, report, status, details) {
+        let kept = keep(&self.out, &mut self.folders, case, report, status).and_then(|kept| {
+            if kept {
+                self.append_details(case, details)
+            } else {
+                Ok(())
+            }
+        });
+        if let Err(e) = kept {
             self.error.get_or_insert(e);
             self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
             return;
@@ -373,6 +382,28 @@ impl Sink<'_> {
             self.error.get_or_insert((self.results_path.clone(), e));
             self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
         }
+    }
+
+    /// Appends a kept case's details line (one write, flushed; a reader leaves out a torn last line).
+    fn append_details(
+        &mut self,
+        case: &Case,
+        details: &CaseDetails,
+    ) -> Result<(), (PathBuf, std::io::Error)> {
+        let path = self.out.join(crate::details::DETAILS_FILE);
+        if self.details.is_none() {
+            let f = std::fs::OpenOptions::new()
+                .create(true)
+                .append(true)
+                .open(&path)
+                .map_err(|e| (path.clone(), e))?;
+            self.details = Some(f);
+        }
+        let line = crate::details::details_line(&case.name, details);
+        let f = self.details.as_mut().expect("opened above");
+        f.write_all(line.as_bytes())
+            .and_then(|_| f.flush())
+            .map_err(|e| (path, e))
     }
 }
 
@@ -631,6 +662,7 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         out: config.out.clone(),
         results_path: results_path.clone(),
         results,
+        details: None,
         error: None,
         folders: Default::default(),
         expectations: &expectations,

@@ -83,6 +83,7 @@ pub fn write_report(out: &Path) -> Result<PathBuf, SessionError> {
             (*folder, names)
         })
         .collect();
+    let mut details = read_details(out);
     for line in read_lines(&out.join("results.jsonl"))? {
         if line.status == Status::Pass {
             continue;
@@ -112,7 +113,7 @@ pub fn write_report(out: &Path) -> Result<PathBuf, SessionError> {
             }
         }
         entries.push(Entry {
-            details: read_details(out, &name),
+            details: details.remove(&name),
             status: line.status,
             line: Some(line),
             name,
