@@ -108,6 +108,30 @@ fn barycentric_ulps_are_counted_at_the_scale_of_the_coordinates() {
     }
 }
 
+/// The t error is counted in ULPs of the larger of |t_exact| and the ray's reach to the triangle's
+/// farthest vertex (in t): a ray starting 2^-20 above the unit triangle has t_exact = 2^-20 but
+/// reaches its far vertices at t = 0.75, so an error of 2^-24 is one ULP there, not the 2^19 ULPs of
+/// 2^-20 itself; from z = 1 (reach 1 = t_exact) the ULPs are t's own.
+#[test]
+fn t_ulps_are_counted_at_the_scale_of_the_rays_reach() {
+    let scene = one_instance(unit_triangle());
+    let near = 2f32.powi(-20);
+    for (z, t, ulps) in [
+        (near, near + 2f32.powi(-24), 1.0),
+        (near, near + 2f32.powi(-22), 4.0),
+        (1.0, f32::from_bits(1.0f32.to_bits() + 2), 2.0),
+    ] {
+        let ray = Ray::new([0.25, 0.25, z], [0.0, 0.0, -1.0], 0.0, f32::INFINITY);
+        let out = trace(&scene, &ray);
+        let j = judge(&out, &hit(0, 0, 0, 0xFE, t, 0.25, 0.25, 0));
+        let seen = j.t_error_ulps.expect("a hit measures its t");
+        assert!(
+            (seen - ulps).abs() < 1e-3,
+            "ray from z = {z}, t = {t}: {seen} ulps, expected {ulps}"
+        );
+    }
+}
+
 #[test]
 fn a_hit_turned_into_a_miss_fails() {
     let (scene, ray, _) = centre();

@@ -144,7 +144,8 @@ impl FamilyReport {
         self.summary.vary_share()
     }
 
-    /// |t − t_exact| in f32 ULPs of t_exact, over the committed hits.
+    /// |t − t_exact| in f32 ULPs of max(|t_exact|, the ray's reach to the triangle in t), over the
+    /// committed hits (see `AllowedReport::t_scale`).
     pub fn t_error_ulps(&self) -> ErrorStats {
         ErrorStats::of(&self.summary.t_error_ulps)
     }

@@ -164,6 +164,14 @@ pub(super) fn outcomes_of_near(
                 let (s, _) = values.sum;
                 let t_exact = values.plane.0 / s;
                 let bary_exact = [values.edge[1].0 / s, values.edge[2].0 / s];
+                let GeometryData::Triangles(tri) = &geometry.data else {
+                    unreachable!()
+                };
+                let t_scale = reach_in_t(
+                    tri.vertex_indices(item.primitive as usize)
+                        .map(|i| w.vertices[i].map(|x| x.value)),
+                    ray,
+                );
                 let single = kinds.len() == 1;
                 let reports = kinds
                     .iter()
@@ -173,12 +181,10 @@ pub(super) fn outcomes_of_near(
                         barycentrics: Some(bary),
                         t_exact,
                         barycentrics_exact: Some(bary_exact),
+                        t_scale,
                         required: presence == Presence::Required && single,
                     })
                     .collect();
-                let GeometryData::Triangles(tri) = &geometry.data else {
-                    unreachable!()
-                };
                 hits.push(TriangleHit {
                     candidate: candidates.len(),
                     bottom_level: w.bottom_level,
@@ -259,6 +265,7 @@ pub(super) fn outcomes_of_near(
                         barycentrics: None,
                         t_exact: r.t.mid(),
                         barycentrics_exact: None,
+                        t_scale: 0.0,
                         required: r.required && signs.must_run,
                     })
                     .collect();
@@ -327,4 +334,23 @@ fn sphere_signs_in<N: Num>(
         ray.tmax,
         band,
     )
+}
+
+/// max over the vertices of |v − o|∞, over |d|∞: the t at which the ray has come as far as the
+/// triangle's farthest vertex is from its origin (see [`AllowedReport::t_scale`]); 0 for a zero
+/// direction.
+fn reach_in_t(world: [[f64; 3]; 3], ray: &Ray) -> f64 {
+    let d = ray
+        .direction
+        .iter()
+        .fold(0f64, |m, &x| m.max((x as f64).abs()));
+    let reach = world
+        .iter()
+        .flat_map(|v| (0..3).map(move |k| (v[k] - ray.origin[k] as f64).abs()))
+        .fold(0f64, f64::max);
+    if d > 0.0 {
+        reach / d
+    } else {
+        0.0
+    }
 }

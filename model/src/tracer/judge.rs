@@ -28,7 +28,8 @@ pub struct RayJudgement {
     pub chosen: Option<PrimitiveRef>,
     /// Whether the allowed set had any VARY part.
     pub vary: bool,
-    /// |t − t_exact| in f32 ULPs of t_exact, and relative to the bound (1.0 = at the bound).
+    /// |t − t_exact| in f32 ULPs of max(|t_exact|, [`AllowedReport::t_scale`]), and relative to the
+    /// bound (1.0 = at the bound).
     pub t_error_ulps: Option<f64>,
     pub t_error_rel: Option<f64>,
     /// max over (b, c) of |x − x_exact|, absolute and in f32 ULPs of x_exact where |x_exact| ≥ 1/2,
@@ -315,7 +316,8 @@ fn measure(
     let t = record.t as f64;
     let err = (t - r.t_exact).abs();
     let bound = r.t.radius();
-    j.t_error_ulps = Some(err / f32_ulp(r.t_exact));
+    let t_ulp = f32_ulp(r.t_exact.abs().max(r.t_scale));
+    j.t_error_ulps = Some(err / t_ulp);
     j.t_error_rel = Some(if bound > 0.0 {
         err / bound
     } else {
@@ -329,7 +331,7 @@ fn measure(
             r.t.lo,
             r.t.hi,
             err,
-            err / f32_ulp(r.t_exact)
+            err / t_ulp
         )));
     }
     if kind == PrimitiveKind::Triangle {

@@ -294,6 +294,13 @@ pub struct AllowedReport {
     /// The exact t and barycentrics (f64 nearest), the centre the errors are measured from.
     pub t_exact: f64,
     pub barycentrics_exact: Option<[f64; 2]>,
+    /// The scale t's error is counted in ULPs of, beside |t_exact| (the larger of the two): for a
+    /// triangle the ray's reach to its farthest vertex in units of the ray's direction,
+    /// max |v − o|∞ / |d|∞ — an f32 test finds t from vertex-minus-origin differences of that size,
+    /// so a t near 0 (a ray that starts on the triangle) carries their rounding, not ULPs of its
+    /// own; 0 where t_exact alone is the scale (spheres).
+    #[serde(default)]
+    pub t_scale: f64,
     /// Required: the only report of a required candidate.
     pub required: bool,
 }
