@@ -397,6 +397,55 @@ fn any_hit_for_an_opaque_or_impossible_candidate_fails() {
     assert!(is_fail(&verdict(&out, &r)));
 }
 
+/// A hit that ended the trace shows no hole in a nearer watertight group: the ray down through the
+/// diagonal of an opaque quad (instance 0, t = 1) reaches a non-opaque triangle behind it (instance 1,
+/// t = 1.5) whose committed hit the record reports. When that hit ended the trace (its any-hit
+/// terminates, or the ray ends at its first hit), the traversal may have reached it first, so the
+/// quad was never passed: a pass. When nothing ended the trace early, the ray passed the quad's
+/// shared edge without a hit there: a hole, warned.
+#[test]
+fn a_trace_ended_by_a_farther_hit_shows_no_hole_in_a_nearer_group() {
+    let behind = BottomLevel {
+        geometries: vec![tri_geometry(
+            vec![[0.0, 0.0, -0.5], [2.0, 0.0, -0.5], [0.0, 2.0, -0.5]],
+            false,
+        )],
+    };
+    let scene = Scene {
+        bottom_levels: vec![build::grid(1, 1, 1.0), behind],
+        instances: vec![SceneInstance::of(0), SceneInstance::of(1)],
+    };
+    for (rule, flags, warned) in [
+        (AnyHitRule::Terminate, RayFlags::default(), false),
+        (AnyHitRule::Accept, RayFlags::TERMINATE_ON_FIRST_HIT, false),
+        (AnyHitRule::Accept, RayFlags::default(), true),
+    ] {
+        let shaders = move |i: u32, _: u32| {
+            if i == 1 {
+                HitShaders::with_any_hit(1, rule)
+            } else {
+                HitShaders::closest(0)
+            }
+        };
+        let ray = down(0.5, 0.5).with_flags(flags);
+        let out = trace_with(&scene, &ray, &shaders, Precision::F64WithExactFallback);
+        assert_eq!(out.watertight.len(), 1, "the quad's diagonal is a group");
+        let mut behind_hit = hit(1, 0, 0, 0xFE, 1.5, 0.25, 0.25, 1);
+        behind_hit.any_hit_count = 1;
+        behind_hit.seen = vec![seen(1, 0, 0, 1.5)];
+        let v = verdict(&out, &behind_hit);
+        assert_eq!(
+            matches!(v, RayVerdict::Warn(_)),
+            warned,
+            "{rule:?} with flags {:?}: {v:?}",
+            flags.0
+        );
+        if !warned {
+            assert_eq!(v, RayVerdict::Pass, "{rule:?}");
+        }
+    }
+}
+
 /// The quad of two triangles sharing the diagonal, non-opaque with accepting any-hit.
 fn quad_scene() -> Scene {
     let mut bl = build::grid(1, 1, 1.0);

@@ -26,8 +26,7 @@ pub(super) fn conclude(
         let ok = c.confirmation.confirms();
         Facts {
             confirmable: ok,
-            early: ok
-                && (tofh || c.confirmation == Confirmation::AnyHitAccepts { terminates: true }),
+            early: c.confirmation.ends_trace(tofh),
             hull: c.t_hull(),
         }
     };
@@ -120,6 +119,7 @@ pub(super) fn conclude(
         candidates,
         miss_shader: shaders.miss,
         skip_closest_hit: ray.flags.contains(RayFlags::SKIP_CLOSEST_HIT_SHADER),
+        terminate_on_first_hit: tofh,
         any_hit: CountBounds {
             min: any_hit_min,
             max: any_hit_max,

@@ -170,7 +170,16 @@ pub fn judge(allowed: &AllowedOutcomes, record: &RayRecord) -> RayJudgement {
     }
     let group_seen = |g: &super::WatertightGroup| g.members.iter().any(|m| seen_prims.contains(m));
     let slots_complete = (record.any_hit_count as usize) <= RayRecord::SEEN_SLOTS;
+    // A hole is a group passed without a hit. A committed hit that ended the trace (its any-hit
+    // terminated, or the ray ends at its first hit) may have been reached before a nearer group
+    // was: that group was not passed, and no hole is shown.
     let hole = |committed_t: Option<f64>, committed: Option<&PrimitiveRef>| -> Option<String> {
+        let ended_early = committed
+            .and_then(|p| allowed.candidate(p))
+            .is_some_and(|c| c.confirmation.ends_trace(allowed.terminate_on_first_hit));
+        if ended_early {
+            return None;
+        }
         allowed
             .watertight
             .iter()

@@ -267,6 +267,13 @@ impl Confirmation {
     pub fn confirms(self) -> bool {
         !matches!(self, Confirmation::AnyHitIgnores)
     }
+    /// Whether confirming the candidate ends the trace (spec, "Ray Traversal": an any-hit shader's
+    /// terminateRayEXT, or TerminateOnFirstHit on the ray): nothing the traversal has not reached
+    /// by then is considered, however near.
+    pub fn ends_trace(self, terminate_on_first_hit: bool) -> bool {
+        self.confirms()
+            && (terminate_on_first_hit || self == Confirmation::AnyHitAccepts { terminates: true })
+    }
     pub fn runs_any_hit(self) -> bool {
         matches!(
             self,
@@ -387,6 +394,9 @@ pub struct AllowedOutcomes {
     pub miss_shader: MissShader,
     /// SkipClosestHitShader was given.
     pub skip_closest_hit: bool,
+    /// TerminateOnFirstHit was given: every confirmed candidate ends the trace.
+    #[serde(default)]
+    pub terminate_on_first_hit: bool,
     pub any_hit: CountBounds,
     pub intersection: CountBounds,
     pub watertight: Vec<WatertightGroup>,
