@@ -1,6 +1,8 @@
 //! What a run keeps of each case that did not pass, for the report and for a person: the case file in
 //! the folder of its outcome (`failures/`, `triaged/`, `unsupported/`, and `unexpected-passes/` for
-//! cases the baseline expects to fail), and a line of `details.jsonl` with the model's violations
+//! cases the baseline expects to fail; `warnings/` for a rendered case that passed with quality
+//! warnings — a hole where the spec's watertightness says "should" — so it can be replayed and
+//! reported like a failure), and a line of `details.jsonl` with the model's violations
 //! (with their paths) and the layer's messages in full. One appended file rather than a file per
 //! case: creating a file is most of what keeping a case costs (a run of a few hundred triaged
 //! cases spent a quarter of its wall time making inodes).
@@ -36,19 +38,36 @@ pub fn folder_of(outcome: Outcome, status: Status) -> Option<&'static str> {
     }
 }
 
-/// Every folder [`folder_of`] names.
-pub const CASE_FOLDERS: [&str; 6] = [
+/// The folder of the cases that passed with quality warnings (see [`kept_folder`]).
+pub const WARNINGS_FOLDER: &str = "warnings";
+
+/// Whether a case passed with quality warnings: a rendered case whose records broke only what the
+/// spec says implementations should do.
+pub fn passed_with_warnings(report: &CaseReport) -> bool {
+    report.outcome == Outcome::Pass && report.rendered.as_ref().is_some_and(|r| r.warnings > 0)
+}
+
+/// The folder a run keeps a case's file in: [`folder_of`] its outcome and status, else
+/// [`WARNINGS_FOLDER`] for a case that passed with warnings; None for a case kept nowhere.
+pub fn kept_folder(report: &CaseReport, status: Status) -> Option<&'static str> {
+    folder_of(report.outcome, status)
+        .or_else(|| passed_with_warnings(report).then_some(WARNINGS_FOLDER))
+}
+
+/// Every folder [`kept_folder`] names.
+pub const CASE_FOLDERS: [&str; 7] = [
     "failures",
     "triaged",
     "unsupported",
     "not-realised",
     "unexpected-passes",
     "case-errors",
+    WARNINGS_FOLDER,
 ];
 
 /// Where a run keeps a case's file, when it keeps one.
 pub fn case_path(out: &Path, report: &CaseReport, status: Status) -> Option<PathBuf> {
-    folder_of(report.outcome, status).map(|f| out.join(f).join(format!("{}.yaml", report.case)))
+    kept_folder(report, status).map(|f| out.join(f).join(format!("{}.yaml", report.case)))
 }
 
 /// The details file of a run.
@@ -116,4 +135,62 @@ pub fn read_details(out: &Path) -> std::collections::HashMap<String, CaseDetails
         .filter_map(|l| serde_json::from_str::<DetailsLine>(l).ok())
         .map(|l| (l.case, l.details))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use model::rendered::RenderedResult;
+
+    fn report(outcome: Outcome, warnings: Option<u64>) -> CaseReport {
+        CaseReport {
+            case: "c".into(),
+            command: model::CommandId::TraceRays,
+            target: None,
+            outcome,
+            model: vec![],
+            layer: vec![],
+            layer_other: vec![],
+            output_matches: Some(true),
+            rendered: warnings.map(|warnings| RenderedResult {
+                rays: 4,
+                warnings,
+                ..Default::default()
+            }),
+            detail: String::new(),
+            triage: vec![],
+            millis: 1.0,
+            phases: Default::default(),
+            injection: None,
+        }
+    }
+
+    #[test]
+    fn a_case_that_passed_with_warnings_is_kept_in_warnings() {
+        let warned = report(Outcome::Pass, Some(3));
+        assert!(passed_with_warnings(&warned));
+        assert_eq!(kept_folder(&warned, Status::Pass), Some(WARNINGS_FOLDER));
+        assert_eq!(
+            case_path(Path::new("out"), &warned, Status::Pass),
+            Some(PathBuf::from("out/warnings/c.yaml"))
+        );
+        // A clean pass is kept nowhere; the other folders take precedence over the warnings.
+        assert_eq!(
+            kept_folder(&report(Outcome::Pass, Some(0)), Status::Pass),
+            None
+        );
+        assert_eq!(
+            kept_folder(&report(Outcome::Pass, None), Status::Pass),
+            None
+        );
+        assert_eq!(
+            kept_folder(&warned, Status::UnexpectedPass),
+            Some("unexpected-passes")
+        );
+        assert_eq!(
+            kept_folder(&report(Outcome::Fail, Some(3)), Status::Fail),
+            Some("failures")
+        );
+        assert!(CASE_FOLDERS.contains(&WARNINGS_FOLDER));
+    }
 }

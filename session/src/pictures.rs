@@ -1,4 +1,5 @@
-//! Pictures of a failing rendered case, written beside its YAML in `failures/`: `NAME-expected.png`
+//! Pictures of a failing rendered case, written beside its YAML in `failures/` (of one that passed
+//! with warnings, in `warnings/`): `NAME-expected.png`
 //! (what the model allows per launch ID: black where a miss is required, the primitive's false colour
 //! where one hit is, checkered where the spec leaves a choice), `NAME-actual.png` (what the driver
 //! wrote: the committed primitive's false colour, black for a miss, dark blue where no shader wrote,
@@ -113,16 +114,24 @@ pub fn write(dir: &Path, name: &str, body: &TraceBody, words: &[u32]) -> Vec<Pat
     out
 }
 
-/// The pictures of a failing case run as valid with records read back (any other case: none).
-pub(crate) fn for_failure(
-    dir: &Path,
+/// The pictures of a case run as valid with records read back that failed (in `out/failures/`) or
+/// passed with warnings (in `out/warnings/`); any other case: none.
+pub(crate) fn for_kept(
+    out: &Path,
     case: &model::Case,
     obs: &harness::Observation,
     report: &crate::CaseReport,
 ) -> Vec<PathBuf> {
+    let folder = if report.outcome == crate::Outcome::Fail {
+        "failures"
+    } else if crate::details::passed_with_warnings(report) {
+        crate::details::WARNINGS_FOLDER
+    } else {
+        return vec![];
+    };
     match (case.as_trace(), obs.words(), &report.rendered) {
-        (Some(t), Some(words), Some(r)) if report.outcome == crate::Outcome::Fail && r.rays > 0 => {
-            write(dir, &case.name, t, words)
+        (Some(t), Some(words), Some(r)) if r.rays > 0 => {
+            write(&out.join(folder), &case.name, t, words)
         }
         _ => vec![],
     }

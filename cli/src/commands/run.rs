@@ -69,7 +69,7 @@ pub struct RunArgs {
     #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..))]
     timeout: u64,
     /// The run folder: results.jsonl, summary.json, junit.xml, report/index.html, failures/, triaged/,
-    /// unsupported/, details.jsonl, caselist.txt.
+    /// unsupported/, warnings/, details.jsonl, caselist.txt.
     #[arg(long, default_value = "out/run")]
     out: PathBuf,
     /// Shrink up to this many failing cases to minimal ones in cases/regressions/ (in this process).

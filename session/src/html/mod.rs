@@ -85,7 +85,7 @@ pub fn write_report(out: &Path) -> Result<PathBuf, SessionError> {
         .collect();
     let mut details = read_details(out);
     for line in read_lines(&out.join("results.jsonl"))? {
-        if line.status == Status::Pass {
+        if line.status == Status::Pass && !crate::details::passed_with_warnings(&line.report) {
             continue;
         }
         let name = line.report.case.clone();

@@ -212,12 +212,7 @@ impl Dispatch<'_> {
             return;
         }
         let (report, details) = self.judged(&job.case, &job.note, resp);
-        crate::pictures::for_failure(
-            &sink.out.join("failures"),
-            &job.case,
-            &resp.observation,
-            &report,
-        );
+        crate::pictures::for_kept(&sink.out, &job.case, &resp.observation, &report);
         if self.retries > 0 && report.outcome.is_unexpected() {
             later.held.push(Retried {
                 job,
