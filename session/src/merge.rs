@@ -163,11 +163,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Merged, SessionError> {
         }
         // Whole lines only: a torn last line of one input must not run into the next one's first.
         if let Ok(text) = std::fs::read(dir.join(DETAILS_FILE)) {
-            let whole = text
-                .iter()
-                .rposition(|&b| b == b'\n')
-                .map_or(0, |at| at + 1);
-            details.extend_from_slice(&text[..whole]);
+            details.extend_from_slice(&text[..crate::outdir::whole_lines(&text)]);
         }
     }
     if !details.is_empty() {

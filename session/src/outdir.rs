@@ -142,6 +142,14 @@ fn differing(before: &serde_json::Value, now: &RunParameters) -> Option<(String,
     None
 }
 
+/// The length of the whole lines at the start of `bytes`: up to and with its last newline.
+pub(crate) fn whole_lines(bytes: &[u8]) -> usize {
+    bytes
+        .iter()
+        .rposition(|&b| b == b'\n')
+        .map_or(0, |at| at + 1)
+}
+
 /// Cuts a file of lines after its last newline (a line an interrupted run left unfinished), so
 /// that lines appended next start on a line of their own. A missing file is left missing.
 fn cut_torn_line(path: &Path) -> Result<(), SessionError> {
@@ -150,10 +158,7 @@ fn cut_torn_line(path: &Path) -> Result<(), SessionError> {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
         Err(e) => return Err(io(path)(e)),
     };
-    let whole = bytes
-        .iter()
-        .rposition(|&b| b == b'\n')
-        .map_or(0, |at| at + 1);
+    let whole = whole_lines(&bytes);
     if whole < bytes.len() {
         let f = std::fs::OpenOptions::new()
             .write(true)
