@@ -116,3 +116,44 @@ fn lavapipe_hits_both_triangles_of_a_shared_edge() {
     let r = ran.report.rendered.as_ref().unwrap();
     assert_eq!((r.rays, r.failures, r.req), (1, 0, 1));
 }
+
+/// Lavapipe ends a trace at a terminating any-hit behind a closed fan's vertex (see the case file): the
+/// record commits the second instance, and the comparison passes it without a hole warning, since the
+/// trace may end before the fan is reached. With that instance opaque (no any-hit runs), lavapipe
+/// reports the fan itself, and passes too.
+#[test]
+fn a_trace_lavapipe_ends_at_a_terminating_any_hit_shows_no_hole() {
+    let _one = DEVICE.lock().unwrap_or_else(|e| e.into_inner());
+    let mut lvp = Lavapipe::new();
+    let case = common::committed("rendered/lavapipe-terminating-any-hit-behind-fan-vertex.yaml");
+    let committed = |ran: &session::run::Ran| {
+        let words = ran
+            .observation
+            .as_ref()
+            .and_then(|o| o.words())
+            .expect("records were read back");
+        model::tracer::record::RayRecord::from_words(
+            &words[..model::tracer::record::RayRecord::WORDS],
+        )
+        .expect("a whole record")
+    };
+    let ran = lvp.run(&case, TraceCheck::Auto);
+    assert_eq!(ran.report.outcome, Outcome::Pass, "{}", ran.report.detail);
+    let r = ran.report.rendered.as_ref().expect("records were judged");
+    assert_eq!(
+        (r.rays, r.failures, r.warnings),
+        (1, 0, 0),
+        "{}",
+        ran.report.detail
+    );
+    let rec = committed(&ran);
+    assert_eq!((rec.instance_id, rec.any_hit_count), (1, 1), "{rec:?}");
+    let mut opaque = case.clone();
+    common::world(&mut opaque).launch.scene.instances[1]
+        .flags
+        .force_no_opaque = false;
+    let ran = lvp.run(&opaque, TraceCheck::Auto);
+    assert_eq!(ran.report.outcome, Outcome::Pass, "{}", ran.report.detail);
+    let rec = committed(&ran);
+    assert_eq!(rec.instance_id, 0, "the fan: {rec:?}");
+}
