@@ -106,8 +106,8 @@ impl MadeFolders {
     }
 }
 
-/// Writes the case file of a case that did not pass, whole or not at all; whether the run keeps the
-/// case (then its [`details_line`] goes to [`DETAILS_FILE`]). The file that could not be written,
+/// Writes the case file of a case that did not pass or passed with warnings ([`kept_folder`]), whole
+/// or not at all; whether the run keeps the case (then its [`details_line`] goes to [`DETAILS_FILE`]). The file that could not be written,
 /// with its error.
 pub fn keep(
     out: &Path,
