@@ -760,3 +760,46 @@ fn build_findings_export_their_traced_check_as_replay_runs_it() {
         text(&planted)
     );
 }
+
+/// A valid build of two infos: the harness's traced check handles one info, so `rtconf replay` calls
+/// the case not realised, and `rtconf export` writes a program that records the build under the
+/// layer and traces nothing — and says so, in its run line and in the program's header, instead of
+/// claiming the check of info 0.
+#[test]
+fn a_valid_build_of_two_infos_exports_without_a_traced_check() {
+    let dir = fresh_dir("export-c-two-infos");
+    let case = common::repo().join("cases/build/two-infos-valid.yaml");
+    let o = rtconf(
+        &[
+            "export",
+            case.to_str().unwrap(),
+            "--out",
+            dir.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let printed = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        printed.contains("a valid build of several infos is not checked by tracing"),
+        "{printed}"
+    );
+    assert!(!printed.contains("builds info 0 directly"), "{printed}");
+    let source = std::fs::read_to_string(dir.join("repro.c")).unwrap();
+    assert!(
+        source
+            .contains("valid build of several infos: the harness's traced check handles one info"),
+        "the program's header says why it traces nothing"
+    );
+    compile(&dir);
+    let p = run_program(&dir);
+    let want: BTreeSet<String> = [
+        "VUID-vkCmdBuildAccelerationStructuresIndirectKHR-accelerationStructureIndirectBuild-03650",
+    ]
+    .map(String::from)
+    .into();
+    assert_eq!((&p.model, &p.layer), (&want, &want), "{}", p.stdout);
+    assert_eq!((p.status, p.output), (Some(0), None), "{}", p.stdout);
+    let r = replay(&case, None);
+    assert_eq!(r["outcome"], "not-realised", "{r}");
+}

@@ -19,6 +19,9 @@ pub struct Exported {
     pub build_command: &'static str,
     /// Whether the program runs the call for real (a trace submitted, read back and compared).
     pub run_valid: bool,
+    /// Whether the program repeats the harness's traced check of a valid build (one info: info 0
+    /// built directly and the check's rays judged); false for a build of several infos.
+    pub checks_build: bool,
 }
 
 /// Writes `out/repro.c` for `case`, judged with the rules of `from` (empty: the installed registry)
@@ -104,6 +107,7 @@ pub fn export(case: &Case, from: &[PathBuf], out: &Path) -> Result<Exported, Ses
         }
         _ => None,
     };
+    let checks_build = build_check.is_some();
     let expectation = export::Expectation {
         model_vuids: verdict.vuids().into_iter().map(String::from).collect(),
         violations: verdict
@@ -125,5 +129,6 @@ pub fn export(case: &Case, from: &[PathBuf], out: &Path) -> Result<Exported, Ses
         source,
         build_command: program.build_command,
         run_valid: exec.run_valid,
+        checks_build,
     })
 }

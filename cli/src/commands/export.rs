@@ -26,7 +26,8 @@ model's expectation embedded as tables; exit 1 on a REQ violation, naming the la
   valid build:   records the indirect build under the layer, then builds info 0 directly with the ranges \
 the model reads and traces the check's rays at it with ray query, or a ray tracing pipeline where the device \
 lacks it or RTCONF_REPRO_CHECK=pipeline asks (as rtconf's harness does), judging each ray's record; exit 1 \
-when the device's build departs from the model.
+when the device's build departs from the model. A valid build of several infos is recorded only (the \
+harness's check handles one info), as the run line says.
   ./repro --records FILE   also writes the records read back (as `rtconf replay --records FILE`)
   ./repro --judge FILE     judges a records file against the tables and runs nothing
 Exit status of the program: 0 agrees with the model, 1 does not (a lost device included), 2 cannot run.
@@ -58,8 +59,10 @@ pub fn run(a: ExportArgs) -> super::Exit {
     );
     println!(
         "run:   ./repro   ({})",
-        if exported.run_valid && case.as_accel().is_some() {
+        if exported.checks_build {
             "records the indirect build under the validation layer, then builds info 0 directly, traces the check's rays at it (ray query, else a pipeline) and judges each record against the model's; --records FILE writes them"
+        } else if exported.run_valid && case.as_accel().is_some() {
+            "records the indirect build under the validation layer and prints the VUIDs reported; a valid build of several infos is not checked by tracing, as rtconf's harness checks one info"
         } else if exported.run_valid {
             "runs the call for real and judges its records per launch ID against the model's; --records FILE writes them"
         } else {
