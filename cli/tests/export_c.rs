@@ -36,8 +36,8 @@ fn vuid_list(s: &str) -> BTreeSet<String> {
     }
 }
 
-/// Exports `case` into `dir` and builds it with the printed command.
-fn export_build(case: &Path, dir: &Path) {
+/// `rtconf export CASE --out DIR`, which must succeed; what it printed.
+fn export_printed(case: &Path, dir: &Path) -> String {
     let o = rtconf(
         &[
             "export",
@@ -48,7 +48,12 @@ fn export_build(case: &Path, dir: &Path) {
         &[],
     );
     assert!(o.status.success(), "{}", text(&o));
-    let printed = String::from_utf8_lossy(&o.stdout).into_owned();
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// Exports `case` into `dir` and builds it with the printed command.
+fn export_build(case: &Path, dir: &Path) {
+    let printed = export_printed(case, dir);
     let build = printed
         .lines()
         .find_map(|l| l.strip_prefix("build: "))
@@ -769,17 +774,7 @@ fn build_findings_export_their_traced_check_as_replay_runs_it() {
 fn a_valid_build_of_two_infos_exports_without_a_traced_check() {
     let dir = fresh_dir("export-c-two-infos");
     let case = common::repo().join("cases/build/two-infos-valid.yaml");
-    let o = rtconf(
-        &[
-            "export",
-            case.to_str().unwrap(),
-            "--out",
-            dir.to_str().unwrap(),
-        ],
-        &[],
-    );
-    assert!(o.status.success(), "{}", text(&o));
-    let printed = String::from_utf8_lossy(&o.stdout);
+    let printed = export_printed(&case, &dir);
     assert!(
         printed.contains("a valid build of several infos is not checked by tracing"),
         "{printed}"

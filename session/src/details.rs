@@ -11,6 +11,7 @@ use crate::baseline::Status;
 use crate::compare::{CaseReport, Outcome};
 use harness::LayerMessage;
 use model::{Case, Violation};
+use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 
 /// A case's line of `details.jsonl` (without its name).
@@ -73,19 +74,20 @@ pub fn case_path(out: &Path, report: &CaseReport, status: Status) -> Option<Path
 /// The details file of a run.
 pub const DETAILS_FILE: &str = "details.jsonl";
 
-/// A line of [`DETAILS_FILE`]: the case's name and its details.
+/// A line of [`DETAILS_FILE`]: the case's name and its details (borrowed when written, owned when
+/// read back).
 #[derive(serde::Serialize, serde::Deserialize)]
-struct DetailsLine {
-    case: String,
+struct DetailsLine<'a> {
+    case: Cow<'a, str>,
     #[serde(flatten)]
-    details: CaseDetails,
+    details: Cow<'a, CaseDetails>,
 }
 
 /// The details line of a case, newline included.
 pub fn details_line(case: &str, details: &CaseDetails) -> String {
     let line = DetailsLine {
-        case: case.to_string(),
-        details: details.clone(),
+        case: Cow::Borrowed(case),
+        details: Cow::Borrowed(details),
     };
     serde_json::to_string(&line).unwrap_or_default() + "\n"
 }
@@ -133,7 +135,7 @@ pub fn read_details(out: &Path) -> std::collections::HashMap<String, CaseDetails
     let text = std::fs::read_to_string(out.join(DETAILS_FILE)).unwrap_or_default();
     text.lines()
         .filter_map(|l| serde_json::from_str::<DetailsLine>(l).ok())
-        .map(|l| (l.case, l.details))
+        .map(|l| (l.case.into_owned(), l.details.into_owned()))
         .collect()
 }
 

@@ -1,7 +1,8 @@
 //! A run's output directory: a new run starts it clean (the files of an earlier run into the same
 //! `--out` are removed, never mixed in); a resumed run must have been started with the same parameters
 //! (`run.json`), and first repairs what a stop left (a torn last line of `results.jsonl` and of
-//! `details.jsonl`, half-written failure files). Failure files are written whole or not at all (a temporary file, then a rename).
+//! `details.jsonl`, half-written failure files). Failure files are written whole or not at all (a
+//! temporary file, then a rename).
 
 use crate::compare::CaseReport;
 use crate::error::SessionError;
