@@ -128,6 +128,18 @@ fn first_record(ran: &session::run::Ran) -> model::tracer::record::RayRecord {
         .expect("a whole record")
 }
 
+/// Asserts the case passed, with its one ray judged: no failure and `warnings` warnings.
+fn passes_one_ray_with_warnings(ran: &session::run::Ran, warnings: u64) {
+    assert_eq!(ran.report.outcome, Outcome::Pass, "{}", ran.report.detail);
+    let r = ran.report.rendered.as_ref().expect("records were judged");
+    assert_eq!(
+        (r.rays, r.failures, r.warnings),
+        (1, 0, warnings),
+        "{}",
+        ran.report.detail
+    );
+}
+
 /// Lavapipe ends a trace at a terminating any-hit behind a closed fan's vertex (see the case file): the
 /// record commits the second instance, and the comparison passes it without a hole warning, since the
 /// trace may end before the fan is reached. With that instance opaque (no any-hit runs), lavapipe
@@ -138,14 +150,7 @@ fn a_trace_lavapipe_ends_at_a_terminating_any_hit_shows_no_hole() {
     let mut lvp = Lavapipe::new();
     let case = common::committed("rendered/lavapipe-terminating-any-hit-behind-fan-vertex.yaml");
     let ran = lvp.run(&case, TraceCheck::Auto);
-    assert_eq!(ran.report.outcome, Outcome::Pass, "{}", ran.report.detail);
-    let r = ran.report.rendered.as_ref().expect("records were judged");
-    assert_eq!(
-        (r.rays, r.failures, r.warnings),
-        (1, 0, 0),
-        "{}",
-        ran.report.detail
-    );
+    passes_one_ray_with_warnings(&ran, 0);
     let rec = first_record(&ran);
     assert_eq!((rec.instance_id, rec.any_hit_count), (1, 1), "{rec:?}");
     let mut opaque = case.clone();
@@ -170,14 +175,7 @@ fn lavapipe_misses_beside_a_fan_centre_and_the_hole_is_a_warning() {
     let ran = lvp.run(&case, TraceCheck::Auto);
     // FIXME(lavapipe, Mesa 25.0.7): a watertight driver reports one of the fan's triangles here, and
     // the warning goes.
-    assert_eq!(ran.report.outcome, Outcome::Pass, "{}", ran.report.detail);
-    let r = ran.report.rendered.as_ref().expect("records were judged");
-    assert_eq!(
-        (r.rays, r.failures, r.warnings),
-        (1, 0, 1),
-        "{}",
-        ran.report.detail
-    );
+    passes_one_ray_with_warnings(&ran, 1);
     assert!(
         ran.report
             .detail
@@ -192,14 +190,7 @@ fn lavapipe_misses_beside_a_fan_centre_and_the_hole_is_a_warning() {
     let mut beside = case.clone();
     common::world(&mut beside).launch.rays[0].direction[0] = 0.20661225;
     let ran = lvp.run(&beside, TraceCheck::Auto);
-    assert_eq!(ran.report.outcome, Outcome::Pass, "{}", ran.report.detail);
-    let r = ran.report.rendered.as_ref().expect("records were judged");
-    assert_eq!(
-        (r.rays, r.failures, r.warnings),
-        (1, 0, 0),
-        "{}",
-        ran.report.detail
-    );
+    passes_one_ray_with_warnings(&ran, 0);
     assert_ne!(
         first_record(&ran).outcome,
         model::tracer::record::RecordOutcome::Miss
