@@ -30,7 +30,8 @@
 #     runs. DIR/README.md gets one row per phase: the command, the exit status, the counts from
 #     summary.json (stress: its cases by outcome from stress.json). --tar packs DIR into one file (for machines that hand back few files).
 #
-# The run phases take baselines/nvidia-h200.csv: the known driver findings are expected crashes there.
+# The run phases take baselines/nvidia-h200.csv (known findings by case name, empty today) and, as every
+# run on driver nvidia, triage/nvidia.yaml (the DEVICE_LOST finding, triaged by the shape the model gives a case).
 # The commit is the one --prepare built the bundle from (.gl/COMMIT), else the checkout's, unless
 # --commit names it.
 set -uo pipefail

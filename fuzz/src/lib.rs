@@ -133,7 +133,7 @@ pub fn run(target: Target, data: &[u8]) -> Outcome {
                 // what a run asks of an entry: its id, and whether its patterns match a VUID
                 for e in &triage.entries {
                     let _ = (e.id(), e.observed.describe());
-                    for p in observed_patterns(&e.observed) {
+                    for p in e.observed.patterns() {
                         let _ = p.captures(MATCHED_NAMES[2]);
                     }
                 }
@@ -248,15 +248,6 @@ const MATCHED_NAMES: [&str; 3] = [
     "build-0-0-valid",
     "VUID-vkCmdTraceRaysIndirectKHR-None-03429",
 ];
-
-/// The wildcard patterns of what a triage entry says was observed.
-fn observed_patterns(o: &session::triage::Observed) -> Vec<&session::triage::Pattern> {
-    use session::triage::Observed;
-    match o {
-        Observed::LayerSilent(p) | Observed::LayerExtra(p) | Observed::Output(p) => vec![p],
-        Observed::LayerRenames { model, layer } => vec![model, layer],
-    }
-}
 
 /// The outcome of a line-based file: accepted, or refused at the line of its first error.
 fn lines(errors: &[session::baseline::LineError]) -> Outcome {

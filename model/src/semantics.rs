@@ -16,11 +16,13 @@ use std::sync::{Arc, Mutex};
 
 mod launch;
 mod reads;
+mod shapes;
 use launch::{allowed_for_ray_memo, distinct_rays, HitRecordMemo};
 pub use launch::{expected_launch, ExpectedLaunch, PerRay};
 pub use reads::records_read;
 #[cfg(test)]
 pub(crate) use reads::{misses_by_tracing, misses_of};
+pub use shapes::{shapes, CULLED_AABB_NULL_HIT_TABLE};
 
 /// The miss record a ray reaches (`missIndex & 0xFFFF`, semantics.md §6).
 pub fn miss_record(miss_index: u32) -> u64 {
@@ -118,32 +120,42 @@ fn triangle_reach(
 /// The procedural half of [`ray_reach`]: every procedural geometry with an active box of an instance
 /// the ray's mask and flags do not cull (no tracing needed).
 fn procedural_reach(scene: &Scene, ray: &Ray) -> Vec<(u32, u32, GeometryKind)> {
-    let mut out = Vec::new();
-    for (i, inst) in scene.instances.iter().enumerate() {
-        let Some(b) = inst.bottom_level else { continue };
-        if inst.mask as u32 & ray.cull_mask & 0xFF == 0 || ray.flags.contains(RayFlags::SKIP_AABBS)
-        {
-            continue;
-        }
-        for (g, geometry) in scene.bottom_levels[b as usize]
-            .geometries
-            .iter()
-            .enumerate()
-        {
-            let GeometryData::Aabbs(a) = &geometry.data else {
-                continue;
-            };
-            if a.boxes.iter().all(|b| b.is_inactive()) {
-                continue;
-            }
-            let opaque = crate::tracer::opacity(ray, inst, geometry.flags.opaque);
-            let culled = crate::tracer::opacity_culled(ray, opaque);
-            if !culled {
-                out.push((i as u32, g as u32, GeometryKind::Aabbs));
-            }
-        }
-    }
-    out
+    procedural_geometries(scene, ray)
+        .filter(|&(_, _, culled)| !culled)
+        .map(|(i, g, _)| (i, g, GeometryKind::Aabbs))
+        .collect()
+}
+
+/// Every procedural geometry with an active box in an instance the ray's cull mask admits, unless
+/// the ray skips AABBs, as (instance, geometry, whether the ray's opacity flags cull it).
+fn procedural_geometries<'a>(
+    scene: &'a Scene,
+    ray: &'a Ray,
+) -> impl Iterator<Item = (u32, u32, bool)> + 'a {
+    let skips = ray.flags.contains(RayFlags::SKIP_AABBS);
+    scene
+        .instances
+        .iter()
+        .enumerate()
+        .filter(move |(_, inst)| !skips && inst.mask as u32 & ray.cull_mask & 0xFF != 0)
+        .filter_map(|(i, inst)| Some((i, inst, inst.bottom_level?)))
+        .flat_map(move |(i, inst, b)| {
+            scene.bottom_levels[b as usize]
+                .geometries
+                .iter()
+                .enumerate()
+                .filter_map(move |(g, geometry)| {
+                    let GeometryData::Aabbs(a) = &geometry.data else {
+                        return None;
+                    };
+                    if a.boxes.iter().all(|b| b.is_inactive()) {
+                        return None;
+                    }
+                    let opaque = crate::tracer::opacity(ray, inst, geometry.flags.opaque);
+                    let culled = crate::tracer::opacity_culled(ray, opaque);
+                    Some((i as u32, g as u32, culled))
+                })
+        })
 }
 
 /// A hash of a scene's content (bit patterns), the key of the prepared-scene memo.

@@ -196,11 +196,13 @@ pub fn compare(
         Status::Crash { message } => {
             report.outcome = Outcome::Crash;
             report.detail = message.clone();
+            triage_crash(&mut report, case, valid, triage);
             return report;
         }
         Status::Timeout { seconds } => {
             report.outcome = Outcome::Timeout;
             report.detail = format!("after {seconds:.1} s");
+            triage_crash(&mut report, case, valid, triage);
             return report;
         }
         Status::Ran => {}
@@ -319,6 +321,43 @@ pub fn compare(
         };
     }
     report
+}
+
+/// Triages the crash or hang of a valid trace case when a `crash` entry names one of the case's
+/// shapes (`model::semantics::shapes`, keyed `<command>:<shape>`): the outcome becomes `triaged`, and
+/// the detail keeps what happened and says which entry explains it. Any other crash stays one.
+fn triage_crash(report: &mut CaseReport, case: &Case, valid: bool, triage: &Triage) {
+    let Some(t) = case.as_trace().filter(|_| valid) else {
+        return;
+    };
+    let (model, layer, layer_other) = (
+        report.model.clone(),
+        report.layer.clone(),
+        report.layer_other.clone(),
+    );
+    let facts = CaseFacts {
+        name: &case.name,
+        command: case.command(),
+        target: None,
+        model: &model,
+        layer: &layer,
+        layer_other: &layer_other,
+        problems: &[],
+    };
+    for shape in model::semantics::shapes(&t.world, &t.call) {
+        let key = format!("{}:{shape}", case.command().vk_name());
+        if let Some((m, reason)) = triage.explain_crash(&facts, &key) {
+            report.detail = format!(
+                "{} ({} {key}; triaged {}: {reason})",
+                report.detail,
+                m.observed,
+                m.kind.name()
+            );
+            report.outcome = Outcome::Triaged;
+            report.triage.push(m);
+            return;
+        }
+    }
 }
 
 /// Whether the device's profile confirms that it lacks `lack`.

@@ -169,7 +169,7 @@ impl Triage {
                     Observed::LayerSilent(p) => side == "layer only" && p.matches(v),
                     Observed::LayerExtra(p) => side == "model only" && p.matches(v),
                     Observed::LayerRenames { model, layer } => model.matches(v) || layer.matches(v),
-                    Observed::Output(_) => false,
+                    Observed::Output(_) | Observed::Crash(_) => false,
                 })
                 .or_else(|| {
                     // An entry of the right direction whose case pattern or condition excludes the case.
@@ -213,10 +213,32 @@ impl Triage {
     /// The `output` entry that explains a build's rays under the named deviation (`key` is
     /// `<command>:<deviation>`), with its reason.
     pub fn explain_output(&self, case: &CaseFacts, key: &str) -> Option<(TriageMatch, String)> {
+        self.explain_key(case, key, |o| match o {
+            Observed::Output(p) => Some(p),
+            _ => None,
+        })
+    }
+
+    /// The `crash` entry that explains a crash or hang of a valid case of shape `key`
+    /// (`<command>:<shape>`), with its reason.
+    pub fn explain_crash(&self, case: &CaseFacts, key: &str) -> Option<(TriageMatch, String)> {
+        self.explain_key(case, key, |o| match o {
+            Observed::Crash(p) => Some(p),
+            _ => None,
+        })
+    }
+
+    /// The first entry about `case` whose keyed pattern (`pattern` of its observation) explains `key`.
+    fn explain_key(
+        &self,
+        case: &CaseFacts,
+        key: &str,
+        pattern: impl Fn(&Observed) -> Option<&Pattern>,
+    ) -> Option<(TriageMatch, String)> {
         self.entries
             .iter()
             .filter(|e| e.concerns(case))
-            .find(|e| matches!(&e.observed, Observed::Output(p) if output_matches(p, key)))
+            .find(|e| pattern(&e.observed).is_some_and(|p| output_matches(p, key)))
             .map(|e| e.matched(key, None))
     }
 }

@@ -27,6 +27,9 @@ pub enum Observed {
     /// The device's output deviates from the model's as the named deviation says
     /// (`<command>:<deviation>`, see `model::accel::check::deviation`).
     Output(Pattern),
+    /// The device crashed or hung (a lost device, or a launch that never finished) on a valid case of
+    /// the named shape (`<command>:<shape>`, see `model::semantics::shapes`).
+    Crash(Pattern),
 }
 
 impl Observed {
@@ -37,27 +40,41 @@ impl Observed {
             Observed::LayerExtra(_) => "layer-extra",
             Observed::LayerRenames { .. } => "layer-renames",
             Observed::Output(_) => "output",
+            Observed::Crash(_) => "crash",
         }
     }
 
     /// Whether a case of the run involved what the entry speaks of: its VUID pattern (for a rename,
-    /// the model's) matches a VUID of `exercised`. Always true for `output` entries (their keys are deviations, not VUIDs).
+    /// the model's) matches a VUID of `exercised`. Always true for `output` and `crash` entries (their
+    /// keys are deviations and shapes, not VUIDs).
     pub fn touches(&self, exercised: &BTreeSet<String>) -> bool {
         let any = |p: &Pattern| exercised.iter().any(|v| p.matches(v));
         match self {
             Observed::LayerSilent(p) | Observed::LayerExtra(p) => any(p),
             // The situation is a case on the model's VUID; the layer's VUID alone is another case.
             Observed::LayerRenames { model, .. } => any(model),
-            Observed::Output(_) => true,
+            Observed::Output(_) | Observed::Crash(_) => true,
+        }
+    }
+
+    /// The wildcard patterns the observation states (a rename's two, every other direction's one).
+    pub fn patterns(&self) -> Vec<&Pattern> {
+        match self {
+            Observed::LayerSilent(p)
+            | Observed::LayerExtra(p)
+            | Observed::Output(p)
+            | Observed::Crash(p) => vec![p],
+            Observed::LayerRenames { model, layer } => vec![model, layer],
         }
     }
 
     /// The entry's key as a person reads it: `layer-silent VUID-…`, `layer-renames V -> W`.
     pub fn describe(&self) -> String {
         match self {
-            Observed::LayerSilent(p) | Observed::LayerExtra(p) | Observed::Output(p) => {
-                format!("{} {p}", self.direction())
-            }
+            Observed::LayerSilent(p)
+            | Observed::LayerExtra(p)
+            | Observed::Output(p)
+            | Observed::Crash(p) => format!("{} {p}", self.direction()),
             Observed::LayerRenames { model, layer } => {
                 format!("{} {model} -> {layer}", self.direction())
             }
@@ -82,7 +99,7 @@ pub enum Kind {
     /// The layer checks the rule wrongly (an off-by-one, a check of another condition): any layer
     /// direction, with the layer's source as evidence.
     LayerBug,
-    /// The driver departs from the specification: only `output`.
+    /// The driver departs from the specification: only `output` and `crash`.
     DriverBug,
     /// The harness cannot put the device in the state the model's world describes, so the layer sees
     /// another world: `layer-silent` or `layer-extra`, with what the harness lacks in the reason.
@@ -114,7 +131,7 @@ impl Kind {
                         | Observed::LayerExtra(_)
                         | Observed::LayerRenames { .. }
                 )
-                | (Kind::DriverBug, Observed::Output(_))
+                | (Kind::DriverBug, Observed::Output(_) | Observed::Crash(_))
                 | (
                     Kind::HarnessLimit,
                     Observed::LayerSilent(_) | Observed::LayerExtra(_)
@@ -129,7 +146,7 @@ impl Kind {
             Kind::LayerStaticCheck => "layer-extra",
             Kind::LayerMislabel => "layer-renames",
             Kind::LayerBug => "layer-silent, layer-extra or layer-renames",
-            Kind::DriverBug => "output",
+            Kind::DriverBug => "output or crash",
             Kind::HarnessLimit => "layer-silent or layer-extra",
         }
     }
@@ -198,6 +215,8 @@ struct WrittenEntry {
     layer_renames: Option<WrittenRename>,
     #[serde(default)]
     output: Option<Pattern>,
+    #[serde(default)]
+    crash: Option<Pattern>,
     kind: Kind,
     reason: String,
     #[serde(default)]
@@ -259,8 +278,8 @@ pub struct Triage {
     pub files: Vec<String>,
 }
 
-/// The commands an entry is about, from its VUID patterns' scopes (`VUID-<scope>-…`) or its output key
-/// (`<command>:<deviation>`).
+/// The commands an entry is about, from its VUID patterns' scopes (`VUID-<scope>-…`) or its output or
+/// crash key (`<command>:<deviation>`, `<command>:<shape>`).
 fn commands_of(observed: &Observed) -> BTreeSet<CommandId> {
     let scope_commands = |p: &Pattern| -> BTreeSet<CommandId> {
         let text = p.as_str();
@@ -285,7 +304,7 @@ fn commands_of(observed: &Observed) -> BTreeSet<CommandId> {
     match observed {
         Observed::LayerSilent(p) | Observed::LayerExtra(p) => scope_commands(p),
         Observed::LayerRenames { model, .. } => scope_commands(model),
-        Observed::Output(p) => {
+        Observed::Output(p) | Observed::Crash(p) => {
             let command = p.as_str().split(':').next().unwrap_or("");
             CommandId::ALL
                 .into_iter()
@@ -314,11 +333,14 @@ impl WrittenEntry {
         if let Some(p) = self.output {
             observed.push(Observed::Output(p));
         }
+        if let Some(p) = self.crash {
+            observed.push(Observed::Crash(p));
+        }
         let observed = match observed.len() {
             1 => observed.remove(0),
             0 => {
                 return Err(
-                    "states no observation: give one of layer-silent, layer-extra, layer-renames, output"
+                    "states no observation: give one of layer-silent, layer-extra, layer-renames, output, crash"
                         .into(),
                 )
             }
@@ -334,11 +356,8 @@ impl WrittenEntry {
                 ))
             }
         };
-        let patterns: Vec<&Pattern> = match &observed {
-            Observed::LayerSilent(p) | Observed::LayerExtra(p) | Observed::Output(p) => vec![p],
-            Observed::LayerRenames { model, layer } => vec![model, layer],
-        };
-        if let Some(p) = patterns
+        if let Some(p) = observed
+            .patterns()
             .iter()
             .find(|p| p.as_str().contains(['?', '[', ']']))
         {
