@@ -20,11 +20,15 @@ fn nvidia_triage() -> Triage {
     Triage::from_yaml(&path.display().to_string(), &text).expect("the file parses")
 }
 
+/// The rules of the installed registry, read once per test.
+fn rules() -> RuleSet {
+    RuleSet::from_vuids(&session::sources::load_sources(&[]).expect("the installed registry"))
+}
+
 /// The comparison of `case` crashed (or hung) under `triage`.
-fn judged(case: &Case, status: Status, triage: &Triage) -> session::CaseReport {
-    let set = session::sources::load_sources(&[]).expect("the installed registry");
+fn judged(rules: &RuleSet, case: &Case, status: Status, triage: &Triage) -> session::CaseReport {
     let profile = session::sources::profile_for(&case.profile).expect("the case's profile");
-    let verdict = RuleSet::from_vuids(&set).judge(&profile, &case.body);
+    let verdict = rules.judge(&profile, &case.body);
     assert!(verdict.is_valid(), "{}: a valid case", case.name);
     let mut obs = Observation::crash("vkWaitForFences failed: ERROR_DEVICE_LOST");
     obs.status = status;
@@ -40,6 +44,7 @@ fn lost() -> Status {
 #[test]
 fn a_crash_of_the_culled_aabb_shape_is_triaged_and_its_controls_are_not() {
     let triage = nvidia_triage();
+    let rules = rules();
     for name in [
         "device-lost-a-one-aabb-cull-opaque-null-hit",
         "device-lost-d-cull-no-opaque",
@@ -48,7 +53,7 @@ fn a_crash_of_the_culled_aabb_shape_is_triaged_and_its_controls_are_not() {
     ] {
         let case = device_lost_case(name);
         for status in [lost(), Status::Timeout { seconds: 20.0 }] {
-            let r = judged(&case, status, &triage);
+            let r = judged(&rules, &case, status, &triage);
             assert_eq!(r.outcome, Outcome::Triaged, "{name}: {}", r.detail);
             assert_eq!(r.triage.len(), 1, "{name}: {:?}", r.triage);
             let m = &r.triage[0];
@@ -64,14 +69,14 @@ fn a_crash_of_the_culled_aabb_shape_is_triaged_and_its_controls_are_not() {
             );
         }
         // Without the entry it is a crash again.
-        let r = judged(&case, lost(), &Triage::default());
+        let r = judged(&rules, &case, lost(), &Triage::default());
         assert_eq!(r.outcome, Outcome::Crash, "{name}: {}", r.detail);
     }
     for name in [
         "device-lost-b-control-hit-region-set",
         "device-lost-g-one-triangle-cull-opaque",
     ] {
-        let r = judged(&device_lost_case(name), lost(), &triage);
+        let r = judged(&rules, &device_lost_case(name), lost(), &triage);
         assert_eq!(r.outcome, Outcome::Crash, "{name}: {}", r.detail);
         assert!(r.triage.is_empty(), "{name}: {:?}", r.triage);
     }
