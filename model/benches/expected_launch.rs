@@ -7,7 +7,9 @@
 //!
 //! `cargo bench -p rtconf-model --bench expected_launch` (`RTCONF_BENCH_PASSES` sets the passes,
 //! default 9; each rate is their
-//! median; `RTCONF_BENCH_ONLY=NAME` keeps the workloads whose name contains NAME).
+//! median; `RTCONF_BENCH_ONLY=NAME` keeps the workloads whose name contains NAME;
+//! `RTCONF_BENCH_EVICT=MB` writes MB megabytes between passes, untimed, so each pass starts on
+//! caches another program filled, as the oracle's passes do in `render_rays` after lavapipe's).
 
 use model::tracer::workload::{run, standard_workloads};
 use model::tracer::{PreparedScene, TracerConfig};
@@ -41,6 +43,17 @@ fn main() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(9);
     let only = std::env::var("RTCONF_BENCH_ONLY").unwrap_or_default();
+    let evict_mb: usize = std::env::var("RTCONF_BENCH_EVICT")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0);
+    let mut other = vec![0u8; evict_mb << 20];
+    let mut evict = |pass: usize| {
+        for (k, b) in other.iter_mut().enumerate().step_by(64) {
+            *b = (pass + k) as u8;
+        }
+        std::hint::black_box(&other);
+    };
     println!(
         "{:<24} {:>7} {:>7} {:>16} {:>14} {:>16} {:>8} {:>10} {:>10} {:>10}",
         "workload",
@@ -67,7 +80,8 @@ fn main() {
         let per_ray = |n: u64| n as f64 / warm.stats.rays.max(1) as f64;
         let mut launch = Vec::new();
         let mut cpu = Vec::new();
-        for _ in 0..passes {
+        for pass in 0..passes {
+            evict(pass);
             let (t, c) = (Instant::now(), cpu_seconds());
             let e = model::semantics::expected_launch(&body.world, &body.call);
             launch.push(ids / t.elapsed().as_secs_f64());
@@ -76,7 +90,8 @@ fn main() {
         }
         let prepared = PreparedScene::new(&w.scene).expect("defined workload");
         let mut tracer = Vec::new();
-        for _ in 0..passes {
+        for pass in 0..passes {
+            evict(pass);
             let t = Instant::now();
             let r = run(&prepared, &w.rays, &TracerConfig::default());
             tracer.push(w.rays.len() as f64 / t.elapsed().as_secs_f64());

@@ -15,7 +15,7 @@
 //! larger box, hence of the smaller, hence the f64 test's miss. An f32 entry `t` above a lower
 //! `tmax` is likewise an exact miss of the larger box at that `tmax`.
 
-use super::prepare::{f32_up, BoundBox, FarBox, Item, ItemBounds, PreparedScene, RayF64};
+use super::prepare::{f32_up, BoundBox, FarBox, Item, ItemFar, PreparedScene, RayF64};
 
 #[cfg(test)]
 mod lane_tests;
@@ -236,7 +236,7 @@ impl WideTree {
     /// Collapses a binary tree (node 0 the root, children at `first` and `first + 1`): a wide
     /// node's lanes are its binary node's grandchildren (a leaf child stands for itself), a binary
     /// leaf becomes a wide leaf whose lanes are its items.
-    pub(crate) fn new(binary: &[Node], items: &[ItemBounds], triangle: &[bool]) -> WideTree {
+    pub(crate) fn new(binary: &[Node], items: &[BoundBox], triangle: &[bool]) -> WideTree {
         let mut tree = WideTree::default();
         let Some(root) = binary.first() else {
             return tree;
@@ -266,7 +266,7 @@ impl WideTree {
     }
 
     /// Adds the wide node of binary node `n` (and everything below it); its index.
-    fn add(&mut self, binary: &[Node], n: usize, items: &[ItemBounds], triangle: &[bool]) -> u32 {
+    fn add(&mut self, binary: &[Node], n: usize, items: &[BoundBox], triangle: &[bool]) -> u32 {
         let node = binary[n];
         let at = self.nodes.len();
         let mut boxes = [EMPTY_BOX; 4];
@@ -290,7 +290,7 @@ impl WideTree {
             assert!(count <= 4, "a binary leaf holds at most four items");
             for l in 0..count {
                 let i = node.first as usize + l;
-                boxes[l] = items[i].outer;
+                boxes[l] = items[i];
                 child[l] = i as u32;
                 lane_triangles |= (triangle[i] as u8) << l;
             }
@@ -332,14 +332,10 @@ impl PreparedScene {
     #[inline]
     fn prefetch_item(&self, i: usize) {
         #[cfg(target_arch = "x86_64")]
-        if let Some(b) = self.item_bounds.get(i) {
+        if let Some(b) = self.item_far.get(i) {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            let p = b as *const ItemBounds as *const i8;
-            // SAFETY: a prefetch reads nothing; the addresses lie within the item's bounds.
-            unsafe {
-                _mm_prefetch(p, _MM_HINT_T0);
-                _mm_prefetch(p.add(std::mem::size_of::<ItemBounds>() - 1), _MM_HINT_T0);
-            }
+            // SAFETY: a prefetch reads nothing; the address is the item's one line.
+            unsafe { _mm_prefetch(b as *const ItemFar as *const i8, _MM_HINT_T0) };
         }
     }
 }

@@ -28,7 +28,6 @@ pub(super) fn outcomes_of_near(
     scratch: &mut Scratch,
     stats: &mut TracerStats,
 ) -> AllowedOutcomes {
-    let quick = config.walks_bvh();
     let Scratch {
         near,
         hits,
@@ -41,7 +40,7 @@ pub(super) fn outcomes_of_near(
         near.retain(|n| {
             scene.geometries[n.item.geometry as usize].kind != PrimitiveKind::Triangle
                 || n.kept_at == cut_at
-                || !far_item(scene, quick, n.index as usize, &cut_ray)
+                || !far_item(scene, n.index as usize, &cut_ray)
         });
     }
     // A deterministic order, independent of the BVH.

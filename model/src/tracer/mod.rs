@@ -55,8 +55,8 @@ pub struct TracerConfig {
 }
 
 impl TracerConfig {
-    /// Whether rays walk the BVH with its shortcuts (a segment that meets an item's inner box is
-    /// not far from it): the BVH and the far test both on. Brute force, the reference, goes without.
+    /// Whether rays walk the BVH (which skips a node only where every item below it is far): the
+    /// BVH and the far test both on. Brute force, the reference, goes without.
     pub fn walks_bvh(&self) -> bool {
         self.use_bvh && self.far_test
     }

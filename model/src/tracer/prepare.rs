@@ -58,7 +58,7 @@ pub(crate) struct FarBox {
     pub norm_t: f64,
     /// `1 / (1 − 2·rel)` rounded up (see `band::far_pad`); infinite where `rel ≥ 1/4`.
     pub inv_den: f64,
-    /// A pad at least [`FarBox::is_far`]'s for every ray: `pad_base + pad_slope·|o|` (the pad of
+    /// A pad at least [`ItemFar::is_far`]'s for every ray: `pad_base + pad_slope·|o|` (the pad of
     /// [`BoundBox::entry`]).
     pub pad_base: f64,
     pub pad_slope: f64,
@@ -76,7 +76,7 @@ impl FarBox {
     ) -> FarBox {
         let inv_den = far_pad_scale(rel);
         // The farthest point of the box from the world origin: |o − x| ≤ |o| + reach for every
-        // point x of it, so `m` of `is_far` is at most |o| + reach.
+        // point x of it, so `m` of `ItemFar::is_far` is at most |o| + reach.
         let reach = (0..3)
             .map(|k| {
                 let x = lo[k].abs().max(hi[k].abs());
@@ -114,41 +114,114 @@ impl FarBox {
             self.norm_t.max(o.norm_t),
         )
     }
+}
 
-    /// Whether the ray segment misses the padded box: then no conformant implementation can
+/// The constants of a far box's pad that the items of one instance band share (see
+/// [`ItemFar`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct FarConstants {
+    rel: f64,
+    inv_den: f64,
+    origin_coef: f64,
+    norm_t: f64,
+}
+
+impl FarConstants {
+    fn of(b: &FarBox) -> FarConstants {
+        FarConstants {
+            rel: b.rel,
+            inv_den: b.inv_den,
+            origin_coef: b.origin_coef,
+            norm_t: b.norm_t,
+        }
+    }
+
+    /// The bits the constants are shared by (identical bits, identical pads).
+    fn key(&self) -> [u64; 4] {
+        [self.rel, self.inv_den, self.origin_coef, self.norm_t].map(f64::to_bits)
+    }
+}
+
+/// What [`ItemFar::is_far`] reads of an item, in one cache line: its box and static pad, and the
+/// index of its other pad constants in [`PreparedScene::far_constants`] (a few per scene). The
+/// far test of an item the walk reaches touches this line alone.
+#[derive(Debug, Clone, Copy)]
+#[repr(C, align(64))]
+pub(crate) struct ItemFar {
+    lo: [f64; 3],
+    hi: [f64; 3],
+    static_pad: f64,
+    constants: u32,
+}
+
+const _: () = assert!(
+    std::mem::size_of::<ItemFar>() == 64,
+    "an item's far test reads one cache line"
+);
+
+impl ItemFar {
+    /// Whether the ray segment misses the item's padded far box: then no conformant implementation can
     /// report a hit on anything inside (see `band::far_pad`, whose pad this evaluates with the
     /// division by `1 − 2·rel` done as a multiplication by its reciprocal rounded up, and the slab
     /// divisions as multiplications by the ray's reciprocal directions: both within the f64 slack
     /// `far_pad` adds for the slab test). Monotone under box containment.
+    /// `constants` are the scene's shared pad constants.
     #[inline]
-    pub fn is_far(&self, ray: &RayF64) -> bool {
-        // A segment that meets the box itself meets it padded (the pad is never negative, and
-        // the rounded slab bounds are monotone in it): not far, without the pad.
-        if self.meets_unpadded(ray) {
-            return false;
-        }
-        let o = &ray.origin;
-        let axis = |k: usize| {
-            let x = (self.lo[k] - o[k]).abs().max((self.hi[k] - o[k]).abs());
-            x * x
-        };
-        let m = (axis(0) + axis(1) + axis(2)).sqrt();
-        let r_o = self.origin_coef * (ray.origin_norm + self.norm_t);
-        let pad = far_pad_scaled(self.static_pad, self.rel, self.inv_den, r_o, m);
-        if !pad.is_finite() {
-            return false;
-        }
-        !slab_meets(ray, self.lo.map(|v| v - pad), self.hi.map(|v| v + pad))
+    pub fn is_far(&self, ray: &RayF64, constants: &[FarConstants]) -> bool {
+        far_from(
+            ray,
+            &self.lo,
+            &self.hi,
+            self.static_pad,
+            &constants[self.constants as usize],
+        )
     }
 }
 
-impl FarBox {
-    /// Whether the ray segment meets the box without its pad (the slab test of `is_far` with a
-    /// zero pad).
-    #[inline]
-    fn meets_unpadded(&self, ray: &RayF64) -> bool {
-        slab_meets(ray, self.lo, self.hi)
+/// The far boxes in their one-line form, with the constants they share.
+pub(crate) fn compact_far_boxes(boxes: &[FarBox]) -> (Vec<ItemFar>, Vec<FarConstants>) {
+    let mut constants: Vec<FarConstants> = Vec::new();
+    let mut index: HashMap<[u64; 4], u32> = HashMap::new();
+    let items = boxes
+        .iter()
+        .map(|b| {
+            let c = FarConstants::of(b);
+            let k = *index.entry(c.key()).or_insert_with(|| {
+                constants.push(c);
+                constants.len() as u32 - 1
+            });
+            ItemFar {
+                lo: b.lo,
+                hi: b.hi,
+                static_pad: b.static_pad,
+                constants: k,
+            }
+        })
+        .collect();
+    (items, constants)
+}
+
+/// Whether the ray segment misses the box `[lo, hi]` grown by its pad for this ray (the test of
+/// [`ItemFar::is_far`]; the arguments are a [`FarBox`]'s fields).
+#[inline]
+fn far_from(ray: &RayF64, lo: &[f64; 3], hi: &[f64; 3], static_pad: f64, c: &FarConstants) -> bool {
+    // A segment that meets the box itself meets it padded (the pad is never negative, and
+    // the rounded slab bounds are monotone in it): not far, without the pad.
+    if slab_meets(ray, *lo, *hi) {
+        return false;
     }
+    let o = &ray.origin;
+    let axis = |k: usize| {
+        let x = (lo[k] - o[k]).abs().max((hi[k] - o[k]).abs());
+        x * x
+    };
+    let m = (axis(0) + axis(1) + axis(2)).sqrt();
+    let r_o = c.origin_coef * (ray.origin_norm + c.norm_t);
+    let pad = far_pad_scaled(static_pad, c.rel, c.inv_den, r_o, m);
+    if !pad.is_finite() {
+        return false;
+    }
+    !slab_meets(ray, lo.map(|v| v - pad), hi.map(|v| v + pad))
 }
 
 /// The slab test in f64: whether the ray's segment [tmin, tmax] meets the box [lo, hi] (an axis the
@@ -177,7 +250,7 @@ fn slab_meets(ray: &RayF64, lo: [f64; 3], hi: [f64; 3]) -> bool {
 
 /// The traversal's compact copy of a [`FarBox`]: its corners rounded outward to f32 and its pad
 /// bounded by `pad_base + pad_slope·|o|` (coefficients rounded up), so the box it tests contains
-/// the f64 one and its pad is at least [`FarBox::is_far`]'s. The slab test is evaluated in f64
+/// the f64 one and its pad is at least [`ItemFar::is_far`]'s. The slab test is evaluated in f64
 /// either way and its rounded bounds are monotone in the box and the pad, so a miss here is a miss
 /// there. A quarter of the bytes of the FarBox, and no square root.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -218,7 +291,7 @@ impl BoundBox {
     }
 
     /// The ray's entry t into the padded box over `[tmin, tmax]`, or None when it misses it
-    /// (then [`FarBox::is_far`] holds at the same `tmax`); an entry t above a lower `tmax` is a
+    /// (then [`ItemFar::is_far`] holds at the same `tmax`); an entry t above a lower `tmax` is a
     /// miss at that `tmax`.
     #[inline]
     #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
@@ -270,38 +343,6 @@ impl BoundBox {
         } else {
             Some(near)
         }
-    }
-}
-
-/// An item's [`BoundBox`] and its inner box: the f64 box rounded inward to f32 (empty where
-/// rounding leaves nothing), so a segment that meets it meets the f64 box, hence is not far.
-#[derive(Debug, Clone, Copy)]
-#[repr(C, align(64))]
-pub(crate) struct ItemBounds {
-    pub outer: BoundBox,
-    inner_lo: [f32; 3],
-    inner_hi: [f32; 3],
-}
-
-impl ItemBounds {
-    fn of(b: &FarBox) -> ItemBounds {
-        ItemBounds {
-            outer: BoundBox::of(b),
-            inner_lo: b.lo.map(f32_up),
-            inner_hi: b.hi.map(f32_down),
-        }
-    }
-
-    /// Whether the ray segment meets the inner box (then [`FarBox::is_far`] is false: the inner
-    /// box lies in the f64 box, and the slab test's rounded bounds are monotone in the box).
-    #[inline]
-    pub fn meets_inner(&self, ray: &RayF64) -> bool {
-        let (lo, hi) = (self.inner_lo.map(f64::from), self.inner_hi.map(f64::from));
-        // An empty (or NaN) inner box meets nothing.
-        if (0..3).any(|k| lo[k] > hi[k] || lo[k].is_nan() || hi[k].is_nan()) {
-            return false;
-        }
-        slab_meets(ray, lo, hi)
     }
 }
 
@@ -370,10 +411,10 @@ pub struct PreparedScene {
     pub(crate) instances: Vec<PreparedInstance>,
     pub(crate) geometries: Vec<WorldGeometry>,
     pub(crate) items: Vec<Item>,
-    /// The far box of each item, in `items` order.
-    pub(crate) item_boxes: Vec<FarBox>,
-    /// The compact bounds of each item's far box, in `items` order.
-    pub(crate) item_bounds: Vec<ItemBounds>,
+    /// The far test of each item, in `items` order.
+    pub(crate) item_far: Vec<ItemFar>,
+    /// The pad constants the items' far tests share.
+    pub(crate) far_constants: Vec<FarConstants>,
     /// The four-wide tree over `items` (see [`super::bvh`]).
     pub(crate) tree: WideTree,
     /// `(instance, geometry)` of every AABB geometry with an active box, in instance order.
@@ -581,7 +622,8 @@ impl PreparedScene {
             .map(|it: &Item| geometries[it.geometry as usize].kind == PrimitiveKind::Triangle)
             .collect();
         let (items, item_boxes, nodes) = build_bvh(items, boxes, &triangle);
-        let item_bounds: Vec<ItemBounds> = item_boxes.iter().map(ItemBounds::of).collect();
+        let item_bounds: Vec<BoundBox> = item_boxes.iter().map(BoundBox::of).collect();
+        let (item_far, far_constants) = compact_far_boxes(&item_boxes);
         let item_triangles: Vec<bool> = items
             .iter()
             .map(|it: &Item| geometries[it.geometry as usize].kind == PrimitiveKind::Triangle)
@@ -635,8 +677,8 @@ impl PreparedScene {
             instances,
             geometries,
             items,
-            item_boxes,
-            item_bounds,
+            item_far,
+            far_constants,
             tree,
             procedural,
             topology,

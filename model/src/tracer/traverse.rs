@@ -368,11 +368,10 @@ pub(super) struct MustRun {
     pub candidate: Option<usize>,
 }
 
-/// Whether item `i` is far from the ray (its far box's test; with the BVH's shortcut `quick`, a
-/// segment that meets its inner box first).
+/// Whether item `i` is far from the ray (its far box's test).
 #[inline(always)]
-pub(super) fn far_item(scene: &PreparedScene, quick: bool, i: usize, ray: &RayF64) -> bool {
-    !(quick && scene.item_bounds[i].meets_inner(ray)) && scene.item_boxes[i].is_far(ray)
+pub(super) fn far_item(scene: &PreparedScene, i: usize, ray: &RayF64) -> bool {
+    scene.item_far[i].is_far(ray, &scene.far_constants)
 }
 
 /// Every flag some exclusive pair of [`EXCLUSIVE_RAY_FLAGS`] names.
@@ -590,8 +589,7 @@ impl Kept {
         cut: &std::cell::Cell<f64>,
         i: usize,
     ) {
-        let quick = config.walks_bvh();
-        let far = |i: usize, ray: &RayF64| far_item(scene, quick, i, ray);
+        let far = |i: usize, ray: &RayF64| far_item(scene, i, ray);
         let Scratch { near, outcomes, .. } = &mut self.scratch;
         let item = scene.items[i];
         if config.far_test && far(i, rf) {
