@@ -114,19 +114,20 @@ pub fn write(dir: &Path, name: &str, body: &TraceBody, words: &[u32]) -> Vec<Pat
     out
 }
 
-/// The pictures of a case run as valid with records read back that failed (in `out/failures/`) or
-/// passed with warnings (in `out/warnings/`); any other case: none.
+/// The pictures of a case run as valid with records read back that failed or passed with warnings,
+/// beside its kept file (the folder its outcome and status keep it in: `failures/`, `warnings/`, or
+/// `unexpected-passes/` for a pass with warnings the baseline expected to fail); any other case: none.
 pub(crate) fn for_kept(
     out: &Path,
     case: &model::Case,
     obs: &harness::Observation,
     report: &crate::CaseReport,
+    status: crate::baseline::Status,
 ) -> Vec<PathBuf> {
-    let folder = if report.outcome == crate::Outcome::Fail {
-        "failures"
-    } else if crate::details::passed_with_warnings(report) {
-        crate::details::WARNINGS_FOLDER
-    } else {
+    if report.outcome != crate::Outcome::Fail && !crate::details::passed_with_warnings(report) {
+        return vec![];
+    }
+    let Some(folder) = crate::details::kept_folder(report, status) else {
         return vec![];
     };
     match (case.as_trace(), obs.words(), &report.rendered) {
@@ -134,5 +135,82 @@ pub(crate) fn for_kept(
             write(&out.join(folder), &case.name, t, words)
         }
         _ => vec![],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::baseline::Status;
+    use crate::compare::{CaseReport, Outcome};
+    use model::rendered::RenderedResult;
+
+    fn report(outcome: Outcome, warnings: u64) -> CaseReport {
+        CaseReport {
+            case: "c".into(),
+            command: model::CommandId::TraceRaysIndirect,
+            target: None,
+            outcome,
+            model: vec![],
+            layer: vec![],
+            layer_other: vec![],
+            output_matches: Some(true),
+            rendered: Some(RenderedResult {
+                rays: 1,
+                warnings,
+                ..Default::default()
+            }),
+            detail: String::new(),
+            triage: vec![],
+            millis: 1.0,
+            phases: Default::default(),
+            injection: None,
+        }
+    }
+
+    #[test]
+    fn pictures_go_beside_the_kept_case_file_in_the_folder_its_status_names() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../cases/rendered/lavapipe-hole-beside-fan-centre.yaml");
+        let case = model::Case::read(
+            &path.display().to_string(),
+            &std::fs::read_to_string(&path).unwrap(),
+        )
+        .unwrap();
+        let mut obs = harness::Observation::with_status(harness::Status::Ran);
+        // One launch ID; the records' content does not matter to where they go.
+        obs.output = Some(harness::Output::Words(vec![
+            0;
+            model::tracer::record::RayRecord::WORDS
+        ]));
+        let cases = [
+            (Outcome::Pass, 1, Status::Pass, Some("warnings")),
+            (
+                Outcome::Pass,
+                1,
+                Status::UnexpectedPass,
+                Some("unexpected-passes"),
+            ),
+            (Outcome::Fail, 0, Status::Fail, Some("failures")),
+            (Outcome::Pass, 0, Status::Pass, None),
+            (Outcome::Triaged, 0, Status::Triaged, None),
+        ];
+        for (outcome, warnings, status, folder) in cases {
+            let out = tempfile::tempdir().unwrap();
+            let r = report(outcome, warnings);
+            let written = for_kept(out.path(), &case, &obs, &r, status);
+            match folder {
+                Some(f) => {
+                    assert_eq!(written.len(), 3, "{outcome:?} {status:?}: {written:?}");
+                    let kept = crate::details::case_path(out.path(), &r, status).unwrap();
+                    for p in &written {
+                        assert_eq!(p.parent(), kept.parent(), "{outcome:?} {status:?}");
+                        assert!(p.parent().unwrap().ends_with(f), "{p:?}");
+                        assert!(p.exists(), "{p:?}");
+                    }
+                }
+                None => assert!(written.is_empty(), "{outcome:?} {status:?}: {written:?}"),
+            }
+        }
     }
 }

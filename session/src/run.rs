@@ -344,6 +344,7 @@ impl Sink<'_> {
         report: &CaseReport,
         details: &CaseDetails,
         attempts: Vec<Outcome>,
+        observation: Option<&harness::Observation>,
     ) {
         // After a failed write nothing more is written: a later line must not follow a torn one.
         if self.error.is_some() {
@@ -369,6 +370,9 @@ impl Sink<'_> {
             self.error.get_or_insert(e);
             self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
             return;
+        }
+        if let Some(obs) = observation {
+            crate::pictures::for_kept(&self.out, case, obs, report, status);
         }
         self.progress.status(status);
         let line = ResultLine {

@@ -53,6 +53,8 @@ struct Retried {
     report: CaseReport,
     details: CaseDetails,
     attempts: Vec<Outcome>,
+    /// What the first attempt observed (its pictures go beside the case's file).
+    observation: harness::Observation,
 }
 
 /// What the stream leaves for after it: cases to record again with validation stopping at the
@@ -142,7 +144,7 @@ impl Dispatch<'_> {
                         details,
                     },
                     _,
-                ) => self.write(sink, &case, &report, &details, vec![]),
+                ) => self.write(sink, &case, &report, &details, vec![], None),
                 (Drawn::Run(job), Some(resp)) => self.take(*job, &resp, sink, &mut later),
                 (Drawn::Run(job), None) => {
                     let lost = Response {
@@ -170,7 +172,7 @@ impl Dispatch<'_> {
                 case,
                 report,
                 details,
-            } => self.write(sink, &case, &report, &details, vec![]),
+            } => self.write(sink, &case, &report, &details, vec![], None),
             Drawn::Run(job) => {
                 let lost = Response {
                     index: job.request.index,
@@ -195,8 +197,9 @@ impl Dispatch<'_> {
         report: &CaseReport,
         details: &CaseDetails,
         attempts: Vec<Outcome>,
+        observation: Option<&harness::Observation>,
     ) {
-        sink.write(case, report, details, attempts);
+        sink.write(case, report, details, attempts, observation);
         self.progress.advance(1);
     }
 
@@ -212,17 +215,24 @@ impl Dispatch<'_> {
             return;
         }
         let (report, details) = self.judged(&job.case, &job.note, resp);
-        crate::pictures::for_kept(&sink.out, &job.case, &resp.observation, &report);
         if self.retries > 0 && report.outcome.is_unexpected() {
             later.held.push(Retried {
                 job,
                 attempts: vec![report.outcome],
                 report,
                 details,
+                observation: resp.observation.clone(),
             });
             return;
         }
-        self.write(sink, &job.case, &report, &details, vec![]);
+        self.write(
+            sink,
+            &job.case,
+            &report,
+            &details,
+            vec![],
+            Some(&resp.observation),
+        );
     }
 
     /// The cases to record again (validation stopping at the first unavoidable VUID; the report says
@@ -260,7 +270,14 @@ impl Dispatch<'_> {
                 } else {
                     format!("{note}; {}", report.detail)
                 };
-                self.write(sink, &job.case, &report, &details, vec![]);
+                self.write(
+                    sink,
+                    &job.case,
+                    &report,
+                    &details,
+                    vec![],
+                    Some(&resp.observation),
+                );
             });
         }
         for _ in 0..self.retries {
@@ -286,7 +303,14 @@ impl Dispatch<'_> {
             });
         }
         for h in held {
-            self.write(sink, &h.job.case, &h.report, &h.details, h.attempts);
+            self.write(
+                sink,
+                &h.job.case,
+                &h.report,
+                &h.details,
+                h.attempts,
+                Some(&h.observation),
+            );
         }
     }
 
