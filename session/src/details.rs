@@ -139,33 +139,36 @@ pub fn read_details(out: &Path) -> std::collections::HashMap<String, CaseDetails
         .collect()
 }
 
+/// A report of case `c` with `outcome`, and rendered records of four rays with `warnings` where
+/// given (for tests of where cases and their pictures are kept).
+#[cfg(test)]
+pub(crate) fn test_report(outcome: Outcome, warnings: Option<u64>) -> CaseReport {
+    CaseReport {
+        case: "c".into(),
+        command: model::CommandId::TraceRays,
+        target: None,
+        outcome,
+        model: vec![],
+        layer: vec![],
+        layer_other: vec![],
+        output_matches: Some(true),
+        rendered: warnings.map(|warnings| model::rendered::RenderedResult {
+            rays: 4,
+            warnings,
+            ..Default::default()
+        }),
+        detail: String::new(),
+        triage: vec![],
+        millis: 1.0,
+        phases: Default::default(),
+        injection: None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
+    use super::test_report as report;
     use super::*;
-    use model::rendered::RenderedResult;
-
-    fn report(outcome: Outcome, warnings: Option<u64>) -> CaseReport {
-        CaseReport {
-            case: "c".into(),
-            command: model::CommandId::TraceRays,
-            target: None,
-            outcome,
-            model: vec![],
-            layer: vec![],
-            layer_other: vec![],
-            output_matches: Some(true),
-            rendered: warnings.map(|warnings| RenderedResult {
-                rays: 4,
-                warnings,
-                ..Default::default()
-            }),
-            detail: String::new(),
-            triage: vec![],
-            millis: 1.0,
-            phases: Default::default(),
-            injection: None,
-        }
-    }
 
     #[test]
     fn a_case_that_passed_with_warnings_is_kept_in_warnings() {

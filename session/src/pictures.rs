@@ -142,31 +142,8 @@ pub(crate) fn for_kept(
 mod tests {
     use super::*;
     use crate::baseline::Status;
-    use crate::compare::{CaseReport, Outcome};
-    use model::rendered::RenderedResult;
-
-    fn report(outcome: Outcome, warnings: u64) -> CaseReport {
-        CaseReport {
-            case: "c".into(),
-            command: model::CommandId::TraceRaysIndirect,
-            target: None,
-            outcome,
-            model: vec![],
-            layer: vec![],
-            layer_other: vec![],
-            output_matches: Some(true),
-            rendered: Some(RenderedResult {
-                rays: 1,
-                warnings,
-                ..Default::default()
-            }),
-            detail: String::new(),
-            triage: vec![],
-            millis: 1.0,
-            phases: Default::default(),
-            injection: None,
-        }
-    }
+    use crate::compare::Outcome;
+    use crate::details::test_report;
 
     #[test]
     fn pictures_go_beside_the_kept_case_file_in_the_folder_its_status_names() {
@@ -197,7 +174,7 @@ mod tests {
         ];
         for (outcome, warnings, status, folder) in cases {
             let out = tempfile::tempdir().unwrap();
-            let r = report(outcome, warnings);
+            let r = test_report(outcome, Some(warnings));
             let written = for_kept(out.path(), &case, &obs, &r, status);
             match folder {
                 Some(f) => {
