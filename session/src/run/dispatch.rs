@@ -225,14 +225,8 @@ impl Dispatch<'_> {
             });
             return;
         }
-        self.write(
-            sink,
-            &job.case,
-            &report,
-            &details,
-            vec![],
-            Some(&resp.observation),
-        );
+        let seen = Some(&resp.observation);
+        self.write(sink, &job.case, &report, &details, vec![], seen);
     }
 
     /// The cases to record again (validation stopping at the first unavoidable VUID; the report says
@@ -270,14 +264,8 @@ impl Dispatch<'_> {
                 } else {
                     format!("{note}; {}", report.detail)
                 };
-                self.write(
-                    sink,
-                    &job.case,
-                    &report,
-                    &details,
-                    vec![],
-                    Some(&resp.observation),
-                );
+                let seen = Some(&resp.observation);
+                self.write(sink, &job.case, &report, &details, vec![], seen);
             });
         }
         for _ in 0..self.retries {
