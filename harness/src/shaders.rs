@@ -12,7 +12,8 @@ use std::sync::Mutex;
 
 include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
 
-/// Shader kinds: one SPIR-V module each per API, specialised per group by constant 0 (the group index).
+/// Shader kinds: one SPIR-V module each per API, made per group by constant 0 (the group index), written
+/// into the module ([`with_spec_values`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
 pub enum ShaderKind {
     /// Raygen that traces into the scene at binding 0.
@@ -525,6 +526,48 @@ pub(crate) fn without_traces(words: &[u32]) -> Vec<u32> {
     out
 }
 
+/// The module with the default value of each 32-bit specialisation constant whose SpecId is `i`
+/// replaced by `values[i]`: the module as specialised with those values, with nothing left for
+/// specialisation to do. Constants with other IDs, and words that are no such constant, are kept.
+pub(crate) fn with_spec_values(words: &[u32], values: &[u32]) -> Vec<u32> {
+    const OP_SPEC_CONSTANT: u32 = 50;
+    const OP_DECORATE: u32 = 71;
+    const SPEC_ID: u32 = 1;
+    let instructions = || {
+        let mut i = 5;
+        std::iter::from_fn(move || {
+            let count = (*words.get(i)? >> 16) as usize;
+            if count == 0 || i + count > words.len() {
+                return None;
+            }
+            let at = i;
+            i += count;
+            Some((at, count))
+        })
+    };
+    // Result id → SpecId, for the IDs `values` names.
+    let mut spec_of: BTreeMap<u32, u32> = BTreeMap::new();
+    for (at, count) in instructions() {
+        let inst = &words[at..at + count];
+        if inst[0] & 0xFFFF == OP_DECORATE && count == 4 && inst[2] == SPEC_ID {
+            if (inst[3] as usize) < values.len() {
+                spec_of.insert(inst[1], inst[3]);
+            }
+        }
+    }
+    let mut out = words.to_vec();
+    for (at, count) in instructions() {
+        let inst = &words[at..at + count];
+        // OpSpecConstant %type %id value: one word for a 32-bit constant.
+        if inst[0] & 0xFFFF == OP_SPEC_CONSTANT && count == 4 {
+            if let Some(&id) = spec_of.get(&inst[2]) {
+                out[at + 3] = values[id as usize];
+            }
+        }
+    }
+    out
+}
+
 /// A shader module of SPIR-V words on a device; the caller destroys it.
 pub(crate) fn module(dev: &VkDevice, code: &[u32]) -> Result<vk::ShaderModule, HarnessError> {
     // SAFETY: `code` is SPIR-V from glslang (checked for a module's size).
@@ -899,6 +942,70 @@ mod tests {
                     "{k:?} {api:?} {body:?} declares capability {want}: {caps:?}"
                 );
             }
+        }
+    }
+
+    /// The default value of each 32-bit specialisation constant of a module, by SpecId (read
+    /// independently of `with_spec_values`: decorations first, then the constants).
+    fn spec_defaults(words: &[u32]) -> BTreeMap<u32, u32> {
+        let mut ids = BTreeMap::new();
+        let mut values = BTreeMap::new();
+        let mut i = 5;
+        while i < words.len() {
+            let n = (words[i] >> 16) as usize;
+            let inst = &words[i..i + n];
+            match inst[0] & 0xFFFF {
+                71 if n == 4 && inst[2] == 1 => {
+                    ids.insert(inst[1], inst[3]);
+                }
+                50 if n == 4 => {
+                    values.insert(inst[2], inst[3]);
+                }
+                _ => {}
+            }
+            i += n;
+        }
+        ids.into_iter()
+            .filter_map(|(id, spec)| values.get(&id).map(|&v| (spec, v)))
+            .collect()
+    }
+
+    #[test]
+    fn written_constants_change_only_the_default_values_they_name() {
+        for (k, api, body) in every_variant() {
+            let words = spirv(k, api, body).unwrap();
+            let before = spec_defaults(&words);
+            // Every stage but the raygen declares the group index; the any-hit shader also its rule.
+            let raygen = matches!(k, ShaderKind::RaygenTrace | ShaderKind::RaygenPlain);
+            assert_eq!(
+                before.contains_key(&0),
+                !raygen,
+                "{k:?} {api:?} {body:?}: {before:?}"
+            );
+            assert_eq!(before.contains_key(&1), k == ShaderKind::AnyHit, "{k:?}");
+            let out = with_spec_values(&words, &[7, 3]);
+            assert_eq!(out.len(), words.len());
+            let after = spec_defaults(&out);
+            assert_eq!(
+                after.get(&0),
+                (!raygen).then_some(&7),
+                "{k:?} {api:?} {body:?}"
+            );
+            if k == ShaderKind::AnyHit {
+                assert_eq!(after[&1], 3);
+            }
+            // Only the value words differ; their number is that of the constants written.
+            let changed = words.iter().zip(&out).filter(|(a, b)| a != b).count();
+            let written = before
+                .iter()
+                .filter(|(&s, &v)| v != [7, 3][s as usize])
+                .count();
+            assert_eq!(changed, written, "{k:?} {api:?} {body:?}");
+            // A SpecId the list does not name keeps its value.
+            assert_eq!(
+                spec_defaults(&with_spec_values(&words, &[9])).get(&1),
+                before.get(&1)
+            );
         }
     }
 

@@ -1,6 +1,6 @@
 //! Realises a trace case's world on a device: buffers placed at 4096-aligned addresses with their
-//! contents (shader group handles, indirect commands), the ray tracing pipeline with one specialised
-//! stage per group, the scene (one BLAS per bottom level, a TLAS; KHR or NV structures), the case's resource
+//! contents (shader group handles, indirect commands), the ray tracing pipeline with one stage per
+//! group (its constants written into the module, or specialised), the scene (one BLAS per bottom level, a TLAS; KHR or NV structures), the case's resource
 //! state, and a build case's buffers and structures ([`accel`]). Pipelines and scenes are cached per
 //! device across cases ([`DeviceCache`]).
 
@@ -23,7 +23,8 @@ use std::collections::HashMap;
 
 /// Per-device objects the harness reuses across cases.
 pub(crate) struct DeviceCache {
-    modules: HashMap<(ShaderKind, bool, ShaderBody), vk::ShaderModule>,
+    /// By kind, NV or not, body and the two constants written into the module.
+    modules: HashMap<(ShaderKind, bool, ShaderBody, [u32; 2]), vk::ShaderModule>,
     layouts: HashMap<(bool, bool), Layouts>,
     pipelines: HashMap<String, Result<RealPipeline, HarnessError>>,
     scenes: HashMap<String, Result<Scene, HarnessError>>,

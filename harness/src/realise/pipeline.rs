@@ -1,6 +1,7 @@
-//! Ray tracing pipelines of a world's description: the harness's descriptor layouts, one specialised
-//! stage per group (or a case's templated module of that kind), KHR or NV, cached per device, with the
-//! spec's default stack size.
+//! Ray tracing pipelines of a world's description: the harness's descriptor layouts, one stage per
+//! group — the kind's module with the group's constants written into it, or a case's templated module
+//! of that kind specialised with them —, KHR or NV, cached per device, with the spec's default stack
+//! size.
 
 use super::DeviceCache;
 
@@ -89,17 +90,22 @@ fn default_stack_size(
 }
 
 impl DeviceCache {
+    /// The module of a stage with its two constants (group index, any-hit rule) written into
+    /// its SPIR-V as their values ([`shaders::with_spec_values`]): a stage made of it needs no
+    /// specialisation, which a validation layer would otherwise apply to the module anew for every
+    /// stage of every pipeline.
     fn module(
         &mut self,
         kind: ShaderKind,
         api: PipelineApi,
         body: ShaderBody,
+        values: [u32; 2],
     ) -> Result<vk::ShaderModule, HarnessError> {
-        let key = (kind, api == PipelineApi::Nv, body);
+        let key = (kind, api == PipelineApi::Nv, body, values);
         if let Some(m) = self.modules.get(&key) {
             return Ok(*m);
         }
-        let code = shaders::spirv(kind, api, body)?;
+        let code = shaders::with_spec_values(&shaders::spirv(kind, api, body)?, &values);
         let m = shaders::module(&self.dev, &code)?;
         self.modules.insert(key, m);
         Ok(m)
@@ -208,20 +214,23 @@ impl DeviceCache {
             _ => {}
         }
         // The plan's stages (each a module of its kind, a templated one where `modules` has it) and
-        // groups: ([group index, any-hit rule], stage flag, module) per stage, and per group (type,
+        // groups: ([group index, any-hit rule], stage flag, module, whether the constants are
+        // given by specialisation: a templated module's are) per stage, and per group (type,
         // [general, closest, any, intersection]).
         let plan = crate::plan::PipelinePlan::of(p, trace, body)?;
-        let mut stage_list: Vec<([u32; 2], vk::ShaderStageFlags, vk::ShaderModule)> =
+        let mut stage_list: Vec<([u32; 2], vk::ShaderStageFlags, vk::ShaderModule, bool)> =
             Vec::with_capacity(plan.stages.len());
         for st in &plan.stages {
-            let m = match modules.iter().find(|(k, _)| *k == st.shader) {
-                Some(&(_, m)) => m,
-                None => self.module(st.shader, api, body)?,
+            let values = [st.group, st.any_hit_rule];
+            let (m, specialised) = match modules.iter().find(|(k, _)| *k == st.shader) {
+                Some(&(_, m)) => (m, true),
+                None => (self.module(st.shader, api, body, values)?, false),
             };
             stage_list.push((
-                [st.group, st.any_hit_rule],
+                values,
                 vk::ShaderStageFlags::from_raw(st.stage),
                 m,
+                specialised,
             ));
         }
         let groups: Vec<(vk::RayTracingShaderGroupTypeKHR, [u32; 4])> = plan
@@ -234,7 +243,7 @@ impl DeviceCache {
                 )
             })
             .collect();
-        let group_values: Vec<[u32; 2]> = stage_list.iter().map(|(g, _, _)| *g).collect();
+        let group_values: Vec<[u32; 2]> = stage_list.iter().map(|(g, ..)| *g).collect();
         // Constant 0: the group index; 1: the any-hit rule (only the any-hit shader declares it).
         let entry = [
             vk::SpecializationMapEntry {
@@ -261,12 +270,16 @@ impl DeviceCache {
         let stages: Vec<vk::PipelineShaderStageCreateInfo> = stage_list
             .iter()
             .zip(&specs)
-            .map(|((_, flag, m), spec)| {
-                vk::PipelineShaderStageCreateInfo::default()
+            .map(|((_, flag, m, specialised), spec)| {
+                let stage = vk::PipelineShaderStageCreateInfo::default()
                     .stage(*flag)
                     .module(*m)
-                    .name(main)
-                    .specialization_info(spec)
+                    .name(main);
+                if *specialised {
+                    stage.specialization_info(spec)
+                } else {
+                    stage
+                }
             })
             .collect();
         let flags = vk::PipelineCreateFlags::from_raw(p.flags.0 as u32);
