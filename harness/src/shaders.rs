@@ -549,10 +549,12 @@ pub(crate) fn with_spec_values(words: &[u32], values: &[u32]) -> Vec<u32> {
     let mut spec_of: BTreeMap<u32, u32> = BTreeMap::new();
     for (at, count) in instructions() {
         let inst = &words[at..at + count];
-        if inst[0] & 0xFFFF == OP_DECORATE && count == 4 && inst[2] == SPEC_ID {
-            if (inst[3] as usize) < values.len() {
-                spec_of.insert(inst[1], inst[3]);
-            }
+        if inst[0] & 0xFFFF == OP_DECORATE
+            && count == 4
+            && inst[2] == SPEC_ID
+            && (inst[3] as usize) < values.len()
+        {
+            spec_of.insert(inst[1], inst[3]);
         }
     }
     let mut out = words.to_vec();
