@@ -332,10 +332,14 @@ impl PreparedScene {
     #[inline]
     fn prefetch_item(&self, i: usize) {
         #[cfg(target_arch = "x86_64")]
-        if let Some(b) = self.item_far.get(i) {
+        if let (Some(b), Some(item)) = (self.item_far.get(i), self.items.get(i)) {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            // SAFETY: a prefetch reads nothing; the address is the item's one line.
-            unsafe { _mm_prefetch(b as *const ItemFar as *const i8, _MM_HINT_T0) };
+            // SAFETY: a prefetch reads nothing; the addresses are the item's far line and its
+            // entry in `items`, which the visit reads first.
+            unsafe {
+                _mm_prefetch(b as *const ItemFar as *const i8, _MM_HINT_T0);
+                _mm_prefetch(item as *const Item as *const i8, _MM_HINT_T0);
+            }
         }
     }
 }
