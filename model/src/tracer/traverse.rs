@@ -416,8 +416,11 @@ pub fn trace_ray(
     answer.expect("an answer for the ray")
 }
 
-/// Rays whose walks through the BVH [`trace_rays`] takes in turn.
-const INTERLEAVED: usize = 4;
+/// Rays whose walks through the BVH [`trace_rays`] takes in turn. Eight rather than four: with the
+/// caches another program filled (`RTCONF_BENCH_EVICT=64 cargo bench -p rtconf-model --bench
+/// expected_launch`, twelve alternations twice) the four triangle workloads traced 2–6 % more rays per
+/// second, each ray's next node having longer to arrive; sixteen gained nothing more.
+const INTERLEAVED: usize = 8;
 
 /// [`trace_ray`] of each ray with its shader table, the answers handed to `answer` with the ray's
 /// index, in order. Up to [`INTERLEAVED`] rays walk the BVH together, one node of each in turn:
