@@ -527,8 +527,8 @@ pub(crate) fn without_traces(words: &[u32]) -> Vec<u32> {
 }
 
 /// The module with the default value of each 32-bit specialisation constant whose SpecId is `i`
-/// replaced by `values[i]`: the module as specialised with those values, with nothing left for
-/// specialisation to do. Constants with other IDs, and words that are no such constant, are kept.
+/// replaced by `values[i]`: used without specialisation info, it computes what the original module
+/// specialised with those values computes. Constants with other IDs, and every other word, are kept.
 pub(crate) fn with_spec_values(words: &[u32], values: &[u32]) -> Vec<u32> {
     const OP_SPEC_CONSTANT: u32 = 50;
     const OP_DECORATE: u32 = 71;
@@ -954,7 +954,10 @@ mod tests {
         let mut values = BTreeMap::new();
         let mut i = 5;
         while i < words.len() {
-            let n = (words[i] >> 16) as usize;
+            let n = ((words[i] >> 16) as usize).max(1);
+            if i + n > words.len() {
+                break;
+            }
             let inst = &words[i..i + n];
             match inst[0] & 0xFFFF {
                 71 if n == 4 && inst[2] == 1 => {
