@@ -344,6 +344,39 @@ impl PreparedScene {
     }
 }
 
+impl PreparedScene {
+    /// Asks the cache for the world vertices and static radii of triangle item `i` (a hint: no
+    /// effect on any result; it reads the item and its index buffer, which the walk asked for
+    /// earlier).
+    #[inline]
+    fn prefetch_vertices(&self, i: usize) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            let item = self.items[i];
+            let w = &self.geometries[item.geometry as usize];
+            let crate::scene::GeometryData::Triangles(t) =
+                &self.scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize]
+                    .data
+            else {
+                return;
+            };
+            for v in t.vertex_indices(item.primitive as usize) {
+                if let (Some(p), Some(r)) = (w.vertices.get(v), w.static_radius.get(v)) {
+                    let p = p as *const _ as *const i8;
+                    // SAFETY: a prefetch reads nothing; the addresses lie within the vertex's
+                    // record (its first and last byte) and its radius.
+                    unsafe {
+                        _mm_prefetch(p, _MM_HINT_T0);
+                        _mm_prefetch(p.add(47), _MM_HINT_T0);
+                        _mm_prefetch(r as *const f64 as *const i8, _MM_HINT_T0);
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// Items of a leaf, or children of a node, a ray may meet: at most four.
 type Lanes = [(f64, u32, bool); 4];
 
@@ -466,9 +499,11 @@ impl PreparedScene {
         true
     }
 
-    /// One node of the walk: a leaf's items visited, or an interior node's children met by the ray
-    /// pushed (and asked of the cache); false when no node is left. Several rays' walks stepped in
-    /// turn each find their next node fetched while the others' were tested.
+    /// One step of the walk: a leaf's pending triangles' vertices asked of the cache, its items
+    /// visited, or the next node's lanes tested (a leaf's items met by the ray made pending, an
+    /// interior node's children pushed; each asked of the cache); false when nothing is left.
+    /// Several rays' walks stepped in turn each find what they asked for fetched while the others'
+    /// were tested.
     #[inline(always)]
     pub(crate) fn walk_step(
         &self,
@@ -479,6 +514,17 @@ impl PreparedScene {
         cut: &std::cell::Cell<f64>,
         visit: &mut impl FnMut(usize),
     ) -> bool {
+        if walk.pending_len > 0 && !walk.pending_fetched {
+            // The leaf's items arrived: ask the cache for what their classification reads first,
+            // and visit them at the next step.
+            for &(_, i, triangle) in &walk.pending[..walk.pending_len as usize] {
+                if triangle {
+                    self.prefetch_vertices(i as usize);
+                }
+            }
+            walk.pending_fetched = true;
+            return true;
+        }
         if walk.pending_len > 0 {
             let len = walk.pending_len as usize;
             walk.pending_len = 0;
@@ -509,14 +555,16 @@ impl PreparedScene {
         let mut lanes: Lanes = [(0.0, 0, false); 4];
         if node.leaf {
             // The leaf's items by entry t, nearer first (a nearer required hit may cut the
-            // others before they are classified), visited at the walk's next step: their bounds
-            // are asked of the cache now, and arrive while other rays' walks step.
+            // others before they are classified), visited two steps on: their bounds are asked
+            // of the cache now, their vertices at the next step, each arriving while other rays'
+            // walks step.
             let len = self.lane_entries(n as usize, ray, &walk.lane_ray, None, &mut walk.pending);
             *far_rejections += node.count as u64 - len as u64;
             for &(_, i, _) in &walk.pending[..len] {
                 self.prefetch_item(i as usize);
             }
             walk.pending_len = len as u8;
+            walk.pending_fetched = false;
             return true;
         }
         *nodes_visited += node.count as u64;
@@ -550,9 +598,11 @@ pub(crate) struct Walk {
     stack: [(u32, f64); 64],
     depth: usize,
     spill: Vec<(u32, f64)>,
-    /// The items of the last leaf reached, nearer first, to visit at the next step.
+    /// The items of the last leaf reached, nearer first, to visit two steps on.
     pending: Lanes,
     pending_len: u8,
+    /// The pending items' vertices were asked of the cache.
+    pending_fetched: bool,
 }
 
 impl Default for Walk {
@@ -564,6 +614,7 @@ impl Default for Walk {
             spill: Vec::new(),
             pending: [(0.0, 0, false); 4],
             pending_len: 0,
+            pending_fetched: false,
         }
     }
 }
