@@ -526,6 +526,20 @@ pub(crate) fn without_traces(words: &[u32]) -> Vec<u32> {
     out
 }
 
+/// The instructions of a SPIR-V module after its five-word header, each with the position of its first
+/// word: an instruction whose word count reads 0 is taken as one word, and a truncated one ends the
+/// module.
+pub(crate) fn instructions(words: &[u32]) -> impl Iterator<Item = (usize, &[u32])> + '_ {
+    let mut i = 5;
+    std::iter::from_fn(move || {
+        let count = ((*words.get(i)? >> 16) as usize).max(1);
+        let inst = words.get(i..i + count)?;
+        let at = i;
+        i += count;
+        Some((at, inst))
+    })
+}
+
 /// The module with the default value of each 32-bit specialisation constant whose SpecId is `i`
 /// replaced by `values[i]`: used without specialisation info, it computes what the original module
 /// specialised with those values computes. Constants with other IDs, and every other word, are kept.
@@ -533,24 +547,11 @@ pub(crate) fn with_spec_values(words: &[u32], values: &[u32]) -> Vec<u32> {
     const OP_SPEC_CONSTANT: u32 = 50;
     const OP_DECORATE: u32 = 71;
     const SPEC_ID: u32 = 1;
-    let instructions = || {
-        let mut i = 5;
-        std::iter::from_fn(move || {
-            let count = (*words.get(i)? >> 16) as usize;
-            if count == 0 || i + count > words.len() {
-                return None;
-            }
-            let at = i;
-            i += count;
-            Some((at, count))
-        })
-    };
     // Result id → SpecId, for the IDs `values` names.
     let mut spec_of: BTreeMap<u32, u32> = BTreeMap::new();
-    for (at, count) in instructions() {
-        let inst = &words[at..at + count];
+    for (_, inst) in instructions(words) {
         if inst[0] & 0xFFFF == OP_DECORATE
-            && count == 4
+            && inst.len() == 4
             && inst[2] == SPEC_ID
             && (inst[3] as usize) < values.len()
         {
@@ -558,10 +559,9 @@ pub(crate) fn with_spec_values(words: &[u32], values: &[u32]) -> Vec<u32> {
         }
     }
     let mut out = words.to_vec();
-    for (at, count) in instructions() {
-        let inst = &words[at..at + count];
+    for (at, inst) in instructions(words) {
         // OpSpecConstant %type %id value: one word for a 32-bit constant.
-        if inst[0] & 0xFFFF == OP_SPEC_CONSTANT && count == 4 {
+        if inst[0] & 0xFFFF == OP_SPEC_CONSTANT && inst.len() == 4 {
             if let Some(&id) = spec_of.get(&inst[2]) {
                 out[at + 3] = values[id as usize];
             }
@@ -634,13 +634,8 @@ pub fn module_interface(words: &[u32]) -> ModuleInterface {
     type Uses = (BTreeSet<u32>, BTreeSet<(u32, u32)>);
     let mut functions: BTreeMap<u32, Uses> = BTreeMap::new();
     let mut current: Option<u32> = None;
-    let mut i = 5;
-    while i < words.len() {
-        let count = ((words[i] >> 16) as usize).max(1);
-        if i + count > words.len() {
-            break;
-        }
-        let inst = &words[i..i + count];
+    for (_, inst) in instructions(words) {
+        let count = inst.len();
         let op = inst[0] & 0xFFFF;
         let operand = |k: usize| inst.get(k).copied();
         match op {
@@ -711,7 +706,6 @@ pub fn module_interface(words: &[u32]) -> ModuleInterface {
                 }
             }
         }
-        i += count;
     }
     // The functions the entry point reaches, and what they name.
     let mut reached: BTreeSet<u32> = BTreeSet::new();
@@ -947,28 +941,21 @@ mod tests {
         }
     }
 
-    /// The default value of each 32-bit specialisation constant of a module, by SpecId (read
-    /// independently of `with_spec_values`: decorations first, then the constants).
+    /// The default value of each 32-bit specialisation constant of a module, by SpecId (read apart
+    /// from `with_spec_values`: every decoration, then the constants they name).
     fn spec_defaults(words: &[u32]) -> BTreeMap<u32, u32> {
         let mut ids = BTreeMap::new();
         let mut values = BTreeMap::new();
-        let mut i = 5;
-        while i < words.len() {
-            let n = ((words[i] >> 16) as usize).max(1);
-            if i + n > words.len() {
-                break;
-            }
-            let inst = &words[i..i + n];
+        for (_, inst) in instructions(words) {
             match inst[0] & 0xFFFF {
-                71 if n == 4 && inst[2] == 1 => {
+                71 if inst.len() == 4 && inst[2] == 1 => {
                     ids.insert(inst[1], inst[3]);
                 }
-                50 if n == 4 => {
+                50 if inst.len() == 4 => {
                     values.insert(inst[2], inst[3]);
                 }
                 _ => {}
             }
-            i += n;
         }
         ids.into_iter()
             .filter_map(|(id, spec)| values.get(&id).map(|&v| (spec, v)))
