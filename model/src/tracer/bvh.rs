@@ -363,12 +363,13 @@ impl PreparedScene {
             };
             for v in t.vertex_indices(item.primitive as usize) {
                 if let (Some(p), Some(r)) = (w.vertices.get(v), w.static_radius.get(v)) {
+                    let last = std::mem::size_of_val(p) - 1;
                     let p = p as *const _ as *const i8;
                     // SAFETY: a prefetch reads nothing; the addresses lie within the vertex's
                     // record (its first and last byte) and its radius.
                     unsafe {
                         _mm_prefetch(p, _MM_HINT_T0);
-                        _mm_prefetch(p.add(47), _MM_HINT_T0);
+                        _mm_prefetch(p.add(last), _MM_HINT_T0);
                         _mm_prefetch(r as *const f64 as *const i8, _MM_HINT_T0);
                     }
                 }

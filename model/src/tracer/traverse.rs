@@ -418,8 +418,9 @@ pub fn trace_ray(
 
 /// Rays whose walks through the BVH [`trace_rays`] takes in turn. Eight rather than four: with the
 /// caches another program filled (`RTCONF_BENCH_EVICT=64 cargo bench -p rtconf-model --bench
-/// expected_launch`, twelve alternations twice) the four triangle workloads traced 2–6 % more rays per
-/// second, each ray's next node having longer to arrive; sixteen gained nothing more.
+/// expected_launch`, two A/Bs of twelve alternations) the grid, instanced and soup workloads traced
+/// 1.7–6.5 % more rays per second in both, each ray's next node having longer to arrive (icosphere:
+/// +4 % in one, −5.6 % in the other); sixteen gained nothing more.
 const INTERLEAVED: usize = 8;
 
 /// [`trace_ray`] of each ray with its shader table, the answers handed to `answer` with the ray's
