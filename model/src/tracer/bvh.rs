@@ -516,15 +516,19 @@ impl PreparedScene {
         visit: &mut impl FnMut(usize),
     ) -> bool {
         if walk.pending_len > 0 && !walk.pending_fetched {
-            // The leaf's items arrived: ask the cache for what their classification reads first,
-            // and visit them at the next step.
+            // The leaf's items arrived: ask the cache for what their triangles' classification
+            // reads first, and visit them at the next step (at once where none is a triangle).
+            walk.pending_fetched = true;
+            let mut asked = false;
             for &(_, i, triangle) in &walk.pending[..walk.pending_len as usize] {
                 if triangle {
                     self.prefetch_vertices(i as usize);
+                    asked = true;
                 }
             }
-            walk.pending_fetched = true;
-            return true;
+            if asked {
+                return true;
+            }
         }
         if walk.pending_len > 0 {
             let len = walk.pending_len as usize;
