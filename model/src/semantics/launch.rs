@@ -39,7 +39,7 @@ pub(super) fn allowed_for_ray_memo(
 }
 
 /// [`allowed_for_ray_memo`] of each ray, traced together ([`crate::tracer::trace_rays`]): `answer`
-/// gets each ray's index and outcomes (None: undefined), in order.
+/// gets each ray's index and outcomes (None: undefined), as each ray finishes.
 #[allow(clippy::too_many_arguments)] // the one-ray form's arguments, and where the answers go
 pub(super) fn allowed_for_rays_memo(
     world: &World,
@@ -379,19 +379,24 @@ fn trace_distinct(
         allowed_for_rays_memo(world, call, prepared, &traced, &config, stats, memo, answer);
     };
     if workers == 1 {
-        // Pushed into a Vec of the final size (a collect through Option would grow it by copies).
-        let mut all = Vec::with_capacity(distinct.len());
+        // Answers come as rays finish, each to its place.
+        let mut all: Vec<Option<AllowedOutcomes>> = Vec::new();
+        all.resize_with(distinct.len(), || None);
         let mut defined = true;
         trace_ids(
             distinct,
             stats,
             &HitRecordMemo::default(),
-            &mut |_, a| match a {
-                Some(a) if defined => all.push(a),
+            &mut |k, a| match a {
+                Some(a) if defined => all[k] = Some(a),
                 _ => defined = false,
             },
         );
-        return defined.then_some(all);
+        return defined.then(|| {
+            all.into_iter()
+                .map(|a| a.expect("every ray answered"))
+                .collect()
+        });
     }
     // The distinct rays in chunks, the chunks in one contiguous segment per worker: a worker traces
     // its own segment from the front (neighbouring rays meet the same nodes and items, in its own

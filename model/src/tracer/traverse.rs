@@ -424,10 +424,12 @@ pub fn trace_ray(
 const INTERLEAVED: usize = 8;
 
 /// [`trace_ray`] of each ray with its shader table, the answers handed to `answer` with the ray's
-/// index, in order. Up to [`INTERLEAVED`] rays walk the BVH together, one node of each in turn:
-/// while one ray's nodes and items are tested, the next node of each other ray, asked of the cache
-/// when it was pushed, arrives from memory (one walk alone waits for each of its nodes). Each ray's
-/// walk and answer are its own, as if traced alone.
+/// index as each ray finishes (not in order). Up to [`INTERLEAVED`] rays walk the BVH together, one
+/// node of each in turn: while one ray's nodes and items are tested, the next node of each other ray,
+/// asked of the cache when it was pushed, arrives from memory (one walk alone waits for each of its
+/// nodes). A slot whose ray finishes takes the next ray at once, so as many walks stay under way until
+/// the rays run out (a group of rays started together would leave slots idle while its longest walk
+/// ends). Each ray's walk and answer are its own, as if traced alone.
 pub fn trace_rays(
     scene: &PreparedScene,
     rays: &[(&Ray, &ShaderTable<'_>)],
@@ -435,66 +437,79 @@ pub fn trace_rays(
     stats: &mut TracerStats,
     mut answer: impl FnMut(usize, Result<AllowedOutcomes, Vec<Problem>>),
 ) {
-    let quick = config.walks_bvh();
     // The thread's slots, kept between calls: a ray's trace starts in place, on the buffers and
     // stack the slot's last ray left.
     let mut slots = SLOTS.with(|s| std::mem::take(&mut *s.borrow_mut()));
-    if slots.len() < INTERLEAVED.min(rays.len()) {
-        slots.resize_with(INTERLEAVED.min(rays.len()), Default::default);
+    let width = INTERLEAVED.min(rays.len());
+    if slots.len() < width {
+        slots.resize_with(width, Default::default);
     }
-    for (g, group) in rays.chunks(INTERLEAVED).enumerate() {
-        let mut undefined: [Option<Vec<Problem>>; INTERLEAVED] = std::array::from_fn(|_| None);
-        let mut walking = false;
-        for (k, (slot, &(ray, _))) in slots.iter_mut().zip(group).enumerate() {
-            match slot.start(scene, ray, stats) {
-                Ok(()) => {
-                    slot.walking = quick
-                        && scene.walk_start(&mut slot.walk, &slot.rf, &mut slot.nodes, &slot.cut);
-                    walking |= slot.walking;
-                }
-                Err(problems) => undefined[k] = Some(problems),
+    // The ray each slot walks (None: the rays ran out), and the next ray to start.
+    let mut held: [Option<usize>; INTERLEAVED] = [None; INTERLEAVED];
+    let mut next = 0;
+    for (k, slot) in slots[..width].iter_mut().enumerate() {
+        held[k] = fill(scene, rays, config, slot, &mut next, stats, &mut answer);
+    }
+    let mut walking = held.iter().filter(|h| h.is_some()).count();
+    while walking > 0 {
+        for (k, slot) in slots[..width].iter_mut().enumerate() {
+            let Some(i) = held[k] else { continue };
+            let (ray, shaders) = rays[i];
+            let Slot {
+                rf,
+                cut,
+                kept,
+                nodes,
+                far,
+                walk,
+                ..
+            } = slot;
+            let mut visit = |item: usize| kept.visit(scene, ray, shaders, rf, config, cut, item);
+            if scene.walk_step(walk, rf, nodes, far, cut, &mut visit) {
+                continue;
             }
-        }
-        while walking {
-            walking = false;
-            for (slot, &(ray, shaders)) in slots.iter_mut().zip(group) {
-                let Slot {
-                    rf,
-                    cut,
-                    kept,
-                    nodes,
-                    far,
-                    walk,
-                    walking: this,
-                    ..
-                } = slot;
-                if !*this {
-                    continue;
-                }
-                let mut visit = |i: usize| kept.visit(scene, ray, shaders, rf, config, cut, i);
-                *this = scene.walk_step(walk, rf, nodes, far, cut, &mut visit);
-                walking |= *this;
+            answer(i, Ok(slot.finish(scene, ray, shaders, config, stats)));
+            held[k] = fill(scene, rays, config, slot, &mut next, stats, &mut answer);
+            if held[k].is_none() {
+                walking -= 1;
             }
-        }
-        if !quick {
-            for (k, (slot, &(ray, shaders))) in slots.iter_mut().zip(group).enumerate() {
-                if undefined[k].is_none() {
-                    for i in 0..scene.items.len() {
-                        slot.kept
-                            .visit(scene, ray, shaders, &slot.rf, config, &slot.cut, i);
-                    }
-                }
-            }
-        }
-        for (k, (slot, &(ray, shaders))) in slots.iter_mut().zip(group).enumerate() {
-            let a = match undefined[k].take() {
-                None => Ok(slot.finish(scene, ray, shaders, config, stats)),
-                Some(problems) => Err(problems),
-            };
-            answer(g * INTERLEAVED + k, a);
         }
     }
     SLOTS.with(|s| *s.borrow_mut() = slots);
+}
+
+/// Starts the next rays of `rays` in `slot` until one has a walk to take, and returns its index;
+/// the others (undefined, missing the root's bound, or traced without the BVH) are answered at once.
+/// None when the rays ran out.
+fn fill(
+    scene: &PreparedScene,
+    rays: &[(&Ray, &ShaderTable<'_>)],
+    config: &TracerConfig,
+    slot: &mut Slot,
+    next: &mut usize,
+    stats: &mut TracerStats,
+    answer: &mut impl FnMut(usize, Result<AllowedOutcomes, Vec<Problem>>),
+) -> Option<usize> {
+    let quick = config.walks_bvh();
+    while let Some(&(ray, shaders)) = rays.get(*next) {
+        let i = *next;
+        *next += 1;
+        if let Err(problems) = slot.start(scene, ray, stats) {
+            answer(i, Err(problems));
+            continue;
+        }
+        if quick && scene.walk_start(&mut slot.walk, &slot.rf, &mut slot.nodes, &slot.cut) {
+            return Some(i);
+        }
+        if !quick {
+            for item in 0..scene.items.len() {
+                slot.kept
+                    .visit(scene, ray, shaders, &slot.rf, config, &slot.cut, item);
+            }
+        }
+        answer(i, Ok(slot.finish(scene, ray, shaders, config, stats)));
+    }
+    None
 }
 
 /// One ray's trace under way, in a slot the thread keeps for the next ray: the ray in f64, its cut,
@@ -514,8 +529,6 @@ struct Slot {
     nodes: u64,
     far: u64,
     walk: super::bvh::Walk,
-    /// The walk has nodes or items left.
-    walking: bool,
 }
 
 /// What a ray's visits keep: the near items, whether a cut is allowed (asked once), the count of
@@ -535,7 +548,6 @@ impl Slot {
         ray: &Ray,
         stats: &mut TracerStats,
     ) -> Result<(), Vec<Problem>> {
-        self.walking = false;
         if !plainly_defined(ray) {
             let problems = ray_problems(ray, "ray");
             if !problems.is_empty() {
@@ -670,18 +682,24 @@ pub fn trace_launch(
     stats: &mut TracerStats,
 ) -> Result<Vec<AllowedOutcomes>, Vec<Problem>> {
     let pairs: Vec<(&Ray, &ShaderTable)> = rays.iter().map(|r| (r, shaders)).collect();
-    let mut all = Vec::with_capacity(rays.len());
-    let mut undefined = None;
-    trace_rays(scene, &pairs, config, stats, |_, a| match a {
-        Ok(a) if undefined.is_none() => all.push(a),
-        Ok(_) => {}
+    let mut all: Vec<Option<AllowedOutcomes>> = Vec::new();
+    all.resize_with(rays.len(), || None);
+    // The problems of the first undefined ray (answers come as rays finish, not in order).
+    let mut undefined: Option<(usize, Vec<Problem>)> = None;
+    trace_rays(scene, &pairs, config, stats, |i, a| match a {
+        Ok(a) => all[i] = Some(a),
         Err(problems) => {
-            undefined.get_or_insert(problems);
+            if undefined.as_ref().is_none_or(|(first, _)| i < *first) {
+                undefined = Some((i, problems));
+            }
         }
     });
     match undefined {
-        Some(problems) => Err(problems),
-        None => Ok(all),
+        Some((_, problems)) => Err(problems),
+        None => Ok(all
+            .into_iter()
+            .map(|a| a.expect("every ray answered"))
+            .collect()),
     }
 }
 
