@@ -445,16 +445,20 @@ pub fn trace_rays(
         slots.resize_with(width, Default::default);
     }
     // The ray each slot walks (None: the rays ran out), and the next ray to start.
-    let mut held: [Option<usize>; INTERLEAVED] = [None; INTERLEAVED];
+    let mut held: [Option<(usize, &Ray, &ShaderTable)>; INTERLEAVED] = [None; INTERLEAVED];
     let mut next = 0;
-    for (k, slot) in slots[..width].iter_mut().enumerate() {
-        held[k] = fill(scene, rays, config, slot, &mut next, stats, &mut answer);
+    let mut walking = 0;
+    for (slot, held) in slots[..width].iter_mut().zip(&mut held) {
+        *held = fill(scene, rays, config, slot, &mut next, stats, &mut answer).map(|i| {
+            walking += 1;
+            (i, rays[i].0, rays[i].1)
+        });
     }
-    let mut walking = held.iter().filter(|h| h.is_some()).count();
     while walking > 0 {
-        for (k, slot) in slots[..width].iter_mut().enumerate() {
-            let Some(i) = held[k] else { continue };
-            let (ray, shaders) = rays[i];
+        for (slot, held) in slots[..width].iter_mut().zip(&mut held) {
+            let Some((i, ray, shaders)) = *held else {
+                continue;
+            };
             let Slot {
                 rf,
                 cut,
@@ -469,8 +473,9 @@ pub fn trace_rays(
                 continue;
             }
             answer(i, Ok(slot.finish(scene, ray, shaders, config, stats)));
-            held[k] = fill(scene, rays, config, slot, &mut next, stats, &mut answer);
-            if held[k].is_none() {
+            *held = fill(scene, rays, config, slot, &mut next, stats, &mut answer)
+                .map(|i| (i, rays[i].0, rays[i].1));
+            if held.is_none() {
                 walking -= 1;
             }
         }
