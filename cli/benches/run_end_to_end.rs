@@ -8,8 +8,10 @@
 //!
 //! Lines printed (all measured in this one run):
 //! - `run invalid cases/s`, `run valid cases/s`, `run rendered cases/s`: cases over the run's wall
-//!   time (`summary.json`), the last for the 64x64 rendered cases;
-//! - `in-process … cases/s`: the ceiling, the same cases executed (not judged) in this process;
+//!   time (`summary.json`), the last for the 64x64 rendered cases; of each selection the median of
+//!   three runs by that rate (its phases are the ones printed);
+//! - `in-process … cases/s`: the ceiling, the same cases executed (not judged) in this process, the
+//!   median of three timed passes;
 //! - `run share of ceiling`: the invalid selection's end-to-end rate over its in-process rate;
 //! - `run overhead`: on the 64x64 rendered cases, the harness's own time against the driver's
 //!   trace time: the worker's phases that are the harness's (`harness::timing`: resources, shaders,
@@ -35,6 +37,10 @@ use std::process::Command;
 use std::time::Instant;
 
 const JOBS: usize = 2;
+
+/// Runs of each selection end to end, and timed passes of its in-process ceiling: each figure is the
+/// median (the machine's load drifts between runs of a second or two).
+const REPEATS: usize = 3;
 
 /// The launch side of the rendered selection.
 const SIDE: u32 = 64;
@@ -159,8 +165,8 @@ fn config(s: &Selection, out: &Path) -> session::RunConfig {
     }
 }
 
-/// The run's cases executed back to back on one warm executor in this process: cases per second
-/// (the first pass warms devices and pipelines and is not timed).
+/// The run's cases executed back to back on one warm executor in this process: cases per second,
+/// the median of [`REPEATS`] timed passes (a first pass warms devices and pipelines and is not timed).
 fn in_process_rate(s: &Selection, out: &Path) -> f64 {
     let cases = match &s.folder {
         Some(cases) => cases.clone(),
@@ -175,11 +181,27 @@ fn in_process_rate(s: &Selection, out: &Path) -> f64 {
     for (c, e) in cases.iter().zip(&execs) {
         executor.execute(c, e);
     }
-    let started = Instant::now();
-    for (c, e) in cases.iter().zip(&execs) {
-        executor.execute(c, e);
-    }
-    cases.len() as f64 / started.elapsed().as_secs_f64()
+    let mut rates: Vec<f64> = (0..REPEATS)
+        .map(|_| {
+            let started = Instant::now();
+            for (c, e) in cases.iter().zip(&execs) {
+                executor.execute(c, e);
+            }
+            cases.len() as f64 / started.elapsed().as_secs_f64()
+        })
+        .collect();
+    rates.sort_by(f64::total_cmp);
+    rates[REPEATS / 2]
+}
+
+/// The median of [`REPEATS`] runs of the selection by rate (cases over seconds), each in its own
+/// folder under `out`: its wall seconds, cases and phases (see [`end_to_end`]).
+fn median_run(s: &Selection, out: &Path) -> (f64, usize, BTreeMap<String, f64>) {
+    let mut runs: Vec<(f64, usize, BTreeMap<String, f64>)> = (0..REPEATS)
+        .map(|k| end_to_end(s, &out.join(k.to_string())))
+        .collect();
+    runs.sort_by(|a, b| (a.1 as f64 / a.0).total_cmp(&(b.1 as f64 / b.0)));
+    runs.swap_remove(REPEATS / 2)
 }
 
 /// One `rtconf run` of the selection: its wall seconds, cases and where the case time went
@@ -257,7 +279,7 @@ fn main() {
     let mut judge_over_gpu = f64::NAN;
     for s in selections(tmp) {
         let out = tmp.join(s.name);
-        let (seconds, cases, time) = end_to_end(&s, &out);
+        let (seconds, cases, time) = median_run(&s, &out);
         let run_rate = cases as f64 / seconds;
         let ceiling = in_process_rate(&s, &tmp.join(format!("{}-list", s.name)));
         lines.push(format!("run {} cases/s: {run_rate:.0}", s.name));
