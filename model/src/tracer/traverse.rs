@@ -422,8 +422,8 @@ pub fn trace_ray(
 /// 1.7–6.5 % more rays per second in both, each ray's next node having longer to arrive (icosphere:
 /// +4 % in one, −5.6 % in the other); sixteen gained nothing more. (Measured when a group of rays
 /// started together and ended together; slots are refilled as rays finish since, which with the ray
-/// held in its slot took 1.5–5 %
-/// fewer instructions per workload under callgrind, `model/benches/launch_instructions.rs`.)
+/// held in its slot took 1.5–5 % fewer instructions per workload under callgrind,
+/// `model/benches/launch_instructions.rs`.)
 const INTERLEAVED: usize = 8;
 
 /// [`trace_ray`] of each ray with its shader table, the answers handed to `answer` with the ray's
