@@ -342,9 +342,7 @@ impl PreparedScene {
             }
         }
     }
-}
 
-impl PreparedScene {
     /// Asks the cache for the world vertices and static radii of triangle item `i` (a hint: no
     /// effect on any result; it reads the item and its index buffer, which the walk asked for
     /// earlier).
