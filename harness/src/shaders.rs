@@ -540,10 +540,18 @@ pub(crate) fn instructions(words: &[u32]) -> impl Iterator<Item = (usize, &[u32]
     })
 }
 
-/// The module with the default value of each 32-bit specialisation constant whose SpecId is `i`
-/// replaced by `values[i]`: used without specialisation info, it computes what the original module
-/// specialised with those values computes. Constants with other IDs, and every other word, are kept.
+/// The module with each 32-bit specialisation constant whose SpecId is `i < values.len()` made an
+/// ordinary constant of value `values[i]` (its OpSpecConstant an OpConstant of the same words, its
+/// SpecId decoration removed): used without specialisation info, it computes what the original module
+/// specialised with those values computes. Constants with other IDs, and every other instruction, are
+/// kept.
+///
+/// Why ordinary constants and not new default values: a validation layer that finds specialisation
+/// constants in a module specialises and validates the module again (spirv-opt, then spirv-val) for
+/// every pipeline stage made of it, specialisation info or not; a module without them is validated
+/// once, when it is made (1.3.239: two thirds of a pipeline's creation under the layer went there).
 pub(crate) fn with_spec_values(words: &[u32], values: &[u32]) -> Vec<u32> {
+    const OP_CONSTANT: u32 = 43;
     const OP_SPEC_CONSTANT: u32 = 50;
     const OP_DECORATE: u32 = 71;
     const SPEC_ID: u32 = 1;
@@ -558,15 +566,34 @@ pub(crate) fn with_spec_values(words: &[u32], values: &[u32]) -> Vec<u32> {
             spec_of.insert(inst[1], inst[3]);
         }
     }
-    let mut out = words.to_vec();
+    let mut out = Vec::with_capacity(words.len());
+    out.extend_from_slice(&words[..words.len().min(5)]);
+    // Words after the last whole instruction (a truncated one) are kept as they are.
+    let mut end = out.len();
     for (at, inst) in instructions(words) {
-        // OpSpecConstant %type %id value: one word for a 32-bit constant.
-        if inst[0] & 0xFFFF == OP_SPEC_CONSTANT && inst.len() == 4 {
-            if let Some(&id) = spec_of.get(&inst[2]) {
-                out[at + 3] = values[id as usize];
+        end = at + inst.len();
+        let op = inst[0] & 0xFFFF;
+        if op == OP_DECORATE
+            && inst.len() == 4
+            && inst[2] == SPEC_ID
+            && spec_of.contains_key(&inst[1])
+        {
+            continue;
+        }
+        // OpSpecConstant %type %id value: one word for a 32-bit constant, laid out as OpConstant.
+        match spec_of.get(&inst.get(2).copied().unwrap_or(0)) {
+            Some(&id) if op == OP_SPEC_CONSTANT && inst.len() == 4 => {
+                out.extend_from_slice(&[
+                    (inst[0] & !0xFFFF) | OP_CONSTANT,
+                    inst[1],
+                    inst[2],
+                    values[id as usize],
+                ]);
             }
+            _ => out.extend_from_slice(inst),
         }
     }
+    out.extend_from_slice(&words[end..]);
     out
 }
 
@@ -962,11 +989,28 @@ mod tests {
             .collect()
     }
 
+    /// Each OpConstant of a module: its result id and value word.
+    fn constants(words: &[u32]) -> BTreeMap<u32, u32> {
+        instructions(words)
+            .filter(|(_, inst)| inst[0] & 0xFFFF == 43 && inst.len() == 4)
+            .map(|(_, inst)| (inst[2], inst[3]))
+            .collect()
+    }
+
+    /// The result id of each specialisation constant by SpecId.
+    fn spec_ids(words: &[u32]) -> BTreeMap<u32, u32> {
+        instructions(words)
+            .filter(|(_, inst)| inst[0] & 0xFFFF == 71 && inst.len() == 4 && inst[2] == 1)
+            .map(|(_, inst)| (inst[3], inst[1]))
+            .collect()
+    }
+
     #[test]
-    fn written_constants_change_only_the_default_values_they_name() {
+    fn written_constants_become_ordinary_constants_of_their_values() {
         for (k, api, body) in every_variant() {
             let words = spirv(k, api, body).unwrap();
             let before = spec_defaults(&words);
+            let ids = spec_ids(&words);
             // Every stage but the raygen declares the group index; the any-hit shader also its rule.
             let raygen = matches!(k, ShaderKind::RaygenTrace | ShaderKind::RaygenPlain);
             assert_eq!(
@@ -976,28 +1020,51 @@ mod tests {
             );
             assert_eq!(before.contains_key(&1), k == ShaderKind::AnyHit, "{k:?}");
             let out = with_spec_values(&words, &[7, 3]);
-            assert_eq!(out.len(), words.len());
-            let after = spec_defaults(&out);
+            // No specialisation constant is left: each named one is an OpConstant of its value, and
+            // its SpecId decoration (four words) is gone.
+            assert!(spec_defaults(&out).is_empty(), "{k:?} {api:?} {body:?}");
+            assert!(spec_ids(&out).is_empty(), "{k:?} {api:?} {body:?}");
+            let frozen = constants(&out);
+            for (spec, id) in &ids {
+                assert_eq!(
+                    frozen.get(id),
+                    Some(&[7, 3][*spec as usize]),
+                    "{k:?} {spec}"
+                );
+            }
             assert_eq!(
-                after.get(&0),
-                (!raygen).then_some(&7),
+                out.len(),
+                words.len() - 4 * ids.len(),
                 "{k:?} {api:?} {body:?}"
             );
-            if k == ShaderKind::AnyHit {
-                assert_eq!(after[&1], 3);
-            }
-            // Only the value words differ; their number is that of the constants written.
-            let changed = words.iter().zip(&out).filter(|(a, b)| a != b).count();
-            let written = before
-                .iter()
-                .filter(|(&s, &v)| v != [7, 3][s as usize])
-                .count();
-            assert_eq!(changed, written, "{k:?} {api:?} {body:?}");
-            // A SpecId the list does not name keeps its value.
+            // Everything else is kept, in order: the module's interface but its spec IDs, and every
+            // instruction that is not one of the rewritten ones.
+            let (a, b) = (module_interface(&words), module_interface(&out));
             assert_eq!(
-                spec_defaults(&with_spec_values(&words, &[9])).get(&1),
-                before.get(&1)
+                (a.model, &a.capabilities, &a.extensions, &a.variables),
+                (b.model, &b.capabilities, &b.extensions, &b.variables),
+                "{k:?} {api:?} {body:?}"
             );
+            let rewritten = |inst: &[u32]| {
+                let op = inst[0] & 0xFFFF;
+                (op == 71 && inst.len() == 4 && inst[2] == 1)
+                    || (matches!(op, 43 | 50) && ids.values().any(|id| inst.get(2) == Some(id)))
+            };
+            let kept = |w: &[u32]| -> Vec<Vec<u32>> {
+                instructions(w)
+                    .filter(|(_, inst)| !rewritten(inst))
+                    .map(|(_, inst)| inst.to_vec())
+                    .collect()
+            };
+            assert_eq!(kept(&words), kept(&out), "{k:?} {api:?} {body:?}");
+            assert_eq!(words[..5], out[..5]);
+            // A SpecId the list does not name stays a specialisation constant with its value.
+            let partly = with_spec_values(&words, &[9]);
+            assert_eq!(spec_defaults(&partly).get(&1), before.get(&1), "{k:?}");
+            assert_eq!(spec_defaults(&partly).get(&0), None, "{k:?}");
+            if let Some(id) = ids.get(&0) {
+                assert_eq!(constants(&partly).get(id), Some(&9), "{k:?}");
+            }
         }
     }
 

@@ -1,6 +1,6 @@
 //! Realises a trace case's world on a device: buffers placed at 4096-aligned addresses with their
 //! contents (shader group handles, indirect commands), the ray tracing pipeline with one stage per
-//! group (its constants written into the module, or specialised), the scene (one BLAS per bottom
+//! group (its constants written into the module), the scene (one BLAS per bottom
 //! level, a TLAS; KHR or NV structures), the case's resource state, and a build case's buffers and
 //! structures ([`accel`]). Pipelines and scenes are cached per
 //! device across cases ([`DeviceCache`]).

@@ -1,7 +1,6 @@
 //! Ray tracing pipelines of a world's description: the harness's descriptor layouts, one stage per
-//! group — the kind's module with the group's constants written into it, or a case's templated module
-//! of that kind specialised with them —, KHR or NV, cached per device, with the spec's default stack
-//! size.
+//! group — a module of the kind's code, or of a case's templated code of that kind, with the group's
+//! constants written into it —, KHR or NV, cached per device, with the spec's default stack size.
 
 use super::DeviceCache;
 
@@ -91,9 +90,9 @@ fn default_stack_size(
 
 impl DeviceCache {
     /// The module of a stage with its two constants (group index, any-hit rule) written into
-    /// its SPIR-V as their values ([`shaders::with_spec_values`]): a stage made of it needs no
-    /// specialisation, which a validation layer would otherwise apply to the module anew for every
-    /// stage of every pipeline.
+    /// its SPIR-V as ordinary constants ([`shaders::with_spec_values`]): a module without
+    /// specialisation constants, which a validation layer validates once, when it is made, instead
+    /// of specialising and validating it anew for every stage of every pipeline.
     fn module(
         &mut self,
         kind: ShaderKind,
@@ -183,20 +182,22 @@ impl DeviceCache {
         body: ShaderBody,
     ) -> Result<RealPipeline, HarnessError> {
         let layout = self.layouts(trace, p.api)?.pipeline;
-        self.create_pipeline_with(p, trace, body, layout, &[])
+        self.create_pipeline_with(p, trace, body, layout, &[], &mut Vec::new())
     }
 
-    /// The pipeline for a description with `layout` and, for each shader kind `modules`
-    /// names, that module in every stage of that kind (used by `crate::realise::resources` for cases with a
-    /// resource state: its templated raygen, closest-hit, miss, ... modules). Not cached here
-    /// (`crate::realise::resources::Shared` keeps them by content).
+    /// The pipeline for a description with `layout` and, for each shader kind `templated` names,
+    /// that SPIR-V in every stage of that kind with the stage's constants written into it (used by
+    /// `crate::realise::resources` for cases with a resource state: its templated raygen,
+    /// closest-hit, miss, ... code). The modules made of it go into `made`, the caller's to destroy
+    /// with its case. Not cached here (`crate::realise::resources::Shared` keeps them by content).
     pub(crate) fn create_pipeline_with(
         &mut self,
         p: &Pipeline,
         trace: bool,
         body: ShaderBody,
         layout: vk::PipelineLayout,
-        modules: &[(ShaderKind, vk::ShaderModule)],
+        templated: &[(ShaderKind, Vec<u32>)],
+        made: &mut Vec<(ShaderKind, vk::ShaderModule)>,
     ) -> Result<RealPipeline, HarnessError> {
         let _phase = crate::timing::span(crate::timing::Phase::Pipeline);
         let api = p.api;
@@ -213,25 +214,31 @@ impl DeviceCache {
             }
             _ => {}
         }
-        // The plan's stages (each a module of its kind, a templated one where `modules` has it) and
-        // groups: ([group index, any-hit rule], stage flag, module, whether the constants are
-        // given by specialisation: a templated module's are) per stage, and per group (type,
-        // [general, closest, any, intersection]).
+        // The plan's stages, each a module with its two constants (group index, any-hit rule)
+        // written in: of its kind's harness code (kept per device), or of the templated code where
+        // `templated` has its kind (made once per kind and constants here); and per group (type,
+        // [general, closest, any, intersection]). No stage is given specialisation info (see
+        // [`shaders::with_spec_values`]).
         let plan = crate::plan::PipelinePlan::of(p, trace, body)?;
-        let mut stage_list: Vec<([u32; 2], vk::ShaderStageFlags, vk::ShaderModule, bool)> =
+        let mut own: Vec<((ShaderKind, [u32; 2]), vk::ShaderModule)> = Vec::new();
+        let mut stage_list: Vec<(vk::ShaderStageFlags, vk::ShaderModule)> =
             Vec::with_capacity(plan.stages.len());
         for st in &plan.stages {
             let values = [st.group, st.any_hit_rule];
-            let (m, specialised) = match modules.iter().find(|(k, _)| *k == st.shader) {
-                Some(&(_, m)) => (m, true),
-                None => (self.module(st.shader, api, body, values)?, false),
+            let m = match templated.iter().find(|(k, _)| *k == st.shader) {
+                Some((kind, code)) => match own.iter().find(|(key, _)| *key == (*kind, values)) {
+                    Some(&(_, m)) => m,
+                    None => {
+                        let m =
+                            shaders::module(&self.dev, &shaders::with_spec_values(code, &values))?;
+                        made.push((*kind, m));
+                        own.push(((*kind, values), m));
+                        m
+                    }
+                },
+                None => self.module(st.shader, api, body, values)?,
             };
-            stage_list.push((
-                values,
-                vk::ShaderStageFlags::from_raw(st.stage),
-                m,
-                specialised,
-            ));
+            stage_list.push((vk::ShaderStageFlags::from_raw(st.stage), m));
         }
         let groups: Vec<(vk::RayTracingShaderGroupTypeKHR, [u32; 4])> = plan
             .groups
@@ -243,43 +250,14 @@ impl DeviceCache {
                 )
             })
             .collect();
-        let group_values: Vec<[u32; 2]> = stage_list.iter().map(|(g, ..)| *g).collect();
-        // Constant 0: the group index; 1: the any-hit rule (only the any-hit shader declares it).
-        let entry = [
-            vk::SpecializationMapEntry {
-                constant_id: 0,
-                offset: 0,
-                size: 4,
-            },
-            vk::SpecializationMapEntry {
-                constant_id: 1,
-                offset: 4,
-                size: 4,
-            },
-        ];
-        let specs: Vec<vk::SpecializationInfo> = group_values
-            .iter()
-            .map(|v| {
-                let bytes: &[u8] = crate::vk::structs::as_bytes(v);
-                vk::SpecializationInfo::default()
-                    .map_entries(&entry)
-                    .data(bytes)
-            })
-            .collect();
         let main = c"main";
         let stages: Vec<vk::PipelineShaderStageCreateInfo> = stage_list
             .iter()
-            .zip(&specs)
-            .map(|((_, flag, m, specialised), spec)| {
-                let stage = vk::PipelineShaderStageCreateInfo::default()
+            .map(|(flag, m)| {
+                vk::PipelineShaderStageCreateInfo::default()
                     .stage(*flag)
                     .module(*m)
-                    .name(main);
-                if *specialised {
-                    stage.specialization_info(spec)
-                } else {
-                    stage
-                }
+                    .name(main)
             })
             .collect();
         let flags = vk::PipelineCreateFlags::from_raw(p.flags.0 as u32);

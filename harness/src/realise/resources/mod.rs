@@ -352,8 +352,8 @@ pub(crate) struct Realised {
     views: HashMap<String, vk::ImageView>,
     buffers: HashMap<String, Allocation>,
     buffer_views: HashMap<String, vk::BufferView>,
-    /// The templated module of each stage kind the pipeline gets (the raygen always; other stages when
-    /// the state declares accesses or push constant reads in them).
+    /// The modules of the pipeline's templated stages (the raygen always; other stages when the
+    /// state declares accesses or push constant reads in them), one per stage kind and constants.
     modules: Vec<(ShaderKind, vk::ShaderModule)>,
     binds: Vec<(vk::PipelineLayout, u32, vk::DescriptorSet)>,
     pushes: Vec<(vk::PipelineLayout, u32, u32)>,

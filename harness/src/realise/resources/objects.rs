@@ -676,11 +676,14 @@ impl Realised {
             self.shared_pipeline = true;
             return Ok(());
         }
-        for (kind, code) in &codes {
-            let m = crate::shaders::module(&cache.dev, code)?;
-            self.modules.push((*kind, m));
-        }
-        let rp = cache.create_pipeline_with(&p, trace, body, self.harness_layout, &self.modules)?;
+        let rp = cache.create_pipeline_with(
+            &p,
+            trace,
+            body,
+            self.harness_layout,
+            &codes,
+            &mut self.modules,
+        )?;
         if let Some(k) = key {
             cache.shared_resources.pipelines.insert(k, rp.clone());
             self.shared_pipeline = true;
