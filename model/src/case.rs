@@ -397,11 +397,10 @@ impl Case {
     }
 
     /// The case's YAML, its sequences of numbers and names on one line each and a ray or a box as one
-    /// flow mapping ([`crate::compact`]).
+    /// flow mapping ([`crate::compact`]); written by [`crate::case_yaml`], which falls back to
+    /// serde_yaml and `compact` for what it does not know.
     pub fn to_yaml(&self) -> String {
-        crate::compact::compact_yaml(
-            &serde_yaml::to_string(self).expect("a case always serialises"),
-        )
+        crate::case_yaml::write(self)
     }
 
     pub fn command(&self) -> CommandId {

@@ -6,7 +6,7 @@
 //! YAML scanner's work. The value read back is the same; only the layout differs.
 
 /// Whether `s` is a plain scalar serde_yaml writes for a number (decimal, exponent, `.inf`, `.nan`).
-fn is_number(s: &str) -> bool {
+pub(crate) fn is_number(s: &str) -> bool {
     matches!(s, ".inf" | "-.inf" | ".nan" | ".NaN" | ".Inf" | "-.Inf")
         || (!s.is_empty()
             && s.trim_start_matches('-')
@@ -17,7 +17,7 @@ fn is_number(s: &str) -> bool {
 
 /// Whether `s` is a plain scalar that reads the same inside a flow collection: a number, or a name
 /// of letters, digits and `_ . + -` that starts with a letter, digit or `_`.
-fn is_word(s: &str) -> bool {
+pub(crate) fn is_word(s: &str) -> bool {
     is_number(s)
         || (s.starts_with(|c: char| c.is_ascii_alphanumeric() || c == '_')
             && s.chars()

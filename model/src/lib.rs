@@ -7,6 +7,7 @@ pub mod accel;
 pub mod bulk;
 pub mod call;
 pub mod case;
+pub mod case_yaml;
 pub mod command;
 pub mod compact;
 pub mod expected;
