@@ -549,49 +549,52 @@ impl ser::Serializer for &mut Events {
     }
 }
 
-impl ser::SerializeSeq for &mut Events {
-    type Ok = ();
-    type Error = GaveUp;
-    fn serialize_element<T: ?Sized + Serialize>(&mut self, v: &T) -> Result<(), GaveUp> {
-        v.serialize(&mut **self)
-    }
-    fn end(self) -> Result<(), GaveUp> {
-        self.close()
-    }
+/// The compound serializers whose items carry no key: each serialised in turn, the collection
+/// closed at its end.
+macro_rules! unkeyed {
+    ($($compound:ident :: $item:ident),*) => {$(
+        impl ser::$compound for &mut Events {
+            type Ok = ();
+            type Error = GaveUp;
+            fn $item<T: ?Sized + Serialize>(&mut self, v: &T) -> Result<(), GaveUp> {
+                v.serialize(&mut **self)
+            }
+            fn end(self) -> Result<(), GaveUp> {
+                self.close()
+            }
+        }
+    )*};
 }
 
-impl ser::SerializeTuple for &mut Events {
-    type Ok = ();
-    type Error = GaveUp;
-    fn serialize_element<T: ?Sized + Serialize>(&mut self, v: &T) -> Result<(), GaveUp> {
-        v.serialize(&mut **self)
-    }
-    fn end(self) -> Result<(), GaveUp> {
-        self.close()
-    }
+unkeyed!(
+    SerializeSeq::serialize_element,
+    SerializeTuple::serialize_element,
+    SerializeTupleStruct::serialize_field,
+    SerializeTupleVariant::serialize_field
+);
+
+/// The struct serializers: each field its name's key, then its value.
+macro_rules! fields {
+    ($($compound:ident),*) => {$(
+        impl ser::$compound for &mut Events {
+            type Ok = ();
+            type Error = GaveUp;
+            fn serialize_field<T: ?Sized + Serialize>(
+                &mut self,
+                key: &'static str,
+                v: &T,
+            ) -> Result<(), GaveUp> {
+                self.string(key)?;
+                v.serialize(&mut **self)
+            }
+            fn end(self) -> Result<(), GaveUp> {
+                self.close()
+            }
+        }
+    )*};
 }
 
-impl ser::SerializeTupleStruct for &mut Events {
-    type Ok = ();
-    type Error = GaveUp;
-    fn serialize_field<T: ?Sized + Serialize>(&mut self, v: &T) -> Result<(), GaveUp> {
-        v.serialize(&mut **self)
-    }
-    fn end(self) -> Result<(), GaveUp> {
-        self.close()
-    }
-}
-
-impl ser::SerializeTupleVariant for &mut Events {
-    type Ok = ();
-    type Error = GaveUp;
-    fn serialize_field<T: ?Sized + Serialize>(&mut self, v: &T) -> Result<(), GaveUp> {
-        v.serialize(&mut **self)
-    }
-    fn end(self) -> Result<(), GaveUp> {
-        self.close()
-    }
-}
+fields!(SerializeStruct, SerializeStructVariant);
 
 impl ser::SerializeMap for &mut Events {
     type Ok = ();
@@ -600,38 +603,6 @@ impl ser::SerializeMap for &mut Events {
         k.serialize(&mut **self)
     }
     fn serialize_value<T: ?Sized + Serialize>(&mut self, v: &T) -> Result<(), GaveUp> {
-        v.serialize(&mut **self)
-    }
-    fn end(self) -> Result<(), GaveUp> {
-        self.close()
-    }
-}
-
-impl ser::SerializeStruct for &mut Events {
-    type Ok = ();
-    type Error = GaveUp;
-    fn serialize_field<T: ?Sized + Serialize>(
-        &mut self,
-        key: &'static str,
-        v: &T,
-    ) -> Result<(), GaveUp> {
-        self.string(key)?;
-        v.serialize(&mut **self)
-    }
-    fn end(self) -> Result<(), GaveUp> {
-        self.close()
-    }
-}
-
-impl ser::SerializeStructVariant for &mut Events {
-    type Ok = ();
-    type Error = GaveUp;
-    fn serialize_field<T: ?Sized + Serialize>(
-        &mut self,
-        key: &'static str,
-        v: &T,
-    ) -> Result<(), GaveUp> {
-        self.string(key)?;
         v.serialize(&mut **self)
     }
     fn end(self) -> Result<(), GaveUp> {
