@@ -549,7 +549,8 @@ pub(crate) fn instructions(words: &[u32]) -> impl Iterator<Item = (usize, &[u32]
 /// Why ordinary constants and not new default values: a validation layer that finds specialisation
 /// constants in a module specialises and validates the module again (spirv-opt, then spirv-val) for
 /// every pipeline stage made of it, specialisation info or not; a module without them is validated
-/// once, when it is made (1.3.239: two thirds of a pipeline's creation under the layer went there).
+/// once, when it is made (layer 1.3.239 on lavapipe: more than half of a ray tracing pipeline's
+/// creation went there).
 pub(crate) fn with_spec_values(words: &[u32], values: &[u32]) -> Vec<u32> {
     const OP_CONSTANT: u32 = 43;
     const OP_SPEC_CONSTANT: u32 = 50;
