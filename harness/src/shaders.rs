@@ -264,7 +264,7 @@ pub(crate) fn compile_glsl(
 /// identity (its archives' sizes and times, from build.rs), in a folder under the temporary
 /// directory; it is written whole (a temporary file, then a rename) and read back only if it is a
 /// SPIR-V module (magic number, whole words). `RTCONF_SPIRV_CACHE=off` turns it off.
-mod disk {
+pub(crate) mod disk {
     use std::path::{Path, PathBuf};
 
     /// SPIR-V's magic number, the first word of every module.
@@ -298,7 +298,7 @@ mod disk {
     }
 
     /// Writes an entry whole; a cache that cannot be written is only slower.
-    pub(super) fn write(path: &Path, bytes: &[u8]) {
+    pub(crate) fn write(path: &Path, bytes: &[u8]) {
         let Some(dir) = path.parent() else { return };
         if std::fs::create_dir_all(dir).is_err() {
             return;
@@ -600,12 +600,15 @@ pub(crate) fn with_spec_values(words: &[u32], values: &[u32]) -> Vec<u32> {
 
 /// A shader module of SPIR-V words on a device; the caller destroys it.
 pub(crate) fn module(dev: &VkDevice, code: &[u32]) -> Result<vk::ShaderModule, HarnessError> {
-    // SAFETY: `code` is SPIR-V from glslang (checked for a module's size).
-    unsafe {
-        dev.device
-            .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(code), None)
+    let mut remembered = dev.validated.as_ref().map(|v| {
+        vk::ShaderModuleValidationCacheCreateInfoEXT::default().validation_cache(v.cache())
+    });
+    let mut info = vk::ShaderModuleCreateInfo::default().code(code);
+    if let Some(r) = remembered.as_mut() {
+        info = info.push_next(r);
     }
-    .map_err(vkfail("vkCreateShaderModule"))
+    // SAFETY: `code` is SPIR-V from glslang (checked for a module's size); `info` outlives the call.
+    unsafe { dev.device.create_shader_module(&info, None) }.map_err(vkfail("vkCreateShaderModule"))
 }
 
 /// What a validation layer reads of a module without running it: the execution model, the

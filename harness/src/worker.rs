@@ -161,7 +161,11 @@ pub fn worker_main() -> i32 {
                 // Every answer is out, and the runner waits for this process to end: it ends without
                 // tearing down its devices and instance, which the process's exit releases (the
                 // teardown, every device's objects destroyed under the layer, costs lavapipe about
-                // 50 ms; the driver's shader cache is written as pipelines are made, not then).
+                // 50 ms; the driver's shader cache is written as pipelines are made, not then). The
+                // layer's records of the modules it passed are written first (`vk::validated`).
+                if let Some(Ok(e)) = executor.as_mut() {
+                    e.save_validated();
+                }
                 std::mem::forget(executor);
                 return 0;
             }

@@ -247,6 +247,16 @@ impl Executor {
         }
     }
 
+    /// Writes the layer's records of the modules it passed on each device (see `vk::validated`), as
+    /// destroying the devices would: for a process that ends without destroying them.
+    pub fn save_validated(&mut self) {
+        for cache in self.devices.values_mut().flatten() {
+            if let Some(v) = &mut cache.dev.validated {
+                v.save();
+            }
+        }
+    }
+
     /// Forgets a case's device (lost: its objects are leaked, see `DeviceCache::lost`).
     fn forget_device(&mut self, world: &World, valid: bool) {
         let key = self.case_device_key(world, valid);

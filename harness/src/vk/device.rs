@@ -7,6 +7,7 @@ use crate::error::HarnessError;
 use crate::vk::layout::{self, EXTENSIBLE_HEADER};
 use crate::vk::structs::{self, RawChain, FEATURE_STRUCTS};
 use crate::vk::tables as vk_tables;
+use crate::vk::validated::{self, ValidatedModules};
 use ash::vk;
 use model::flags::QueueFlags;
 use std::collections::{BTreeMap, BTreeSet};
@@ -194,10 +195,13 @@ pub(crate) struct VkDevice {
     /// Set by the owner when the device was lost or a submission never finished: dropping then neither
     /// waits for nor destroys the device, and keeps its instance alive (a leak, never a hang).
     pub(crate) leak: bool,
+    /// The layer's record of the modules it passed, where the layer keeps one for this device.
+    pub(crate) validated: Option<ValidatedModules>,
 }
 
 impl VkDevice {
-    /// Creates a device with exactly `extensions` and `features` enabled, with a queue of the first
+    /// Creates a device with exactly `extensions` and `features` enabled (and, where the layer offers
+    /// it, the layer's own VK_EXT_validation_cache: see [`validated`]), with a queue of the first
     /// family with compute and, when `pool_without_compute` states a pool's family, a queue of the family
     /// [`pool_family`] picks for it (VUID-vkCreateCommandPool-queueFamilyIndex-01937: a pool's family is
     /// one the device was created with); or says what the driver lacks.
@@ -254,9 +258,24 @@ impl VkDevice {
                     .queue_priorities(&priorities)
             })
             .collect();
+        // The layer's record of the modules it passed on devices of this configuration (see
+        // `validated`), where the layer offers its extension: enabled beside the case's own.
+        let record = inst
+            .layer_build
+            .filter(|_| inst.layer_extensions.contains(validated::EXTENSION))
+            .and_then(|build| {
+                validated::record_file(build, inst.api_version, extensions, features)
+            });
         let ext_c: Vec<CString> = extensions
             .iter()
-            .filter_map(|e| CString::new(e.as_str()).ok())
+            .map(String::as_str)
+            .chain(
+                record
+                    .as_ref()
+                    .filter(|_| !extensions.contains(validated::EXTENSION))
+                    .map(|_| validated::EXTENSION),
+            )
+            .filter_map(|e| CString::new(e).ok())
             .collect();
         let ext_ptrs: Vec<*const std::ffi::c_char> = ext_c.iter().map(|c| c.as_ptr()).collect();
         let head = chain.link();
@@ -273,6 +292,8 @@ impl VkDevice {
                     result: r,
                 }
             })?;
+        let validated =
+            record.and_then(|file| ValidatedModules::open(&inst.instance, &device, file));
         // SAFETY: queue 0 of the family we created.
         let queue = unsafe { device.get_device_queue(family as u32, 0) };
         let rt = extensions
@@ -360,6 +381,7 @@ impl VkDevice {
             sparse_binding,
             nv,
             descriptor_buffer,
+            validated,
             leak: false,
         })
     }
@@ -397,6 +419,10 @@ impl Drop for VkDevice {
         if self.leak {
             std::mem::forget(self.inst.clone());
             return;
+        }
+        if let Some(v) = &mut self.validated {
+            v.save();
+            v.destroy();
         }
         // SAFETY: every object made from the device is destroyed by its owner before this runs.
         unsafe {

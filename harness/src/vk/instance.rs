@@ -237,6 +237,10 @@ pub(crate) struct VkInstance {
     pub(crate) collector: Arc<Collector>,
     pub(crate) physical: vk::PhysicalDevice,
     pub(crate) api_version: u32,
+    /// The validation layer's spec and implementation versions, when it is loaded.
+    pub(crate) layer_build: Option<(u32, u32)>,
+    /// The device extensions the validation layer itself offers (VK_EXT_validation_cache, ...).
+    pub(crate) layer_extensions: BTreeSet<String>,
 }
 
 // SAFETY: Vulkan instance handles may be used from any thread; the harness serialises use per device.
@@ -256,16 +260,16 @@ impl VkInstance {
         let entry = unsafe { ash::Entry::load() }
             .map_err(|e| HarnessError::LoaderMissing(e.to_string()))?;
         let layer = CString::new(VALIDATION_LAYER).expect("no NUL in a constant");
+        let mut layer_build = None;
         if validation {
             // SAFETY: plain query.
             let layers = unsafe { entry.enumerate_instance_layer_properties() }
                 .map_err(HarnessError::vk("vkEnumerateInstanceLayerProperties"))?;
             let found = layers
                 .iter()
-                .any(|l| l.layer_name_as_c_str().is_ok_and(|n| n == layer.as_c_str()));
-            if !found {
-                return Err(HarnessError::LayerMissing(VALIDATION_LAYER.into()));
-            }
+                .find(|l| l.layer_name_as_c_str().is_ok_and(|n| n == layer.as_c_str()))
+                .ok_or_else(|| HarnessError::LayerMissing(VALIDATION_LAYER.into()))?;
+            layer_build = Some((found.spec_version, found.implementation_version));
         }
         // Every message of every case, however often it repeats: newer layers stop reporting a message
         // id after `duplicate_message_limit` (10 by default since the VK_EXT_layer_settings layers) per
@@ -371,6 +375,25 @@ impl VkInstance {
         };
         // SAFETY: plain query.
         let api_version = unsafe { instance.get_physical_device_properties(physical) }.api_version;
+        // The layer's own device extensions (the loader lists only the driver's without a layer name).
+        let layer_extensions = if validation {
+            // SAFETY: plain queries; the count bounds the second call's writes.
+            unsafe {
+                let f = instance.fp_v1_0().enumerate_device_extension_properties;
+                let mut count = 0u32;
+                let _ = f(physical, layer.as_ptr(), &mut count, std::ptr::null_mut());
+                let mut props = vec![vk::ExtensionProperties::default(); count as usize];
+                let _ = f(physical, layer.as_ptr(), &mut count, props.as_mut_ptr());
+                props.truncate(count as usize);
+                props
+                    .iter()
+                    .filter_map(|e| e.extension_name_as_c_str().ok())
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .collect()
+            }
+        } else {
+            BTreeSet::new()
+        };
         Ok(VkInstance {
             driver,
             _entry: entry,
@@ -379,6 +402,8 @@ impl VkInstance {
             collector,
             physical,
             api_version,
+            layer_build,
+            layer_extensions,
         })
     }
 
