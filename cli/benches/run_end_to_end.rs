@@ -22,7 +22,9 @@
 //!   (`run judge over gpu`; the oracle's speed against lavapipe is `--bench render_rays`);
 //! - `run time <phase>`: where each run's case time went (`summary.json` `time`), seconds summed
 //!   over the cases, and `runner-cpu`: the CPU seconds of the runner process itself (generating,
-//!   judging and writing, beside the workers).
+//!   judging and writing, beside the workers);
+//! - `in-process time <phase>`: the same phases in the ceiling's median pass, for the gap between
+//!   the two (a warm executor makes no device and, for a case it ran before, no pipeline).
 //!
 //! The run's lavapipe shader cache (Mesa's, on disk) is warm after the first run on a machine: the
 //! harness makes each valid pipeline as the same code every time (see `harness::Executor`), so the
@@ -165,9 +167,10 @@ fn config(s: &Selection, out: &Path) -> session::RunConfig {
     }
 }
 
-/// The run's cases executed back to back on one warm executor in this process: cases per second,
-/// the median of [`REPEATS`] timed passes (a first pass warms devices and pipelines and is not timed).
-fn in_process_rate(s: &Selection, out: &Path) -> f64 {
+/// The run's cases executed back to back on one warm executor in this process: cases per second and
+/// the seconds per phase (`harness::timing`) of the median of [`REPEATS`] timed passes (a first pass
+/// warms devices and pipelines and is not timed).
+fn in_process_rate(s: &Selection, out: &Path) -> (f64, BTreeMap<String, f64>) {
     let cases = match &s.folder {
         Some(cases) => cases.clone(),
         None => session::list(&config(s, out)).expect("the selection lists its cases"),
@@ -181,17 +184,23 @@ fn in_process_rate(s: &Selection, out: &Path) -> f64 {
     for (c, e) in cases.iter().zip(&execs) {
         executor.execute(c, e);
     }
-    let mut rates: Vec<f64> = (0..REPEATS)
+    let mut passes: Vec<(f64, BTreeMap<String, f64>)> = (0..REPEATS)
         .map(|_| {
+            let _ = harness::timing::take();
             let started = Instant::now();
             for (c, e) in cases.iter().zip(&execs) {
                 executor.execute(c, e);
             }
-            cases.len() as f64 / started.elapsed().as_secs_f64()
+            let rate = cases.len() as f64 / started.elapsed().as_secs_f64();
+            let phases = harness::timing::take()
+                .into_iter()
+                .map(|(phase, ms)| (phase, ms / 1000.0))
+                .collect();
+            (rate, phases)
         })
         .collect();
-    rates.sort_by(f64::total_cmp);
-    rates[REPEATS / 2]
+    passes.sort_by(|a, b| a.0.total_cmp(&b.0));
+    passes.swap_remove(REPEATS / 2)
 }
 
 /// The median of [`REPEATS`] runs of the selection by rate (cases over seconds), each in its own
@@ -281,7 +290,7 @@ fn main() {
         let out = tmp.join(s.name);
         let (seconds, cases, time) = median_run(&s, &out);
         let run_rate = cases as f64 / seconds;
-        let ceiling = in_process_rate(&s, &tmp.join(format!("{}-list", s.name)));
+        let (ceiling, ceiling_time) = in_process_rate(&s, &tmp.join(format!("{}-list", s.name)));
         lines.push(format!("run {} cases/s: {run_rate:.0}", s.name));
         lines.push(format!("in-process {} cases/s: {ceiling:.0}", s.name));
         lines.push(format!("{} cases: {cases} in {seconds:.2} s", s.name));
@@ -297,6 +306,9 @@ fn main() {
         by_time.sort_by(|a, b| b.1.total_cmp(a.1));
         for (phase, secs) in by_time {
             lines.push(format!("run time {} {phase}: {secs:.2} s", s.name));
+        }
+        for (phase, secs) in &ceiling_time {
+            lines.push(format!("in-process time {} {phase}: {secs:.2} s", s.name));
         }
     }
     for l in &lines {

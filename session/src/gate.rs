@@ -55,14 +55,24 @@ fn too_large(case: &Case, profile: &DeviceProfile) -> Option<(String, String)> {
             .map(|b| (b.name.as_str(), b.size, b.is_sparse()))
             .collect(),
     };
+    if buffers.is_empty() {
+        return None;
+    }
+    // Looked up once per case (a lookup by member name scans the profile's properties).
+    let [buffer_max, allocation_max, sparse_max] = [
+        "maxBufferSize",
+        "maxMemoryAllocationSize",
+        "sparseAddressSpaceSize",
+    ]
+    .map(|limit| (limit, profile.limit(limit)));
     for (i, (name, size, sparse)) in buffers.into_iter().enumerate() {
-        let limits: &[&str] = if sparse {
-            &["maxBufferSize", "sparseAddressSpaceSize"]
+        let limits = if sparse {
+            [buffer_max, sparse_max]
         } else {
-            &["maxBufferSize", "maxMemoryAllocationSize"]
+            [buffer_max, allocation_max]
         };
-        for limit in limits {
-            if let Some(max) = profile.limit(limit).filter(|max| size > *max) {
+        for (limit, max) in limits {
+            if let Some(max) = max.filter(|max| size > *max) {
                 return Some((
                     format!("world.buffers[{i}].size"),
                     format!(

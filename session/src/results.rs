@@ -5,7 +5,7 @@
 use crate::baseline::Status;
 use crate::compare::{CaseReport, Outcome};
 use crate::error::SessionError;
-use crate::triage::Triage;
+use crate::triage::{Triage, TriageEntry};
 use std::io::BufRead;
 use std::path::Path;
 
@@ -64,14 +64,31 @@ pub fn read_lines(path: &Path) -> Result<impl Iterator<Item = ResultLine>, Sessi
         .map(ResultLine::settle))
 }
 
+/// A run's triage entries by their id ([`TriageEntry::id`]), made once: a case's matches name their
+/// entries by id.
+pub struct TriageIds<'a> {
+    by_id: std::collections::HashMap<String, &'a TriageEntry>,
+}
+
+impl<'a> TriageIds<'a> {
+    pub fn new(triage: &'a Triage) -> TriageIds<'a> {
+        let mut by_id = std::collections::HashMap::new();
+        for e in &triage.entries {
+            // The first entry of an id, as a search in file order finds it.
+            by_id.entry(e.id()).or_insert(e);
+        }
+        TriageIds { by_id }
+    }
+}
+
 /// The triage entries that explained a case's disagreements, as the comparison matched them
 /// ([`CaseReport::triage`]): one per disagreement, with the entry's kind, reason and reproducing case.
-pub fn applied_triage(report: &CaseReport, triage: &Triage) -> Vec<AppliedTriage> {
+pub fn applied_triage(report: &CaseReport, ids: &TriageIds) -> Vec<AppliedTriage> {
     report
         .triage
         .iter()
         .map(|m| {
-            let entry = triage.entries.iter().find(|e| e.id() == m.entry);
+            let entry = ids.by_id.get(m.entry.as_str()).copied();
             AppliedTriage {
                 key: match &m.layer_vuid {
                     Some(w) => format!("{} -> {w}", m.vuid),

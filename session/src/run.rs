@@ -330,7 +330,8 @@ struct Sink<'a> {
     /// The case folders made so far.
     folders: crate::details::MadeFolders,
     expectations: &'a Expectations,
-    triage: &'a Triage,
+    /// The run's triage entries by id, for the entries a case's line names.
+    triage_ids: crate::results::TriageIds<'a>,
     progress: &'a dyn Progress,
 }
 
@@ -379,7 +380,7 @@ impl Sink<'_> {
             report: report.clone(),
             status,
             attempts,
-            triage: applied_triage(report, self.triage),
+            triage: applied_triage(report, &self.triage_ids),
         };
         let text = serde_json::to_string(&line).unwrap_or_default();
         if let Err(e) = writeln!(self.results, "{text}").and_then(|_| self.results.flush()) {
@@ -670,7 +671,7 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         error: None,
         folders: Default::default(),
         expectations: &expectations,
-        triage: &triage,
+        triage_ids: crate::results::TriageIds::new(&triage),
         progress,
     };
     let judging = Judging::new(&rules, &profile, &triage);

@@ -26,47 +26,43 @@ pub struct FormatInfo {
 
 /// Parses `VK_FORMAT_R32G32_SFLOAT`-style names; None for block-compressed and unknown shapes.
 pub fn info(format: &str) -> Option<FormatInfo> {
+    // Called for every format of a profile each time a valid resource state is drawn: no allocation.
     let name = format.strip_prefix("VK_FORMAT_").unwrap_or(format);
-    let parts: Vec<&str> = name.split('_').collect();
-    let numeric_at = parts.iter().position(|p| {
-        matches!(
-            *p,
-            "UNORM"
-                | "SNORM"
-                | "USCALED"
-                | "SSCALED"
-                | "UINT"
-                | "SINT"
-                | "UFLOAT"
-                | "SFLOAT"
-                | "SRGB"
-        )
-    })?;
-    let numeric = match parts[numeric_at] {
-        "UINT" => Numeric::Uint,
-        "SINT" => Numeric::Int,
-        _ => Numeric::Float,
+    let numeric_of = |p: &str| match p {
+        "UINT" => Some(Numeric::Uint),
+        "SINT" => Some(Numeric::Int),
+        "UNORM" | "SNORM" | "USCALED" | "SSCALED" | "UFLOAT" | "SFLOAT" | "SRGB" => {
+            Some(Numeric::Float)
+        }
+        _ => None,
     };
+    let (numeric_at, numeric) = name
+        .split('_')
+        .enumerate()
+        .find_map(|(i, p)| numeric_of(p).map(|n| (i, n)))?;
     let (mut components, mut width, mut depth) = (0u32, 0u32, false);
-    for part in &parts[..numeric_at] {
-        let mut chars = part.chars().peekable();
-        while let Some(c) = chars.next() {
+    for part in name.split('_').take(numeric_at) {
+        let bytes = part.as_bytes();
+        let mut at = 0;
+        while at < bytes.len() {
+            let c = bytes[at];
             if !c.is_ascii_uppercase() {
                 return None;
             }
-            let mut digits = String::new();
-            while let Some(d) = chars.peek().filter(|d| d.is_ascii_digit()) {
-                digits.push(*d);
-                chars.next();
-            }
-            let bits: u32 = digits.parse().ok()?;
+            at += 1;
+            let digits = bytes[at..]
+                .iter()
+                .take_while(|d| d.is_ascii_digit())
+                .count();
+            let bits: u32 = part[at..at + digits].parse().ok()?;
+            at += digits;
             match c {
-                'R' | 'G' | 'B' | 'A' | 'D' | 'S' => {
+                b'R' | b'G' | b'B' | b'A' | b'D' | b'S' => {
                     components += 1;
                     width = width.max(bits);
-                    depth |= c == 'D';
+                    depth |= c == b'D';
                 }
-                'X' | 'E' => {}
+                b'X' | b'E' => {}
                 _ => return None,
             }
         }

@@ -35,17 +35,23 @@ struct Entry {
 }
 
 fn escape(s: &str) -> String {
-    let mut out = String::with_capacity(s.len());
-    for c in s.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&#39;"),
-            c => out.push(c),
-        }
+    let mut out = String::with_capacity(s.len() + s.len() / 8);
+    // The characters replaced are ASCII, so every run between them is whole UTF-8: copied at once.
+    let mut plain = 0;
+    for (i, b) in s.bytes().enumerate() {
+        let entity = match b {
+            b'&' => "&amp;",
+            b'<' => "&lt;",
+            b'>' => "&gt;",
+            b'"' => "&quot;",
+            b'\'' => "&#39;",
+            _ => continue,
+        };
+        out.push_str(&s[plain..i]);
+        out.push_str(entity);
+        plain = i + 1;
     }
+    out.push_str(&s[plain..]);
     out
 }
 
@@ -461,6 +467,10 @@ mod tests {
             escape("<a href=\"x\">&'"),
             "&lt;a href=&quot;x&quot;&gt;&amp;&#39;"
         );
+        // Text around and between the replaced characters is kept whole, multi-byte characters too.
+        assert_eq!(escape("Y′CbCr <é> ≤ 2"), "Y′CbCr &lt;é&gt; ≤ 2");
+        assert_eq!(escape("plain"), "plain");
+        assert_eq!(escape(""), "");
         assert_eq!(anchor("a b/c<d>"), "case-a_b_c_d_");
     }
 }
