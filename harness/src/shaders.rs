@@ -303,10 +303,13 @@ pub(crate) mod disk {
         if std::fs::create_dir_all(dir).is_err() {
             return;
         }
+        // Named for this process and this write, so two threads writing one entry never share it.
+        static WRITES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
         let staged = dir.join(format!(
-            ".{}.{}.tmp",
+            ".{}.{}.{}.tmp",
             path.file_name().and_then(|n| n.to_str()).unwrap_or("entry"),
-            std::process::id()
+            std::process::id(),
+            WRITES.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
         ));
         if std::fs::write(&staged, bytes).is_ok() && std::fs::rename(&staged, path).is_ok() {
             return;
