@@ -97,19 +97,15 @@ impl ValidatedModules {
         }
         if let Some(theirs) = read_record(&self.file).and_then(|b| create(&self.fns, &b)) {
             // SAFETY: both caches are this device's; the source is destroyed right after.
-            unsafe {
-                let _ = (self.fns.fp().merge_validation_caches_ext)(
+            let _ = unsafe {
+                (self.fns.fp().merge_validation_caches_ext)(
                     self.fns.device(),
                     self.cache,
                     1,
                     &theirs,
-                );
-                (self.fns.fp().destroy_validation_cache_ext)(
-                    self.fns.device(),
-                    theirs,
-                    std::ptr::null(),
-                );
-            }
+                )
+            };
+            destroy_cache(&self.fns, theirs);
         }
         if let Some(bytes) = data(&self.fns, self.cache) {
             crate::shaders::disk::write(&self.file, &bytes);
@@ -119,16 +115,15 @@ impl ValidatedModules {
 
     /// Destroys the cache object (before its device).
     pub(crate) fn destroy(&mut self) {
-        // SAFETY: the cache is this device's and no module is being made with it.
-        unsafe {
-            (self.fns.fp().destroy_validation_cache_ext)(
-                self.fns.device(),
-                self.cache,
-                std::ptr::null(),
-            )
-        };
+        destroy_cache(&self.fns, self.cache);
         self.cache = vk::ValidationCacheEXT::null();
     }
+}
+
+/// Destroys a cache object of the device (no module is being made with it).
+fn destroy_cache(fns: &ash::ext::validation_cache::Device, cache: vk::ValidationCacheEXT) {
+    // SAFETY: the cache is this device's and not in use.
+    unsafe { (fns.fp().destroy_validation_cache_ext)(fns.device(), cache, std::ptr::null()) };
 }
 
 /// A cache object filled from `bytes` (the layer ignores data of another build).
