@@ -128,14 +128,21 @@ pub fn vendor(m: ResourceMutation) -> Option<&'static str> {
     TAGS.iter().find(|(t, _)| *t == m.tag).and_then(|(_, v)| *v)
 }
 
-/// Whether the mutation can be generated for a profile.
-pub fn supported(m: ResourceMutation, profile: &DeviceProfile) -> Result<(), GenError> {
-    if let Some(family) = vendor(m) {
-        return Err(GenError::Unsupported(format!(
+/// Refuses a mutation of a vendor family: no captured driver has its extension.
+fn vendor_only(m: ResourceMutation, profile: &DeviceProfile) -> Result<(), GenError> {
+    match vendor(m) {
+        Some(family) => Err(GenError::Unsupported(format!(
             "resource rule {} ({family}) needs an extension `{}` lacks; the model judges such cases, no captured driver can run them",
             m.tag, profile.name
-        )));
+        ))),
+        None => Ok(()),
     }
+}
+
+/// Whether the mutation can be generated for a profile: a dry run on a valid state of its own.
+/// Asked once per spec (`crate::check_spec`); each case's own mutation reports what it cannot do.
+pub fn supported(m: ResourceMutation, profile: &DeviceProfile) -> Result<(), GenError> {
+    vendor_only(m, profile)?;
     let mut st = valid_state(profile, 0, u32::MAX);
     let mut dev = DeviceState::default();
     let mut cb = CommandBufferState::default();
@@ -269,7 +276,8 @@ pub fn apply(
     mut plan: Plan,
     input: &MutationInput,
 ) -> Result<Mutated, GenError> {
-    supported(m, input.profile)?;
+    // The dry run of `supported` was made for the spec; only the cheap refusal is asked again.
+    vendor_only(m, input.profile)?;
     // Accesses are judged only for launches that run: no dimension is zero.
     for d in plan.dims.iter_mut() {
         *d = (*d).max(1);
