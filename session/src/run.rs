@@ -811,7 +811,6 @@ fn slices(count: usize) -> impl Iterator<Item = std::ops::Range<usize>> {
         .map(move |start| start..(start + CHUNK).min(count))
 }
 
-/// `VmHWM` of this process from /proc (None elsewhere).
 /// CPU seconds (user and system) of this process's threads so far; workers are other processes.
 fn runner_cpu_seconds() -> Option<f64> {
     // SAFETY: an all-zero rusage is a valid value of the plain C struct.
@@ -824,6 +823,7 @@ fn runner_cpu_seconds() -> Option<f64> {
     Some(seconds(usage.ru_utime) + seconds(usage.ru_stime))
 }
 
+/// `VmHWM` of this process from /proc, in KiB (None elsewhere).
 fn peak_rss_kib() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
