@@ -202,8 +202,8 @@ pub fn probe(driver: Driver) -> Result<DeviceProfile, HarnessError> {
         name,
         ..Default::default()
     };
-    p.extensions = inst.device_extensions();
-    p.features = inst.device_features();
+    p.extensions = inst.device_extensions().clone();
+    p.features = inst.device_features().clone();
 
     // SAFETY: plain query.
     let base = unsafe { inst.instance.get_physical_device_properties(inst.physical) };

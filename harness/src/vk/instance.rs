@@ -10,7 +10,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::ffi::{c_void, CStr, CString};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 
 /// The name of the Khronos validation layer.
 pub const VALIDATION_LAYER: &str = "VK_LAYER_KHRONOS_validation";
@@ -241,6 +241,11 @@ pub(crate) struct VkInstance {
     pub(crate) layer_build: Option<(u32, u32)>,
     /// The device extensions the validation layer itself offers (VK_EXT_validation_cache, ...).
     pub(crate) layer_extensions: BTreeSet<String>,
+    /// What the physical device exposes, asked once ([`VkInstance::device_extensions`],
+    /// [`VkInstance::device_features`]): through the loader and the layer, each query costs as much
+    /// as recording several cases, and a worker's every device made asked both again.
+    exposed_extensions: OnceLock<BTreeSet<String>>,
+    exposed_features: OnceLock<BTreeMap<String, bool>>,
 }
 
 // SAFETY: Vulkan instance handles may be used from any thread; the harness serialises use per device.
@@ -404,6 +409,8 @@ impl VkInstance {
             api_version,
             layer_build,
             layer_extensions,
+            exposed_extensions: OnceLock::new(),
+            exposed_features: OnceLock::new(),
         })
     }
 
@@ -468,25 +475,33 @@ impl VkInstance {
             .unwrap_or_default()
     }
 
-    /// The device extensions the physical device exposes.
-    pub(crate) fn device_extensions(&self) -> BTreeSet<String> {
-        // SAFETY: plain query.
-        unsafe {
-            self.instance
-                .enumerate_device_extension_properties(self.physical)
-        }
-        .unwrap_or_default()
-        .iter()
-        .filter_map(|e| {
-            e.extension_name_as_c_str()
-                .ok()
-                .map(|n| n.to_string_lossy().into_owned())
+    /// The device extensions the physical device exposes (asked of the driver once).
+    pub(crate) fn device_extensions(&self) -> &BTreeSet<String> {
+        self.exposed_extensions.get_or_init(|| {
+            // SAFETY: plain query.
+            unsafe {
+                self.instance
+                    .enumerate_device_extension_properties(self.physical)
+            }
+            .unwrap_or_default()
+            .iter()
+            .filter_map(|e| {
+                e.extension_name_as_c_str()
+                    .ok()
+                    .map(|n| n.to_string_lossy().into_owned())
+            })
+            .collect()
         })
-        .collect()
     }
 
-    /// Every feature the device reports, keyed `Struct::member`, querying each structure it supports.
-    pub(crate) fn device_features(&self) -> BTreeMap<String, bool> {
+    /// Every feature the device reports, keyed `Struct::member`, querying each structure it supports
+    /// (asked of the driver once).
+    pub(crate) fn device_features(&self) -> &BTreeMap<String, bool> {
+        self.exposed_features
+            .get_or_init(|| self.query_device_features())
+    }
+
+    fn query_device_features(&self) -> BTreeMap<String, bool> {
         let exts = self.device_extensions();
         let mut chain = RawChain::new();
         for s in FEATURE_STRUCTS {
