@@ -34,6 +34,6 @@ pub mod resource_glsl {
     pub use crate::shaders::{module_interface, ModuleInterface, ShaderBody};
 }
 pub use worker::{
-    run_in_workers, run_in_workers_with, run_stream, run_stream_on, worker_main, Request, Response,
-    StartedWorkers, WorkerCommand,
+    run_in_workers, run_in_workers_with, run_stream, run_stream_on, worker_main, ExitingWorkers,
+    Request, Response, StartedWorkers, WorkerCommand,
 };

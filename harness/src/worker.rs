@@ -354,24 +354,57 @@ impl Worker {
         let _ = self.child.wait();
     }
 
-    /// Ends a worker that has answered all its cases: its stdin closes and it exits; one still
-    /// running `grace` later is killed (a driver's teardown after a lost device may never return,
-    /// and every answer is already in). Whether it had to be killed.
-    fn finish(self, grace: Duration) -> bool {
-        let Worker {
-            mut child, stdin, ..
-        } = self;
+    /// Closes the worker's stdin (it exits once it has read the end): the process, and when that
+    /// was.
+    fn close(self) -> (Child, Instant) {
+        let Worker { child, stdin, .. } = self;
         drop(stdin);
-        let closed = Instant::now();
-        while closed.elapsed() < grace {
-            match child.try_wait() {
-                Ok(Some(_)) | Err(_) => return false,
-                Ok(None) => std::thread::sleep(Duration::from_millis(5)),
-            }
+        (child, Instant::now())
+    }
+}
+
+/// Waits for a worker whose stdin closed at `closed` to exit, killing it once `grace` has passed
+/// since; whether it had to be killed.
+fn exit_or_kill(mut child: Child, closed: Instant, grace: Duration) -> bool {
+    while closed.elapsed() < grace {
+        match child.try_wait() {
+            Ok(Some(_)) | Err(_) => return false,
+            Ok(None) => std::thread::sleep(Duration::from_millis(1)),
         }
-        let _ = child.kill();
-        let _ = child.wait();
-        true
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    true
+}
+
+/// Workers that have given every answer and whose stdin is closed, still exiting: a worker's exit
+/// releases what its driver made (on lavapipe tens of milliseconds of the kernel freeing its
+/// memory), which the caller need not wait for before its own last work (a run's summary and
+/// report). Each is reaped when this is dropped, killed if it still runs [`EXIT_GRACE`] after its
+/// stdin closed.
+#[must_use = "dropping it waits for the workers to exit"]
+#[derive(Default)]
+pub struct ExitingWorkers {
+    closing: Vec<(Child, Instant)>,
+}
+
+impl ExitingWorkers {
+    /// Waits for every worker to exit (killing any past its grace); how many had to be killed.
+    pub fn reap(mut self) -> usize {
+        self.reap_all()
+    }
+
+    fn reap_all(&mut self) -> usize {
+        self.closing
+            .drain(..)
+            .map(|(child, closed)| exit_or_kill(child, closed, EXIT_GRACE) as usize)
+            .sum()
+    }
+}
+
+impl Drop for ExitingWorkers {
+    fn drop(&mut self) {
+        self.reap_all();
     }
 }
 
@@ -458,6 +491,7 @@ pub fn run_in_workers_with(
         return;
     }
     let workers = jobs.max(1).min(requests.len());
+    // Reaped at once: the caller's next step may start workers of its own.
     run_stream(
         cmd,
         workers,
@@ -470,7 +504,8 @@ pub fn run_in_workers_with(
                 on_result(r)
             }
         },
-    );
+    )
+    .reap();
 }
 
 /// Worker processes started ahead of the stream they will run, so that each loads its driver and the
@@ -530,7 +565,8 @@ impl Drop for StartedWorkers {
 /// producer need not do alone, such as the gate); `request` says what a job runs (None: nothing —
 /// the job passes straight to `on_result`, in its turn). `on_result` gets each job back with its response, in completion order,
 /// on the calling thread. A worker that crashes or hangs is replaced and its job reported `crash` or
-/// `timeout`.
+/// `timeout`. Returns once every job is answered, with the workers told to exit and still exiting
+/// ([`ExitingWorkers`]: reaped when dropped).
 pub fn run_stream<J: Send>(
     cmd: &WorkerCommand,
     jobs: usize,
@@ -539,7 +575,7 @@ pub fn run_stream<J: Send>(
     prepare: impl Fn(J) -> J + Sync,
     request: impl Fn(&J) -> Option<&Request> + Sync,
     on_result: impl FnMut(J, Option<Response>),
-) {
+) -> ExitingWorkers {
     run_stream_on(
         StartedWorkers::start(cmd, jobs),
         timeout,
@@ -657,16 +693,19 @@ pub fn run_stream_on<J: Send>(
     request: impl Fn(&J) -> Option<&Request> + Sync,
     affinity: impl Fn(&J) -> Option<Affinity> + Sync,
     mut on_result: impl FnMut(J, Option<Response>),
-) {
+) -> ExitingWorkers {
     let slots: Vec<Result<Worker, String>> = started.workers.drain(..).collect();
     let window = (LOOKAHEAD_PER_WORKER * slots.len()).min(LOOKAHEAD_MAX);
     let source = Mutex::new((source, Lookahead::new(window)));
     let (tx, rx) = mpsc::channel::<(J, Option<Response>)>();
     let cmd = &started.cmd;
+    // A worker whose every job is done is told so at once, and reaped by the caller.
+    let exiting = Mutex::new(ExitingWorkers::default());
     std::thread::scope(|s| {
         for (number, slot) in slots.into_iter().enumerate() {
             let tx = tx.clone();
             let (source, prepare, request, affinity) = (&source, &prepare, &request, &affinity);
+            let exiting = &exiting;
             s.spawn(move || {
                 let mut worker: Option<Worker> = slot.ok();
                 loop {
@@ -705,7 +744,12 @@ pub fn run_stream_on<J: Send>(
                     let _ = tx.send((job, Some(response)));
                 }
                 if let Some(w) = worker.take() {
-                    w.finish(EXIT_GRACE);
+                    let closed = w.close();
+                    exiting
+                        .lock()
+                        .unwrap_or_else(|e| e.into_inner())
+                        .closing
+                        .push(closed);
                 }
             });
         }
@@ -714,6 +758,7 @@ pub fn run_stream_on<J: Send>(
             on_result(job, r);
         }
     });
+    exiting.into_inner().unwrap_or_else(|e| e.into_inner())
 }
 
 #[cfg(test)]
@@ -836,7 +881,8 @@ mod tests {
     fn a_worker_that_exits_when_its_stdin_closes_is_not_killed() {
         let w = Worker::spawn(&shell("cat > /dev/null")).expect("sh starts");
         let started = Instant::now();
-        assert!(!w.finish(Duration::from_secs(20)));
+        let (child, closed) = w.close();
+        assert!(!exit_or_kill(child, closed, Duration::from_secs(20)));
         assert!(started.elapsed() < Duration::from_secs(10));
     }
 
@@ -846,12 +892,35 @@ mod tests {
         let w =
             Worker::spawn(&shell("cat > /dev/null; while :; do sleep 1; done")).expect("sh starts");
         let started = Instant::now();
-        assert!(w.finish(Duration::from_millis(300)));
+        let (child, closed) = w.close();
+        assert!(exit_or_kill(child, closed, Duration::from_millis(300)));
         let took = started.elapsed();
         assert!(
             took >= Duration::from_millis(300) && took < Duration::from_secs(10),
             "{took:?}"
         );
+    }
+
+    #[test]
+    fn a_stream_returns_while_its_workers_exit_and_they_are_reaped_after() {
+        // A worker that takes half a second to exit once its input ends, as a driver's teardown
+        // does; the stream has nothing for it.
+        let cmd = shell("cat > /dev/null; sleep 0.5");
+        let started = Instant::now();
+        let exiting = run_stream(
+            &cmd,
+            1,
+            Duration::from_secs(20),
+            std::iter::empty::<()>(),
+            |j| j,
+            |_: &()| None,
+            |_, _| {},
+        );
+        let returned = started.elapsed();
+        assert!(returned < Duration::from_millis(400), "{returned:?}");
+        assert_eq!(exiting.reap(), 0, "an exiting worker is not killed");
+        let reaped = started.elapsed();
+        assert!(reaped >= Duration::from_millis(500), "{reaped:?}");
     }
 
     #[test]

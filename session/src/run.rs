@@ -683,6 +683,9 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         progress,
         inject: config.inject.map(|i| (i, config.scope.seed)),
     };
+    // The workers of each stream, told to exit once every answer is in and reaped when the run
+    // returns: their exit (the kernel freeing what the driver made) overlaps the summary and report.
+    let mut exiting: Vec<harness::ExitingWorkers> = Vec::new();
     // The cases are generated on a thread of their own, a bounded stretch ahead of the workers; the
     // thread that draws a case for a worker gates it; results are judged and written here as they
     // come.
@@ -715,7 +718,7 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
                 },
             )
         });
-        dispatch.run_stream(rx.into_iter(), &mut sink, workers);
+        exiting.push(dispatch.run_stream(rx.into_iter(), &mut sink, workers));
         producer
             .join()
             .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
@@ -748,7 +751,7 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
             jobs: dispatch.jobs.min(drawn.len()).max(1),
             ..dispatch
         };
-        evidence_dispatch.run_stream(drawn.into_iter(), &mut sink, None);
+        exiting.push(evidence_dispatch.run_stream(drawn.into_iter(), &mut sink, None));
     }
     if let Some((path, e)) = sink.error.take() {
         return Err(SessionError::io(

@@ -98,13 +98,14 @@ impl Dispatch<'_> {
     /// Runs a stream of drawn cases on one set of workers kept for the whole stream — `started`
     /// where the run started them ahead, else `jobs` started here —, judging and writing each result
     /// as it arrives (a gated case is written in its turn); then the cases to record again and the
-    /// retries.
+    /// retries. The stream's workers are returned still exiting, for the caller to reap after its
+    /// own last work.
     pub(super) fn run_stream(
         &self,
         drawn: impl Iterator<Item = Drawn> + Send,
         sink: &mut Sink,
         started: Option<harness::StartedWorkers>,
-    ) {
+    ) -> harness::ExitingWorkers {
         let mut later = Later::default();
         let started = match started {
             Some(s) => s,
@@ -115,11 +116,12 @@ impl Dispatch<'_> {
                     for d in drawn {
                         self.settle_without_workers(d, sink, &mut later, &why);
                     }
-                    return self.finish(later, sink);
+                    self.finish(later, sink);
+                    return harness::ExitingWorkers::default();
                 }
             },
         };
-        harness::run_stream_on(
+        let exiting = harness::run_stream_on(
             started,
             self.timeout,
             drawn,
@@ -163,6 +165,7 @@ impl Dispatch<'_> {
             },
         );
         self.finish(later, sink);
+        exiting
     }
 
     /// A drawn case no worker ran: written if gated, else a crash with `why`.
