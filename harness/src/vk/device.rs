@@ -224,7 +224,7 @@ impl VkDevice {
             ));
         }
         let supported = inst.device_features();
-        let (core, mut chain) = feature_chain(&inst, extensions, features, &supported)?;
+        let (core, mut chain) = feature_chain(&inst, extensions, features, supported)?;
         // SAFETY: plain query.
         let families = unsafe {
             inst.instance
