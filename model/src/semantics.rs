@@ -456,12 +456,33 @@ fn derived_hit_reach(
     }))
 }
 
-/// [`launch_hit_reach`] traced: the union of the distinct rays' [`ray_reach`] as hit records.
+/// [`launch_hit_reach`] traced: the union of the distinct rays' [`ray_reach`] as hit records. A scene
+/// without triangle geometry needs no tracing: every candidate a trace could find is procedural,
+/// which [`triangle_reach`] leaves out, so each ray's reach is its [`procedural_reach`] alone (a
+/// procedural scene's trace classifies every sphere of every box the ray meets, the most costly
+/// part of generating its case).
 fn traced_hit_reach(launch: &crate::world::Launch, rays: &[Ray]) -> Vec<(u64, GeometryKind)> {
     let Some(prepared) = prepared(&launch.scene) else {
         return vec![];
     };
+    if !has_triangle_geometry(&launch.scene) {
+        return hit_reach_of(&launch.scene, rays, |_, ray| {
+            procedural_reach(&launch.scene, ray)
+        });
+    }
     hit_reach_of(&launch.scene, rays, |_, ray| ray_reach(&prepared, ray))
+}
+
+/// Whether any bottom level an instance uses holds triangle geometry (the only kind a trace adds to
+/// a ray's reach).
+fn has_triangle_geometry(scene: &Scene) -> bool {
+    scene
+        .instances
+        .iter()
+        .filter_map(|inst| inst.bottom_level)
+        .filter_map(|b| scene.bottom_levels.get(b as usize))
+        .flat_map(|bl| &bl.geometries)
+        .any(|g| matches!(g.data, GeometryData::Triangles(_)))
 }
 
 /// The hit records of the (instance, geometry, kind) triples `reach` gives for each distinct ray
@@ -710,6 +731,52 @@ mod hit_reach_tests {
             found >= 40,
             "{found} launches compared ({traced_only} left to tracing)"
         );
+    }
+
+    #[test]
+    fn a_scene_without_triangles_reaches_what_its_trace_reaches() {
+        // Spheres in boxes seen by cameras inside and outside the boxes, with rays that cull, skip
+        // or end at their first hit, and instances whose masks the rays' cull masks miss: the reach
+        // found without tracing is the traced one.
+        let mut compared = 0;
+        for seed in 0..6u64 {
+            let bl = crate::scene::build::spheres_in_boxes(seed, 40 + 30 * seed as usize, 3.0, 0.4);
+            let mut scene = Scene {
+                bottom_levels: vec![bl],
+                instances: crate::scene::build::instanced_copies(seed, 0, 3, 7.0),
+            };
+            for (k, inst) in scene.instances.iter_mut().enumerate() {
+                inst.mask = if k == 1 { 0x02 } else { 0xFF };
+            }
+            assert!(!has_triangle_geometry(&scene));
+            let prepared = crate::tracer::PreparedScene::new(&scene).expect("a defined scene");
+            for (eye, flags, cull) in [
+                ([9.0, 7.0, 5.0], 0u32, 0xFF),
+                ([0.5, 0.2, 0.1], 0x4, 0xFF),
+                ([-8.0, 3.0, 2.0], 0x200, 0x01),
+                ([4.0, -9.0, 6.0], 0x20, 0xFF),
+            ] {
+                let mut rays =
+                    crate::scene::build::pinhole_rays(12, 12, eye, [0.0; 3], [0.0, 0.0, 1.0], 0.9);
+                for r in &mut rays {
+                    r.flags = crate::scene::RayFlags(flags);
+                    r.cull_mask = cull;
+                }
+                let traced = hit_reach_of(&scene, &rays, |_, ray| ray_reach(&prepared, ray));
+                let found = hit_reach_of(&scene, &rays, |_, ray| procedural_reach(&scene, ray));
+                assert_eq!(found, traced, "seed {seed}, eye {eye:?}, flags {flags:#x}");
+                compared += 1;
+            }
+        }
+        assert_eq!(compared, 24);
+        // Where a scene has triangles the shortcut would be wrong: the trace adds what the
+        // procedural half cannot know.
+        let w = &crate::tracer::workload::standard_workloads(8, false)[1];
+        assert!(has_triangle_geometry(&w.scene));
+        let prepared = crate::tracer::PreparedScene::new(&w.scene).expect("a defined scene");
+        let traced = hit_reach_of(&w.scene, &w.rays, |_, ray| ray_reach(&prepared, ray));
+        let procedural = hit_reach_of(&w.scene, &w.rays, |_, ray| procedural_reach(&w.scene, ray));
+        assert!(procedural.is_empty() && !traced.is_empty());
     }
 
     #[test]
