@@ -18,8 +18,10 @@
 //!   record, readback and the rest of each case in its worker) over the `gpu` phase (submission to
 //!   fence: the driver running the launch, with whatever it compiles lazily at the first dispatch).
 //!   Pipeline creation, structure builds and device creation are the driver's work and counted in
-//!   neither; the reference tracer's judging is the oracle's and printed on its own line
-//!   (`run judge over gpu`; the oracle's speed against lavapipe is `--bench render_rays`);
+//!   neither; the model's work is the runner's and printed on its own lines: `run gate over gpu`
+//!   (the gate, before a case runs: for a valid case mostly the reference tracer's expected
+//!   outcomes of its launch), `run judge over gpu` (the comparison after it ran), and `run oracle
+//!   over gpu`, their sum (the oracle's speed against lavapipe is `--bench render_rays`);
 //! - `run time <phase>`: where each run's case time went (`summary.json` `time`), seconds summed
 //!   over the cases, and `runner-cpu`: the CPU seconds of the runner process itself (generating,
 //!   judging and writing, beside the workers);
@@ -286,6 +288,7 @@ fn main() {
     let mut invalid_share = f64::NAN;
     let mut overhead = f64::NAN;
     let mut judge_over_gpu = f64::NAN;
+    let mut gate_over_gpu = f64::NAN;
     for s in selections(tmp) {
         let out = tmp.join(s.name);
         let (seconds, cases, time) = median_run(&s, &out);
@@ -299,6 +302,7 @@ fn main() {
             "rendered" => {
                 overhead = self::overhead(&time);
                 judge_over_gpu = time.get("judge").copied().unwrap_or(f64::NAN) / gpu(&time);
+                gate_over_gpu = time.get("gate").copied().unwrap_or(f64::NAN) / gpu(&time);
             }
             _ => {}
         }
@@ -314,7 +318,12 @@ fn main() {
     for l in &lines {
         println!("{l}");
     }
+    println!("run gate over gpu: {:.0}%", gate_over_gpu * 100.0);
     println!("run judge over gpu: {:.0}%", judge_over_gpu * 100.0);
+    println!(
+        "run oracle over gpu: {:.0}%",
+        (gate_over_gpu + judge_over_gpu) * 100.0
+    );
     println!("run overhead: {:.0}%", overhead * 100.0);
     println!("run share of ceiling: {:.0}%", invalid_share * 100.0);
 }

@@ -342,3 +342,60 @@ fn a_full_disk_stops_the_run_and_a_resume_repairs_its_torn_line() {
     assert_eq!(r.code, 0, "{}", r.all());
     assert_eq!(results(moved.path()), expected);
 }
+
+#[test]
+fn the_runner_times_its_gate_and_judge_beside_the_workers_phases() {
+    // Valid cases: the gate traces each launch with the reference tracer before the case runs.
+    let out = tempfile::tempdir().unwrap();
+    let o = out_arg(out.path());
+    let ran = rtconf(&[
+        "run",
+        "--command",
+        "vkCmdTraceRaysKHR",
+        "--valid-only",
+        "--count",
+        "3",
+        "--out",
+        &o,
+    ]);
+    assert_eq!(ran.code, 0, "{}", ran.all());
+    let text = std::fs::read_to_string(out.path().join("results.jsonl")).unwrap();
+    let (mut gate, mut judge, mut other) = (0.0, 0.0, 0.0);
+    let mut lines = 0;
+    for line in text.lines() {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap();
+        let phases = v["phases"].as_object().expect("a run case's phases");
+        let ms = |k: &str| phases.get(k).and_then(|x| x.as_f64());
+        gate += ms("gate").unwrap_or_else(|| panic!("no gate phase: {line}"));
+        judge += ms("judge").unwrap_or_else(|| panic!("no judge phase: {line}"));
+        // The worker's phases are the rest; what else the worker spent is `worker-other`.
+        let worker: f64 = phases
+            .iter()
+            .filter(|(k, _)| *k != "gate" && *k != "judge")
+            .filter_map(|(_, x)| x.as_f64())
+            .sum();
+        other += (v["millis"].as_f64().unwrap() - worker).max(0.0);
+        lines += 1;
+    }
+    assert!(lines >= 3, "{lines} cases");
+    assert!(
+        gate > 0.0 && judge > 0.0,
+        "gate {gate} ms, judge {judge} ms"
+    );
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.path().join("summary.json")).unwrap())
+            .unwrap();
+    let time = |k: &str| summary["time"][k].as_f64().unwrap_or(f64::NAN);
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 + 1e-9 * b.abs();
+    assert!(close(time("gate"), gate / 1000.0), "{:?}", summary["time"]);
+    assert!(
+        close(time("judge"), judge / 1000.0),
+        "{:?}",
+        summary["time"]
+    );
+    assert!(
+        close(time("worker-other"), other / 1000.0),
+        "{:?}",
+        summary["time"]
+    );
+}

@@ -96,8 +96,8 @@ pub struct Summary {
     pub seconds: f64,
     /// Where the cases' time went, in seconds summed over the cases (so over the workers, which run
     /// side by side): each execution phase of `harness::timing`, `worker-other` (the rest of the
-    /// workers' per-case time: the plan, destroying the case's objects) and `judge` (the runner's
-    /// judging).
+    /// workers' per-case time: the plan, destroying the case's objects), and the runner's own
+    /// [`GATE_PHASE`] (before a case runs) and [`JUDGE_PHASE`] (after).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub time: BTreeMap<String, f64>,
     pub vuids: BTreeMap<String, VuidTally>,
@@ -162,6 +162,13 @@ pub struct RunIdentity {
     pub shard: Option<String>,
 }
 
+/// The runner's phase of a case before it runs: the gate (the case's own errors, the rules' view of
+/// what it may run, and a valid launch's expected outcomes from the reference tracer).
+pub const GATE_PHASE: &str = "gate";
+/// The runner's phase of a case after it ran: the comparison of what the layer and the driver gave
+/// with the model.
+pub const JUDGE_PHASE: &str = "judge";
+
 /// Reads `results.jsonl` back, streaming, into the summary; `planned` (the case list, when known) gives
 /// the missing cases. A resumed run never runs a case twice, so each line is one case. Memory is per
 /// VUID, and a name per case for the missing ones.
@@ -195,7 +202,8 @@ pub fn summarise(
         let mut in_phases = 0.0;
         for (phase, ms) in &r.phases {
             *s.time.entry(phase.clone()).or_default() += ms / 1000.0;
-            if phase != "judge" {
+            // The worker's own phases: what else it spent on the case is `worker-other`.
+            if phase != GATE_PHASE && phase != JUDGE_PHASE {
                 in_phases += ms;
             }
         }

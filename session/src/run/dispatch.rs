@@ -7,6 +7,7 @@ use super::{Judging, Progress, Sink};
 use crate::compare::{CaseReport, Outcome};
 use crate::details::CaseDetails;
 use crate::inject::CaseInjection;
+use crate::report::{GATE_PHASE, JUDGE_PHASE};
 use harness::{Execution, Request, Response};
 use model::Case;
 use std::time::Duration;
@@ -17,6 +18,9 @@ pub(super) struct Job {
     case: Case,
     note: Option<CaseInjection>,
     request: Request,
+    /// How long the gate took over the case (for a valid case, mostly the reference tracer's
+    /// expected outcomes of its launch): the report's `gate` phase.
+    gate_millis: f64,
 }
 
 /// What the run's producer hands the dispatch, in the plan's order.
@@ -69,20 +73,26 @@ impl Dispatch<'_> {
     /// A case as the workers get it: kept from the driver by the gate (with its report), or a job
     /// whose `index` tells its response apart on its worker.
     pub(super) fn drawn(&self, case: Case, index: usize, judging: &Judging) -> Drawn {
-        match crate::gate::gate(&case, judging) {
-            Some(report) => Drawn::Gated {
-                details: CaseDetails {
-                    violations: judging.verdict(&case.body).violations,
-                    layer_messages: vec![],
-                },
-                case,
-                report: Box::new(report),
-            },
-            None => Drawn::Run(Box::new(self.job(case, index))),
+        let gating = std::time::Instant::now();
+        let gated = crate::gate::gate(&case, judging);
+        let gate_millis = gating.elapsed().as_secs_f64() * 1000.0;
+        match gated {
+            Some(mut report) => {
+                report.phases.insert(GATE_PHASE.into(), gate_millis);
+                Drawn::Gated {
+                    details: CaseDetails {
+                        violations: judging.verdict(&case.body).violations,
+                        layer_messages: vec![],
+                    },
+                    case,
+                    report: Box::new(report),
+                }
+            }
+            None => Drawn::Run(Box::new(self.job(case, index, gate_millis))),
         }
     }
 
-    fn job(&self, case: Case, index: usize) -> Job {
+    fn job(&self, case: Case, index: usize, gate_millis: f64) -> Job {
         let (run, note) = crate::inject::executed(self.inject.as_ref(), &case, self.judging);
         Job {
             request: Request {
@@ -92,6 +102,7 @@ impl Dispatch<'_> {
             },
             case,
             note,
+            gate_millis,
         }
     }
 
@@ -217,7 +228,7 @@ impl Dispatch<'_> {
             later.revalidate.push(job);
             return;
         }
-        let (report, details) = self.judged(&job.case, &job.note, resp);
+        let (report, details) = self.judged(&job, resp);
         if self.retries > 0 && report.outcome.is_unexpected() {
             later.held.push(Retried {
                 job,
@@ -255,7 +266,7 @@ impl Dispatch<'_> {
                 .collect();
             harness::run_in_workers(&requests, self.jobs, self.timeout, |resp| {
                 let job = &revalidate[resp.index.min(revalidate.len() - 1)];
-                let (mut report, details) = self.judged(&job.case, &job.note, &resp);
+                let (mut report, details) = self.judged(job, &resp);
                 let note = format!(
                     "recorded with the layer's validation continuing past {} the worker died (the layer's \
                      later checks or the driver's recording of the call), so it was recorded again with \
@@ -289,7 +300,7 @@ impl Dispatch<'_> {
                 let Some(h) = held.get_mut(resp.index) else {
                     return;
                 };
-                let (report, _) = self.judged(&h.job.case, &h.job.note, &resp);
+                let (report, _) = self.judged(&h.job, &resp);
                 h.attempts.push(report.outcome);
             });
         }
@@ -305,21 +316,18 @@ impl Dispatch<'_> {
         }
     }
 
-    /// The report of one response and what the run keeps of it: `case` is the case as judged, `note`
-    /// what an injection did with it.
-    fn judged(
-        &self,
-        case: &Case,
-        note: &Option<CaseInjection>,
-        resp: &Response,
-    ) -> (CaseReport, CaseDetails) {
+    /// The report of one response to `job` and what the run keeps of it (its case as judged, with
+    /// what an injection did with it), with the runner's phases beside the worker's: the gate's and
+    /// the judge's.
+    fn judged(&self, job: &Job, resp: &Response) -> (CaseReport, CaseDetails) {
         let judging = std::time::Instant::now();
-        let (mut report, verdict) = self.judging.judge_with_verdict(case, resp);
-        report.injection = note.clone();
+        let (mut report, verdict) = self.judging.judge_with_verdict(&job.case, resp);
+        report.injection = job.note.clone();
         report.phases = resp.phases.clone();
+        report.phases.insert(GATE_PHASE.into(), job.gate_millis);
         report
             .phases
-            .insert("judge".into(), judging.elapsed().as_secs_f64() * 1000.0);
+            .insert(JUDGE_PHASE.into(), judging.elapsed().as_secs_f64() * 1000.0);
         let details = CaseDetails {
             violations: verdict.violations,
             layer_messages: resp.observation.layer_messages.clone(),
