@@ -72,7 +72,8 @@ pub struct CaseReport {
     pub triage: Vec<TriageMatch>,
     pub millis: f64,
     /// Where the case's time went, in milliseconds: the worker's execution phases
-    /// (`harness::timing`) and the runner's judging (`judge`).
+    /// (`harness::timing`) and the runner's gate (`gate`, before the case runs) and judging
+    /// (`judge`).
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub phases: std::collections::BTreeMap<String, f64>,
     /// In a run with `--inject`: the injection, and whether the driver ran the perturbed copy.
