@@ -227,6 +227,15 @@ unsafe extern "system" fn messenger_callback(
     }
 }
 
+/// The names of extensions as a query lists them (a name that is not a C string is left out).
+fn extension_names(props: &[vk::ExtensionProperties]) -> BTreeSet<String> {
+    props
+        .iter()
+        .filter_map(|e| e.extension_name_as_c_str().ok())
+        .map(|n| n.to_string_lossy().into_owned())
+        .collect()
+}
+
 /// A loaded driver: entry, instance, and (with validation) the layer's messenger.
 pub(crate) struct VkInstance {
     pub(crate) driver: Driver,
@@ -390,11 +399,7 @@ impl VkInstance {
                 let mut props = vec![vk::ExtensionProperties::default(); count as usize];
                 let _ = f(physical, layer.as_ptr(), &mut count, props.as_mut_ptr());
                 props.truncate(count as usize);
-                props
-                    .iter()
-                    .filter_map(|e| e.extension_name_as_c_str().ok())
-                    .map(|n| n.to_string_lossy().into_owned())
-                    .collect()
+                extension_names(&props)
             }
         } else {
             BTreeSet::new()
@@ -479,18 +484,13 @@ impl VkInstance {
     pub(crate) fn device_extensions(&self) -> &BTreeSet<String> {
         self.exposed_extensions.get_or_init(|| {
             // SAFETY: plain query.
-            unsafe {
-                self.instance
-                    .enumerate_device_extension_properties(self.physical)
-            }
-            .unwrap_or_default()
-            .iter()
-            .filter_map(|e| {
-                e.extension_name_as_c_str()
-                    .ok()
-                    .map(|n| n.to_string_lossy().into_owned())
-            })
-            .collect()
+            extension_names(
+                &unsafe {
+                    self.instance
+                        .enumerate_device_extension_properties(self.physical)
+                }
+                .unwrap_or_default(),
+            )
         })
     }
 
