@@ -2,30 +2,37 @@
 //! memoising what the model derives from large values (a launch's scene and rays) across the gate,
 //! the rules and the judgement of one case without holding or comparing the values themselves.
 
-use std::hash::Hasher;
-
 /// The fingerprint of `value`: equal values always get equal fingerprints; different ones differ
 /// but with a chance of about 2^-128. None when the value does not serialise.
 pub fn of<T: serde::Serialize + ?Sized>(value: &T) -> Option<u128> {
     of_with_words(value, &[])
 }
 
+/// Bytes of the words of [`of_with_words`] handed to the hash at a time.
+const WORD_CHUNK: usize = 1024;
+
 /// The fingerprint of `value` followed by `words` (taken as they are: a long run of plain words,
 /// such as a launch's ray keys, costs a copy instead of a CBOR item each).
+///
+/// The hash is XXH3's 128-bit one: the values are the model's own (scenes, rays, calls), never
+/// chosen to collide, for which its 128 bits give the 2^-128 chance above. It runs at a fraction
+/// of an instruction per byte; a launch's scene and ray keys are hundreds of kilobytes, and the
+/// gate, the rules and the judgement of one case each fingerprint them again to find what the
+/// first one derived.
 pub fn of_with_words<T: serde::Serialize + ?Sized>(value: &T, words: &[u32]) -> Option<u128> {
     let mut bytes = Vec::new();
     ciborium::into_writer(value, &mut bytes).ok()?;
-    bytes.reserve(words.len() * 4 + 8);
-    bytes.extend_from_slice(&(words.len() as u64).to_le_bytes());
-    for w in words {
-        bytes.extend_from_slice(&w.to_le_bytes());
+    let mut hash = xxhash_rust::xxh3::Xxh3::new();
+    hash.update(&bytes);
+    hash.update(&(words.len() as u64).to_le_bytes());
+    let mut chunk = [0u8; WORD_CHUNK];
+    for part in words.chunks(WORD_CHUNK / 4) {
+        for (out, w) in chunk.chunks_exact_mut(4).zip(part) {
+            out.copy_from_slice(&w.to_le_bytes());
+        }
+        hash.update(&chunk[..part.len() * 4]);
     }
-    let mut first = std::collections::hash_map::DefaultHasher::new();
-    let mut second = std::collections::hash_map::DefaultHasher::new();
-    second.write_u64(0x9e37_79b9_7f4a_7c15);
-    first.write(&bytes);
-    second.write(&bytes);
-    Some((first.finish() as u128) << 64 | second.finish() as u128)
+    Some(hash.digest128())
 }
 
 /// Values kept by fingerprint, at most `KEPT` of them (all forgotten when full): a memo for `static`s.
