@@ -33,16 +33,31 @@ pub(super) fn outcomes_of_near(
         hits,
         outcomes,
     } = scratch;
-    // What the cut leaves out of what was kept before it fell.
-    if cut_at < rf.tmax {
-        let mut cut_ray = *rf;
-        cut_ray.tmax = cut_at;
-        near.retain(|n| {
-            scene.geometries[n.item.geometry as usize].kind != PrimitiveKind::Triangle
-                || n.kept_at == cut_at
-                || !far_item(scene, n.index as usize, &cut_ray)
-        });
-    }
+    // What the cut leaves out of what was kept before it fell; and the triangles the traversal
+    // classified as REQ-miss, counted here as the loop below would count them (a classified
+    // triangle is one no mask or primitive-kind culling left out, so it reaches the count there),
+    // so the sort moves only what may be a candidate: in a dense scene most near pairs are misses.
+    let mut cut_ray = *rf;
+    cut_ray.tmax = cut_at;
+    let cuts = cut_at < rf.tmax;
+    near.retain(|n| {
+        if cuts
+            && scene.geometries[n.item.geometry as usize].kind == PrimitiveKind::Triangle
+            && n.kept_at != cut_at
+            && far_item(scene, n.index as usize, &cut_ray)
+        {
+            return false;
+        }
+        match outcomes.get(n.outcome as usize) {
+            Some(out) if matches!(out.class, PairClass::ReqMiss(_)) => {
+                stats.pair_tests += 1;
+                out.evaluation.count(stats);
+                stats.req_miss += 1;
+                false
+            }
+            _ => true,
+        }
+    });
     // A deterministic order, independent of the BVH.
     // (instance, geometry, primitive) is unique per item: an unstable sort gives the same order.
     near.sort_unstable_by_key(|n| n.key);
@@ -87,6 +102,13 @@ pub(super) fn outcomes_of_near(
         stats.pair_tests += 1;
         match w.kind {
             PrimitiveKind::Triangle => {
+                // Spec, "Ray Opacity Culling": a culled triangle is a REQ-miss whatever its
+                // intersection, counted as a culled box is, and not tested (the traversal
+                // classified only unculled ones).
+                if opacity_culled(ray, opaque) {
+                    stats.req_miss += 1;
+                    continue;
+                }
                 // Classified while traversing, or now (read in place, not copied).
                 let computed;
                 let out = match outcome {
@@ -114,9 +136,6 @@ pub(super) fn outcomes_of_near(
                 };
                 let signs = out.signs.expect("classified");
                 let values = out.values.expect("classified");
-                if opacity_culled(ray, opaque) {
-                    continue;
-                }
                 // Spec, "Ray Face Culling": facing in the bottom level's space, from the sign of
                 // S and of det(A); FLIP_FACING reverses it.
                 let front = signs.orientation.map(|o| {
