@@ -107,7 +107,7 @@ fn triangle_reach(
     allowed
         .candidates
         .iter()
-        .filter(|c| c.kind == crate::tracer::PrimitiveKind::Triangle)
+        .filter(|c| c.kind == crate::tracer::PrimitiveKind::Triangle && !c.behind_shaderless_cut)
         .map(|c| {
             (
                 c.primitive.instance,
@@ -393,18 +393,18 @@ pub fn launch_hit_reach(
 static HIT_REACH: crate::fingerprint::Memo<Vec<(u64, GeometryKind)>, 4096> =
     crate::fingerprint::Memo::new();
 
-/// Keeps a valid launch's [`reached_hit_records`] found from its allowed outcomes, where they give
-/// the same answer as tracing with the generic table [`ray_reach`] uses, so the gate does not trace
-/// the launch a second time. They do where the hit table the launch really has gives every ray the
-/// same cut as the generic table (which has no any-hit shader): the triangles a trace keeps as
-/// candidates depend on the shader table only through that cut (`tracer::cut_allowed_for`); the
-/// procedural half needs no tracing. Where some ray's cut differs, nothing is kept and the reach is
-/// traced when asked.
+/// Keeps a valid launch's [`reached_hit_records`] found from its allowed outcomes, so the gate does
+/// not trace the launch a second time with the generic table [`ray_reach`] uses. The triangles a
+/// trace keeps as candidates depend on the shader table only through its cut
+/// (`tracer::cut_allowed_for`): the generic table (no any-hit anywhere) allows the cut wherever
+/// the ray may not end at its first hit, and where the launch's own table does not (a non-opaque
+/// geometry with any-hit), its outcomes mark the candidates the generic cut leaves out
+/// (`Candidate::behind_shaderless_cut`). The procedural half needs no tracing.
 pub fn prime_hit_reach(world: &World, call: &Call, expected: &ExpectedLaunch) {
     if launch_ids(world, call) == Some(0) {
         return;
     }
-    if let Some(reach) = derived_hit_reach(world, call, expected) {
+    if let Some(reach) = derived_hit_reach(world, expected) {
         let keys: Vec<[u32; 13]> = expected.rays.iter().map(ray_key).collect();
         let fingerprint =
             crate::fingerprint::of_with_words(&world.launch.scene, keys.as_flattened());
@@ -412,45 +412,13 @@ pub fn prime_hit_reach(world: &World, call: &Call, expected: &ExpectedLaunch) {
     }
 }
 
-/// [`traced_hit_reach`] of the launch's rays found from their allowed outcomes, or None where some
-/// ray's cut differs between its own hit table and the generic one (see [`prime_hit_reach`]).
-fn derived_hit_reach(
-    world: &World,
-    call: &Call,
-    expected: &ExpectedLaunch,
-) -> Option<Vec<(u64, GeometryKind)>> {
+/// [`traced_hit_reach`] of the launch's rays found from their allowed outcomes (see
+/// [`prime_hit_reach`]), or None where the outcomes are not every ray's.
+fn derived_hit_reach(world: &World, expected: &ExpectedLaunch) -> Option<Vec<(u64, GeometryKind)>> {
     if expected.rays.is_empty() || expected.allowed.len() != expected.rays.len() {
         return None;
     }
-    let prepared = prepared(&world.launch.scene)?;
     let scene = &world.launch.scene;
-    // The cut depends on the ray's flags and on the hit records it resolves: asked once per
-    // (flags, sbtOffset, sbtStride).
-    let mut same_cut: HashMap<(u32, u32, u32), bool> = HashMap::new();
-    let generic = generic_table();
-    for ray in &expected.rays {
-        let same = *same_cut
-            .entry((ray.flags.0, ray.sbt_offset, ray.sbt_stride))
-            .or_insert_with(|| {
-                let hit = |i: u32, g: u32| {
-                    let inst = &scene.instances[i as usize];
-                    hit_shaders(
-                        world,
-                        call,
-                        hit_record(inst.sbt_record_offset, g, ray.sbt_offset, ray.sbt_stride),
-                    )
-                };
-                let own = ShaderTable {
-                    hit: &hit,
-                    miss: generic.miss,
-                };
-                crate::tracer::cut_allowed_for(&prepared, ray, &own)
-                    == crate::tracer::cut_allowed_for(&prepared, ray, &generic)
-            });
-        if !same {
-            return None;
-        }
-    }
     Some(hit_reach_of(scene, &expected.rays, |k, ray| {
         triangle_reach(&expected.allowed[k]).chain(procedural_reach(scene, ray))
     }))
@@ -681,7 +649,7 @@ mod hit_reach_tests {
     fn both(t: &crate::TraceBody) -> Option<(Reach, Option<Reach>)> {
         let e = expected_launch(&t.world, &t.call)?;
         let traced = traced_hit_reach(&t.world.launch, &e.rays);
-        Some((traced, derived_hit_reach(&t.world, &t.call, &e)))
+        Some((traced, derived_hit_reach(&t.world, &e)))
     }
 
     #[test]
@@ -704,21 +672,51 @@ mod hit_reach_tests {
             }
         }
         // The standard workloads as launches of the hand-made case, with rays that cull, skip, end
-        // at their first hit or are forced opaque, so the cut and the culling vary.
+        // at their first hit or are forced opaque or non-opaque, so the cut and the culling vary;
+        // and with an any-hit shader in the triangle hit group, so that non-opaque triangles take
+        // the launch's own cut away where the generic table keeps it.
+        use crate::tracer::AnyHitRule;
         for w in crate::tracer::workload::standard_workloads(8, false) {
-            for flags in [0u32, 0x1, 0x2, 0x4, 0x10, 0x20, 0x40, 0x80, 0x100, 0x200] {
-                let mut case = w.as_launch_of(hand_case(), 8);
-                let t = case.as_trace_mut().expect("a trace case");
-                for r in &mut t.world.launch.rays {
-                    r.flags = crate::scene::RayFlags(flags);
+            for any_hit in [None, Some(AnyHitRule::Accept), Some(AnyHitRule::Terminate)] {
+                for flags in [
+                    0u32, 0x1, 0x2, 0x4, 0x10, 0x20, 0x40, 0x80, 0x100, 0x200, 0x12,
+                ] {
+                    let mut case = w.as_launch_of(hand_case(), 8);
+                    let t = case.as_trace_mut().expect("a trace case");
+                    for r in &mut t.world.launch.rays {
+                        r.flags = crate::scene::RayFlags(flags);
+                    }
+                    if let Some(rule) = any_hit {
+                        let pipeline = t.world.pipeline.as_mut().expect("a pipeline");
+                        for g in &mut pipeline.groups {
+                            if let crate::world::ShaderGroup::TrianglesHit {
+                                any_hit,
+                                any_hit_rule,
+                                ..
+                            } = g
+                            {
+                                (*any_hit, *any_hit_rule) = (true, rule);
+                            }
+                        }
+                    }
+                    let what = format!("{} flags {flags:#x} any-hit {any_hit:?}", w.name);
+                    bodies.push((what, t.clone()));
                 }
-                bodies.push((format!("{} flags {flags:#x}", w.name), t.clone()));
             }
         }
+        // Launches whose outcomes left some candidate behind the generic table's cut.
+        let mut marked = 0;
         for (what, t) in &bodies {
             let Some((traced, derived)) = both(t) else {
                 continue;
             };
+            let e = expected_launch(&t.world, &t.call).expect("traced above");
+            if e.allowed
+                .iter()
+                .any(|a| a.candidates.iter().any(|c| c.behind_shaderless_cut))
+            {
+                marked += 1;
+            }
             match derived {
                 Some(d) => {
                     assert_eq!(d, traced, "{what}");
@@ -728,8 +726,12 @@ mod hit_reach_tests {
             }
         }
         assert!(
-            found >= 40,
+            found >= 40 && traced_only == 0,
             "{found} launches compared ({traced_only} left to tracing)"
+        );
+        assert!(
+            marked >= 5,
+            "{marked} launches had candidates behind the generic table's cut"
         );
     }
 
@@ -780,9 +782,57 @@ mod hit_reach_tests {
     }
 
     #[test]
-    fn an_any_hit_shader_on_a_non_opaque_geometry_leaves_the_reach_to_tracing() {
-        // The hand case with its hit group given an any-hit shader and its geometries made non-opaque:
-        // the own table forbids the cut the generic one makes, so nothing is found from the outcomes.
+    fn a_record_only_behind_the_generic_cut_is_not_reached() {
+        // Two instances of a 4x4 grid, the near one (record 0) larger than the camera's view, no
+        // ray through its edges, and the far one (record 1) behind it, both non-opaque, the hit group with an any-hit shader:
+        // the launch's own trace keeps the far instance's triangles, but the generic table's
+        // trace cuts behind the near hit on every ray, so record 1 is not reached — only the
+        // candidates' marks keep it out of the reach found from the outcomes.
+        use crate::scene::{build, SceneInstance, Transform3x4};
+        let mut bl = build::grid(4, 4, 1.0);
+        bl.geometries[0].flags.opaque = false;
+        let at = |s: f32, [x, y, z]: [f32; 3], record: u32| SceneInstance {
+            transform: Transform3x4([[s, 0.0, 0.0, x], [0.0, s, 0.0, y], [0.0, 0.0, s, z]]),
+            sbt_record_offset: record,
+            ..SceneInstance::of(0)
+        };
+        let w = crate::tracer::workload::Workload {
+            name: "occluded",
+            scene: Scene {
+                bottom_levels: vec![bl],
+                instances: vec![
+                    at(4.0, [-8.3, -7.9, 1.0], 0),
+                    at(1.0, [-2.0, -2.0, -1.0], 1),
+                ],
+            },
+            rays: build::pinhole_rays(8, 8, [0.0, 0.0, 6.0], [0.0; 3], [0.0, 1.0, 0.0], 0.9),
+        };
+        let mut case = w.as_launch_of(hand_case(), 8);
+        let t = case.as_trace_mut().expect("a trace case");
+        let p = t.world.pipeline.as_mut().expect("a pipeline");
+        for g in &mut p.groups {
+            if let crate::world::ShaderGroup::TrianglesHit { any_hit, .. } = g {
+                *any_hit = true;
+            }
+        }
+        let (traced, derived) = both(t).expect("the launch's outcomes");
+        let records = |r: &Reach| r.iter().map(|&(record, _)| record).collect::<Vec<_>>();
+        assert_eq!(records(&traced), vec![0]);
+        assert_eq!(derived, Some(traced));
+        // The marks are what keeps record 1 out: the far instance's triangles are candidates.
+        let e = expected_launch(&t.world, &t.call).expect("the launch's outcomes");
+        let far_kept = e.allowed.iter().flat_map(|a| &a.candidates);
+        let far_kept: Vec<_> = far_kept.filter(|c| c.primitive.instance == 1).collect();
+        assert!(!far_kept.is_empty());
+        assert!(far_kept.iter().all(|c| c.behind_shaderless_cut));
+    }
+
+    #[test]
+    fn an_any_hit_shader_on_a_non_opaque_geometry_marks_what_the_generic_cut_leaves_out() {
+        // The hand case with its hit group given an any-hit shader and its geometries made
+        // non-opaque: the launch's own table forbids the cut the generic one makes, so its outcomes
+        // keep triangles behind the nearest required hit, marked; without them the reach is the
+        // traced one.
         let w = &crate::tracer::workload::standard_workloads(8, false)[1];
         let mut case = w.as_launch_of(hand_case(), 8);
         let t = case.as_trace_mut().expect("a trace case");
@@ -802,7 +852,23 @@ mod hit_reach_tests {
             }
         }
         let (traced, derived) = both(t).expect("the launch's outcomes");
-        assert!(derived.is_none());
         assert!(!traced.is_empty());
+        assert_eq!(derived, Some(traced));
+        let e = expected_launch(&t.world, &t.call).expect("the launch's outcomes");
+        let marked: usize = e
+            .allowed
+            .iter()
+            .map(|a| {
+                a.candidates
+                    .iter()
+                    .filter(|c| c.behind_shaderless_cut)
+                    .count()
+            })
+            .sum();
+        let kept: usize = e.allowed.iter().map(|a| a.candidates.len()).sum();
+        assert!(
+            marked > 0 && marked < kept,
+            "{marked} of {kept} candidates behind the generic cut"
+        );
     }
 }

@@ -24,7 +24,7 @@ pub(super) fn outcomes_of_near(
     shaders: &ShaderTable<'_>,
     config: &TracerConfig,
     rf: &RayF64,
-    cut_at: f64,
+    [cut_at, shaderless_cut]: [f64; 2],
     scratch: &mut Scratch,
     stats: &mut TracerStats,
 ) -> AllowedOutcomes {
@@ -73,7 +73,21 @@ pub(super) fn outcomes_of_near(
         candidates.push(c);
     };
     let mut must_run: Vec<MustRun> = Vec::new();
-    for NearItem { item, outcome, .. } in near.drain(..) {
+    // Where the ray's own table allowed no cut but a table without any-hit would have: the ray
+    // cut there, to mark what that cut leaves out (`Candidate::behind_shaderless_cut`) as the
+    // retain above leaves out what the ray's own cut does.
+    let shaderless = (shaderless_cut < rf.tmax && shaderless_cut != cut_at).then(|| {
+        let mut r = *rf;
+        r.tmax = shaderless_cut;
+        r
+    });
+    for NearItem {
+        item,
+        outcome,
+        index,
+        ..
+    } in near.drain(..)
+    {
         let outcome = outcomes.get(outcome as usize);
         let w = &scene.geometries[item.geometry as usize];
         let inst = &scene.scene.instances[w.instance as usize];
@@ -227,6 +241,9 @@ pub(super) fn outcomes_of_near(
                         shaders: hit_shaders,
                         no_duplicate_any_hit: geometry.flags.no_duplicate_any_hit,
                         reports,
+                        behind_shaderless_cut: shaderless
+                            .as_ref()
+                            .is_some_and(|r| far_item(scene, index as usize, r)),
                     },
                 );
             }
@@ -324,6 +341,7 @@ pub(super) fn outcomes_of_near(
                         shaders: hit_shaders,
                         no_duplicate_any_hit: geometry.flags.no_duplicate_any_hit,
                         reports,
+                        behind_shaderless_cut: false,
                     },
                 );
             }

@@ -327,6 +327,13 @@ pub struct Candidate {
     pub no_duplicate_any_hit: bool,
     /// At most two for a triangle (its facings) or a sphere (entry and exit), kept inline.
     pub reports: few::Few<AllowedReport, 2>,
+    /// A triangle the trace would have left out had no primitive of the scene run any-hit for the
+    /// ray: behind the cut the ray then gets (see `traverse`), which the ray's own shader table did
+    /// not allow. Such a table is the one a launch's hit reach is traced with
+    /// ([`crate::semantics::ray_reach`]), so the reach is found from outcomes traced with the
+    /// launch's own table by leaving these out.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub behind_shaderless_cut: bool,
 }
 
 impl Candidate {

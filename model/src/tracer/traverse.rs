@@ -544,6 +544,9 @@ struct Slot {
 #[derive(Default)]
 struct Kept {
     may_cut: Option<bool>,
+    /// The least upper t bound of a required hit confirmed without any-hit: the cut the ray gets
+    /// where no primitive runs any-hit for it and it may not end at its first hit.
+    least_required: f64,
     scratch: Scratch,
     far_count: u64,
 }
@@ -567,6 +570,7 @@ impl Slot {
         self.rf.in_f32_range = scene.in_f32_range(&self.rf);
         self.cut.set(f64::INFINITY);
         self.kept.may_cut = None;
+        self.kept.least_required = f64::INFINITY;
         self.kept.far_count = 0;
         self.nodes = 0;
         self.far = 0;
@@ -585,13 +589,18 @@ impl Slot {
     ) -> AllowedOutcomes {
         stats.nodes_visited += self.nodes;
         stats.far_rejections += self.far + self.kept.far_count;
+        let shaderless_cut = if ray.flags.contains(RayFlags::TERMINATE_ON_FIRST_HIT) {
+            f64::INFINITY
+        } else {
+            self.kept.least_required
+        };
         outcomes_of_near(
             scene,
             ray,
             shaders,
             config,
             &self.rf,
-            self.cut.get(),
+            [self.cut.get(), shaderless_cut],
             &mut self.kept.scratch,
             stats,
         )
@@ -646,6 +655,7 @@ impl Kept {
             .as_ref()
             .and_then(|out| required_hit_t(scene, w, ray, out))
         {
+            self.least_required = self.least_required.min(t_hi);
             if t_hi < cut.get()
                 && *self
                     .may_cut
