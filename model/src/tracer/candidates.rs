@@ -5,7 +5,10 @@
 use super::arith::{map3, BoundedF64, Dyadic, Num, PlainF32};
 use super::conclude::conclude;
 use super::prepare::{PreparedScene, RayF64};
-use super::sphere::{sphere_band, sphere_reports, sphere_signs, SphereBand, SphereSigns};
+use super::sphere::{
+    sphere_band, sphere_reports, sphere_signs, sphere_signs_scaled, ScaledRay, SphereBand,
+    SphereSigns,
+};
 use super::traverse::{
     classify_triangle, confirmation, far_item, opacity, opacity_culled, MustRun, NearItem, Scratch,
 };
@@ -33,34 +36,18 @@ pub(super) fn outcomes_of_near(
         hits,
         outcomes,
     } = scratch;
-    // What the cut leaves out of what was kept before it fell; and the triangles the traversal
-    // classified as REQ-miss, counted here as the loop below would count them (a classified
-    // triangle is one no mask or primitive-kind culling left out, so it reaches the count there),
-    // so the sort moves only what may be a candidate: in a dense scene most near pairs are misses.
-    let mut cut_ray = *rf;
-    cut_ray.tmax = cut_at;
-    let cuts = cut_at < rf.tmax;
-    near.retain(|n| {
-        if cuts
-            && scene.geometries[n.item.geometry as usize].kind == PrimitiveKind::Triangle
-            && n.kept_at != cut_at
-            && far_item(scene, n.index as usize, &cut_ray)
-        {
-            return false;
-        }
-        match outcomes.get(n.outcome as usize) {
-            Some(out) if matches!(out.class, PairClass::ReqMiss(_)) => {
-                stats.pair_tests += 1;
-                out.evaluation.count(stats);
-                stats.req_miss += 1;
-                false
-            }
-            _ => true,
-        }
-    });
-    // A deterministic order, independent of the BVH.
-    // (instance, geometry, primitive) is unique per item: an unstable sort gives the same order.
-    near.sort_unstable_by_key(|n| n.key);
+    // What the cut leaves out of what was kept before it fell.
+    if cut_at < rf.tmax {
+        let mut cut_ray = *rf;
+        cut_ray.tmax = cut_at;
+        near.retain(|n| {
+            scene.geometries[n.item.geometry as usize].kind != PrimitiveKind::Triangle
+                || n.kept_at == cut_at
+                || !far_item(scene, n.index as usize, &cut_ray)
+        });
+    }
+    // The near items in the walk's order: the candidates they give are put in a deterministic
+    // order below (a ray near hundreds of boxes has few candidates among them).
 
     // Allocated by the first candidate (most near pairs are misses), for one only: most rays that
     // have any have one, and a launch keeps every ray's candidates (a Vec's first push would make
@@ -81,6 +68,8 @@ pub(super) fn outcomes_of_near(
         r.tmax = shaderless_cut;
         r
     });
+    // The ray in the space of the last instance whose spheres it met ([`ScaledRay`]).
+    let mut scaled: Option<(u32, ScaledRay<BoundedF64>)> = None;
     for NearItem {
         item,
         outcome,
@@ -272,7 +261,14 @@ pub(super) fn outcomes_of_near(
                 let signs = match config.precision {
                     Precision::ExactOnly => exact(stats),
                     Precision::F64WithExactFallback => {
-                        match sphere_signs_in::<BoundedF64>(m, &sphere, ray, &band) {
+                        // The ray in the instance's space, made again only when the instance
+                        // changes (the walk meets an instance's boxes together, mostly).
+                        if scaled.as_ref().is_none_or(|(i, _)| *i != w.instance) {
+                            scaled =
+                                Some((w.instance, ScaledRay::of(m, ray.origin, ray.direction)));
+                        }
+                        let (_, scaled) = scaled.as_ref().expect("made above");
+                        match sphere_signs_scaled(scaled, &sphere, ray.tmin, ray.tmax, &band) {
                             Some(s) => {
                                 stats.filter_decided += 1;
                                 s
@@ -347,10 +343,52 @@ pub(super) fn outcomes_of_near(
             }
         }
     }
+    in_key_order(&mut candidates, hits, &mut must_run);
     let watertight = watertight_groups(scene, ray, &candidates, hits);
     hits.clear();
     outcomes.clear();
     conclude(scene, ray, shaders, candidates, must_run, watertight)
+}
+
+/// Puts a ray's candidates in (instance, geometry, primitive) order, an order independent of the BVH
+/// (unique per candidate), renumbering the triangle hits and must-run intersections that point at
+/// them; the hits go in their candidates' order, as if made in it.
+fn in_key_order(
+    candidates: &mut Vec<Candidate>,
+    hits: &mut [TriangleHit],
+    must_run: &mut [MustRun],
+) {
+    let key = |c: &Candidate| {
+        (
+            c.primitive.instance,
+            c.primitive.geometry,
+            c.primitive.primitive,
+        )
+    };
+    if candidates.is_sorted_by_key(key) {
+        return;
+    }
+    let mut order: Vec<usize> = (0..candidates.len()).collect();
+    order.sort_unstable_by_key(|&i| key(&candidates[i]));
+    let mut place = vec![0usize; order.len()];
+    for (new, &old) in order.iter().enumerate() {
+        place[old] = new;
+    }
+    let mut taken: Vec<Option<Candidate>> = candidates.drain(..).map(Some).collect();
+    candidates.extend(
+        order
+            .iter()
+            .map(|&i| taken[i].take().expect("each candidate taken once")),
+    );
+    for h in hits.iter_mut() {
+        h.candidate = place[h.candidate];
+    }
+    hits.sort_unstable_by_key(|h| h.candidate);
+    for m in must_run.iter_mut() {
+        if let Some(c) = m.candidate.as_mut() {
+            *c = place[*c];
+        }
+    }
 }
 
 /// The signs of `ray` against `sphere` of the instance transform `m` in the arithmetic `N`, None where

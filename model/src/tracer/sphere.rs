@@ -169,6 +169,33 @@ impl<T: Num> Roots<T> {
     }
 }
 
+/// The part of [`sphere_signs`] every sphere of one instance shares for one ray: `det(A)`,
+/// `adj·(o − T)` and `D = adj·d` in the numbers `T` (computed once per ray and instance, the same
+/// operations in the same order, so the signs are those of computing it per sphere).
+#[derive(Debug, Clone)]
+pub struct ScaledRay<T> {
+    det: T,
+    origin: [T; 3],
+    direction: [T; 3],
+}
+
+impl<T: Num> ScaledRay<T> {
+    /// The ray `origin + t·direction` in the space of the instance transform `transform`, scaled by
+    /// the determinant.
+    pub fn of(transform: &[[f32; 4]; 3], origin: [f32; 3], direction: [f32; 3]) -> ScaledRay<T> {
+        let a3 = linear::<T>(transform);
+        let adj = adjugate(&a3);
+        let det = determinant(&a3);
+        let t = [0, 1, 2].map(|k| T::from_f32(transform[k][3]));
+        let ot = sub3(&v3::<T>(origin), &t);
+        ScaledRay {
+            origin: mat_vec(&adj, &ot),
+            direction: mat_vec(&adj, &v3::<T>(direction)),
+            det,
+        }
+    }
+}
+
 /// Evaluates the signs with numbers of type `T`; `None` when `T` cannot certify one of them.
 pub fn sphere_signs<T: Num>(
     transform: &[[f32; 4]; 3],
@@ -179,14 +206,22 @@ pub fn sphere_signs<T: Num>(
     tmax: f32,
     band: &SphereBand,
 ) -> Option<SphereSigns> {
-    let a3 = linear::<T>(transform);
-    let adj = adjugate(&a3);
-    let det = determinant(&a3);
-    let t = [0, 1, 2].map(|k| T::from_f32(transform[k][3]));
-    let ot = sub3(&v3::<T>(origin), &t);
+    let scaled = ScaledRay::<T>::of(transform, origin, direction);
+    sphere_signs_scaled(&scaled, sphere, tmin, tmax, band)
+}
+
+/// [`sphere_signs`] of a ray already in the instance's space ([`ScaledRay`]).
+pub fn sphere_signs_scaled<T: Num>(
+    scaled: &ScaledRay<T>,
+    sphere: &Sphere,
+    tmin: f32,
+    tmax: f32,
+    band: &SphereBand,
+) -> Option<SphereSigns> {
+    let det = scaled.det.clone();
     let c = v3::<T>(sphere.center).map(|x| x.mul(&det));
-    let o = sub3(&mat_vec(&adj, &ot), &c);
-    let d = mat_vec(&adj, &v3::<T>(direction));
+    let o = sub3(&scaled.origin, &c);
+    let d = scaled.direction.clone();
     let cross = cross3(&o, &d);
     let h2 = dot3(&cross, &cross);
     let a = dot3(&d, &d);

@@ -347,10 +347,8 @@ fn required_hit_t(
 }
 
 /// A primitive the ray's padded box test kept, with its classification when the traversal made
-/// one (an unculled triangle). Small, so the sort moves little.
+/// one (an unculled triangle). Small: a ray near many boxes keeps many.
 pub(super) struct NearItem {
-    /// (instance, geometry, primitive): the order of the candidates.
-    pub(super) key: (u32, u32, u32),
     pub(super) item: Item,
     /// Its index in the prepared scene's items.
     pub(super) index: u32,
@@ -632,7 +630,6 @@ impl Kept {
         let w = &scene.geometries[item.geometry as usize];
         if w.kind != PrimitiveKind::Triangle {
             near.push(NearItem {
-                key: (w.instance, w.geometry, item.primitive),
                 item,
                 index: i as u32,
                 outcome: u32::MAX,
@@ -665,7 +662,6 @@ impl Kept {
             }
         }
         near.push(NearItem {
-            key: (w.instance, w.geometry, item.primitive),
             item,
             index: i as u32,
             outcome: outcome.map_or(u32::MAX, |o| {
