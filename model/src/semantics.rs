@@ -237,24 +237,34 @@ pub fn ray_key(r: &Ray) -> [u32; 13] {
 }
 
 /// Prepared scenes by content, shared by every judgement of a case (the generator, the gate, the rules
-/// and the comparison each ask): the last few, so a process that judges cases one after another
-/// prepares each scene once. A scene is found by comparing it bit for bit with the prepared ones'
-/// (one pass over its data, no hash to collide).
+/// and the comparison each ask), the most recently asked kept within [`KEPT_SCENES`] and
+/// [`KEPT_ITEMS`]: a run generates a spec's cases (up to 512) before its gate traces them, so a
+/// budget of a few scenes had each scene prepared twice. A scene is found by comparing it bit for
+/// bit with the prepared ones' (one pass over its data, no hash to collide).
 pub fn prepared(scene: &Scene) -> Option<Arc<PreparedScene>> {
     static MEMO: Mutex<Vec<Arc<PreparedScene>>> = Mutex::new(Vec::new());
     let mut memo = MEMO.lock().unwrap_or_else(|e| e.into_inner());
-    if let Some(pos) = memo.iter().position(|p| same_scene(p.scene(), scene)) {
+    if let Some(pos) = memo.iter().rposition(|p| same_scene(p.scene(), scene)) {
         let hit = memo.remove(pos);
         memo.push(hit.clone());
         return Some(hit);
     }
     let p = Arc::new(PreparedScene::new(scene).ok()?);
     memo.push(p.clone());
-    if memo.len() > 4 {
-        memo.remove(0);
+    // The least recently asked go first; the newest stays whatever its size.
+    let mut items: usize = memo.iter().map(|p| p.items.len()).sum();
+    while memo.len() > 1 && (memo.len() > KEPT_SCENES || items > KEPT_ITEMS) {
+        items -= memo.remove(0).items.len();
     }
     Some(p)
 }
+
+/// The most prepared scenes [`prepared`] keeps.
+const KEPT_SCENES: usize = 1024;
+
+/// The most primitives [`prepared`] keeps prepared in all, a few hundred bytes each: the default
+/// conformance run's scenes add about 15 MB to the runner.
+const KEPT_ITEMS: usize = 1 << 19;
 
 /// Whether two scenes are identical bit for bit (−0 and +0 differ, a NaN equals the same NaN).
 pub fn same_scene(a: &Scene, b: &Scene) -> bool {
