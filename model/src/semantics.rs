@@ -448,7 +448,43 @@ fn traced_hit_reach(launch: &crate::world::Launch, rays: &[Ray]) -> Vec<(u64, Ge
             procedural_reach(&launch.scene, ray)
         });
     }
-    hit_reach_of(&launch.scene, rays, |_, ray| ray_reach(&prepared, ray))
+    // Every distinct ray traced with the generic table at once (`trace_rays` walks several rays in
+    // turn), each one's reach as `ray_reach` gives it: its triangle candidates and its procedural half.
+    let scene = &launch.scene;
+    let (distinct, _) = distinct_rays(rays);
+    let table = generic_table();
+    let pairs: Vec<(&Ray, &ShaderTable)> = distinct
+        .iter()
+        .map(|&k| (&rays[k as usize], &table))
+        .collect();
+    let mut out: BTreeSet<(u64, GeometryKind)> = BTreeSet::new();
+    let mut add = |ray: &Ray, (i, g, kind): (u32, u32, GeometryKind)| {
+        let inst = &scene.instances[i as usize];
+        out.insert((
+            hit_record(inst.sbt_record_offset, g, ray.sbt_offset, ray.sbt_stride),
+            kind,
+        ));
+    };
+    let mut stats = TracerStats::default();
+    trace_rays(
+        &prepared,
+        &pairs,
+        &TracerConfig::default(),
+        &mut stats,
+        |j, a| {
+            if let Ok(allowed) = a {
+                for x in triangle_reach(&allowed) {
+                    add(pairs[j].0, x);
+                }
+            }
+        },
+    );
+    for (ray, _) in &pairs {
+        for x in procedural_reach(scene, ray) {
+            add(ray, x);
+        }
+    }
+    out.into_iter().collect()
 }
 
 /// Whether any bottom level an instance uses holds triangle geometry (the only kind a trace adds to
