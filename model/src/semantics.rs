@@ -387,16 +387,24 @@ pub fn launch_hit_reach(
     launch: &crate::world::Launch,
     ids: Option<usize>,
 ) -> Vec<(u64, GeometryKind)> {
-    let rays = launch.traced_rays(ids);
-    if rays.is_empty() {
-        return vec![];
-    }
-    let keys: Vec<[u32; 13]> = rays.iter().map(ray_key).collect();
-    let fingerprint = crate::fingerprint::of_with_words(&launch.scene, keys.as_flattened());
-    HIT_REACH.get_or(fingerprint, || traced_hit_reach(launch, &rays))
+    HIT_REACH.get_or(reach_key(launch, ids), || {
+        let rays = launch.traced_rays(ids);
+        if rays.is_empty() {
+            return vec![];
+        }
+        traced_hit_reach(launch, &rays)
+    })
 }
 
-/// Launches' hit reach by the fingerprint of their scene and traced rays: the generator, the gate,
+/// The key [`HIT_REACH`] keeps a launch's reach by: the fingerprint of its scene and of what its
+/// traced rays are made of — the explicit rays (their [`ray_key`]s), the camera and the launch size,
+/// of which [`crate::world::Launch::traced_rays`] is a function —, so a lookup makes no camera ray.
+fn reach_key(launch: &crate::world::Launch, ids: Option<usize>) -> Option<u128> {
+    let keys: Vec<[u32; 13]> = launch.rays.iter().map(ray_key).collect();
+    crate::fingerprint::of_with_words(&(&launch.scene, &launch.camera, ids), keys.as_flattened())
+}
+
+/// Launches' hit reach by [`reach_key`]: the generator, the gate,
 /// the rules and the judgement of one case each ask for the same launch's reach, the generator and
 /// the gate a whole chunk of cases apart; a launch traced once (or its reach found from its allowed
 /// outcomes, [`prime_hit_reach`]) serves them all.
@@ -415,10 +423,9 @@ pub fn prime_hit_reach(world: &World, call: &Call, expected: &ExpectedLaunch) {
         return;
     }
     if let Some(reach) = derived_hit_reach(world, expected) {
-        let keys: Vec<[u32; 13]> = expected.rays.iter().map(ray_key).collect();
-        let fingerprint =
-            crate::fingerprint::of_with_words(&world.launch.scene, keys.as_flattened());
-        let _ = HIT_REACH.get_or(fingerprint, || reach);
+        // The outcomes are of the rays `traced_rays` gives for the call's launch IDs.
+        let key = reach_key(&world.launch, launch_ids(world, call));
+        let _ = HIT_REACH.get_or(key, || reach);
     }
 }
 
