@@ -457,21 +457,13 @@ fn traced_hit_reach(launch: &crate::world::Launch, rays: &[Ray]) -> Vec<(u64, Ge
     }
     // Every distinct ray traced with the generic table at once (`trace_rays` walks several rays in
     // turn), each one's reach as `ray_reach` gives it: its triangle candidates and its procedural half.
-    let scene = &launch.scene;
     let (distinct, _) = distinct_rays(rays);
     let table = generic_table();
     let pairs: Vec<(&Ray, &ShaderTable)> = distinct
         .iter()
         .map(|&k| (&rays[k as usize], &table))
         .collect();
-    let mut out: BTreeSet<(u64, GeometryKind)> = BTreeSet::new();
-    let mut add = |ray: &Ray, (i, g, kind): (u32, u32, GeometryKind)| {
-        let inst = &scene.instances[i as usize];
-        out.insert((
-            hit_record(inst.sbt_record_offset, g, ray.sbt_offset, ray.sbt_stride),
-            kind,
-        ));
-    };
+    let mut triangles: Vec<Vec<(u32, u32, GeometryKind)>> = vec![Vec::new(); rays.len()];
     let mut stats = TracerStats::default();
     trace_rays(
         &prepared,
@@ -480,18 +472,15 @@ fn traced_hit_reach(launch: &crate::world::Launch, rays: &[Ray]) -> Vec<(u64, Ge
         &mut stats,
         |j, a| {
             if let Ok(allowed) = a {
-                for x in triangle_reach(&allowed) {
-                    add(pairs[j].0, x);
-                }
+                triangles[distinct[j] as usize] = triangle_reach(&allowed).collect();
             }
         },
     );
-    for (ray, _) in &pairs {
-        for x in procedural_reach(scene, ray) {
-            add(ray, x);
-        }
-    }
-    out.into_iter().collect()
+    hit_reach_of_distinct(&launch.scene, rays, &distinct, |k, ray| {
+        std::mem::take(&mut triangles[k])
+            .into_iter()
+            .chain(procedural_reach(&launch.scene, ray))
+    })
 }
 
 /// Whether any bottom level an instance uses holds triangle geometry (the only kind a trace adds to
@@ -511,11 +500,20 @@ fn has_triangle_geometry(scene: &Scene) -> bool {
 fn hit_reach_of<R: IntoIterator<Item = (u32, u32, GeometryKind)>>(
     scene: &Scene,
     rays: &[Ray],
+    reach: impl FnMut(usize, &Ray) -> R,
+) -> Vec<(u64, GeometryKind)> {
+    hit_reach_of_distinct(scene, rays, &distinct_rays(rays).0, reach)
+}
+
+/// [`hit_reach_of`] with the distinct rays' indices already found.
+fn hit_reach_of_distinct<R: IntoIterator<Item = (u32, u32, GeometryKind)>>(
+    scene: &Scene,
+    rays: &[Ray],
+    distinct: &[u32],
     mut reach: impl FnMut(usize, &Ray) -> R,
 ) -> Vec<(u64, GeometryKind)> {
     let mut out: BTreeSet<(u64, GeometryKind)> = BTreeSet::new();
-    let (distinct, _) = distinct_rays(rays);
-    for k in distinct {
+    for &k in distinct {
         let k = k as usize;
         let ray = &rays[k];
         for (i, g, kind) in reach(k, ray) {
