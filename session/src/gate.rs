@@ -17,7 +17,7 @@ pub(crate) fn gate(case: &Case, judging: &Judging) -> Option<CaseReport> {
     if let Err(why) = case.runnable(judging.profile) {
         return Some(not_runnable(case, &why));
     }
-    if let Some((at, why)) = too_large(case, judging.profile) {
+    if let Some((at, why)) = too_large(case, &judging.buffer_limits) {
         return Some(not_realisable(case, &at, &why));
     }
     if case.as_trace().is_some() && case.runs_as_valid(judging.profile) {
@@ -37,10 +37,30 @@ pub(crate) fn gate(case: &Case, judging: &Judging) -> Option<CaseReport> {
     None
 }
 
+/// The profile's limits a buffer is held to ([`too_large`]), each with its name: looked up once per
+/// run (a lookup by member name scans the profile's properties).
+#[derive(Debug, Clone)]
+pub(crate) struct BufferLimits {
+    buffer: (&'static str, Option<u64>),
+    allocation: (&'static str, Option<u64>),
+    sparse: (&'static str, Option<u64>),
+}
+
+impl BufferLimits {
+    pub(crate) fn of(profile: &DeviceProfile) -> BufferLimits {
+        let named = |limit: &'static str| (limit, profile.limit(limit));
+        BufferLimits {
+            buffer: named("maxBufferSize"),
+            allocation: named("maxMemoryAllocationSize"),
+            sparse: named("sparseAddressSpaceSize"),
+        }
+    }
+}
+
 /// The first buffer the profile's device cannot hold: a non-sparse buffer past `maxBufferSize` or
 /// `maxMemoryAllocationSize` (it is bound to one allocation), a sparse one past
 /// `sparseAddressSpaceSize`. The path of its size and why.
-fn too_large(case: &Case, profile: &DeviceProfile) -> Option<(String, String)> {
+fn too_large(case: &Case, limits: &BufferLimits) -> Option<(String, String)> {
     let buffers: Vec<(&str, u64, bool)> = match &case.body {
         Body::Trace(t) => t
             .world
@@ -55,16 +75,8 @@ fn too_large(case: &Case, profile: &DeviceProfile) -> Option<(String, String)> {
             .map(|b| (b.name.as_str(), b.size, b.is_sparse()))
             .collect(),
     };
-    if buffers.is_empty() {
-        return None;
-    }
-    // Looked up once per case (a lookup by member name scans the profile's properties).
-    let [buffer_max, allocation_max, sparse_max] = [
-        "maxBufferSize",
-        "maxMemoryAllocationSize",
-        "sparseAddressSpaceSize",
-    ]
-    .map(|limit| (limit, profile.limit(limit)));
+    let (buffer_max, allocation_max, sparse_max) =
+        (limits.buffer, limits.allocation, limits.sparse);
     for (i, (name, size, sparse)) in buffers.into_iter().enumerate() {
         let limits = if sparse {
             [buffer_max, sparse_max]
