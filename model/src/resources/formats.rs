@@ -14,7 +14,7 @@ use crate::profile::DeviceProfile;
 use std::collections::BTreeSet;
 
 /// What a format's name says of it.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct FormatInfo {
     pub numeric: Numeric,
     /// Number of components (`R8G8B8A8` → 4, `A8` → 1, `D24` with `X8` → 1).
@@ -24,9 +24,33 @@ pub struct FormatInfo {
     pub depth: bool,
 }
 
+/// The most names [`info`] keeps its answer for on a thread (a profile reports a few hundred formats;
+/// names from case files past this many are parsed each time).
+const INFO_MEMO_SIZE: usize = 4096;
+
 /// Parses `VK_FORMAT_R32G32_SFLOAT`-style names; None for block-compressed and unknown shapes.
+/// Called for every format of a profile each time a valid resource state is drawn: a name's answer is
+/// kept on the thread after its first parse.
 pub fn info(format: &str) -> Option<FormatInfo> {
-    // Called for every format of a profile each time a valid resource state is drawn: no allocation.
+    thread_local! {
+        static MEMO: std::cell::RefCell<std::collections::HashMap<String, Option<FormatInfo>>> =
+            Default::default();
+    }
+    MEMO.with(|memo| {
+        if let Some(known) = memo.borrow().get(format) {
+            return *known;
+        }
+        let parsed = parse_info(format);
+        let mut memo = memo.borrow_mut();
+        if memo.len() < INFO_MEMO_SIZE {
+            memo.insert(format.to_string(), parsed);
+        }
+        parsed
+    })
+}
+
+/// [`info`] without the memo.
+fn parse_info(format: &str) -> Option<FormatInfo> {
     let name = format.strip_prefix("VK_FORMAT_").unwrap_or(format);
     let numeric_of = |p: &str| match p {
         "UINT" => Some(Numeric::Uint),
