@@ -24,7 +24,9 @@ static KEPT: Mutex<Kept> = Mutex::new(Kept {
     rays: 0,
 });
 
-fn key(world: &World, call: &Call) -> Option<u128> {
+/// The key a launch's expected outcomes are kept by: the fingerprint of its world and call (None
+/// where the world does not serialise).
+pub(crate) fn key(world: &World, call: &Call) -> Option<u128> {
     match call {
         Call::TraceRaysIndirect(c) => crate::fingerprint::of(&(world, 0u8, c)),
         Call::TraceRays(c) => crate::fingerprint::of(&(world, 1u8, c)),
@@ -32,7 +34,8 @@ fn key(world: &World, call: &Call) -> Option<u128> {
     }
 }
 
-fn lookup(key: u128) -> Option<Arc<ExpectedLaunch>> {
+/// The expected launch kept by `key` ([`key`]), if it still is.
+pub(crate) fn lookup(key: u128) -> Option<Arc<ExpectedLaunch>> {
     let kept = KEPT.lock().unwrap_or_else(|e| e.into_inner());
     kept.entries
         .iter()

@@ -15,20 +15,45 @@ pub fn records_read(world: &World, call: &Call) -> Vec<(Table, u64)> {
     }
     // The gate asks for a case's records long before the rules of its judgement do (a run gates a
     // whole chunk of cases first), and tracing a rendered launch's rays costs far more than
-    // fingerprinting it; so the records are kept by the fingerprint of the world and the call.
+    // fingerprinting it; so the records are kept by the fingerprint of the world and the call (the
+    // key its whole traced launch is kept by, `crate::expected`). A launch of a few rays in a few
+    // primitives is found again for less than its world's fingerprint (the world's resources and
+    // buffers are most of it): found each time it is asked, its misses by tracing.
+    if is_small_launch(world) {
+        return records_read_traced(world, call, None);
+    }
     static MEMO: crate::fingerprint::Memo<Vec<(Table, u64)>, 4096> =
         crate::fingerprint::Memo::new();
-    let key = match call {
-        Call::TraceRaysIndirect(c) => crate::fingerprint::of(&(world, 0u8, c)),
-        Call::TraceRays(c) => crate::fingerprint::of(&(world, 1u8, c)),
-        Call::TraceRaysNv(c) => crate::fingerprint::of(&(world, 2u8, c)),
-    };
-    MEMO.get_or(key, || records_read_traced(world, call))
+    let key = crate::expected::key(world, call);
+    MEMO.get_or(key, || records_read_traced(world, call, key))
+}
+
+/// The most rays and primitives of a launch [`records_read`] finds each time instead of keeping.
+const SMALL_LAUNCH: usize = 64;
+
+/// A launch without a camera whose rays and whose scene's primitives (over its bottom levels) are at
+/// most [`SMALL_LAUNCH`] each, in at most [`SMALL_LAUNCH`] instances.
+fn is_small_launch(world: &World) -> bool {
+    let launch = &world.launch;
+    let primitives: usize = launch
+        .scene
+        .bottom_levels
+        .iter()
+        .flat_map(|b| &b.geometries)
+        .map(|g| match &g.data {
+            crate::scene::GeometryData::Triangles(t) => t.primitive_count(),
+            crate::scene::GeometryData::Aabbs(a) => a.boxes.len(),
+        })
+        .sum();
+    launch.camera.is_none()
+        && launch.rays.len() <= SMALL_LAUNCH
+        && launch.scene.instances.len() <= SMALL_LAUNCH
+        && primitives <= SMALL_LAUNCH
 }
 
 /// [`records_read`] computed: the hit records of the launch's reach, and a miss record for each ray a
-/// miss is allowed for.
-fn records_read_traced(world: &World, call: &Call) -> Vec<(Table, u64)> {
+/// miss is allowed for (from the whole traced launch kept by `key`, when one is).
+fn records_read_traced(world: &World, call: &Call, key: Option<u128>) -> Vec<(Table, u64)> {
     let mut out = vec![(Table::Raygen, 0)];
     out.extend(
         reached_hit_records(world, call)
@@ -38,7 +63,7 @@ fn records_read_traced(world: &World, call: &Call) -> Vec<(Table, u64)> {
     let rays = traced_rays(world, call);
     if !rays.is_empty() {
         // A launch traced whole already (the gate of a valid case) knows its misses.
-        let misses = match crate::expected::kept(world, call) {
+        let misses = match key.and_then(crate::expected::lookup) {
             Some(e) => misses_of(&e),
             None => misses_by_tracing(world, call, &rays),
         };
