@@ -177,6 +177,25 @@ pub fn summarise(
     planned: Option<&[String]>,
     who: &RunIdentity,
 ) -> Result<Summary, SessionError> {
+    Ok(summarise_exercised(path, planned, who)?.0)
+}
+
+/// What the cases of a run exercised, for judging its triage entries ([`judge_triage`]): the commands
+/// whose cases ran (were not refused or lost) and every VUID those cases targeted or either side
+/// reported.
+#[derive(Debug, Default)]
+pub(crate) struct Exercised {
+    ran: BTreeSet<CommandId>,
+    vuids: BTreeSet<String>,
+}
+
+/// [`summarise`], and what the cases exercised, in the one pass over `results.jsonl`.
+pub(crate) fn summarise_exercised(
+    path: &Path,
+    planned: Option<&[String]>,
+    who: &RunIdentity,
+) -> Result<(Summary, Exercised), SessionError> {
+    let mut exercised = Exercised::default();
     let mut s = Summary {
         driver: who.driver.clone(),
         profile: who.profile.clone(),
@@ -238,6 +257,12 @@ pub fn summarise(
         ) {
             continue;
         }
+        exercised.ran.insert(r.command);
+        for v in r.target.iter().chain(&r.model).chain(&r.layer) {
+            if !exercised.vuids.contains(v) {
+                exercised.vuids.insert(v.clone());
+            }
+        }
         let m: BTreeSet<&String> = r.model.iter().collect();
         let l: BTreeSet<&String> = r.layer.iter().collect();
         for v in m.union(&l) {
@@ -256,42 +281,19 @@ pub fn summarise(
             .collect();
         *s.statuses.entry(Status::Missing).or_default() = s.missing.len();
     }
-    Ok(s)
+    Ok((s, exercised))
 }
 
-/// Judges the run's triage entries on `results.jsonl`: the files and entries read, and the entries about
-/// a command whose cases ran that explained nothing (stale; a verdict only for a `full` run, one of every
+/// Judges the run's triage entries on what its cases exercised ([`summarise_exercised`]): the files and
+/// entries read, and the entries about a command whose cases ran that explained nothing (stale; a verdict only for a `full` run, one of every
 /// spec of its commands). The per-entry use is counted by [`summarise`].
-pub(crate) fn judge_triage(
-    s: &mut Summary,
-    path: &Path,
-    triage: &Triage,
-    full: bool,
-) -> Result<(), SessionError> {
-    let mut ran: BTreeSet<CommandId> = BTreeSet::new();
-    let mut exercised: BTreeSet<String> = BTreeSet::new();
-    for line in read_lines(path)? {
-        let r = &line.report;
-        if !matches!(
-            r.outcome,
-            Outcome::Unsupported
-                | Outcome::NotRealised
-                | Outcome::Crash
-                | Outcome::Timeout
-                | Outcome::CaseError
-        ) {
-            ran.insert(r.command);
-            exercised.extend(r.target.iter().cloned());
-            exercised.extend(r.model.iter().cloned());
-            exercised.extend(r.layer.iter().cloned());
-        }
-    }
+pub(crate) fn judge_triage(s: &mut Summary, exercised: &Exercised, triage: &Triage, full: bool) {
     s.triage.files = triage.files.clone();
     s.triage.entries = triage.entries.len();
     let used: BTreeSet<String> = s.triage.used.keys().cloned().collect();
-    (s.triage.stale, s.triage.unexercised) = crate::triage::unused(triage, &used, &ran, &exercised);
+    (s.triage.stale, s.triage.unexercised) =
+        crate::triage::unused(triage, &used, &exercised.ran, &exercised.vuids);
     s.triage.stale_judged = full;
-    Ok(())
 }
 
 pub(crate) fn xml_escape(s: &str) -> String {

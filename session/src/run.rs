@@ -10,7 +10,7 @@ use crate::compare::{as_run, compare, CaseReport, Outcome};
 use crate::details::{keep, CaseDetails};
 use crate::error::SessionError;
 use crate::plan::{plan, Scope};
-use crate::report::{judge_triage, reports, summarise, write_junit, RunIdentity, Summary};
+use crate::report::{judge_triage, reports, write_junit, RunIdentity, Summary};
 use crate::results::{applied_triage, ResultLine};
 use crate::select::Selection;
 use crate::sources;
@@ -132,6 +132,8 @@ pub struct Judging<'a> {
     pub rules: &'a RuleSet,
     pub profile: &'a DeviceProfile,
     pub triage: &'a Triage,
+    /// The profile's buffer limits the gate holds every case to.
+    pub(crate) buffer_limits: crate::gate::BufferLimits,
     /// The rule table prepared per command and enabled extensions ([`RuleSet::prepare`]): the
     /// profile is the run's, so each preparation serves every later case with the same key.
     prepared: std::sync::Mutex<PreparedRules<'a>>,
@@ -150,6 +152,7 @@ impl<'a> Judging<'a> {
             rules,
             profile,
             triage,
+            buffer_limits: crate::gate::BufferLimits::of(profile),
             prepared: Default::default(),
         }
     }
@@ -778,11 +781,12 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         registry: set.version.clone(),
         shard: config.selection.shard.map(|s| s.to_string()),
     };
-    let mut summary = summarise(&results_path, Some(&planned.caselist), &who)?;
+    let (mut summary, exercised) =
+        crate::report::summarise_exercised(&results_path, Some(&planned.caselist), &who)?;
     summary.skipped = planned.skipped;
     summary.expectations = expectations.files.clone();
     summary.layer = Some(layer.version.clone());
-    judge_triage(&mut summary, &results_path, &triage, full)?;
+    judge_triage(&mut summary, &exercised, &triage, full);
     if let Some(i) = &config.inject {
         summary.inject = Some(crate::inject::totals(i, &results_path)?);
     }
