@@ -280,19 +280,65 @@ pub struct VuidParts<'a> {
     pub tag: &'a str,
 }
 
+/// The bytes a part of a VUID id may hold: ASCII letters and digits, `_`, `-` and `:`.
+static VUID_BYTE: [bool; 256] = {
+    let mut t = [false; 256];
+    let mut b = 0;
+    while b < 256 {
+        let c = b as u8;
+        t[b] = c.is_ascii_alphanumeric() || matches!(c, b'_' | b'-' | b':');
+        b += 1;
+    }
+    t
+};
+
+/// Whether `s` can be a part of a VUID id ([`split_vuid`]): not empty, and only ASCII letters
+/// and digits, `_`, `-` and `:`.
+#[inline]
+pub(crate) fn is_vuid_part(s: &str) -> bool {
+    let b = s.as_bytes();
+    #[cfg(target_arch = "x86_64")]
+    if b.len() >= 16 {
+        use std::arch::x86_64::*;
+        // SAFETY: SSE2 is part of x86_64; each load reads 16 bytes of `b`, which has 16 or more.
+        unsafe {
+            let all_vuid_bytes = |at: usize| {
+                let v = _mm_loadu_si128(b.as_ptr().add(at).cast());
+                // `x` in `lo..=hi`, unsigned
+                let within = |x: __m128i, lo: u8, hi: u8| {
+                    let d = _mm_sub_epi8(x, _mm_set1_epi8(lo as i8));
+                    _mm_cmpeq_epi8(_mm_min_epu8(d, _mm_set1_epi8((hi - lo) as i8)), d)
+                };
+                let letter = within(_mm_or_si128(v, _mm_set1_epi8(0x20)), b'a', b'z');
+                let digit = within(v, b'0', b'9');
+                let punct = _mm_or_si128(
+                    _mm_cmpeq_epi8(v, _mm_set1_epi8(b'_' as i8)),
+                    _mm_or_si128(
+                        _mm_cmpeq_epi8(v, _mm_set1_epi8(b'-' as i8)),
+                        _mm_cmpeq_epi8(v, _mm_set1_epi8(b':' as i8)),
+                    ),
+                );
+                _mm_movemask_epi8(_mm_or_si128(_mm_or_si128(letter, digit), punct)) == 0xffff
+            };
+            let mut at = 0;
+            while at + 16 < b.len() {
+                if !all_vuid_bytes(at) {
+                    return false;
+                }
+                at += 16;
+            }
+            // the last 16 bytes, which may overlap those checked
+            return all_vuid_bytes(b.len() - 16);
+        }
+    }
+    !b.is_empty() && b.iter().all(|&c| VUID_BYTE[c as usize])
+}
+
 /// Split `VUID-scope-field-tag` (or `VUID-scope-tag`); `None` if it is not a VUID id.
 pub fn split_vuid(id: &str) -> Option<VuidParts<'_>> {
     let rest = id.strip_prefix("VUID-")?;
     let (scope, rest) = rest.split_once('-')?;
-    if scope.is_empty() || rest.is_empty() {
-        return None;
-    }
-    let valid = |s: &str| {
-        !s.is_empty()
-            && s.bytes()
-                .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-' || b == b':')
-    };
-    if !valid(scope) || !valid(rest) {
+    if !is_vuid_part(scope) || !is_vuid_part(rest) {
         return None;
     }
     Some(match rest.rsplit_once('-') {
@@ -409,7 +455,7 @@ impl Out {
         self.space = false;
         self.s.push(c);
     }
-    /// Push a run of ASCII characters that holds no whitespace.
+    /// Push a run of ASCII characters that holds no whitespace but single spaces between others.
     fn push_run(&mut self, t: &str) {
         if self.space && !self.s.is_empty() {
             self.s.push(' ');
@@ -529,10 +575,21 @@ fn run(s: &str, mode: Mode, out: &mut Out, link_depth: usize) {
                 }
             }
             _ if c < 0x80 => {
-                // copy a run of ordinary ASCII bytes at once
+                // copy a run of ordinary ASCII bytes at once, single spaces between them included
+                // (each one is the space that the whitespace before the next byte collapses to)
                 let start = i;
-                while i < b.len() && is_plain_byte(b[i]) {
-                    i += 1;
+                loop {
+                    while i < b.len() && is_plain_byte(b[i]) {
+                        i += 1;
+                    }
+                    if i > start
+                        && b.get(i) == Some(&b' ')
+                        && b.get(i + 1).is_some_and(|&n| is_plain_byte(n))
+                    {
+                        i += 2;
+                        continue;
+                    }
+                    break;
                 }
                 if i > start {
                     out.push_run(&s[start..i]);
@@ -550,16 +607,30 @@ fn run(s: &str, mode: Mode, out: &mut Out, link_depth: usize) {
     }
 }
 
+/// The bytes [`run`] copies as they are: ASCII graphic characters other than `<`, `&`, `` ` ``,
+/// `\`, `*` and `[`.
+static PLAIN_BYTE: [bool; 256] = {
+    let mut t = [false; 256];
+    let mut b = 0;
+    while b < 256 {
+        let c = b as u8;
+        t[b] = c.is_ascii_graphic() && !matches!(c, b'<' | b'&' | b'`' | b'\\' | b'*' | b'[');
+        b += 1;
+    }
+    t
+};
+
 #[inline]
 fn is_plain_byte(c: u8) -> bool {
-    c.is_ascii_graphic() && !matches!(c, b'<' | b'&' | b'`' | b'\\' | b'*' | b'[')
+    PLAIN_BYTE[c as usize]
 }
 
 fn is_block_tag(name: &str) -> bool {
-    matches!(
-        name.to_ascii_lowercase().as_str(),
-        "p" | "div" | "ul" | "ol" | "li" | "br" | "table" | "tr" | "td" | "th" | "dl" | "dt" | "dd"
-    )
+    [
+        "p", "div", "ul", "ol", "li", "br", "table", "tr", "td", "th", "dl", "dt", "dd",
+    ]
+    .iter()
+    .any(|t| name.eq_ignore_ascii_case(t))
 }
 
 /// Length of an HTML tag starting at `b[0] == '<'`, if it looks like one.
@@ -729,6 +800,49 @@ mod tests {
         assert!(normalize_markdown(&deep).contains('x'));
         let unclosed = "[a".repeat(5_000);
         assert_eq!(normalize_markdown(&unclosed), unclosed);
+    }
+
+    #[test]
+    fn runs_of_words_keep_single_spaces_and_collapse_the_others() {
+        assert_eq!(normalize_html("a b  c\td \n e "), "a b c d e");
+        assert_eq!(normalize_html("  x y\u{200b} z"), "x y z");
+        assert_eq!(normalize_html("x\u{200b}y"), "xy");
+        assert_eq!(normalize_html("a &amp; b &gt;c"), "a & b >c");
+        assert_eq!(normalize_html("a <p>b</p> c<br>d<DIV>e"), "a b c d e");
+        assert_eq!(normalize_html("x<b>y</b> <CODE>z</Code> w"), "xy `z` w");
+        assert_eq!(normalize_markdown("a *b* c \\*d [e](#f) g"), "a b c *d e g");
+    }
+
+    #[test]
+    fn vuid_parts_are_recognised_at_every_length() {
+        let scalar = |s: &str| {
+            !s.is_empty()
+                && s.bytes()
+                    .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'-' | b':'))
+        };
+        let alphabet: Vec<char> = (0u8..128)
+            .map(char::from)
+            .chain(['é', '\u{200b}'])
+            .collect();
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        for len in 0..70 {
+            for _ in 0..400 {
+                // mostly VUID bytes, one other byte now and then
+                let s: String = (0..len)
+                    .map(|_| {
+                        seed ^= seed << 13;
+                        seed ^= seed >> 7;
+                        seed ^= seed << 17;
+                        if seed % 23 == 0 {
+                            alphabet[(seed >> 8) as usize % alphabet.len()]
+                        } else {
+                            b"aZ09_-:"[(seed >> 8) as usize % 7] as char
+                        }
+                    })
+                    .collect();
+                assert_eq!(is_vuid_part(&s), scalar(&s), "{s:?}");
+            }
+        }
     }
 
     #[test]

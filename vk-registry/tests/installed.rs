@@ -289,3 +289,42 @@ fn a_scoped_reading_is_the_full_one_filtered() {
         assert!(name == "none" || !got.is_empty(), "{name} keeps records");
     }
 }
+
+/// `validusage::load_where` on the installed validusage.json is `validusage::load` restricted to
+/// the kept scopes: the same records in the same order, the same origin and version.
+#[test]
+fn validusage_load_where_is_load_restricted_to_the_kept_scopes() {
+    let path = common::installed_validusage();
+    let full = vk_registry::validusage::load(&path).expect("installed validusage.json parses");
+    let ray_tracing = |s: &str| {
+        matches!(
+            s,
+            "vkCmdTraceRaysIndirectKHR"
+                | "vkCmdTraceRaysKHR"
+                | "vkCmdTraceRaysNV"
+                | "vkCmdBuildAccelerationStructuresIndirectKHR"
+        )
+    };
+    type Keep<'a> = &'a dyn Fn(&str) -> bool;
+    let pickers: [(&str, Keep); 3] = [
+        ("ray tracing", &ray_tracing),
+        ("structures", &|s: &str| s.starts_with("Vk")),
+        ("all but ray tracing", &|s: &str| !ray_tracing(s)),
+    ];
+    for (name, keep) in pickers {
+        let scoped = vk_registry::validusage::load_where(&path, keep)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let want = VuidSet {
+            origin: full.origin.clone(),
+            version: full.version.clone(),
+            records: full
+                .records
+                .iter()
+                .filter(|r| keep(&r.scope))
+                .cloned()
+                .collect(),
+        };
+        assert!(!want.records.is_empty(), "{name} keeps records");
+        assert!(scoped == want, "{name}: the scoped reading differs");
+    }
+}

@@ -438,3 +438,47 @@ fn diff_can_leave_out_condition_only_changes() {
     assert!(both.contains(&format!("~ {id}\n    text - ")), "{both}");
     assert!(!both.contains("condition -"), "{both}");
 }
+
+/// A text or a condition that is no string is reported at its JSON path where its scope is kept,
+/// and not read where it is not.
+#[test]
+fn a_text_that_is_no_string_is_reported_only_where_its_scope_is_kept() {
+    let text = common::fixture_text("validusage_1_3.json");
+    let region = |s: &str| s == "VkToyRegion";
+    let others = |s: &str| s != "VkToyRegion";
+    let stride = "\"text\": \"<code>stride</code>";
+    assert!(text.contains(stride));
+    for (bad, path, found) in [
+        (
+            text.replacen(stride, "\"text\": 7, \"x\": \"", 1),
+            "$.validation.VkToyRegion.core[0].text",
+            "found a number",
+        ),
+        (
+            text.replacen(stride, "\"text\": {\"a\": \"\"}, \"x\": \"", 1),
+            "$.validation.VkToyRegion.core[0].text",
+            "found an object",
+        ),
+        (
+            text.replacen(stride, "\"condition\": [\"VK_A\"], \"text\": \"", 1),
+            "$.validation.VkToyRegion.core[0].condition",
+            "found an array",
+        ),
+    ] {
+        for e in [
+            validusage::parse_where(&bad, "v.json", &region).unwrap_err(),
+            validusage::parse(&bad, "v.json").unwrap_err(),
+        ] {
+            match e.location() {
+                Some(Location::JsonPathAt { path: p, .. }) => assert_eq!(p, path, "{e}"),
+                other => panic!("expected a JSON path, got {other:?}: {e}"),
+            }
+            assert!(e.to_string().contains(found), "{e}");
+        }
+        let set = validusage::parse_where(&bad, "v.json", &others).expect("the other scopes read");
+        assert_eq!(
+            set,
+            validusage::parse_where(&text, "v.json", &others).unwrap()
+        );
+    }
+}
