@@ -166,6 +166,7 @@ fn config(s: &Selection, out: &Path) -> session::RunConfig {
         strict: false,
         selection: session::Selection::default(),
         inject: None,
+        keep_all: false,
     }
 }
 

@@ -217,6 +217,9 @@ fn the_report_loads_in_chromium_and_shows_the_summary_counts() {
     assert!(triaged.contains("Triage that applied"), "{triaged}");
     assert!(triaged.contains("layer-gap"), "{triaged}");
     assert!(triaged.contains("The model's violations"), "{triaged}");
+    // Its outcome is explained: its case file is not kept, and the section says how to keep it.
+    assert!(!triaged.contains("rtconf replay"), "{triaged}");
+    assert!(triaged.contains("--keep-all"), "{triaged}");
     let crash = section("fault-abort-pictured");
     assert!(
         crash.contains(&format!(

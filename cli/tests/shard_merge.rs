@@ -25,7 +25,8 @@ const SCOPE: &[&str] = &[
 ];
 
 fn run(out: &Path, shard: Option<&str>) {
-    let mut args = vec!["run", "--out", out.to_str().unwrap()];
+    // Every case file kept, so the merge of the shards' case folders is compared too.
+    let mut args = vec!["run", "--keep-all", "--out", out.to_str().unwrap()];
     args.extend_from_slice(SCOPE);
     if let Some(s) = shard {
         args.extend_from_slice(&["--shard", s]);
@@ -109,6 +110,10 @@ fn three_shards_merged_equal_the_unsharded_run_case_for_case() {
     assert_eq!(junit.matches("<testcase ").count(), expected.len());
     assert!(merged.join("report/index.html").is_file());
     let n = |d: &Path| std::fs::read_dir(d.join("triaged")).map_or(0, |r| r.count());
+    assert!(
+        n(&whole) > 0,
+        "the scope has triaged cases, kept with --keep-all"
+    );
     assert_eq!(n(&merged), n(&whole), "triaged/");
     // The same details lines, whatever the order the shards ran them in.
     let details = |d: &Path| {

@@ -1,11 +1,14 @@
-//! What a run keeps of each case that did not pass, for the report and for a person: the case file in
-//! the folder of its outcome (`failures/`, `triaged/`, `unsupported/`, and `unexpected-passes/` for
-//! cases the baseline expects to fail; `warnings/` for a rendered case that passed with quality
-//! warnings — a hole where the spec's watertightness says "should" — so it can be replayed and
-//! reported like a failure), and a line of `details.jsonl` with the model's violations
-//! (with their paths) and the layer's messages in full. One appended file rather than a file per
-//! case: creating a file is most of what keeping a case costs (a run of a few hundred triaged
-//! cases spent a quarter of its wall time making inodes).
+//! What a run keeps of each case that did not pass, for the report and for a person: a line of
+//! `details.jsonl` with the model's violations (with their paths) and the layer's messages in full,
+//! and the case file in the folder of its outcome — `failures/`, `case-errors/`, `unexpected-passes/`
+//! for cases the baseline expects to fail, and `warnings/` for a rendered case that passed with
+//! quality warnings (a hole where the spec's watertightness says "should"), so each can be replayed
+//! and reported. The cases whose outcome is already explained — `triaged/` (a triage entry, which
+//! names its own reproducing case), `unsupported/` (the profile), `not-realised/` (the harness) —
+//! keep their case file only when the run is asked to (`--keep-all`): in `run_end_to_end`'s invalid
+//! selection, 384 of the 520 cases are explained, and writing their files took a sixth of the
+//! runner's CPU time and 6% of the run's wall time (creating a file is most of what keeping a case
+//! costs, so the details of every kept case go to one appended file).
 
 use crate::baseline::Status;
 use crate::compare::{CaseReport, Outcome};
@@ -66,6 +69,16 @@ pub const CASE_FOLDERS: [&str; 7] = [
     WARNINGS_FOLDER,
 ];
 
+/// The folders of the outcomes that are already explained (a triage entry, the profile, the
+/// harness): a run keeps their case files only when asked to ([`keeps_file`]).
+pub const EXPLAINED_FOLDERS: [&str; 3] = ["triaged", "unsupported", "not-realised"];
+
+/// Whether a run writes the case file of a case kept in `folder`: always, but for the
+/// [`EXPLAINED_FOLDERS`] only when `keep_all`.
+pub fn keeps_file(folder: &str, keep_all: bool) -> bool {
+    keep_all || !EXPLAINED_FOLDERS.contains(&folder)
+}
+
 /// Where a run keeps a case's file, when it keeps one.
 pub fn case_path(out: &Path, report: &CaseReport, status: Status) -> Option<PathBuf> {
     kept_folder(report, status).map(|f| out.join(f).join(format!("{}.yaml", report.case)))
@@ -108,19 +121,25 @@ impl MadeFolders {
     }
 }
 
-/// Writes the case file of a case that did not pass or passed with warnings ([`kept_folder`]), whole
-/// or not at all; whether the run keeps the case (then its [`details_line`] goes to [`DETAILS_FILE`]). The file that could not be written,
-/// with its error.
+/// Writes the case file of a case that did not pass or passed with warnings ([`kept_folder`]; of an
+/// explained outcome only when `keep_all`, [`keeps_file`]), whole or not at all; whether the run
+/// keeps the case (then its [`details_line`] goes to [`DETAILS_FILE`], case file or not). The file
+/// that could not be written, with its error.
 pub fn keep(
     out: &Path,
     folders: &mut MadeFolders,
     case: &Case,
     report: &CaseReport,
     status: Status,
+    keep_all: bool,
 ) -> Result<bool, (PathBuf, std::io::Error)> {
-    let Some(path) = case_path(out, report, status) else {
+    let Some(folder) = kept_folder(report, status) else {
         return Ok(false);
     };
+    if !keeps_file(folder, keep_all) {
+        return Ok(true);
+    }
+    let path = out.join(folder).join(format!("{}.yaml", report.case));
     if let Some(dir) = path.parent() {
         folders.make(dir).map_err(|e| (dir.to_path_buf(), e))?;
     }
@@ -197,5 +216,68 @@ mod tests {
             Some("failures")
         );
         assert!(CASE_FOLDERS.contains(&WARNINGS_FOLDER));
+    }
+
+    /// An explained outcome keeps its details and, only with `keep_all`, its case file; a failure
+    /// always keeps both; a pass neither.
+    #[test]
+    fn explained_outcomes_keep_their_case_file_only_when_asked() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../cases/hand/trace-indirect-records-32.yaml");
+        let case = Case::read(
+            &path.display().to_string(),
+            &std::fs::read_to_string(&path).unwrap(),
+        )
+        .unwrap();
+        let outcomes = [
+            (Outcome::Triaged, Status::Triaged, Some("triaged"), false),
+            (
+                Outcome::Unsupported,
+                Status::Skip,
+                Some("unsupported"),
+                false,
+            ),
+            (
+                Outcome::NotRealised,
+                Status::Skip,
+                Some("not-realised"),
+                false,
+            ),
+            (Outcome::Fail, Status::Fail, Some("failures"), true),
+            (
+                Outcome::CaseError,
+                Status::CaseError,
+                Some("case-errors"),
+                true,
+            ),
+            (Outcome::Pass, Status::Pass, None, false),
+        ];
+        for (outcome, status, folder, always) in outcomes {
+            for keep_all in [false, true] {
+                let out = tempfile::tempdir().unwrap();
+                let r = report(outcome, None);
+                let kept = keep(
+                    out.path(),
+                    &mut MadeFolders::default(),
+                    &case,
+                    &r,
+                    status,
+                    keep_all,
+                )
+                .unwrap();
+                assert_eq!(kept, folder.is_some(), "{outcome:?} keep_all {keep_all}");
+                let file = folder.map(|f| out.path().join(f).join("c.yaml"));
+                let written = file.as_ref().is_some_and(|f| f.is_file());
+                assert_eq!(
+                    written,
+                    folder.is_some() && (always || keep_all),
+                    "{outcome:?} keep_all {keep_all}"
+                );
+                if written {
+                    let text = std::fs::read_to_string(file.unwrap()).unwrap();
+                    assert_eq!(text, case.to_yaml());
+                }
+            }
+        }
     }
 }

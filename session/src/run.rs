@@ -56,6 +56,9 @@ pub struct RunConfig {
     /// Hand the driver a perturbed copy of each valid trace case while the model judges the case
     /// itself (`crate::inject`), drawn from the run's seed.
     pub inject: Option<crate::inject::Injection>,
+    /// Also keep the case files of the cases whose outcome is already explained (triaged,
+    /// unsupported, not realised; see [`crate::details::keeps_file`]).
+    pub keep_all: bool,
 }
 
 /// How far a run has come, for a progress display.
@@ -332,6 +335,8 @@ struct Sink<'a> {
     error: Option<(PathBuf, std::io::Error)>,
     /// The case folders made so far.
     folders: crate::details::MadeFolders,
+    /// Case files of explained outcomes are kept too ([`RunConfig::keep_all`]).
+    keep_all: bool,
     expectations: &'a Expectations,
     /// The run's triage entries by id, for the entries a case's line names.
     triage_ids: crate::results::TriageIds<'a>,
@@ -363,7 +368,15 @@ impl Sink<'_> {
                 &attempts
             },
         );
-        let kept = keep(&self.out, &mut self.folders, case, report, status).and_then(|kept| {
+        let kept = keep(
+            &self.out,
+            &mut self.folders,
+            case,
+            report,
+            status,
+            self.keep_all,
+        )
+        .and_then(|kept| {
             if kept {
                 self.append_details(case, details)
             } else {
@@ -673,6 +686,7 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         details: None,
         error: None,
         folders: Default::default(),
+        keep_all: config.keep_all,
         expectations: &expectations,
         triage_ids: crate::results::TriageIds::new(&triage),
         progress,

@@ -68,8 +68,9 @@ pub struct RunArgs {
     /// Seconds a case may take (at least 1).
     #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..))]
     timeout: u64,
-    /// The run folder: results.jsonl, summary.json, junit.xml, report/index.html, failures/, triaged/,
-    /// unsupported/, warnings/, details.jsonl, caselist.txt.
+    /// The run folder: results.jsonl, summary.json, junit.xml, report/index.html, failures/,
+    /// case-errors/, unexpected-passes/, warnings/ (and with --keep-all triaged/, unsupported/,
+    /// not-realised/), details.jsonl, caselist.txt.
     #[arg(long, default_value = "out/run")]
     out: PathBuf,
     /// Shrink up to this many failing cases to minimal ones in cases/regressions/ (in this process).
@@ -101,6 +102,11 @@ pub struct RunArgs {
     /// fault; cases the kind has nothing to act on run as they are and are counted not applicable.
     #[arg(long, value_name = "KIND:SIZE", value_parser = parse_injection)]
     inject: Option<session::inject::Injection>,
+    /// Also keep the case files of triaged, unsupported and not-realised cases (their outcome is
+    /// already explained: by a triage entry, which names its own reproducing case, by the profile,
+    /// by the harness); every case that did not pass keeps its line in details.jsonl either way.
+    #[arg(long)]
+    keep_all: bool,
 }
 
 fn parse_injection(text: &str) -> Result<session::inject::Injection, String> {
@@ -194,6 +200,7 @@ pub fn run(a: RunArgs) -> super::Exit {
             retries: a.retries,
         },
         inject: a.inject,
+        keep_all: a.keep_all,
     };
     if a.list {
         let mut out = std::io::stdout().lock();
@@ -281,6 +288,7 @@ fn print_unexpected(out: &Path) {
     println!("unexpected results:");
     for l in bad.iter().take(20) {
         let replay = session::details::case_path(out, &l.report, l.status)
+            .filter(|p| p.exists())
             .map(|p| format!("  (rtconf replay {})", p.display()))
             .unwrap_or_default();
         println!("  {:<15} {}{replay}", l.status.name(), l.report.case);

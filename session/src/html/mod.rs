@@ -453,6 +453,16 @@ fn case_article(h: &mut String, e: &Entry, run_dir: &str) {
             escape(rel),
             escape(text)
         );
+    } else if let Some(folder) = e
+        .line
+        .as_ref()
+        .and_then(|l| crate::details::kept_folder(&l.report, l.status))
+        .filter(|f| !crate::details::keeps_file(f, false))
+    {
+        let _ = writeln!(
+            h,
+            "<p>The case file was not kept: its outcome is explained ({folder}). A run with <code>--keep-all</code> keeps it.</p>"
+        );
     }
     h.push_str("</article>\n");
 }
