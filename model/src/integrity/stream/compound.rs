@@ -58,49 +58,28 @@ pub(super) fn push_index(at: &mut String, i: usize) {
     at.push(']');
 }
 
-impl ser::SerializeSeq for Items<'_, '_> {
-    type Ok = Shape;
-    type Error = Unmirrored;
-    fn serialize_element<T: ?Sized + Serialize>(&mut self, value: &T) -> Result<(), Unmirrored> {
-        self.element(value)
-    }
-    fn end(self) -> Result<Shape, Unmirrored> {
-        Ok(Shape::Other)
-    }
+/// The four sequence-like compounds of serde, each an [`Items`] whose elements are walked in turn.
+macro_rules! items_compound {
+    ($($compound:ident :: $element:ident),*) => {$(
+        impl ser::$compound for Items<'_, '_> {
+            type Ok = Shape;
+            type Error = Unmirrored;
+            fn $element<T: ?Sized + Serialize>(&mut self, value: &T) -> Result<(), Unmirrored> {
+                self.element(value)
+            }
+            fn end(self) -> Result<Shape, Unmirrored> {
+                Ok(Shape::Other)
+            }
+        }
+    )*};
 }
 
-impl ser::SerializeTuple for Items<'_, '_> {
-    type Ok = Shape;
-    type Error = Unmirrored;
-    fn serialize_element<T: ?Sized + Serialize>(&mut self, value: &T) -> Result<(), Unmirrored> {
-        self.element(value)
-    }
-    fn end(self) -> Result<Shape, Unmirrored> {
-        Ok(Shape::Other)
-    }
-}
-
-impl ser::SerializeTupleStruct for Items<'_, '_> {
-    type Ok = Shape;
-    type Error = Unmirrored;
-    fn serialize_field<T: ?Sized + Serialize>(&mut self, value: &T) -> Result<(), Unmirrored> {
-        self.element(value)
-    }
-    fn end(self) -> Result<Shape, Unmirrored> {
-        Ok(Shape::Other)
-    }
-}
-
-impl ser::SerializeTupleVariant for Items<'_, '_> {
-    type Ok = Shape;
-    type Error = Unmirrored;
-    fn serialize_field<T: ?Sized + Serialize>(&mut self, value: &T) -> Result<(), Unmirrored> {
-        self.element(value)
-    }
-    fn end(self) -> Result<Shape, Unmirrored> {
-        Ok(Shape::Other)
-    }
-}
+items_compound!(
+    SerializeSeq::serialize_element,
+    SerializeTuple::serialize_element,
+    SerializeTupleStruct::serialize_field,
+    SerializeTupleVariant::serialize_field
+);
 
 /// What a mapping's `buffer` entry is to the address check made at the mapping's end.
 pub(super) enum BufferField {
