@@ -284,9 +284,10 @@ pub(crate) fn summarise_exercised(
     Ok((s, exercised))
 }
 
-/// Judges the run's triage entries on what its cases exercised ([`summarise_exercised`]): the files and
-/// entries read, and the entries about a command whose cases ran that explained nothing (stale; a verdict only for a `full` run, one of every
-/// spec of its commands). The per-entry use is counted by [`summarise`].
+/// Judges the run's triage entries on what its cases exercised ([`summarise_exercised`]): the files
+/// and entries read, and the entries about a command whose cases ran that explained nothing (stale;
+/// a verdict only for a `full` run, one of every spec of its commands). The per-entry use is counted
+/// by [`summarise`].
 pub(crate) fn judge_triage(s: &mut Summary, exercised: &Exercised, triage: &Triage, full: bool) {
     s.triage.files = triage.files.clone();
     s.triage.entries = triage.entries.len();
