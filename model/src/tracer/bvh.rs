@@ -417,6 +417,16 @@ impl PreparedScene {
             }
             let (near, hit) = node.bounds.entries(lane_ray, far);
             let mut hit = hit & ((1u32 << count) - 1);
+            if hit & hit.wrapping_sub(1) == 0 {
+                // At most one lane met (most nodes of most walks): no order to find.
+                let l = hit.trailing_zeros() as usize & 3;
+                out[0] = (
+                    near[l] as f64,
+                    node.child[l],
+                    node.lane_triangles & (1 << l) != 0,
+                );
+                return (hit != 0) as usize;
+            }
             while hit != 0 {
                 let l = hit.trailing_zeros() as usize;
                 hit &= hit - 1;
