@@ -408,11 +408,11 @@ impl PreparedScene {
         if lane_ray.fast && node.fast {
             let mut far = [lane_ray.tmax; 4];
             if let Some(c) = cut {
-                let c = f32_up(c);
+                let (c, tmax) = (f32_up(c).to_bits(), lane_ray.tmax.to_bits());
                 for (l, f) in far.iter_mut().enumerate() {
-                    if node.lane_triangles & (1 << l) != 0 {
-                        *f = c;
-                    }
+                    // The cut for a lane of triangles only, selected without a branch.
+                    let triangles = u32::from(node.lane_triangles >> l & 1).wrapping_neg();
+                    *f = f32::from_bits((c & triangles) | (tmax & !triangles));
                 }
             }
             let (near, hit) = node.bounds.entries(lane_ray, far);
