@@ -3,7 +3,9 @@
 //! workloads of `model::tracer::workload` as a 64x64 launch of the hand-made indirect case (the
 //! scene and rays `harness/benches/render_rays.rs` gives lavapipe), beside the bare tracer
 //! (`workload::run`, one shader table for every ray) on the same rays as the peer in the same run,
-//! and the launch's CPU time per ray (all threads).
+//! and the launch's CPU time per ray (all threads). The bare tracer's rays are also timed apart by
+//! whether they have a candidate (`ns/hit`, `ns/miss`: one thread, medians of the passes), and
+//! `hit time %` is the share of the tracer's time the rays with a candidate take.
 //!
 //! `cargo bench -p rtconf-model --bench expected_launch` (`RTCONF_BENCH_PASSES` sets the passes,
 //! default 9; each rate is their
@@ -55,7 +57,7 @@ fn main() {
         std::hint::black_box(&other);
     };
     println!(
-        "{:<24} {:>7} {:>7} {:>16} {:>14} {:>16} {:>8} {:>10} {:>10} {:>10}",
+        "{:<24} {:>7} {:>7} {:>16} {:>14} {:>16} {:>8} {:>10} {:>10} {:>10} {:>7} {:>8} {:>8} {:>11}",
         "workload",
         "prims",
         "rays",
@@ -65,7 +67,11 @@ fn main() {
         "ratio",
         "nodes/ray",
         "far/ray",
-        "pairs/ray"
+        "pairs/ray",
+        "hits %",
+        "ns/hit",
+        "ns/miss",
+        "hit time %"
     );
     for w in standard_workloads(SIDE, false) {
         if !w.triangles_only() || !w.name.contains(only.as_str()) {
@@ -90,16 +96,38 @@ fn main() {
         }
         let prepared = PreparedScene::new(&w.scene).expect("defined workload");
         let mut tracer = Vec::new();
+        let mut outcomes = Vec::new();
         for pass in 0..passes {
             evict(pass);
             let t = Instant::now();
             let r = run(&prepared, &w.rays, &TracerConfig::default());
             tracer.push(w.rays.len() as f64 / t.elapsed().as_secs_f64());
             assert_eq!(r.0.len(), w.rays.len());
+            outcomes = r.0;
         }
+        // The rays with a candidate and those without, each traced alone: ns per ray.
+        let (hit_rays, miss_rays): (Vec<_>, Vec<_>) = w
+            .rays
+            .iter()
+            .zip(&outcomes)
+            .partition(|(_, o)| !o.candidates.is_empty());
+        let mut ns_per_ray = |rays: Vec<(&model::scene::Ray, _)>| {
+            let rays: Vec<model::scene::Ray> = rays.into_iter().map(|(r, _)| *r).collect();
+            let mut times = Vec::new();
+            for pass in 0..passes {
+                evict(pass);
+                let t = Instant::now();
+                let r = run(&prepared, &rays, &TracerConfig::default());
+                times.push(1e9 * t.elapsed().as_secs_f64() / rays.len().max(1) as f64);
+                assert_eq!(r.0.len(), rays.len());
+            }
+            (median(times), rays.len() as f64)
+        };
+        let (hit_ns, hits) = ns_per_ray(hit_rays);
+        let (miss_ns, misses) = ns_per_ray(miss_rays);
         let (l, r) = (median(launch), median(tracer));
         println!(
-            "{:<24} {:>7} {:>7} {:>16.0} {:>14.2} {:>16.0} {:>8.2} {:>10.1} {:>10.1} {:>10.1}",
+            "{:<24} {:>7} {:>7} {:>16.0} {:>14.2} {:>16.0} {:>8.2} {:>10.1} {:>10.1} {:>10.1} {:>7.1} {:>8.0} {:>8.0} {:>11.1}",
             w.name,
             prepared.primitive_count(),
             w.rays.len(),
@@ -109,7 +137,11 @@ fn main() {
             l / r,
             per_ray(warm.stats.nodes_visited),
             per_ray(warm.stats.far_rejections),
-            per_ray(warm.stats.pair_tests)
+            per_ray(warm.stats.pair_tests),
+            100.0 * hits / (hits + misses),
+            hit_ns,
+            miss_ns,
+            100.0 * hits * hit_ns / (hits * hit_ns + misses * miss_ns)
         );
     }
 }
