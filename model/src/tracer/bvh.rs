@@ -408,35 +408,24 @@ impl PreparedScene {
         if lane_ray.fast && node.fast {
             let mut far = [lane_ray.tmax; 4];
             if let Some(c) = cut {
-                let (c, tmax) = (f32_up(c).to_bits(), lane_ray.tmax.to_bits());
+                let c = f32_up(c);
                 for (l, f) in far.iter_mut().enumerate() {
-                    // The cut for a lane of triangles only, selected without a branch.
-                    let triangles = u32::from(node.lane_triangles >> l & 1).wrapping_neg();
-                    *f = f32::from_bits((c & triangles) | (tmax & !triangles));
+                    if node.lane_triangles & (1 << l) != 0 {
+                        *f = c;
+                    }
                 }
             }
             let (near, hit) = node.bounds.entries(lane_ray, far);
             let mut hit = hit & ((1u32 << count) - 1);
-            let rest = hit & hit.wrapping_sub(1);
-            if rest & rest.wrapping_sub(1) == 0 {
-                // At most two lanes met (nine nodes in ten of most walks): ordered without a branch
-                // on which or how many (what a branch predictor guesses worst), a tie kept in lane
-                // order as `push` keeps it; a lane past the met ones is left as it falls.
-                let (a, b) = (
-                    hit.trailing_zeros() as usize & 3,
-                    rest.trailing_zeros() as usize & 3,
+            if hit & hit.wrapping_sub(1) == 0 {
+                // At most one lane met (most nodes of most walks): no order to find.
+                let l = hit.trailing_zeros() as usize & 3;
+                out[0] = (
+                    near[l] as f64,
+                    node.child[l],
+                    node.lane_triangles & (1 << l) != 0,
                 );
-                // All ones where the second lane met is the nearer.
-                let swap = (usize::from(rest != 0) & usize::from(near[b] < near[a])).wrapping_neg();
-                let (first, second) = (a ^ ((a ^ b) & swap), b ^ ((a ^ b) & swap));
-                for (o, l) in out.iter_mut().zip([first, second]) {
-                    *o = (
-                        near[l] as f64,
-                        node.child[l],
-                        node.lane_triangles & (1 << l) != 0,
-                    );
-                }
-                return hit.count_ones() as usize;
+                return (hit != 0) as usize;
             }
             while hit != 0 {
                 let l = hit.trailing_zeros() as usize;
@@ -600,19 +589,12 @@ impl PreparedScene {
             &mut lanes,
         );
         // The nearest child is popped first; the others are fetched while it is traversed.
-        if walk.depth + lanes.len() <= walk.stack.len() {
-            // Without a branch on `len`: four slots written, the farthest lane met deepest, the
-            // slots past the met lanes left to later pushes; a slot past `len` asks the cache for
-            // the nearest child again.
-            for j in 0..lanes.len() {
-                let (e, child, _) = lanes[len.wrapping_sub(1).wrapping_sub(j) & 3];
-                walk.stack[walk.depth + j] = (child, e);
-                self.tree.prefetch(lanes[if j < len { j } else { 0 }].1);
-            }
-            walk.depth += len;
-        } else {
-            for &(e, child, _) in lanes[..len].iter().rev() {
-                self.tree.prefetch(child);
+        for &(e, child, _) in lanes[..len].iter().rev() {
+            self.tree.prefetch(child);
+            if walk.depth < walk.stack.len() {
+                walk.stack[walk.depth] = (child, e);
+                walk.depth += 1;
+            } else {
                 walk.spill.push((child, e));
             }
         }
