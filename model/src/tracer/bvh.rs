@@ -503,7 +503,7 @@ impl PreparedScene {
             return false;
         };
         walk.lane_ray = LaneRay::of(ray);
-        walk.stack[0] = (0, entry);
+        walk.stack[0] = (0, false, entry);
         walk.depth = 1;
         true
     }
@@ -550,21 +550,23 @@ impl PreparedScene {
             }
             return true;
         }
-        let (n, entry) = if let Some(x) = walk.spill.pop() {
-            x
-        } else if walk.depth > 0 {
-            walk.depth -= 1;
-            walk.stack[walk.depth]
-        } else {
-            return false;
+        let c = cut.get();
+        // The cut may have fallen since a node was pushed: a node of triangles only whose entry t
+        // is past the cut is a miss of the cut ray, left without reading it.
+        let (n, entry) = loop {
+            let (n, triangles_only, entry) = if let Some(x) = walk.spill.pop() {
+                x
+            } else if walk.depth > 0 {
+                walk.depth -= 1;
+                walk.stack[walk.depth]
+            } else {
+                return false;
+            };
+            if !(triangles_only && entry > c) {
+                break (n, entry);
+            }
         };
         let node = &self.tree.nodes[n as usize];
-        let c = cut.get();
-        // The cut may have fallen since the node was pushed: its entry t past the cut is a
-        // miss of the cut ray.
-        if node.triangles_only && entry > c {
-            return true;
-        }
         let mut lanes: Lanes = [(0.0, 0, false); 4];
         if node.leaf {
             // The leaf's items by entry t, nearer first (a nearer required hit may cut the
@@ -589,28 +591,29 @@ impl PreparedScene {
             &mut lanes,
         );
         // The nearest child is popped first; the others are fetched while it is traversed.
-        for &(e, child, _) in lanes[..len].iter().rev() {
+        for &(e, child, triangles_only) in lanes[..len].iter().rev() {
             self.tree.prefetch(child);
             if walk.depth < walk.stack.len() {
-                walk.stack[walk.depth] = (child, e);
+                walk.stack[walk.depth] = (child, triangles_only, e);
                 walk.depth += 1;
             } else {
-                walk.spill.push((child, e));
+                walk.spill.push((child, triangles_only, e));
             }
         }
         true
     }
 }
 
-/// Where one ray's walk through the tree stands: the nodes still to visit with their entry t
+/// Where one ray's walk through the tree stands: the nodes still to visit, each with whether every
+/// item below it is a triangle and its entry t
 /// (none until [`PreparedScene::walk_start`]).
 pub(crate) struct Walk {
     lane_ray: LaneRay,
     /// Each level leaves at most three nodes on the stack: a fixed stack holds any tree up to 21
     /// levels deep (4^21 leaves), `spill` takes any excess.
-    stack: [(u32, f64); 64],
+    stack: [(u32, bool, f64); 64],
     depth: usize,
-    spill: Vec<(u32, f64)>,
+    spill: Vec<(u32, bool, f64)>,
     /// The items of the last leaf reached, nearer first, to visit two steps on.
     pending: Lanes,
     pending_len: u8,
@@ -622,7 +625,7 @@ impl Default for Walk {
     fn default() -> Walk {
         Walk {
             lane_ray: LaneRay::default(),
-            stack: [(0, 0.0); 64],
+            stack: [(0, false, 0.0); 64],
             depth: 0,
             spill: Vec::new(),
             pending: [(0.0, 0, false); 4],
