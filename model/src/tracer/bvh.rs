@@ -553,7 +553,7 @@ impl PreparedScene {
         let c = cut.get();
         // The cut may have fallen since a node was pushed: a node of triangles only whose entry t
         // is past the cut is a miss of the cut ray, left without reading it.
-        let (n, entry) = loop {
+        let n = loop {
             let (n, triangles_only, entry) = if let Some(x) = walk.spill.pop() {
                 x
             } else if walk.depth > 0 {
@@ -563,7 +563,7 @@ impl PreparedScene {
                 return false;
             };
             if !(triangles_only && entry > c) {
-                break (n, entry);
+                break n;
             }
         };
         let node = &self.tree.nodes[n as usize];
