@@ -605,8 +605,7 @@ impl PreparedScene {
 }
 
 /// Where one ray's walk through the tree stands: the nodes still to visit, each with whether every
-/// item below it is a triangle and its entry t
-/// (none until [`PreparedScene::walk_start`]).
+/// item below it is a triangle and its entry t (none until [`PreparedScene::walk_start`]).
 pub(crate) struct Walk {
     lane_ray: LaneRay,
     /// Each level leaves at most three nodes on the stack: a fixed stack holds any tree up to 21
