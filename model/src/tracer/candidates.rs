@@ -43,7 +43,9 @@ pub(super) fn outcomes_of_near(
         near.retain(|n| {
             scene.geometries[n.item.geometry as usize].kind != PrimitiveKind::Triangle
                 || n.kept_at == cut_at
-                || !far_item(scene, n.index as usize, &cut_ray)
+                || !n
+                    .entry
+                    .far_at(cut_at, || far_item(scene, n.index as usize, &cut_ray))
         });
     }
     // The near items in the walk's order: the candidates they give are put in a deterministic

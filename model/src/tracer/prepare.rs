@@ -168,13 +168,50 @@ impl ItemFar {
     /// `constants` are the scene's shared pad constants.
     #[inline]
     pub fn is_far(&self, ray: &RayF64, constants: &[FarConstants]) -> bool {
-        far_from(
+        self.entry(ray, constants).is_none()
+    }
+
+    /// [`ItemFar::is_far`] as None, or where the segment meets the padded box, its [`FarEntry`]:
+    /// what the same test with a lower `tmax` answers without being run again.
+    #[inline]
+    pub fn entry(&self, ray: &RayF64, constants: &[FarConstants]) -> Option<FarEntry> {
+        far_entry(
             ray,
             &self.lo,
             &self.hi,
             self.static_pad,
             &constants[self.constants as usize],
         )
+    }
+}
+
+/// Where a ray's segment meets an item's padded far box, as the far test found it: `t` is the entry
+/// t of the padded box where `exact`, else that of the box without its pad (the test's first
+/// step), which is at least the padded box's (the slab bounds are monotone in the box). The test of
+/// the same ray with `tmax` lowered to `c` then says far exactly where the entry is past `c`: the
+/// slab values do not depend on `tmax`, and the segment met the box's slabs at the higher `tmax`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct FarEntry {
+    pub t: f64,
+    pub exact: bool,
+}
+
+impl FarEntry {
+    /// An entry that decides nothing: every lower `tmax` runs the test again.
+    pub const UNKNOWN: FarEntry = FarEntry {
+        t: f64::INFINITY,
+        exact: false,
+    };
+
+    /// Whether [`ItemFar::is_far`] holds for the ray cut at `c` (at most the `tmax` this entry was
+    /// found at); `test` runs it where the entry alone cannot say.
+    #[inline]
+    pub fn far_at(&self, c: f64, test: impl FnOnce() -> bool) -> bool {
+        if self.t <= c {
+            false
+        } else {
+            self.exact || test()
+        }
     }
 }
 
@@ -204,11 +241,17 @@ pub(crate) fn compact_far_boxes(boxes: &[FarBox]) -> (Vec<ItemFar>, Vec<FarConst
 /// Whether the ray segment misses the box `[lo, hi]` grown by its pad for this ray (the test of
 /// [`ItemFar::is_far`]; the arguments are a [`FarBox`]'s fields).
 #[inline]
-fn far_from(ray: &RayF64, lo: &[f64; 3], hi: &[f64; 3], static_pad: f64, c: &FarConstants) -> bool {
+fn far_entry(
+    ray: &RayF64,
+    lo: &[f64; 3],
+    hi: &[f64; 3],
+    static_pad: f64,
+    c: &FarConstants,
+) -> Option<FarEntry> {
     // A segment that meets the box itself meets it padded (the pad is never negative, and
     // the rounded slab bounds are monotone in it): not far, without the pad.
-    if slab_meets(ray, *lo, *hi) {
-        return false;
+    if let Some(t) = slab_entry(ray, *lo, *hi) {
+        return Some(FarEntry { t, exact: false });
     }
     let o = &ray.origin;
     let axis = |k: usize| {
@@ -219,23 +262,27 @@ fn far_from(ray: &RayF64, lo: &[f64; 3], hi: &[f64; 3], static_pad: f64, c: &Far
     let r_o = c.origin_coef * (ray.origin_norm + c.norm_t);
     let pad = far_pad_scaled(static_pad, c.rel, c.inv_den, r_o, m);
     if !pad.is_finite() {
-        return false;
+        // Never far, whatever the segment.
+        return Some(FarEntry {
+            t: f64::NEG_INFINITY,
+            exact: true,
+        });
     }
-    !slab_meets(ray, lo.map(|v| v - pad), hi.map(|v| v + pad))
+    slab_entry(ray, lo.map(|v| v - pad), hi.map(|v| v + pad)).map(|t| FarEntry { t, exact: true })
 }
 
-/// The slab test in f64: whether the ray's segment [tmin, tmax] meets the box [lo, hi] (an axis the
-/// ray does not move along decides by the origin alone).
+/// The slab test in f64: where the ray's segment [tmin, tmax] meets the box [lo, hi], its entry t
+/// (an axis the ray does not move along decides by the origin alone); None where it misses.
 #[inline]
 #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
-fn slab_meets(ray: &RayF64, lo: [f64; 3], hi: [f64; 3]) -> bool {
+fn slab_entry(ray: &RayF64, lo: [f64; 3], hi: [f64; 3]) -> Option<f64> {
     let o = &ray.origin;
     let mut near = ray.tmin;
     let mut far = ray.tmax;
     for k in 0..3 {
         if ray.direction[k] == 0.0 {
             if o[k] < lo[k] || o[k] > hi[k] {
-                return false;
+                return None;
             }
         } else {
             let inv = ray.inv_direction[k];
@@ -245,7 +292,7 @@ fn slab_meets(ray: &RayF64, lo: [f64; 3], hi: [f64; 3]) -> bool {
             far = far.min(t1.max(t2));
         }
     }
-    near <= far
+    (near <= far).then_some(near)
 }
 
 /// The traversal's compact copy of a [`FarBox`]: its corners rounded outward to f32 and its pad

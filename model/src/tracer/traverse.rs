@@ -7,7 +7,7 @@ use super::arith::{affine, map3, v3, BoundedF64, Dyadic, PlainF32, V3};
 use super::band::{cross_f64, triangle_band, within_f32_range};
 use super::candidates::outcomes_of_near;
 use super::outside::robustly_outside;
-use super::prepare::{Item, PreparedScene, RayF64, WorldGeometry};
+use super::prepare::{FarEntry, Item, PreparedScene, RayF64, WorldGeometry};
 use super::triangle::{
     classify, triangle_intervals, triangle_signs, EdgeSide, MissReason, PairClass, TriangleSigns,
     TriangleValues, WindowSide,
@@ -357,6 +357,9 @@ pub(super) struct NearItem {
     /// The cut it was kept at (its padded box met by the ray cut there): the final cut, if the
     /// same, would keep it again.
     pub(super) kept_at: f64,
+    /// Where the far test found the ray's segment meeting its padded box: whether a lower cut
+    /// leaves it out, mostly without the test run again.
+    pub(super) entry: FarEntry,
 }
 
 /// A procedural primitive the intersection shader must run for.
@@ -623,10 +626,15 @@ impl Kept {
         let far = |i: usize, ray: &RayF64| far_item(scene, i, ray);
         let Scratch { near, outcomes, .. } = &mut self.scratch;
         let item = scene.items[i];
-        if config.far_test && far(i, rf) {
-            self.far_count += 1;
-            return;
-        }
+        let entry = if config.far_test {
+            let Some(entry) = scene.item_far[i].entry(rf, &scene.far_constants) else {
+                self.far_count += 1;
+                return;
+            };
+            entry
+        } else {
+            FarEntry::UNKNOWN
+        };
         let w = &scene.geometries[item.geometry as usize];
         if w.kind != PrimitiveKind::Triangle {
             near.push(NearItem {
@@ -634,17 +642,20 @@ impl Kept {
                 index: i as u32,
                 outcome: u32::MAX,
                 kept_at: f64::INFINITY,
+                entry,
             });
             return;
         }
         // Behind the cut already: the final cut, never above it, leaves it out too.
         let c = cut.get();
-        if c < rf.tmax {
-            let mut cut_ray = *rf;
-            cut_ray.tmax = c;
-            if far(i, &cut_ray) {
-                return;
-            }
+        if c < rf.tmax
+            && entry.far_at(c, || {
+                let mut cut_ray = *rf;
+                cut_ray.tmax = c;
+                far(i, &cut_ray)
+            })
+        {
+            return;
         }
         let outcome = triangle_unculled(scene, w, ray)
             .then(|| classify_triangle(scene, w, item.primitive, ray, rf, config.precision));
@@ -669,6 +680,7 @@ impl Kept {
                 outcomes.len() as u32 - 1
             }),
             kept_at: c,
+            entry,
         });
     }
 }
@@ -750,5 +762,63 @@ mod tests {
             }
         }
         assert!(plain > 0 && plain < rays, "{plain} of {rays}");
+    }
+
+    /// The far test's entry answers the test at a lower `tmax` as running it again does: on the
+    /// standard workloads' camera rays, every item, and cuts at, just below and just above each
+    /// entry t, between, and at the segment's ends; both kinds of entry occur, and most answers
+    /// need no second test.
+    #[test]
+    fn a_far_entry_answers_a_lower_cut_as_the_test_does() {
+        let (mut exact, mut inexact, mut answered, mut rerun) = (0, 0, 0, 0);
+        for w in super::super::workload::standard_workloads(12, false) {
+            let scene = PreparedScene::new(&w.scene).expect("a defined workload");
+            for ray in &w.rays {
+                let rf = RayF64::of(ray);
+                for i in 0..scene.items.len() {
+                    let Some(entry) = scene.item_far[i].entry(&rf, &scene.far_constants) else {
+                        assert!(far_item(&scene, i, &rf));
+                        continue;
+                    };
+                    assert!(!far_item(&scene, i, &rf));
+                    *(if entry.exact {
+                        &mut exact
+                    } else {
+                        &mut inexact
+                    }) += 1;
+                    let t = entry.t.clamp(rf.tmin, rf.tmax);
+                    let cuts = [
+                        rf.tmin,
+                        t,
+                        t.next_down().max(rf.tmin),
+                        t.next_up().min(rf.tmax),
+                        0.5 * (rf.tmin + t),
+                        0.5 * (t + rf.tmax.min(1e30)),
+                        rf.tmax,
+                    ];
+                    for c in cuts {
+                        let mut cut_ray = rf;
+                        cut_ray.tmax = c;
+                        let mut ran = false;
+                        let by_entry = entry.far_at(c, || {
+                            ran = true;
+                            far_item(&scene, i, &cut_ray)
+                        });
+                        assert_eq!(
+                            by_entry,
+                            far_item(&scene, i, &cut_ray),
+                            "{} item {i} cut {c} {entry:?} {ray:?}",
+                            w.name
+                        );
+                        *(if ran { &mut rerun } else { &mut answered }) += 1;
+                    }
+                }
+            }
+        }
+        assert!(exact > 0 && inexact > 0, "{exact} exact, {inexact} not");
+        assert!(
+            answered > rerun,
+            "{answered} answered, {rerun} tested again"
+        );
     }
 }
