@@ -188,8 +188,9 @@ impl ItemFar {
 /// Where a ray's segment meets an item's padded far box, as the far test found it: `t` is the entry
 /// t of the padded box where `exact`, else that of the box without its pad (the test's first
 /// step), which is at least the padded box's (the slab bounds are monotone in the box). The test of
-/// the same ray with `tmax` lowered to `c` then says far exactly where the entry is past `c`: the
-/// slab values do not depend on `tmax`, and the segment met the box's slabs at the higher `tmax`.
+/// the same ray with `tmax` lowered to `c` meets the box the entry is of exactly where `t ≤ c`: the
+/// slab values do not depend on `tmax`, and the segment met that box's slabs at the higher `tmax`.
+/// So `t ≤ c` is never far; `t > c` is far where `exact`, and decides nothing otherwise.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct FarEntry {
     pub t: f64,
