@@ -76,6 +76,7 @@ pub(super) fn outcomes_of_near(
         item,
         outcome,
         index,
+        entry,
         ..
     } in near.drain(..)
     {
@@ -232,9 +233,9 @@ pub(super) fn outcomes_of_near(
                         shaders: hit_shaders,
                         no_duplicate_any_hit: geometry.flags.no_duplicate_any_hit,
                         reports,
-                        behind_shaderless_cut: shaderless
-                            .as_ref()
-                            .is_some_and(|r| far_item(scene, index as usize, r)),
+                        behind_shaderless_cut: shaderless.as_ref().is_some_and(|r| {
+                            entry.far_at(r.tmax, || far_item(scene, index as usize, r))
+                        }),
                     },
                 );
             }
