@@ -94,29 +94,25 @@ impl LaneBounds {
     #[cfg(target_arch = "x86_64")]
     fn entries(&self, r: &LaneRay, far: [f32; 4]) -> ([f32; 4], u32) {
         use std::arch::x86_64::*;
-        // SAFETY: SSE is part of x86_64; the unaligned loads read four f32 lanes of `self`.
+        // SAFETY: SSE is part of x86_64; the unaligned loads read four f32 lanes of `self`: a
+        // face index of `LaneRay::of` is 4k or 12 + 4k (k < 3), within the 24 floats of `lo`, `hi`.
         unsafe {
             let pad = _mm_set1_ps(self.pad_base + self.pad_slope * r.origin_norm);
-            // Negation is exact: `face + (−pad)` rounds as `face − pad`.
-            let neg_pad = _mm_sub_ps(_mm_setzero_ps(), pad);
             let mut near = _mm_set1_ps(r.tmin);
             let mut far = _mm_loadu_ps(far.as_ptr());
+            // The faces in one row: `lo`'s three axes, then `hi`'s (`repr(C)`, no padding).
+            let faces = self.lo.as_ptr() as *const f32;
             for k in 0..3 {
-                let (first, last, inward, outward) = if r.positive[k] {
-                    (&self.lo[k], &self.hi[k], neg_pad, pad)
-                } else {
-                    (&self.hi[k], &self.lo[k], pad, neg_pad)
-                };
+                // The face the ray enters by and the one it leaves by, and the pad's sign for
+                // each (a sign flip is exact: `face + (−pad)` rounds as `face − pad`).
+                let first = faces.add(r.first_face[k] as usize);
+                let last = faces.add(r.last_face[k] as usize);
+                let inward = _mm_xor_ps(pad, _mm_set1_ps(r.inward_sign[k]));
+                let outward = _mm_xor_ps(inward, _mm_set1_ps(-0.0));
                 let o = _mm_set1_ps(r.origin[k]);
                 let inv = _mm_set1_ps(r.inv_direction[k]);
-                let t_in = _mm_mul_ps(
-                    _mm_sub_ps(_mm_add_ps(_mm_loadu_ps(first.as_ptr()), inward), o),
-                    inv,
-                );
-                let t_out = _mm_mul_ps(
-                    _mm_sub_ps(_mm_add_ps(_mm_loadu_ps(last.as_ptr()), outward), o),
-                    inv,
-                );
+                let t_in = _mm_mul_ps(_mm_sub_ps(_mm_add_ps(_mm_loadu_ps(first), inward), o), inv);
+                let t_out = _mm_mul_ps(_mm_sub_ps(_mm_add_ps(_mm_loadu_ps(last), outward), o), inv);
                 // No NaN reaches the lane test: max and min are the comparisons they stand for.
                 near = _mm_max_ps(t_in, near);
                 far = _mm_min_ps(t_out, far);
@@ -135,11 +131,14 @@ impl LaneBounds {
     fn entries(&self, r: &LaneRay, mut far: [f32; 4]) -> ([f32; 4], u32) {
         let pad = [self.pad_base + self.pad_slope * r.origin_norm; 4];
         let mut near = [r.tmin; 4];
+        let faces = [self.lo, self.hi].concat();
         for k in 0..3 {
-            let (first, last, s) = if r.positive[k] {
-                (&self.lo[k], &self.hi[k], 1.0f32)
+            let first = &faces[r.first_face[k] as usize / 4];
+            let last = &faces[r.last_face[k] as usize / 4];
+            let s = if r.inward_sign[k].is_sign_negative() {
+                1.0f32
             } else {
-                (&self.hi[k], &self.lo[k], -1.0f32)
+                -1.0f32
             };
             let (o, inv) = (r.origin[k], r.inv_direction[k]);
             for l in 0..4 {
@@ -162,7 +161,13 @@ impl LaneBounds {
 pub(crate) struct LaneRay {
     origin: [f32; 3],
     inv_direction: [f32; 3],
-    positive: [bool; 3],
+    /// Per axis, where the face the ray enters by starts among the 24 floats of `lo` and `hi`
+    /// (`lo`'s row for a positive direction), and where the face it leaves by starts.
+    first_face: [u8; 3],
+    last_face: [u8; 3],
+    /// Per axis, −0.0 where the pad moves the entering face down (a positive direction), +0.0
+    /// where up: the sign bit the lane test puts on the pad.
+    inward_sign: [f32; 3],
     tmin: f32,
     /// |o| rounded up.
     origin_norm: f32,
@@ -184,7 +189,9 @@ impl LaneRay {
             // The ray's components are f32 values: exact.
             origin: ray.origin.map(|x| x as f32),
             inv_direction: d.map(|x| 1.0 / x as f32),
-            positive: d.map(|x| x > 0.0),
+            first_face: [0, 1, 2].map(|k| if d[k] > 0.0 { 4 * k } else { 12 + 4 * k } as u8),
+            last_face: [0, 1, 2].map(|k| if d[k] > 0.0 { 12 + 4 * k } else { 4 * k } as u8),
+            inward_sign: d.map(|x| if x > 0.0 { -0.0 } else { 0.0 }),
             tmin: ray.tmin as f32,
             origin_norm: f32_up(ray.origin_norm * (1.0 + 1e-12)),
             tmax: f32_up(ray.tmax),
