@@ -10,7 +10,8 @@ use super::sphere::{
     SphereSigns,
 };
 use super::traverse::{
-    classify_triangle, confirmation, far_item, opacity, opacity_culled, MustRun, NearItem, Scratch,
+    classify_triangle, confirmation, far_item, opacity, opacity_culled, MustRun, NearItem,
+    NearOutcome, Scratch,
 };
 use super::triangle::{PairClass, VaryReason};
 use super::watertight::{watertight_groups, TriangleHit};
@@ -74,13 +75,16 @@ pub(super) fn outcomes_of_near(
     let mut scaled: Option<(u32, ScaledRay<BoundedF64>)> = None;
     for NearItem {
         item,
-        outcome,
+        outcome: near_outcome,
         index,
         entry,
         ..
     } in near.drain(..)
     {
-        let outcome = outcomes.get(outcome as usize);
+        let outcome = match near_outcome {
+            NearOutcome::At(k) => outcomes.get(k as usize),
+            _ => None,
+        };
         let w = &scene.geometries[item.geometry as usize];
         let inst = &scene.scene.instances[w.instance as usize];
         // Spec, "Ray Mask Culling".
@@ -112,6 +116,11 @@ pub(super) fn outcomes_of_near(
                 // intersection, counted as a culled box is, and not tested (the traversal
                 // classified only unculled ones).
                 if opacity_culled(ray, opaque) {
+                    stats.req_miss += 1;
+                    continue;
+                }
+                if let NearOutcome::Missed(evaluation) = near_outcome {
+                    evaluation.count(stats);
                     stats.req_miss += 1;
                     continue;
                 }

@@ -352,14 +352,25 @@ pub(super) struct NearItem {
     pub(super) item: Item,
     /// Its index in the prepared scene's items.
     pub(super) index: u32,
-    /// Its classification's index in the scratch outcomes, or `u32::MAX`.
-    pub(super) outcome: u32,
+    /// What its classification while walking found.
+    pub(super) outcome: NearOutcome,
     /// The cut it was kept at (its padded box met by the ray cut there): the final cut, if the
     /// same, would keep it again.
     pub(super) kept_at: f64,
     /// Where the far test found the ray's segment meeting its padded box: whether a lower cut
     /// leaves it out, mostly without the test run again.
     pub(super) entry: FarEntry,
+}
+
+/// A near item's classification made while walking.
+#[derive(Clone, Copy)]
+pub(super) enum NearOutcome {
+    /// None made (not a triangle, or culled before any test).
+    None,
+    /// A REQ-miss, decided by this arithmetic: all the outcomes need of it (the counters).
+    Missed(Evaluation),
+    /// The classification's index in the scratch outcomes.
+    At(u32),
 }
 
 /// A procedural primitive the intersection shader must run for.
@@ -640,7 +651,7 @@ impl Kept {
             near.push(NearItem {
                 item,
                 index: i as u32,
-                outcome: u32::MAX,
+                outcome: NearOutcome::None,
                 kept_at: f64::INFINITY,
                 entry,
             });
@@ -675,10 +686,16 @@ impl Kept {
         near.push(NearItem {
             item,
             index: i as u32,
-            outcome: outcome.map_or(u32::MAX, |o| {
-                outcomes.push(o);
-                outcomes.len() as u32 - 1
-            }),
+            outcome: match outcome {
+                None => NearOutcome::None,
+                Some(o) if matches!(o.class, PairClass::ReqMiss(_)) => {
+                    NearOutcome::Missed(o.evaluation)
+                }
+                Some(o) => {
+                    outcomes.push(o);
+                    NearOutcome::At(outcomes.len() as u32 - 1)
+                }
+            },
             kept_at: c,
             entry,
         });
