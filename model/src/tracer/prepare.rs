@@ -277,6 +277,9 @@ fn far_entry(
 #[inline]
 #[allow(clippy::needless_range_loop)] // four arrays indexed by one axis
 fn slab_entry(ray: &RayF64, lo: [f64; 3], hi: [f64; 3]) -> Option<f64> {
+    if ray.oblique {
+        return oblique_slab_entry(ray, lo, hi, ray.tmax);
+    }
     let o = &ray.origin;
     let mut near = ray.tmin;
     let mut far = ray.tmax;
@@ -292,6 +295,31 @@ fn slab_entry(ray: &RayF64, lo: [f64; 3], hi: [f64; 3]) -> Option<f64> {
             near = near.max(t1.min(t2));
             far = far.min(t1.max(t2));
         }
+    }
+    (near <= far).then_some(near)
+}
+
+/// The slab test of a ray none of whose direction components is 0, over `[tmin, tmax]`: the entry t
+/// into `[lo, hi]`, or None where the segment misses it. The slab bounds are then finite or
+/// infinite, never NaN (finite origin, boxes never +inf below or -inf above), so the comparisons
+/// are `max`/`min` and the sign of the reciprocal says which face comes first: the same values as
+/// the test that orders each axis's two bounds.
+#[inline(always)]
+fn oblique_slab_entry(ray: &RayF64, lo: [f64; 3], hi: [f64; 3], tmax: f64) -> Option<f64> {
+    let o = &ray.origin;
+    let mut near = ray.tmin;
+    let mut far = tmax;
+    for k in 0..3 {
+        let inv = ray.inv_direction[k];
+        let (first, last) = if inv > 0.0 {
+            (lo[k], hi[k])
+        } else {
+            (hi[k], lo[k])
+        };
+        let t_in = (first - o[k]) * inv;
+        let t_out = (last - o[k]) * inv;
+        near = if t_in > near { t_in } else { near };
+        far = if t_out < far { t_out } else { far };
     }
     (near <= far).then_some(near)
 }
@@ -350,26 +378,17 @@ impl BoundBox {
         if pad.is_nan() || pad == f64::INFINITY {
             return Some(f64::NEG_INFINITY);
         }
+        if ray.oblique {
+            return oblique_slab_entry(
+                ray,
+                self.lo.map(|x| x as f64 - pad),
+                self.hi.map(|x| x as f64 + pad),
+                tmax,
+            );
+        }
         let mut near = ray.tmin;
         let mut far = tmax;
-        if ray.oblique {
-            // Every direction component is non-zero: the slab bounds are finite or infinite,
-            // never NaN (finite pad and origin, boxes never +inf below or -inf above), so the
-            // comparisons below are `max`/`min`, and the sign of the reciprocal says which face
-            // comes first.
-            for k in 0..3 {
-                let inv = ray.inv_direction[k];
-                let (first, last) = if inv > 0.0 {
-                    (self.lo[k] as f64 - pad, self.hi[k] as f64 + pad)
-                } else {
-                    (self.hi[k] as f64 + pad, self.lo[k] as f64 - pad)
-                };
-                let t_in = (first - o[k]) * inv;
-                let t_out = (last - o[k]) * inv;
-                near = if t_in > near { t_in } else { near };
-                far = if t_out < far { t_out } else { far };
-            }
-        } else {
+        {
             for k in 0..3 {
                 let lo = self.lo[k] as f64 - pad;
                 let hi = self.hi[k] as f64 + pad;
