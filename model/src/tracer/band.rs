@@ -200,7 +200,8 @@ pub(crate) fn cross_f64(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     ]
 }
 
-/// The band of one (ray, triangle) pair from f64 world vertices and their static radii.
+/// The band of one (ray, triangle) pair from f64 world vertices and their static radii
+/// (`direction_norm` is `norm3(direction)`, made once per ray).
 ///
 /// With every `a_k = w_k − o` moved by at most `α_k` and `d` by at most `P·|d|`, expanding
 /// `(d + Δd)·((a + Δa) × (b + Δb)) − d·(a × b)` term by term and using
@@ -225,9 +226,10 @@ pub fn triangle_band(
     static_radius: &[f64; 3],
     origin: [f64; 3],
     direction: [f64; 3],
+    direction_norm: f64,
 ) -> TriangleBand {
     let r_o = band.origin_radius(origin);
-    let dn = norm3(direction);
+    let dn = direction_norm;
     let p = band.direction_rel;
     let a = map3([0, 1, 2], |k| map3([0, 1, 2], |c| world[k][c] - origin[c]));
     let len = map3(a, norm3);

@@ -58,6 +58,7 @@ pub(crate) fn robustly_outside(
     origin: [f64; 3],
     origin_norm: f64,
     direction: [f64; 3],
+    direction_norm: f64,
 ) -> bool {
     outside_with(
         band,
@@ -66,11 +67,12 @@ pub(crate) fn robustly_outside(
         origin,
         origin_norm,
         direction,
+        direction_norm,
         1.0,
     )
 }
 
-/// [`robustly_outside`] (`origin_norm` is `norm3(origin)`) with both bounds multiplied by `scale` (1 is the proven test; a test's
+/// [`robustly_outside`] (`origin_norm` is `norm3(origin)`, `direction_norm` `norm3(direction)`) with both bounds multiplied by `scale` (1 is the proven test; a test's
 /// planted fault shrinks them).
 #[inline(always)]
 fn outside_with(
@@ -80,6 +82,7 @@ fn outside_with(
     origin: [f64; 3],
     origin_norm: f64,
     direction: [f64; 3],
+    direction_norm: f64,
     scale: f64,
 ) -> bool {
     let mut a = [[0f64; 3]; 3];
@@ -118,7 +121,7 @@ fn outside_with(
         .max(side(&a[2], &a[1]))
         .max(side(&a[0], &a[2]))
         .sqrt();
-    let dn = norm3(direction);
+    let dn = direction_norm;
     let [x, y, z] = a[0];
     let perp_0 = norm3([y * d2 - z * d1, z * d0 - x * d2, x * d1 - y * d0]) / dn;
     let perp = (perp_0 + longest + 2e-12 * len) * GROW;
@@ -204,11 +207,20 @@ mod tests {
             }
             let direction: [f32; 3] = [0, 1, 2].map(|c| (target[c] - origin[c] as f64) as f32);
             let (o64, d64) = (origin.map(|x| x as f64), direction.map(|x| x as f64));
-            if !outside_with(&band, &world, &radius, o64, norm3(o64), d64, scale) {
+            if !outside_with(
+                &band,
+                &world,
+                &radius,
+                o64,
+                norm3(o64),
+                d64,
+                norm3(d64),
+                scale,
+            ) {
                 continue;
             }
             certified += 1;
-            let b = triangle_band(&band, &wv, &radius, o64, d64);
+            let b = triangle_band(&band, &wv, &radius, o64, d64, norm3(d64));
             let exact: [[Dyadic; 3]; 3] = obj.map(|p| affine(&transform.0, &v3::<Dyadic>(p)));
             let a = [0, 1, 2].map(|k| sub3(&exact[k], &v3(origin)));
             let d = v3::<Dyadic>(direction);
@@ -287,6 +299,7 @@ mod tests {
                         rf.origin,
                         rf.origin_norm,
                         rf.direction,
+                        rf.direction_norm,
                     ) {
                         continue;
                     }
@@ -297,6 +310,7 @@ mod tests {
                         &radius,
                         rf.origin,
                         rf.direction,
+                        rf.direction_norm,
                     );
                     let (signs, _) = triangle_signs::<BoundedF64>(
                         &world,

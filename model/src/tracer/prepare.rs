@@ -421,6 +421,8 @@ pub(crate) struct RayF64 {
     pub tmin: f64,
     pub tmax: f64,
     pub origin_norm: f64,
+    /// `norm3(direction)`, made once for the ray's pairs.
+    pub direction_norm: f64,
     /// `1 / direction` per axis (0 where the direction is 0, which the slab test handles apart).
     pub inv_direction: [f64; 3],
     /// No direction component is 0.
@@ -442,6 +444,7 @@ impl RayF64 {
             tmin: ray.tmin as f64,
             tmax: ray.tmax as f64,
             origin_norm: norm3(origin),
+            direction_norm: norm3(direction),
             in_f32_range: false,
         }
     }

@@ -137,6 +137,7 @@ pub(super) fn classify_triangle(
             rf.origin,
             rf.origin_norm,
             rf.direction,
+            rf.direction_norm,
         )
     {
         return TriangleOutcome {
@@ -144,7 +145,14 @@ pub(super) fn classify_triangle(
             ..miss(MissReason::Outside)
         };
     }
-    let band = triangle_band(&inst.band, &world_f64, &radius, rf.origin, rf.direction);
+    let band = triangle_band(
+        &inst.band,
+        &world_f64,
+        &radius,
+        rf.origin,
+        rf.direction,
+        rf.direction_norm,
+    );
     let evaluate_exact = || {
         let world = pos.map(|p| dyadic_world(scene, w, p));
         triangle_signs::<Dyadic>(
