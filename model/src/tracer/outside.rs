@@ -75,6 +75,7 @@ pub(crate) fn robustly_outside(
 /// [`robustly_outside`] (`origin_norm` is `norm3(origin)`, `direction_norm` `norm3(direction)`) with both bounds multiplied by `scale` (1 is the proven test; a test's
 /// planted fault shrinks them).
 #[inline(always)]
+#[allow(clippy::too_many_arguments)] // `robustly_outside`'s arguments and the test's scale
 fn outside_with(
     band: &InstanceBand,
     world: &[[BoundedF64; 3]; 3],
