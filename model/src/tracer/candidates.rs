@@ -2,7 +2,7 @@
 //! primitive, opacity and facing culling (spec, "Ray Culling"), each remaining pair's reports and
 //! confirmation, the watertight groups, and `conclude.rs`'s committed hits.
 
-use super::arith::{map3, BoundedF64, Dyadic, Num, PlainF32};
+use super::arith::{BoundedF64, Dyadic, Num, PlainF32};
 use super::conclude::conclude;
 use super::prepare::{PreparedScene, RayF64};
 use super::sphere::{
@@ -222,10 +222,8 @@ pub(super) fn outcomes_of_near(
                     candidate: candidates.len(),
                     bottom_level: w.bottom_level,
                     class: w.transform_class,
-                    vertices: tri.vertices(item.primitive as usize),
-                    world: tri
-                        .vertex_indices(item.primitive as usize)
-                        .map(|i| map3(w.vertices[i], |x| x.value)),
+                    geometry: item.geometry,
+                    primitive: item.primitive,
                     signs,
                 });
                 let hit_shaders = hit_shaders();

@@ -13,19 +13,19 @@
 use super::prepare::{position_key, PreparedScene};
 use super::triangle::{EdgeSide, TriangleSigns, WindowSide};
 use super::{Candidate, Interval, Presence, PrimitiveRef, WatertightGroup, WatertightShape};
-use crate::scene::Ray;
+use crate::scene::{GeometryData, Ray, Triangles};
 use std::cmp::Ordering;
 use std::collections::HashMap;
 
-/// What the grouping needs of one triangle candidate.
+/// What the grouping needs of one triangle candidate: its vertices are read from the scene only
+/// where a group may form (a ray with a VARY triangle), not for every hit.
 pub(crate) struct TriangleHit {
     pub candidate: usize,
     pub bottom_level: u32,
     pub class: u32,
-    /// Object-space vertex positions (the spec compares these).
-    pub vertices: [[f32; 3]; 3],
-    /// World-space vertices (f64), for the fan's winding.
-    pub world: [[f64; 3]; 3],
+    /// The triangle: its world geometry (index into the prepared scene's) and primitive.
+    pub geometry: u32,
+    pub primitive: u32,
     pub signs: TriangleSigns,
 }
 
@@ -57,8 +57,27 @@ impl TriangleHit {
         Some((inside, band))
     }
 
-    fn key(&self, k: usize) -> [u32; 3] {
-        position_key(self.vertices[k % 3])
+    /// The key of its vertex `k` (mod 3): its object-space position, which the spec compares.
+    fn key(&self, scene: &PreparedScene, k: usize) -> [u32; 3] {
+        position_key(self.triangles(scene).vertices(self.primitive as usize)[k % 3])
+    }
+
+    /// Its world-space vertices (f64), for a fan's winding.
+    fn world(&self, scene: &PreparedScene) -> [[f64; 3]; 3] {
+        let w = &scene.geometries[self.geometry as usize];
+        self.triangles(scene)
+            .vertex_indices(self.primitive as usize)
+            .map(|i| w.vertices[i].map(|x| x.value))
+    }
+
+    fn triangles<'s>(&self, scene: &'s PreparedScene) -> &'s Triangles {
+        let w = &scene.geometries[self.geometry as usize];
+        match &scene.scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize]
+            .data
+        {
+            GeometryData::Triangles(t) => t,
+            GeometryData::Aabbs(_) => unreachable!("a triangle hit's geometry holds triangles"),
+        }
     }
 }
 
@@ -129,7 +148,7 @@ pub(crate) fn watertight_groups(
         match band.as_slice() {
             [i] => {
                 // Edge i runs from vertex i+1 to vertex i+2.
-                let (p, q) = (h.key(i + 1), h.key(i + 2));
+                let (p, q) = (h.key(scene, i + 1), h.key(scene, i + 2));
                 let fwd = topo.edges.get(&(p, q)).map(|v| v.as_slice()).unwrap_or(&[]);
                 let back = topo.edges.get(&(q, p)).map(|v| v.as_slice()).unwrap_or(&[]);
                 if fwd != [(prim.geometry, prim.primitive)] || back.len() != 1 {
@@ -144,7 +163,7 @@ pub(crate) fn watertight_groups(
                 };
                 let matches = o_band.len() == 1 && {
                     let j = o_band[0];
-                    (o.key(j + 1), o.key(j + 2)) == (q, p)
+                    (o.key(scene, j + 1), o.key(scene, j + 2)) == (q, p)
                 };
                 if o_inside == inside && matches {
                     add(WatertightShape::SharedEdge, vec![hi, other]);
@@ -152,7 +171,7 @@ pub(crate) fn watertight_groups(
             }
             [a, b] => {
                 let k = 3 - a - b;
-                let v = h.key(k);
+                let v = h.key(scene, k);
                 let Some(fan) = topo.vertices.get(&v) else {
                     continue;
                 };
@@ -175,8 +194,8 @@ pub(crate) fn watertight_groups(
                         Some((s, bnd)) => s == inside && bnd.len() == 2 && !bnd.contains(&corner),
                         None => false,
                     };
-                    let x = mh.key(corner + 1);
-                    let y = mh.key(corner + 2);
+                    let x = mh.key(scene, corner + 1);
+                    let y = mh.key(scene, corner + 2);
                     let shared = |from: [u32; 3], to: [u32; 3]| {
                         topo.edges.get(&(from, to)).map_or(0, |e| e.len()) == 1
                             && topo.edges.get(&(to, from)).map_or(0, |e| e.len()) == 1
@@ -219,7 +238,7 @@ pub(crate) fn watertight_groups(
                 let dh = d.map(|x| x / dn);
                 let mut total = 0.0;
                 for &(m, _, corner) in &members {
-                    let w = &hits[m].world;
+                    let w = &hits[m].world(scene);
                     let e1 = [0, 1, 2].map(|c| w[(corner + 1) % 3][c] - w[corner][c]);
                     let e2 = [0, 1, 2].map(|c| w[(corner + 2) % 3][c] - w[corner][c]);
                     let proj = |e: [f64; 3]| {
