@@ -436,15 +436,16 @@ pub fn trace_ray(
     answer.expect("an answer for the ray")
 }
 
-/// Rays whose walks through the BVH [`trace_rays`] takes in turn. Eight rather than four: with the
-/// caches another program filled (`RTCONF_BENCH_EVICT=64 cargo bench -p rtconf-model --bench
-/// expected_launch`, two A/Bs of twelve alternations) the grid, instanced and soup workloads traced
-/// 1.7–6.5 % more rays per second in both, each ray's next node having longer to arrive (icosphere:
-/// +4 % in one, −5.6 % in the other); sixteen gained nothing more. (Measured when a group of rays
-/// started together and ended together; slots are refilled as rays finish since, which with the ray
-/// held in its slot took 1.5–5 % fewer instructions per workload under callgrind,
-/// `model/benches/launch_instructions.rs`.)
-const INTERLEAVED: usize = 8;
+/// Rays whose walks through the BVH [`trace_rays`] takes in turn: while one ray's node is tested,
+/// the others' next nodes arrive from memory, and their independent work fills the core. Twelve:
+/// against eight, on a quiet machine (`cargo bench -p rtconf-model --bench expected_launch`, fifteen
+/// passes), in four alternations on one core (`taskset -c 1`) every triangle workload traced more
+/// rays per second (soup +2.5 to +3.5 %, icosphere +2.2 to +2.9 %, grid +6.9 to +7.7 %, instanced
+/// +1.4 to +3.4 %), in two on both cores +1.4 to +5.7 %; with the caches another program filled
+/// (`RTCONF_BENCH_EVICT=64`, three alternations on one core) instanced gained 1.2–5.9 % and grid
+/// 0.7–12 %, soup and icosphere −1.7 to +6.8 %. Ten and fourteen trace about as fast as twelve;
+/// six and sixteen slower, four slower still. The answers and counters are the same at any width.
+const INTERLEAVED: usize = 12;
 
 /// [`trace_ray`] of each ray with its shader table, the answers handed to `answer` with the ray's
 /// index as each ray finishes (not in order). Up to [`INTERLEAVED`] rays walk the BVH together, one
