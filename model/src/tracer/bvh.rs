@@ -415,24 +415,35 @@ impl PreparedScene {
         if lane_ray.fast && node.fast {
             let mut far = [lane_ray.tmax; 4];
             if let Some(c) = cut {
-                let c = f32_up(c);
+                let (c, tmax) = (f32_up(c).to_bits(), lane_ray.tmax.to_bits());
                 for (l, f) in far.iter_mut().enumerate() {
-                    if node.lane_triangles & (1 << l) != 0 {
-                        *f = c;
-                    }
+                    // The cut for a lane of triangles only, selected without a branch.
+                    let triangles = u32::from(node.lane_triangles >> l & 1).wrapping_neg();
+                    *f = f32::from_bits((c & triangles) | (tmax & !triangles));
                 }
             }
             let (near, hit) = node.bounds.entries(lane_ray, far);
             let mut hit = hit & ((1u32 << count) - 1);
-            if hit & hit.wrapping_sub(1) == 0 {
-                // At most one lane met (most nodes of most walks): no order to find.
-                let l = hit.trailing_zeros() as usize & 3;
-                out[0] = (
-                    near[l] as f64,
-                    node.child[l],
-                    node.lane_triangles & (1 << l) != 0,
+            let rest = hit & hit.wrapping_sub(1);
+            if rest & rest.wrapping_sub(1) == 0 {
+                // At most two lanes met: ordered without a branch on which or how many, a tie
+                // kept in lane order as `push` keeps it; a lane past the met ones is left as it
+                // falls.
+                let (a, b) = (
+                    hit.trailing_zeros() as usize & 3,
+                    rest.trailing_zeros() as usize & 3,
                 );
-                return (hit != 0) as usize;
+                // All ones where the second lane met is the nearer.
+                let swap = (usize::from(rest != 0) & usize::from(near[b] < near[a])).wrapping_neg();
+                let (first, second) = (a ^ ((a ^ b) & swap), b ^ ((a ^ b) & swap));
+                for (o, l) in out.iter_mut().zip([first, second]) {
+                    *o = (
+                        near[l] as f64,
+                        node.child[l],
+                        node.lane_triangles & (1 << l) != 0,
+                    );
+                }
+                return hit.count_ones() as usize;
             }
             while hit != 0 {
                 let l = hit.trailing_zeros() as usize;
