@@ -124,17 +124,33 @@ impl LaneBounds {
         }
     }
 
-    /// [`LaneBounds::entries`] without SSE (the same operations lane by lane).
+    /// [`LaneBounds::entries`] where there is no SSE.
     #[inline]
     #[cfg(not(target_arch = "x86_64"))]
+    fn entries(&self, r: &LaneRay, far: [f32; 4]) -> ([f32; 4], u32) {
+        self.entries_portable(r, far)
+    }
+
+    /// [`LaneBounds::entries`] without SSE: the same operations lane by lane, in the same order
+    /// (so the same roundings). Built for tests on every target, so that they compare the two.
+    #[inline]
+    #[cfg(any(test, not(target_arch = "x86_64")))]
     #[allow(clippy::needless_range_loop)] // lanes of several arrays indexed together
-    fn entries(&self, r: &LaneRay, mut far: [f32; 4]) -> ([f32; 4], u32) {
+    fn entries_portable(&self, r: &LaneRay, mut far: [f32; 4]) -> ([f32; 4], u32) {
         let pad = [self.pad_base + self.pad_slope * r.origin_norm; 4];
         let mut near = [r.tmin; 4];
-        let faces = [self.lo, self.hi].concat();
+        // A face index of `LaneRay::of` counts floats through `lo`'s rows, then `hi`'s.
+        let face = |i: u8| {
+            let row = i as usize / 4;
+            if row < 3 {
+                &self.lo[row]
+            } else {
+                &self.hi[row - 3]
+            }
+        };
         for k in 0..3 {
-            let first = &faces[r.first_face[k] as usize / 4];
-            let last = &faces[r.last_face[k] as usize / 4];
+            let first = face(r.first_face[k]);
+            let last = face(r.last_face[k]);
             let s = if r.inward_sign[k].is_sign_negative() {
                 1.0f32
             } else {
