@@ -18,6 +18,8 @@
 use super::prepare::{f32_up, BoundBox, FarBox, Item, ItemFar, PreparedScene, RayF64};
 
 #[cfg(test)]
+mod collapse_tests;
+#[cfg(test)]
 mod lane_tests;
 
 /// A node as the build makes it.
@@ -256,16 +258,17 @@ const EMPTY_BOX: BoundBox = BoundBox {
 };
 
 impl WideTree {
-    /// Collapses a binary tree (node 0 the root, children at `first` and `first + 1`): a wide
-    /// node's lanes are its binary node's grandchildren (a leaf child stands for itself), a binary
-    /// leaf becomes a wide leaf whose lanes are its items.
+    /// Collapses a binary tree (node 0 the root, children at `first` and `first + 1`): a binary
+    /// leaf becomes a wide leaf whose lanes are its items; which interior nodes become wide nodes,
+    /// and so which lanes each has, is [`Collapse`]'s choice.
     pub(crate) fn new(binary: &[Node], items: &[BoundBox], triangle: &[bool]) -> WideTree {
         let mut tree = WideTree::default();
         let Some(root) = binary.first() else {
             return tree;
         };
         tree.root_bound = Some(root.bounds);
-        tree.add(binary, 0, items, triangle);
+        let plan = Collapse::of(binary);
+        tree.add(binary, &plan, 0, items, triangle);
         tree
     }
 
@@ -289,7 +292,14 @@ impl WideTree {
     }
 
     /// Adds the wide node of binary node `n` (and everything below it); its index.
-    fn add(&mut self, binary: &[Node], n: usize, items: &[BoundBox], triangle: &[bool]) -> u32 {
+    fn add(
+        &mut self,
+        binary: &[Node],
+        plan: &Collapse,
+        n: usize,
+        items: &[BoundBox],
+        triangle: &[bool],
+    ) -> u32 {
         let node = binary[n];
         let at = self.nodes.len();
         let mut boxes = [EMPTY_BOX; 4];
@@ -319,19 +329,12 @@ impl WideTree {
             }
         } else {
             let mut lanes = Vec::with_capacity(4);
-            for c in [node.first as usize, node.first as usize + 1] {
-                if binary[c].count > 0 {
-                    lanes.push(c);
-                } else {
-                    lanes.push(binary[c].first as usize);
-                    lanes.push(binary[c].first as usize + 1);
-                }
-            }
+            plan.lanes_of(binary, n, &mut lanes);
             count = lanes.len();
             for (l, &c) in lanes.iter().enumerate() {
                 boxes[l] = binary[c].bounds;
                 lane_triangles |= (binary[c].triangles_only as u8) << l;
-                child[l] = self.add(binary, c, items, triangle);
+                child[l] = self.add(binary, plan, c, items, triangle);
             }
         }
         let (bounds, fast) = LaneBounds::new(&boxes[..count]);
@@ -346,6 +349,70 @@ impl WideTree {
         };
         self.boxes[at] = boxes;
         at as u32
+    }
+}
+
+/// Which binary nodes become wide nodes: the choice of least total surface area of the wide nodes
+/// (each node's area is the chance a ray through the root enters it, and each node entered costs
+/// one lane test), with at most four lanes a node. Binary leaves are wide leaves whatever the
+/// choice; the root is a wide node. Found by dynamic programming over the binary tree, children
+/// before parents.
+struct Collapse {
+    /// Per binary node and `k` in 1..=4 (index `k − 1`): the least area of the wide nodes that
+    /// cover the node's subtree with at most `k` lanes, and how: 0 where the node itself is the one
+    /// lane (a wide node), else how many of the lanes cover its left child.
+    cover: Vec<[(f64, u8); 4]>,
+}
+
+impl Collapse {
+    fn of(binary: &[Node]) -> Collapse {
+        let mut cover = vec![[(0.0, 0u8); 4]; binary.len()];
+        // Children come after their parent in the build: reverse order visits children first.
+        for n in (0..binary.len()).rev() {
+            let node = &binary[n];
+            let b = &node.bounds;
+            let area = half_area(&b.lo.map(f64::from), &b.hi.map(f64::from));
+            if node.count > 0 {
+                cover[n] = [(area, 0); 4];
+                continue;
+            }
+            let (left, right) = (node.first as usize, node.first as usize + 1);
+            // The node as a wide node: its own area and its lanes' least cover.
+            let own = area + Self::split(&cover, left, right, 4).0;
+            cover[n][0] = (own, 0);
+            for k in 2..=4 {
+                let (split, j) = Self::split(&cover, left, right, k);
+                cover[n][k - 1] = if split < own { (split, j) } else { (own, 0) };
+            }
+        }
+        Collapse { cover }
+    }
+
+    /// The least cover of two siblings with at most `k` lanes between them, and the left's share.
+    fn split(cover: &[[(f64, u8); 4]], left: usize, right: usize, k: usize) -> (f64, u8) {
+        (1..k)
+            .map(|j| (cover[left][j - 1].0 + cover[right][k - j - 1].0, j as u8))
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .expect("two lanes at least")
+    }
+
+    /// The lanes of interior binary node `n` as a wide node, in the binary tree's order.
+    fn lanes_of(&self, binary: &[Node], n: usize, lanes: &mut Vec<usize>) {
+        let left = binary[n].first as usize;
+        let (_, j) = Self::split(&self.cover, left, left + 1, 4);
+        self.covered(binary, left, j as usize, lanes);
+        self.covered(binary, left + 1, 4 - j as usize, lanes);
+    }
+
+    fn covered(&self, binary: &[Node], n: usize, k: usize, lanes: &mut Vec<usize>) {
+        match self.cover[n][k - 1].1 {
+            0 => lanes.push(n),
+            j => {
+                let left = binary[n].first as usize;
+                self.covered(binary, left, j as usize, lanes);
+                self.covered(binary, left + 1, k - j as usize, lanes);
+            }
+        }
     }
 }
 
