@@ -609,9 +609,9 @@ impl PreparedScene {
         true
     }
 
-    /// One step of the walk: a leaf's pending triangles' vertices asked of the cache, its items
-    /// visited, or the next node's lanes tested (a leaf's items met by the ray made pending, an
-    /// interior node's children pushed; each asked of the cache); false when nothing is left.
+    /// One step of the walk: a leaf's pending triangles' vertices asked of the cache, or its items
+    /// visited and then the next node's lanes tested (a leaf's items met by the ray made pending,
+    /// an interior node's children pushed; each asked of the cache); false when nothing is left.
     /// Several rays' walks stepped in turn each find what they asked for fetched while the others'
     /// were tested.
     #[inline(always)]
@@ -649,7 +649,7 @@ impl PreparedScene {
                 }
                 visit(i as usize);
             }
-            return true;
+            // On to the next node in the same step: it was asked of the cache when pushed.
         }
         let c = cut.get();
         // The cut may have fallen since a node was pushed: a node of triangles only whose entry t
