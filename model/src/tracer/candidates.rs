@@ -81,6 +81,14 @@ pub(super) fn outcomes_of_near(
         ..
     } in near.drain(..)
     {
+        if let NearOutcome::Missed(evaluation) = near_outcome {
+            // Classified while walking, so unculled (mask, primitive and opacity culling, see
+            // `traverse::triangle_unculled`): a pair tested, a REQ-miss.
+            stats.pair_tests += 1;
+            evaluation.count(stats);
+            stats.req_miss += 1;
+            continue;
+        }
         let outcome = match near_outcome {
             NearOutcome::At(k) => outcomes.get(k as usize),
             _ => None,
@@ -116,11 +124,6 @@ pub(super) fn outcomes_of_near(
                 // intersection, counted as a culled box is, and not tested (the traversal
                 // classified only unculled ones).
                 if opacity_culled(ray, opaque) {
-                    stats.req_miss += 1;
-                    continue;
-                }
-                if let NearOutcome::Missed(evaluation) = near_outcome {
-                    evaluation.count(stats);
                     stats.req_miss += 1;
                     continue;
                 }

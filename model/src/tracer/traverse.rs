@@ -375,7 +375,8 @@ pub(super) struct NearItem {
 pub(super) enum NearOutcome {
     /// None made (not a triangle, or culled before any test).
     None,
-    /// A REQ-miss, decided by this arithmetic: all the outcomes need of it (the counters).
+    /// A REQ-miss of an unculled triangle, decided by this arithmetic: all the outcomes need of it
+    /// (the counters).
     Missed(Evaluation),
     /// The classification's index in the scratch outcomes.
     At(u32),
