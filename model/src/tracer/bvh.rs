@@ -434,22 +434,17 @@ impl PreparedScene {
     }
 
     /// Asks the cache for the world vertices and static radii of triangle item `i` (a hint: no
-    /// effect on any result; it reads the item and its index buffer, which the walk asked for
-    /// earlier).
+    /// effect on any result; it reads the item, which the walk asked for earlier, and its
+    /// geometry).
     #[inline]
     fn prefetch_vertices(&self, i: usize) {
         #[cfg(target_arch = "x86_64")]
         {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            let item = self.items[i];
+            let item = &self.items[i];
             let w = &self.geometries[item.geometry as usize];
-            let crate::scene::GeometryData::Triangles(t) =
-                &self.scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize]
-                    .data
-            else {
-                return;
-            };
-            for v in t.vertex_indices(item.primitive as usize) {
+            for v in item.vertices {
+                let v = v as usize;
                 if let (Some(p), Some(r)) = (w.vertices.get(v), w.static_radius.get(v)) {
                     let last = std::mem::size_of_val(p) - 1;
                     let p = p as *const _ as *const i8;

@@ -132,8 +132,7 @@ pub(super) fn outcomes_of_near(
                 let out = match outcome {
                     Some(o) => o,
                     None => {
-                        computed =
-                            classify_triangle(scene, w, item.primitive, ray, rf, config.precision);
+                        computed = classify_triangle(scene, w, &item, ray, rf, config.precision);
                         &computed
                     }
                 };
@@ -200,12 +199,9 @@ pub(super) fn outcomes_of_near(
                 let (s, _) = values.sum;
                 let t_exact = values.plane.0 / s;
                 let bary_exact = [values.edge[1].0 / s, values.edge[2].0 / s];
-                let GeometryData::Triangles(tri) = &geometry.data else {
-                    unreachable!()
-                };
                 let t_scale = reach_in_t(
-                    tri.vertex_indices(item.primitive as usize)
-                        .map(|i| w.vertices[i].map(|x| x.value)),
+                    item.vertices
+                        .map(|i| w.vertices[i as usize].map(|x| x.value)),
                     ray,
                 );
                 let single = kinds.len() == 1;

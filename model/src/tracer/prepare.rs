@@ -450,11 +450,13 @@ impl RayF64 {
     }
 }
 
-/// A primitive in the BVH: geometry (index into `geometries`) and primitive index.
+/// A primitive in the BVH: geometry (index into `geometries`) and primitive index, and a
+/// triangle's vertex indices (read from its index buffer once, here; zero for an AABB).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) struct Item {
     pub geometry: u32,
     pub primitive: u32,
+    pub vertices: [u32; 3],
 }
 
 /// Shared-edge and shared-vertex topology of the triangles of one transform class of a bottom
@@ -622,6 +624,7 @@ impl PreparedScene {
                             items.push(Item {
                                 geometry: gi,
                                 primitive: prim as u32,
+                                vertices: ids.map(|v| v as u32),
                             });
                         }
                         geometries.push(WorldGeometry {
@@ -672,6 +675,7 @@ impl PreparedScene {
                             items.push(Item {
                                 geometry: gi,
                                 primitive: prim as u32,
+                                vertices: [0; 3],
                             });
                         }
                         geometries.push(WorldGeometry {

@@ -83,7 +83,7 @@ fn f32_world(scene: &PreparedScene, w: &WorldGeometry, v: [f32; 3]) -> V3<PlainF
 pub(super) fn classify_triangle(
     scene: &PreparedScene,
     w: &WorldGeometry,
-    primitive: u32,
+    item: &Item,
     ray: &Ray,
     rf: &RayF64,
     precision: Precision,
@@ -93,7 +93,7 @@ pub(super) fn classify_triangle(
     else {
         unreachable!("triangle geometry")
     };
-    let ids = t.vertex_indices(primitive as usize);
+    let ids = item.vertices.map(|v| v as usize);
     let pos = map3(ids, |i| t.positions[i]);
     let miss = |reason| TriangleOutcome {
         class: PairClass::ReqMiss(reason),
@@ -679,7 +679,7 @@ impl Kept {
             return;
         }
         let outcome = triangle_unculled(scene, w, ray)
-            .then(|| classify_triangle(scene, w, item.primitive, ray, rf, config.precision));
+            .then(|| classify_triangle(scene, w, &item, ray, rf, config.precision));
         if let Some(t_hi) = outcome
             .as_ref()
             .and_then(|out| required_hit_t(scene, w, ray, out))
