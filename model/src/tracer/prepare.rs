@@ -451,12 +451,14 @@ impl RayF64 {
 }
 
 /// A primitive in the BVH: geometry (index into `geometries`) and primitive index, and a
-/// triangle's vertex indices (read from its index buffer once, here; zero for an AABB).
+/// triangle's vertex indices (read from its index buffer once, here; zero for an AABB) and whether
+/// two of its vertices coincide (in object space, so for every ray: see `classify_triangle`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) struct Item {
     pub geometry: u32,
     pub primitive: u32,
     pub vertices: [u32; 3],
+    pub degenerate: bool,
 }
 
 /// Shared-edge and shared-vertex topology of the triangles of one transform class of a bottom
@@ -494,6 +496,8 @@ pub struct PreparedScene {
     /// Every geometry is opaque for a ray without opacity flags (its instance forces it opaque,
     /// or does not force it non-opaque and the geometry is opaque).
     pub(crate) all_opaque: bool,
+    /// Every instance's mask has a bit set: a ray whose cull mask has all eight culls none.
+    pub(crate) every_mask_set: bool,
     /// `(bottom level, transform class)` → topology, built on first use.
     pub(crate) topology: HashMap<(u32, u32), OnceLock<Topology>>,
     /// The least and greatest coordinate of every triangle's world vertices, and the largest
@@ -625,6 +629,10 @@ impl PreparedScene {
                                 geometry: gi,
                                 primitive: prim as u32,
                                 vertices: ids.map(|v| v as u32),
+                                degenerate: {
+                                    let p = ids.map(|v| t.positions[v]);
+                                    p[0] == p[1] || p[1] == p[2] || p[2] == p[0]
+                                },
                             });
                         }
                         geometries.push(WorldGeometry {
@@ -676,6 +684,7 @@ impl PreparedScene {
                                 geometry: gi,
                                 primitive: prim as u32,
                                 vertices: [0; 3],
+                                degenerate: false,
                             });
                         }
                         geometries.push(WorldGeometry {
@@ -723,6 +732,7 @@ impl PreparedScene {
                 &scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize];
             inst.flags.force_opaque || (!inst.flags.force_no_opaque && geometry.flags.opaque)
         });
+        let every_mask_set = scene.instances.iter().all(|inst| inst.mask != 0);
         let mut triangle_extent: Option<TriangleExtent> = None;
         for w in geometries
             .iter()
@@ -747,6 +757,7 @@ impl PreparedScene {
         Ok(PreparedScene {
             triangle_extent,
             all_opaque,
+            every_mask_set,
             scene: scene.clone(),
             instances,
             geometries,

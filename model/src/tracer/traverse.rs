@@ -94,7 +94,7 @@ pub(super) fn classify_triangle(
         unreachable!("triangle geometry")
     };
     let ids = item.vertices.map(|v| v as usize);
-    let pos = map3(ids, |i| t.positions[i]);
+    let pos = || map3(ids, |i| t.positions[i]);
     let miss = |reason| TriangleOutcome {
         class: PairClass::ReqMiss(reason),
         signs: None,
@@ -104,12 +104,14 @@ pub(super) fn classify_triangle(
     };
     // Spec, "Ray Face Culling": a zero ray-space area is culled. Two coincident vertices give zero
     // area in every implementation (identical inputs, identical arithmetic).
-    if pos[0] == pos[1] || pos[1] == pos[2] || pos[2] == pos[0] {
+    if item.degenerate {
         return miss(MissReason::Degenerate);
     }
     let inst = &scene.instances[w.instance as usize];
-    let geometry_identity = t.transform.as_ref().is_none_or_identity();
-    if inst.identity && geometry_identity {
+    // A ray in a triangle's plane, the plane normal to an axis the ray does not move along (so
+    // never an oblique ray).
+    if !rf.oblique && inst.identity && t.transform.as_ref().is_none_or_identity() {
+        let pos = pos();
         #[allow(clippy::needless_range_loop)] // one axis indexes positions and the ray
         for k in 0..3 {
             let plane = pos[0][k];
@@ -154,7 +156,7 @@ pub(super) fn classify_triangle(
         rf.direction_norm,
     );
     let evaluate_exact = || {
-        let world = pos.map(|p| dyadic_world(scene, w, p));
+        let world = pos().map(|p| dyadic_world(scene, w, p));
         triangle_signs::<Dyadic>(
             &world,
             &v3(ray.origin),
@@ -182,7 +184,7 @@ pub(super) fn classify_triangle(
             }
         }
         Precision::F32FilterOnly => {
-            let world = pos.map(|p| f32_world(scene, w, p));
+            let world = pos().map(|p| f32_world(scene, w, p));
             let x = triangle_signs::<PlainF32>(
                 &world,
                 &v3(ray.origin),
@@ -319,6 +321,15 @@ fn triangle_unculled(scene: &PreparedScene, w: &WorldGeometry, ray: &Ray) -> boo
     let geometry =
         &scene.scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize];
     !opacity_culled(ray, opacity(ray, inst, geometry.flags.opaque))
+}
+
+/// Whether [`triangle_unculled`] holds for every triangle of the scene and the ray, known from the
+/// ray alone where it does: a full cull mask, every instance's mask set, and no flag that culls
+/// by primitive or opacity (false decides nothing).
+fn none_culled(scene: &PreparedScene, ray: &Ray) -> bool {
+    const CULLING: u32 =
+        RayFlags::SKIP_TRIANGLES.0 | RayFlags::CULL_OPAQUE.0 | RayFlags::CULL_NO_OPAQUE.0;
+    scene.every_mask_set && ray.cull_mask & 0xFF == 0xFF && ray.flags.0 & CULLING == 0
 }
 
 /// The upper t bound of a triangle that must be a candidate and is confirmed without any-hit
@@ -566,6 +577,9 @@ struct Slot {
 #[derive(Default)]
 struct Kept {
     may_cut: Option<bool>,
+    /// No triangle of the scene is culled for the ray (`triangle_unculled` holds for all): every
+    /// instance's mask meets its cull mask, and no flag culls by primitive or opacity.
+    none_culled: bool,
     /// The least upper t bound of a required hit confirmed without any-hit: the cut the ray gets
     /// where no primitive runs any-hit for it and it may not end at its first hit.
     least_required: f64,
@@ -592,6 +606,7 @@ impl Slot {
         self.rf.in_f32_range = scene.in_f32_range(&self.rf);
         self.cut.set(f64::INFINITY);
         self.kept.may_cut = None;
+        self.kept.none_culled = none_culled(scene, ray);
         self.kept.least_required = f64::INFINITY;
         self.kept.far_count = 0;
         self.nodes = 0;
@@ -678,7 +693,7 @@ impl Kept {
         {
             return;
         }
-        let outcome = triangle_unculled(scene, w, ray)
+        let outcome = (self.none_culled || triangle_unculled(scene, w, ray))
             .then(|| classify_triangle(scene, w, &item, ray, rf, config.precision));
         if let Some(t_hi) = outcome
             .as_ref()
@@ -789,6 +804,55 @@ mod tests {
             }
         }
         assert!(plain > 0 && plain < rays, "{plain} of {rays}");
+    }
+
+    /// Where the ray alone says no triangle is culled, none is: on the instanced workload with
+    /// its instances' masks, FORCE_* flags and geometries' OPAQUE bits varied (a mask of zero
+    /// among them), for rays of every cull mask and culling flag tried.
+    #[test]
+    fn a_ray_that_culls_nothing_culls_no_triangle() {
+        let w = super::super::workload::standard_workloads(4, false)
+            .into_iter()
+            .find(|w| w.name.starts_with("instanced"))
+            .expect("the instanced workload");
+        let (mut culling_nothing, mut culling_some) = (0, 0);
+        for zero_mask in [false, true] {
+            let mut scene = w.scene.clone();
+            for (k, inst) in scene.instances.iter_mut().enumerate() {
+                inst.mask = [0xFF, 0x01, 0x80, 0x3C][k % 4];
+                inst.flags.force_opaque = k % 3 == 1;
+                inst.flags.force_no_opaque = k % 3 == 2;
+            }
+            if zero_mask {
+                scene.instances[5].mask = 0;
+            }
+            scene.bottom_levels[0].geometries[0].flags.opaque = false;
+            let scene = PreparedScene::new(&scene).expect("a defined scene");
+            let flags = [0, 0x1, 0x2, 0x40, 0x80, 0x100, 0x200, 0x10];
+            for (&f, cull_mask) in flags
+                .iter()
+                .flat_map(|f| [0xFF, 0x1FF, 0x7F, 0x01, 0x00].map(move |m| (f, m)))
+            {
+                let mut ray = w.rays[0];
+                ray.flags = RayFlags(f);
+                ray.cull_mask = cull_mask;
+                let every = scene
+                    .geometries
+                    .iter()
+                    .filter(|g| g.kind == PrimitiveKind::Triangle)
+                    .all(|g| triangle_unculled(&scene, g, &ray));
+                if none_culled(&scene, &ray) {
+                    culling_nothing += 1;
+                    assert!(every, "flags {f:#x} cull mask {cull_mask:#x}");
+                } else if !every {
+                    culling_some += 1;
+                }
+            }
+        }
+        assert!(
+            culling_nothing > 0 && culling_some > 0,
+            "{culling_nothing} rays cull nothing, {culling_some} some"
+        );
     }
 
     /// The far test's entry answers the test at a lower `tmax` as running it again does: on the
