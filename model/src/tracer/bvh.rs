@@ -15,7 +15,7 @@
 //! larger box, hence of the smaller, hence the f64 test's miss. An f32 entry `t` above a lower
 //! `tmax` is likewise an exact miss of the larger box at that `tmax`.
 
-use super::prepare::{f32_up, BoundBox, FarBox, Item, ItemFar, PreparedScene, RayF64};
+use super::prepare::{f32_up, BoundBox, FarBox, Item, PreparedScene, RayF64};
 
 #[cfg(test)]
 mod collapse_tests;
@@ -280,13 +280,14 @@ impl WideTree {
     #[inline]
     fn prefetch(&self, n: u32) {
         #[cfg(target_arch = "x86_64")]
-        if let Some(node) = self.nodes.get(n as usize) {
+        {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            let p = node as *const WideNode as *const i8;
-            // SAFETY: a prefetch reads nothing and the addresses lie within the node.
+            // The address computed without a bounds check (`n` is a child index of the tree).
+            let p = self.nodes.as_ptr().wrapping_add(n as usize) as *const i8;
+            // SAFETY: a prefetch reads nothing and never faults, whatever the address.
             unsafe {
                 _mm_prefetch(p, _MM_HINT_T0);
-                _mm_prefetch(p.add(64), _MM_HINT_T0);
+                _mm_prefetch(p.wrapping_add(64), _MM_HINT_T0);
             }
         }
     }
@@ -422,13 +423,16 @@ impl PreparedScene {
     #[inline]
     fn prefetch_item(&self, i: usize) {
         #[cfg(target_arch = "x86_64")]
-        if let (Some(b), Some(item)) = (self.item_far.get(i), self.items.get(i)) {
+        {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            // SAFETY: a prefetch reads nothing; the addresses are the item's far line and its
-            // entry in `items`, which the visit reads first.
+            // The item's far line and its entry in `items`, which the visit reads first (no
+            // bounds check: `i` is an item of a leaf).
+            let far = self.item_far.as_ptr().wrapping_add(i) as *const i8;
+            let item = self.items.as_ptr().wrapping_add(i) as *const i8;
+            // SAFETY: a prefetch reads nothing and never faults, whatever the address.
             unsafe {
-                _mm_prefetch(b as *const ItemFar as *const i8, _MM_HINT_T0);
-                _mm_prefetch(item as *const Item as *const i8, _MM_HINT_T0);
+                _mm_prefetch(far, _MM_HINT_T0);
+                _mm_prefetch(item, _MM_HINT_T0);
             }
         }
     }
@@ -443,18 +447,17 @@ impl PreparedScene {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
             let item = &self.items[i];
             let w = &self.geometries[item.geometry as usize];
+            // The vertex records' first and last bytes and the radii, addresses computed without
+            // bounds checks (the item's vertex indices index its geometry's vertices).
+            let last = std::mem::size_of::<[super::arith::BoundedF64; 3]>() - 1;
             for v in item.vertices {
-                let v = v as usize;
-                if let (Some(p), Some(r)) = (w.vertices.get(v), w.static_radius.get(v)) {
-                    let last = std::mem::size_of_val(p) - 1;
-                    let p = p as *const _ as *const i8;
-                    // SAFETY: a prefetch reads nothing; the addresses lie within the vertex's
-                    // record (its first and last byte) and its radius.
-                    unsafe {
-                        _mm_prefetch(p, _MM_HINT_T0);
-                        _mm_prefetch(p.add(last), _MM_HINT_T0);
-                        _mm_prefetch(r as *const f64 as *const i8, _MM_HINT_T0);
-                    }
+                let p = w.vertices.as_ptr().wrapping_add(v as usize) as *const i8;
+                let r = w.static_radius.as_ptr().wrapping_add(v as usize) as *const i8;
+                // SAFETY: a prefetch reads nothing and never faults, whatever the address.
+                unsafe {
+                    _mm_prefetch(p, _MM_HINT_T0);
+                    _mm_prefetch(p.wrapping_add(last), _MM_HINT_T0);
+                    _mm_prefetch(r, _MM_HINT_T0);
                 }
             }
         }
