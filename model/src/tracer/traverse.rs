@@ -124,7 +124,9 @@ pub(super) fn classify_triangle(
             }
         }
     }
-    let world_f64 = map3(ids, |i| map3(w.vertices[i], |x| x.value));
+    // The world vertices with their error bounds, read once.
+    let world = map3(ids, |i| w.vertices[i]);
+    let world_f64 = world.map(|v| v.map(|x| x.value));
     if !rf.in_f32_range && !within_f32_range(&inst.band, &world_f64, rf.origin, rf.direction) {
         return beyond_f32_range(&world_f64, rf.origin, rf.direction);
     }
@@ -134,7 +136,7 @@ pub(super) fn classify_triangle(
     if precision == Precision::F64WithExactFallback
         && robustly_outside(
             &inst.band,
-            &map3(ids, |i| w.vertices[i]),
+            &world,
             &radius,
             rf.origin,
             rf.origin_norm,
@@ -170,7 +172,6 @@ pub(super) fn classify_triangle(
     let ((signs, values), evaluation) = match precision {
         Precision::ExactOnly => (evaluate_exact(), Evaluation::Exact),
         Precision::F64WithExactFallback => {
-            let world = map3(ids, |i| w.vertices[i]);
             match triangle_signs::<BoundedF64>(
                 &world,
                 &v3(ray.origin),
