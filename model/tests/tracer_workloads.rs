@@ -7,7 +7,7 @@
 
 use model::case::Case;
 use model::scene::GeometryData;
-use model::tracer::workload::{standard_workloads, workload_shaders};
+use model::tracer::workload::{standard_workload, standard_workloads, workload_shaders};
 use model::tracer::{
     trace_ray, MissShader, PreparedScene, Presence, ShaderTable, TracerConfig, TracerStats,
 };
@@ -164,11 +164,7 @@ fn expected_launch_allows_per_launch_id_what_brute_force_allows_its_ray() {
 fn the_prepared_scene_memo_tells_scenes_apart_by_every_bit() {
     use model::scene::{GeometryData, Indices, Transform3x4};
     use model::semantics::{prepared, same_scene};
-    let base = standard_workloads(2, false)
-        .into_iter()
-        .find(|w| w.name.starts_with("instanced"))
-        .expect("the instanced workload")
-        .scene;
+    let base = standard_workload(2, "instanced").scene;
     assert!(same_scene(&base, &base.clone()));
     fn triangles(s: &mut model::scene::Scene) -> &mut model::scene::Triangles {
         match &mut s.bottom_levels[0].geometries[0].data {

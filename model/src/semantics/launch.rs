@@ -557,10 +557,7 @@ mod shared_out_tests {
     #[test]
     fn every_worker_count_gives_the_outcomes_of_one_thread() {
         let mut case = crate::test_cases::hand_case();
-        let workload = crate::tracer::workload::standard_workloads(24, false)
-            .into_iter()
-            .find(|w| w.name.starts_with("icosphere"))
-            .expect("the icosphere workload");
+        let workload = crate::tracer::workload::standard_workload(24, "icosphere");
         let body = case.as_trace_mut().expect("a trace case");
         body.world.launch.scene = workload.scene.clone();
         let (world, call) = (&body.world, &body.call);
@@ -596,10 +593,7 @@ mod per_ray_tests {
     /// reads the set its own ray traced alone gives.
     #[test]
     fn copies_of_a_ray_share_one_outcome_set_that_is_the_rays_own() {
-        let workload = crate::tracer::workload::standard_workloads(64, false)
-            .into_iter()
-            .find(|w| w.name.starts_with("icosphere"))
-            .expect("the icosphere workload");
+        let workload = crate::tracer::workload::standard_workload(64, "icosphere");
         // A 64x64 launch whose 4096 rays are copies of three of the workload's, hit and miss.
         let mut case = workload.as_launch_of(hand_case(), 64);
         let body = case.as_trace_mut().expect("a trace case");

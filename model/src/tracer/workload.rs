@@ -102,6 +102,15 @@ pub fn standard_workloads(side: u32, large: bool) -> Vec<Workload> {
     out
 }
 
+/// The standard workload whose name starts with `name` (`side`×`side` camera rays; not the large
+/// grid); panics where there is none (a caller's mistake: the names are fixed above).
+pub fn standard_workload(side: u32, name: &str) -> Workload {
+    standard_workloads(side, false)
+        .into_iter()
+        .find(|w| w.name.starts_with(name))
+        .unwrap_or_else(|| panic!("no standard workload named {name}"))
+}
+
 /// The shader table of the workloads: closest-hit everywhere (procedural where needed).
 pub fn workload_shaders(i: u32, g: u32) -> HitShaders {
     HitShaders::procedural(10 * i + g, None)
