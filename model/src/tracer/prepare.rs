@@ -630,7 +630,7 @@ impl PreparedScene {
                                 primitive: prim as u32,
                                 vertices: ids.map(|v| v as u32),
                                 degenerate: {
-                                    let p = ids.map(|v| t.positions[v]);
+                                    let p = t.vertices(prim);
                                     p[0] == p[1] || p[1] == p[2] || p[2] == p[0]
                                 },
                             });

@@ -88,13 +88,22 @@ pub(super) fn classify_triangle(
     rf: &RayF64,
     precision: Precision,
 ) -> TriangleOutcome {
-    let GeometryData::Triangles(t) =
-        &scene.scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize].data
-    else {
-        unreachable!("triangle geometry")
+    // The object-space triangles, read only where a test needs them (an axis-aligned ray, the
+    // exact fallback, the f32 filter).
+    let triangles = || {
+        let GeometryData::Triangles(t) = &scene.scene.bottom_levels[w.bottom_level as usize]
+            .geometries[w.geometry as usize]
+            .data
+        else {
+            unreachable!("triangle geometry")
+        };
+        t
     };
     let ids = item.vertices.map(|v| v as usize);
-    let pos = || map3(ids, |i| t.positions[i]);
+    let pos = || {
+        let t = triangles();
+        map3(ids, |i| t.positions[i])
+    };
     let miss = |reason| TriangleOutcome {
         class: PairClass::ReqMiss(reason),
         signs: None,
@@ -110,7 +119,7 @@ pub(super) fn classify_triangle(
     let inst = &scene.instances[w.instance as usize];
     // A ray in a triangle's plane, the plane normal to an axis the ray does not move along (so
     // never an oblique ray).
-    if !rf.oblique && inst.identity && t.transform.as_ref().is_none_or_identity() {
+    if !rf.oblique && inst.identity && triangles().transform.as_ref().is_none_or_identity() {
         let pos = pos();
         #[allow(clippy::needless_range_loop)] // one axis indexes positions and the ray
         for k in 0..3 {
