@@ -127,32 +127,48 @@ impl ExpectedLaunch {
 
 /// One value per ray of a launch, held once per distinct ray: a launch of many copies of one ray (an
 /// explicit ray list repeated, a ray through a closed fan's vertex in every launch ID) keeps one set
-/// of outcomes, not one per copy, so its memory follows its distinct rays, not its launch size.
-#[derive(Debug, Clone, PartialEq)]
+/// of outcomes, not one per copy, so its memory follows its distinct rays, not its launch size. The
+/// values are held in chunks as the threads that traced them made them (no copy into one buffer on
+/// the launch's serial path).
+#[derive(Debug, Clone)]
 pub struct PerRay<T> {
-    /// The values of the distinct rays, in order of first appearance.
-    distinct: Vec<T>,
-    /// For each ray its distinct one's index in `distinct`; empty where every ray is distinct
-    /// (ray `k`'s value is then `distinct[k]`).
+    /// The values of the distinct rays, in order of first appearance: value `d` is
+    /// `chunks[d >> shift][d & mask]`, every chunk but the last holding `1 << shift` values.
+    chunks: Vec<Vec<T>>,
+    shift: u32,
+    /// The number of values held.
+    distinct_len: usize,
+    /// For each ray its distinct one's index; empty where every ray is distinct (ray `k`'s value is
+    /// then the `k`th).
     of: Vec<u32>,
 }
 
 impl<T> Default for PerRay<T> {
     fn default() -> PerRay<T> {
-        PerRay {
-            distinct: Vec::new(),
-            of: Vec::new(),
-        }
+        PerRay::new(Vec::new(), Vec::new())
     }
 }
 
 impl<T> PerRay<T> {
     /// The values of the distinct rays, and for each ray the index of its distinct one.
     pub fn new(distinct: Vec<T>, of: Vec<u32>) -> PerRay<T> {
-        debug_assert!(of.iter().all(|&d| (d as usize) < distinct.len()));
-        let identity = of.len() == distinct.len();
+        PerRay::from_chunks(vec![distinct], usize::BITS - 1, of)
+    }
+
+    /// [`PerRay::new`] with the values in chunks of `1 << shift` (the last may hold fewer).
+    fn from_chunks(chunks: Vec<Vec<T>>, shift: u32, of: Vec<u32>) -> PerRay<T> {
+        let distinct_len = chunks.iter().map(Vec::len).sum();
+        debug_assert!(chunks
+            .iter()
+            .rev()
+            .skip(1)
+            .all(|c| c.len() == 1usize << shift));
+        debug_assert!(of.iter().all(|&d| (d as usize) < distinct_len));
+        let identity = of.len() == distinct_len;
         PerRay {
-            distinct,
+            chunks,
+            shift,
+            distinct_len,
             of: if identity { Vec::new() } else { of },
         }
     }
@@ -160,7 +176,7 @@ impl<T> PerRay<T> {
     /// The number of rays.
     pub fn len(&self) -> usize {
         if self.of.is_empty() {
-            self.distinct.len()
+            self.distinct_len
         } else {
             self.of.len()
         }
@@ -177,18 +193,26 @@ impl<T> PerRay<T> {
 
     /// The number of values held: one per distinct ray.
     pub fn distinct_len(&self) -> usize {
-        self.distinct.len()
+        self.distinct_len
     }
 }
 
 impl<T> std::ops::Index<usize> for PerRay<T> {
     type Output = T;
     fn index(&self, k: usize) -> &T {
-        if self.of.is_empty() {
-            &self.distinct[k]
+        let d = if self.of.is_empty() {
+            k
         } else {
-            &self.distinct[self.of[k] as usize]
-        }
+            self.of[k] as usize
+        };
+        &self.chunks[d >> self.shift][d & ((1usize << self.shift) - 1)]
+    }
+}
+
+/// Equal where every ray has an equal value, however the values are held.
+impl<T: PartialEq> PartialEq for PerRay<T> {
+    fn eq(&self, other: &PerRay<T>) -> bool {
+        self.len() == other.len() && self.iter().eq(other.iter())
     }
 }
 
@@ -208,10 +232,10 @@ pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
             None => (prepared(&world.launch.scene)?, distinct_rays(&rays)),
         };
         let workers = workers_for(distinct.len());
-        let traced = trace_distinct(
+        let (traced, shift) = trace_distinct(
             workers, world, call, &prepared, &rays, &distinct, &mut stats,
         )?;
-        allowed = PerRay::new(traced, of);
+        allowed = PerRay::from_chunks(traced, shift, of);
     }
     Some(ExpectedLaunch {
         dimensions: dims,
@@ -312,7 +336,9 @@ fn distinct_rays_hashed(rays: &[Ray], hash: impl Fn(&[u32; 13]) -> u64) -> Disti
         let mask = size - 1;
         table.clear();
         table.resize(size, (0, 0));
-        let mut distinct: Vec<u32> = Vec::new();
+        // Room for every ray to be distinct, as they mostly are: growing by doubling would copy
+        // and touch fresh memory a dozen times on the launch's serial path.
+        let mut distinct: Vec<u32> = Vec::with_capacity(rays.len());
         let mut of = Vec::with_capacity(rays.len());
         for (i, ray) in rays.iter().enumerate() {
             let key = ray_key(ray);
@@ -359,7 +385,8 @@ fn workers_for(distinct: usize) -> usize {
 }
 
 /// The outcomes of `rays[distinct[k]]` for each k, or None when one is undefined, traced on `workers`
-/// threads (the calling one among them); the counters summed into `stats`.
+/// threads (the calling one among them); the counters summed into `stats`. The outcomes come in
+/// chunks of `1 << shift` (the shift returned beside them; the last chunk may hold fewer).
 fn trace_distinct(
     workers: usize,
     world: &World,
@@ -368,46 +395,54 @@ fn trace_distinct(
     rays: &[Ray],
     distinct: &[u32],
     stats: &mut TracerStats,
-) -> Option<Vec<AllowedOutcomes>> {
+) -> Option<(Vec<Vec<AllowedOutcomes>>, u32)> {
     let config = TracerConfig::default();
-    // The outcomes of the distinct rays `ids` (indices into `rays`), traced together, to `answer`.
+    // The outcomes of the distinct rays `ids` (indices into `rays`), traced together, in their
+    // order; None when one is undefined (`undefined` is then set, and the others may be missing).
     let trace_ids = |ids: &[u32],
                      stats: &mut TracerStats,
                      memo: &HitRecordMemo,
-                     answer: &mut dyn FnMut(usize, Option<AllowedOutcomes>)| {
+                     undefined: &std::sync::atomic::AtomicBool|
+     -> Option<Vec<AllowedOutcomes>> {
         let traced: Vec<&Ray> = ids.iter().map(|&i| &rays[i as usize]).collect();
-        allowed_for_rays_memo(world, call, prepared, &traced, &config, stats, memo, answer);
-    };
-    if workers == 1 {
         // Answers come as rays finish, each to its place.
-        let mut all: Vec<Option<AllowedOutcomes>> = Vec::new();
-        all.resize_with(distinct.len(), || None);
-        let mut defined = true;
-        trace_ids(
-            distinct,
+        let mut out: Vec<Option<AllowedOutcomes>> = Vec::new();
+        out.resize_with(ids.len(), || None);
+        allowed_for_rays_memo(
+            world,
+            call,
+            prepared,
+            &traced,
+            &config,
             stats,
-            &HitRecordMemo::default(),
-            &mut |k, a| match a {
-                Some(a) if defined => all[k] = Some(a),
-                _ => defined = false,
+            memo,
+            |k, a| {
+                if a.is_none() {
+                    undefined.store(true, std::sync::atomic::Ordering::Relaxed);
+                }
+                out[k] = a;
             },
         );
-        return defined.then(|| {
-            all.into_iter()
-                .map(|a| a.expect("every ray answered"))
-                .collect()
-        });
+        // Collected in place, without a second buffer.
+        out.into_iter().collect()
+    };
+    let undefined = std::sync::atomic::AtomicBool::new(false);
+    if workers == 1 {
+        let all = trace_ids(distinct, stats, &HitRecordMemo::default(), &undefined)?;
+        // One chunk (a shift no index reaches).
+        return Some((vec![all], usize::BITS - 1));
     }
     // The distinct rays in chunks, the chunks in one contiguous segment per worker: a worker traces
     // its own segment from the front (neighbouring rays meet the same nodes and items, in its own
     // core's cache — and launch after launch of one scene, the same ones), then takes chunks from the
     // back of the others', so an expensive part of the image does not leave one worker behind. Each
-    // writes its chunk's outcomes straight into their places.
-    const CHUNK: usize = 32;
-    let mut slots: Vec<Option<AllowedOutcomes>> = Vec::new();
-    slots.resize_with(distinct.len(), || None);
-    let undefined = std::sync::atomic::AtomicBool::new(false);
-    let mut chunks = slots.chunks_mut(CHUNK).zip(distinct.chunks(CHUNK));
+    // puts its chunk's outcomes in the chunk's place.
+    const SHIFT: u32 = 5;
+    const CHUNK: usize = 1 << SHIFT;
+    let done: Vec<std::sync::OnceLock<Vec<AllowedOutcomes>>> = (0..distinct.len().div_ceil(CHUNK))
+        .map(|_| std::sync::OnceLock::new())
+        .collect();
+    let mut chunks = done.iter().zip(distinct.chunks(CHUNK));
     let per_worker = chunks.len().div_ceil(workers);
     let segments: Vec<Mutex<std::collections::VecDeque<_>>> = (0..workers)
         .map(|_| Mutex::new(chunks.by_ref().take(per_worker).collect()))
@@ -426,16 +461,14 @@ fn trace_distinct(
             let own = lock(home).pop_front();
             let next =
                 own.or_else(|| (1..workers).find_map(|k| lock((home + k) % workers).pop_back()));
-            let Some((out, ids)) = next else { break };
+            let Some((place, ids)) = next else { break };
             if undefined.load(std::sync::atomic::Ordering::Relaxed) {
                 break;
             }
-            trace_ids(ids, &mut stats, &memo, &mut |k, a| {
-                if a.is_none() {
-                    undefined.store(true, std::sync::atomic::Ordering::Relaxed);
-                }
-                out[k] = a;
-            });
+            if let Some(outcomes) = trace_ids(ids, &mut stats, &memo, &undefined) {
+                // Each chunk is taken from its segment once.
+                let _ = place.set(outcomes);
+            }
         }
         parts.lock().unwrap_or_else(|e| e.into_inner()).push(stats);
     };
@@ -447,8 +480,12 @@ fn trace_distinct(
     if undefined.into_inner() {
         return None;
     }
-    // Every slot was filled (no ray was undefined); collected in place, without a second buffer.
-    slots.into_iter().collect()
+    // Every chunk was traced (no ray was undefined).
+    let chunks = done
+        .into_iter()
+        .map(|c| c.into_inner())
+        .collect::<Option<Vec<_>>>()?;
+    Some((chunks, SHIFT))
 }
 
 /// A hasher for the hit record memo's record indices: a multiply-rotate mix of the words,
@@ -565,8 +602,10 @@ mod shared_out_tests {
         let rays = &workload.rays;
         let distinct: Vec<u32> = (0..rays.len() as u32).collect();
         let mut one_stats = TracerStats::default();
-        let one = trace_distinct(1, world, call, &prepared, rays, &distinct, &mut one_stats)
-            .expect("defined rays");
+        let (chunks, shift) =
+            trace_distinct(1, world, call, &prepared, rays, &distinct, &mut one_stats)
+                .expect("defined rays");
+        let one = PerRay::from_chunks(chunks, shift, Vec::new());
         assert_eq!(one.len(), rays.len());
         assert!(
             one.iter().any(|o| !o.candidates.is_empty()),
@@ -575,8 +614,12 @@ mod shared_out_tests {
         // 576 rays in 18 chunks: segments of 9, 6, 4 and 1 chunks, and workers without any.
         for workers in [2, 3, 5, 18, 40] {
             let mut stats = TracerStats::default();
-            let many = trace_distinct(workers, world, call, &prepared, rays, &distinct, &mut stats)
-                .expect("defined rays");
+            let (chunks, shift) =
+                trace_distinct(workers, world, call, &prepared, rays, &distinct, &mut stats)
+                    .expect("defined rays");
+            assert!(chunks.len() > 1, "{workers} workers");
+            let many = PerRay::from_chunks(chunks, shift, Vec::new());
+            assert_eq!(many.len(), rays.len(), "{workers} workers");
             assert!(many == one, "{workers} workers");
             assert_eq!(stats.rays, one_stats.rays, "{workers} workers");
             assert_eq!(stats.pair_tests, one_stats.pair_tests, "{workers} workers");
@@ -625,5 +668,11 @@ mod per_ray_tests {
         let shared = PerRay::new(vec!['a', 'b'], vec![0, 1, 1, 0]);
         assert_eq!(shared.iter().collect::<String>(), "abba");
         assert_eq!((shared.len(), shared.distinct_len()), (4, 2));
+        // Held in chunks of two: the same values, and equal to the same held in one.
+        let chunked = PerRay::from_chunks(vec![vec!['a', 'b'], vec!['c']], 1, vec![2, 0, 1, 1]);
+        assert_eq!(chunked.iter().collect::<String>(), "cabb");
+        assert_eq!((chunked.len(), chunked.distinct_len()), (4, 3));
+        assert!(chunked == PerRay::new(vec!['a', 'b', 'c'], vec![2, 0, 1, 1]));
+        assert!(chunked != PerRay::new(vec!['a', 'b', 'c'], vec![2, 0, 1, 0]));
     }
 }
