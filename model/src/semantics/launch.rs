@@ -130,7 +130,7 @@ impl ExpectedLaunch {
 /// of outcomes, not one per copy, so its memory follows its distinct rays, not its launch size. The
 /// values are held in chunks as the threads that traced them made them (no copy into one buffer on
 /// the launch's serial path).
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub struct PerRay<T> {
     /// The values of the distinct rays, in order of first appearance: value `d` is
     /// `chunks[d >> shift][d & mask]`, every chunk but the last holding `1 << shift` values.
@@ -206,6 +206,22 @@ impl<T> std::ops::Index<usize> for PerRay<T> {
             self.of[k] as usize
         };
         &self.chunks[d >> self.shift][d & ((1usize << self.shift) - 1)]
+    }
+}
+
+/// The distinct values as one list and the rays' indices into it, however the values are held.
+impl<T: std::fmt::Debug> std::fmt::Debug for PerRay<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        struct Values<'a, T>(&'a [Vec<T>]);
+        impl<T: std::fmt::Debug> std::fmt::Debug for Values<'_, T> {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.debug_list().entries(self.0.iter().flatten()).finish()
+            }
+        }
+        f.debug_struct("PerRay")
+            .field("distinct", &Values(&self.chunks))
+            .field("of", &self.of)
+            .finish()
     }
 }
 

@@ -96,11 +96,12 @@ impl LaneBounds {
     #[cfg(target_arch = "x86_64")]
     fn entries(&self, r: &LaneRay, far: [f32; 4]) -> ([f32; 4], u32) {
         use std::arch::x86_64::*;
-        // SAFETY: SSE is part of x86_64; the unaligned loads read four f32 lanes of `self`: a
-        // face index of `LaneRay::of` is 4k or 12 + 4k (k < 3), within the 24 floats of `lo`, `hi`.
+        // SAFETY: SSE is part of x86_64; the unaligned loads read four f32 lanes of `self` (a
+        // face index of `LaneRay::of` is 4k or 12 + 4k (k < 3), within the 24 floats of `lo`, `hi`)
+        // or one `[f32; 4]` of the ray or of `far`.
         unsafe {
             let pad = _mm_set1_ps(self.pad_base + self.pad_slope * r.origin_norm);
-            let mut near = _mm_set1_ps(r.tmin);
+            let mut near = _mm_loadu_ps(r.tmin.as_ptr());
             let mut far = _mm_loadu_ps(far.as_ptr());
             // The faces in one row: `lo`'s three axes, then `hi`'s (`repr(C)`, no padding).
             let faces = self.lo.as_ptr() as *const f32;
@@ -109,10 +110,10 @@ impl LaneBounds {
                 // each (a sign flip is exact: `face + (−pad)` rounds as `face − pad`).
                 let first = faces.add(r.first_face[k] as usize);
                 let last = faces.add(r.last_face[k] as usize);
-                let inward = _mm_xor_ps(pad, _mm_set1_ps(r.inward_sign[k]));
+                let inward = _mm_xor_ps(pad, _mm_loadu_ps(r.inward_sign[k].as_ptr()));
                 let outward = _mm_xor_ps(inward, _mm_set1_ps(-0.0));
-                let o = _mm_set1_ps(r.origin[k]);
-                let inv = _mm_set1_ps(r.inv_direction[k]);
+                let o = _mm_loadu_ps(r.origin[k].as_ptr());
+                let inv = _mm_loadu_ps(r.inv_direction[k].as_ptr());
                 let t_in = _mm_mul_ps(_mm_sub_ps(_mm_add_ps(_mm_loadu_ps(first), inward), o), inv);
                 let t_out = _mm_mul_ps(_mm_sub_ps(_mm_add_ps(_mm_loadu_ps(last), outward), o), inv);
                 // No NaN reaches the lane test: max and min are the comparisons they stand for.
@@ -140,7 +141,7 @@ impl LaneBounds {
     #[allow(clippy::needless_range_loop)] // lanes of several arrays indexed together
     fn entries_portable(&self, r: &LaneRay, mut far: [f32; 4]) -> ([f32; 4], u32) {
         let pad = [self.pad_base + self.pad_slope * r.origin_norm; 4];
-        let mut near = [r.tmin; 4];
+        let mut near = r.tmin;
         // A face index of `LaneRay::of` counts floats through `lo`'s rows, then `hi`'s.
         let face = |i: u8| {
             let row = i as usize / 4;
@@ -153,12 +154,12 @@ impl LaneBounds {
         for k in 0..3 {
             let first = face(r.first_face[k]);
             let last = face(r.last_face[k]);
-            let s = if r.inward_sign[k].is_sign_negative() {
+            let s = if r.inward_sign[k][0].is_sign_negative() {
                 1.0f32
             } else {
                 -1.0f32
             };
-            let (o, inv) = (r.origin[k], r.inv_direction[k]);
+            let (o, inv) = (r.origin[k][0], r.inv_direction[k][0]);
             for l in 0..4 {
                 let t_in = (first[l] + -s * pad[l] - o) * inv;
                 let t_out = (last[l] + s * pad[l] - o) * inv;
@@ -174,19 +175,22 @@ impl LaneBounds {
     }
 }
 
-/// The ray as the lane test takes it.
+/// The ray as the lane test takes it: what it puts in every lane held four times over, so a node's
+/// test loads it as it is rather than spreading it anew.
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct LaneRay {
-    origin: [f32; 3],
-    inv_direction: [f32; 3],
+    /// Per axis, the origin component.
+    origin: [[f32; 4]; 3],
+    /// Per axis, the reciprocal of the direction component.
+    inv_direction: [[f32; 4]; 3],
     /// Per axis, where the face the ray enters by starts among the 24 floats of `lo` and `hi`
     /// (`lo`'s row for a positive direction), and where the face it leaves by starts.
     first_face: [u8; 3],
     last_face: [u8; 3],
     /// Per axis, −0.0 where the pad moves the entering face down (a positive direction), +0.0
     /// where up: the sign bit the lane test puts on the pad.
-    inward_sign: [f32; 3],
-    tmin: f32,
+    inward_sign: [[f32; 4]; 3],
+    tmin: [f32; 4],
     /// |o| rounded up.
     origin_norm: f32,
     /// tmax rounded up.
@@ -205,12 +209,12 @@ impl LaneRay {
             && ray.tmin.is_finite();
         LaneRay {
             // The ray's components are f32 values: exact.
-            origin: ray.origin.map(|x| x as f32),
-            inv_direction: d.map(|x| 1.0 / x as f32),
+            origin: ray.origin.map(|x| [x as f32; 4]),
+            inv_direction: d.map(|x| [1.0 / x as f32; 4]),
             first_face: [0, 1, 2].map(|k| if d[k] > 0.0 { 4 * k } else { 12 + 4 * k } as u8),
             last_face: [0, 1, 2].map(|k| if d[k] > 0.0 { 12 + 4 * k } else { 4 * k } as u8),
-            inward_sign: d.map(|x| if x > 0.0 { -0.0 } else { 0.0 }),
-            tmin: ray.tmin as f32,
+            inward_sign: d.map(|x| [if x > 0.0 { -0.0 } else { 0.0 }; 4]),
+            tmin: [ray.tmin as f32; 4],
             origin_norm: f32_up(ray.origin_norm * (1.0 + 1e-12)),
             tmax: f32_up(ray.tmax),
             fast,
