@@ -3,7 +3,7 @@
 //! as a vkCmdTraceRaysIndirectKHR launch of the hand-made case on lavapipe (structures, pipeline and
 //! shader table cached after a warm-up, so a pass is record, submit and read back the 28-word
 //! records), and by the model (`expected_launch`: the allowed outcomes of every launch ID, the
-//! prepared scene cached likewise). Each rate is the median of fifteen passes; the ratio is the oracle's
+//! prepared scene cached likewise). Each rate is the median of the passes; the ratio is the oracle's
 //! rate over lavapipe's, and `paired` the median of the passes' own ratios (each pass times the two
 //! back to back, so a change in the machine's load between passes moves both sides alike). Also the share of ray/primitive tests that needed the exact fallback, and
 //! whether lavapipe's records pass the judgement. Lavapipe runs llvmpipe on every core, and the model
@@ -11,7 +11,9 @@
 //! two on the same machine; `cargo bench -p rtconf-model --bench expected_launch` gives the model's
 //! CPU time per ray beside it.
 //!
-//! `cargo bench -p rtconf-harness --bench render_rays` (lavapipe through `VK_DRIVER_FILES`).
+//! `cargo bench -p rtconf-harness --bench render_rays` (lavapipe through `VK_DRIVER_FILES`;
+//! `RTCONF_BENCH_PASSES` sets the passes, default 15, and `RTCONF_BENCH_ONLY=NAME` keeps the
+//! workloads whose name contains NAME; `scripts/bench-ab.sh` runs two builds of it in turn).
 
 use harness::{Driver, Execution, Executor, Status};
 use model::case::Intent;
@@ -20,7 +22,6 @@ use std::time::Instant;
 
 /// Launch side: 64x64 launch IDs, one camera ray each.
 const SIDE: u32 = 64;
-const PASSES: usize = 15;
 
 #[path = "../../model/benches/common/mod.rs"]
 mod common;
@@ -51,10 +52,16 @@ fn main() {
         "exact %",
         "judged"
     );
+    let passes: usize = std::env::var("RTCONF_BENCH_PASSES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .filter(|&n| n > 0)
+        .unwrap_or(15);
+    let only = std::env::var("RTCONF_BENCH_ONLY").unwrap_or_default();
     let mut ratios = Vec::new();
     for w in standard_workloads(SIDE, false) {
         // The hand case's pipeline has one triangle hit group: the triangle workloads only.
-        if !w.triangles_only() {
+        if !w.triangles_only() || !w.name.contains(&only) {
             continue;
         }
         let mut case = w.as_launch_of(hand_case(), SIDE);
@@ -98,7 +105,7 @@ fn main() {
         let mut oracle = Vec::new();
         let mut paired = Vec::new();
         let mut last = warm;
-        for _ in 0..PASSES {
+        for _ in 0..passes {
             let t = Instant::now();
             last = ctx.execute(&case, &exec);
             let l = ids / t.elapsed().as_secs_f64();
