@@ -37,6 +37,11 @@ pub(super) fn outcomes_of_near(
         hits,
         outcomes,
     } = scratch;
+    if near.is_empty() {
+        // Nothing near the ray (every near item has its outcome, so there is none to forget).
+        debug_assert!(hits.is_empty() && outcomes.is_empty());
+        return conclude(scene, ray, shaders, Vec::new(), Vec::new(), Vec::new());
+    }
     // What the cut leaves out of what was kept before it fell.
     if cut_at < rf.tmax {
         let mut cut_ray = *rf;

@@ -21,6 +21,80 @@ pub(super) fn conclude(
     must_run: Vec<MustRun>,
     watertight: Vec<WatertightGroup>,
 ) -> AllowedOutcomes {
+    if candidates.is_empty() && must_run.is_empty() {
+        return without_candidates(scene, ray, shaders, candidates, watertight);
+    }
+    conclude_candidates(scene, ray, shaders, candidates, must_run, watertight)
+}
+
+/// [`conclude`] for a ray without candidates and without an intersection that must run (most rays
+/// that miss): no candidate to order, commit or run any-hit for, so the miss is required and both
+/// counts are 0 at least, any-hit's at most, as the general rules give for an empty set (a test
+/// compares the two).
+fn without_candidates(
+    scene: &PreparedScene,
+    ray: &Ray,
+    shaders: &ShaderTable<'_>,
+    candidates: Vec<Candidate>,
+    watertight: Vec<WatertightGroup>,
+) -> AllowedOutcomes {
+    AllowedOutcomes {
+        miss: MissRule {
+            allowed: true,
+            required: true,
+            discouraged: watertight.iter().any(|g| g.expect_hit),
+        },
+        committable: few::Few::new(),
+        candidates,
+        miss_shader: shaders.miss,
+        skip_closest_hit: ray.flags.contains(RayFlags::SKIP_CLOSEST_HIT_SHADER),
+        terminate_on_first_hit: ray.flags.contains(RayFlags::TERMINATE_ON_FIRST_HIT),
+        any_hit: CountBounds {
+            min: 0,
+            max: Some(0),
+        },
+        intersection: CountBounds {
+            min: 0,
+            max: if reachable_procedural(scene, ray, shaders) {
+                None
+            } else {
+                Some(0)
+            },
+        },
+        watertight,
+        vary: false,
+    }
+}
+
+/// Whether an intersection shader may run for the ray: a procedural geometry its flags and mask do
+/// not cull has one (boxes may be enlarged without bound, so any of them is reachable).
+fn reachable_procedural(scene: &PreparedScene, ray: &Ray, shaders: &ShaderTable<'_>) -> bool {
+    if ray.flags.contains(RayFlags::SKIP_AABBS) {
+        return false;
+    }
+    scene.procedural.iter().any(|&(i, g)| {
+        let inst = &scene.scene.instances[i as usize];
+        if inst.mask as u32 & ray.cull_mask & 0xFF == 0 {
+            return false;
+        }
+        let b = inst
+            .bottom_level
+            .expect("a procedural geometry's instance has a level");
+        let geometry = &scene.scene.bottom_levels[b as usize].geometries[g as usize];
+        let opaque = opacity(ray, inst, geometry.flags.opaque);
+        !opacity_culled(ray, opaque) && (shaders.hit)(i, g).has_intersection()
+    })
+}
+
+/// [`conclude`] for any candidates.
+fn conclude_candidates(
+    scene: &PreparedScene,
+    ray: &Ray,
+    shaders: &ShaderTable<'_>,
+    candidates: Vec<Candidate>,
+    must_run: Vec<MustRun>,
+    watertight: Vec<WatertightGroup>,
+) -> AllowedOutcomes {
     let tofh = ray.flags.contains(RayFlags::TERMINATE_ON_FIRST_HIT);
     let fact = |c: &Candidate| {
         let ok = c.confirmation.confirms();
@@ -84,23 +158,7 @@ pub(super) fn conclude(
         any_hit_max = any_hit_max.map(|m| m + 1);
     }
     // Intersection shaders may run for any reachable box (boxes may be enlarged without bound).
-    let mut reachable_procedural = false;
-    if !ray.flags.contains(RayFlags::SKIP_AABBS) {
-        for &(i, g) in &scene.procedural {
-            let inst = &scene.scene.instances[i as usize];
-            if inst.mask as u32 & ray.cull_mask & 0xFF == 0 {
-                continue;
-            }
-            let b = inst
-                .bottom_level
-                .expect("a procedural geometry's instance has a level");
-            let geometry = &scene.scene.bottom_levels[b as usize].geometries[g as usize];
-            let opaque = opacity(ray, inst, geometry.flags.opaque);
-            if !opacity_culled(ray, opaque) && (shaders.hit)(i, g).has_intersection() {
-                reachable_procedural = true;
-            }
-        }
-    }
+    let reachable_procedural = reachable_procedural(scene, ray, shaders);
     let intersection_min = must_run
         .iter()
         .filter(|m| must_process(m.candidate, m.t_hi))
@@ -260,6 +318,88 @@ impl Order {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A ray without candidates is concluded by `without_candidates` exactly as the general rules
+    /// conclude an empty set, whatever its flags, cull mask, shader table, the scene's procedural
+    /// geometries and the watertight groups passed in.
+    #[test]
+    fn a_ray_without_candidates_concludes_as_the_general_rules_do() {
+        use crate::scene::{build, Scene, SceneInstance};
+        let mut boxes = SceneInstance::of(1);
+        boxes.mask = 0x0F;
+        let scenes = [
+            Scene {
+                bottom_levels: vec![build::icosphere(1, 1.0)],
+                instances: vec![SceneInstance::of(0)],
+            },
+            Scene {
+                bottom_levels: vec![
+                    build::icosphere(1, 1.0),
+                    build::spheres_in_boxes(3, 4, 5.0, 1.0),
+                ],
+                instances: vec![SceneInstance::of(0), boxes],
+            },
+        ];
+        let groups = |expect_hit: bool| {
+            vec![WatertightGroup {
+                shape: WatertightShape::SharedEdge,
+                members: Vec::new(),
+                expect_hit,
+                t: Interval { lo: 1.0, hi: 2.0 },
+            }]
+        };
+        let mut compared = 0;
+        for scene in &scenes {
+            let prepared = PreparedScene::new(scene).expect("a defined scene");
+            for intersection in [false, true] {
+                let hit = move |_: u32, _: u32| HitShaders {
+                    zero_group: false,
+                    closest_hit: true,
+                    any_hit: None,
+                    intersection,
+                    group: 1,
+                };
+                for zero_group in [false, true] {
+                    let shaders = ShaderTable {
+                        hit: &hit,
+                        miss: MissShader {
+                            zero_group,
+                            group: 2,
+                        },
+                    };
+                    for flags in [0, 1, 2, 4, 8, 4 | 8, 64, 128, 256, 512, 1 | 512] {
+                        for cull_mask in [0xFF, 0xF0, 0x01] {
+                            let mut ray = Ray::new([0.0, 0.0, 5.0], [0.0, 0.0, -1.0], 0.0, 10.0);
+                            ray.flags = RayFlags(flags);
+                            ray.cull_mask = cull_mask;
+                            for watertight in [Vec::new(), groups(false), groups(true)] {
+                                let general = conclude_candidates(
+                                    &prepared,
+                                    &ray,
+                                    &shaders,
+                                    Vec::new(),
+                                    Vec::new(),
+                                    watertight.clone(),
+                                );
+                                let fast = conclude(
+                                    &prepared,
+                                    &ray,
+                                    &shaders,
+                                    Vec::new(),
+                                    Vec::new(),
+                                    watertight,
+                                );
+                                assert_eq!(fast, general, "flags {flags} mask {cull_mask}");
+                                compared += usize::from(fast.intersection.max.is_none());
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        // Some rays could reach an intersection shader, so that rule was compared too.
+        assert!(compared > 0);
+    }
 
     /// The rules as first written, each asking every other candidate in turn: the reference
     /// [`Order`] must agree with.
