@@ -25,6 +25,16 @@ pub trait Num: Clone + std::fmt::Debug {
     fn approx(&self) -> f64;
     /// A bound on `|approx() - exact value|`.
     fn error(&self) -> f64;
+    /// The triple products `d · (a × b)` of two triples of vectors, each as [`triple`] gives it;
+    /// a type may evaluate the two side by side.
+    #[inline(always)]
+    fn triples(pairs: [(&V3<Self>, &V3<Self>, &V3<Self>); 2]) -> [Self; 2]
+    where
+        Self: Sized,
+    {
+        let [(d0, a0, b0), (d1, a1, b1)] = pairs;
+        [triple(d0, a0, b0), triple(d1, a1, b1)]
+    }
 }
 
 /// Unit roundoff of f64 (round to nearest).
@@ -121,6 +131,135 @@ impl Num for BoundedF64 {
     }
     fn error(&self) -> f64 {
         self.error
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn triples(pairs: [(&V3<Self>, &V3<Self>, &V3<Self>); 2]) -> [Self; 2] {
+        let [(d0, a0, b0), (d1, a1, b1)] = pairs;
+        let lanes = |x: &V3<Self>, y: &V3<Self>| map3([0, 1, 2], |k| BoundedPair::of(&x[k], &y[k]));
+        BoundedPair::triple(&lanes(d0, d1), &lanes(a0, a1), &lanes(b0, b1)).split()
+    }
+}
+
+/// Two [`BoundedF64`]s in the two lanes of SSE2 registers (every x86-64 processor has them): each
+/// operation is the scalar one's, the same operations in the same order on each lane, so each lane
+/// holds bit for bit what [`BoundedF64`] computes (a test compares them on random inputs). Only
+/// the arithmetic a triple product needs; it decides no sign.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy, Debug)]
+struct BoundedPair {
+    value: std::arch::x86_64::__m128d,
+    error: std::arch::x86_64::__m128d,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl BoundedPair {
+    #[inline(always)]
+    fn of(lo: &BoundedF64, hi: &BoundedF64) -> BoundedPair {
+        use std::arch::x86_64::_mm_set_pd;
+        // SAFETY: SSE2 is part of the x86-64 baseline.
+        unsafe {
+            BoundedPair {
+                value: _mm_set_pd(hi.value, lo.value),
+                error: _mm_set_pd(hi.error, lo.error),
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn split(self) -> [BoundedF64; 2] {
+        let (mut v, mut e) = ([0f64; 2], [0f64; 2]);
+        // SAFETY: SSE2 is part of the x86-64 baseline; the stores write two f64 each.
+        unsafe {
+            std::arch::x86_64::_mm_storeu_pd(v.as_mut_ptr(), self.value);
+            std::arch::x86_64::_mm_storeu_pd(e.as_mut_ptr(), self.error);
+        }
+        [0, 1].map(|k| BoundedF64 {
+            value: v[k],
+            error: e[k],
+        })
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod pair_lanes {
+    //! [`BoundedPair`]'s operations: [`BoundedF64`]'s, lane by lane.
+    use super::{BoundedPair, U64};
+    use std::arch::x86_64::*;
+
+    /// `|x|` on both lanes: the sign bit cleared, as `f64::abs` does.
+    #[inline(always)]
+    unsafe fn abs(x: __m128d) -> __m128d {
+        _mm_andnot_pd(_mm_set1_pd(-0.0), x)
+    }
+
+    /// [`super::up`] on both lanes.
+    #[inline(always)]
+    unsafe fn up(e: __m128d) -> __m128d {
+        _mm_add_pd(
+            _mm_mul_pd(e, _mm_set1_pd(1.0 + 8.0 * U64)),
+            _mm_set1_pd(f64::MIN_POSITIVE),
+        )
+    }
+
+    impl BoundedPair {
+        /// The error of a sum or difference with the value it rounded to.
+        #[inline(always)]
+        unsafe fn summed(self, o: BoundedPair, value: __m128d) -> BoundedPair {
+            let e = _mm_add_pd(
+                _mm_add_pd(self.error, o.error),
+                _mm_mul_pd(_mm_set1_pd(2.0 * U64), abs(value)),
+            );
+            BoundedPair {
+                value,
+                error: up(e),
+            }
+        }
+    }
+
+    impl BoundedPair {
+        /// [`super::triple`]: `d · (a × b)` as `dot3` of `cross3`, in their order.
+        #[inline(always)]
+        pub(super) fn triple(d: &[Self; 3], a: &[Self; 3], b: &[Self; 3]) -> Self {
+            let c = [
+                a[1].mul(&b[2]).sub(&a[2].mul(&b[1])),
+                a[2].mul(&b[0]).sub(&a[0].mul(&b[2])),
+                a[0].mul(&b[1]).sub(&a[1].mul(&b[0])),
+            ];
+            d[0].mul(&c[0]).add(&d[1].mul(&c[1])).add(&d[2].mul(&c[2]))
+        }
+
+        #[inline(always)]
+        fn add(&self, o: &Self) -> Self {
+            // SAFETY: SSE2 is part of the x86-64 baseline.
+            unsafe { self.summed(*o, _mm_add_pd(self.value, o.value)) }
+        }
+        #[inline(always)]
+        fn sub(&self, o: &Self) -> Self {
+            // SAFETY: SSE2 is part of the x86-64 baseline.
+            unsafe { self.summed(*o, _mm_sub_pd(self.value, o.value)) }
+        }
+        #[inline(always)]
+        fn mul(&self, o: &Self) -> Self {
+            // SAFETY: SSE2 is part of the x86-64 baseline.
+            unsafe {
+                let value = _mm_mul_pd(self.value, o.value);
+                let e = _mm_add_pd(
+                    _mm_add_pd(
+                        _mm_add_pd(
+                            _mm_mul_pd(abs(self.value), o.error),
+                            _mm_mul_pd(abs(o.value), self.error),
+                        ),
+                        _mm_mul_pd(self.error, o.error),
+                    ),
+                    _mm_mul_pd(_mm_set1_pd(2.0 * U64), abs(value)),
+                );
+                BoundedPair {
+                    value,
+                    error: up(e),
+                }
+            }
+        }
     }
 }
 
@@ -413,6 +552,48 @@ mod tests {
         let s = big.add(&one).sub(&big);
         assert_eq!(s, one);
         assert_eq!(s.sub(&one).sign(), Some(Ordering::Equal));
+    }
+
+    /// `BoundedF64::triples` gives each triple product bit for bit as `triple` does, errors
+    /// included, on values spread over many magnitudes, with and without input errors.
+    #[test]
+    fn paired_triples_are_the_scalar_ones_bit_for_bit() {
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let mut value = |with_error: bool| {
+            let (a, b) = (next(), next());
+            let mantissa = (a >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+            let exponent = (b % 80) as i32 - 40;
+            let value = mantissa * 2f64.powi(exponent);
+            BoundedF64 {
+                value,
+                error: if with_error && b % 3 != 0 {
+                    value.abs() * 2f64.powi(-40 - (a % 20) as i32)
+                } else {
+                    0.0
+                },
+            }
+        };
+        let mut differing_lanes = 0;
+        for round in 0..20_000 {
+            let with_error = round % 2 == 1;
+            let mut v3 = || [0, 1, 2].map(|_| value(with_error));
+            let (d0, a0, b0, d1, a1, b1) = (v3(), v3(), v3(), v3(), v3(), v3());
+            let paired = BoundedF64::triples([(&d0, &a0, &b0), (&d1, &a1, &b1)]);
+            let scalar = [triple(&d0, &a0, &b0), triple(&d1, &a1, &b1)];
+            for (p, s) in paired.iter().zip(&scalar) {
+                assert_eq!(p.value.to_bits(), s.value.to_bits(), "{d0:?} {a0:?} {b0:?}");
+                assert_eq!(p.error.to_bits(), s.error.to_bits(), "{d0:?} {a0:?} {b0:?}");
+            }
+            differing_lanes += usize::from(scalar[0].value != scalar[1].value);
+        }
+        // The two lanes held different inputs.
+        assert!(differing_lanes > 19_000);
     }
 
     #[test]

@@ -11,7 +11,7 @@
 //! its band from [`super::band`]; the band constants are computed in f64 the same way in every mode,
 //! so only the signs of `quantity − constant` differ between modes, and those are certified.
 
-use super::arith::{map3, sub3, triple, Num, V3};
+use super::arith::{map3, sub3, Num, V3};
 use super::band::TriangleBand;
 use std::cmp::Ordering;
 
@@ -85,8 +85,7 @@ pub fn triangle_signs<T: Num>(
             EdgeSide::Band
         })
     };
-    let e0 = triple(direction, &a[1], &a[2]);
-    let e1 = triple(direction, &a[2], &a[0]);
+    let [e0, e1] = T::triples([(direction, &a[1], &a[2]), (direction, &a[2], &a[0])]);
     let mut values = TriangleValues {
         edge: [
             (e0.approx(), e0.error()),
@@ -117,7 +116,9 @@ pub fn triangle_signs<T: Num>(
         };
         return Some((signs, values));
     }
-    let e2 = triple(direction, &a[0], &a[1]);
+    // The third edge function beside the plane distance (two at once where `T` pairs them); the
+    // distance is needed unless the three edges decide a miss.
+    let [e2, n] = T::triples([(direction, &a[0], &a[1]), (&a[0], &a[1], &a[2])]);
     values.edge[2] = (e2.approx(), e2.error());
     edges[2] = side(&e2, band.edge[2])?;
     let e = [e0, e1, e2];
@@ -133,7 +134,6 @@ pub fn triangle_signs<T: Num>(
         return Some((signs, values));
     }
     let s = e[0].add(&e[1]).add(&e[2]);
-    let n = triple(&a[0], &a[1], &a[2]);
     values.sum = (s.approx(), s.error());
     values.plane = (n.approx(), n.error());
     let orientation = if sign_above(&s, band.sum)? == Ordering::Greater {
