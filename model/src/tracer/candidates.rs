@@ -63,7 +63,9 @@ pub(super) fn outcomes_of_near(
     let mut candidates: Vec<Candidate> = Vec::new();
     let push_candidate = |candidates: &mut Vec<Candidate>, c: Candidate| {
         if candidates.capacity() == 0 {
-            candidates.reserve_exact(1);
+            // Allocated at its size outright (growing an empty list goes the longer way).
+            *candidates = vec![c];
+            return;
         }
         candidates.push(c);
     };
