@@ -53,7 +53,7 @@ const GROW: f64 = 1.0 + 1e-9;
 #[inline]
 pub(crate) fn robustly_outside(
     band: &InstanceBand,
-    world: &[[BoundedF64; 3]; 3],
+    world: [&[BoundedF64; 3]; 3],
     static_radius: &[f64; 3],
     origin: [f64; 3],
     origin_norm: f64,
@@ -78,7 +78,7 @@ pub(crate) fn robustly_outside(
 #[allow(clippy::too_many_arguments)] // `robustly_outside`'s arguments and the test's scale
 fn outside_with(
     band: &InstanceBand,
-    world: &[[BoundedF64; 3]; 3],
+    world: [&[BoundedF64; 3]; 3],
     static_radius: &[f64; 3],
     origin: [f64; 3],
     origin_norm: f64,
@@ -210,7 +210,7 @@ mod tests {
             let (o64, d64) = (origin.map(|x| x as f64), direction.map(|x| x as f64));
             if !outside_with(
                 &band,
-                &world,
+                [&world[0], &world[1], &world[2]],
                 &radius,
                 o64,
                 norm3(o64),
@@ -295,7 +295,7 @@ mod tests {
                     pairs += 1;
                     if !robustly_outside(
                         &inst.band,
-                        &world,
+                        [&world[0], &world[1], &world[2]],
                         &radius,
                         rf.origin,
                         rf.origin_norm,

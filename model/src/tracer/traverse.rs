@@ -133,11 +133,12 @@ pub(super) fn classify_triangle(
             }
         }
     }
-    // The world vertices with their error bounds, read once.
-    let world = map3(ids, |i| w.vertices[i]);
-    let world_f64 = world.map(|v| v.map(|x| x.value));
-    if !rf.in_f32_range && !within_f32_range(&inst.band, &world_f64, rf.origin, rf.direction) {
-        return beyond_f32_range(&world_f64, rf.origin, rf.direction);
+    // The world vertices with their error bounds, in place (copied only for the full
+    // classification below), and their values.
+    let world_at = map3(ids, |i| &w.vertices[i]);
+    let values = || world_at.map(|v| v.map(|x| x.value));
+    if !rf.in_f32_range && !within_f32_range(&inst.band, &values(), rf.origin, rf.direction) {
+        return beyond_f32_range(&values(), rf.origin, rf.direction);
     }
     let radius = map3(ids, |i| w.static_radius[i]);
     // The commonest miss, robustly outside two edges, certified before the band and the
@@ -145,7 +146,7 @@ pub(super) fn classify_triangle(
     if precision == Precision::F64WithExactFallback
         && robustly_outside(
             &inst.band,
-            &world,
+            world_at,
             &radius,
             rf.origin,
             rf.origin_norm,
@@ -158,6 +159,8 @@ pub(super) fn classify_triangle(
             ..miss(MissReason::Outside)
         };
     }
+    let world = world_at.map(|v| *v);
+    let world_f64 = values();
     let band = triangle_band(
         &inst.band,
         &world_f64,
