@@ -242,15 +242,16 @@ pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
     let mut stats = TracerStats::default();
     let mut allowed = PerRay::default();
     if !rays.is_empty() {
-        // The first launch ray of each distinct ray, and for every ray the distinct one it is.
-        let (prepared, (distinct, of)) = match prepared_beside_distinct(world, &rays) {
-            Some((p, d)) => (p?, d),
-            None => (prepared(&world.launch.scene)?, distinct_rays(&rays)),
+        let (traced, shift, of) = if workers_for(rays.len()) > 1 {
+            traced_beside_distinct(world, call, &rays, &mut stats)?
+        } else {
+            // The first launch ray of each distinct ray, and for every ray the distinct one it is.
+            let prepared = prepared(&world.launch.scene)?;
+            let (distinct, of) = distinct_rays(&rays);
+            let (traced, shift) =
+                trace_distinct(1, world, call, &prepared, &rays, &distinct, &mut stats)?;
+            (traced, shift, of)
         };
-        let workers = workers_for(distinct.len());
-        let (traced, shift) = trace_distinct(
-            workers, world, call, &prepared, &rays, &distinct, &mut stats,
-        )?;
         allowed = PerRay::from_chunks(traced, shift, of);
     }
     Some(ExpectedLaunch {
@@ -264,44 +265,96 @@ pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
 /// The first launch ray of each distinct ray, and for every ray the distinct one it is.
 type DistinctRays = (Vec<u32>, Vec<u32>);
 
-/// A launch's prepared scene (None: undefined) and distinct rays.
-type Found = (Option<Arc<PreparedScene>>, DistinctRays);
+/// A launch's outcomes in chunks, the chunks' shift (see [`trace_distinct`]) and for every ray its
+/// distinct one.
+type Traced = (Vec<Vec<AllowedOutcomes>>, u32, Vec<u32>);
 
-/// For rays enough to be traced on more than one thread, the scene's prepared form (None: undefined)
-/// and the distinct rays, found at once on two threads: the prepared scene's memo compares the
-/// scene's data in full (a pass over every vertex), about as long as sorting out a few thousand
-/// rays. None for fewer rays, which find them one after the other.
-fn prepared_beside_distinct(world: &World, rays: &[Ray]) -> Option<Found> {
-    if workers_for(rays.len()) == 1 {
-        return None;
+/// The outcomes of a launch of rays enough for more than one thread, in one call of the helpers (None:
+/// the scene or a ray is undefined). Waking a sleeping helper takes tens of microseconds, about as
+/// long as finding a few thousand rays' distinct ones, so the helper is woken first: the first run
+/// (the caller's, mostly) finds the distinct rays and lays out the chunks, the other looks the
+/// prepared scene up meanwhile (its memo compares the scene's data in full), and each goes on to
+/// trace chunks as soon as the layout is there (a helper that starts late finds its part done).
+fn traced_beside_distinct(
+    world: &World,
+    call: &Call,
+    rays: &[Ray],
+    stats: &mut TracerStats,
+) -> Option<Traced> {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::OnceLock;
+    /// What the first run lays out for all.
+    struct Layout {
+        prepared: Arc<PreparedScene>,
+        distinct: Vec<u32>,
+        of: Vec<u32>,
+        sharing: Sharing,
     }
-    let distinct: Mutex<Option<DistinctRays>> = Mutex::new(None);
-    let found: Mutex<Option<Option<Arc<PreparedScene>>>> = Mutex::new(None);
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    // Each run takes the parts left: a helper that starts late leaves both to the caller.
-    let work = || loop {
-        match next.fetch_add(1, std::sync::atomic::Ordering::Relaxed) {
-            0 => {
-                let d = distinct_rays(rays);
-                *distinct.lock().unwrap_or_else(|e| e.into_inner()) = Some(d);
-            }
-            1 => {
-                let p = prepared(&world.launch.scene);
-                *found.lock().unwrap_or_else(|e| e.into_inner()) = Some(p);
-            }
-            _ => break,
+    /// Sets the cell to None unless it is set: a run that unwinds before giving its part leaves
+    /// the others a value to stop on, not a wait without end (`run_beside` resumes its panic).
+    struct NoneUnlessSet<'a, T>(&'a OnceLock<Option<T>>);
+    impl<T> Drop for NoneUnlessSet<'_, T> {
+        fn drop(&mut self) {
+            let _ = self.0.set(None);
+        }
+    }
+    let runs = workers_for(rays.len());
+    let layout: OnceLock<Option<Layout>> = OnceLock::new();
+    // The prepared scene: Some(None) where it is undefined, None where its run unwound.
+    let scene: OnceLock<Option<Option<Arc<PreparedScene>>>> = OnceLock::new();
+    let (scene_taken, layout_taken) = (AtomicBool::new(false), AtomicBool::new(false));
+    let look_up_scene = || {
+        if !scene_taken.swap(true, Ordering::AcqRel) {
+            let _unset = NoneUnlessSet(&scene);
+            let _ = scene.set(Some(prepared(&world.launch.scene)));
         }
     };
-    crate::helpers::run_beside(1, &work);
-    let d = distinct
-        .into_inner()
-        .unwrap_or_else(|e| e.into_inner())
-        .expect("every part is done before run_beside returns");
-    let p = found
-        .into_inner()
-        .unwrap_or_else(|e| e.into_inner())
-        .expect("every part is done before run_beside returns");
-    Some((p, d))
+    let work = || {
+        if !layout_taken.swap(true, Ordering::AcqRel) {
+            let _unset = NoneUnlessSet(&layout);
+            let (distinct, of) = distinct_rays(rays);
+            look_up_scene();
+            let found = match wait_for(&scene) {
+                Some(Some(prepared)) => Some(Layout {
+                    prepared: prepared.clone(),
+                    sharing: Sharing::new(distinct.len(), workers_for(distinct.len()).min(runs)),
+                    distinct,
+                    of,
+                }),
+                _ => None,
+            };
+            let _ = layout.set(found);
+        } else {
+            look_up_scene();
+        }
+        if let Some(l) = wait_for(&layout) {
+            l.sharing.work(&l.distinct, |ids, stats, memo, undefined| {
+                trace_ids(world, call, &l.prepared, rays, ids, stats, memo, undefined)
+            });
+        }
+    };
+    crate::helpers::run_beside(runs - 1, &work);
+    let Layout { sharing, of, .. } = layout.into_inner().flatten()?;
+    let (traced, shift) = sharing.finish(stats)?;
+    Some((traced, shift, of))
+}
+
+/// The value of a cell another run of the same call sets (or sets to None as it unwinds): waited
+/// for awake, as it mostly comes within microseconds, then in naps of 50 µs.
+fn wait_for<T>(cell: &std::sync::OnceLock<T>) -> &T {
+    let mut spins = 0u32;
+    loop {
+        if let Some(v) = cell.get() {
+            return v;
+        }
+        spins = spins.saturating_add(1);
+        if spins < 1 << 16 {
+            std::hint::spin_loop();
+        } else {
+            // Long (a large scene prepared for the first time): the core is given up meanwhile.
+            std::thread::park_timeout(std::time::Duration::from_micros(50));
+        }
+    }
 }
 
 /// The index of the first of each distinct ray of `rays`, and for every ray the position of its
@@ -412,99 +465,165 @@ fn trace_distinct(
     distinct: &[u32],
     stats: &mut TracerStats,
 ) -> Option<(Vec<Vec<AllowedOutcomes>>, u32)> {
-    let config = TracerConfig::default();
-    // The outcomes of the distinct rays `ids` (indices into `rays`), traced together, in their
-    // order; None when one is undefined (`undefined` is then set, and the others may be missing).
-    let trace_ids = |ids: &[u32],
-                     stats: &mut TracerStats,
-                     memo: &HitRecordMemo,
-                     undefined: &std::sync::atomic::AtomicBool|
-     -> Option<Vec<AllowedOutcomes>> {
-        let traced: Vec<&Ray> = ids.iter().map(|&i| &rays[i as usize]).collect();
-        // Answers come as rays finish, each to its place.
-        let mut out: Vec<Option<AllowedOutcomes>> = Vec::new();
-        out.resize_with(ids.len(), || None);
-        allowed_for_rays_memo(
-            world,
-            call,
-            prepared,
-            &traced,
-            &config,
-            stats,
-            memo,
-            |k, a| {
-                if a.is_none() {
-                    undefined.store(true, std::sync::atomic::Ordering::Relaxed);
-                }
-                out[k] = a;
-            },
-        );
-        // Collected in place, without a second buffer.
-        out.into_iter().collect()
-    };
-    let undefined = std::sync::atomic::AtomicBool::new(false);
     if workers == 1 {
-        let all = trace_ids(distinct, stats, &HitRecordMemo::default(), &undefined)?;
+        let undefined = std::sync::atomic::AtomicBool::new(false);
+        let memo = HitRecordMemo::default();
+        let all = trace_ids(
+            world, call, prepared, rays, distinct, stats, &memo, &undefined,
+        )?;
         // One chunk (a shift no index reaches).
         return Some((vec![all], usize::BITS - 1));
     }
-    // The distinct rays in chunks, the chunks in one contiguous segment per worker: a worker traces
-    // its own segment from the front (neighbouring rays meet the same nodes and items, in its own
-    // core's cache — and launch after launch of one scene, the same ones), then takes chunks from the
-    // back of the others', so an expensive part of the image does not leave one worker behind. Each
-    // puts its chunk's outcomes in the chunk's place. A chunk's rays are walked together, twelve at a
-    // time, and the last few of each walk alone: chunks of 64 rather than 32 traced the instanced
-    // copies' launch 2-3 % faster in `render_rays` (eight alternations), 128 no faster again and
-    // the grid's slower (a late chunk leaves one worker behind).
+    let sharing = Sharing::new(distinct.len(), workers);
+    // The calling thread is one of the workers; the others are the process's helper threads.
+    crate::helpers::run_beside(workers - 1, &|| {
+        sharing.work(distinct, |ids, stats, memo, undefined| {
+            trace_ids(world, call, prepared, rays, ids, stats, memo, undefined)
+        })
+    });
+    sharing.finish(stats)
+}
+
+/// The outcomes of the distinct rays `ids` (indices into `rays`), traced together, in their order;
+/// None when one is undefined (`undefined` is then set, and the others may be missing).
+#[allow(clippy::too_many_arguments)] // the launch, its rays, and what the worker keeps
+fn trace_ids(
+    world: &World,
+    call: &Call,
+    prepared: &PreparedScene,
+    rays: &[Ray],
+    ids: &[u32],
+    stats: &mut TracerStats,
+    memo: &HitRecordMemo,
+    undefined: &std::sync::atomic::AtomicBool,
+) -> Option<Vec<AllowedOutcomes>> {
+    let traced: Vec<&Ray> = ids.iter().map(|&i| &rays[i as usize]).collect();
+    // Answers come as rays finish, each to its place.
+    let mut out: Vec<Option<AllowedOutcomes>> = Vec::new();
+    out.resize_with(ids.len(), || None);
+    allowed_for_rays_memo(
+        world,
+        call,
+        prepared,
+        &traced,
+        &TracerConfig::default(),
+        stats,
+        memo,
+        |k, a| {
+            if a.is_none() {
+                undefined.store(true, std::sync::atomic::Ordering::Relaxed);
+            }
+            out[k] = a;
+        },
+    );
+    // Collected in place, without a second buffer.
+    out.into_iter().collect()
+}
+
+/// The distinct rays of a launch shared out over its workers: in chunks, the chunks in one
+/// contiguous segment per worker. A worker traces its own segment from the front (neighbouring rays
+/// meet the same nodes and items, in its own core's cache — and launch after launch of one scene, the
+/// same ones), then takes chunks from the back of the others', so an expensive part of the image does
+/// not leave one worker behind. Each puts its chunk's outcomes in the chunk's place. A chunk's rays
+/// are walked together, twelve at a time, and the last few of each walk alone: chunks of 64 rather
+/// than 32 traced the instanced copies' launch 2-3 % faster in `render_rays` (eight alternations),
+/// 128 no faster again and the grid's slower (a late chunk leaves one worker behind).
+struct Sharing {
+    /// Each chunk's outcomes, set once by the worker that traced it.
+    done: Vec<std::sync::OnceLock<Vec<AllowedOutcomes>>>,
+    /// Each worker's chunks not yet taken.
+    segments: Vec<Mutex<std::collections::VecDeque<usize>>>,
+    /// The order the runs start in (the calling thread's, which starts at once, is usually first).
+    started: std::sync::atomic::AtomicUsize,
+    /// Each run's counters, summed by [`Sharing::finish`].
+    parts: Mutex<Vec<TracerStats>>,
+    /// A ray was undefined.
+    undefined: std::sync::atomic::AtomicBool,
+}
+
+impl Sharing {
     const SHIFT: u32 = 6;
-    const CHUNK: usize = 1 << SHIFT;
-    let done: Vec<std::sync::OnceLock<Vec<AllowedOutcomes>>> = (0..distinct.len().div_ceil(CHUNK))
-        .map(|_| std::sync::OnceLock::new())
-        .collect();
-    let mut chunks = done.iter().zip(distinct.chunks(CHUNK));
-    let per_worker = chunks.len().div_ceil(workers);
-    let segments: Vec<Mutex<std::collections::VecDeque<_>>> = (0..workers)
-        .map(|_| Mutex::new(chunks.by_ref().take(per_worker).collect()))
-        .collect();
-    let lock = |k: usize| segments[k].lock().unwrap_or_else(|e| e.into_inner());
-    // The order the runs start in (the calling thread's, which starts at once, is usually first).
-    let started = std::sync::atomic::AtomicUsize::new(0);
-    // Each run's counters, summed below.
-    let parts: Mutex<Vec<TracerStats>> = Mutex::new(Vec::new());
-    let work = || {
+    const CHUNK: usize = 1 << Self::SHIFT;
+
+    /// `distinct` rays in chunks, in `workers` segments.
+    fn new(distinct: usize, workers: usize) -> Sharing {
+        let chunks = distinct.div_ceil(Self::CHUNK);
+        let per_worker = chunks.div_ceil(workers).max(1);
+        Sharing {
+            done: (0..chunks).map(|_| std::sync::OnceLock::new()).collect(),
+            segments: (0..workers)
+                .map(|w| Mutex::new((w * per_worker..((w + 1) * per_worker).min(chunks)).collect()))
+                .collect(),
+            started: std::sync::atomic::AtomicUsize::new(0),
+            parts: Mutex::new(Vec::new()),
+            undefined: std::sync::atomic::AtomicBool::new(false),
+        }
+    }
+
+    /// One worker's run: chunks of `distinct` traced by `trace` until none is left (or a ray was
+    /// undefined).
+    fn work(
+        &self,
+        distinct: &[u32],
+        trace: impl Fn(
+            &[u32],
+            &mut TracerStats,
+            &HitRecordMemo,
+            &std::sync::atomic::AtomicBool,
+        ) -> Option<Vec<AllowedOutcomes>>,
+    ) {
+        let workers = self.segments.len();
+        let lock = |k: usize| self.segments[k].lock().unwrap_or_else(|e| e.into_inner());
         let mut stats = TracerStats::default();
         let memo = HitRecordMemo::default();
-        let home = started.fetch_add(1, std::sync::atomic::Ordering::Relaxed) % workers;
+        let home = self
+            .started
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+            % workers;
         loop {
             // One segment locked at a time (the home guard is gone before another is taken).
             let own = lock(home).pop_front();
             let next =
                 own.or_else(|| (1..workers).find_map(|k| lock((home + k) % workers).pop_back()));
-            let Some((place, ids)) = next else { break };
-            if undefined.load(std::sync::atomic::Ordering::Relaxed) {
+            let Some(chunk) = next else { break };
+            if self.undefined.load(std::sync::atomic::Ordering::Relaxed) {
                 break;
             }
-            if let Some(outcomes) = trace_ids(ids, &mut stats, &memo, &undefined) {
+            let ids =
+                &distinct[chunk * Self::CHUNK..((chunk + 1) * Self::CHUNK).min(distinct.len())];
+            if let Some(outcomes) = trace(ids, &mut stats, &memo, &self.undefined) {
                 // Each chunk is taken from its segment once.
-                let _ = place.set(outcomes);
+                let _ = self.done[chunk].set(outcomes);
             }
         }
-        parts.lock().unwrap_or_else(|e| e.into_inner()).push(stats);
-    };
-    // The calling thread is one of the workers; the others are the process's helper threads.
-    crate::helpers::run_beside(workers - 1, &work);
-    for part in parts.into_inner().unwrap_or_else(|e| e.into_inner()).iter() {
-        stats.merge(part);
+        self.parts
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(stats);
     }
-    if undefined.into_inner() {
-        return None;
+
+    /// The chunks' outcomes and their shift, the runs' counters summed into `stats`; None where a ray
+    /// was undefined.
+    fn finish(self, stats: &mut TracerStats) -> Option<(Vec<Vec<AllowedOutcomes>>, u32)> {
+        for part in self
+            .parts
+            .into_inner()
+            .unwrap_or_else(|e| e.into_inner())
+            .iter()
+        {
+            stats.merge(part);
+        }
+        if self.undefined.into_inner() {
+            return None;
+        }
+        // Every chunk was traced (no ray was undefined).
+        let chunks = self
+            .done
+            .into_iter()
+            .map(|c| c.into_inner())
+            .collect::<Option<Vec<_>>>()?;
+        Some((chunks, Self::SHIFT))
     }
-    // Every chunk was traced (no ray was undefined).
-    let chunks = done
-        .into_iter()
-        .map(|c| c.into_inner())
-        .collect::<Option<Vec<_>>>()?;
-    Some((chunks, SHIFT))
 }
 
 /// A hasher for the hit record memo's record indices: a multiply-rotate mix of the words,
@@ -644,6 +763,44 @@ mod shared_out_tests {
             assert_eq!(stats.rays, one_stats.rays, "{workers} workers");
             assert_eq!(stats.pair_tests, one_stats.pair_tests, "{workers} workers");
         }
+    }
+
+    /// The launch traced in one call of the helpers (distinct rays and scene found beside each other,
+    /// then traced on every run) gives every ray the outcomes one thread gives it, with repeated rays
+    /// mapped to their first; an undefined ray makes the launch undefined there too.
+    #[test]
+    fn tracing_beside_the_distinct_rays_gives_the_outcomes_of_one_thread() {
+        let mut case = crate::test_cases::hand_case();
+        let workload = crate::tracer::workload::standard_workload(24, "icosphere");
+        let body = case.as_trace_mut().expect("a trace case");
+        body.world.launch.scene = workload.scene.clone();
+        let (world, call) = (&body.world, &body.call);
+        let prepared = prepared(&world.launch.scene).expect("a defined scene");
+        // Every ray, then the first 100 again: repeated rays.
+        let mut rays = workload.rays.clone();
+        rays.extend_from_slice(&workload.rays[..100]);
+        assert!(
+            workers_for(rays.len()) > 1
+                || std::thread::available_parallelism().is_ok_and(|n| n.get() == 1)
+        );
+        let (distinct, of) = distinct_rays(&rays);
+        let mut one_stats = TracerStats::default();
+        let (chunks, shift) =
+            trace_distinct(1, world, call, &prepared, &rays, &distinct, &mut one_stats)
+                .expect("defined rays");
+        let one = PerRay::from_chunks(chunks, shift, of.clone());
+        let mut stats = TracerStats::default();
+        let (chunks, shift, beside_of) =
+            traced_beside_distinct(world, call, &rays, &mut stats).expect("defined rays");
+        assert_eq!(beside_of, of);
+        let beside = PerRay::from_chunks(chunks, shift, beside_of);
+        assert_eq!(beside.len(), rays.len());
+        assert!(beside == one);
+        assert_eq!(stats.rays, one_stats.rays);
+        assert_eq!(stats.pair_tests, one_stats.pair_tests);
+        // An undefined ray (NaN origin) makes the launch undefined.
+        rays[300].origin[0] = f32::NAN;
+        assert!(traced_beside_distinct(world, call, &rays, &mut TracerStats::default()).is_none());
     }
 }
 
