@@ -727,14 +727,24 @@ mod distinct_ray_tests {
 mod shared_out_tests {
     use super::*;
 
+    /// The hand-made case launching the 24x24 icosphere workload's scene, and the workload.
+    fn icosphere_launch() -> (crate::Case, crate::tracer::workload::Workload) {
+        let mut case = crate::test_cases::hand_case();
+        let workload = crate::tracer::workload::standard_workload(24, "icosphere");
+        case.as_trace_mut()
+            .expect("a trace case")
+            .world
+            .launch
+            .scene = workload.scene.clone();
+        (case, workload)
+    }
+
     /// However many workers share a launch's distinct rays out (segments of one chunk or of many,
     /// more workers than chunks), every ray gets the outcomes and counters one thread gives it.
     #[test]
     fn every_worker_count_gives_the_outcomes_of_one_thread() {
-        let mut case = crate::test_cases::hand_case();
-        let workload = crate::tracer::workload::standard_workload(24, "icosphere");
-        let body = case.as_trace_mut().expect("a trace case");
-        body.world.launch.scene = workload.scene.clone();
+        let (case, workload) = icosphere_launch();
+        let body = case.as_trace().expect("a trace case");
         let (world, call) = (&body.world, &body.call);
         let prepared = prepared(&world.launch.scene).expect("a defined scene");
         let rays = &workload.rays;
@@ -770,18 +780,19 @@ mod shared_out_tests {
     /// mapped to their first; an undefined ray makes the launch undefined there too.
     #[test]
     fn tracing_beside_the_distinct_rays_gives_the_outcomes_of_one_thread() {
-        let mut case = crate::test_cases::hand_case();
-        let workload = crate::tracer::workload::standard_workload(24, "icosphere");
-        let body = case.as_trace_mut().expect("a trace case");
-        body.world.launch.scene = workload.scene.clone();
+        let (case, workload) = icosphere_launch();
+        let body = case.as_trace().expect("a trace case");
         let (world, call) = (&body.world, &body.call);
         let prepared = prepared(&world.launch.scene).expect("a defined scene");
         // Every ray, then the first 100 again: repeated rays.
         let mut rays = workload.rays.clone();
         rays.extend_from_slice(&workload.rays[..100]);
+        // Two runs or more wherever the machine has two cores (one run on one core is the same path).
         assert!(
             workers_for(rays.len()) > 1
-                || std::thread::available_parallelism().is_ok_and(|n| n.get() == 1)
+                || std::thread::available_parallelism().is_ok_and(|n| n.get() == 1),
+            "{} rays",
+            rays.len()
         );
         let (distinct, of) = distinct_rays(&rays);
         let mut one_stats = TracerStats::default();
