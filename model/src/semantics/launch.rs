@@ -249,7 +249,7 @@ pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
             let prepared = prepared(&world.launch.scene)?;
             let (distinct, of) = distinct_rays(&rays);
             let (traced, shift) =
-                trace_distinct(1, world, call, &prepared, &rays, &distinct, &mut stats)?;
+                trace_distinct(world, call, &prepared, &rays, &distinct, &mut stats)?;
             (traced, shift, of)
         };
         allowed = PerRay::from_chunks(traced, shift, of);
@@ -265,7 +265,7 @@ pub fn expected_launch(world: &World, call: &Call) -> Option<ExpectedLaunch> {
 /// The first launch ray of each distinct ray, and for every ray the distinct one it is.
 type DistinctRays = (Vec<u32>, Vec<u32>);
 
-/// A launch's outcomes in chunks, the chunks' shift (see [`trace_distinct`]) and for every ray its
+/// A launch's outcomes in chunks, the chunks' shift (see [`PerRay::from_chunks`]) and for every ray its
 /// distinct one.
 type Traced = (Vec<Vec<AllowedOutcomes>>, u32, Vec<u32>);
 
@@ -453,11 +453,11 @@ fn workers_for(distinct: usize) -> usize {
     cores.min(distinct / RAYS_PER_WORKER).max(1)
 }
 
-/// The outcomes of `rays[distinct[k]]` for each k, or None when one is undefined, traced on `workers`
-/// threads (the calling one among them); the counters summed into `stats`. The outcomes come in
-/// chunks of `1 << shift` (the shift returned beside them; the last chunk may hold fewer).
+/// The outcomes of `rays[distinct[k]]` for each k, or None when one is undefined, traced on the
+/// calling thread alone (a launch for several threads is shared out by [`traced_beside_distinct`]);
+/// the counters summed into `stats`. The outcomes come as one chunk, with a shift no index reaches
+/// (see [`PerRay::from_chunks`]).
 fn trace_distinct(
-    workers: usize,
     world: &World,
     call: &Call,
     prepared: &PreparedScene,
@@ -465,23 +465,12 @@ fn trace_distinct(
     distinct: &[u32],
     stats: &mut TracerStats,
 ) -> Option<(Vec<Vec<AllowedOutcomes>>, u32)> {
-    if workers == 1 {
-        let undefined = std::sync::atomic::AtomicBool::new(false);
-        let memo = HitRecordMemo::default();
-        let all = trace_ids(
-            world, call, prepared, rays, distinct, stats, &memo, &undefined,
-        )?;
-        // One chunk (a shift no index reaches).
-        return Some((vec![all], usize::BITS - 1));
-    }
-    let sharing = Sharing::new(distinct.len(), workers);
-    // The calling thread is one of the workers; the others are the process's helper threads.
-    crate::helpers::run_beside(workers - 1, &|| {
-        sharing.work(distinct, |ids, stats, memo, undefined| {
-            trace_ids(world, call, prepared, rays, ids, stats, memo, undefined)
-        })
-    });
-    sharing.finish(stats)
+    let undefined = std::sync::atomic::AtomicBool::new(false);
+    let memo = HitRecordMemo::default();
+    let all = trace_ids(
+        world, call, prepared, rays, distinct, stats, &memo, &undefined,
+    )?;
+    Some((vec![all], usize::BITS - 1))
 }
 
 /// The outcomes of the distinct rays `ids` (indices into `rays`), traced together, in their order;
@@ -751,7 +740,7 @@ mod shared_out_tests {
         let distinct: Vec<u32> = (0..rays.len() as u32).collect();
         let mut one_stats = TracerStats::default();
         let (chunks, shift) =
-            trace_distinct(1, world, call, &prepared, rays, &distinct, &mut one_stats)
+            trace_distinct(world, call, &prepared, rays, &distinct, &mut one_stats)
                 .expect("defined rays");
         let one = PerRay::from_chunks(chunks, shift, Vec::new());
         assert_eq!(one.len(), rays.len());
@@ -763,9 +752,13 @@ mod shared_out_tests {
         // any.
         for workers in [2, 3, 5, 18, 40] {
             let mut stats = TracerStats::default();
-            let (chunks, shift) =
-                trace_distinct(workers, world, call, &prepared, rays, &distinct, &mut stats)
-                    .expect("defined rays");
+            let sharing = Sharing::new(distinct.len(), workers);
+            crate::helpers::run_beside(workers - 1, &|| {
+                sharing.work(&distinct, |ids, stats, memo, undefined| {
+                    trace_ids(world, call, &prepared, rays, ids, stats, memo, undefined)
+                })
+            });
+            let (chunks, shift) = sharing.finish(&mut stats).expect("defined rays");
             assert!(chunks.len() > 1, "{workers} workers");
             let many = PerRay::from_chunks(chunks, shift, Vec::new());
             assert_eq!(many.len(), rays.len(), "{workers} workers");
@@ -797,7 +790,7 @@ mod shared_out_tests {
         let (distinct, of) = distinct_rays(&rays);
         let mut one_stats = TracerStats::default();
         let (chunks, shift) =
-            trace_distinct(1, world, call, &prepared, &rays, &distinct, &mut one_stats)
+            trace_distinct(world, call, &prepared, &rays, &distinct, &mut one_stats)
                 .expect("defined rays");
         let one = PerRay::from_chunks(chunks, shift, of.clone());
         let mut stats = TracerStats::default();
