@@ -441,9 +441,9 @@ impl PreparedScene {
         }
     }
 
-    /// Asks the cache for what the outside pre-test of triangle item `i` reads: its world vertices
-    /// and its [`TriangleBounds`](super::outside::TriangleBounds) (a hint: no effect on any
-    /// result; it reads the item, which the walk asked for earlier, and its geometry).
+    /// Asks the cache for the world vertices and static radii of triangle item `i` (a hint: no
+    /// effect on any result; it reads the item, which the walk asked for earlier, and its
+    /// geometry).
     #[inline]
     fn prefetch_vertices(&self, i: usize) {
         #[cfg(target_arch = "x86_64")]
@@ -451,18 +451,17 @@ impl PreparedScene {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
             let item = &self.items[i];
             let w = &self.geometries[item.geometry as usize];
-            // The vertex records' first and last bytes and the bounds, addresses computed without
+            // The vertex records' first and last bytes and the radii, addresses computed without
             // bounds checks (the item's vertex indices index its geometry's vertices).
             let last = std::mem::size_of::<[super::arith::BoundedF64; 3]>() - 1;
-            let b = self.triangle_bounds.as_ptr().wrapping_add(i) as *const i8;
-            // SAFETY: a prefetch reads nothing and never faults, whatever the address.
-            unsafe { _mm_prefetch(b, _MM_HINT_T0) };
             for v in item.vertices {
                 let p = w.vertices.as_ptr().wrapping_add(v as usize) as *const i8;
-                // SAFETY: as above.
+                let r = w.static_radius.as_ptr().wrapping_add(v as usize) as *const i8;
+                // SAFETY: a prefetch reads nothing and never faults, whatever the address.
                 unsafe {
                     _mm_prefetch(p, _MM_HINT_T0);
                     _mm_prefetch(p.wrapping_add(last), _MM_HINT_T0);
+                    _mm_prefetch(r, _MM_HINT_T0);
                 }
             }
         }

@@ -139,15 +139,7 @@ pub(super) fn outcomes_of_near(
                 let out = match outcome {
                     Some(o) => o,
                     None => {
-                        computed = classify_triangle(
-                            scene,
-                            w,
-                            &item,
-                            &scene.triangle_bounds[index as usize],
-                            ray,
-                            rf,
-                            config.precision,
-                        );
+                        computed = classify_triangle(scene, w, &item, ray, rf, config.precision);
                         &computed
                     }
                 };

@@ -5,8 +5,8 @@
 //! opposite, so the full classification (filter or exact) is `ReqMiss(Outside)` too; otherwise it
 //! decides nothing and the full classification runs.
 //!
-//! The error bound. World vertices `ŵ_k` are f64 values within `ε` (the triangle's prepared
-//! [`TriangleBounds`], at least the largest error bound of its coordinates) of the exact `w_k`; `o`, `d` are exact. `â_k = fl(ŵ_k − o)` is within
+//! The error bound. World vertices `ŵ_k` are f64 values within `ε` (the largest error bound of their
+//! coordinates) of the exact `w_k`; `o`, `d` are exact. `â_k = fl(ŵ_k − o)` is within
 //! `δ = ε + u·|â|/(1 − u) ≤ ε + 2u·A` of `a_k = w_k − o`, componentwise, with `A` the largest
 //! `|â_{k,c}|`. With `ê_i = fl(d·fl(â_j × â_k))` (in any order of its sums):
 //! - rounding: each cross component `fl(fl(xy) − fl(zw))` is within `(2u + u²)(|xy| + |zw|)` of
@@ -22,15 +22,14 @@
 //! The band bound. [`super::band::triangle_band`] computes, from the same `â_k`, `len_k = |â_k|`,
 //! `perp_k = |â_k × d|/|d| + 10⁻¹²·len_k`, `cross_i = |â_j × â_k| + 10⁻¹²·len_j·len_k` and
 //! `α_k = r_k + test_rel·len_k + r_o`; every edge band is a non-negative polynomial in these,
-//! increasing in each. With `L = max len_k`, `h` the triangle's prepared longest side (at least
-//! every exact `|ŵ_k − ŵ_j|`, see [`TriangleBounds::of`]), and `p₀` the computed `|â_0 × d|/|d|`:
-//! each `â_{k,c}` is `(ŵ_{k,c} − o_c)(1 + θ)` with `|θ| ≤ u`, so `|â_k − â_j| ≤ h + 4u·L`;
-//! `|â_k × d|/|d| ≤ |â_0 × d|/|d| + |â_k − â_0|` and `|â_j × â_k| = |â_j × (â_k − â_j)|
-//! ≤ L·(h + 4u·L)`; a computed cross product's norm is within `6u·|x|·|y|` of the exact one (its
-//! factors `x`, `y`), and computed norms within `4u` relative, all far below the `10⁻¹²·L` added
-//! here and the relative 10⁻⁹, so every computed `perp_k ≤ P̄ = (p₀ + h + 2·10⁻¹²·L)(1 + 10⁻⁹)`
-//! and `cross_i ≤ C̄ = (L·h + 2·10⁻¹²·L²)(1 + 10⁻⁹)`. `ᾱ = R + test_rel·L + r_o` (`R` the prepared
-//! bound, at least every `r_k`, and the same operations, so at least every computed `α_k`) and `B̄ = |d|·(2ᾱP̄ + ᾱ² + P·(C̄ + 2ᾱL + ᾱ²))·SLACK` bounds every computed
+//! increasing in each. With `L = max len_k`, `h` the longest side `|â_k − â_j|`, and `p₀` the
+//! computed `|â_0 × d|/|d|`: `|â_k × d|/|d| ≤ |â_0 × d|/|d| + |â_k − â_0|` and
+//! `|â_j × â_k| = |â_j × (â_k − â_j)| ≤ L·h`; a computed cross product's norm is within
+//! `6u·|x|·|y|` of the exact one (its factors `x`, `y`), and computed norms and sides within `4u`
+//! relative, all far below the `10⁻¹²·L` added here and the relative 10⁻⁹, so every computed
+//! `perp_k ≤ P̄ = (p₀ + h + 2·10⁻¹²·L)(1 + 10⁻⁹)` and `cross_i ≤ C̄ = (L·h + 2·10⁻¹²·L²)
+//! (1 + 10⁻⁹)`. `ᾱ = R + test_rel·L + r_o` (`R = max r_k`, the same operations, so at least every
+//! computed `α_k`) and `B̄ = |d|·(2ᾱP̄ + ᾱ² + P·(C̄ + 2ᾱL + ᾱ²))·SLACK` bounds every computed
 //! `B_i` once a relative 10⁻⁹ covers the two evaluations' roundings (each under 30 operations on
 //! non-negative values, so within `(1 ± u)^30`).
 //! Both add [`super::band::underflow_floor`]'s edge term, the same increasing function of the
@@ -42,7 +41,6 @@
 
 use super::arith::BoundedF64;
 use super::band::{norm3, underflow_floor, InstanceBand};
-use super::prepare::f32_up;
 
 /// Unit roundoff of f64.
 const U: f64 = f64::EPSILON / 2.0;
@@ -50,50 +48,13 @@ const U: f64 = f64::EPSILON / 2.0;
 /// Relative slack on each bound computed here (see the module comment).
 const GROW: f64 = 1.0 + 1e-9;
 
-/// What the pre-test reads of a triangle that no ray changes, each rounded up to f32: its longest
-/// side, the largest static radius of its vertices, and the largest error bound of their
-/// coordinates (16 bytes, four to a cache line).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-#[repr(C, align(16))]
-pub(crate) struct TriangleBounds {
-    longest: f32,
-    radius: f32,
-    error: f32,
-}
-
-impl TriangleBounds {
-    /// The bounds of the triangle with world vertices `world` and static radii `static_radius`.
-    /// The longest side is the largest computed `|ŵ_k − ŵ_j|` of the vertices' values (a
-    /// difference, three squares, two sums and a square root: within `4u` relative of the exact
-    /// one, and within `√(3·2⁻¹⁰⁷⁴)` absolute where the squares underflow) grown by a relative
-    /// 10⁻⁹ and by `√(2⁻¹⁰²²)`, far above that absolute error, and rounded up, so at least every
-    /// exact side; the others are maxima, exact before their rounding up. Non-finite values stay
-    /// non-finite (and decide nothing in the test).
-    pub(crate) fn of(world: [&[BoundedF64; 3]; 3], static_radius: [f64; 3]) -> TriangleBounds {
-        let value = world.map(|v| v.map(|x| x.value));
-        let side = |x: &[f64; 3], y: &[f64; 3]| norm3([x[0] - y[0], x[1] - y[1], x[2] - y[2]]);
-        let longest = side(&value[1], &value[0])
-            .max(side(&value[2], &value[1]))
-            .max(side(&value[0], &value[2]));
-        let error = world
-            .iter()
-            .flat_map(|v| v.iter())
-            .fold(0f64, |m, x| m.max(x.error));
-        TriangleBounds {
-            longest: f32_up(longest * GROW + f64::MIN_POSITIVE.sqrt()),
-            radius: f32_up(static_radius[0].max(static_radius[1]).max(static_radius[2])),
-            error: f32_up(error),
-        }
-    }
-}
-
 /// Whether the exact edge functions of the pair are robustly on opposite sides of the bands of two
 /// of its edges (then the pair is `ReqMiss(Outside)` in every certified classification).
 #[inline]
 pub(crate) fn robustly_outside(
     band: &InstanceBand,
     world: [&[BoundedF64; 3]; 3],
-    bounds: &TriangleBounds,
+    static_radius: &[f64; 3],
     origin: [f64; 3],
     origin_norm: f64,
     direction: [f64; 3],
@@ -102,7 +63,7 @@ pub(crate) fn robustly_outside(
     outside_with(
         band,
         world,
-        bounds,
+        static_radius,
         origin,
         origin_norm,
         direction,
@@ -111,15 +72,14 @@ pub(crate) fn robustly_outside(
     )
 }
 
-/// [`robustly_outside`] (`origin_norm` is `norm3(origin)`, `direction_norm` `norm3(direction)`)
-/// with both bounds multiplied by `scale` (1 is the proven test; a test's planted fault shrinks
-/// them).
+/// [`robustly_outside`] (`origin_norm` is `norm3(origin)`, `direction_norm` `norm3(direction)`) with both bounds multiplied by `scale` (1 is the proven test; a test's
+/// planted fault shrinks them).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)] // `robustly_outside`'s arguments and the test's scale
 fn outside_with(
     band: &InstanceBand,
     world: [&[BoundedF64; 3]; 3],
-    bounds: &TriangleBounds,
+    static_radius: &[f64; 3],
     origin: [f64; 3],
     origin_norm: f64,
     direction: [f64; 3],
@@ -127,15 +87,15 @@ fn outside_with(
     scale: f64,
 ) -> bool {
     let mut a = [[0f64; 3]; 3];
-    let mut big = 0f64;
+    let (mut big, mut eps) = (0f64, 0f64);
     for k in 0..3 {
         for c in 0..3 {
             // As `triangle_band` computes it.
             a[k][c] = world[k][c].value - origin[c];
             big = big.max(a[k][c].abs());
+            eps = eps.max(world[k][c].error);
         }
     }
-    let eps = bounds.error as f64;
     let [d0, d1, d2] = direction;
     let e = |x: &[f64; 3], y: &[f64; 3]| {
         d0 * (x[1] * y[2] - x[2] * y[1])
@@ -157,13 +117,17 @@ fn outside_with(
     let square = |v: [f64; 3]| v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
     // The largest of the three `norm3`s: the square root is monotone.
     let len = square(a[0]).max(square(a[1])).max(square(a[2])).sqrt();
-    let longest = bounds.longest as f64;
+    let side = |x: &[f64; 3], y: &[f64; 3]| square([x[0] - y[0], x[1] - y[1], x[2] - y[2]]);
+    let longest = side(&a[1], &a[0])
+        .max(side(&a[2], &a[1]))
+        .max(side(&a[0], &a[2]))
+        .sqrt();
     let dn = direction_norm;
     let [x, y, z] = a[0];
     let perp_0 = norm3([y * d2 - z * d1, z * d0 - x * d2, x * d1 - y * d0]) / dn;
     let perp = (perp_0 + longest + 2e-12 * len) * GROW;
     let cross = (len * longest + 2e-12 * len * len) * GROW;
-    let radius = bounds.radius as f64;
+    let radius = static_radius[0].max(static_radius[1]).max(static_radius[2]);
     // `band.origin_radius(origin)`, its norm given.
     let alpha = radius + band.test_rel * len + band.origin_coef * (origin_norm + band.norm_t);
     let p = band.direction_rel;
@@ -207,11 +171,7 @@ mod tests {
     /// and rays aimed at points near their edge lines — just inside and just outside the band —,
     /// the pairs the pre-test with bounds scaled by `scale` calls outside, and of those the ones
     /// whose exact edge signs against the band are not opposite on two edges (unsound).
-    fn verdicts(
-        scale: f64,
-        plant: impl Fn(TriangleBounds) -> TriangleBounds,
-        cases: usize,
-    ) -> (usize, usize) {
+    fn verdicts(scale: f64, cases: usize) -> (usize, usize) {
         let mut rng = Lcg(0x5eed_0017);
         let (mut certified, mut unsound) = (0, 0);
         for case in 0..cases {
@@ -248,11 +208,10 @@ mod tests {
             }
             let direction: [f32; 3] = [0, 1, 2].map(|c| (target[c] - origin[c] as f64) as f32);
             let (o64, d64) = (origin.map(|x| x as f64), direction.map(|x| x as f64));
-            let w = [&world[0], &world[1], &world[2]];
             if !outside_with(
                 &band,
-                w,
-                &plant(TriangleBounds::of(w, radius)),
+                [&world[0], &world[1], &world[2]],
+                &radius,
                 o64,
                 norm3(o64),
                 d64,
@@ -290,7 +249,7 @@ mod tests {
 
     #[test]
     fn what_the_pre_test_calls_outside_is_outside_exactly() {
-        let (certified, unsound) = verdicts(1.0, |b| b, 20_000);
+        let (certified, unsound) = verdicts(1.0, 20_000);
         assert_eq!(unsound, 0);
         // Most rays miss the edge line by more than the bounds: the test decides them.
         assert!(certified > 5_000, "{certified}");
@@ -299,80 +258,8 @@ mod tests {
     #[test]
     fn the_pre_test_without_its_bounds_calls_band_pairs_outside() {
         // The planted fault: bounds shrunk to 0 take the sign of the f64 value at face value.
-        let (_, unsound) = verdicts(0.0, |b| b, 20_000);
+        let (_, unsound) = verdicts(0.0, 20_000);
         assert!(unsound > 100, "{unsound}");
-    }
-
-    #[test]
-    fn the_pre_test_with_a_shorter_longest_side_calls_band_pairs_outside() {
-        // The planted fault: the prepared longest side zeroed, the rest of the test as proven.
-        let (_, unsound) = verdicts(1.0, |b| TriangleBounds { longest: 0.0, ..b }, 20_000);
-        assert!(unsound > 0, "{unsound}");
-    }
-
-    /// Over random triangles from 1e-160 to 1e30 in size: how many prepared bounds fall short of
-    /// the exact values they bound (the longest side squared against the exact squared sides, the
-    /// radius and error against the largest of the vertices'), for the bounds `of` gives and for
-    /// the planted fault of the longest side rounded to the nearest f32 without its growth.
-    fn bounds_short_of_exact() -> (usize, usize) {
-        let mut rng = Lcg(0xb0_0d5);
-        let (mut short, mut nearest_short) = (0, 0);
-        for case in 0..4_000 {
-            let s = [1e-160, 1e-3, 1.0, 1e3, 1e30][case % 5];
-            let world: [[BoundedF64; 3]; 3] = [0; 3].map(|_| {
-                [0; 3].map(|_| BoundedF64 {
-                    value: rng.range(-1.0, 1.0) * s,
-                    error: rng.range(0.0, 1e-12) * s,
-                })
-            });
-            let radius = [0; 3].map(|_| rng.range(0.0, 1e-6) * s);
-            let at = [&world[0], &world[1], &world[2]];
-            let b = TriangleBounds::of(at, radius);
-            let square = |x: &Dyadic| x.mul(x);
-            let exact_side = |i: usize, j: usize| {
-                (0..3)
-                    .map(|c| {
-                        square(
-                            &Dyadic::from_f64(world[i][c].value)
-                                .sub(&Dyadic::from_f64(world[j][c].value)),
-                        )
-                    })
-                    .fold(Dyadic::zero(), |a, x| a.add(&x))
-            };
-            let longest = [(0, 1), (1, 2), (2, 0)].map(|(i, j)| exact_side(i, j));
-            let covers = |l: f64| {
-                let l2 = square(&Dyadic::from_f64(l));
-                longest
-                    .iter()
-                    .all(|e| l2.sub(e).sign() != Some(Ordering::Less))
-            };
-            let max_radius = radius.iter().fold(0f64, |m, &r| m.max(r));
-            let max_error = world.iter().flatten().fold(0f64, |m, x| m.max(x.error));
-            if !covers(b.longest as f64)
-                || (b.radius as f64) < max_radius
-                || (b.error as f64) < max_error
-            {
-                short += 1;
-            }
-            let side = |x: &[BoundedF64; 3], y: &[BoundedF64; 3]| {
-                norm3([0, 1, 2].map(|c| x[c].value - y[c].value))
-            };
-            let computed = side(&world[1], &world[0])
-                .max(side(&world[2], &world[1]))
-                .max(side(&world[0], &world[2]));
-            if !covers(computed as f32 as f64) {
-                nearest_short += 1;
-            }
-        }
-        (short, nearest_short)
-    }
-
-    #[test]
-    fn the_prepared_bounds_are_at_least_the_exact_ones() {
-        let (short, nearest_short) = bounds_short_of_exact();
-        assert_eq!(short, 0);
-        // The planted fault is caught: about half of the sides round down.
-        assert!(nearest_short > 500, "{nearest_short}");
     }
 
     #[test]
@@ -406,12 +293,10 @@ mod tests {
                     let radius = ids.map(|k| g.static_radius[k]);
                     let inst = &scene.instances[g.instance as usize];
                     pairs += 1;
-                    let at = [&world[0], &world[1], &world[2]];
-                    assert_eq!(scene.triangle_bounds[i], TriangleBounds::of(at, radius));
                     if !robustly_outside(
                         &inst.band,
-                        at,
-                        &scene.triangle_bounds[i],
+                        [&world[0], &world[1], &world[2]],
+                        &radius,
                         rf.origin,
                         rf.origin_norm,
                         rf.direction,

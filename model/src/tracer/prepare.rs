@@ -10,7 +10,6 @@ use super::band::{
     SPHERE_SHADER_ERROR,
 };
 use super::bvh::{build_bvh, WideTree};
-use super::outside::TriangleBounds;
 use crate::scene::{GeometryData, Problem, Scene, Transform3x4};
 use std::collections::HashMap;
 use std::sync::OnceLock;
@@ -490,8 +489,6 @@ pub struct PreparedScene {
     pub(crate) item_far: Vec<ItemFar>,
     /// The pad constants the items' far tests share.
     pub(crate) far_constants: Vec<FarConstants>,
-    /// The outside pre-test's bounds of each triangle item, in `items` order (default for a box).
-    pub(crate) triangle_bounds: Vec<TriangleBounds>,
     /// The four-wide tree over `items` (see [`super::bvh`]).
     pub(crate) tree: WideTree,
     /// `(instance, geometry)` of every AABB geometry with an active box, in instance order.
@@ -710,19 +707,6 @@ impl PreparedScene {
         let (items, item_boxes, nodes) = build_bvh(items, boxes, &triangle);
         let item_bounds: Vec<BoundBox> = item_boxes.iter().map(BoundBox::of).collect();
         let (item_far, far_constants) = compact_far_boxes(&item_boxes);
-        let triangle_bounds = items
-            .iter()
-            .map(|it: &Item| {
-                let w = &geometries[it.geometry as usize];
-                match w.kind {
-                    PrimitiveKind::Triangle => {
-                        let v = it.vertices.map(|v| v as usize);
-                        TriangleBounds::of(v.map(|k| &w.vertices[k]), v.map(|k| w.static_radius[k]))
-                    }
-                    PrimitiveKind::Aabb => TriangleBounds::default(),
-                }
-            })
-            .collect();
         let item_triangles: Vec<bool> = items
             .iter()
             .map(|it: &Item| geometries[it.geometry as usize].kind == PrimitiveKind::Triangle)
@@ -780,7 +764,6 @@ impl PreparedScene {
             items,
             item_far,
             far_constants,
-            triangle_bounds,
             tree,
             procedural,
             topology,

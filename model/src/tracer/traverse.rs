@@ -6,7 +6,7 @@
 use super::arith::{affine, map3, v3, BoundedF64, Dyadic, PlainF32, V3};
 use super::band::{cross_f64, triangle_band, within_f32_range};
 use super::candidates::outcomes_of_near;
-use super::outside::{robustly_outside, TriangleBounds};
+use super::outside::robustly_outside;
 use super::prepare::{FarEntry, Item, PreparedScene, RayF64, WorldGeometry};
 use super::triangle::{
     classify, triangle_intervals, triangle_signs, EdgeSide, MissReason, PairClass, TriangleSigns,
@@ -84,7 +84,6 @@ pub(super) fn classify_triangle(
     scene: &PreparedScene,
     w: &WorldGeometry,
     item: &Item,
-    bounds: &TriangleBounds,
     ray: &Ray,
     rf: &RayF64,
     precision: Precision,
@@ -141,13 +140,14 @@ pub(super) fn classify_triangle(
     if !rf.in_f32_range && !within_f32_range(&inst.band, &values(), rf.origin, rf.direction) {
         return beyond_f32_range(&values(), rf.origin, rf.direction);
     }
+    let radius = map3(ids, |i| w.static_radius[i]);
     // The commonest miss, robustly outside two edges, certified before the band and the
     // error-tracked edge functions (see `outside.rs`); the full classification finds it too.
     if precision == Precision::F64WithExactFallback
         && robustly_outside(
             &inst.band,
             world_at,
-            bounds,
+            &radius,
             rf.origin,
             rf.origin_norm,
             rf.direction,
@@ -159,7 +159,6 @@ pub(super) fn classify_triangle(
             ..miss(MissReason::Outside)
         };
     }
-    let radius = map3(ids, |i| w.static_radius[i]);
     let world = world_at.map(|v| *v);
     let world_f64 = values();
     let band = triangle_band(
@@ -707,17 +706,8 @@ impl Kept {
         {
             return;
         }
-        let outcome = (self.none_culled || triangle_unculled(scene, w, ray)).then(|| {
-            classify_triangle(
-                scene,
-                w,
-                &item,
-                &scene.triangle_bounds[i],
-                ray,
-                rf,
-                config.precision,
-            )
-        });
+        let outcome = (self.none_culled || triangle_unculled(scene, w, ray))
+            .then(|| classify_triangle(scene, w, &item, ray, rf, config.precision));
         if let Some(t_hi) = outcome
             .as_ref()
             .and_then(|out| required_hit_t(scene, w, ray, out))
