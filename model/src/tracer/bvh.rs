@@ -15,6 +15,7 @@
 //! larger box, hence of the smaller, hence the f64 test's miss. An f32 entry `t` above a lower
 //! `tmax` is likewise an exact miss of the larger box at that `tmax`.
 
+use super::pages::PageBacked;
 use super::prepare::{f32_up, BoundBox, FarBox, Item, PreparedScene, RayF64};
 
 #[cfg(test)]
@@ -249,7 +250,7 @@ const _: () = assert!(
 /// bounds beside it.
 #[derive(Debug, Default)]
 pub(crate) struct WideTree {
-    nodes: Vec<WideNode>,
+    nodes: PageBacked<WideNode>,
     boxes: Vec<[BoundBox; 4]>,
     root_bound: Option<BoundBox>,
 }
@@ -266,14 +267,17 @@ impl WideTree {
     /// leaf becomes a wide leaf whose lanes are its items; which interior nodes become wide nodes,
     /// and so which lanes each has, is [`Collapse`]'s choice.
     pub(crate) fn new(binary: &[Node], items: &[BoundBox], triangle: &[bool]) -> WideTree {
-        let mut tree = WideTree::default();
         let Some(root) = binary.first() else {
-            return tree;
+            return WideTree::default();
         };
-        tree.root_bound = Some(root.bounds);
+        let mut built = Built::default();
         let plan = Collapse::of(binary);
-        tree.add(binary, &plan, 0, items, triangle);
-        tree
+        built.add(binary, &plan, 0, items, triangle);
+        WideTree {
+            nodes: PageBacked::new(built.nodes),
+            boxes: built.boxes,
+            root_bound: Some(root.bounds),
+        }
     }
 
     pub(crate) fn len(&self) -> usize {
@@ -295,7 +299,16 @@ impl WideTree {
             }
         }
     }
+}
 
+/// A [`WideTree`]'s nodes and boxes as the collapse makes them.
+#[derive(Default)]
+struct Built {
+    nodes: Vec<WideNode>,
+    boxes: Vec<[BoundBox; 4]>,
+}
+
+impl Built {
     /// Adds the wide node of binary node `n` (and everything below it); its index.
     fn add(
         &mut self,
@@ -451,12 +464,13 @@ impl PreparedScene {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
             let item = &self.items[i];
             let w = &self.geometries[item.geometry as usize];
+            let (vertices, radii) = self.world_vertices(w);
             // The vertex records' first and last bytes and the radii, addresses computed without
             // bounds checks (the item's vertex indices index its geometry's vertices).
             let last = std::mem::size_of::<[super::arith::BoundedF64; 3]>() - 1;
             for v in item.vertices {
-                let p = w.vertices.as_ptr().wrapping_add(v as usize) as *const i8;
-                let r = w.static_radius.as_ptr().wrapping_add(v as usize) as *const i8;
+                let p = vertices.as_ptr().wrapping_add(v as usize) as *const i8;
+                let r = radii.as_ptr().wrapping_add(v as usize) as *const i8;
                 // SAFETY: a prefetch reads nothing and never faults, whatever the address.
                 unsafe {
                     _mm_prefetch(p, _MM_HINT_T0);

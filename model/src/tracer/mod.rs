@@ -15,6 +15,7 @@ mod conclude;
 pub mod few;
 pub mod judge;
 mod outside;
+mod pages;
 mod prepare;
 pub mod record;
 pub mod sphere;

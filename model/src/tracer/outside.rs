@@ -289,8 +289,9 @@ mod tests {
                         unreachable!()
                     };
                     let ids = t.vertex_indices(item.primitive as usize);
-                    let world = ids.map(|k| g.vertices[k]);
-                    let radius = ids.map(|k| g.static_radius[k]);
+                    let (vertices, radii) = scene.world_vertices(g);
+                    let world = ids.map(|k| vertices[k]);
+                    let radius = ids.map(|k| radii[k]);
                     let inst = &scene.instances[g.instance as usize];
                     pairs += 1;
                     if !robustly_outside(

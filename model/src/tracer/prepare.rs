@@ -10,6 +10,7 @@ use super::band::{
     SPHERE_SHADER_ERROR,
 };
 use super::bvh::{build_bvh, WideTree};
+use super::pages::PageBacked;
 use crate::scene::{GeometryData, Problem, Scene, Transform3x4};
 use std::collections::HashMap;
 use std::sync::OnceLock;
@@ -29,10 +30,11 @@ pub(crate) struct WorldGeometry {
     pub geometry: u32,
     pub bottom_level: u32,
     pub kind: PrimitiveKind,
-    /// Triangles: world vertices (BoundedF64 per coordinate) in the geometry's vertex order.
-    pub vertices: Vec<[BoundedF64; 3]>,
-    /// Triangles: ray-independent error radius per vertex.
-    pub static_radius: Vec<f64>,
+    /// Triangles: where the geometry's world vertices and their static radii start in the
+    /// scene's arrays ([`PreparedScene::world_vertices`]), and how many there are (its vertex
+    /// order; none for boxes).
+    pub first_vertex: usize,
+    pub vertex_count: usize,
     /// Triangles: the identity class of the geometry transform within the bottom level.
     pub transform_class: u32,
 }
@@ -484,9 +486,13 @@ pub struct PreparedScene {
     pub(crate) scene: Scene,
     pub(crate) instances: Vec<PreparedInstance>,
     pub(crate) geometries: Vec<WorldGeometry>,
-    pub(crate) items: Vec<Item>,
+    pub(crate) items: PageBacked<Item>,
+    /// The triangle geometries' world vertices (see [`WorldGeometry::first_vertex`]).
+    vertices: PageBacked<[BoundedF64; 3]>,
+    /// Their ray-independent error radii.
+    static_radius: PageBacked<f64>,
     /// The far test of each item, in `items` order.
-    pub(crate) item_far: Vec<ItemFar>,
+    pub(crate) item_far: PageBacked<ItemFar>,
     /// The pad constants the items' far tests share.
     pub(crate) far_constants: Vec<FarConstants>,
     /// The four-wide tree over `items` (see [`super::bvh`]).
@@ -541,6 +547,9 @@ impl PreparedScene {
         let mut geometries = Vec::new();
         let mut items = Vec::new();
         let mut boxes = Vec::new();
+        // Every triangle geometry's world vertices and static radii, one geometry after another.
+        let mut vertices: Vec<[BoundedF64; 3]> = Vec::new();
+        let mut radius: Vec<f64> = Vec::new();
         let mut topology = HashMap::new();
         // Transform classes per bottom level: identical effective geometry transforms.
         let mut classes: Vec<Vec<u32>> = Vec::new();
@@ -578,8 +587,7 @@ impl PreparedScene {
                 match &geometry.data {
                     GeometryData::Triangles(t) => {
                         let gm = t.transform.as_ref();
-                        let mut vertices = Vec::with_capacity(t.positions.len());
-                        let mut radius = Vec::with_capacity(t.positions.len());
+                        let first_vertex = vertices.len();
                         for p in &t.positions {
                             if p.iter().any(|x| !x.is_finite()) {
                                 // Only inactive triangles reach such vertices; never used.
@@ -611,11 +619,11 @@ impl PreparedScene {
                             let mut pad: f64 = 0.0;
                             for &v in &ids {
                                 for k in 0..3 {
-                                    let x = vertices[v][k];
+                                    let x = vertices[first_vertex + v][k];
                                     lo[k] = lo[k].min(x.value - x.error);
                                     hi[k] = hi[k].max(x.value + x.error);
                                 }
-                                pad = pad.max(radius[v]);
+                                pad = pad.max(radius[first_vertex + v]);
                             }
                             boxes.push(FarBox::new(
                                 lo,
@@ -640,8 +648,8 @@ impl PreparedScene {
                             geometry: g as u32,
                             bottom_level: b,
                             kind: PrimitiveKind::Triangle,
-                            vertices,
-                            static_radius: radius,
+                            first_vertex,
+                            vertex_count: t.positions.len(),
                             transform_class: classes[b as usize][g],
                         });
                     }
@@ -692,8 +700,8 @@ impl PreparedScene {
                             geometry: g as u32,
                             bottom_level: b,
                             kind: PrimitiveKind::Aabb,
-                            vertices: Vec::new(),
-                            static_radius: Vec::new(),
+                            first_vertex: vertices.len(),
+                            vertex_count: 0,
                             transform_class: u32::MAX,
                         });
                     }
@@ -739,7 +747,7 @@ impl PreparedScene {
             .filter(|w| w.kind == PrimitiveKind::Triangle)
         {
             let band = &instances[w.instance as usize].band;
-            for v in &w.vertices {
+            for v in &vertices[w.first_vertex..w.first_vertex + w.vertex_count] {
                 let e = triangle_extent.get_or_insert(TriangleExtent {
                     lo: [f64::INFINITY; 3],
                     hi: [f64::NEG_INFINITY; 3],
@@ -761,8 +769,10 @@ impl PreparedScene {
             scene: scene.clone(),
             instances,
             geometries,
-            items,
-            item_far,
+            items: PageBacked::new(items),
+            vertices: PageBacked::new(vertices),
+            static_radius: PageBacked::new(radius),
+            item_far: PageBacked::new(item_far),
             far_constants,
             tree,
             procedural,
@@ -791,6 +801,13 @@ impl PreparedScene {
             e.grow,
             e.shrink,
         )
+    }
+
+    /// The world vertices of a triangle geometry, in its vertex order, and their static radii.
+    #[inline]
+    pub(crate) fn world_vertices(&self, w: &WorldGeometry) -> (&[[BoundedF64; 3]], &[f64]) {
+        let range = w.first_vertex..w.first_vertex + w.vertex_count;
+        (&self.vertices[range.clone()], &self.static_radius[range])
     }
 
     /// The scene this was prepared from.
