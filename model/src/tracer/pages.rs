@@ -1,10 +1,10 @@
 //! Large arrays of a prepared scene in memory the kernel is asked to back with 2 MB pages: a walk
 //! reads a few lines here and there across megabytes of nodes, far boxes and items, and with 4 KB
-//! pages most of those reads also miss the TLB. On Linux an array of at least 1 MB gets a mapping of
-//! its own, whole 2 MB pages aligned to 2 MB and advised `MADV_HUGEPAGE` before it is first written (transparent huge
-//! pages in their default `madvise` mode back such a mapping with huge pages where they are free);
-//! a smaller array, another system, or a mapping refused keeps an ordinary allocation. The contents
-//! are the same either way: only where they live differs.
+//! pages most of those reads also miss the TLB. On Linux an array of at least 1 MB gets a mapping
+//! of its own, whole 2 MB pages aligned to 2 MB and advised `MADV_HUGEPAGE` before it is first
+//! written (transparent huge pages in their default `madvise` mode back such a mapping with huge
+//! pages where they are free); a smaller array, another system, or a mapping refused keeps an
+//! ordinary allocation. The contents are the same either way: only where they live differs.
 
 /// Bytes of a huge page.
 const HUGE: usize = 2 << 20;
@@ -88,8 +88,8 @@ impl<T: Copy> PageBacked<T> {
         }
         // A successful mapping is never at address 0 (no fixed address was asked for).
         let ptr = std::ptr::NonNull::new(start as *mut T)?;
-        // SAFETY: the mapping holds `bytes ≥ size` writable bytes at `ptr`, aligned to 2 MB (so to
-        // `T`), and does not overlap `values`.
+        // SAFETY: the mapping holds `bytes ≥ size` writable bytes at `ptr`, aligned to 2 MB (so
+        // to `T`), and does not overlap `values`.
         unsafe { std::ptr::copy_nonoverlapping(values.as_ptr(), ptr.as_ptr(), values.len()) };
         Some(PageBacked {
             storage: Storage::Mapped {
