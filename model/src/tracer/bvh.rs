@@ -464,13 +464,14 @@ impl PreparedScene {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
             let item = &self.items[i];
             let w = &self.geometries[item.geometry as usize];
-            let (vertices, radii) = self.world_vertices(w);
+            let (vertices, radii) = self.vertex_addresses(w);
             // The vertex records' first and last bytes and the radii, addresses computed without
             // bounds checks (the item's vertex indices index its geometry's vertices).
-            let last = std::mem::size_of::<[super::arith::BoundedF64; 3]>() - 1;
+            let record = std::mem::size_of::<[super::arith::BoundedF64; 3]>();
+            let last = record - 1;
             for v in item.vertices {
-                let p = vertices.as_ptr().wrapping_add(v as usize) as *const i8;
-                let r = radii.as_ptr().wrapping_add(v as usize) as *const i8;
+                let p = vertices.wrapping_add(v as usize * record) as *const i8;
+                let r = radii.wrapping_add(v as usize * std::mem::size_of::<f64>()) as *const i8;
                 // SAFETY: a prefetch reads nothing and never faults, whatever the address.
                 unsafe {
                     _mm_prefetch(p, _MM_HINT_T0);

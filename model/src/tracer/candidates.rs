@@ -208,7 +208,7 @@ pub(super) fn outcomes_of_near(
                 let bary_exact = [values.edge[1].0 / s, values.edge[2].0 / s];
                 let t_scale = reach_in_t(
                     item.vertices
-                        .map(|i| scene.world_vertices(w).0[i as usize].map(|x| x.value)),
+                        .map(|i| scene.world_vertex(w, i as usize).map(|x| x.value)),
                     ray,
                 );
                 let single = kinds.len() == 1;

@@ -289,9 +289,8 @@ mod tests {
                         unreachable!()
                     };
                     let ids = t.vertex_indices(item.primitive as usize);
-                    let (vertices, radii) = scene.world_vertices(g);
-                    let world = ids.map(|k| vertices[k]);
-                    let radius = ids.map(|k| radii[k]);
+                    let world = ids.map(|k| *scene.world_vertex(g, k));
+                    let radius = ids.map(|k| scene.static_radius(g, k));
                     let inst = &scene.instances[g.instance as usize];
                     pairs += 1;
                     if !robustly_outside(

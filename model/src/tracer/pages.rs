@@ -13,20 +13,21 @@ const HUGE: usize = 2 << 20;
 /// huge pages is at most the array's own size again.
 const LEAST_MAPPED: usize = HUGE / 2;
 
-/// An immutable array, in 2 MB pages where the system grants them (see the module comment).
+/// An immutable array, in 2 MB pages where the system grants them (see the module comment). Its
+/// values are read through `ptr` and `len` whatever holds them, so a read costs what a `Vec`'s does.
 pub(crate) struct PageBacked<T: Copy> {
+    /// `len` initialised values, held by `storage` until the array is dropped.
+    ptr: std::ptr::NonNull<T>,
+    len: usize,
     storage: Storage<T>,
 }
 
 enum Storage<T> {
-    Heap(Vec<T>),
-    /// `len` values at `ptr`, the start of a mapping of `bytes` bytes (a multiple of [`HUGE`]).
+    /// The values' own `Vec` (never changed or grown: its buffer stays where `ptr` points).
+    Heap(#[allow(dead_code)] Vec<T>),
+    /// A mapping of `bytes` bytes (a multiple of [`HUGE`]) starting at `ptr`.
     #[cfg(target_os = "linux")]
-    Mapped {
-        ptr: std::ptr::NonNull<T>,
-        len: usize,
-        bytes: usize,
-    },
+    Mapped { bytes: usize },
 }
 
 // SAFETY: a `PageBacked` owns its values as a `Vec` would (the mapping is its own, freed once, by
@@ -43,6 +44,9 @@ impl<T: Copy> PageBacked<T> {
             return mapped;
         }
         PageBacked {
+            // Moving the `Vec` below leaves its buffer where it is.
+            ptr: std::ptr::NonNull::from(values.as_slice()).cast::<T>(),
+            len: values.len(),
             storage: Storage::Heap(values),
         }
     }
@@ -92,11 +96,9 @@ impl<T: Copy> PageBacked<T> {
         // to `T`), and does not overlap `values`.
         unsafe { std::ptr::copy_nonoverlapping(values.as_ptr(), ptr.as_ptr(), values.len()) };
         Some(PageBacked {
-            storage: Storage::Mapped {
-                ptr,
-                len: values.len(),
-                bytes,
-            },
+            ptr,
+            len: values.len(),
+            storage: Storage::Mapped { bytes },
         })
     }
 
@@ -116,24 +118,20 @@ impl<T: Copy> Default for PageBacked<T> {
 impl<T: Copy> std::ops::Deref for PageBacked<T> {
     type Target = [T];
 
+    #[inline]
     fn deref(&self) -> &[T] {
-        match &self.storage {
-            Storage::Heap(v) => v,
-            #[cfg(target_os = "linux")]
-            // SAFETY: `len` initialised values at `ptr`, alive until `drop` unmaps them.
-            Storage::Mapped { ptr, len, .. } => unsafe {
-                std::slice::from_raw_parts(ptr.as_ptr(), *len)
-            },
-        }
+        // SAFETY: `len` initialised values at `ptr`, held by `storage` (a `Vec` never changed, or
+        // a mapping `drop` alone unmaps) for as long as `self` lives.
+        unsafe { std::slice::from_raw_parts(self.ptr.as_ptr(), self.len) }
     }
 }
 
 impl<T: Copy> Drop for PageBacked<T> {
     fn drop(&mut self) {
         #[cfg(target_os = "linux")]
-        if let Storage::Mapped { ptr, bytes, .. } = self.storage {
+        if let Storage::Mapped { bytes } = self.storage {
             // SAFETY: the mapping `mapped` kept, unmapped once; `T: Copy` has no drop of its own.
-            unsafe { libc::munmap(ptr.as_ptr() as *mut libc::c_void, bytes) };
+            unsafe { libc::munmap(self.ptr.as_ptr() as *mut libc::c_void, bytes) };
         }
     }
 }

@@ -31,7 +31,7 @@ pub(crate) struct WorldGeometry {
     pub bottom_level: u32,
     pub kind: PrimitiveKind,
     /// Triangles: where the geometry's world vertices and their static radii start in the
-    /// scene's arrays ([`PreparedScene::world_vertices`]), and how many there are (its vertex
+    /// scene's arrays ([`PreparedScene::world_vertex`]), and how many there are (its vertex
     /// order; none for boxes).
     pub first_vertex: usize,
     pub vertex_count: usize,
@@ -803,11 +803,28 @@ impl PreparedScene {
         )
     }
 
-    /// The world vertices of a triangle geometry, in its vertex order, and their static radii.
+    /// World vertex `i` of a triangle geometry (its vertex order), with its error bounds.
     #[inline]
-    pub(crate) fn world_vertices(&self, w: &WorldGeometry) -> (&[[BoundedF64; 3]], &[f64]) {
-        let range = w.first_vertex..w.first_vertex + w.vertex_count;
-        (&self.vertices[range.clone()], &self.static_radius[range])
+    pub(crate) fn world_vertex(&self, w: &WorldGeometry, i: usize) -> &[BoundedF64; 3] {
+        debug_assert!(i < w.vertex_count, "a vertex of the geometry");
+        &self.vertices[w.first_vertex + i]
+    }
+
+    /// The static radius of world vertex `i` of a triangle geometry.
+    #[inline]
+    pub(crate) fn static_radius(&self, w: &WorldGeometry, i: usize) -> f64 {
+        debug_assert!(i < w.vertex_count, "a vertex of the geometry");
+        self.static_radius[w.first_vertex + i]
+    }
+
+    /// Where a triangle geometry's world vertices and static radii start, as addresses for the
+    /// cache to be asked for (computed without a bounds check; never read through here).
+    #[inline]
+    pub(crate) fn vertex_addresses(&self, w: &WorldGeometry) -> (*const u8, *const u8) {
+        (
+            self.vertices.as_ptr().wrapping_add(w.first_vertex) as *const u8,
+            self.static_radius.as_ptr().wrapping_add(w.first_vertex) as *const u8,
+        )
     }
 
     /// The scene this was prepared from.

@@ -135,13 +135,12 @@ pub(super) fn classify_triangle(
     }
     // The world vertices with their error bounds, in place (copied only for the full
     // classification below), and their values.
-    let (vertices, radii) = scene.world_vertices(w);
-    let world_at = map3(ids, |i| &vertices[i]);
+    let world_at = map3(ids, |i| scene.world_vertex(w, i));
     let values = || world_at.map(|v| v.map(|x| x.value));
     if !rf.in_f32_range && !within_f32_range(&inst.band, &values(), rf.origin, rf.direction) {
         return beyond_f32_range(&values(), rf.origin, rf.direction);
     }
-    let radius = map3(ids, |i| radii[i]);
+    let radius = map3(ids, |i| scene.static_radius(w, i));
     // The commonest miss, robustly outside two edges, certified before the band and the
     // error-tracked edge functions (see `outside.rs`); the full classification finds it too.
     if precision == Precision::F64WithExactFallback

@@ -67,7 +67,7 @@ impl TriangleHit {
         let w = &scene.geometries[self.geometry as usize];
         self.triangles(scene)
             .vertex_indices(self.primitive as usize)
-            .map(|i| scene.world_vertices(w).0[i].map(|x| x.value))
+            .map(|i| scene.world_vertex(w, i).map(|x| x.value))
     }
 
     fn triangles<'s>(&self, scene: &'s PreparedScene) -> &'s Triangles {
