@@ -754,8 +754,10 @@ impl Default for Walk {
 
 const LEAF_SIZE: usize = 4;
 
-/// Bins of the surface-area split.
-const SAH_BINS: usize = 16;
+/// Bins of the surface-area split. Sixty-four rather than sixteen: on the instanced copies 1.6 % fewer
+/// child bounds tested per ray and 0.7 % fewer instructions per launch (the other workloads within
+/// 0.1 %), and no more than 256 gave; binning is one pass over the items whichever the count.
+const SAH_BINS: usize = 64;
 
 /// Half the surface area of a box (the chance a random ray through its parent meets it, up to a
 /// common factor).
