@@ -19,6 +19,7 @@ pub struct CheckedDriver {
 /// Checks `driver` (see the module documentation).
 pub fn check_driver(driver: &Driver) -> Result<CheckedDriver, HarnessError> {
     let (manifest, library) = check_manifest(driver)?;
+    let _turn = crate::vk::turn::take();
     let instance = VkInstance::new(driver.clone(), true)
         .map_err(|e| instance_failure(&manifest, &library, e))?;
     Ok(CheckedDriver {

@@ -196,6 +196,7 @@ fn format_names(f: vk::FormatFeatureFlags) -> BTreeSet<String> {
 
 /// Queries `driver`'s first device and describes it as a profile named after the driver.
 pub fn probe(driver: Driver) -> Result<DeviceProfile, HarnessError> {
+    let _turn = crate::vk::turn::take();
     let name = driver.name();
     let inst = VkInstance::new(driver, false)?;
     let mut p = DeviceProfile {

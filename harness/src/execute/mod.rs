@@ -109,6 +109,7 @@ impl Executor {
 
     /// The device, driver and layer that run this executor's cases.
     pub fn running_on(&self) -> crate::observe::RunningOn {
+        let _turn = crate::vk::turn::take();
         self.inst.running_on()
     }
 
@@ -148,6 +149,7 @@ impl Executor {
     /// Runs one case and reports what the layer said and what the device produced (see
     /// [`Executor::execute_trace`] and the build path).
     pub fn execute(&mut self, case: &Case, exec: &Execution) -> Observation {
+        let _turn = crate::vk::turn::take();
         if case.as_trace().is_some() {
             self.execute_trace(case, exec.run_valid)
         } else {
@@ -164,6 +166,7 @@ impl Executor {
         origins: &[[f32; 3]],
         check: TraceCheck,
     ) -> Result<crate::observe::Hits, HarnessError> {
+        let _turn = crate::vk::turn::take();
         crate::accel_check::probe_rays(&self.inst, case, origins, check)
     }
 
@@ -250,6 +253,7 @@ impl Executor {
     /// Writes the layer's records of the modules it passed on each device (see `vk::validated`), as
     /// destroying the devices would: for a process that ends without destroying them.
     pub fn save_validated(&mut self) {
+        let _turn = crate::vk::turn::take();
         for cache in self.devices.values_mut().flatten() {
             if let Some(v) = &mut cache.dev.validated {
                 v.save();

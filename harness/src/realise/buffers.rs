@@ -257,6 +257,8 @@ mod tests {
     /// zeros whatever the case before wrote; what is past the limits is destroyed, not kept (lavapipe).
     #[test]
     fn a_spare_buffer_is_taken_only_as_made_and_zeroed() {
+        // Vulkan called directly, as the executor does, in the process's turn.
+        let _turn = crate::vk::turn::take();
         let dev = plain_lavapipe_device();
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let none = vk::BufferCreateFlags::empty();

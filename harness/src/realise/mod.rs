@@ -70,6 +70,7 @@ pub(crate) use crate::plan::trace::RAY_RECORD_SIZE;
 
 impl Drop for DeviceCache {
     fn drop(&mut self) {
+        let _turn = crate::vk::turn::take();
         if self.lost {
             // A lost device: destroying its objects is allowed but waiting on it may not return on every
             // driver, and a timed-out submission may still be running. Leak every object (handles have no

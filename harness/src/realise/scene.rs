@@ -709,6 +709,8 @@ mod tests {
     /// latter gets a structure of its own, which then serves the recorded cases too (lavapipe).
     #[test]
     fn an_unbuilt_scene_serves_only_recorded_cases() {
+        // Vulkan called directly, as the executor does, in the process's turn.
+        let _turn = crate::vk::turn::take();
         let dev = lavapipe_device(
             &[
                 "VK_KHR_acceleration_structure",

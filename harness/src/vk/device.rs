@@ -211,6 +211,7 @@ impl VkDevice {
         features: &BTreeSet<String>,
         pool_without_compute: Option<QueueFlags>,
     ) -> Result<VkDevice, HarnessError> {
+        let _turn = super::turn::take();
         let available = inst.device_extensions();
         let missing: Vec<&String> = extensions
             .iter()
@@ -416,6 +417,7 @@ impl VkDevice {
 
 impl Drop for VkDevice {
     fn drop(&mut self) {
+        let _turn = super::turn::take();
         if self.leak {
             std::mem::forget(self.inst.clone());
             return;

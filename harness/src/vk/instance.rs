@@ -257,7 +257,8 @@ pub(crate) struct VkInstance {
     exposed_features: OnceLock<BTreeMap<String, bool>>,
 }
 
-// SAFETY: Vulkan instance handles may be used from any thread; the harness serialises use per device.
+// SAFETY: Vulkan instance handles may be used from any thread; the harness serialises use per device,
+// and calls into Vulkan one thread at a time per process (see `turn`).
 unsafe impl Send for VkInstance {}
 unsafe impl Sync for VkInstance {}
 
@@ -265,6 +266,7 @@ impl VkInstance {
     /// Loads `driver` (setting `VK_DRIVER_FILES` before the loader reads it) and creates an instance, with
     /// the validation layer and a messenger when `validation` is set, and picks the driver's first device.
     pub(crate) fn new(driver: Driver, validation: bool) -> Result<VkInstance, HarnessError> {
+        let _turn = super::turn::take();
         let icd = driver.icd_path();
         if !icd.is_file() {
             return Err(HarnessError::IcdMissing(icd.display().to_string()));
@@ -538,6 +540,7 @@ impl VkInstance {
 
 impl Drop for VkInstance {
     fn drop(&mut self) {
+        let _turn = super::turn::take();
         // SAFETY: every device made from this instance is dropped first (DeviceContext holds an Arc).
         unsafe {
             if let Some((du, m)) = self.debug.take() {

@@ -494,6 +494,8 @@ mod tests {
     /// written in, and a repetition longer than the allocation is cut at its end (lavapipe).
     #[test]
     fn a_pattern_written_repeatedly_reads_back_whole_and_cut_at_the_end() {
+        // Vulkan called directly, as the executor does, in the process's turn.
+        let _turn = crate::vk::turn::take();
         let dev = plain_lavapipe_device();
         let pattern: Vec<u8> = (0u8..112)
             .map(|b| b.wrapping_mul(7).wrapping_add(3))

@@ -1,7 +1,8 @@
 //! Vulkan plumbing: the instance with the validation layer and the messenger that collects its
 //! messages, devices with exactly a case's extensions and features (and the layer's record of the
 //! modules it passed), host-visible and sparse buffer memory, one-shot command buffers, and the
-//! feature and property structure layouts generated from vk.xml.
+//! feature and property structure layouts generated from vk.xml; and the process's one turn in Vulkan
+//! (the layer's state is not safe for two threads making and using devices at once).
 
 pub(crate) mod commands;
 pub(crate) mod descriptors;
@@ -13,6 +14,7 @@ pub(crate) mod structs;
 #[rustfmt::skip] // generated from vk.xml by vk-registry (see ARCHITECTURE.md); the drift test compares it byte for byte
 #[allow(dead_code)] // every structure of vk.xml the harness may chain is listed; not every one is read
 pub(crate) mod tables;
+pub(crate) mod turn;
 pub(crate) mod validated;
 
 pub(crate) use device::VkDevice;

@@ -236,6 +236,8 @@ mod tests {
     /// a module it rejects is reported with that record in place, and never enters it.
     #[test]
     fn the_record_keeps_passed_modules_only_and_never_hides_a_rejected_one() {
+        // Vulkan called directly, as the executor does, in the process's turn.
+        let _turn = crate::vk::turn::take();
         let inst =
             Arc::new(VkInstance::new(Driver::Lavapipe, true).expect("lavapipe with the layer"));
         assert!(
