@@ -273,8 +273,10 @@ type Traced = (Vec<Vec<AllowedOutcomes>>, u32, Vec<u32>);
 /// the scene or a ray is undefined). Waking a sleeping helper takes tens of microseconds, about as
 /// long as finding a few thousand rays' distinct ones, so the helper is woken first: the first run
 /// (the caller's, mostly) finds the distinct rays and lays out the chunks, the other looks the
-/// prepared scene up meanwhile (its memo compares the scene's data in full), and each goes on to
-/// trace chunks as soon as the layout is there (a helper that starts late finds its part done).
+/// prepared scene up meanwhile (its memo compares the scene's data in full) and then traces the last
+/// chunks in launch order, a guess at the layout that holds whenever the rays are all distinct (see
+/// [`guess_last_chunks`]); each goes on to trace chunks as soon as the layout is there (a helper that
+/// starts late finds its part done).
 fn traced_beside_distinct(
     world: &World,
     call: &Call,
@@ -326,6 +328,20 @@ fn traced_beside_distinct(
             let _ = layout.set(found);
         } else {
             look_up_scene();
+            // Rays are mostly all distinct, when the layout is the launch's own order: while the
+            // first run still lays it out, the others trace its last chunks in that order, kept
+            // only if the layout turns out to be it.
+            if let Some(Some(prepared)) = wait_for(&scene) {
+                let guessed =
+                    guess_last_chunks(rays.len(), &layout, |ids, stats, memo, undefined| {
+                        trace_ids(world, call, prepared, rays, ids, stats, memo, undefined)
+                    });
+                if let Some(l) = wait_for(&layout) {
+                    if l.distinct.len() == rays.len() {
+                        l.sharing.claim(guessed);
+                    }
+                }
+            }
         }
         if let Some(l) = wait_for(&layout) {
             l.sharing.work(&l.distinct, |ids, stats, memo, undefined| {
@@ -338,6 +354,45 @@ fn traced_beside_distinct(
     let (traced, shift) = sharing.finish(stats)?;
     Some((traced, shift, of))
 }
+
+/// Chunks of a launch of `rays` rays traced in launch order from the last one back, each begun only
+/// while `layout` is unset: the chunks (of [`Sharing::CHUNK`] rays), each with its outcomes and the
+/// counters of its tracing. A chunk with an undefined ray ends the guessing (the layout's tracing
+/// finds that ray again).
+fn guess_last_chunks<L>(
+    rays: usize,
+    layout: &std::sync::OnceLock<L>,
+    trace: impl Fn(
+        &[u32],
+        &mut TracerStats,
+        &HitRecordMemo,
+        &std::sync::atomic::AtomicBool,
+    ) -> Option<Vec<AllowedOutcomes>>,
+) -> Guessed {
+    let mut guessed = Vec::new();
+    let memo = HitRecordMemo::default();
+    let undefined = std::sync::atomic::AtomicBool::new(false);
+    let mut ids = Vec::with_capacity(Sharing::CHUNK);
+    for chunk in (0..rays.div_ceil(Sharing::CHUNK)).rev() {
+        if layout.get().is_some() {
+            break;
+        }
+        ids.clear();
+        ids.extend(
+            (chunk * Sharing::CHUNK..((chunk + 1) * Sharing::CHUNK).min(rays)).map(|i| i as u32),
+        );
+        let mut stats = TracerStats::default();
+        match trace(&ids, &mut stats, &memo, &undefined) {
+            Some(outcomes) => guessed.push((chunk, outcomes, stats)),
+            None => break,
+        }
+    }
+    guessed
+}
+
+/// Chunks traced in launch order before the layout was known ([`guess_last_chunks`]): each chunk's
+/// number, outcomes and counters.
+type Guessed = Vec<(usize, Vec<AllowedOutcomes>, TracerStats)>;
 
 /// The value of a cell another run of the same call sets (or sets to None as it unwinds): waited
 /// for awake, as it mostly comes within microseconds, then in naps of 50 µs.
@@ -591,6 +646,33 @@ impl Sharing {
             .push(stats);
     }
 
+    /// Chunks traced before the layout was known, for a layout of the launch's own order: each one
+    /// not yet taken is taken from its segment and done, its counters kept; one already taken is
+    /// left to its taker, so each ray is counted once.
+    fn claim(&self, guessed: Guessed) {
+        let mut kept = TracerStats::default();
+        for (chunk, outcomes, stats) in guessed {
+            let taken = self.segments.iter().any(|segment| {
+                let mut segment = segment.lock().unwrap_or_else(|e| e.into_inner());
+                match segment.iter().position(|&c| c == chunk) {
+                    Some(at) => {
+                        segment.remove(at);
+                        true
+                    }
+                    None => false,
+                }
+            });
+            if taken {
+                let _ = self.done[chunk].set(outcomes);
+                kept.merge(&stats);
+            }
+        }
+        self.parts
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(kept);
+    }
+
     /// The chunks' outcomes and their shift, the runs' counters summed into `stats`; None where a ray
     /// was undefined.
     fn finish(self, stats: &mut TracerStats) -> Option<(Vec<Vec<AllowedOutcomes>>, u32)> {
@@ -766,6 +848,73 @@ mod shared_out_tests {
             assert_eq!(stats.rays, one_stats.rays, "{workers} workers");
             assert_eq!(stats.pair_tests, one_stats.pair_tests, "{workers} workers");
         }
+    }
+
+    /// Chunks guessed in launch order before the layout is known: every chunk while the layout is
+    /// unset, none once it is set; claimed for the launch's own order, each chunk not yet taken is
+    /// kept with its counters and one already taken stays its taker's, so every ray gets the
+    /// outcomes and counters one thread gives it.
+    #[test]
+    fn chunks_guessed_before_the_layout_are_kept_once() {
+        let (case, workload) = icosphere_launch();
+        let body = case.as_trace().expect("a trace case");
+        let (world, call) = (&body.world, &body.call);
+        let prepared = prepared(&world.launch.scene).expect("a defined scene");
+        let rays = &workload.rays;
+        let distinct: Vec<u32> = (0..rays.len() as u32).collect();
+        let mut one_stats = TracerStats::default();
+        let (chunks, shift) =
+            trace_distinct(world, call, &prepared, rays, &distinct, &mut one_stats)
+                .expect("defined rays");
+        let one = PerRay::from_chunks(chunks, shift, Vec::new());
+        let trace = |ids: &[u32],
+                     stats: &mut TracerStats,
+                     memo: &HitRecordMemo,
+                     undefined: &std::sync::atomic::AtomicBool| {
+            trace_ids(world, call, &prepared, rays, ids, stats, memo, undefined)
+        };
+        let set = std::sync::OnceLock::from(());
+        assert!(guess_last_chunks(rays.len(), &set, trace).is_empty());
+        let unset = std::sync::OnceLock::<()>::new();
+        let guessed = guess_last_chunks(rays.len(), &unset, trace);
+        let chunks = rays.len().div_ceil(Sharing::CHUNK);
+        assert_eq!(
+            guessed.iter().map(|g| g.0).collect::<Vec<_>>(),
+            (0..chunks).rev().collect::<Vec<_>>()
+        );
+        // Two workers' segments; the second's last chunk already taken and traced by its taker.
+        let sharing = Sharing::new(distinct.len(), 2);
+        let taken = sharing.segments[1]
+            .lock()
+            .unwrap()
+            .pop_back()
+            .expect("a chunk");
+        assert_eq!(taken, chunks - 1);
+        let mut taker = TracerStats::default();
+        let ids = &distinct[taken * Sharing::CHUNK..];
+        let outcomes = trace(
+            ids,
+            &mut taker,
+            &HitRecordMemo::default(),
+            &std::sync::atomic::AtomicBool::new(false),
+        )
+        .expect("defined rays");
+        sharing.done[taken].set(outcomes).expect("set once");
+        sharing.parts.lock().unwrap().push(taker);
+        sharing.claim(guessed);
+        assert!(
+            sharing
+                .segments
+                .iter()
+                .all(|s| s.lock().unwrap().is_empty()),
+            "every chunk not taken was claimed"
+        );
+        let mut stats = TracerStats::default();
+        let (chunks, shift) = sharing.finish(&mut stats).expect("defined rays");
+        let claimed = PerRay::from_chunks(chunks, shift, Vec::new());
+        assert!(claimed == one);
+        assert_eq!(stats.rays, one_stats.rays);
+        assert_eq!(stats.pair_tests, one_stats.pair_tests);
     }
 
     /// The launch traced in one call of the helpers (distinct rays and scene found beside each other,
