@@ -810,6 +810,20 @@ mod shared_out_tests {
         (case, workload)
     }
 
+    /// The outcomes and counters of `rays`, all distinct, traced on the calling thread alone.
+    fn traced_on_one_thread(
+        world: &World,
+        call: &Call,
+        prepared: &PreparedScene,
+        rays: &[Ray],
+    ) -> (PerRay<AllowedOutcomes>, TracerStats) {
+        let distinct: Vec<u32> = (0..rays.len() as u32).collect();
+        let mut stats = TracerStats::default();
+        let (chunks, shift) = trace_distinct(world, call, prepared, rays, &distinct, &mut stats)
+            .expect("defined rays");
+        (PerRay::from_chunks(chunks, shift, Vec::new()), stats)
+    }
+
     /// However many workers share a launch's distinct rays out (segments of one chunk or of many,
     /// more workers than chunks), every ray gets the outcomes and counters one thread gives it.
     #[test]
@@ -820,11 +834,7 @@ mod shared_out_tests {
         let prepared = prepared(&world.launch.scene).expect("a defined scene");
         let rays = &workload.rays;
         let distinct: Vec<u32> = (0..rays.len() as u32).collect();
-        let mut one_stats = TracerStats::default();
-        let (chunks, shift) =
-            trace_distinct(world, call, &prepared, rays, &distinct, &mut one_stats)
-                .expect("defined rays");
-        let one = PerRay::from_chunks(chunks, shift, Vec::new());
+        let (one, one_stats) = traced_on_one_thread(world, call, &prepared, rays);
         assert_eq!(one.len(), rays.len());
         assert!(
             one.iter().any(|o| !o.candidates.is_empty()),
@@ -862,11 +872,7 @@ mod shared_out_tests {
         let prepared = prepared(&world.launch.scene).expect("a defined scene");
         let rays = &workload.rays;
         let distinct: Vec<u32> = (0..rays.len() as u32).collect();
-        let mut one_stats = TracerStats::default();
-        let (chunks, shift) =
-            trace_distinct(world, call, &prepared, rays, &distinct, &mut one_stats)
-                .expect("defined rays");
-        let one = PerRay::from_chunks(chunks, shift, Vec::new());
+        let (one, one_stats) = traced_on_one_thread(world, call, &prepared, rays);
         let trace = |ids: &[u32],
                      stats: &mut TracerStats,
                      memo: &HitRecordMemo,
