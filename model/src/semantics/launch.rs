@@ -798,8 +798,9 @@ mod distinct_ray_tests {
 mod shared_out_tests {
     use super::*;
 
-    /// The hand-made case launching the 24x24 icosphere workload's scene, and the workload.
-    fn icosphere_launch() -> (crate::Case, crate::tracer::workload::Workload) {
+    /// `test` given the hand-made case launching the 24x24 icosphere workload's scene (its world
+    /// and call), the scene prepared, and the workload's rays.
+    fn on_icosphere_launch(test: impl FnOnce(&World, &Call, &PreparedScene, &[Ray])) {
         let mut case = crate::test_cases::hand_case();
         let workload = crate::tracer::workload::standard_workload(24, "icosphere");
         case.as_trace_mut()
@@ -807,7 +808,9 @@ mod shared_out_tests {
             .world
             .launch
             .scene = workload.scene.clone();
-        (case, workload)
+        let body = case.as_trace().expect("a trace case");
+        let prepared = prepared(&body.world.launch.scene).expect("a defined scene");
+        test(&body.world, &body.call, &prepared, &workload.rays);
     }
 
     /// The outcomes and counters of `rays`, all distinct, traced on the calling thread alone.
@@ -828,36 +831,33 @@ mod shared_out_tests {
     /// more workers than chunks), every ray gets the outcomes and counters one thread gives it.
     #[test]
     fn every_worker_count_gives_the_outcomes_of_one_thread() {
-        let (case, workload) = icosphere_launch();
-        let body = case.as_trace().expect("a trace case");
-        let (world, call) = (&body.world, &body.call);
-        let prepared = prepared(&world.launch.scene).expect("a defined scene");
-        let rays = &workload.rays;
-        let distinct: Vec<u32> = (0..rays.len() as u32).collect();
-        let (one, one_stats) = traced_on_one_thread(world, call, &prepared, rays);
-        assert_eq!(one.len(), rays.len());
-        assert!(
-            one.iter().any(|o| !o.candidates.is_empty()),
-            "some ray hits"
-        );
-        // 576 rays in 9 chunks: segments of 5 and 4, of 3, of 2 and 1 chunks, and workers without
-        // any.
-        for workers in [2, 3, 5, 18, 40] {
-            let mut stats = TracerStats::default();
-            let sharing = Sharing::new(distinct.len(), workers);
-            crate::helpers::run_beside(workers - 1, &|| {
-                sharing.work(&distinct, |ids, stats, memo, undefined| {
-                    trace_ids(world, call, &prepared, rays, ids, stats, memo, undefined)
-                })
-            });
-            let (chunks, shift) = sharing.finish(&mut stats).expect("defined rays");
-            assert!(chunks.len() > 1, "{workers} workers");
-            let many = PerRay::from_chunks(chunks, shift, Vec::new());
-            assert_eq!(many.len(), rays.len(), "{workers} workers");
-            assert!(many == one, "{workers} workers");
-            assert_eq!(stats.rays, one_stats.rays, "{workers} workers");
-            assert_eq!(stats.pair_tests, one_stats.pair_tests, "{workers} workers");
-        }
+        on_icosphere_launch(|world, call, prepared, rays| {
+            let distinct: Vec<u32> = (0..rays.len() as u32).collect();
+            let (one, one_stats) = traced_on_one_thread(world, call, prepared, rays);
+            assert_eq!(one.len(), rays.len());
+            assert!(
+                one.iter().any(|o| !o.candidates.is_empty()),
+                "some ray hits"
+            );
+            // 576 rays in 9 chunks: segments of 5 and 4, of 3, of 2 and 1 chunks, and workers without
+            // any.
+            for workers in [2, 3, 5, 18, 40] {
+                let mut stats = TracerStats::default();
+                let sharing = Sharing::new(distinct.len(), workers);
+                crate::helpers::run_beside(workers - 1, &|| {
+                    sharing.work(&distinct, |ids, stats, memo, undefined| {
+                        trace_ids(world, call, prepared, rays, ids, stats, memo, undefined)
+                    })
+                });
+                let (chunks, shift) = sharing.finish(&mut stats).expect("defined rays");
+                assert!(chunks.len() > 1, "{workers} workers");
+                let many = PerRay::from_chunks(chunks, shift, Vec::new());
+                assert_eq!(many.len(), rays.len(), "{workers} workers");
+                assert!(many == one, "{workers} workers");
+                assert_eq!(stats.rays, one_stats.rays, "{workers} workers");
+                assert_eq!(stats.pair_tests, one_stats.pair_tests, "{workers} workers");
+            }
+        });
     }
 
     /// Chunks guessed in launch order before the layout is known: every chunk while the layout is
@@ -866,61 +866,58 @@ mod shared_out_tests {
     /// outcomes and counters one thread gives it.
     #[test]
     fn chunks_guessed_before_the_layout_are_kept_once() {
-        let (case, workload) = icosphere_launch();
-        let body = case.as_trace().expect("a trace case");
-        let (world, call) = (&body.world, &body.call);
-        let prepared = prepared(&world.launch.scene).expect("a defined scene");
-        let rays = &workload.rays;
-        let distinct: Vec<u32> = (0..rays.len() as u32).collect();
-        let (one, one_stats) = traced_on_one_thread(world, call, &prepared, rays);
-        let trace = |ids: &[u32],
-                     stats: &mut TracerStats,
-                     memo: &HitRecordMemo,
-                     undefined: &std::sync::atomic::AtomicBool| {
-            trace_ids(world, call, &prepared, rays, ids, stats, memo, undefined)
-        };
-        let set = std::sync::OnceLock::from(());
-        assert!(guess_last_chunks(rays.len(), &set, trace).is_empty());
-        let unset = std::sync::OnceLock::<()>::new();
-        let guessed = guess_last_chunks(rays.len(), &unset, trace);
-        let chunks = rays.len().div_ceil(Sharing::CHUNK);
-        assert_eq!(
-            guessed.iter().map(|g| g.0).collect::<Vec<_>>(),
-            (0..chunks).rev().collect::<Vec<_>>()
-        );
-        // Two workers' segments; the second's last chunk already taken and traced by its taker.
-        let sharing = Sharing::new(distinct.len(), 2);
-        let taken = sharing.segments[1]
-            .lock()
-            .unwrap()
-            .pop_back()
-            .expect("a chunk");
-        assert_eq!(taken, chunks - 1);
-        let mut taker = TracerStats::default();
-        let ids = &distinct[taken * Sharing::CHUNK..];
-        let outcomes = trace(
-            ids,
-            &mut taker,
-            &HitRecordMemo::default(),
-            &std::sync::atomic::AtomicBool::new(false),
-        )
-        .expect("defined rays");
-        sharing.done[taken].set(outcomes).expect("set once");
-        sharing.parts.lock().unwrap().push(taker);
-        sharing.claim(guessed);
-        assert!(
-            sharing
-                .segments
-                .iter()
-                .all(|s| s.lock().unwrap().is_empty()),
-            "every chunk not taken was claimed"
-        );
-        let mut stats = TracerStats::default();
-        let (chunks, shift) = sharing.finish(&mut stats).expect("defined rays");
-        let claimed = PerRay::from_chunks(chunks, shift, Vec::new());
-        assert!(claimed == one);
-        assert_eq!(stats.rays, one_stats.rays);
-        assert_eq!(stats.pair_tests, one_stats.pair_tests);
+        on_icosphere_launch(|world, call, prepared, rays| {
+            let distinct: Vec<u32> = (0..rays.len() as u32).collect();
+            let (one, one_stats) = traced_on_one_thread(world, call, prepared, rays);
+            let trace = |ids: &[u32],
+                         stats: &mut TracerStats,
+                         memo: &HitRecordMemo,
+                         undefined: &std::sync::atomic::AtomicBool| {
+                trace_ids(world, call, prepared, rays, ids, stats, memo, undefined)
+            };
+            let set = std::sync::OnceLock::from(());
+            assert!(guess_last_chunks(rays.len(), &set, trace).is_empty());
+            let unset = std::sync::OnceLock::<()>::new();
+            let guessed = guess_last_chunks(rays.len(), &unset, trace);
+            let chunks = rays.len().div_ceil(Sharing::CHUNK);
+            assert_eq!(
+                guessed.iter().map(|g| g.0).collect::<Vec<_>>(),
+                (0..chunks).rev().collect::<Vec<_>>()
+            );
+            // Two workers' segments; the second's last chunk already taken and traced by its taker.
+            let sharing = Sharing::new(distinct.len(), 2);
+            let taken = sharing.segments[1]
+                .lock()
+                .unwrap()
+                .pop_back()
+                .expect("a chunk");
+            assert_eq!(taken, chunks - 1);
+            let mut taker = TracerStats::default();
+            let ids = &distinct[taken * Sharing::CHUNK..];
+            let outcomes = trace(
+                ids,
+                &mut taker,
+                &HitRecordMemo::default(),
+                &std::sync::atomic::AtomicBool::new(false),
+            )
+            .expect("defined rays");
+            sharing.done[taken].set(outcomes).expect("set once");
+            sharing.parts.lock().unwrap().push(taker);
+            sharing.claim(guessed);
+            assert!(
+                sharing
+                    .segments
+                    .iter()
+                    .all(|s| s.lock().unwrap().is_empty()),
+                "every chunk not taken was claimed"
+            );
+            let mut stats = TracerStats::default();
+            let (chunks, shift) = sharing.finish(&mut stats).expect("defined rays");
+            let claimed = PerRay::from_chunks(chunks, shift, Vec::new());
+            assert!(claimed == one);
+            assert_eq!(stats.rays, one_stats.rays);
+            assert_eq!(stats.pair_tests, one_stats.pair_tests);
+        });
     }
 
     /// The launch traced in one call of the helpers (distinct rays and scene found beside each other,
@@ -928,38 +925,38 @@ mod shared_out_tests {
     /// mapped to their first; an undefined ray makes the launch undefined there too.
     #[test]
     fn tracing_beside_the_distinct_rays_gives_the_outcomes_of_one_thread() {
-        let (case, workload) = icosphere_launch();
-        let body = case.as_trace().expect("a trace case");
-        let (world, call) = (&body.world, &body.call);
-        let prepared = prepared(&world.launch.scene).expect("a defined scene");
-        // Every ray, then the first 100 again: repeated rays.
-        let mut rays = workload.rays.clone();
-        rays.extend_from_slice(&workload.rays[..100]);
-        // Two runs or more wherever the machine has two cores (one run on one core is the same path).
-        assert!(
-            workers_for(rays.len()) > 1
-                || std::thread::available_parallelism().is_ok_and(|n| n.get() == 1),
-            "{} rays",
-            rays.len()
-        );
-        let (distinct, of) = distinct_rays(&rays);
-        let mut one_stats = TracerStats::default();
-        let (chunks, shift) =
-            trace_distinct(world, call, &prepared, &rays, &distinct, &mut one_stats)
-                .expect("defined rays");
-        let one = PerRay::from_chunks(chunks, shift, of.clone());
-        let mut stats = TracerStats::default();
-        let (chunks, shift, beside_of) =
-            traced_beside_distinct(world, call, &rays, &mut stats).expect("defined rays");
-        assert_eq!(beside_of, of);
-        let beside = PerRay::from_chunks(chunks, shift, beside_of);
-        assert_eq!(beside.len(), rays.len());
-        assert!(beside == one);
-        assert_eq!(stats.rays, one_stats.rays);
-        assert_eq!(stats.pair_tests, one_stats.pair_tests);
-        // An undefined ray (NaN origin) makes the launch undefined.
-        rays[300].origin[0] = f32::NAN;
-        assert!(traced_beside_distinct(world, call, &rays, &mut TracerStats::default()).is_none());
+        on_icosphere_launch(|world, call, prepared, workload_rays| {
+            // Every ray, then the first 100 again: repeated rays.
+            let mut rays = workload_rays.to_vec();
+            rays.extend_from_slice(&workload_rays[..100]);
+            // Two runs or more wherever the machine has two cores (one run on one core is the same path).
+            assert!(
+                workers_for(rays.len()) > 1
+                    || std::thread::available_parallelism().is_ok_and(|n| n.get() == 1),
+                "{} rays",
+                rays.len()
+            );
+            let (distinct, of) = distinct_rays(&rays);
+            let mut one_stats = TracerStats::default();
+            let (chunks, shift) =
+                trace_distinct(world, call, prepared, &rays, &distinct, &mut one_stats)
+                    .expect("defined rays");
+            let one = PerRay::from_chunks(chunks, shift, of.clone());
+            let mut stats = TracerStats::default();
+            let (chunks, shift, beside_of) =
+                traced_beside_distinct(world, call, &rays, &mut stats).expect("defined rays");
+            assert_eq!(beside_of, of);
+            let beside = PerRay::from_chunks(chunks, shift, beside_of);
+            assert_eq!(beside.len(), rays.len());
+            assert!(beside == one);
+            assert_eq!(stats.rays, one_stats.rays);
+            assert_eq!(stats.pair_tests, one_stats.pair_tests);
+            // An undefined ray (NaN origin) makes the launch undefined.
+            rays[300].origin[0] = f32::NAN;
+            assert!(
+                traced_beside_distinct(world, call, &rays, &mut TracerStats::default()).is_none()
+            );
+        });
     }
 }
 
