@@ -42,7 +42,7 @@ run_once() {
         header && NF >= 8 {
             # The name has spaces; the numbers are counted from the end of the row.
             if (bench == "render_rays" && $NF != "pass") { print "lavapipe not judged pass: " $0 > "/dev/stderr"; exit 1 }
-            if (bench == "render_rays") print $(NF-5), $(NF-3), $(NF-2)
+            if (bench == "render_rays") print $(NF-6), $(NF-4), $(NF-3)
             else print $(NF-10)
             found = 1
             exit

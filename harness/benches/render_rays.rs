@@ -5,7 +5,9 @@
 //! records), and by the model (`expected_launch`: the allowed outcomes of every launch ID, the
 //! prepared scene cached likewise). Each rate is the median of the passes; the ratio is the oracle's
 //! rate over lavapipe's, and `paired` the median of the passes' own ratios (each pass times the two
-//! back to back, so a change in the machine's load between passes moves both sides alike). Also the share of ray/primitive tests that needed the exact fallback, and
+//! back to back, so a change in the machine's load between passes moves both sides alike), with
+//! their interquartile range beside it (`paired IQR`: how far one run's ratio can be trusted on a
+//! machine whose speed moves). Also the share of ray/primitive tests that needed the exact fallback, and
 //! whether lavapipe's records pass the judgement. Lavapipe runs llvmpipe on every core, and the model
 //! traces a launch's distinct rays on every core too (`expected_launch`), so the ratio compares the
 //! two on the same machine; `cargo bench -p rtconf-model --bench expected_launch` gives the model's
@@ -27,9 +29,14 @@ const SIDE: u32 = 64;
 mod common;
 use common::hand_case;
 
-fn median(mut v: Vec<f64>) -> f64 {
+fn median(v: Vec<f64>) -> f64 {
+    quantile(v, 0.5)
+}
+
+/// The value at fraction `q` of the sorted values (the nearest rank; `v` not empty).
+fn quantile(mut v: Vec<f64>, q: f64) -> f64 {
     v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+    v[((v.len() - 1) as f64 * q).round() as usize]
 }
 
 fn main() {
@@ -41,7 +48,7 @@ fn main() {
         }
     };
     println!(
-        "{:<24} {:>7} {:>7} {:>14} {:>14} {:>8} {:>8} {:>9} {:>8}",
+        "{:<24} {:>7} {:>7} {:>14} {:>14} {:>8} {:>8} {:>11} {:>9} {:>8}",
         "workload",
         "prims",
         "rays",
@@ -49,6 +56,7 @@ fn main() {
         "lvp rays/s",
         "ratio",
         "paired",
+        "paired IQR",
         "exact %",
         "judged"
     );
@@ -128,8 +136,13 @@ fn main() {
         };
         let (o, l) = (median(oracle), median(lvp));
         ratios.push(o / l);
+        let spread = format!(
+            "{:.2}-{:.2}",
+            quantile(paired.clone(), 0.25),
+            quantile(paired.clone(), 0.75)
+        );
         println!(
-            "{:<24} {:>7} {:>7} {:>14.0} {:>14.0} {:>8.2} {:>8.2} {:>9.4} {:>8}",
+            "{:<24} {:>7} {:>7} {:>14.0} {:>14.0} {:>8.2} {:>8.2} {:>11} {:>9.4} {:>8}",
             w.name,
             prims,
             SIDE * SIDE,
@@ -137,6 +150,7 @@ fn main() {
             l,
             o / l,
             median(paired),
+            spread,
             100.0 * expected.stats.exact_share(),
             judged
         );
