@@ -7,8 +7,8 @@
 //! rate over lavapipe's, and `paired` the median of the passes' own ratios (each pass times the two
 //! back to back, so a change in the machine's load between passes moves both sides alike), with
 //! their interquartile range beside it (`paired IQR`: how far one run's ratio can be trusted on a
-//! machine whose speed moves). Also the share of ray/primitive tests that needed the exact fallback, and
-//! whether lavapipe's records pass the judgement. Lavapipe runs llvmpipe on every core, and the model
+//! machine whose speed moves). Also the share of ray/primitive tests that needed the exact
+//! fallback, and whether lavapipe's records pass the judgement. Lavapipe runs llvmpipe on every core, and the model
 //! traces a launch's distinct rays on every core too (`expected_launch`), so the ratio compares the
 //! two on the same machine; `cargo bench -p rtconf-model --bench expected_launch` gives the model's
 //! CPU time per ray beside it.
