@@ -355,6 +355,28 @@ fn traced_beside_distinct(
     Some((traced, shift, of))
 }
 
+/// How a run traces one chunk of a launch: the chunk's ray indices, the run's counters, its hit-record
+/// memo and the flag an undefined ray sets; the chunk's outcomes, or None where a ray is undefined.
+trait TraceChunk:
+    Fn(
+    &[u32],
+    &mut TracerStats,
+    &HitRecordMemo,
+    &std::sync::atomic::AtomicBool,
+) -> Option<Vec<AllowedOutcomes>>
+{
+}
+
+impl<F> TraceChunk for F where
+    F: Fn(
+        &[u32],
+        &mut TracerStats,
+        &HitRecordMemo,
+        &std::sync::atomic::AtomicBool,
+    ) -> Option<Vec<AllowedOutcomes>>
+{
+}
+
 /// Chunks of a launch of `rays` rays traced in launch order from the last one back, each begun only
 /// while `layout` is unset: the chunks (of [`Sharing::CHUNK`] rays), each with its outcomes and the
 /// counters of its tracing. A chunk with an undefined ray ends the guessing (the layout's tracing
@@ -362,12 +384,7 @@ fn traced_beside_distinct(
 fn guess_last_chunks<L>(
     rays: usize,
     layout: &std::sync::OnceLock<L>,
-    trace: impl Fn(
-        &[u32],
-        &mut TracerStats,
-        &HitRecordMemo,
-        &std::sync::atomic::AtomicBool,
-    ) -> Option<Vec<AllowedOutcomes>>,
+    trace: impl TraceChunk,
 ) -> Guessed {
     let mut guessed = Vec::new();
     let memo = HitRecordMemo::default();
@@ -606,16 +623,7 @@ impl Sharing {
 
     /// One worker's run: chunks of `distinct` traced by `trace` until none is left (or a ray was
     /// undefined).
-    fn work(
-        &self,
-        distinct: &[u32],
-        trace: impl Fn(
-            &[u32],
-            &mut TracerStats,
-            &HitRecordMemo,
-            &std::sync::atomic::AtomicBool,
-        ) -> Option<Vec<AllowedOutcomes>>,
-    ) {
+    fn work(&self, distinct: &[u32], trace: impl TraceChunk) {
         let workers = self.segments.len();
         let lock = |k: usize| self.segments[k].lock().unwrap_or_else(|e| e.into_inner());
         let mut stats = TracerStats::default();
