@@ -232,12 +232,19 @@ pub fn parse_yaml<T: serde::de::DeserializeOwned>(path: &str, text: &str) -> Res
         });
     }
     serde_yaml::from_str(text).map_err(|e| {
-        // serde_yaml says where only what it read: a second document gets no line, so find it.
-        let location = e
-            .location()
-            .map(|l| (l.line(), l.column()))
-            .or_else(|| second_document(text).map(|line| (line, 1)));
-        let (at, problem) = split_message(&e.to_string());
+        // serde_yaml says where only what it read: a second document gets no line, so find it (its
+        // `---`), or else the error that made libyaml start one.
+        let (location, message) = match e.location() {
+            Some(l) => (Some((l.line(), l.column())), e.to_string()),
+            None => match second_document(text) {
+                Some(line) => (Some((line, 1)), e.to_string()),
+                None => match unreadable_document(text) {
+                    Some((location, message)) => (Some(location), message),
+                    None => (None, e.to_string()),
+                },
+            },
+        };
+        let (at, problem) = split_message(&message);
         CaseError {
             path: path.to_string(),
             location,
@@ -245,6 +252,21 @@ pub fn parse_yaml<T: serde::de::DeserializeOwned>(path: &str, text: &str) -> Res
             problem,
         }
     })
+}
+
+/// The located error of the first document of `text` that does not read as YAML, and its message.
+/// Where a node ends early (an anchor or a tag with nothing after it, then more on the line),
+/// libyaml starts a second document without a `---`, and serde_yaml refuses the text as several
+/// documents without saying where; read one document at a time, the one that fails says it.
+fn unreadable_document(text: &str) -> Option<((usize, usize), String)> {
+    use serde::Deserialize;
+    for document in serde_yaml::Deserializer::from_str(text) {
+        if let Err(e) = serde::de::IgnoredAny::deserialize(document) {
+            let l = e.location()?;
+            return Some(((l.line(), l.column()), e.to_string()));
+        }
+    }
+    None
 }
 
 /// serde_yaml's message `path: problem at line L column C` as (path, problem): the position is said
@@ -729,5 +751,30 @@ mod tests {
         let e = Case::from_yaml("unknown.yaml", &unknown).unwrap_err();
         assert!(e.problem.contains("colour"), "{e}");
         assert_eq!(e.location.map(|l| l.0), Some(4), "{e}");
+    }
+
+    /// A text libyaml reads as several documents is refused where the second starts: at its `---`,
+    /// or, without one, where the node before it ended early (an anchor with nothing after it).
+    #[test]
+    fn a_second_document_is_located_with_or_without_its_marker() {
+        let cases = [
+            ("a: 1\n---\nb: 2\n", (2, 1)),
+            ("&a *a", (1, 4)),
+            ("&a \n&a \nentries: []", (2, 1)),
+            ("entries: []\n...\nmore: 1\n", (3, 1)),
+        ];
+        for (text, at) in cases {
+            let e = parse_yaml::<serde_yaml::Value>("two.yaml", text).unwrap_err();
+            assert_eq!(e.location, Some(at), "{text:?}: {e}");
+            assert!(
+                e.to_string()
+                    .starts_with(&format!("two.yaml:{}:{}: ", at.0, at.1)),
+                "{e}"
+            );
+        }
+        // Anchors and aliases inside one document still read.
+        let one: serde_yaml::Value = parse_yaml("one.yaml", "a: &x [1]\nb: *x\n").unwrap();
+        assert_eq!(one["b"], one["a"]);
+        assert_eq!(one["a"][0].as_u64(), Some(1));
     }
 }
