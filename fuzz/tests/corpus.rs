@@ -157,6 +157,7 @@ fn regression_inputs_that_are_not_valid_input_are_refused_where_they_are_wrong()
         ("triage", "anchor-then-alias.yaml", "1:4"),
         ("triage", "empty-anchored-nodes.yaml", "2:1"),
         ("triage", "tag-before-a-key.yaml", "2:18"),
+        ("triage", "empty-first-document.yaml", "2:1"),
     ];
     for (target, file, at) in refused {
         let path = fuzz_dir().join("regressions").join(target).join(file);

@@ -289,27 +289,32 @@ fn split_message(message: &str) -> (String, String) {
     }
 }
 
-/// The line (from 1) where a second YAML document starts: a `---` after content, or the first content
-/// after a `...` end marker.
+/// The line (from 1) where a second YAML document starts: a `---` after content or after another
+/// `---` (the first document empty), or the first content after a `...` end marker.
 fn second_document(text: &str) -> Option<usize> {
-    let mut content = false;
+    // A document has begun: its `---`, or content.
+    let mut begun = false;
     let mut ended = false;
     for (i, line) in text.lines().enumerate() {
         let starts_document =
             line == "---" || line.starts_with("--- ") || line.starts_with("---\t");
-        let blank = line.trim().is_empty() || line.trim_start().starts_with('#');
-        if starts_document && (content || ended) {
-            return Some(i + 1);
-        }
-        if line == "..." || line.starts_with("... ") {
-            ended = content;
+        if starts_document {
+            if begun || ended {
+                return Some(i + 1);
+            }
+            begun = true;
             continue;
         }
-        if !blank && !starts_document && !line.starts_with('%') {
+        if line == "..." || line.starts_with("... ") {
+            ended = begun;
+            continue;
+        }
+        let blank = line.trim().is_empty() || line.trim_start().starts_with('#');
+        if !blank && !line.starts_with('%') {
             if ended {
                 return Some(i + 1);
             }
-            content = true;
+            begun = true;
         }
     }
     None
@@ -762,6 +767,8 @@ mod tests {
             ("&a *a", (1, 4)),
             ("&a \n&a \nentries: []", (2, 1)),
             ("entries: []\n...\nmore: 1\n", (3, 1)),
+            ("---\n---\nentries: []", (2, 1)),
+            ("%YAML 1.2\n---\n# none\n---\nentries: []", (4, 1)),
         ];
         for (text, at) in cases {
             let e = parse_yaml::<serde_yaml::Value>("two.yaml", text).unwrap_err();
