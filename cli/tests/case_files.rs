@@ -2,7 +2,7 @@
 //! name, a build of u32::MAX primitives) exit 2 from `check` and `replay` with `file:line:col: path:
 //! problem`; `check` reads build cases; `replay` runs the case in a worker process (a worker that dies
 //! is the case's crash, as in a run); a buffer no device of the profile can hold is unsupported, not a
-//! crash.
+//! crash, as are push constant bytes past its maxPushConstantsSize.
 
 mod common;
 use common::*;
@@ -134,4 +134,38 @@ fn a_buffer_of_u64_max_bytes_is_unsupported_by_the_profile_not_a_crash() {
         r.all()
     );
     assert!(!r.stdout.contains("Crash"), "{}", r.all());
+}
+
+#[test]
+fn push_constants_past_the_profiles_limit_are_unsupported_not_run() {
+    const PUSHED: &str = "cases/layer-1.4.309/vkCmdTraceRaysIndirectKHR-None-08601-22-0.yaml";
+    let dir = tempfile::tempdir().unwrap();
+    let pushed = committed(PUSHED);
+    let edits = [
+        (
+            "    pushes:\n    - layout: pl-push\n      offset: 0\n      size: 16\n",
+            "    pushes:\n    - layout: pl-push\n      offset: 0\n      size: 4096\n",
+            "world.resources.pushes[0]: push constant bytes [0, 4096) end past the profile's maxPushConstantsSize (256)",
+        ),
+        (
+            "      push_ranges:\n      - offset: 0\n        size: 16\n",
+            "      push_ranges:\n      - offset: 252\n        size: 16\n",
+            "world.resources.pipeline_layouts[0].push_ranges[0]: push constant bytes [252, 268) end past the profile's maxPushConstantsSize (256)",
+        ),
+    ];
+    for (i, (from, to, want)) in edits.into_iter().enumerate() {
+        let path = write(
+            dir.path(),
+            &format!("push{i}.yaml"),
+            &edited(&pushed, from, to),
+        );
+        let r = rtconf(&["replay", &path]);
+        assert_eq!(r.code, 1, "{}", r.all());
+        assert!(
+            r.stdout.contains(&format!("outcome: unsupported — {want}")),
+            "{}",
+            r.all()
+        );
+        assert!(r.stdout.contains("not run"), "{}", r.all());
+    }
 }

@@ -298,3 +298,39 @@ fn flow_collections_nested_past_the_limit_are_refused_at_once_with_their_place()
     let ranges = "reason: bytes [61, 65) of a range\n".repeat(2 * limit);
     assert_eq!(model::case::flow_nesting_past(&ranges, limit), None);
 }
+
+/// The first push constant byte a stage reads that no compatible push set, with the VUID and the
+/// problem the model reports for it (the stage reads bytes no push covers; maintenance4 is off).
+fn unpushed_byte(name: &str) -> Vec<(String, String)> {
+    bounded();
+    let (path, text) = hostile(name);
+    let case = Case::from_yaml(&path, &text).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(
+        judge_everything(&case, &lavapipe()),
+        ["VUID-vkCmdTraceRaysIndirectKHR-maintenance4-06425"]
+    );
+    model::validate(rules(), &lavapipe(), &case)
+        .violations
+        .iter()
+        .map(|v| (v.context.clone(), v.problem.clone()))
+        .collect()
+}
+
+#[test]
+fn push_constants_read_at_offset_u32_max_are_judged_without_overflow() {
+    // Bytes [u32::MAX, u32::MAX + 16) are read; the one push, [0, 16), was made with a layout not
+    // compatible with the pipeline's.
+    let v = unpushed_byte("trace-push-constants-offset-u32-max.yaml");
+    assert_eq!(v.len(), 1, "{v:?}");
+    assert_eq!(v[0].0, "world.resources.stages[Raygen].push-constants");
+    assert!(v[0].1.starts_with("byte 4294967295 is used"), "{v:?}");
+}
+
+#[test]
+fn push_constants_of_u32_max_bytes_find_the_gap_between_pushes_at_once() {
+    // Bytes [0, u32::MAX) are read; pushes cover [0, 2^31) and [u32::MAX, 2 * u32::MAX): byte 2^31
+    // is the first no push covers.
+    let v = unpushed_byte("trace-push-constants-size-u32-max.yaml");
+    assert_eq!(v.len(), 1, "{v:?}");
+    assert!(v[0].1.starts_with("byte 2147483648 is used"), "{v:?}");
+}

@@ -1,7 +1,8 @@
 //! What stands between a case and a driver, asked by every path that hands one over (run, replay, the
 //! lavapipe tests through `Judging::run_here`): the case's own errors ([`model::integrity`]), its
 //! undefined reads or a build the model gives no meaning ([`model::Case::runnable`]), buffers larger
-//! than the profile's device can create or back, and — for a trace case run as valid — a verdict that
+//! than the profile's device can create or back, push constant bytes past its `maxPushConstantsSize`,
+//! and — for a trace case run as valid — a verdict that
 //! is not empty. Each is reported without running the case: `case-error` where the case is at fault,
 //! `unsupported` where the profile says the device cannot hold it.
 
@@ -18,6 +19,9 @@ pub(crate) fn gate(case: &Case, judging: &Judging) -> Option<CaseReport> {
         return Some(not_runnable(case, &why));
     }
     if let Some((at, why)) = too_large(case, &judging.buffer_limits) {
+        return Some(not_realisable(case, &at, &why));
+    }
+    if let Some((at, why)) = push_constants_too_large(case, judging.buffer_limits.push_constants) {
         return Some(not_realisable(case, &at, &why));
     }
     if case.as_trace().is_some() && case.runs_as_valid(judging.profile) {
@@ -37,13 +41,15 @@ pub(crate) fn gate(case: &Case, judging: &Judging) -> Option<CaseReport> {
     None
 }
 
-/// The profile's limits a buffer is held to ([`too_large`]), each with its name: looked up once per
-/// run (a lookup by member name scans the profile's properties).
+/// The profile's limits a buffer is held to ([`too_large`]), and push constant bytes
+/// ([`push_constants_too_large`]), each with its name: looked up once per run (a lookup by member name
+/// scans the profile's properties).
 #[derive(Debug, Clone)]
 pub(crate) struct BufferLimits {
     buffer: (&'static str, Option<u64>),
     allocation: (&'static str, Option<u64>),
     sparse: (&'static str, Option<u64>),
+    push_constants: (&'static str, Option<u64>),
 }
 
 impl BufferLimits {
@@ -53,8 +59,59 @@ impl BufferLimits {
             buffer: named("maxBufferSize"),
             allocation: named("maxMemoryAllocationSize"),
             sparse: named("sparseAddressSpaceSize"),
+            push_constants: named("maxPushConstantsSize"),
         }
     }
+}
+
+/// The first push constant bytes of a trace case that end past the profile's
+/// `maxPushConstantsSize`: a pipeline layout's range, a push, or what a stage reads. No pipeline
+/// layout of the device can hold them (and the harness would make a value of that many bytes, or a
+/// shader reading them word by word). The path and why.
+fn push_constants_too_large(
+    case: &Case,
+    (limit, max): (&'static str, Option<u64>),
+) -> Option<(String, String)> {
+    let (Some(t), Some(max)) = (case.as_trace(), max) else {
+        return None;
+    };
+    let rs = &t.world.resources;
+    let end = |offset: u32, size: u32| u64::from(offset) + u64::from(size);
+    let ranges = rs.pipeline_layouts.iter().enumerate().flat_map(|(i, l)| {
+        l.push_ranges.iter().enumerate().map(move |(j, r)| {
+            (
+                format!("world.resources.pipeline_layouts[{i}].push_ranges[{j}]"),
+                r.offset,
+                r.size,
+            )
+        })
+    });
+    let pushes = rs
+        .pushes
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (format!("world.resources.pushes[{i}]"), p.offset, p.size));
+    let stages = rs.stages.iter().enumerate().filter_map(|(i, s)| {
+        let [offset, size] = s.push_constants?;
+        Some((
+            format!("world.resources.stages[{i}].push_constants"),
+            offset,
+            size,
+        ))
+    });
+    ranges
+        .chain(pushes)
+        .chain(stages)
+        .find(|&(_, offset, size)| end(offset, size) > max)
+        .map(|(at, offset, size)| {
+            (
+                at,
+                format!(
+                    "push constant bytes [{offset}, {}) end past the profile's {limit} ({max}): the device cannot hold them",
+                    end(offset, size)
+                ),
+            )
+        })
 }
 
 /// The first buffer the profile's device cannot hold: a non-sparse buffer past `maxBufferSize` or

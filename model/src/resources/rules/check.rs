@@ -73,20 +73,18 @@ impl ResourceRule {
                 let Some(pl) = rs.pipeline_layout.as_deref() else {
                     return;
                 };
+                let pushed: Vec<(u64, u64)> = rs
+                    .pushes
+                    .iter()
+                    .filter(|p| rs.compatible_for_push(&p.layout, pl))
+                    .map(|p| byte_span(p.offset, p.size))
+                    .collect();
                 for st in &rs.stages {
                     let Some([off, size]) = st.push_constants else {
                         continue;
                     };
-                    for byte in off..off + size {
-                        let ok = rs.pushes.iter().any(|p| {
-                            p.offset <= byte
-                                && byte < p.offset + p.size
-                                && rs.compatible_for_push(&p.layout, pl)
-                        });
-                        if !ok {
-                            fail(format!("world.resources.stages[{:?}].push-constants", st.stage), format!("byte {byte} is used but no push constant value was set for it with a layout compatible with `{pl}`"));
-                            break;
-                        }
+                    if let Some(byte) = first_uncovered(byte_span(off, size), &pushed) {
+                        fail(format!("world.resources.stages[{:?}].push-constants", st.stage), format!("byte {byte} is used but no push constant value was set for it with a layout compatible with `{pl}`"));
                     }
                 }
             }
@@ -98,8 +96,10 @@ impl ResourceRule {
                     let Some([off, size]) = st.push_constants else {
                         continue;
                     };
+                    let (used_start, used_end) = byte_span(off, size);
                     for p in &rs.pushes {
-                        let overlaps = p.offset < off + size && off < p.offset + p.size;
+                        let (start, end) = byte_span(p.offset, p.size);
+                        let overlaps = start < used_end && used_start < end;
                         if overlaps && !rs.compatible_for_push(&p.layout, pl) {
                             fail(format!("world.resources.stages[{:?}].push-constants", st.stage), format!("its bytes were pushed with layout `{}`, not compatible for push constants with `{pl}`", p.layout));
                         }
@@ -793,6 +793,29 @@ impl ResourceRule {
             }
         }
     }
+}
+
+/// The bytes `[offset, offset + size)` a case states, as u64 bounds (no sum of two u32 overflows).
+fn byte_span(offset: u32, size: u32) -> (u64, u64) {
+    (u64::from(offset), u64::from(offset) + u64::from(size))
+}
+
+/// The first byte of `used` that none of the `pushed` spans covers. Each step jumps to the farthest
+/// end of a span covering the current byte, so it takes at most one step per span, whatever the
+/// sizes the case states.
+fn first_uncovered((mut at, end): (u64, u64), pushed: &[(u64, u64)]) -> Option<u64> {
+    while at < end {
+        let reach = pushed
+            .iter()
+            .filter(|&&(s, e)| s <= at && at < e)
+            .map(|&(_, e)| e)
+            .max();
+        match reach {
+            Some(e) => at = e,
+            None => return Some(at),
+        }
+    }
+    None
 }
 
 fn is_a8(format: &str) -> bool {
