@@ -2,9 +2,9 @@
 //! lavapipe tests through `Judging::run_here`): the case's own errors ([`model::integrity`]), its
 //! undefined reads or a build the model gives no meaning ([`model::Case::runnable`]), buffers larger
 //! than the profile's device can create or back, push constant bytes past its `maxPushConstantsSize`,
-//! and — for a trace case run as valid — a verdict that
-//! is not empty. Each is reported without running the case: `case-error` where the case is at fault,
-//! `unsupported` where the profile says the device cannot hold it.
+//! and — for a trace case run as valid — a verdict that is not empty. Each is reported without
+//! running the case: `case-error` where the case is at fault, `unsupported` where the profile says the
+//! device cannot hold it.
 
 use crate::compare::{case_error, not_realisable, not_runnable, CaseReport};
 use crate::run::Judging;
@@ -18,10 +18,11 @@ pub(crate) fn gate(case: &Case, judging: &Judging) -> Option<CaseReport> {
     if let Err(why) = case.runnable(judging.profile) {
         return Some(not_runnable(case, &why));
     }
-    if let Some((at, why)) = too_large(case, &judging.buffer_limits) {
+    if let Some((at, why)) = too_large(case, &judging.capacity_limits) {
         return Some(not_realisable(case, &at, &why));
     }
-    if let Some((at, why)) = push_constants_too_large(case, judging.buffer_limits.push_constants) {
+    if let Some((at, why)) = push_constants_too_large(case, judging.capacity_limits.push_constants)
+    {
         return Some(not_realisable(case, &at, &why));
     }
     if case.as_trace().is_some() && case.runs_as_valid(judging.profile) {
@@ -41,21 +42,21 @@ pub(crate) fn gate(case: &Case, judging: &Judging) -> Option<CaseReport> {
     None
 }
 
-/// The profile's limits a buffer is held to ([`too_large`]), and push constant bytes
-/// ([`push_constants_too_large`]), each with its name: looked up once per run (a lookup by member name
-/// scans the profile's properties).
+/// The profile's limits on what its device can hold: a buffer ([`too_large`]) and push constant
+/// bytes ([`push_constants_too_large`]), each with its name: looked up once per run (a lookup by
+/// member name scans the profile's properties).
 #[derive(Debug, Clone)]
-pub(crate) struct BufferLimits {
+pub(crate) struct CapacityLimits {
     buffer: (&'static str, Option<u64>),
     allocation: (&'static str, Option<u64>),
     sparse: (&'static str, Option<u64>),
     push_constants: (&'static str, Option<u64>),
 }
 
-impl BufferLimits {
-    pub(crate) fn of(profile: &DeviceProfile) -> BufferLimits {
+impl CapacityLimits {
+    pub(crate) fn of(profile: &DeviceProfile) -> CapacityLimits {
         let named = |limit: &'static str| (limit, profile.limit(limit));
-        BufferLimits {
+        CapacityLimits {
             buffer: named("maxBufferSize"),
             allocation: named("maxMemoryAllocationSize"),
             sparse: named("sparseAddressSpaceSize"),
@@ -117,7 +118,7 @@ fn push_constants_too_large(
 /// The first buffer the profile's device cannot hold: a non-sparse buffer past `maxBufferSize` or
 /// `maxMemoryAllocationSize` (it is bound to one allocation), a sparse one past
 /// `sparseAddressSpaceSize`. The path of its size and why.
-fn too_large(case: &Case, limits: &BufferLimits) -> Option<(String, String)> {
+fn too_large(case: &Case, limits: &CapacityLimits) -> Option<(String, String)> {
     let buffers: Vec<(&str, u64, bool)> = match &case.body {
         Body::Trace(t) => t
             .world

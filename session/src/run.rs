@@ -135,8 +135,8 @@ pub struct Judging<'a> {
     pub rules: &'a RuleSet,
     pub profile: &'a DeviceProfile,
     pub triage: &'a Triage,
-    /// The profile's buffer limits the gate holds every case to.
-    pub(crate) buffer_limits: crate::gate::BufferLimits,
+    /// The profile's limits on buffers and push constants the gate holds every case to.
+    pub(crate) capacity_limits: crate::gate::CapacityLimits,
     /// The rule table prepared per command and enabled extensions ([`RuleSet::prepare`]): the
     /// profile is the run's, so each preparation serves every later case with the same key.
     prepared: std::sync::Mutex<PreparedRules<'a>>,
@@ -155,7 +155,7 @@ impl<'a> Judging<'a> {
             rules,
             profile,
             triage,
-            buffer_limits: crate::gate::BufferLimits::of(profile),
+            capacity_limits: crate::gate::CapacityLimits::of(profile),
             prepared: Default::default(),
         }
     }
