@@ -78,41 +78,47 @@ fn push_constants_too_large(
     };
     let rs = &t.world.resources;
     let end = |offset: u32, size: u32| u64::from(offset) + u64::from(size);
+    // Where each stated span is, as indices: the path is written only for the one found.
     let ranges = rs.pipeline_layouts.iter().enumerate().flat_map(|(i, l)| {
-        l.push_ranges.iter().enumerate().map(move |(j, r)| {
-            (
-                format!("world.resources.pipeline_layouts[{i}].push_ranges[{j}]"),
-                r.offset,
-                r.size,
-            )
-        })
+        l.push_ranges
+            .iter()
+            .enumerate()
+            .map(move |(j, r)| (PushPlace::Range(i, j), r.offset, r.size))
     });
     let pushes = rs
         .pushes
         .iter()
         .enumerate()
-        .map(|(i, p)| (format!("world.resources.pushes[{i}]"), p.offset, p.size));
+        .map(|(i, p)| (PushPlace::Push(i), p.offset, p.size));
     let stages = rs.stages.iter().enumerate().filter_map(|(i, s)| {
         let [offset, size] = s.push_constants?;
-        Some((
-            format!("world.resources.stages[{i}].push_constants"),
-            offset,
-            size,
-        ))
+        Some((PushPlace::Stage(i), offset, size))
     });
-    ranges
+    let (place, offset, size) = ranges
         .chain(pushes)
         .chain(stages)
-        .find(|&(_, offset, size)| end(offset, size) > max)
-        .map(|(at, offset, size)| {
-            (
-                at,
-                format!(
-                    "push constant bytes [{offset}, {}) end past the profile's {limit} ({max}): the device cannot hold them",
-                    end(offset, size)
-                ),
-            )
-        })
+        .find(|&(_, offset, size)| end(offset, size) > max)?;
+    let at = match place {
+        PushPlace::Range(i, j) => format!("world.resources.pipeline_layouts[{i}].push_ranges[{j}]"),
+        PushPlace::Push(i) => format!("world.resources.pushes[{i}]"),
+        PushPlace::Stage(i) => format!("world.resources.stages[{i}].push_constants"),
+    };
+    Some((
+        at,
+        format!(
+            "push constant bytes [{offset}, {}) end past the profile's {limit} ({max}): the device cannot hold them",
+            end(offset, size)
+        ),
+    ))
+}
+
+/// Where a trace case states push constant bytes: a pipeline layout's range (layout, range), a push,
+/// a stage's read.
+#[derive(Clone, Copy)]
+enum PushPlace {
+    Range(usize, usize),
+    Push(usize),
+    Stage(usize),
 }
 
 /// The first buffer the profile's device cannot hold: a non-sparse buffer past `maxBufferSize` or
