@@ -1,7 +1,7 @@
 //! Sharding for CI farms on lavapipe: `rtconf run --shard 1/3`, `2/3` and `3/3` of a generated run,
 //! then `rtconf merge`, equal the unsharded run case for case (outcome, status, VUIDs, output, detail),
 //! with the same totals, a case list that is the union of the shards', and the merged JUnit and report;
-//! a shard left out shows as missing cases.
+//! a shard left out shows as missing cases, and a torn results line is named where it is.
 
 #[path = "common/folders.rs"]
 mod common;
@@ -174,6 +174,55 @@ fn three_shards_merged_equal_the_unsharded_run_case_for_case() {
     assert_eq!(s["statuses"]["missing"], 1);
     let junit = std::fs::read_to_string(partial.join("junit.xml")).unwrap();
     assert!(junit.contains("<error type=\"missing\""), "{junit}");
+
+    // A torn last line (a shard's results cut inside a line) and no case list to count the case
+    // missing: the merge names the line and fails all the same, and `rtconf report` on the torn
+    // folder writes the report of the other lines and exits 2, naming the same line.
+    let torn = dir.join("shard-3-torn");
+    std::fs::create_dir_all(&torn).unwrap();
+    std::fs::copy(shards[2].join("summary.json"), torn.join("summary.json")).unwrap();
+    let first = lines.lines().next().unwrap();
+    std::fs::write(
+        torn.join("results.jsonl"),
+        format!("{}\n{}", kept.join("\n"), &first[..first.len() / 2]),
+    )
+    .unwrap();
+    let place = format!(
+        "{}:{}:",
+        torn.join("results.jsonl").display(),
+        kept.len() + 1
+    );
+    let o = rtconf(
+        &[
+            "merge",
+            "--out",
+            partial.to_str().unwrap(),
+            shards[0].to_str().unwrap(),
+            shards[1].to_str().unwrap(),
+            torn.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        stderr.contains(&place) && stderr.contains("not a result line"),
+        "{}",
+        text(&o)
+    );
+    assert_eq!(summary(&partial)["cases"], expected.len() - 1);
+    let o = rtconf(&["report", torn.to_str().unwrap()], &[]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains(&place),
+        "{}",
+        text(&o)
+    );
+    assert!(torn.join("report/index.html").is_file());
+    // The report of a whole folder names nothing and exits 0.
+    let o = rtconf(&["report", whole.to_str().unwrap()], &[]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    assert!(o.stderr.is_empty(), "{}", text(&o));
 }
 
 #[test]

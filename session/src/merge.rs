@@ -15,7 +15,8 @@ pub struct Merged {
     pub summary: Summary,
     /// Things a person should know (shards not all present, inputs without a case list).
     pub notes: Vec<String>,
-    /// Whether every shard of the sharded run is among the inputs.
+    /// Whether every shard of the sharded run is among the inputs, and every line of their results
+    /// was read.
     pub complete: bool,
     /// Where the HTML report went, or why it could not be written.
     pub report: Result<PathBuf, String>,
@@ -102,6 +103,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Merged, SessionError> {
     let mut results =
         std::io::BufWriter::new(std::fs::File::create(&results_path).map_err(io(&results_path))?);
     let mut seen: BTreeMap<String, PathBuf> = BTreeMap::new();
+    let mut left_out = false;
     for dir in inputs {
         let path = dir.join("results.jsonl");
         let f = std::fs::File::open(&path).map_err(io(&path))?;
@@ -111,11 +113,12 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Merged, SessionError> {
                 continue;
             }
             let Ok(parsed) = serde_json::from_str::<crate::results::ResultLine>(&line) else {
-                notes.push(format!(
-                    "{}:{}: not a result line; left out",
-                    path.display(),
-                    n + 1
-                ));
+                notes.extend(
+                    crate::results::unreadable_line(&path, n + 1, &line)
+                        .map(|problem| format!("{problem}; left out")),
+                );
+                // A case the merged run cannot show: it is not complete.
+                left_out = true;
                 continue;
             };
             if let Some(other) = seen.insert(parsed.report.case.clone(), dir.clone()) {
@@ -196,7 +199,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Merged, SessionError> {
     Ok(Merged {
         summary,
         notes,
-        complete,
+        complete: complete && !left_out,
         report,
     })
 }

@@ -53,7 +53,40 @@ impl ResultLine {
     }
 }
 
-/// The lines of `results.jsonl`, read one at a time (lines that do not parse are left out).
+/// What is wrong with line `number` (1-based) of `path`, where it is not a result line:
+/// `path:line:column: not a result line (the parser's words)`; None for a result line or a blank one.
+pub fn unreadable_line(path: &Path, number: usize, text: &str) -> Option<String> {
+    if text.trim().is_empty() {
+        return None;
+    }
+    let e = serde_json::from_str::<ResultLine>(text).err()?;
+    Some(format!(
+        "{}:{number}:{}: not a result line ({e})",
+        path.display(),
+        e.column().max(1)
+    ))
+}
+
+/// Every line of `results.jsonl` that [`read_lines`] leaves out, with where and why
+/// ([`unreadable_line`]): what a command that reads a run folder back says before it goes on.
+pub fn unreadable_lines(path: &Path) -> Result<Vec<String>, SessionError> {
+    let f =
+        std::fs::File::open(path).map_err(|e| SessionError::io(path.display().to_string(), e))?;
+    let mut out = Vec::new();
+    for (n, line) in std::io::BufReader::new(f).lines().enumerate() {
+        match line {
+            Ok(text) => out.extend(unreadable_line(path, n + 1, &text)),
+            Err(e) => {
+                out.push(format!("{}:{}: unreadable ({e})", path.display(), n + 1));
+                break;
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The lines of `results.jsonl`, read one at a time (lines that do not parse are left out;
+/// [`unreadable_lines`] says which).
 pub fn read_lines(path: &Path) -> Result<impl Iterator<Item = ResultLine>, SessionError> {
     let f =
         std::fs::File::open(path).map_err(|e| SessionError::io(path.display().to_string(), e))?;

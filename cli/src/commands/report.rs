@@ -10,8 +10,14 @@ pub struct ReportArgs {
     dir: PathBuf,
 }
 
+/// Writes the report, then names every line of `results.jsonl` it had to leave out; such lines make the
+/// exit status 2 (the input was not whole), the report of the rest written all the same.
 pub fn run(a: ReportArgs) -> super::Exit {
     let page = session::html::write_report(&a.dir)?;
     println!("{}", page.display());
-    Ok(0)
+    let left_out = session::results::unreadable_lines(&a.dir.join("results.jsonl"))?;
+    for problem in &left_out {
+        eprintln!("rtconf: {problem}; left out of the report");
+    }
+    Ok(if left_out.is_empty() { 0 } else { 2 })
 }
