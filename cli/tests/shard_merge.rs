@@ -157,17 +157,7 @@ fn three_shards_merged_equal_the_unsharded_run_case_for_case() {
     let kept: Vec<&str> = lines.lines().skip(1).collect();
     std::fs::write(cut.join("results.jsonl"), kept.join("\n") + "\n").unwrap();
     let dropped: Value = serde_json::from_str(lines.lines().next().unwrap()).unwrap();
-    let o = rtconf(
-        &[
-            "merge",
-            "--out",
-            partial.to_str().unwrap(),
-            shards[0].to_str().unwrap(),
-            shards[1].to_str().unwrap(),
-            cut.to_str().unwrap(),
-        ],
-        &[],
-    );
+    let o = merge_third(&partial, &shards, &cut);
     assert_eq!(o.status.code(), Some(1), "{}", text(&o));
     let s = summary(&partial);
     assert_eq!(s["missing"], serde_json::json!([dropped["case"]]));
@@ -192,17 +182,7 @@ fn three_shards_merged_equal_the_unsharded_run_case_for_case() {
         torn.join("results.jsonl").display(),
         kept.len() + 1
     );
-    let o = rtconf(
-        &[
-            "merge",
-            "--out",
-            partial.to_str().unwrap(),
-            shards[0].to_str().unwrap(),
-            shards[1].to_str().unwrap(),
-            torn.to_str().unwrap(),
-        ],
-        &[],
-    );
+    let o = merge_third(&partial, &shards, &torn);
     assert_eq!(o.status.code(), Some(1), "{}", text(&o));
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(
@@ -223,6 +203,21 @@ fn three_shards_merged_equal_the_unsharded_run_case_for_case() {
     let o = rtconf(&["report", whole.to_str().unwrap()], &[]);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
     assert!(o.stderr.is_empty(), "{}", text(&o));
+}
+
+/// `rtconf merge` of the first two shards with `third` in place of the third, into `out`.
+fn merge_third(out: &Path, shards: &[std::path::PathBuf], third: &Path) -> std::process::Output {
+    rtconf(
+        &[
+            "merge",
+            "--out",
+            out.to_str().unwrap(),
+            shards[0].to_str().unwrap(),
+            shards[1].to_str().unwrap(),
+            third.to_str().unwrap(),
+        ],
+        &[],
+    )
 }
 
 #[test]

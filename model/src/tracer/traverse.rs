@@ -3,7 +3,7 @@
 //! Confirmation"); `candidates.rs` turns what a walk kept into the ray's candidates and
 //! `conclude.rs` those into the committed hits, miss rule and invocation counts it may produce.
 
-use super::arith::{affine, map3, v3, BoundedF64, Dyadic, PlainF32, V3};
+use super::arith::{affine, map3, v3, BoundedF64, Dyadic, Num, PlainF32, V3};
 use super::band::{cross_f64, triangle_band, within_f32_range};
 use super::candidates::outcomes_of_near;
 use super::outside::robustly_outside;
@@ -50,29 +50,16 @@ impl Evaluation {
     }
 }
 
-fn dyadic_world(scene: &PreparedScene, w: &WorldGeometry, v: [f32; 3]) -> V3<Dyadic> {
+/// A vertex of `w` in world space in the arithmetic `T` (exact in [`Dyadic`], each step rounded in
+/// [`PlainF32`]): its geometry transform, then its instance's.
+fn world_in<T: Num>(scene: &PreparedScene, w: &WorldGeometry, v: [f32; 3]) -> V3<T> {
     let inst = &scene.scene.instances[w.instance as usize];
     let GeometryData::Triangles(t) =
         &scene.scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize].data
     else {
         unreachable!("triangle geometry")
     };
-    let obj = v3::<Dyadic>(v);
-    let as_space = match &t.transform {
-        Some(m) => affine(&m.0, &obj),
-        None => obj,
-    };
-    affine(&inst.transform.0, &as_space)
-}
-
-fn f32_world(scene: &PreparedScene, w: &WorldGeometry, v: [f32; 3]) -> V3<PlainF32> {
-    let inst = &scene.scene.instances[w.instance as usize];
-    let GeometryData::Triangles(t) =
-        &scene.scene.bottom_levels[w.bottom_level as usize].geometries[w.geometry as usize].data
-    else {
-        unreachable!("triangle geometry")
-    };
-    let obj = v3::<PlainF32>(v);
+    let obj = v3::<T>(v);
     let as_space = match &t.transform {
         Some(m) => affine(&m.0, &obj),
         None => obj,
@@ -170,7 +157,7 @@ pub(super) fn classify_triangle(
         rf.direction_norm,
     );
     let evaluate_exact = || {
-        let world = pos().map(|p| dyadic_world(scene, w, p));
+        let world = pos().map(|p| world_in::<Dyadic>(scene, w, p));
         triangle_signs::<Dyadic>(
             &world,
             &v3(ray.origin),
@@ -197,7 +184,7 @@ pub(super) fn classify_triangle(
             }
         }
         Precision::F32FilterOnly => {
-            let world = pos().map(|p| f32_world(scene, w, p));
+            let world = pos().map(|p| world_in::<PlainF32>(scene, w, p));
             let x = triangle_signs::<PlainF32>(
                 &world,
                 &v3(ray.origin),
