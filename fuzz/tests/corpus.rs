@@ -158,6 +158,18 @@ fn regression_inputs_that_are_not_valid_input_are_refused_where_they_are_wrong()
         ("triage", "empty-anchored-nodes.yaml", "2:1"),
         ("triage", "tag-before-a-key.yaml", "2:18"),
         ("triage", "empty-first-document.yaml", "2:1"),
+        // The 65th flow collection's bracket, wherever quotes and lines put it.
+        (
+            "triage",
+            "nesting-after-a-quote-inside-a-word.yaml",
+            "1:267",
+        ),
+        ("triage", "nesting-over-lines.yaml", "66:3"),
+        (
+            "triage",
+            "nesting-after-a-quote-in-a-block-scalar.yaml",
+            "3:138",
+        ),
     ];
     for (target, file, at) in refused {
         let path = fuzz_dir().join("regressions").join(target).join(file);

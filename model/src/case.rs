@@ -171,52 +171,90 @@ impl NotRunnable {
     }
 }
 
-/// The deepest nesting of flow collections (`[...]`, `{...}`) one line of a YAML input may have. The
-/// YAML scanner's time grows with the square of this nesting, and no case or triage file needs more
-/// than a few levels.
+/// The deepest nesting of flow collections (`[...]`, `{...}`) a YAML input may have. The YAML
+/// scanner's time grows with the square of this nesting, and no case or triage file needs more than a
+/// few levels.
 pub const MAX_FLOW_NESTING: usize = 64;
 
-/// The line and column (from 1) where flow collections first nest deeper than `limit` on one line,
-/// outside quoted scalars and comments; None when they never do.
+/// The line and column (from 1) of the first flow collection (`[...]`, `{...}`) that opens more than
+/// `limit` levels deep; None when none does, or when the text stops being YAML before one does (the
+/// reader then reports that error).
+///
+/// The YAML parser itself finds it, event by event, and is stopped there: what is a bracket of a flow
+/// collection, and what is text of a quoted, plain or block scalar or of a comment, is the parser's own
+/// reading, so no layout of quotes or lines hides a level from the count. Its scanner spends time in
+/// proportion to the open flow levels on every token, so a parse run to the end of deeply nested input
+/// takes time growing with the square of the nesting; stopped past `limit`, it stays linear.
 pub fn flow_nesting_past(text: &str, limit: usize) -> Option<(usize, usize)> {
-    let (mut depth, mut line, mut col) = (0usize, 1usize, 0usize);
-    let (mut single, mut double, mut comment, mut escaped) = (false, false, false, false);
-    let mut prev = '\n';
-    for c in text.chars() {
-        col += 1;
-        if c == '\n' {
-            // Counted per line: the scanner's cost grows with the nesting on one line, and a bracket
-            // in a plain scalar of an earlier line (`bytes [61, 65)`) must not count against a later one.
-            (line, col, comment, depth) = (line + 1, 0, false, 0);
-            prev = c;
-            continue;
+    use std::mem::MaybeUninit;
+    use unsafe_libyaml as unsafe_yaml;
+
+    /// The parser, deleted when dropped; boxed, as the parser keeps pointers into itself.
+    struct Parser(Box<MaybeUninit<unsafe_yaml::yaml_parser_t>>);
+    impl Drop for Parser {
+        fn drop(&mut self) {
+            // SAFETY: initialised in `flow_nesting_past` before this value was made.
+            unsafe { unsafe_yaml::yaml_parser_delete(self.0.as_mut_ptr()) }
         }
-        if comment {
-            continue;
-        }
-        if double {
-            double = escaped || c != '"';
-            escaped = !escaped && c == '\\';
-        } else if single {
-            single = c != '\'';
-        } else {
-            match c {
-                '"' => double = true,
-                '\'' => single = true,
-                '#' if prev.is_whitespace() => comment = true,
-                '[' | '{' => {
-                    depth += 1;
-                    if depth > limit {
-                        return Some((line, col));
-                    }
-                }
-                ']' | '}' => depth = depth.saturating_sub(1),
-                _ => {}
-            }
-        }
-        prev = c;
     }
-    None
+
+    let mut boxed = Box::new(MaybeUninit::<unsafe_yaml::yaml_parser_t>::uninit());
+    // SAFETY: `yaml_parser_initialize` writes the whole parser; on failure (no memory) nothing was
+    // allocated and the parser is not used.
+    if unsafe { unsafe_yaml::yaml_parser_initialize(boxed.as_mut_ptr()) }.fail {
+        return None;
+    }
+    let mut parser = Parser(boxed);
+    let p = parser.0.as_mut_ptr();
+    // SAFETY: the parser is initialised; the input outlives it (`parser` is dropped before `text`
+    // goes out of scope), and the parser only reads it.
+    unsafe {
+        unsafe_yaml::yaml_parser_set_encoding(p, unsafe_yaml::YAML_UTF8_ENCODING);
+        unsafe_yaml::yaml_parser_set_input_string(p, text.as_ptr(), text.len() as u64);
+    }
+    // Flow collections hold no block collections, so every collection inside a flow one is flow too:
+    // the flow depth is all the state needed.
+    let mut depth = 0usize;
+    loop {
+        let mut event = MaybeUninit::<unsafe_yaml::yaml_event_t>::uninit();
+        // SAFETY: the parser is initialised and has no error (checked after each event); on success
+        // the event is initialised, read, then deleted once.
+        let (kind, flow_start, mark) = unsafe {
+            if unsafe_yaml::yaml_parser_parse(p, event.as_mut_ptr()).fail {
+                return None;
+            }
+            let e = event.assume_init_mut();
+            let flow_start = match e.type_ {
+                unsafe_yaml::YAML_SEQUENCE_START_EVENT => {
+                    e.data.sequence_start.style == unsafe_yaml::YAML_FLOW_SEQUENCE_STYLE
+                }
+                unsafe_yaml::YAML_MAPPING_START_EVENT => {
+                    e.data.mapping_start.style == unsafe_yaml::YAML_FLOW_MAPPING_STYLE
+                }
+                _ => false,
+            };
+            let out = (e.type_, flow_start, e.start_mark);
+            unsafe_yaml::yaml_event_delete(e);
+            out
+        };
+        match kind {
+            unsafe_yaml::YAML_STREAM_END_EVENT => return None,
+            unsafe_yaml::YAML_SEQUENCE_START_EVENT | unsafe_yaml::YAML_MAPPING_START_EVENT
+                if depth > 0 || flow_start =>
+            {
+                depth += 1;
+                if depth > limit {
+                    return Some((mark.line as usize + 1, mark.column as usize + 1));
+                }
+            }
+            unsafe_yaml::YAML_SEQUENCE_END_EVENT | unsafe_yaml::YAML_MAPPING_END_EVENT
+                if depth > 0 =>
+            {
+                depth -= 1
+            }
+            _ => {}
+        }
+    }
 }
 
 /// Parses any serde type from YAML, reporting the line and column of what is wrong.
@@ -227,7 +265,7 @@ pub fn parse_yaml<T: serde::de::DeserializeOwned>(path: &str, text: &str) -> Res
             location: Some(location),
             at: String::new(),
             problem: format!(
-                "flow collections ([...] or {{...}}) nested deeper than {MAX_FLOW_NESTING} levels on one line"
+                "flow collections ([...] or {{...}}) nested deeper than {MAX_FLOW_NESTING} levels"
             ),
         });
     }

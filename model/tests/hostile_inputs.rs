@@ -274,8 +274,8 @@ fn a_sparse_image_reads_what_was_written_last_and_zero_elsewhere() {
 
 #[test]
 fn flow_collections_nested_past_the_limit_are_refused_at_once_with_their_place() {
-    // The YAML scanner's time grows with the square of flow nesting on a line (50,000 levels took
-    // half a minute): the readers refuse such input before it reaches the scanner.
+    // The YAML scanner's time grows with the square of flow nesting (50,000 levels took half a
+    // minute): the readers refuse such input before a parse runs to its end.
     let deep = format!("name: x\nworld: {}\n", "{a: ".repeat(50_000));
     let started = std::time::Instant::now();
     let e = model::Case::from_yaml("deep.yaml", &deep).unwrap_err();
@@ -297,6 +297,36 @@ fn flow_collections_nested_past_the_limit_are_refused_at_once_with_their_place()
     // An unclosed bracket of a plain scalar does not carry over to the next lines.
     let ranges = "reason: bytes [61, 65) of a range\n".repeat(2 * limit);
     assert_eq!(model::case::flow_nesting_past(&ranges, limit), None);
+    // What a count of brackets outside quotes misses, the parser's own reading finds: a quote inside
+    // a plain word or after one (text, not a quoted scalar), a quote in a block scalar's text, and
+    // nesting spread over lines, each as slow to scan as nesting on one line.
+    let levels = 20_000;
+    let hidden = [
+        (
+            format!("en\"try{{a: {}\n", "{a: ".repeat(levels)),
+            (1, 11 + 4 * limit),
+        ),
+        (format!("a \"b: {}\n", "[".repeat(levels)), (1, 7 + limit)),
+        (
+            format!("reason: |\n  \"\nwhen: {}\n", "[".repeat(levels)),
+            (3, 7 + limit),
+        ),
+        (format!("when:\n{}", "  [\n".repeat(levels)), (2 + limit, 3)),
+    ];
+    for (text, at) in hidden {
+        let started = std::time::Instant::now();
+        assert_eq!(
+            model::case::flow_nesting_past(&text, limit),
+            Some(at),
+            "{}",
+            &text[..40]
+        );
+        assert!(
+            started.elapsed().as_secs_f64() < 1.0,
+            "{:?}",
+            started.elapsed()
+        );
+    }
 }
 
 /// The first push constant byte a stage reads that no compatible push set, with the VUID and the
