@@ -60,8 +60,13 @@ pub fn unreadable_line(path: &Path, number: usize, text: &str) -> Option<String>
         return None;
     }
     let e = serde_json::from_str::<ResultLine>(text).err()?;
+    // The parser's words without its own place (line 1 of the one line it read).
+    let words = e.to_string();
+    let words = words
+        .strip_suffix(&format!(" at line {} column {}", e.line(), e.column()))
+        .unwrap_or(&words);
     Some(format!(
-        "{}:{number}:{}: not a result line ({e})",
+        "{}:{number}:{}: not a result line ({words})",
         path.display(),
         e.column().max(1)
     ))
