@@ -213,12 +213,37 @@ pub fn parse_baseline(path: &str, text: &str) -> (Vec<BaselineEntry>, Vec<LineEr
     (entries, errors)
 }
 
-/// Parses a skips or flakes file's text: one regular expression per line.
+/// The compiled size one pattern of a skips or flakes file may take. Case names and VUIDs are short
+/// ASCII words, and a pattern for them compiles to a few kilobytes; the regex crate's own default,
+/// ten megabytes, let one line of a hostile file (`[a-z]{4294967295}`) take 40 ms to refuse and a
+/// file of 1,250 such lines 40 s. At this size a refusal takes about a millisecond; Unicode classes
+/// repeated many times (`\w{30}`) pass it only written in ASCII (`[0-9A-Za-z_]{30}`).
+pub const PATTERN_SIZE_LIMIT: usize = 256 << 10;
+
+/// The bad lines of a skips or flakes file that are reported before the rest is left unread: enough
+/// to fix a file by, while a file of bad lines costs no more than this many refusals.
+pub const PATTERN_ERRORS_SHOWN: usize = 20;
+
+/// Parses a skips or flakes file's text: one regular expression per line. After
+/// [`PATTERN_ERRORS_SHOWN`] bad lines the rest of the file is not read, and one more error says so.
 pub fn parse_patterns(path: &str, text: &str) -> (Vec<CasePattern>, Vec<LineError>) {
     let mut patterns = Vec::new();
     let mut errors = Vec::new();
     for (line, l) in lines(text) {
-        match regex::Regex::new(l) {
+        if errors.len() == PATTERN_ERRORS_SHOWN {
+            errors.push(LineError {
+                path: path.into(),
+                line,
+                problem: format!(
+                    "not read: the file has {PATTERN_ERRORS_SHOWN} bad lines before this one"
+                ),
+            });
+            break;
+        }
+        match regex::RegexBuilder::new(l)
+            .size_limit(PATTERN_SIZE_LIMIT)
+            .build()
+        {
             Ok(regex) => patterns.push(CasePattern {
                 regex,
                 origin: format!("{path}:{line}"),
@@ -437,6 +462,39 @@ mod tests {
         assert_eq!(p[0].origin, "s.txt:1");
         assert_eq!(e.len(), 1);
         assert_eq!(e[0].line, 3);
+    }
+
+    #[test]
+    fn a_file_of_huge_patterns_is_refused_in_bounded_time() {
+        // 1,250 lines each asking for a program past the size limit: the first twenty are named, then
+        // the reading stops with a line that says so.
+        let text = "x\n".to_string() + &"(?i)^BUILD-[a-z0-9]{4294967295}\n".repeat(1250);
+        let started = std::time::Instant::now();
+        let (p, e) = parse_patterns("s.txt", &text);
+        assert!(
+            started.elapsed().as_secs_f64() < 2.0,
+            "{:?}",
+            started.elapsed()
+        );
+        assert_eq!(p.len(), 1);
+        assert_eq!(e.len(), PATTERN_ERRORS_SHOWN + 1);
+        assert_eq!(
+            e.iter().map(|e| e.line).collect::<Vec<_>>(),
+            (2..=PATTERN_ERRORS_SHOWN + 2).collect::<Vec<_>>()
+        );
+        assert!(e[0].problem.contains("size limit"), "{}", e[0]);
+        assert!(
+            e[PATTERN_ERRORS_SHOWN].problem.contains("not read"),
+            "{}",
+            e[PATTERN_ERRORS_SHOWN]
+        );
+        // What the limit leaves: the patterns a driver team writes for case names and VUIDs.
+        let (p, e) = parse_patterns(
+            "s.txt",
+            "(?i)^BUILD-[a-z]+-(valid|invalid)\nVUID-vkCmdTraceRaysNV-.*-0[0-9]{4}\n[0-9A-Za-z_]{30}\n",
+        );
+        assert!(e.is_empty(), "{e:?}");
+        assert_eq!(p.len(), 3);
     }
 
     #[test]
