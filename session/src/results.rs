@@ -72,22 +72,37 @@ pub fn unreadable_line(path: &Path, number: usize, text: &str) -> Option<String>
     ))
 }
 
-/// Every line of `results.jsonl` that [`read_lines`] leaves out, with where and why
-/// ([`unreadable_line`]): what a command that reads a run folder back says before it goes on.
-pub fn unreadable_lines(path: &Path) -> Result<Vec<String>, SessionError> {
+/// The lines of `results.jsonl` that [`read_lines`] leaves out: the first `shown` with where and why
+/// ([`unreadable_line`]), and how many there are in all. A line that cannot be read as text ends the
+/// reading, as it ends [`read_lines`]'.
+pub fn unreadable_lines(path: &Path, shown: usize) -> Result<(Vec<String>, usize), SessionError> {
     let f =
         std::fs::File::open(path).map_err(|e| SessionError::io(path.display().to_string(), e))?;
-    let mut out = Vec::new();
+    let (mut first, mut count) = (Vec::new(), 0);
     for (n, line) in std::io::BufReader::new(f).lines().enumerate() {
-        match line {
-            Ok(text) => out.extend(unreadable_line(path, n + 1, &text)),
-            Err(e) => {
-                out.push(format!("{}:{}: unreadable ({e})", path.display(), n + 1));
-                break;
-            }
+        let (problem, last) = match line {
+            Ok(text) => match unreadable_line(path, n + 1, &text) {
+                Some(p) => (p, false),
+                None => continue,
+            },
+            Err(e) => (
+                format!(
+                    "{}:{}: unreadable, and nothing after it is read ({e})",
+                    path.display(),
+                    n + 1
+                ),
+                true,
+            ),
+        };
+        count += 1;
+        if first.len() < shown {
+            first.push(problem);
+        }
+        if last {
+            break;
         }
     }
-    Ok(out)
+    Ok((first, count))
 }
 
 /// The lines of `results.jsonl`, read one at a time (lines that do not parse are left out;

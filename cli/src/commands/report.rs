@@ -10,14 +10,23 @@ pub struct ReportArgs {
     dir: PathBuf,
 }
 
-/// Writes the report, then names every line of `results.jsonl` it had to leave out; such lines make the
+/// The lines of `results.jsonl` left out of the report that are named one by one.
+const NAMED: usize = 20;
+
+/// Writes the report, then names the lines of `results.jsonl` it had to leave out; such lines make the
 /// exit status 2 (the input was not whole), the report of the rest written all the same.
 pub fn run(a: ReportArgs) -> super::Exit {
     let page = session::html::write_report(&a.dir)?;
     println!("{}", page.display());
-    let left_out = session::results::unreadable_lines(&a.dir.join("results.jsonl"))?;
-    for problem in &left_out {
+    let (named, count) = session::results::unreadable_lines(&a.dir.join("results.jsonl"), NAMED)?;
+    for problem in &named {
         eprintln!("rtconf: {problem}; left out of the report");
     }
-    Ok(if left_out.is_empty() { 0 } else { 2 })
+    if count > named.len() {
+        eprintln!(
+            "rtconf: … and {} more lines left out of the report",
+            count - named.len()
+        );
+    }
+    Ok(if count == 0 { 0 } else { 2 })
 }
