@@ -217,8 +217,8 @@ pub fn flow_nesting_past(text: &str, limit: usize) -> Option<(usize, usize)> {
     let mut depth = 0usize;
     loop {
         let mut event = MaybeUninit::<unsafe_yaml::yaml_event_t>::uninit();
-        // SAFETY: the parser is initialised and has no error (checked after each event); on success
-        // the event is initialised, read, then deleted once.
+        // SAFETY: the parser is initialised, and no call follows a failed one (the loop ends there);
+        // on success the event is initialised, read, then deleted once.
         let (kind, flow_start, mark) = unsafe {
             if unsafe_yaml::yaml_parser_parse(p, event.as_mut_ptr()).fail {
                 return None;
