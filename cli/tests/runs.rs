@@ -132,6 +132,10 @@ fn jobs_timeout_and_count_of_zero_are_refused() {
     }
     let r = rtconf(&["replay", HAND, "--timeout", "0"]);
     assert_eq!(r.code, 2, "{}", r.all());
+    // `gen` writes no empty folder with exit 0 either.
+    let r = rtconf(&["gen", "--valid", "--count", "0", "--out", &o]);
+    assert_eq!(r.code, 2, "{}", r.all());
+    assert!(r.stderr.contains("0 is not in 1.."), "{}", r.all());
 }
 
 #[test]

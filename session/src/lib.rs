@@ -36,6 +36,6 @@ pub use compare::{compare, CaseReport, Outcome};
 pub use error::SessionError;
 pub use plan::Scope;
 pub use replay::{replay, ReplayConfig, Replayed};
-pub use run::{list, run, Progress, RunConfig, RunOutcome};
+pub use run::{list, list_each, run, Progress, RunConfig, RunOutcome};
 pub use select::{Selection, Shard};
 pub use triage::Triage;

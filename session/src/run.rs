@@ -530,6 +530,14 @@ fn each_case(
 
 /// The cases a run would make (after the shard and the skips list), without a driver.
 pub fn list(config: &RunConfig) -> Result<Vec<Case>, SessionError> {
+    let mut cases = Vec::new();
+    list_each(config, &mut |c| cases.push(c))?;
+    Ok(cases)
+}
+
+/// [`list`]'s cases handed to `each` as they are made, a slice of the run at a time: memory stays that
+/// of a slice however many cases the run plans.
+pub fn list_each(config: &RunConfig, each: &mut dyn FnMut(Case)) -> Result<(), SessionError> {
     let set = sources::load_sources(&config.from)?;
     let rules = RuleSet::from_vuids(&set);
     let profile_name = config
@@ -538,7 +546,6 @@ pub fn list(config: &RunConfig) -> Result<Vec<Case>, SessionError> {
         .unwrap_or_else(|| sources::default_profile_name(&config.driver));
     let profile = sources::profile_for(&profile_name)?;
     let expectations = config.selection.expectations()?;
-    let mut cases = Vec::new();
     let planned = each_case(
         config,
         &rules,
@@ -546,12 +553,12 @@ pub fn list(config: &RunConfig) -> Result<Vec<Case>, SessionError> {
         &profile_name,
         &expectations,
         &Quiet,
-        &mut |c| cases.push(c),
+        each,
     )?;
     if let Some(e) = planned.gen_errors.first() {
         return Err(SessionError::Usage(format!("could not generate {e}")));
     }
-    Ok(cases)
+    Ok(())
 }
 
 /// Runs the configured conformance run; see the module documentation.

@@ -19,8 +19,8 @@ pub struct GenArgs {
     /// The command (a VUID that names one decides it; default vkCmdTraceRaysIndirectKHR).
     #[arg(long)]
     command: Option<String>,
-    /// How many cases to write.
-    #[arg(long, default_value_t = 10)]
+    /// How many cases to write (at least 1).
+    #[arg(long, default_value_t = 10, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     count: usize,
     /// The seed; the same seed writes the same cases.
     #[arg(long, default_value_t = 1)]
@@ -50,14 +50,24 @@ pub fn run(a: GenArgs) -> super::Exit {
     let set = session::sources::load_sources(&a.from)?;
     let rules = model::RuleSet::from_vuids(&set);
     let profile = session::sources::profile_for(&a.profile)?;
-    let cases = generator::generate(&profile, &a.profile, &rules, &spec, a.count, a.seed)?;
     std::fs::create_dir_all(&a.out)
         .map_err(|e| session::SessionError::io(a.out.display().to_string(), e))?;
-    for c in &cases {
-        let p = a.out.join(format!("{}.yaml", c.name));
-        std::fs::write(&p, c.to_yaml())
-            .map_err(|e| session::SessionError::io(p.display().to_string(), e))?;
+    // A slice at a time (the same cases however the count is sliced), so memory stays that of one
+    // slice whatever the count.
+    let mut written = 0;
+    for start in (0..a.count).step_by(SLICE) {
+        let range = start..(start + SLICE).min(a.count);
+        let cases = generator::generate_range(&profile, &a.profile, &rules, &spec, range, a.seed)?;
+        for c in &cases {
+            let p = a.out.join(format!("{}.yaml", c.name));
+            std::fs::write(&p, c.to_yaml())
+                .map_err(|e| session::SessionError::io(p.display().to_string(), e))?;
+        }
+        written += cases.len();
     }
-    eprintln!("wrote {} cases to {}", cases.len(), a.out.display());
+    eprintln!("wrote {written} cases to {}", a.out.display());
     Ok(0)
 }
+
+/// Cases generated and written together.
+const SLICE: usize = 256;

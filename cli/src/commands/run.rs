@@ -203,13 +203,14 @@ pub fn run(a: RunArgs) -> super::Exit {
         keep_all: a.keep_all,
     };
     if a.list {
+        // Printed as the cases are made, so a long run lists in the memory of one slice.
         let mut out = std::io::stdout().lock();
-        for c in session::list(&config)? {
-            // A closed pipe (`| head`) ends the listing quietly.
+        session::list_each(&config, &mut |c| {
+            // A closed pipe (`| head`) ends the listing quietly: nothing else is left to do.
             if std::io::Write::write_all(&mut out, format!("{}\n", c.name).as_bytes()).is_err() {
-                break;
+                std::process::exit(0);
             }
-        }
+        })?;
         return Ok(0);
     }
     let bar = bar();
