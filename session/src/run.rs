@@ -535,8 +535,8 @@ pub fn list(config: &RunConfig) -> Result<Vec<Case>, SessionError> {
     Ok(cases)
 }
 
-/// [`list`]'s cases handed to `each` as they are made, a slice of the run at a time: memory stays that
-/// of a slice however many cases the run plans.
+/// [`list`]'s cases handed to `each` as they are made, a slice of the run at a time: no more than a
+/// slice of cases is held (the planned names are, as a run keeps them for its case list).
 pub fn list_each(config: &RunConfig, each: &mut dyn FnMut(Case)) -> Result<(), SessionError> {
     let set = sources::load_sources(&config.from)?;
     let rules = RuleSet::from_vuids(&set);

@@ -203,7 +203,7 @@ pub fn run(a: RunArgs) -> super::Exit {
         keep_all: a.keep_all,
     };
     if a.list {
-        // Printed as the cases are made, so a long run lists in the memory of one slice.
+        // Printed as the cases are made: a long run is listed holding a slice of cases, not all.
         let mut out = std::io::stdout().lock();
         session::list_each(&config, &mut |c| {
             // A closed pipe (`| head`) ends the listing quietly: nothing else is left to do.
