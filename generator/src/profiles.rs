@@ -2,6 +2,7 @@
 //! under `<repo>/profiles/`, anything else is read as a path to a Vulkan Profiles JSON file.
 
 use crate::GenError;
+use model::profile::PROFILE_FILE_LIMIT;
 use model::DeviceProfile;
 use std::path::{Path, PathBuf};
 
@@ -40,7 +41,7 @@ pub fn short_name(name_or_path: &str) -> String {
 /// Loads a captured device profile by short name or path.
 pub fn load(name_or_path: &str) -> Result<DeviceProfile, GenError> {
     let path = resolve(name_or_path);
-    let text = std::fs::read_to_string(&path)
+    let text = vk_registry::input::read_text_at_most(&path, PROFILE_FILE_LIMIT, "a profile")
         .map_err(|e| GenError::Profile(format!("{}: {e}", path.display())))?;
     DeviceProfile::from_profiles_json(&short_name(name_or_path), &text)
         .map_err(|e| GenError::Profile(e.to_string()))

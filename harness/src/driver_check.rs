@@ -54,8 +54,13 @@ pub fn check_manifest(driver: &Driver) -> Result<(PathBuf, String), HarnessError
     if !manifest.exists() {
         return Err(HarnessError::IcdMissing(shown));
     }
-    let text =
-        std::fs::read_to_string(&manifest).map_err(|e| bad(format!("cannot be read: {e}")))?;
+    // A manifest is a few hundred bytes.
+    let text = vk_registry::input::read_text_at_most(
+        &manifest,
+        16 * vk_registry::input::MIB,
+        "an ICD manifest",
+    )
+    .map_err(|e| bad(format!("cannot be read: {e}")))?;
     let json: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| bad(format!("is not JSON: {e}")))?;
     let library = json

@@ -286,7 +286,10 @@ pub(crate) mod disk {
 
     /// The entry's words, if it holds a module.
     pub(super) fn read(path: &Path) -> Option<Vec<u32>> {
-        let bytes = std::fs::read(path).ok()?;
+        // A module of these shaders is some kilobytes.
+        let bytes =
+            vk_registry::input::read_at_most(path, 16 * vk_registry::input::MIB, "a shader module")
+                .ok()?;
         if bytes.len() < 20 || bytes.len() % 4 != 0 {
             return None;
         }

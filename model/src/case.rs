@@ -176,6 +176,10 @@ impl NotRunnable {
 /// few levels.
 pub const MAX_FLOW_NESTING: usize = 64;
 
+/// The most bytes read from one case or triage file: a generated case is a few kilobytes, a
+/// rendered scene's of a hundred thousand triangles some ten megabytes.
+pub const YAML_FILE_LIMIT: u64 = 64 * vk_registry::input::MIB;
+
 /// The line and column (from 1) of the first flow collection (`[...]`, `{...}`) that opens more than
 /// `limit` levels deep; None when none does, or when the text stops being YAML before one does (the
 /// reader then reports that error).

@@ -61,6 +61,9 @@ impl PropertyValue {
     }
 }
 
+/// The most bytes read from one profile file (a probed one is about a hundred kilobytes).
+pub const PROFILE_FILE_LIMIT: u64 = 64 * vk_registry::input::MIB;
+
 /// A device as a real driver described it.
 #[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct DeviceProfile {

@@ -258,8 +258,12 @@ pub fn parse_patterns(path: &str, text: &str) -> (Vec<CasePattern>, Vec<LineErro
     (patterns, errors)
 }
 
+/// The most bytes read from one baseline, skips or flakes file.
+pub const PATTERN_FILE_LIMIT: u64 = 64 * vk_registry::input::MIB;
+
 fn read(path: &Path) -> Result<String, SessionError> {
-    std::fs::read_to_string(path).map_err(|e| SessionError::io(path.display().to_string(), e))
+    vk_registry::input::read_text_at_most(path, PATTERN_FILE_LIMIT, "a list of cases or patterns")
+        .map_err(|e| SessionError::io(path.display().to_string(), e))
 }
 
 /// Every line error of a file as one usage error.

@@ -151,7 +151,7 @@ pub fn keep(
 /// The details of every case of a run by name (the last line of a case where a resumed run wrote
 /// it again); a line that does not parse (a torn last line) is left out.
 pub fn read_details(out: &Path) -> std::collections::HashMap<String, CaseDetails> {
-    let text = std::fs::read_to_string(out.join(DETAILS_FILE)).unwrap_or_default();
+    let text = crate::outdir::read_run_text(&out.join(DETAILS_FILE)).unwrap_or_default();
     text.lines()
         .filter_map(|l| serde_json::from_str::<DetailsLine>(l).ok())
         .map(|l| (l.case.into_owned(), l.details.into_owned()))

@@ -6,7 +6,7 @@ use crate::details::{CASE_FOLDERS, DETAILS_FILE};
 use crate::error::SessionError;
 use crate::report::{summarise, write_junit, RunIdentity, Summary};
 use std::collections::{BTreeMap, BTreeSet};
-use std::io::{BufRead, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// What a merge did, besides the files it wrote.
@@ -106,9 +106,9 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Merged, SessionError> {
     let mut left_out = false;
     for dir in inputs {
         let path = dir.join("results.jsonl");
-        let f = std::fs::File::open(&path).map_err(io(&path))?;
-        for (n, line) in std::io::BufReader::new(f).lines().enumerate() {
-            let line = line.map_err(io(&path))?;
+        for (n, line) in crate::results::text_lines(&path)?.enumerate() {
+            let line =
+                line.map_err(|e| SessionError::io(format!("{}:{}", path.display(), n + 1), e))?;
             if line.trim().is_empty() {
                 continue;
             }
@@ -136,17 +136,24 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Merged, SessionError> {
     drop(results);
     let mut planned: Option<Vec<String>> = Some(Vec::new());
     for dir in inputs {
-        match std::fs::read_to_string(dir.join("caselist.txt")) {
+        match crate::outdir::read_run_text(&dir.join("caselist.txt")) {
             Ok(text) => {
                 if let Some(p) = planned.as_mut() {
                     p.extend(text.lines().filter(|l| !l.is_empty()).map(String::from));
                 }
             }
-            Err(_) => {
-                notes.push(format!(
-                    "{} has no caselist.txt: missing cases are not counted",
-                    dir.display()
-                ));
+            Err(e) => {
+                notes.push(if e.kind() == std::io::ErrorKind::NotFound {
+                    format!(
+                        "{} has no caselist.txt: missing cases are not counted",
+                        dir.display()
+                    )
+                } else {
+                    format!(
+                        "{}: {e}: missing cases are not counted",
+                        dir.join("caselist.txt").display()
+                    )
+                });
                 planned = None;
             }
         }
@@ -165,7 +172,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Merged, SessionError> {
             copy_files(&dir.join(folder), &out.join(folder))?;
         }
         // Whole lines only: a torn last line of one input must not run into the next one's first.
-        if let Ok(text) = std::fs::read(dir.join(DETAILS_FILE)) {
+        if let Ok(text) = crate::outdir::read_run_file(&dir.join(DETAILS_FILE)) {
             details.extend_from_slice(&text[..crate::outdir::whole_lines(&text)]);
         }
     }

@@ -10,6 +10,21 @@ use std::collections::BTreeSet;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+/// The most bytes read of one file a run folder holds whole (`run.json`, `summary.json`,
+/// `caselist.txt`, `details.jsonl`, `results.jsonl` where a resumed run repairs it): a run of a
+/// million cases writes some hundreds of megabytes.
+pub const RUN_FILE_LIMIT: u64 = 2048 * vk_registry::input::MIB;
+
+/// [`RUN_FILE_LIMIT`]'s read of a run folder's file.
+pub fn read_run_file(path: &Path) -> std::io::Result<Vec<u8>> {
+    vk_registry::input::read_at_most(path, RUN_FILE_LIMIT, "a file of a run folder")
+}
+
+/// [`read_run_file`] as text.
+pub fn read_run_text(path: &Path) -> std::io::Result<String> {
+    vk_registry::input::read_text_at_most(path, RUN_FILE_LIMIT, "a file of a run folder")
+}
+
 /// What makes a run the run it is: the parameters that decide which cases it makes and how it judges
 /// them (not `--jobs`, `--timeout`, `--shrink`, which a resume may change). Field names are the
 /// command line's flags.
@@ -76,7 +91,7 @@ pub fn prepare(
     let results = out.join("results.jsonl");
     let run_json = out.join("run.json");
     if resume && run_json.exists() {
-        let text = std::fs::read_to_string(&run_json).map_err(io(&run_json))?;
+        let text = read_run_text(&run_json).map_err(io(&run_json))?;
         let before: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
             SessionError::Usage(format!(
                 "{}: {e}; start the run again without --resume",
@@ -154,7 +169,7 @@ pub(crate) fn whole_lines(bytes: &[u8]) -> usize {
 /// Cuts a file of lines after its last newline (a line an interrupted run left unfinished), so
 /// that lines appended next start on a line of their own. A missing file is left missing.
 fn cut_torn_line(path: &Path) -> Result<(), SessionError> {
-    let bytes = match std::fs::read(path) {
+    let bytes = match read_run_file(path) {
         Ok(b) => b,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
         Err(e) => return Err(io(path)(e)),
@@ -174,7 +189,7 @@ fn cut_torn_line(path: &Path) -> Result<(), SessionError> {
 /// a write (a kill, a full disk) leaves a torn last line, and a resumed run must append after a whole
 /// one. Returns the bytes dropped.
 pub fn repair_results(path: &Path) -> Result<u64, SessionError> {
-    let bytes = match std::fs::read(path) {
+    let bytes = match read_run_file(path) {
         Ok(b) => b,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
         Err(e) => return Err(io(path)(e)),

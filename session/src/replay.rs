@@ -6,6 +6,7 @@ use crate::error::SessionError;
 use crate::run::{Judging, Ran};
 use crate::sources;
 use harness::{Driver, Executor, TraceCheck};
+use model::case::YAML_FILE_LIMIT;
 use model::{Case, RuleSet};
 use std::path::PathBuf;
 
@@ -41,7 +42,8 @@ pub struct Replayed {
 /// case ([`Case::read`]: a name resolving to nothing, a group the pipeline lacks).
 pub fn read_case(path: &std::path::Path) -> Result<Case, SessionError> {
     let shown = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| SessionError::io(&shown, e))?;
+    let text = vk_registry::input::read_text_at_most(path, YAML_FILE_LIMIT, "a case file")
+        .map_err(|e| SessionError::io(&shown, e))?;
     Ok(Case::read(&shown, &text)?)
 }
 
@@ -49,7 +51,8 @@ pub fn read_case(path: &std::path::Path) -> Result<Case, SessionError> {
 /// case file: `file:line:col: path: problem` (the line and column from [`model::locate`]).
 pub fn located(file: &std::path::Path, detail: &str) -> String {
     let shown = file.display().to_string();
-    let text = std::fs::read_to_string(file).unwrap_or_default();
+    let text = vk_registry::input::read_text_at_most(file, YAML_FILE_LIMIT, "a case file")
+        .unwrap_or_default();
     let at = detail.split_once(": ").map_or("", |(at, _)| at);
     match model::locate::locate(&text, at) {
         Some((l, c)) => format!("{shown}:{l}:{c}: {detail}"),

@@ -126,7 +126,7 @@ impl Summary {
 
     /// Reads a run's `summary.json`.
     pub fn read(path: &Path) -> Result<Summary, SessionError> {
-        let text = std::fs::read_to_string(path)
+        let text = crate::outdir::read_run_text(path)
             .map_err(|e| SessionError::io(path.display().to_string(), e))?;
         serde_json::from_str(&text).map_err(|e| {
             SessionError::Usage(format!(

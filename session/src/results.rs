@@ -6,8 +6,43 @@ use crate::baseline::Status;
 use crate::compare::{CaseReport, Outcome};
 use crate::error::SessionError;
 use crate::triage::{Triage, TriageEntry};
-use std::io::BufRead;
 use std::path::Path;
+
+/// The most bytes read as one line of `results.jsonl` (a rendered case's line is some kilobytes).
+pub const RESULT_LINE_LIMIT: u64 = 64 * vk_registry::input::MIB;
+
+/// The lines of `results.jsonl` as text, each at most [`RESULT_LINE_LIMIT`] bytes; the first that
+/// cannot be read (too long, not UTF-8, an I/O error) is the last item.
+pub fn text_lines(
+    path: &Path,
+) -> Result<impl Iterator<Item = std::io::Result<String>>, SessionError> {
+    let f =
+        std::fs::File::open(path).map_err(|e| SessionError::io(path.display().to_string(), e))?;
+    let mut reader = std::io::BufReader::new(f);
+    let mut ended = false;
+    Ok(std::iter::from_fn(move || {
+        if ended {
+            return None;
+        }
+        let mut line = String::new();
+        match vk_registry::input::read_line_at_most(
+            &mut reader,
+            &mut line,
+            RESULT_LINE_LIMIT,
+            "a line of results.jsonl",
+        ) {
+            Ok(true) => Some(Ok(line)),
+            Ok(false) => {
+                ended = true;
+                None
+            }
+            Err(e) => {
+                ended = true;
+                Some(Err(e))
+            }
+        }
+    }))
+}
 
 /// A triage entry that turned a disagreement into `triaged`.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -76,10 +111,8 @@ pub fn unreadable_line(path: &Path, number: usize, text: &str) -> Option<String>
 /// ([`unreadable_line`]), and how many there are in all. A line that cannot be read as text ends the
 /// reading, as it ends [`read_lines`]'.
 pub fn unreadable_lines(path: &Path, shown: usize) -> Result<(Vec<String>, usize), SessionError> {
-    let f =
-        std::fs::File::open(path).map_err(|e| SessionError::io(path.display().to_string(), e))?;
     let (mut first, mut count) = (Vec::new(), 0);
-    for (n, line) in std::io::BufReader::new(f).lines().enumerate() {
+    for (n, line) in text_lines(path)?.enumerate() {
         let (problem, last) = match line {
             Ok(text) => match unreadable_line(path, n + 1, &text) {
                 Some(p) => (p, false),
@@ -108,10 +141,7 @@ pub fn unreadable_lines(path: &Path, shown: usize) -> Result<(Vec<String>, usize
 /// The lines of `results.jsonl`, read one at a time (lines that do not parse are left out;
 /// [`unreadable_lines`] says which).
 pub fn read_lines(path: &Path) -> Result<impl Iterator<Item = ResultLine>, SessionError> {
-    let f =
-        std::fs::File::open(path).map_err(|e| SessionError::io(path.display().to_string(), e))?;
-    Ok(std::io::BufReader::new(f)
-        .lines()
+    Ok(text_lines(path)?
         .map_while(Result::ok)
         .filter_map(|l| serde_json::from_str::<ResultLine>(&l).ok())
         .map(ResultLine::settle))

@@ -3,6 +3,7 @@
 
 use crate::error::SessionError;
 use crate::triage::Triage;
+use model::profile::PROFILE_FILE_LIMIT;
 use model::DeviceProfile;
 use std::path::{Path, PathBuf};
 
@@ -64,13 +65,14 @@ pub fn profile_path(name: &str) -> PathBuf {
 /// A profile by short name or path (see [`profile_path`]).
 pub fn profile_for(name: &str) -> Result<DeviceProfile, SessionError> {
     let path = profile_path(name);
-    let text = std::fs::read_to_string(&path).map_err(|e| SessionError::Profile {
-        name: name.into(),
-        problem: format!(
-            "cannot read {}: {e} (capture one with `rtconf probe`)",
-            path.display()
-        ),
-    })?;
+    let text = vk_registry::input::read_text_at_most(&path, PROFILE_FILE_LIMIT, "a profile")
+        .map_err(|e| SessionError::Profile {
+            name: name.into(),
+            problem: format!(
+                "cannot read {}: {e} (capture one with `rtconf probe`)",
+                path.display()
+            ),
+        })?;
     DeviceProfile::from_profiles_json(name, &text).map_err(|e| SessionError::Profile {
         name: name.into(),
         problem: e.to_string(),

@@ -137,9 +137,14 @@ pub fn excerpt(s: &str) -> std::borrow::Cow<'_, str> {
     }
 }
 
-/// Read a whole file as UTF-8, with errors naming the path.
+/// The most bytes read from one registry file (vk.xml is about 2 MB, validusage.json about 10 MB).
+pub const REGISTRY_FILE_LIMIT: u64 = 256 * crate::input::MIB;
+
+/// Read a whole registry file as UTF-8 (at most [`REGISTRY_FILE_LIMIT`] bytes), with errors
+/// naming the path.
 pub fn read_to_string(path: &std::path::Path) -> Result<String, RegistryError> {
-    let bytes = std::fs::read(path).map_err(|e| RegistryError::io(path, e))?;
+    let bytes = crate::input::read_at_most(path, REGISTRY_FILE_LIMIT, "a registry file")
+        .map_err(|e| RegistryError::io(path, e))?;
     String::from_utf8(bytes).map_err(|e| {
         let off = e.utf8_error().valid_up_to();
         let text = String::from_utf8_lossy(e.as_bytes()).into_owned();

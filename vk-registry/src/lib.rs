@@ -5,11 +5,13 @@
 //!   and text normalisation;
 //! * [`validusage`] — validusage.json (both schemas) into a [`vuid::VuidSet`];
 //! * [`manpage`] — man pages (three formats) into a [`vuid::VuidSet`] and a [`manpage::ManPage`];
+//! * [`input`] — reading a file a user names up to the size stated for its kind;
 //! * [`source`] — loading any of those from a path, and unions of several sources;
 //! * [`report`] — the text printed by the `rtconf registry` subcommands;
 //! * [`tables`] — the harness's generated structure tables (the `vk-tables` binary writes them).
 
 pub mod error;
+pub mod input;
 pub mod manpage;
 pub mod report;
 pub mod source;

@@ -101,7 +101,11 @@ pub fn write_report(out: &Path) -> Result<PathBuf, SessionError> {
             let base = out.join(folder);
             let has = |file: &str| names.contains(std::ffi::OsStr::new(file));
             if yaml.is_none() && has(&format!("{name}.yaml")) {
-                if let Ok(text) = std::fs::read_to_string(base.join(format!("{name}.yaml"))) {
+                if let Ok(text) = vk_registry::input::read_text_at_most(
+                    &base.join(format!("{name}.yaml")),
+                    model::case::YAML_FILE_LIMIT,
+                    "a case file",
+                ) {
                     yaml = Some((format!("{folder}/{name}.yaml"), text));
                 }
             }

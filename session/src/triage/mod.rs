@@ -469,7 +469,11 @@ impl Triage {
         };
         let mut all = Triage::default();
         for p in paths {
-            match std::fs::read_to_string(&p) {
+            match vk_registry::input::read_text_at_most(
+                &p,
+                model::case::YAML_FILE_LIMIT,
+                "a triage file",
+            ) {
                 Ok(t) => {
                     let one = Triage::from_yaml(&p.display().to_string(), &t)?;
                     all.entries.extend(one.entries);

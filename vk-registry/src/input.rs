@@ -1,0 +1,153 @@
+//! Reading the files a user names (registry files, cases, triage, profiles, pattern lists, run
+//! folders) up to a size stated for their kind, so a wrong path (a device, a disk image, a log of
+//! gigabytes) ends in an error naming the limit instead of memory sized by the input.
+//!
+//! Every reader of the workspace goes through these three; each kind's limit is a constant beside
+//! its reader, far above what rtconf itself writes or the registry holds.
+
+use std::io::{BufRead, Read};
+use std::path::Path;
+
+/// One mebibyte, for the limits.
+pub const MIB: u64 = 1 << 20;
+
+/// The error of a file or line past `limit` bytes (`what` names the kind, as the message says it).
+fn too_large(what: &str, limit: u64) -> std::io::Error {
+    std::io::Error::new(
+        std::io::ErrorKind::InvalidData,
+        format!(
+            "larger than {}, the most rtconf reads as {what}",
+            shown_size(limit)
+        ),
+    )
+}
+
+/// A limit as said in a message: whole mebibytes where it is one, else bytes.
+fn shown_size(limit: u64) -> String {
+    if limit >= MIB && limit % MIB == 0 {
+        format!("{} MiB", limit / MIB)
+    } else {
+        format!("{limit} bytes")
+    }
+}
+
+/// The bytes of `path`, or an `InvalidData` error where it holds more than `limit` (`what` names
+/// the kind of file in the message, e.g. "a case file"). The buffer grows with what is read, never
+/// past `limit + 1` bytes, whatever the file says its size is (a device or a pipe says none).
+pub fn read_at_most(path: &Path, limit: u64, what: &str) -> std::io::Result<Vec<u8>> {
+    let file = std::fs::File::open(path)?;
+    let mut bytes = Vec::new();
+    file.take(limit.saturating_add(1)).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limit {
+        return Err(too_large(what, limit));
+    }
+    Ok(bytes)
+}
+
+/// [`read_at_most`] as UTF-8 text (`InvalidData` where it is not, as `std::fs::read_to_string`).
+pub fn read_text_at_most(path: &Path, limit: u64, what: &str) -> std::io::Result<String> {
+    String::from_utf8(read_at_most(path, limit, what)?).map_err(|e| {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("not UTF-8 at byte {}", e.utf8_error().valid_up_to()),
+        )
+    })
+}
+
+/// The next line of `reader` into `line` (cleared first, its `\n` or `\r\n` removed): `Ok(false)`
+/// at the end, an `InvalidData` error where a line runs past `limit` bytes before its newline
+/// (`what` names the kind of line) or is not UTF-8.
+pub fn read_line_at_most(
+    reader: &mut impl BufRead,
+    line: &mut String,
+    limit: u64,
+    what: &str,
+) -> std::io::Result<bool> {
+    line.clear();
+    let mut bytes = Vec::new();
+    let read = reader
+        .take(limit.saturating_add(1))
+        .read_until(b'\n', &mut bytes)?;
+    if read == 0 {
+        return Ok(false);
+    }
+    if bytes.last() == Some(&b'\n') {
+        bytes.pop();
+        if bytes.last() == Some(&b'\r') {
+            bytes.pop();
+        }
+    } else if bytes.len() as u64 > limit {
+        return Err(too_large(what, limit));
+    }
+    *line = String::from_utf8(bytes).map_err(|e| {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("not UTF-8 at byte {}", e.utf8_error().valid_up_to()),
+        )
+    })?;
+    Ok(true)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn temp_file(name: &str, bytes: &[u8]) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("vk-registry-input-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(name);
+        std::fs::write(&path, bytes).unwrap();
+        path
+    }
+
+    #[test]
+    fn a_file_at_the_limit_is_read_and_one_byte_more_is_refused() {
+        let path = temp_file("ten", b"0123456789");
+        assert_eq!(
+            read_at_most(&path, 10, "a test file").unwrap(),
+            b"0123456789"
+        );
+        let err = read_at_most(&path, 9, "a test file").unwrap_err();
+        assert_eq!(err.kind(), std::io::ErrorKind::InvalidData);
+        assert_eq!(
+            err.to_string(),
+            "larger than 9 bytes, the most rtconf reads as a test file"
+        );
+    }
+
+    #[test]
+    fn an_endless_device_is_refused_at_the_limit() {
+        let err = read_at_most(Path::new("/dev/zero"), 4 * MIB, "a case file").unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "larger than 4 MiB, the most rtconf reads as a case file"
+        );
+        let mut zero = std::io::BufReader::new(std::fs::File::open("/dev/zero").unwrap());
+        let mut line = String::new();
+        let err = read_line_at_most(&mut zero, &mut line, MIB, "a result line").unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "larger than 1 MiB, the most rtconf reads as a result line"
+        );
+    }
+
+    #[test]
+    fn lines_come_without_their_ends_and_the_last_may_lack_one() {
+        let mut text = std::io::Cursor::new(b"a\r\nbcd\n\nlast".to_vec());
+        let mut line = String::new();
+        let mut lines = Vec::new();
+        while read_line_at_most(&mut text, &mut line, 4, "a line").unwrap() {
+            lines.push(line.clone());
+        }
+        assert_eq!(lines, ["a", "bcd", "", "last"]);
+        let mut long = std::io::Cursor::new(b"abcd\n".to_vec());
+        assert!(read_line_at_most(&mut long, &mut line, 3, "a line").is_err());
+    }
+
+    #[test]
+    fn text_that_is_not_utf8_says_where() {
+        let path = temp_file("latin1", b"ab\xe9c");
+        let err = read_text_at_most(&path, 100, "a test file").unwrap_err();
+        assert_eq!(err.to_string(), "not UTF-8 at byte 2");
+    }
+}
