@@ -199,6 +199,36 @@ fn three_shards_merged_equal_the_unsharded_run_case_for_case() {
         text(&o)
     );
     assert!(torn.join("report/index.html").is_file());
+
+    // A byte that is not UTF-8 in the first line (a disk's bit flip, an editor's encoding): the merge
+    // and `rtconf report` name that line and leave it out, and the merge still reads the lines after
+    // it (`session::results`' own test shows the report's reader does).
+    let flipped = dir.join("shard-3-flipped");
+    std::fs::create_dir_all(&flipped).unwrap();
+    std::fs::copy(shards[2].join("summary.json"), flipped.join("summary.json")).unwrap();
+    let mut bytes = format!("{first}\n{}\n", kept.join("\n")).into_bytes();
+    bytes[3] = 0xff;
+    std::fs::write(flipped.join("results.jsonl"), bytes).unwrap();
+    let place = format!(
+        "{}:1: not a result line (not UTF-8 at column 4)",
+        flipped.join("results.jsonl").display()
+    );
+    let o = merge_third(&partial, &shards, &flipped);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains(&place),
+        "{}",
+        text(&o)
+    );
+    assert_eq!(summary(&partial)["cases"], expected.len() - 1);
+    let o = rtconf(&["report", flipped.to_str().unwrap()], &[]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains(&place),
+        "{}",
+        text(&o)
+    );
+
     // The report of a whole folder names nothing and exits 0.
     let o = rtconf(&["report", whole.to_str().unwrap()], &[]);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));

@@ -107,8 +107,19 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Merged, SessionError> {
     for dir in inputs {
         let path = dir.join("results.jsonl");
         for (n, line) in crate::results::text_lines(&path)?.enumerate() {
-            let line =
-                line.map_err(|e| SessionError::io(format!("{}:{}", path.display(), n + 1), e))?;
+            let line = match line {
+                Ok(line) => line,
+                Err(e) if e.kind() == std::io::ErrorKind::InvalidData => {
+                    notes.push(format!(
+                        "{}:{}: not a result line ({e}); left out",
+                        path.display(),
+                        n + 1
+                    ));
+                    left_out = true;
+                    continue;
+                }
+                Err(e) => return Err(SessionError::io(format!("{}:{}", path.display(), n + 1), e)),
+            };
             if line.trim().is_empty() {
                 continue;
             }

@@ -11,8 +11,9 @@ use std::path::Path;
 /// The most bytes read as one line of `results.jsonl` (a rendered case's line is some kilobytes).
 pub const RESULT_LINE_LIMIT: u64 = 64 * vk_registry::input::MIB;
 
-/// The lines of `results.jsonl` as text, each at most [`RESULT_LINE_LIMIT`] bytes; the first that
-/// cannot be read (too long, not UTF-8, an I/O error) is the last item.
+/// The lines of `results.jsonl` as text, each at most [`RESULT_LINE_LIMIT`] bytes. A line that is not
+/// UTF-8 is an `InvalidData` error and the lines after it follow; one too long (`FileTooLarge`) or an
+/// I/O error is the last item.
 pub fn text_lines(
     path: &Path,
 ) -> Result<impl Iterator<Item = std::io::Result<String>>, SessionError> {
@@ -37,7 +38,7 @@ pub fn text_lines(
                 None
             }
             Err(e) => {
-                ended = true;
+                ended = e.kind() != std::io::ErrorKind::InvalidData;
                 Some(Err(e))
             }
         }
@@ -108,8 +109,8 @@ pub fn unreadable_line(path: &Path, number: usize, text: &str) -> Option<String>
 }
 
 /// The lines of `results.jsonl` that [`read_lines`] leaves out: the first `shown` with where and why
-/// ([`unreadable_line`]), and how many there are in all. A line that cannot be read as text ends the
-/// reading, as it ends [`read_lines`]'.
+/// ([`unreadable_line`]), and how many there are in all. A line that is not UTF-8 is one of them; one
+/// too long to read, or an I/O error, ends the reading, as it ends [`read_lines`]'.
 pub fn unreadable_lines(path: &Path, shown: usize) -> Result<(Vec<String>, usize), SessionError> {
     let (mut first, mut count) = (Vec::new(), 0);
     for (n, line) in text_lines(path)?.enumerate() {
@@ -118,6 +119,10 @@ pub fn unreadable_lines(path: &Path, shown: usize) -> Result<(Vec<String>, usize
                 Some(p) => (p, false),
                 None => continue,
             },
+            Err(e) if e.kind() == std::io::ErrorKind::InvalidData => (
+                format!("{}:{}: not a result line ({e})", path.display(), n + 1),
+                false,
+            ),
             Err(e) => (
                 format!(
                     "{}:{}: unreadable, and nothing after it is read ({e})",
@@ -142,7 +147,7 @@ pub fn unreadable_lines(path: &Path, shown: usize) -> Result<(Vec<String>, usize
 /// [`unreadable_lines`] says which).
 pub fn read_lines(path: &Path) -> Result<impl Iterator<Item = ResultLine>, SessionError> {
     Ok(text_lines(path)?
-        .map_while(Result::ok)
+        .filter_map(Result::ok)
         .filter_map(|l| serde_json::from_str::<ResultLine>(&l).ok())
         .map(ResultLine::settle))
 }
@@ -195,4 +200,36 @@ pub fn applied_triage(report: &CaseReport, ids: &TriageIds) -> Vec<AppliedTriage
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_line_that_is_not_utf8_is_named_and_the_lines_after_it_are_read() {
+        let committed = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../results/nvidia-h200/run-2026-12-01-5a31f7d/findings/results.jsonl");
+        let text = std::fs::read_to_string(committed).unwrap();
+        let lines: Vec<&str> = text.lines().take(3).collect();
+        assert_eq!(lines.len(), 3);
+        let mut bytes = format!("{}\n", lines.join("\n")).into_bytes();
+        // A flipped byte inside the second line's JSON.
+        bytes[lines[0].len() + 1 + 5] = 0xfe;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("results.jsonl");
+        std::fs::write(&path, bytes).unwrap();
+        let read: Vec<String> = read_lines(&path).unwrap().map(|l| l.report.case).collect();
+        let name = |l: &str| serde_json::from_str::<ResultLine>(l).unwrap().report.case;
+        assert_eq!(read, [name(lines[0]), name(lines[2])]);
+        let (named, count) = unreadable_lines(&path, 20).unwrap();
+        assert_eq!(count, 1);
+        assert_eq!(
+            named,
+            [format!(
+                "{}:2: not a result line (not UTF-8 at column 6)",
+                path.display()
+            )]
+        );
+    }
 }

@@ -11,10 +11,11 @@ use std::path::Path;
 /// One mebibyte, for the limits.
 pub const MIB: u64 = 1 << 20;
 
-/// The error of a file or line past `limit` bytes (`what` names the kind, as the message says it).
+/// The error of a file or line past `limit` bytes (`what` names the kind, as the message says it):
+/// of kind `FileTooLarge`, where text that is not UTF-8 is `InvalidData`.
 fn too_large(what: &str, limit: u64) -> std::io::Error {
     std::io::Error::new(
-        std::io::ErrorKind::InvalidData,
+        std::io::ErrorKind::FileTooLarge,
         format!(
             "larger than {}, the most rtconf reads as {what}",
             shown_size(limit)
@@ -31,7 +32,7 @@ fn shown_size(limit: u64) -> String {
     }
 }
 
-/// The bytes of `path`, or an `InvalidData` error where it holds more than `limit` (`what` names
+/// The bytes of `path`, or a `FileTooLarge` error where it holds more than `limit` (`what` names
 /// the kind of file in the message, e.g. "a case file"). The buffer grows with what is read, never
 /// past `limit + 1` bytes, whatever the file says its size is (a device or a pipe says none).
 pub fn read_at_most(path: &Path, limit: u64, what: &str) -> std::io::Result<Vec<u8>> {
@@ -44,19 +45,39 @@ pub fn read_at_most(path: &Path, limit: u64, what: &str) -> std::io::Result<Vec<
     Ok(bytes)
 }
 
-/// [`read_at_most`] as UTF-8 text (`InvalidData` where it is not, as `std::fs::read_to_string`).
+/// [`read_at_most`] as UTF-8 text (`InvalidData` where it is not, naming the line and column of the
+/// first byte that is not).
 pub fn read_text_at_most(path: &Path, limit: u64, what: &str) -> std::io::Result<String> {
     String::from_utf8(read_at_most(path, limit, what)?).map_err(|e| {
-        std::io::Error::new(
-            std::io::ErrorKind::InvalidData,
-            format!("not UTF-8 at byte {}", e.utf8_error().valid_up_to()),
-        )
+        let (line, column) = first_bad_byte(e.as_bytes(), e.utf8_error().valid_up_to());
+        not_utf8(format!("line {line}, column {column}"))
     })
 }
 
+/// The line and column (from 1, the column in characters) of byte `bad` of `bytes`, valid UTF-8
+/// before it.
+fn first_bad_byte(bytes: &[u8], bad: usize) -> (usize, usize) {
+    let before = &bytes[..bad];
+    let line = 1 + before.iter().filter(|&&b| b == b'\n').count();
+    let start = before
+        .iter()
+        .rposition(|&b| b == b'\n')
+        .map_or(0, |p| p + 1);
+    let column = String::from_utf8_lossy(&before[start..]).chars().count() + 1;
+    (line, column)
+}
+
+fn not_utf8(place: String) -> std::io::Error {
+    std::io::Error::new(
+        std::io::ErrorKind::InvalidData,
+        format!("not UTF-8 at {place}"),
+    )
+}
+
 /// The next line of `reader` into `line` (cleared first, its `\n` or `\r\n` removed): `Ok(false)`
-/// at the end, an `InvalidData` error where a line runs past `limit` bytes before its newline
-/// (`what` names the kind of line) or is not UTF-8.
+/// at the end; a `FileTooLarge` error where a line runs past `limit` bytes before its newline
+/// (`what` names the kind of line; the reader then stands inside it), an `InvalidData` one where a
+/// line is not UTF-8 (the reader then stands at the next line).
 pub fn read_line_at_most(
     reader: &mut impl BufRead,
     line: &mut String,
@@ -80,10 +101,8 @@ pub fn read_line_at_most(
         return Err(too_large(what, limit));
     }
     *line = String::from_utf8(bytes).map_err(|e| {
-        std::io::Error::new(
-            std::io::ErrorKind::InvalidData,
-            format!("not UTF-8 at byte {}", e.utf8_error().valid_up_to()),
-        )
+        let (_, column) = first_bad_byte(e.as_bytes(), e.utf8_error().valid_up_to());
+        not_utf8(format!("column {column}"))
     })?;
     Ok(true)
 }
@@ -108,7 +127,7 @@ mod tests {
             b"0123456789"
         );
         let err = read_at_most(&path, 9, "a test file").unwrap_err();
-        assert_eq!(err.kind(), std::io::ErrorKind::InvalidData);
+        assert_eq!(err.kind(), std::io::ErrorKind::FileTooLarge);
         assert_eq!(
             err.to_string(),
             "larger than 9 bytes, the most rtconf reads as a test file"
@@ -146,8 +165,15 @@ mod tests {
 
     #[test]
     fn text_that_is_not_utf8_says_where() {
-        let path = temp_file("latin1", b"ab\xe9c");
+        let path = temp_file("latin1", b"line\nna\xc3\xafve \xe9t\xe9");
         let err = read_text_at_most(&path, 100, "a test file").unwrap_err();
-        assert_eq!(err.to_string(), "not UTF-8 at byte 2");
+        assert_eq!(err.to_string(), "not UTF-8 at line 2, column 7");
+        let mut text = std::io::Cursor::new(b"na\xc3\xafve \xe9t\nnext".to_vec());
+        let mut line = String::new();
+        let err = read_line_at_most(&mut text, &mut line, 100, "a line").unwrap_err();
+        assert_eq!(err.kind(), std::io::ErrorKind::InvalidData);
+        assert_eq!(err.to_string(), "not UTF-8 at column 7");
+        assert!(read_line_at_most(&mut text, &mut line, 100, "a line").unwrap());
+        assert_eq!(line, "next");
     }
 }
