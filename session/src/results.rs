@@ -12,7 +12,7 @@ use std::path::Path;
 pub const RESULT_LINE_LIMIT: u64 = 64 * vk_registry::input::MIB;
 
 /// The lines of `results.jsonl` as text, each at most [`RESULT_LINE_LIMIT`] bytes. A line that is not
-/// UTF-8 is an `InvalidData` error and the lines after it follow; one too long (`FileTooLarge`) or an
+/// UTF-8 is an `InvalidData` error and the lines after it follow; one too long (`Other`) or an
 /// I/O error is the last item.
 pub fn text_lines(
     path: &Path,

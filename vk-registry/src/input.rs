@@ -12,15 +12,12 @@ use std::path::Path;
 pub const MIB: u64 = 1 << 20;
 
 /// The error of a file or line past `limit` bytes (`what` names the kind, as the message says it):
-/// of kind `FileTooLarge`, where text that is not UTF-8 is `InvalidData`.
+/// of kind `Other`, where text that is not UTF-8 is `InvalidData`.
 fn too_large(what: &str, limit: u64) -> std::io::Error {
-    std::io::Error::new(
-        std::io::ErrorKind::FileTooLarge,
-        format!(
-            "larger than {}, the most rtconf reads as {what}",
-            shown_size(limit)
-        ),
-    )
+    std::io::Error::other(format!(
+        "larger than {}, the most rtconf reads as {what}",
+        shown_size(limit)
+    ))
 }
 
 /// A limit as said in a message: whole mebibytes where it is one, else bytes.
@@ -32,7 +29,7 @@ fn shown_size(limit: u64) -> String {
     }
 }
 
-/// The bytes of `path`, or a `FileTooLarge` error where it holds more than `limit` (`what` names
+/// The bytes of `path`, or an `Other` error where it holds more than `limit` (`what` names
 /// the kind of file in the message, e.g. "a case file"). The buffer grows with what is read, never
 /// past `limit + 1` bytes, whatever the file says its size is (a device or a pipe says none).
 pub fn read_at_most(path: &Path, limit: u64, what: &str) -> std::io::Result<Vec<u8>> {
@@ -75,7 +72,7 @@ fn not_utf8(place: String) -> std::io::Error {
 }
 
 /// The next line of `reader` into `line` (cleared first, its `\n` or `\r\n` removed): `Ok(false)`
-/// at the end; a `FileTooLarge` error where a line runs past `limit` bytes before its newline
+/// at the end; an `Other` error where a line runs past `limit` bytes before its newline
 /// (`what` names the kind of line; the reader then stands inside it), an `InvalidData` one where a
 /// line is not UTF-8 (the reader then stands at the next line).
 pub fn read_line_at_most(
@@ -127,7 +124,7 @@ mod tests {
             b"0123456789"
         );
         let err = read_at_most(&path, 9, "a test file").unwrap_err();
-        assert_eq!(err.kind(), std::io::ErrorKind::FileTooLarge);
+        assert_eq!(err.kind(), std::io::ErrorKind::Other);
         assert_eq!(
             err.to_string(),
             "larger than 9 bytes, the most rtconf reads as a test file"
