@@ -70,6 +70,16 @@ const RUN_FILES: [&str; 6] = [
 ];
 
 /// The folders a run writes into its directory: the case files it keeps, the report.
+/// Whether `dir` exists and has an entry (a file where a folder should be counts).
+fn holds_anything(dir: &Path) -> Result<bool, SessionError> {
+    match std::fs::read_dir(dir) {
+        Ok(mut entries) => Ok(entries.next().is_some()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(false),
+        Err(e) if e.kind() == std::io::ErrorKind::NotADirectory => Ok(true),
+        Err(e) => Err(io(dir)(e)),
+    }
+}
+
 fn run_folders() -> impl Iterator<Item = &'static str> {
     crate::details::CASE_FOLDERS.into_iter().chain(["report"])
 }
@@ -80,17 +90,19 @@ fn io(path: &Path) -> impl FnOnce(std::io::Error) -> SessionError + '_ {
 
 /// Makes `out` ready for a run with `params` and returns the cases already done (empty unless
 /// `resume`). A new run removes the files an earlier run left; a resumed one refuses parameters that
-/// differ from `run.json`'s, naming the first that does.
+/// differ from `run.json`'s, naming the first that does. A folder that holds anything but no
+/// `run.json` is refused before anything in it is touched: the files and folders a run clears
+/// (`failures/`, `report/`, `summary.json`, ...) are then not known to be a run's.
 pub fn prepare(
     out: &Path,
     params: &RunParameters,
     resume: bool,
 ) -> Result<BTreeSet<String>, SessionError> {
     let failures = out.join("failures");
-    std::fs::create_dir_all(&failures).map_err(io(&failures))?;
     let results = out.join("results.jsonl");
     let run_json = out.join("run.json");
     if resume && run_json.exists() {
+        std::fs::create_dir_all(&failures).map_err(io(&failures))?;
         let text = read_run_text(&run_json).map_err(io(&run_json))?;
         let before: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
             SessionError::Usage(format!(
@@ -117,6 +129,14 @@ pub fn prepare(
     if resume && results.exists() {
         return Err(SessionError::Usage(format!(
             "--resume: {} has results but no run.json, so which run they belong to is unknown; start again without --resume",
+            out.display()
+        )));
+    }
+    if !run_json.exists() && holds_anything(out)? {
+        return Err(SessionError::Usage(format!(
+            "--out {}: the folder holds files but no run.json, so no rtconf run made it; a run clears \
+             its own files and folders there (failures/, report/, summary.json, ...), so it writes \
+             only into a new or empty folder or one an earlier run made",
             out.display()
         )));
     }
@@ -347,6 +367,8 @@ mod tests {
             std::fs::write(out.join(f), "x").unwrap();
         }
         std::fs::write(out.join("keep.txt"), "not the run's").unwrap();
+        // The run that left them.
+        std::fs::write(out.join("run.json"), "{}").unwrap();
         assert!(prepare(out, &params(), false).unwrap().is_empty());
         assert!(!out.join("results.jsonl").exists());
         assert!(!out.join("details.jsonl").exists());
@@ -358,6 +380,28 @@ mod tests {
         let stored: RunParameters =
             serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
         assert_eq!(stored, params());
+    }
+
+    #[test]
+    fn a_folder_no_run_made_is_refused_and_left_as_it_is() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path();
+        std::fs::create_dir_all(out.join("report")).unwrap();
+        std::fs::write(out.join("report/mine.html"), "a user's own").unwrap();
+        std::fs::write(out.join("summary.json"), "a user's own").unwrap();
+        let e = prepare(out, &params(), false).unwrap_err().to_string();
+        assert!(e.contains("holds files but no run.json"), "{e}");
+        assert!(out.join("report/mine.html").exists());
+        assert!(out.join("summary.json").exists());
+        assert!(!out.join("failures").exists());
+        // A file where the folder should be is refused the same way.
+        let file = out.join("summary.json");
+        assert!(prepare(&file, &params(), false).is_err());
+        // An empty folder, or one that is not there yet, is a new run's.
+        let empty = out.join("empty");
+        std::fs::create_dir(&empty).unwrap();
+        assert!(prepare(&empty, &params(), false).unwrap().is_empty());
+        assert!(prepare(&out.join("new/run"), &params(), false).unwrap().is_empty());
     }
 
     #[test]

@@ -91,20 +91,33 @@ fn fnv1a(bytes: &[u8]) -> u64 {
 
 /// The case files under `dir` (every `*.yaml`, in subfolders too), sorted by path.
 fn case_files(dir: &Path) -> Result<Vec<PathBuf>, SessionError> {
+    use std::os::unix::fs::MetadataExt;
     let mut out = Vec::new();
     let mut pending = vec![dir.to_path_buf()];
+    // Each folder is walked once, by its device and inode: a link back up the tree (or two links to
+    // one folder) would otherwise be walked again and again, exponentially for two links per level.
+    // Entries are taken in name order, depth first, so the path a folder is found by is the first in
+    // that order whatever order the file system lists them in.
+    let mut walked = std::collections::BTreeSet::new();
     while let Some(d) = pending.pop() {
-        let entries =
-            std::fs::read_dir(&d).map_err(|e| SessionError::io(d.display().to_string(), e))?;
-        for entry in entries {
-            let entry = entry.map_err(|e| SessionError::io(d.display().to_string(), e))?;
-            let path = entry.path();
+        let meta =
+            std::fs::metadata(&d).map_err(|e| SessionError::io(d.display().to_string(), e))?;
+        if !walked.insert((meta.dev(), meta.ino())) {
+            continue;
+        }
+        let mut entries = std::fs::read_dir(&d)
+            .and_then(|list| list.map(|e| e.map(|e| e.path())).collect::<Result<Vec<_>, _>>())
+            .map_err(|e| SessionError::io(d.display().to_string(), e))?;
+        entries.sort();
+        let mut folders = Vec::new();
+        for path in entries {
             if path.is_dir() {
-                pending.push(path);
+                folders.push(path);
             } else if path.extension().is_some_and(|x| x == "yaml" || x == "yml") {
                 out.push(path);
             }
         }
+        pending.extend(folders.into_iter().rev());
     }
     out.sort();
     Ok(out)
@@ -193,5 +206,20 @@ mod tests {
             let e = Shard::parse(bad).unwrap_err().to_string();
             assert!(e.contains("expected I/N"), "{bad}: {e}");
         }
+    }
+
+    #[test]
+    fn links_back_up_a_case_folder_are_walked_once() {
+        // Two links per level back to the top: without the walked set, 2^40 paths before the
+        // system's link limit ends them.
+        let dir = tempfile::tempdir().unwrap();
+        let top = dir.path();
+        std::fs::create_dir(top.join("sub")).unwrap();
+        std::fs::write(top.join("sub/one.yaml"), "").unwrap();
+        std::os::unix::fs::symlink(top, top.join("sub/up")).unwrap();
+        std::os::unix::fs::symlink(top, top.join("again")).unwrap();
+        std::os::unix::fs::symlink(top.join("sub"), top.join("sub-again")).unwrap();
+        let files = case_files(top).unwrap();
+        assert_eq!(files, [top.join("sub/one.yaml")]);
     }
 }
