@@ -401,7 +401,9 @@ mod tests {
         let empty = out.join("empty");
         std::fs::create_dir(&empty).unwrap();
         assert!(prepare(&empty, &params(), false).unwrap().is_empty());
-        assert!(prepare(&out.join("new/run"), &params(), false).unwrap().is_empty());
+        assert!(prepare(&out.join("new/run"), &params(), false)
+            .unwrap()
+            .is_empty());
     }
 
     #[test]

@@ -106,7 +106,10 @@ fn case_files(dir: &Path) -> Result<Vec<PathBuf>, SessionError> {
             continue;
         }
         let mut entries = std::fs::read_dir(&d)
-            .and_then(|list| list.map(|e| e.map(|e| e.path())).collect::<Result<Vec<_>, _>>())
+            .and_then(|list| {
+                list.map(|e| e.map(|e| e.path()))
+                    .collect::<Result<Vec<_>, _>>()
+            })
             .map_err(|e| SessionError::io(d.display().to_string(), e))?;
         entries.sort();
         let mut folders = Vec::new();
