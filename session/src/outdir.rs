@@ -72,11 +72,11 @@ const RUN_FILES: [&str; 6] = [
 /// The folders a run writes into its directory: the case files it keeps, the report.
 /// Whether `dir` exists and has an entry (a file where a folder should be counts).
 fn holds_anything(dir: &Path) -> Result<bool, SessionError> {
-    match std::fs::read_dir(dir) {
-        Ok(mut entries) => Ok(entries.next().is_some()),
+    match std::fs::metadata(dir) {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(false),
-        Err(e) if e.kind() == std::io::ErrorKind::NotADirectory => Ok(true),
         Err(e) => Err(io(dir)(e)),
+        Ok(m) if !m.is_dir() => Ok(true),
+        Ok(_) => Ok(std::fs::read_dir(dir).map_err(io(dir))?.next().is_some()),
     }
 }
 
