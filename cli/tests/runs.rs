@@ -139,6 +139,47 @@ fn jobs_timeout_and_count_of_zero_are_refused() {
 }
 
 #[test]
+fn worker_and_case_counts_past_their_bounds_are_refused_before_anything_starts() {
+    // Every worker is started at once, and stress and detect lay out every case before the first
+    // runs: past these bounds they spawned without end or panicked allocating.
+    let out = tempfile::tempdir().unwrap();
+    let o = out_arg(out.path());
+    for (command, flag, value, bound) in [
+        ("run", "--jobs", "257", "257 is not in 1..=256"),
+        ("stress", "--jobs", "100000", "100000 is not in 1..=256"),
+        ("detect", "--jobs", "257", "257 is not in 1..=256"),
+        (
+            "stress",
+            "--seeds",
+            "18446744073709551615",
+            "18446744073709551615 is not in 1..=10000",
+        ),
+        ("detect", "--count", "10001", "10001 is not in 1..=10000"),
+    ] {
+        let r = rtconf(&[command, flag, value, "--out", &o]);
+        assert_eq!(r.code, 2, "{command} {flag}: {}", r.all());
+        assert!(r.stderr.contains(bound), "{}", r.all());
+    }
+    let r = rtconf(&[
+        "stress",
+        "--seed",
+        "18446744073709551615",
+        "--seeds",
+        "2",
+        "--size",
+        "small",
+        "--out",
+        &o,
+    ]);
+    assert_eq!(r.code, 2, "{}", r.all());
+    assert!(
+        r.stderr.contains("the last seed would be past"),
+        "{}",
+        r.all()
+    );
+}
+
+#[test]
 fn a_run_that_makes_no_case_exits_non_zero() {
     // Lavapipe has no VK_NV_ray_tracing: every spec of the NV command is inexpressible.
     let out = tempfile::tempdir().unwrap();

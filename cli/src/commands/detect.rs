@@ -27,14 +27,14 @@ pub struct DetectArgs {
     /// each kind's own sizes around its threshold). Size 0, the case itself, is always measured.
     #[arg(long)]
     sizes: Vec<String>,
-    /// Rendered cases (at least 1).
-    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..))]
+    /// Rendered cases (1 to 10,000; all are generated before the first runs).
+    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..=10_000))]
     count: u64,
     /// The seed of the cases and of the injections' choices.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Worker processes (at least 1).
-    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(1..))]
+    /// Worker processes (1 to 256).
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(1..=super::MAX_JOBS))]
     jobs: u64,
     /// Seconds a case may take (at least 1).
     #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..))]

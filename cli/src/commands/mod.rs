@@ -15,6 +15,10 @@ mod run;
 mod stress;
 
 use clap::{Parser, Subcommand};
+
+/// The most workers `--jobs` may ask for: each is a process (or a thread) with the driver loaded, all
+/// started at once.
+pub const MAX_JOBS: u64 = 256;
 use session::SessionError;
 
 #[derive(Parser)]

@@ -62,8 +62,8 @@ pub struct RunArgs {
     /// flake.
     #[arg(long, value_name = "N", default_value_t = 0)]
     retries: usize,
-    /// Worker processes (at least 1).
-    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(1..))]
+    /// Worker processes (1 to 256).
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(1..=super::MAX_JOBS))]
     jobs: u64,
     /// Seconds a case may take (at least 1).
     #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..))]

@@ -20,14 +20,14 @@ pub struct StressArgs {
     /// Family cases have seeds SEED, SEED+1, ... (one per --seeds).
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Cases per family (default 1).
-    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    /// Cases per family (default 1; at most 10,000, as every case is laid out before the first runs).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=10_000))]
     seeds: Option<u64>,
     /// small: each family's test size (a few seconds in all); full: its full size.
     #[arg(long, default_value = "full")]
     size: String,
-    /// Worker processes (at least 1).
-    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(1..))]
+    /// Worker processes (1 to 256).
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u64).range(1..=super::MAX_JOBS))]
     jobs: u64,
     /// Seconds a case may take (at least 1).
     #[arg(long, default_value_t = 300, value_parser = clap::value_parser!(u64).range(1..))]

@@ -449,6 +449,13 @@ pub fn stress(config: &StressConfig) -> Result<StressSummary, SessionError> {
             "--seeds 0: a stress run needs at least one seed per family".into(),
         ));
     }
+    if config.seed.checked_add(seeds as u64 - 1).is_none() {
+        return Err(SessionError::Usage(format!(
+            "--seed {} --seeds {seeds}: the last seed would be past {}",
+            config.seed,
+            u64::MAX
+        )));
+    }
     let layer = harness::validation_layer()?;
     let set = sources::registry_for_layer(&config.from, Some(&layer))?;
     let rules = RuleSet::from_vuids(&set);
