@@ -20,11 +20,7 @@ fn rtconf_limited(args: &[&str]) -> Ran {
         .env("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json")
         .output()
         .expect("bash runs rtconf");
-    Ran {
-        code: out.status.code().unwrap_or(-1),
-        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
-    }
+    common::ran(out)
 }
 
 fn refused(args: &[&str], message: &str) {

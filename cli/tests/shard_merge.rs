@@ -182,22 +182,9 @@ fn three_shards_merged_equal_the_unsharded_run_case_for_case() {
         torn.join("results.jsonl").display(),
         kept.len() + 1
     );
-    let o = merge_third(&partial, &shards, &torn);
-    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
-    let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(
-        stderr.contains(&place) && stderr.contains("not a result line"),
-        "{}",
-        text(&o)
-    );
+    let merged = merged_and_reported_naming(&partial, &shards, &torn, &place);
+    assert!(merged.contains("not a result line"), "{merged}");
     assert_eq!(summary(&partial)["cases"], expected.len() - 1);
-    let o = rtconf(&["report", torn.to_str().unwrap()], &[]);
-    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
-    assert!(
-        String::from_utf8_lossy(&o.stderr).contains(&place),
-        "{}",
-        text(&o)
-    );
     assert!(torn.join("report/index.html").is_file());
 
     // A byte that is not UTF-8 in the first line (a disk's bit flip, an editor's encoding): the merge
@@ -213,26 +200,35 @@ fn three_shards_merged_equal_the_unsharded_run_case_for_case() {
         "{}:1: not a result line (not UTF-8 at column 4)",
         flipped.join("results.jsonl").display()
     );
-    let o = merge_third(&partial, &shards, &flipped);
-    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
-    assert!(
-        String::from_utf8_lossy(&o.stderr).contains(&place),
-        "{}",
-        text(&o)
-    );
+    merged_and_reported_naming(&partial, &shards, &flipped, &place);
     assert_eq!(summary(&partial)["cases"], expected.len() - 1);
-    let o = rtconf(&["report", flipped.to_str().unwrap()], &[]);
-    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
-    assert!(
-        String::from_utf8_lossy(&o.stderr).contains(&place),
-        "{}",
-        text(&o)
-    );
 
     // The report of a whole folder names nothing and exits 0.
     let o = rtconf(&["report", whole.to_str().unwrap()], &[]);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
     assert!(o.stderr.is_empty(), "{}", text(&o));
+}
+
+/// Asserts that the merge of the first two shards with `third` (into `out`) fails naming `place`, and
+/// that `rtconf report` of `third` writes its report and exits 2 naming it too; the merge's stderr.
+fn merged_and_reported_naming(
+    out: &Path,
+    shards: &[std::path::PathBuf],
+    third: &Path,
+    place: &str,
+) -> String {
+    let o = merge_third(out, shards, third);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    let merged = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(merged.contains(place), "{}", text(&o));
+    let o = rtconf(&["report", third.to_str().unwrap()], &[]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains(place),
+        "{}",
+        text(&o)
+    );
+    merged
 }
 
 /// `rtconf merge` of the first two shards with `third` in place of the third, into `out`.

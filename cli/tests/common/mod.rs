@@ -42,6 +42,11 @@ pub fn rtconf_with(args: &[&str], env: &[(&str, &str)]) -> Ran {
         .envs(env.iter().copied())
         .output()
         .expect("rtconf runs");
+    ran(out)
+}
+
+/// A finished command's exit status (-1 for a signal) and output as text.
+pub fn ran(out: std::process::Output) -> Ran {
     Ran {
         code: out.status.code().unwrap_or(-1),
         stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
