@@ -203,6 +203,25 @@ fn a_run_that_makes_no_case_exits_non_zero() {
         r.all()
     );
     assert!(r.stdout.contains("verdict: nothing checked"), "{}", r.all());
+    // A shard that holds none of the cases made: said as such, not blamed on the profile.
+    let r = rtconf(&[
+        "run",
+        "--shard",
+        "1/4294967295",
+        "--count",
+        "1",
+        "--rendered",
+        "0",
+        "--out",
+        &out_arg(&out.path().join("shard")),
+    ]);
+    assert_eq!(r.code, 1, "{}", r.all());
+    assert!(
+        r.stderr.contains("cases made, ") && r.stderr.contains(" belong to other shards"),
+        "{}",
+        r.all()
+    );
+    assert!(!r.stderr.contains("not expressible"), "{}", r.all());
 }
 
 #[test]

@@ -92,6 +92,8 @@ pub struct RunOutcome {
     pub warnings: Vec<String>,
     /// Specs the generator cannot make on this profile (a feature or queue the device lacks).
     pub not_expressible: Vec<String>,
+    /// Cases made and left to the other shards (`--shard`).
+    pub other_shards: usize,
     /// Specs the generator failed on: a failure of the run.
     pub gen_errors: Vec<String>,
     /// One line per shrunk (or no longer failing) case.
@@ -435,6 +437,8 @@ struct Planned {
     caselist: Vec<String>,
     /// Cases of the shard the skips list kept back.
     skipped: usize,
+    /// Cases made and left to the other shards.
+    other_shards: usize,
     not_expressible: Vec<String>,
     gen_errors: Vec<String>,
 }
@@ -451,12 +455,14 @@ fn each_case(
     let mut planned = Planned {
         caselist: Vec::new(),
         skipped: 0,
+        other_shards: 0,
         not_expressible: Vec::new(),
         gen_errors: Vec::new(),
     };
     let shard = config.selection.shard;
     let mut offer = |c: Case, planned: &mut Planned| {
         if shard.is_some_and(|s| !s.holds(&c.name)) {
+            planned.other_shards += 1;
             progress.advance(1);
             return;
         }
@@ -827,6 +833,7 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         strict: config.strict,
         warnings,
         not_expressible: planned.not_expressible,
+        other_shards: planned.other_shards,
         gen_errors: planned.gen_errors,
         shrunk,
         report,

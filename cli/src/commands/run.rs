@@ -257,7 +257,14 @@ pub fn run(a: RunArgs) -> super::Exit {
         a.verbose,
     );
     if outcome.summary.cases == 0 {
-        eprintln!("rtconf: {}", no_case_reason(&outcome.not_expressible));
+        eprintln!(
+            "rtconf: {}",
+            no_case_reason(
+                &outcome.not_expressible,
+                outcome.other_shards,
+                outcome.summary.skipped
+            )
+        );
     }
     Ok(outcome.exit_code())
 }
@@ -411,9 +418,24 @@ pub fn print_summary(s: &Summary, out: &Path, not_expressible: usize, verbose: b
     );
 }
 
-/// Why a run made no case: the profile's reason where every spec selected was inexpressible on it
-/// (the first such spec named, with how many there were), else what else leaves a selection empty.
-fn no_case_reason(not_expressible: &[String]) -> String {
+/// Why a run made no case: the shard or the skips list where they kept back every case made (with
+/// how many), else the profile's reason where every spec selected was inexpressible on it (the first
+/// such spec named, with how many there were), else what else leaves a selection empty.
+fn no_case_reason(not_expressible: &[String], other_shards: usize, skipped: usize) -> String {
+    if other_shards + skipped > 0 {
+        let mut why = Vec::new();
+        if other_shards > 0 {
+            why.push(format!("{other_shards} belong to other shards"));
+        }
+        if skipped > 0 {
+            why.push(format!("the skips list kept back {skipped}"));
+        }
+        return format!(
+            "the run made no case: nothing was checked; of the {} cases made, {}",
+            other_shards + skipped,
+            why.join(" and ")
+        );
+    }
     match not_expressible {
         [] => "the run made no case: nothing was checked (the VUIDs selected have no executable mutation on this profile, or --count made none)".into(),
         [only] => format!("the run made no case: nothing was checked; the one spec selected is not expressible on the profile: {only}"),
