@@ -169,3 +169,47 @@ fn push_constants_past_the_profiles_limit_are_unsupported_not_run() {
         assert!(r.stdout.contains("not run"), "{}", r.all());
     }
 }
+
+#[test]
+fn a_case_named_like_a_path_is_refused_before_anything_is_written() {
+    // A run keeps a case that did not pass as `FOLDER/NAME.yaml`: a name with `/` and `..` wrote a
+    // file outside the run folder.
+    let dir = tempfile::tempdir().unwrap();
+    let escaped = dir.path().join("escaped");
+    let name = format!("../../../../{}", escaped.display());
+    let text = edited(
+        &committed("cases/hand/trace-indirect-miss-stride-unaligned.yaml"),
+        "name: trace-indirect-miss-stride-unaligned",
+        &format!("name: \"{name}\""),
+    );
+    // Run as valid, so the run keeps it as a case error.
+    let text = edited(
+        &text,
+        "intent: !violates { vuid: VUID-vkCmdTraceRaysIndirectKHR-stride-03686 }",
+        "intent: valid",
+    );
+    let cases = dir.path().join("cases");
+    std::fs::create_dir(&cases).unwrap();
+    let path = write(&cases, "escape.yaml", &text);
+    let r = rtconf(&["check", &path]);
+    assert_eq!(r.code, 2, "{}", r.all());
+    assert!(
+        r.stderr.contains(&format!(
+            "{path}:{}: name: the case name holds '/'",
+            line_col(&text, "\"../")
+        )),
+        "{}",
+        r.all()
+    );
+    let out = dir.path().join("run").display().to_string();
+    let r = rtconf(&[
+        "run",
+        "--cases",
+        &cases.display().to_string(),
+        "--out",
+        &out,
+    ]);
+    assert_eq!(r.code, 2, "{}", r.all());
+    assert!(r.stderr.contains("the case name holds '/'"), "{}", r.all());
+    assert!(!dir.path().join("escaped.yaml").exists());
+}

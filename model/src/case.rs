@@ -171,6 +171,33 @@ impl NotRunnable {
     }
 }
 
+/// The longest case name: a run keeps a case as `NAME.yaml` and its pictures as `NAME-expected.png`
+/// and the like, which must stay within a file system's 255 bytes.
+pub const MAX_NAME_LEN: usize = 200;
+
+/// Why `name` cannot be a case's name, where it cannot. A run keeps a case's file and pictures under
+/// its name in the run's folders, so the name is one file name of ASCII letters, digits, `.`, `_`,
+/// `+` and `-`, not starting with `.` (no `/` to leave the folder by, no `..`, nothing hidden), 1 to
+/// [`MAX_NAME_LEN`] bytes. Every generated name and every committed case's is one.
+pub fn name_problem(name: &str) -> Option<String> {
+    let allowed = |c: char| c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '+' | '-');
+    let problem = if name.is_empty() {
+        "is empty".to_string()
+    } else if name.len() > MAX_NAME_LEN {
+        format!("is {} bytes long, more than {MAX_NAME_LEN}", name.len())
+    } else if let Some(c) = name.chars().find(|&c| !allowed(c)) {
+        format!("holds {c:?}")
+    } else if name.starts_with('.') {
+        "starts with `.`".to_string()
+    } else {
+        return None;
+    };
+    Some(format!(
+        "the case name {problem}: a run keeps the case as NAME.yaml in its folders, so a name is \
+         ASCII letters, digits, `.`, `_`, `+` and `-`, not starting with `.`, at most {MAX_NAME_LEN} bytes"
+    ))
+}
+
 /// The deepest nesting of flow collections (`[...]`, `{...}`) a YAML input may have. The YAML
 /// scanner's time grows with the square of this nesting, and no case or triage file needs more than a
 /// few levels.
@@ -447,9 +474,18 @@ impl Case {
     }
 
     /// Reads a case file as every command that takes one does: parsed ([`Case::from_yaml`]), then
-    /// refused with the first of its own errors ([`crate::integrity::flaws`]), located in the file.
+    /// refused with a name that cannot be a file's ([`name_problem`]) or the first of its own errors
+    /// ([`crate::integrity::flaws`]), located in the file.
     pub fn read(path: &str, text: &str) -> Result<Case, CaseError> {
         let case = Case::from_yaml(path, text)?;
+        if let Some(problem) = name_problem(&case.name) {
+            return Err(CaseError {
+                path: path.to_string(),
+                location: crate::locate::locate(text, "name"),
+                at: "name".into(),
+                problem,
+            });
+        }
         let flaws = crate::integrity::flaws(&case);
         match flaws.first() {
             None => Ok(case),
@@ -767,6 +803,34 @@ mod serial {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_case_name_is_one_safe_file_name() {
+        for good in [
+            "trace-indirect-valid-1-0",
+            "VkStridedDeviceAddressRegionKHR-size-04631-2-0",
+            "a.b_c+d",
+        ] {
+            assert_eq!(name_problem(good), None, "{good}");
+        }
+        let long = "x".repeat(MAX_NAME_LEN + 1);
+        for (bad, said) in [
+            ("../../tmp/x", "holds '/'"),
+            ("..", "starts with `.`"),
+            (".hidden", "starts with `.`"),
+            ("", "is empty"),
+            ("a\\b", "holds '\\\\'"),
+            ("tab\there", "holds '\\t'"),
+            ("naïve", "holds 'ï'"),
+            (long.as_str(), "is 201 bytes long"),
+        ] {
+            let p = name_problem(bad).unwrap_or_default();
+            assert!(
+                p.starts_with(&format!("the case name {said}")),
+                "{bad:?}: {p}"
+            );
+        }
+    }
 
     const TRACE: &str = "name: t\nprofile: lavapipe\nintent: valid\ncommand: vkCmdTraceRaysKHR\n\
         world:\n  device: {}\n  pipeline: null\n  command_buffer: { pool_queue: [COMPUTE_BIT] }\n\
