@@ -109,7 +109,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Merged, SessionError> {
         for (n, line) in crate::results::text_lines(&path)?.enumerate() {
             let line = match line {
                 Ok(line) => line,
-                Err(e) if e.kind() == std::io::ErrorKind::InvalidData => {
+                Err(e) if vk_registry::input::is_not_utf8(&e) => {
                     notes.push(format!(
                         "{}:{}: not a result line ({e}); left out",
                         path.display(),

@@ -12,8 +12,8 @@ use std::path::Path;
 pub const RESULT_LINE_LIMIT: u64 = 64 * vk_registry::input::MIB;
 
 /// The lines of `results.jsonl` as text, each at most [`RESULT_LINE_LIMIT`] bytes. A line that is not
-/// UTF-8 is an `InvalidData` error and the lines after it follow; one too long (`Other`) or an
-/// I/O error is the last item.
+/// UTF-8 is an error ([`vk_registry::input::is_not_utf8`]) and the lines after it follow; one too long
+/// or an error of the reading is the last item.
 pub fn text_lines(
     path: &Path,
 ) -> Result<impl Iterator<Item = std::io::Result<String>>, SessionError> {
@@ -38,7 +38,7 @@ pub fn text_lines(
                 None
             }
             Err(e) => {
-                ended = e.kind() != std::io::ErrorKind::InvalidData;
+                ended = !vk_registry::input::is_not_utf8(&e);
                 Some(Err(e))
             }
         }
@@ -119,7 +119,7 @@ pub fn unreadable_lines(path: &Path, shown: usize) -> Result<(Vec<String>, usize
                 Some(p) => (p, false),
                 None => continue,
             },
-            Err(e) if e.kind() == std::io::ErrorKind::InvalidData => (
+            Err(e) if vk_registry::input::is_not_utf8(&e) => (
                 format!("{}:{}: not a result line ({e})", path.display(), n + 1),
                 false,
             ),

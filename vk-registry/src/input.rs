@@ -12,7 +12,7 @@ use std::path::Path;
 pub const MIB: u64 = 1 << 20;
 
 /// The error of a file or line past `limit` bytes (`what` names the kind, as the message says it):
-/// of kind `Other`, where text that is not UTF-8 is `InvalidData`.
+/// of kind `Other`, where text that is not UTF-8 is `InvalidData` ([`is_not_utf8`]).
 fn too_large(what: &str, limit: u64) -> std::io::Error {
     std::io::Error::other(format!(
         "larger than {}, the most rtconf reads as {what}",
@@ -64,17 +64,32 @@ fn first_bad_byte(bytes: &[u8], bad: usize) -> (usize, usize) {
     (line, column)
 }
 
+/// The error of text that is not UTF-8 (`not UTF-8 at PLACE`), told from others by [`is_not_utf8`].
+#[derive(Debug)]
+struct NotUtf8(String);
+
+impl std::fmt::Display for NotUtf8 {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "not UTF-8 at {}", self.0)
+    }
+}
+
+impl std::error::Error for NotUtf8 {}
+
 fn not_utf8(place: String) -> std::io::Error {
-    std::io::Error::new(
-        std::io::ErrorKind::InvalidData,
-        format!("not UTF-8 at {place}"),
-    )
+    std::io::Error::new(std::io::ErrorKind::InvalidData, NotUtf8(place))
+}
+
+/// Whether `e` is this module's error of text that is not UTF-8 (after which [`read_line_at_most`]
+/// stands at the next line), not an error of the reading itself.
+pub fn is_not_utf8(e: &std::io::Error) -> bool {
+    e.get_ref().is_some_and(|inner| inner.is::<NotUtf8>())
 }
 
 /// The next line of `reader` into `line` (cleared first, its `\n` or `\r\n` removed): `Ok(false)`
 /// at the end; an `Other` error where a line runs past `limit` bytes before its newline
-/// (`what` names the kind of line; the reader then stands inside it), an `InvalidData` one where a
-/// line is not UTF-8 (the reader then stands at the next line).
+/// (`what` names the kind of line; the reader then stands inside it), an `InvalidData` one that
+/// [`is_not_utf8`] where a line is not UTF-8 (the reader then stands at the next line).
 pub fn read_line_at_most(
     reader: &mut impl BufRead,
     line: &mut String,
@@ -168,7 +183,7 @@ mod tests {
         let mut text = std::io::Cursor::new(b"na\xc3\xafve \xe9t\nnext".to_vec());
         let mut line = String::new();
         let err = read_line_at_most(&mut text, &mut line, 100, "a line").unwrap_err();
-        assert_eq!(err.kind(), std::io::ErrorKind::InvalidData);
+        assert!(is_not_utf8(&err));
         assert_eq!(err.to_string(), "not UTF-8 at column 7");
         assert!(read_line_at_most(&mut text, &mut line, 100, "a line").unwrap());
         assert_eq!(line, "next");
