@@ -69,7 +69,6 @@ const RUN_FILES: [&str; 6] = [
     "caselist.txt",
 ];
 
-/// The folders a run writes into its directory: the case files it keeps, the report.
 /// Whether `dir` exists and has an entry (a file where a folder should be counts).
 fn holds_anything(dir: &Path) -> Result<bool, SessionError> {
     match std::fs::metadata(dir) {
@@ -80,6 +79,7 @@ fn holds_anything(dir: &Path) -> Result<bool, SessionError> {
     }
 }
 
+/// The folders a run writes into its directory: the case files it keeps, the report.
 fn run_folders() -> impl Iterator<Item = &'static str> {
     crate::details::CASE_FOLDERS.into_iter().chain(["report"])
 }
