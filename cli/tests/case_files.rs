@@ -213,3 +213,26 @@ fn a_case_named_like_a_path_is_refused_before_anything_is_written() {
     assert!(r.stderr.contains("the case name holds '/'"), "{}", r.all());
     assert!(!dir.path().join("escaped.yaml").exists());
 }
+
+#[test]
+fn control_characters_a_case_holds_are_escaped_in_its_errors() {
+    // A name with an escape sequence, quoted in the error: written as `\u{1b}`, not sent to the
+    // terminal.
+    let dir = tempfile::tempdir().unwrap();
+    let text = edited(
+        &committed(HAND),
+        "indirect_address: { buffer: indirect",
+        "indirect_address: { buffer: \"no\\x1b[31mred\\x07\"",
+    );
+    let path = write(dir.path(), "escapes.yaml", &text);
+    for args in [vec!["check", &path], vec!["replay", &path]] {
+        let r = rtconf(&args);
+        assert_eq!(r.code, 2, "{args:?}: {}", r.all());
+        assert!(
+            r.stderr.contains("names buffer `no\\u{1b}[31mred\\u{7}`"),
+            "{args:?}: {}",
+            r.all()
+        );
+        assert!(!r.stderr.contains('\u{1b}'), "{args:?}: {}", r.all());
+    }
+}

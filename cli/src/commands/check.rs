@@ -39,7 +39,7 @@ pub fn run(a: CheckArgs) -> super::Exit {
             Ok(c) => c,
             Err(e) => {
                 // Report and carry on: verdicts already computed for other files are kept.
-                eprintln!("rtconf: {e}");
+                eprintln!("rtconf: {}", super::printable(&e.to_string()));
                 errors += 1;
                 continue;
             }
@@ -47,7 +47,7 @@ pub fn run(a: CheckArgs) -> super::Exit {
         let profile = match session::sources::profile_for(&case.profile) {
             Ok(p) => p,
             Err(e) => {
-                eprintln!("rtconf: {shown}: {e}");
+                eprintln!("rtconf: {}", super::printable(&format!("{shown}: {e}")));
                 errors += 1;
                 continue;
             }
@@ -56,7 +56,10 @@ pub fn run(a: CheckArgs) -> super::Exit {
         if let Err(why) = case.runnable(&profile) {
             eprintln!(
                 "rtconf: {}",
-                session::replay::located(path, &format!("{}: {why}", why.at))
+                super::printable(&session::replay::located(
+                    path,
+                    &format!("{}: {why}", why.at)
+                ))
             );
             errors += 1;
             continue;
@@ -90,7 +93,10 @@ pub fn run(a: CheckArgs) -> super::Exit {
                 }
             );
             for v in &r.violations {
-                println!("       {} at {}: {}", v.vuid, v.context, v.problem);
+                println!(
+                    "       {}",
+                    super::printable(&format!("{} at {}: {}", v.vuid, v.context, v.problem))
+                );
             }
             if !r.agrees {
                 println!(

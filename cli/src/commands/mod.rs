@@ -19,6 +19,28 @@ use clap::{Parser, Subcommand};
 /// The most workers `--jobs` may ask for: each is a process (or a thread) with the driver loaded, all
 /// started at once.
 pub const MAX_JOBS: u64 = 256;
+
+/// `text` as it may go to a terminal: control characters other than newline and tab (which a case
+/// file's names and strings may hold, `\x1b[...` among them) written as Rust escapes (`\u{1b}`), so
+/// an error quoting what a file holds neither drives the terminal nor hides a character.
+pub fn printable(text: &str) -> std::borrow::Cow<'_, str> {
+    if !text
+        .chars()
+        .any(|c| c.is_control() && c != '\n' && c != '\t')
+    {
+        return text.into();
+    }
+    text.chars()
+        .map(|c| {
+            if c.is_control() && c != '\n' && c != '\t' {
+                c.escape_default().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect::<String>()
+        .into()
+}
 use session::SessionError;
 
 #[derive(Parser)]
@@ -111,7 +133,7 @@ pub fn main() -> i32 {
     match result {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("rtconf: {e}");
+            eprintln!("rtconf: {}", printable(&e.to_string()));
             2
         }
     }
