@@ -69,13 +69,62 @@ const RUN_FILES: [&str; 6] = [
     "caselist.txt",
 ];
 
-/// Whether `dir` exists and has an entry (a file where a folder should be counts).
+/// The file a run holds locked in its folder while it writes there ([`lock`]).
+pub const LOCK_FILE: &str = ".rtconf-run.lock";
+
+/// A run's hold on its folder: while it lives, another run into the same folder is refused.
+#[derive(Debug)]
+pub struct RunLock {
+    _file: Option<std::fs::File>,
+}
+
+/// Makes `out` if it is not there and takes its [`LOCK_FILE`] for this process, or refuses where
+/// another run holds it: two runs into one folder (the default `out/run`, two terminals) would clear
+/// and append to each other's files. The lock goes with the process, however it ends. A folder no
+/// run made ([`prepare`] refuses it) is left untouched, with no lock taken.
+pub fn lock(out: &Path) -> Result<RunLock, SessionError> {
+    use std::os::unix::io::AsRawFd;
+    if !out.join("run.json").exists() && holds_anything(out)? {
+        return Ok(RunLock { _file: None });
+    }
+    std::fs::create_dir_all(out).map_err(io(out))?;
+    let path = out.join(LOCK_FILE);
+    let file = std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&path)
+        .map_err(io(&path))?;
+    // SAFETY: flock on a descriptor this function owns; it reads no memory.
+    if unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } != 0 {
+        let e = std::io::Error::last_os_error();
+        return Err(if e.kind() == std::io::ErrorKind::WouldBlock {
+            SessionError::Usage(format!(
+                "--out {}: another rtconf run is writing this folder (it holds {LOCK_FILE}); wait for it to end or choose another --out",
+                out.display()
+            ))
+        } else {
+            io(&path)(e)
+        });
+    }
+    Ok(RunLock { _file: Some(file) })
+}
+
+/// Whether `dir` exists and has an entry besides a run's [`LOCK_FILE`] (a file where a folder should
+/// be counts).
 fn holds_anything(dir: &Path) -> Result<bool, SessionError> {
     match std::fs::metadata(dir) {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(false),
         Err(e) => Err(io(dir)(e)),
         Ok(m) if !m.is_dir() => Ok(true),
-        Ok(_) => Ok(std::fs::read_dir(dir).map_err(io(dir))?.next().is_some()),
+        Ok(_) => {
+            for entry in std::fs::read_dir(dir).map_err(io(dir))? {
+                if entry.map_err(io(dir))?.file_name() != LOCK_FILE {
+                    return Ok(true);
+                }
+            }
+            Ok(false)
+        }
     }
 }
 
@@ -380,6 +429,31 @@ mod tests {
         let stored: RunParameters =
             serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
         assert_eq!(stored, params());
+    }
+
+    #[test]
+    fn a_second_run_into_a_locked_folder_is_refused_until_the_first_ends() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("run");
+        let first = lock(&out).unwrap();
+        // The lock file alone does not make the folder someone else's.
+        assert!(prepare(&out, &params(), false).unwrap().is_empty());
+        let e = lock(&out).unwrap_err().to_string();
+        assert!(
+            e.contains("another rtconf run is writing this folder"),
+            "{e}"
+        );
+        drop(first);
+        let again = lock(&out).unwrap();
+        assert!(prepare(&out, &params(), false).unwrap().is_empty());
+        drop(again);
+        // A folder no run made gets no lock file: prepare refuses it untouched.
+        let foreign = dir.path().join("foreign");
+        std::fs::create_dir(&foreign).unwrap();
+        std::fs::write(foreign.join("mine.txt"), "a user's own").unwrap();
+        let _none = lock(&foreign).unwrap();
+        assert!(!foreign.join(LOCK_FILE).exists());
+        assert!(prepare(&foreign, &params(), false).is_err());
     }
 
     #[test]

@@ -682,6 +682,8 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
             .map(|p| p.display().to_string()),
         inject: config.inject.map(|i| i.to_string()),
     };
+    // Held until the run returns: another run into this folder is refused meanwhile.
+    let _lock = crate::outdir::lock(&config.out)?;
     let done = crate::outdir::prepare(&config.out, &params, config.resume)?;
     let results_path = config.out.join("results.jsonl");
     let results = std::fs::OpenOptions::new()
