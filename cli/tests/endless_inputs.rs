@@ -5,22 +5,15 @@
 
 mod common;
 
-use common::{root, Ran};
+use common::Ran;
 use std::path::Path;
-use std::process::Command;
 
 /// `rtconf ARGS` in the repository root on lavapipe, its address space limited to 8 GB.
 fn rtconf_limited(args: &[&str]) -> Ran {
-    let out = Command::new("bash")
-        .arg("-c")
-        .arg("ulimit -v 8000000 && exec \"$0\" \"$@\"")
-        .arg(env!("CARGO_BIN_EXE_rtconf"))
-        .args(args)
-        .current_dir(root())
-        .env("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json")
-        .output()
-        .expect("bash runs rtconf");
-    common::ran(out)
+    common::rtconf_under(
+        &["bash", "-c", "ulimit -v 8000000 && exec \"$0\" \"$@\""],
+        args,
+    )
 }
 
 fn refused(args: &[&str], message: &str) {

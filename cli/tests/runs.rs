@@ -469,35 +469,8 @@ fn a_run_into_a_folder_another_run_is_writing_is_refused() {
     // flock(1) holds the folder's lock as a running `rtconf run` does, while the second one starts.
     let out = tempfile::tempdir().unwrap();
     let o = out_arg(out.path());
-    let held = std::process::Command::new("flock")
-        .arg(out.path().join(".rtconf-run.lock"))
-        .arg(env!("CARGO_BIN_EXE_rtconf"))
-        .args([
-            "run",
-            "--count",
-            "1",
-            "--rendered",
-            "0",
-            "--vuid",
-            "03686",
-            "--out",
-            &o,
-        ])
-        .current_dir(root())
-        .env("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json")
-        .output()
-        .expect("flock runs rtconf");
-    let r = ran(held);
-    assert_eq!(r.code, 2, "{}", r.all());
-    assert!(
-        r.stderr
-            .contains("another rtconf run is writing this folder"),
-        "{}",
-        r.all()
-    );
-    assert!(!out.path().join("run.json").exists(), "nothing written");
-    // Once the lock is free, the same run goes ahead.
-    let r = rtconf(&[
+    let lock = out.path().join(".rtconf-run.lock").display().to_string();
+    let args = [
         "run",
         "--count",
         "1",
@@ -507,6 +480,17 @@ fn a_run_into_a_folder_another_run_is_writing_is_refused() {
         "03686",
         "--out",
         &o,
-    ]);
+    ];
+    let r = rtconf_under(&["flock", &lock], &args);
+    assert_eq!(r.code, 2, "{}", r.all());
+    assert!(
+        r.stderr
+            .contains("another rtconf run is writing this folder"),
+        "{}",
+        r.all()
+    );
+    assert!(!out.path().join("run.json").exists(), "nothing written");
+    // Once the lock is free, the same run goes ahead.
+    let r = rtconf(&args);
     assert_eq!(r.code, 0, "{}", r.all());
 }

@@ -45,6 +45,20 @@ pub fn rtconf_with(args: &[&str], env: &[(&str, &str)]) -> Ran {
     ran(out)
 }
 
+/// `WRAPPER... rtconf ARGS` in the repository root with lavapipe selected: rtconf run by another
+/// program (`flock FILE`, a shell that sets a limit first), which must pass its exit status on.
+pub fn rtconf_under(wrapper: &[&str], args: &[&str]) -> Ran {
+    let out = Command::new(wrapper[0])
+        .args(&wrapper[1..])
+        .arg(env!("CARGO_BIN_EXE_rtconf"))
+        .args(args)
+        .current_dir(root())
+        .env("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json")
+        .output()
+        .expect("the wrapper runs rtconf");
+    ran(out)
+}
+
 /// A finished command's exit status (-1 for a signal) and output as text.
 pub fn ran(out: std::process::Output) -> Ran {
     Ran {
