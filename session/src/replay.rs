@@ -38,12 +38,16 @@ pub struct Replayed {
     pub plan: Option<harness::plan::CallPlan>,
 }
 
+/// A case file's text, at most [`YAML_FILE_LIMIT`] bytes (the one way a case file is read).
+pub fn case_text(path: &std::path::Path) -> std::io::Result<String> {
+    vk_registry::input::read_text_at_most(path, YAML_FILE_LIMIT, "a case file")
+}
+
 /// Reads a case file (any command) with a located error: one that does not parse, or that is not a
 /// case ([`Case::read`]: a name resolving to nothing, a group the pipeline lacks).
 pub fn read_case(path: &std::path::Path) -> Result<Case, SessionError> {
     let shown = path.display().to_string();
-    let text = vk_registry::input::read_text_at_most(path, YAML_FILE_LIMIT, "a case file")
-        .map_err(|e| SessionError::io(&shown, e))?;
+    let text = case_text(path).map_err(|e| SessionError::io(&shown, e))?;
     Ok(Case::read(&shown, &text)?)
 }
 
@@ -51,8 +55,7 @@ pub fn read_case(path: &std::path::Path) -> Result<Case, SessionError> {
 /// case file: `file:line:col: path: problem` (the line and column from [`model::locate`]).
 pub fn located(file: &std::path::Path, detail: &str) -> String {
     let shown = file.display().to_string();
-    let text = vk_registry::input::read_text_at_most(file, YAML_FILE_LIMIT, "a case file")
-        .unwrap_or_default();
+    let text = case_text(file).unwrap_or_default();
     let at = detail.split_once(": ").map_or("", |(at, _)| at);
     match model::locate::locate(&text, at) {
         Some((l, c)) => format!("{shown}:{l}:{c}: {detail}"),

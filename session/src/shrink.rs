@@ -37,13 +37,10 @@ pub(crate) fn shrink_failures(
     let mut lines = Vec::new();
     for name in failing {
         let path = config.out.join("failures").join(format!("{name}.yaml"));
-        let Some(case) = vk_registry::input::read_text_at_most(
-            &path,
-            model::case::YAML_FILE_LIMIT,
-            "a case file",
-        )
-        .ok()
-        .and_then(|t| Case::from_yaml(&name, &t).ok()) else {
+        let Some(case) = crate::replay::case_text(&path)
+            .ok()
+            .and_then(|t| Case::from_yaml(&name, &t).ok())
+        else {
             continue;
         };
         let Some((seed, index)) = case.seed.as_deref().and_then(|s| s.split_once('/')) else {

@@ -149,12 +149,7 @@ pub fn run(a: ReplayArgs) -> super::Exit {
             if let Some(t) = r.case.as_trace() {
                 let problems = t.scene_problems();
                 if !problems.is_empty() {
-                    let text = vk_registry::input::read_text_at_most(
-                        &a.case,
-                        model::case::YAML_FILE_LIMIT,
-                        "a case file",
-                    )
-                    .unwrap_or_default();
+                    let text = session::replay::case_text(&a.case).unwrap_or_default();
                     let why = model::NotRunnable {
                         at: problems[0].path.clone(),
                         scene: problems,

@@ -101,11 +101,7 @@ pub fn write_report(out: &Path) -> Result<PathBuf, SessionError> {
             let base = out.join(folder);
             let has = |file: &str| names.contains(std::ffi::OsStr::new(file));
             if yaml.is_none() && has(&format!("{name}.yaml")) {
-                if let Ok(text) = vk_registry::input::read_text_at_most(
-                    &base.join(format!("{name}.yaml")),
-                    model::case::YAML_FILE_LIMIT,
-                    "a case file",
-                ) {
+                if let Ok(text) = crate::replay::case_text(&base.join(format!("{name}.yaml"))) {
                     yaml = Some((format!("{folder}/{name}.yaml"), text));
                 }
             }
