@@ -21,7 +21,8 @@ pub fn expand_vuids(patterns: &[String], known: &[String]) -> Result<Vec<Expande
             let vuids: Vec<String> = known.iter().filter(|k| matches(p, k)).cloned().collect();
             if vuids.is_empty() {
                 Err(SessionError::Usage(format!(
-                    "--vuid `{p}` matches no VUID of the rule table{}",
+                    "--vuid `{}` matches no VUID of the rule table{}",
+                    vk_registry::error::excerpt(p),
                     nearest_hint(p, known.iter().map(String::as_str))
                 )))
             } else {
@@ -77,14 +78,23 @@ pub fn known_scope<'a>(
         Ok(())
     } else {
         Err(SessionError::Usage(format!(
-            "--command `{name}` is no command or structure the registry defines VUIDs for{}",
+            "--command `{}` is no command or structure the registry defines VUIDs for{}",
+            vk_registry::error::excerpt(name),
             nearest_hint(name, scopes)
         )))
     }
 }
 
-/// `; nearest: A, B, C` with the known names closest to `name` (edit distance), or nothing.
+/// The longest name a hint is looked for: every VUID, command and structure name is far shorter, and
+/// the edit distance takes time in proportion to the name's length for every known name.
+const HINTED_NAME_LEN: usize = 256;
+
+/// `; nearest: A, B, C` with the known names closest to `name` (edit distance), or nothing (also for a
+/// name longer than [`HINTED_NAME_LEN`] characters, which no known name is near).
 fn nearest_hint<'a>(name: &str, known: impl Iterator<Item = &'a str>) -> String {
+    if name.chars().count() > HINTED_NAME_LEN {
+        return String::new();
+    }
     let mut scored: Vec<(usize, &str)> = known.map(|k| (distance(name, k), k)).collect();
     scored.sort();
     scored.dedup();
@@ -126,6 +136,22 @@ fn levenshtein(a: &[char], b: &[char]) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_name_far_longer_than_any_known_is_quoted_cut_and_given_no_hint_at_once() {
+        // 100,000 characters against every known name took 49 s for `registry vuids --command`.
+        let long = "x".repeat(100_000);
+        let known: Vec<String> = (0..2000).map(|i| format!("VkStructureNumber{i}")).collect();
+        let started = std::time::Instant::now();
+        let e = known_scope(&long, known.iter().map(String::as_str))
+            .unwrap_err()
+            .to_string();
+        assert!(started.elapsed().as_secs() < 2, "{:?}", started.elapsed());
+        assert!(!e.contains("nearest"), "{e}");
+        assert!(e.len() < 400, "the name is quoted whole: {} bytes", e.len());
+        let e = expand_vuids(&[long], &known).unwrap_err().to_string();
+        assert!(e.len() < 400, "{} bytes", e.len());
+    }
 
     fn known() -> Vec<String> {
         [

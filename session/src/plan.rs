@@ -53,7 +53,8 @@ pub fn commands(names: &[String]) -> Result<Vec<CommandId>, SessionError> {
         .map(|n| {
             CommandId::from_vk_name(n).ok_or_else(|| {
                 SessionError::Usage(format!(
-                    "unknown command `{n}` (one of {})",
+                    "unknown command `{}` (one of {})",
+                    vk_registry::error::excerpt(n),
                     CommandId::ALL.map(CommandId::vk_name).join(", ")
                 ))
             })
