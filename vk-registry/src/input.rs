@@ -52,16 +52,10 @@ pub fn read_text_at_most(path: &Path, limit: u64, what: &str) -> std::io::Result
 }
 
 /// The line and column (from 1, the column in characters) of byte `bad` of `bytes`, valid UTF-8
-/// before it.
+/// before it ([`crate::error::line_col`] of that valid part).
 fn first_bad_byte(bytes: &[u8], bad: usize) -> (usize, usize) {
-    let before = &bytes[..bad];
-    let line = 1 + before.iter().filter(|&&b| b == b'\n').count();
-    let start = before
-        .iter()
-        .rposition(|&b| b == b'\n')
-        .map_or(0, |p| p + 1);
-    let column = String::from_utf8_lossy(&before[start..]).chars().count() + 1;
-    (line, column)
+    let before = std::str::from_utf8(&bytes[..bad]).unwrap_or_default();
+    crate::error::line_col(before, before.len())
 }
 
 /// The error of text that is not UTF-8 (`not UTF-8 at PLACE`), told from others by [`is_not_utf8`].
