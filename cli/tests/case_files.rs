@@ -236,3 +236,56 @@ fn control_characters_a_case_holds_are_escaped_in_its_errors() {
         assert!(!r.stderr.contains('\u{1b}'), "{args:?}: {}", r.all());
     }
 }
+
+/// A profile whose limit no case can be laid out with (an alignment the specification requires to be
+/// a power of two, given as 24) is refused at its JSON path with exit 2 by `gen` and `run`, before
+/// anything is generated; the committed lavapipe profile reads, with its two limits below the
+/// specification's minimum named as warnings.
+#[test]
+fn a_profile_with_an_unusable_limit_is_refused_at_its_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = edited(
+        &committed("profiles/lavapipe.json"),
+        "\"shaderGroupHandleAlignment\": 16",
+        "\"shaderGroupHandleAlignment\": 24",
+    );
+    let path = write(dir.path(), "odd.json", &text);
+    let out = dir.path().join("cases");
+    let want = format!(
+        "{path}: $.capabilities.device.properties.VkPhysicalDeviceRayTracingPipelinePropertiesKHR.shaderGroupHandleAlignment: 24 is not a power of two"
+    );
+    for args in [
+        vec![
+            "gen",
+            "--profile",
+            &path,
+            "--valid",
+            "--count",
+            "2",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        vec!["run", "--profile", &path, "--list", "--count", "2"],
+    ] {
+        let r = rtconf(&args);
+        assert_eq!(r.code, 2, "{args:?}: {}", r.all());
+        assert!(r.stderr.contains(&want), "{args:?}: {}", r.all());
+    }
+    assert!(!out.exists());
+    let r = rtconf(&[
+        "gen",
+        "--profile",
+        "lavapipe",
+        "--valid",
+        "--count",
+        "2",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 0, "{}", r.all());
+    assert!(
+        r.stderr.contains("warning: profile lavapipe: the device reports VkPhysicalDeviceRayTracingPipelinePropertiesKHR::maxRayDispatchInvocationCount = 67108864; the specification requires at least 1073741824"),
+        "{}",
+        r.all()
+    );
+}

@@ -39,6 +39,22 @@ fn need(profile: &DeviceProfile, name: &str) -> Result<u64, GenError> {
 impl Limits {
     /// The numbers a trace command's case is laid out with (a build case has no trace plan).
     pub fn for_command(profile: &DeviceProfile, command: CommandId) -> Result<Limits, GenError> {
+        let limits = Self::read(profile, command)?;
+        if limits.max_stride < limits.min_stride() {
+            return Err(GenError::Unsupported(format!(
+                "profile `{}` reports a maximum shader group stride of {} bytes, below the {} a record takes (the handle size {} rounded up to the alignment {}): no shader binding table is valid on it",
+                profile.name,
+                limits.max_stride,
+                limits.min_stride(),
+                limits.handle_size,
+                limits.stride_align
+            )));
+        }
+        Ok(limits)
+    }
+
+    /// The profile's numbers as it reports them, each present.
+    fn read(profile: &DeviceProfile, command: CommandId) -> Result<Limits, GenError> {
         if !command.is_trace() {
             return Err(GenError::Unsupported(format!(
                 "{command} is not a trace command: its cases come from `generator::accel`"

@@ -185,6 +185,21 @@ pub fn limit_dims(lim: &Limits, raw: &[(u8, u32); 3]) -> [u32; 3] {
     out
 }
 
+/// `wanted` cut to the profile's limits: each dimension to its most, then (KHR) dimension by
+/// dimension to what `maxRayDispatchInvocationCount` leaves. A profile reporting less than the
+/// specification requires (a conformance finding) still gets only cases valid on it.
+pub fn fit_dims(lim: &Limits, wanted: [u32; 3]) -> [u32; 3] {
+    let cap = lim.max_invocations.unwrap_or(u64::MAX);
+    let mut out = [0u32; 3];
+    let mut product = 1u64;
+    for i in 0..3 {
+        let room = cap / product.max(1);
+        out[i] = u64::from(wanted[i]).min(lim.max_dim[i]).min(room) as u32;
+        product = product.saturating_mul(u64::from(out[i].max(1)));
+    }
+    out
+}
+
 /// The drawn indices a rendered case keeps: its pipeline is only what its scene needs — two miss
 /// groups, and hit groups of the scene's kind beside the draw's own (two more like it: closest-hit,
 /// and any-hit by the draw's rule), no callables, no extra recursion, no NO_NULL flags and no dynamic
@@ -578,7 +593,10 @@ pub fn resolve(
 
     let dims = match (rendered_dims, dims) {
         (Some(d), _) => d,
-        (None, DimensionRange::Small) => [raw.dims[0].1 % 5, raw.dims[1].1 % 5, raw.dims[2].1 % 5],
+        (None, DimensionRange::Small) => fit_dims(
+            lim,
+            [raw.dims[0].1 % 5, raw.dims[1].1 % 5, raw.dims[2].1 % 5],
+        ),
         (None, DimensionRange::Limits) => limit_dims(lim, &raw.dims),
     };
 

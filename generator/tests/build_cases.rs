@@ -76,6 +76,36 @@ fn every_mutation_fits_some_plan() {
     assert!(missing.len() <= 4, "mutations never applied: {missing:?}");
 }
 
+/// A device reporting a `maxInstanceCount` below the specification's 2^24-1 (a conformance finding)
+/// still gets valid top-level builds that are valid on it: no more instance records than it reports.
+#[test]
+fn valid_builds_keep_to_a_small_instance_limit() {
+    let r = rules();
+    for max in [0u64, 1, 3] {
+        let mut p = lavapipe();
+        p.properties.insert(
+            "VkPhysicalDeviceAccelerationStructurePropertiesKHR::maxInstanceCount".into(),
+            model::profile::PropertyValue::Int(max),
+        );
+        let mut top_level = 0;
+        for seed in 0..8 {
+            for c in generate(&p, r, seed, 8)
+                .iter()
+                .filter(|c| c.name.ends_with("-valid"))
+            {
+                assert_eq!(
+                    verdict(r, &p, c),
+                    unavoidable(&p),
+                    "{} with maxInstanceCount {max}",
+                    c.name
+                );
+                top_level += usize::from(c.to_yaml().contains("instances"));
+            }
+        }
+        assert!(top_level > 0, "no top-level build drawn");
+    }
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
     #[test]

@@ -176,3 +176,74 @@ fn valid_cases_cover_the_interesting_shapes() {
         assert!(n >= 10, "only {n} of 300 cases have a {what}");
     }
 }
+
+/// A device may report limits below what the specification requires (a conformance finding the run
+/// prints): the valid cases keep to what it reports, and a profile on which no shader binding table
+/// is valid gets "unsupported by profile", never a "valid" case its own model refuses.
+#[test]
+fn valid_cases_keep_to_limits_below_the_required_ones() {
+    use model::profile::PropertyValue;
+    let (name, base) = common::profiles()
+        .into_iter()
+        .find(|(n, _)| n == "lavapipe")
+        .unwrap();
+    let khr = "VkPhysicalDeviceRayTracingPipelinePropertiesKHR::";
+    let with = |member: &str, v: PropertyValue| {
+        let mut p = base.clone();
+        p.properties.insert(member.to_string(), v);
+        p
+    };
+    let low = [
+        with(
+            &format!("{khr}maxRayDispatchInvocationCount"),
+            PropertyValue::Int(3),
+        ),
+        with(
+            &format!("{khr}maxRayDispatchInvocationCount"),
+            PropertyValue::Int(0),
+        ),
+        with(
+            "VkPhysicalDeviceLimits::maxComputeWorkGroupCount",
+            PropertyValue::Array(vec![
+                PropertyValue::Int(1),
+                PropertyValue::Int(0),
+                PropertyValue::Int(2),
+            ]),
+        ),
+    ];
+    for profile in &low {
+        assert!(!model::required_limits::findings(profile).is_empty());
+        for command in [CommandId::TraceRaysIndirect, CommandId::TraceRays] {
+            let cases = generate(
+                profile,
+                &name,
+                common::rules(),
+                &CaseSpec::valid(command),
+                60,
+                11,
+            )
+            .unwrap_or_else(|e| panic!("{command:?}: {e}"));
+            for case in &cases {
+                let v = common::judge(profile, case);
+                assert!(v.is_valid(), "{}: {:?}", case.name, v.violations);
+            }
+        }
+    }
+    let narrow = with(&format!("{khr}maxShaderGroupStride"), PropertyValue::Int(8));
+    match generate(
+        &narrow,
+        &name,
+        common::rules(),
+        &CaseSpec::valid(CommandId::TraceRaysIndirect),
+        5,
+        1,
+    ) {
+        Err(GenError::Unsupported(why)) => {
+            assert!(
+                why.contains("maximum shader group stride of 8 bytes"),
+                "{why}"
+            )
+        }
+        other => panic!("expected unsupported, got {:?}", other.map(|c| c.len())),
+    }
+}

@@ -18,6 +18,7 @@ pub mod integrity;
 pub mod locate;
 pub mod profile;
 pub mod rendered;
+pub mod required_limits;
 pub mod resources;
 pub mod rules;
 pub mod semantics;

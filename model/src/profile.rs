@@ -188,7 +188,7 @@ impl DeviceProfile {
                     .to_string();
             }
         }
-        for (_, block) in caps {
+        for (cap, block) in caps {
             if let Some(ext) = block.get("extensions").and_then(Value::as_object) {
                 p.extensions.extend(ext.keys().cloned());
             }
@@ -203,6 +203,8 @@ impl DeviceProfile {
             }
             if let Some(props) = block.get("properties").and_then(Value::as_object) {
                 for (st, members) in props {
+                    let path = format!("$.capabilities.{cap}.properties.{st}");
+                    refuse_unusable(name, &path, st, members)?;
                     flatten_properties(st, members, &mut p.properties);
                 }
             }
@@ -364,6 +366,27 @@ fn flatten_properties(st: &str, members: &Value, out: &mut BTreeMap<String, Prop
     }
 }
 
+/// Refuses the first member of a property struct that [`crate::required_limits::unusable`] rejects,
+/// at its place in the file (`path` is the struct's).
+fn refuse_unusable(name: &str, path: &str, st: &str, members: &Value) -> Result<(), ProfileError> {
+    let Some(obj) = members.as_object() else {
+        return Ok(());
+    };
+    for (m, v) in obj {
+        if let Some((_, ty)) = NESTED_PROPERTY_STRUCTS.iter().find(|(f, _)| f == m) {
+            refuse_unusable(name, &format!("{path}.{m}"), ty, v)?;
+        } else if let Some(limit) = crate::required_limits::requirement(&format!("{st}::{m}")) {
+            if let Some(problem) = crate::required_limits::unusable(limit, v) {
+                return Err(ProfileError {
+                    location: format!("{name}: {path}.{m}"),
+                    problem,
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
 /// The member name of `Struct::member` (the text after the last `::`; the whole name without one).
 fn last_segment(name: &str) -> &str {
     name.rfind("::").map_or(name, |i| &name[i + 2..])
@@ -452,6 +475,41 @@ mod tests {
         let p = DeviceProfile::from_profiles_json("x", SMALL).unwrap();
         let again = DeviceProfile::from_profiles_json("x", &p.to_profiles_json()).unwrap();
         assert_eq!(again, p);
+    }
+
+    /// A limit its C type cannot hold, or an alignment that is zero or not the power of two the
+    /// specification requires, is refused at its place in the file: cases laid out with it would
+    /// carry wrapped offsets and strides.
+    #[test]
+    fn unusable_limits_are_refused_at_their_place() {
+        let cases = [
+            ("\"shaderGroupBaseAlignment\": 64", "\"shaderGroupBaseAlignment\": 18446744073709551615",
+             "x: $.capabilities.device.properties.VkPhysicalDeviceRayTracingPipelinePropertiesKHR.shaderGroupBaseAlignment",
+             "not a uint32_t"),
+            ("\"shaderGroupBaseAlignment\": 64", "\"shaderGroupBaseAlignment\": 0",
+             "x: $.capabilities.device.properties.VkPhysicalDeviceRayTracingPipelinePropertiesKHR.shaderGroupBaseAlignment",
+             "0: no shader binding table"),
+            ("\"shaderGroupBaseAlignment\": 64", "\"shaderGroupHandleAlignment\": 12",
+             "x: $.capabilities.device.properties.VkPhysicalDeviceRayTracingPipelinePropertiesKHR.shaderGroupHandleAlignment",
+             "power of two"),
+            ("[65535, 65535, 65535]", "[65535, -1, 65535]",
+             "x: $.capabilities.device.properties.VkPhysicalDeviceProperties.limits.maxComputeWorkGroupCount",
+             "not an array of three uint32_t"),
+        ];
+        for (from, to, location, problem) in cases {
+            let text = SMALL.replace(from, to);
+            assert_ne!(text, SMALL);
+            let err = DeviceProfile::from_profiles_json("x", &text).unwrap_err();
+            assert_eq!(err.location, location);
+            assert!(err.problem.contains(problem), "{err}");
+        }
+        // Outside the required bound but usable: read, and a finding.
+        let text = SMALL.replace(
+            "\"shaderGroupBaseAlignment\": 64",
+            "\"shaderGroupBaseAlignment\": 256",
+        );
+        let p = DeviceProfile::from_profiles_json("x", &text).unwrap();
+        assert_eq!(crate::required_limits::findings(&p).len(), 1);
     }
 
     #[test]

@@ -621,6 +621,11 @@ pub fn run(config: &RunConfig, progress: &dyn Progress) -> Result<RunOutcome, Se
         .clone()
         .unwrap_or_else(|| sources::default_profile_name(&config.driver));
     let profile = sources::profile_for(&profile_name)?;
+    warnings.extend(
+        model::required_limits::findings(&profile)
+            .iter()
+            .map(|f| f.warning(&profile_name)),
+    );
     let triage = sources::triage_for(&config.triage, Some(&layer.version), &driver)?;
     if config.triage.is_empty()
         && !triage

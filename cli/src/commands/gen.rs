@@ -50,6 +50,9 @@ pub fn run(a: GenArgs) -> super::Exit {
     let set = session::sources::load_sources(&a.from)?;
     let rules = model::RuleSet::from_vuids(&set);
     let profile = session::sources::profile_for(&a.profile)?;
+    for f in model::required_limits::findings(&profile) {
+        eprintln!("rtconf: warning: {}", f.warning(&a.profile));
+    }
     std::fs::create_dir_all(&a.out)
         .map_err(|e| session::SessionError::io(a.out.display().to_string(), e))?;
     // A slice at a time (the same cases however the count is sliced), so memory stays that of one

@@ -24,9 +24,18 @@ pub fn run(a: ProbeArgs) -> super::Exit {
     }
     let text = profile.to_profiles_json();
     match a.out {
-        Some(p) => std::fs::write(&p, text)
+        Some(p) => std::fs::write(&p, &text)
             .map_err(|e| session::SessionError::io(p.display().to_string(), e))?,
         None => print!("{text}"),
+    }
+    for f in model::required_limits::findings(&profile) {
+        eprintln!("rtconf: warning: {f}");
+    }
+    // What the device reported is written either way, as evidence; a profile no case can be laid
+    // out with is said so and fails the command.
+    if let Err(e) = model::DeviceProfile::from_profiles_json(&profile.name, &text) {
+        eprintln!("rtconf: the profile cannot be used to make cases: {e}");
+        return Ok(1);
     }
     Ok(0)
 }
