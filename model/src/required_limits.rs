@@ -115,7 +115,7 @@ const U29: u64 = (1 << 29) - 1;
 const U32MAX: u64 = u32::MAX as u64;
 
 /// The limits of the structures rtconf's three commands and their generators read.
-pub const REQUIRED_LIMITS: &[RequiredLimit] = &[
+pub static REQUIRED_LIMITS: &[RequiredLimit] = &[
     RequiredLimit {
         nonzero: true,
         ..limit(

@@ -225,11 +225,30 @@ fn a_second_yaml_document_is_a_located_error() {
     }
 }
 
+/// A handle size no uint32_t holds: the profile reader refuses the file at the member's path; a
+/// profile made in code with that size still gets every hand case judged, without a panic.
 #[test]
 fn a_profile_with_a_handle_size_of_u64_max_judges_the_hand_cases() {
     bounded();
     let (path, text) = hostile("profile-shader-group-handle-size-u64-max.json");
-    let profile = DeviceProfile::from_profiles_json(&path, &text).unwrap();
+    let e = DeviceProfile::from_profiles_json(&path, &text).unwrap_err();
+    assert!(
+        e.location.ends_with(
+            ".properties.VkPhysicalDeviceRayTracingPipelinePropertiesKHR.shaderGroupHandleSize"
+        ) && e.problem == "18446744073709551615 is not a uint32_t",
+        "{e}"
+    );
+    let handle_size = "\"shaderGroupHandleSize\": 18446744073709551615";
+    assert!(text.contains(handle_size));
+    let mut profile = DeviceProfile::from_profiles_json(
+        &path,
+        &text.replace(handle_size, "\"shaderGroupHandleSize\": 32"),
+    )
+    .unwrap();
+    profile.properties.insert(
+        "VkPhysicalDeviceRayTracingPipelinePropertiesKHR::shaderGroupHandleSize".into(),
+        model::profile::PropertyValue::Int(u64::MAX),
+    );
     assert_eq!(profile.limit("shaderGroupHandleSize"), Some(u64::MAX));
     for case in [
         "cases/hand/trace-indirect-records-32.yaml",
