@@ -1,6 +1,7 @@
 //! `rtconf run` end to end on lavapipe: names that match nothing and bad flag values are refused (a
 //! CI job must never read "0 cases" as a pass), a new run into an `--out` starts clean, and a run stopped
-//! by `kill -9` or a full disk and then resumed has exactly the results of an uninterrupted run.
+//! by `kill -9` or a full disk and then resumed has exactly the results of an uninterrupted run (and
+//! before the resume, `report` shows what the stopped run has).
 
 mod common;
 use common::*;
@@ -330,6 +331,24 @@ fn kill_9_then_resume_gives_the_uninterrupted_run_case_for_case() {
     assert!(!status.success(), "killed mid-way: {status:?}");
     let partial = lines(cut.path());
     assert!(partial >= 60 && partial < expected.len(), "{partial}");
+
+    // The stopped run's folder: `report` writes the page of the results it has and says, with exit 2,
+    // that the run did not finish and how to finish it; `merge` refuses it as a shard.
+    let r = rtconf(&["report", &o]);
+    assert_eq!(r.code, 2, "{}", r.all());
+    let unfinished = format!("{o}: the run there did not finish");
+    assert!(
+        r.stderr.contains(&unfinished) && r.stderr.contains("--resume"),
+        "{}",
+        r.all()
+    );
+    let page = std::fs::read_to_string(cut.path().join("report/index.html")).unwrap();
+    assert!(page.contains("id=\"run-verdict\">unfinished</span>"));
+    assert!(page.contains(&format!("the {partial} cases with a result")));
+    let merged = tempfile::tempdir().unwrap();
+    let r = rtconf(&["merge", "--out", &out_arg(merged.path()), &o, &o]);
+    assert_eq!(r.code, 2, "{}", r.all());
+    assert!(r.stderr.contains(&unfinished), "{}", r.all());
 
     let r = run_into(cut.path(), &["--resume"]);
     assert_eq!(r.code, 0, "{}", r.all());

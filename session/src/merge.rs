@@ -57,7 +57,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path) -> Result<Merged, SessionError> {
                 out.display()
             )));
         }
-        summaries.push(Summary::read(&dir.join("summary.json"))?);
+        summaries.push(Summary::read_finished(dir)?);
     }
     let first = &summaries[0];
     for (dir, s) in inputs.iter().zip(&summaries) {

@@ -138,14 +138,63 @@ impl Summary {
         })
     }
 
-    /// Writes `summary.json`.
+    /// Writes `summary.json` whole (a temporary file, then a rename): a run stopped while writing it
+    /// leaves none rather than a torn one.
     pub fn write(&self, path: &Path) -> Result<(), SessionError> {
-        std::fs::write(
-            path,
-            serde_json::to_string_pretty(self).unwrap_or_default() + "\n",
-        )
-        .map_err(|e| SessionError::io(path.display().to_string(), e))
+        let text = serde_json::to_string_pretty(self).unwrap_or_default() + "\n";
+        crate::outdir::write_atomically(path, text.as_bytes())
+            .map_err(|e| SessionError::io(path.display().to_string(), e))
     }
+
+    /// The `summary.json` of a finished run in `dir`. A folder whose run wrote its `run.json` but no
+    /// summary stopped before it finished (interrupted, killed, or still running): refused with how to
+    /// finish it, as a merge or comparison of part of a run would pass for the whole.
+    pub fn read_finished(dir: &Path) -> Result<Summary, SessionError> {
+        let path = dir.join("summary.json");
+        if !path.exists() && dir.join("run.json").is_file() {
+            return Err(SessionError::Usage(unfinished_run(dir)));
+        }
+        Summary::read(&path)
+    }
+
+    /// The summary of the run in `dir` and whether the run finished: its `summary.json`, or for a run
+    /// that stopped before writing one ([`Summary::read_finished`]) the summary of the results it has,
+    /// its driver, profile, registry and shard from `run.json` (which cases it had not run yet is not
+    /// known: the case list is written at the end).
+    pub fn of_folder(dir: &Path) -> Result<(Summary, bool), SessionError> {
+        let path = dir.join("summary.json");
+        if path.exists() || !dir.join("run.json").is_file() {
+            return Ok((Summary::read(&path)?, true));
+        }
+        let run_json = dir.join("run.json");
+        let text = crate::outdir::read_run_text(&run_json)
+            .map_err(|e| SessionError::io(run_json.display().to_string(), e))?;
+        let params: crate::outdir::RunParameters = serde_json::from_str(&text).map_err(|e| {
+            SessionError::Usage(format!(
+                "{}:{}:{}: not a run.json: {e}",
+                run_json.display(),
+                e.line(),
+                e.column()
+            ))
+        })?;
+        let who = RunIdentity {
+            driver: params.driver,
+            profile: params.profile,
+            registry: params.registry,
+            shard: params.shard,
+        };
+        Ok((summarise(&dir.join("results.jsonl"), None, &who)?, false))
+    }
+}
+
+/// What is said of a run folder with a `run.json` and no `summary.json`.
+pub fn unfinished_run(dir: &Path) -> String {
+    format!(
+        "{0}: the run there did not finish (it has run.json but no summary.json: it was stopped, or is \
+         still running); `rtconf run --resume --out {0}` with the run's arguments runs the cases it has \
+         not run and writes the summary",
+        dir.display()
+    )
 }
 
 /// The reports of `results.jsonl`, read one line at a time.

@@ -13,11 +13,21 @@ pub struct ReportArgs {
 /// The lines of `results.jsonl` left out of the report that are named one by one.
 const NAMED: usize = 20;
 
-/// Writes the report, then names the lines of `results.jsonl` it had to leave out; such lines make the
-/// exit status 2 (the input was not whole), the report of the rest written all the same.
+/// Writes the report, then names the lines of `results.jsonl` it had to leave out and says whether the
+/// run stopped before it finished; either makes the exit status 2 (the input was not whole), the
+/// report of what there is written all the same.
 pub fn run(a: ReportArgs) -> super::Exit {
     let page = session::html::write_report(&a.dir)?;
     println!("{}", page.display());
+    // A run that stopped before its summary: the report of its results so far, and the input named
+    // as not whole.
+    let unfinished = !a.dir.join("summary.json").exists();
+    if unfinished {
+        eprintln!(
+            "rtconf: {}; the report shows the results it has",
+            session::report::unfinished_run(&a.dir)
+        );
+    }
     let (named, count) = session::results::unreadable_lines(&a.dir.join("results.jsonl"), NAMED)?;
     for problem in &named {
         eprintln!("rtconf: {problem}; left out of the report");
@@ -28,5 +38,5 @@ pub fn run(a: ReportArgs) -> super::Exit {
             count - named.len()
         );
     }
-    Ok(if count == 0 { 0 } else { 2 })
+    Ok(if count == 0 && !unfinished { 0 } else { 2 })
 }

@@ -73,7 +73,7 @@ fn anchor(name: &str) -> String {
 /// Writes `out/report/index.html` (and the pictures it shows into `out/report/img/`) from the run
 /// folder's `summary.json`, `results.jsonl`, details and case files; returns the page's path.
 pub fn write_report(out: &Path) -> Result<PathBuf, SessionError> {
-    let summary = Summary::read(&out.join("summary.json"))?;
+    let (summary, finished) = Summary::of_folder(out)?;
     let dir = out.join("report");
     let img = dir.join("img");
     std::fs::create_dir_all(&img).map_err(|e| SessionError::io(img.display().to_string(), e))?;
@@ -138,13 +138,13 @@ pub fn write_report(out: &Path) -> Result<PathBuf, SessionError> {
         });
     }
     entries.sort_by(|a, b| (a.status, &a.name).cmp(&(b.status, &b.name)));
-    let page = render(&summary, &entries, &out.display().to_string());
+    let page = render(&summary, finished, &entries, &out.display().to_string());
     let path = dir.join("index.html");
     std::fs::write(&path, page).map_err(|e| SessionError::io(path.display().to_string(), e))?;
     Ok(path)
 }
 
-fn render(s: &Summary, entries: &[Entry], run_dir: &str) -> String {
+fn render(s: &Summary, finished: bool, entries: &[Entry], run_dir: &str) -> String {
     let mut h = String::with_capacity(64 * 1024);
     let title = format!("rtconf on {} (profile {})", s.driver, s.profile);
     let _ = write!(
@@ -175,16 +175,22 @@ fn render(s: &Summary, entries: &[Entry], run_dir: &str) -> String {
         }
     );
     h.push_str("<nav><a href=\"#summary\">Summary</a> &middot; <a href=\"#vuids\">Agreement per VUID</a> &middot; <a href=\"#cases\">Cases that did not pass</a></nav>\n</header>\n");
-    summary_section(&mut h, s);
+    summary_section(&mut h, s, finished, run_dir);
     vuid_section(&mut h, &s.vuids);
     cases_section(&mut h, entries, run_dir);
     let _ = write!(h, "<script>\n{SCRIPT}</script>\n</body>\n</html>\n");
     h
 }
 
-fn summary_section(h: &mut String, s: &Summary) {
+fn summary_section(h: &mut String, s: &Summary, finished: bool, run_dir: &str) {
     h.push_str("<section id=\"summary\"><h2>Summary</h2>\n");
-    let verdict = if s.unexpected() == 0 {
+    let verdict = if !finished {
+        format!(
+            "<p><span class=\"badge s-fail\" id=\"run-verdict\">unfinished</span> {}; the {} cases with a result are counted below.</p>\n",
+            escape(&crate::report::unfinished_run(Path::new(run_dir))),
+            s.cases
+        )
+    } else if s.unexpected() == 0 {
         "<p><span class=\"badge s-pass\" id=\"run-verdict\">as expected</span> no case has a status that fails the run.</p>\n".to_string()
     } else {
         format!(
