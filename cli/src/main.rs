@@ -3,6 +3,7 @@
 //! work is done by `session`, `model`, `generator` and `harness`.
 
 mod commands;
+mod interrupt;
 
 fn main() {
     std::process::exit(commands::main());

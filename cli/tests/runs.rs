@@ -355,6 +355,58 @@ fn kill_9_then_resume_gives_the_uninterrupted_run_case_for_case() {
     assert_eq!(results(cut.path()), expected);
 }
 
+/// Ctrl-C (SIGINT to the runner): the run ends with the shell's status for it, 130, and says where the
+/// results of the finished cases are and how to go on; the results it had are there, whole.
+#[test]
+fn an_interrupted_run_says_where_its_results_are_and_how_to_go_on() {
+    let cut = tempfile::tempdir().unwrap();
+    let o = out_arg(cut.path());
+    // Ten times the resume tests' run (some seven seconds), so the signal comes well before its end.
+    let args = [
+        "run",
+        "--out",
+        &o,
+        "--vuid",
+        "VUID-vkCmdTraceRaysIndirectKHR-*",
+        "--count",
+        "40",
+        "--jobs",
+        "1",
+    ];
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_rtconf"))
+        .args(args)
+        .current_dir(root())
+        .env("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let started = Instant::now();
+    let lines = || {
+        std::fs::read_to_string(cut.path().join("results.jsonl"))
+            .map(|t| t.lines().count())
+            .unwrap_or(0)
+    };
+    while lines() < 30 && started.elapsed() < Duration::from_secs(120) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // SAFETY: kill(2) on the pid of the child this test started.
+    assert_eq!(unsafe { kill(child.id() as i32, 2) }, 0);
+    let done = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&done.stderr);
+    assert_eq!(done.status.code(), Some(130), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "rtconf: interrupted; the results of the cases that finished are in {o}/results.jsonl"
+        )) && stderr.contains(&format!(
+            "`rtconf run --resume --out {o}` with the same arguments"
+        )),
+        "{stderr}"
+    );
+    assert!(lines() >= 30);
+    assert!(!cut.path().join("summary.json").exists());
+}
+
 extern "C" {
     fn kill(pid: i32, sig: i32) -> i32;
 }

@@ -213,6 +213,12 @@ pub fn run(a: RunArgs) -> super::Exit {
         })?;
         return Ok(0);
     }
+    let out = config.out.display();
+    crate::interrupt::say_on_interrupt(format!(
+        "rtconf: interrupted; the results of the cases that finished are in {out}/results.jsonl: \
+         `rtconf report {out}` shows them, and `rtconf run --resume --out {out}` with the same \
+         arguments runs the rest"
+    ));
     let bar = bar();
     let outcome = session::run(&config, &bar)?;
     bar.bar.finish_and_clear();
