@@ -2,12 +2,12 @@
 //! (from its structure's definition) and its required bound (the specification's "Limit
 //! Requirements" section, `chapters/limits.adoc`), and the members it says must be powers of two.
 //!
-//! Two uses. A value its C type cannot hold, or an alignment that is zero or not the power of two the
-//! specification requires, makes a profile unusable: no case laid out with it means anything, so
-//! [`unusable`] names it and the profile reader refuses the file. A value outside the required bound
+//! Two uses. A value its C type cannot hold, a handle size or alignment of zero, or an alignment
+//! that is not the power of two the specification requires makes a profile unusable: no case laid
+//! out with it means anything, so [`unusable`] names it and the profile reader refuses the file. A value outside the required bound
 //! (lavapipe's `maxRayDispatchInvocationCount` of 2^26 against the required 2^30) is a conformance
 //! finding about the device, not a reason to stop: [`findings`] lists them, the cases keep to the
-//! value the device reports, and `rtconf probe` and `rtconf run` print them.
+//! value the device reports, and `rtconf probe`, `gen` and `run` print them.
 
 use crate::profile::{DeviceProfile, PropertyValue};
 use serde_json::Value;
@@ -114,7 +114,9 @@ const U24: u64 = (1 << 24) - 1;
 const U29: u64 = (1 << 29) - 1;
 const U32MAX: u64 = u32::MAX as u64;
 
-/// The limits of the structures rtconf's three commands and their generators read.
+/// The members of the three ray tracing property structures with an unconditional required bound
+/// (the two update-after-bind descriptor counts, bounded only where a feature is supported, are
+/// left out), and the compute limits a launch's dimensions are checked against.
 pub static REQUIRED_LIMITS: &[RequiredLimit] = &[
     RequiredLimit {
         nonzero: true,
