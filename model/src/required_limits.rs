@@ -4,10 +4,11 @@
 //!
 //! Two uses. A value its C type cannot hold, a handle size or alignment of zero, or an alignment
 //! that is not the power of two the specification requires makes a profile unusable: no case laid
-//! out with it means anything, so [`unusable`] names it and the profile reader refuses the file. A value outside the required bound
-//! (lavapipe's `maxRayDispatchInvocationCount` of 2^26 against the required 2^30) is a conformance
-//! finding about the device, not a reason to stop: [`findings`] lists them, the cases keep to the
-//! value the device reports, and `rtconf probe`, `gen` and `run` print them.
+//! out with it means anything, so [`unusable`] names it and the profile reader refuses the file.
+//! A value outside the required bound (lavapipe's `maxRayDispatchInvocationCount` of 2^26 against
+//! the required 2^30) is a conformance finding about the device, not a reason to stop:
+//! [`findings`] lists them, the cases keep to the value the device reports, and `rtconf probe`,
+//! `gen` and `run` print them.
 
 use crate::profile::{DeviceProfile, PropertyValue};
 use serde_json::Value;
@@ -61,7 +62,8 @@ impl Required {
             Required::AtMost(m) => v <= m,
             Required::Exactly(m) => v == m,
             Required::Between(lo, hi) => (lo..=hi).contains(&v),
-            Required::EachAtLeast(m) => v >= m[i],
+            // An element past the three the type has (a profile made in code) is bounded by nothing.
+            Required::EachAtLeast(m) => m.get(i).is_none_or(|m| v >= *m),
         }
     }
 
@@ -71,7 +73,7 @@ impl Required {
             Required::AtMost(m) => format!("at most {m}"),
             Required::Exactly(m) => format!("exactly {m}"),
             Required::Between(lo, hi) => format!("from {lo} to {hi}"),
-            Required::EachAtLeast(m) => format!("at least {}", m[i]),
+            Required::EachAtLeast(m) => m.get(i).map_or(String::new(), |m| format!("at least {m}")),
         }
     }
 }
@@ -454,6 +456,13 @@ mod tests {
         set(
             "VkPhysicalDeviceAccelerationStructurePropertiesKHR::maxPrimitiveCount",
             PropertyValue::Int(1 << 33),
+        );
+        // Four elements where the type has three (a profile made in code): the fourth, 0, is bounded
+        // by nothing, and nothing panics.
+        let int = PropertyValue::Int;
+        set(
+            "VkPhysicalDeviceLimits::maxComputeWorkGroupCount",
+            PropertyValue::Array(vec![int(65535), int(65535), int(65535), int(0)]),
         );
         let found: Vec<String> = findings(&p).iter().map(|f| f.to_string()).collect();
         assert_eq!(

@@ -364,6 +364,35 @@ mod tests {
 
     const LINE: &str = r#"{"case":"a","command":"vkCmdTraceRaysKHR","target":null,"outcome":"pass","model":[],"layer":[],"millis":1.0}"#;
 
+    /// A folder whose run wrote run.json and stopped: no result yet is an error naming how to finish
+    /// the run; with results, the summary of those (not finished), from run.json's identity; a
+    /// merge refuses it either way; once summary.json is there the folder is a finished run's.
+    #[test]
+    fn a_stopped_run_is_summarised_from_its_results_and_never_taken_for_finished() {
+        use crate::report::Summary;
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path();
+        prepare(out, &params(), false).unwrap();
+        let e = Summary::of_folder(out).unwrap_err().to_string();
+        assert!(
+            e.contains("did not finish") && e.contains("no result yet"),
+            "{e}"
+        );
+        std::fs::write(out.join("results.jsonl"), format!("{LINE}\n")).unwrap();
+        let (s, finished) = Summary::of_folder(out).unwrap();
+        assert!(!finished);
+        assert_eq!((s.cases, s.passed), (1, 1));
+        assert_eq!(
+            (s.driver.as_str(), s.registry.as_deref()),
+            ("lavapipe", Some("1.3.239"))
+        );
+        let e = Summary::read_finished(out).unwrap_err().to_string();
+        assert!(e.contains("--resume"), "{e}");
+        s.write(&out.join("summary.json")).unwrap();
+        assert!(Summary::of_folder(out).unwrap().1);
+        assert_eq!(Summary::read_finished(out).unwrap(), s);
+    }
+
     #[test]
     fn a_torn_last_line_is_cut_and_whole_lines_are_kept() {
         let dir = tempfile::tempdir().unwrap();

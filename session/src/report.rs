@@ -177,13 +177,20 @@ impl Summary {
                 e.column()
             ))
         })?;
+        let results = dir.join("results.jsonl");
+        if !results.exists() {
+            return Err(SessionError::Usage(format!(
+                "{}; it has no result yet, so there is nothing to report",
+                unfinished_run(dir)
+            )));
+        }
         let who = RunIdentity {
             driver: params.driver,
             profile: params.profile,
             registry: params.registry,
             shard: params.shard,
         };
-        Ok((summarise(&dir.join("results.jsonl"), None, &who)?, false))
+        Ok((summarise(&results, None, &who)?, false))
     }
 }
 
