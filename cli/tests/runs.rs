@@ -306,30 +306,14 @@ fn kill_9_then_resume_gives_the_uninterrupted_run_case_for_case() {
 
     let cut = tempfile::tempdir().unwrap();
     let o = out_arg(cut.path());
-    let mut args = vec!["run".to_string(), "--out".into(), o.clone()];
-    args.extend(SELECTION.iter().map(|s| s.to_string()));
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_rtconf"))
-        .args(&args)
-        .current_dir(root())
-        .env("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json")
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
-    let started = Instant::now();
-    let lines = |p: &Path| {
-        std::fs::read_to_string(p.join("results.jsonl"))
-            .map(|t| t.lines().count())
-            .unwrap_or(0)
-    };
-    while lines(cut.path()) < 60 && started.elapsed() < Duration::from_secs(120) {
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let mut args = vec!["run", "--out", &o];
+    args.extend(SELECTION);
+    let (mut child, lines) = started_run(&args, cut.path(), 60);
     // SAFETY: kill(2) on the pid of the child this test started.
     unsafe { libc_kill(child.id() as i32) };
     let status = child.wait().unwrap();
     assert!(!status.success(), "killed mid-way: {status:?}");
-    let partial = lines(cut.path());
+    let partial = lines();
     assert!(partial >= 60 && partial < expected.len(), "{partial}");
 
     // The stopped run's folder: `report` writes the page of the results it has and says, with exit 2,
@@ -373,23 +357,7 @@ fn an_interrupted_run_says_where_its_results_are_and_how_to_go_on() {
         "--jobs",
         "1",
     ];
-    let child = std::process::Command::new(env!("CARGO_BIN_EXE_rtconf"))
-        .args(args)
-        .current_dir(root())
-        .env("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json")
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let started = Instant::now();
-    let lines = || {
-        std::fs::read_to_string(cut.path().join("results.jsonl"))
-            .map(|t| t.lines().count())
-            .unwrap_or(0)
-    };
-    while lines() < 30 && started.elapsed() < Duration::from_secs(120) {
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let (child, lines) = started_run(&args, cut.path(), 30);
     // SAFETY: kill(2) on the pid of the child this test started.
     assert_eq!(unsafe { kill(child.id() as i32, 2) }, 0);
     let done = child.wait_with_output().unwrap();
@@ -405,6 +373,33 @@ fn an_interrupted_run_says_where_its_results_are_and_how_to_go_on() {
     );
     assert!(lines() >= 30);
     assert!(!cut.path().join("summary.json").exists());
+}
+
+/// `rtconf ARGS` started (its standard error piped), once its `results.jsonl` in `out` has `lines`
+/// lines or two minutes have passed; and a count of those lines.
+fn started_run<'a>(
+    args: &[&str],
+    out: &'a Path,
+    lines: usize,
+) -> (std::process::Child, impl Fn() -> usize + 'a) {
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_rtconf"))
+        .args(args)
+        .current_dir(root())
+        .env("VK_DRIVER_FILES", "/usr/share/vulkan/icd.d/lvp_icd.json")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let count = move || {
+        std::fs::read_to_string(out.join("results.jsonl"))
+            .map(|t| t.lines().count())
+            .unwrap_or(0)
+    };
+    let started = Instant::now();
+    while count() < lines && started.elapsed() < Duration::from_secs(120) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    (child, count)
 }
 
 extern "C" {
