@@ -174,28 +174,26 @@ fn pick_dim(max: u64, (sel, frac): (u8, u32)) -> u32 {
 
 /// Dimensions within the profile's limits, each and (KHR) their product.
 pub fn limit_dims(lim: &Limits, raw: &[(u8, u32); 3]) -> [u32; 3] {
-    let cap = lim.max_invocations.unwrap_or(u64::MAX);
-    let mut out = [0u32; 3];
-    let mut product = 1u64;
-    for i in 0..3 {
-        let room = cap / product.max(1);
-        out[i] = pick_dim(lim.max_dim[i].min(room), raw[i]);
-        product = product.saturating_mul(out[i].max(1) as u64);
-    }
-    out
+    within_limits(lim, |i, most| pick_dim(most, raw[i]))
 }
 
 /// `wanted` cut to the profile's limits: each dimension to its most, then (KHR) dimension by
 /// dimension to what `maxRayDispatchInvocationCount` leaves. A profile reporting less than the
 /// specification requires (a conformance finding) still gets only cases valid on it.
 pub fn fit_dims(lim: &Limits, wanted: [u32; 3]) -> [u32; 3] {
+    within_limits(lim, |i, most| u64::from(wanted[i]).min(most) as u32)
+}
+
+/// Each dimension `dim(i, most)` with `most` the largest it may be: its own limit, and (KHR) what
+/// `maxRayDispatchInvocationCount` leaves after the dimensions before it.
+fn within_limits(lim: &Limits, mut dim: impl FnMut(usize, u64) -> u32) -> [u32; 3] {
     let cap = lim.max_invocations.unwrap_or(u64::MAX);
     let mut out = [0u32; 3];
     let mut product = 1u64;
-    for i in 0..3 {
+    for (i, d) in out.iter_mut().enumerate() {
         let room = cap / product.max(1);
-        out[i] = u64::from(wanted[i]).min(lim.max_dim[i]).min(room) as u32;
-        product = product.saturating_mul(u64::from(out[i].max(1)));
+        *d = dim(i, lim.max_dim[i].min(room));
+        product = product.saturating_mul(u64::from((*d).max(1)));
     }
     out
 }

@@ -256,15 +256,7 @@ pub fn requirement(member: &str) -> Option<&'static RequiredLimit> {
 /// Why a value read from a profile file cannot be used: not an unsigned integer its C type holds
 /// (three of them for an array), or zero or not a power of two where the layout needs otherwise.
 pub fn unusable(limit: &RequiredLimit, value: &Value) -> Option<String> {
-    let what = || {
-        let text = value.to_string();
-        let cut: String = text.chars().take(40).collect();
-        if cut.len() < text.len() {
-            format!("{cut}…")
-        } else {
-            cut
-        }
-    };
+    let what = || vk_registry::error::excerpt(&value.to_string()).into_owned();
     let elements: Vec<&Value> = match (limit.c_type, value) {
         (CType::U32x3, Value::Array(a)) if a.len() == 3 => a.iter().collect(),
         (CType::U32x3, _) => return Some(format!("{} is not {}", what(), limit.c_type.name())),
