@@ -231,3 +231,36 @@ fn the_tag_table_and_the_model_agree() {
         "shader-object rules are not executable"
     );
 }
+
+/// A corner-sampled image needs VK_NV_corner_sampled_image on the device whatever the VUID's listed
+/// dependencies (1.4.309 lists 02696 as core): the world enables it where the profile has it, and a
+/// profile without it cannot express the case (unsupported by profile, not a case the harness is left
+/// to refuse).
+#[test]
+fn a_corner_sampled_image_enables_its_extension_or_is_unsupported() {
+    const EXTENSION: &str = "VK_NV_corner_sampled_image";
+    let m = mutation_for("VUID-vkCmdTraceRaysKHR-flags-02696").expect("a resource rule");
+    for (name, profile) in common::profiles() {
+        let mut st = generator::resources::valid_state(&profile, 0, 0x1ff);
+        let mut dev = model::world::DeviceState::default();
+        let mut cb = model::world::CommandBufferState::default();
+        let made = mutate(m, &mut st, &mut dev, &mut cb, &profile, 0);
+        if profile.has_extension(EXTENSION) {
+            assert!(made.is_ok(), "{name}: {made:?}");
+            assert!(dev.extensions.contains(EXTENSION), "{name}: {dev:?}");
+            assert!(st.images.iter().any(|i| i.corner_sampled), "{name}");
+        } else {
+            let why = made.expect_err(&name);
+            assert!(why.contains(EXTENSION), "{name}: {why}");
+        }
+    }
+    assert!(
+        common::profiles()
+            .iter()
+            .any(|(_, p)| !p.has_extension(EXTENSION))
+            && common::profiles()
+                .iter()
+                .any(|(_, p)| p.has_extension(EXTENSION)),
+        "the committed profiles include one with the extension and one without"
+    );
+}

@@ -1,8 +1,9 @@
 //! Cases run on real lavapipe under the validation layer: valid launches (indirect; with callables and
 //! recursion; with dynamic stack size; with sparse buffers) whose read-back words equal the model's
 //! expectation, invalid calls whose VUIDs the 1.3.239 layer reports, memory bindings the harness
-//! cannot realise validly reported as unsupported with the VUID that forbids them, and a pool of a
-//! family without compute unsupported for lavapipe's one family.
+//! cannot realise validly reported as unsupported with the VUID that forbids them, a pool of a
+//! family without compute unsupported for lavapipe's one family, and calls into a command buffer made
+//! invalid (primary and secondary) reported by the layer.
 
 mod common;
 
@@ -294,5 +295,47 @@ fn a_pool_without_compute_is_unsupported_on_lavapipe_and_leaves_its_other_cases_
     assert!(reason.contains("1 queue family has compute"), "{reason}");
     assert!(obs.layer_vuids.is_empty(), "{obs:?}");
     // The device of the same extensions and features with the compute family only is another one.
+    check(&mut ctx, &valid_case(), &[]);
+}
+
+/// The committed lavapipe profile.
+fn lavapipe_profile() -> model::DeviceProfile {
+    let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../profiles/lavapipe.json");
+    let text = std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+    model::DeviceProfile::from_profiles_json("lavapipe", &text).expect("a profile")
+}
+
+#[test]
+fn a_call_into_an_invalid_command_buffer_is_realised_and_reported_at_either_level() {
+    use model::world::{CommandBufferLevel, CommandBufferLifecycle};
+    let mut ctx = executor();
+    for level in [CommandBufferLevel::Primary, CommandBufferLevel::Secondary] {
+        let mut case = valid_case();
+        case.name = format!("invalid-{level:?}");
+        let cbs = &mut world(&mut case).command_buffer;
+        cbs.lifecycle = CommandBufferLifecycle::Invalid;
+        cbs.level = level;
+        // The model's verdict: the command buffer is not recording, and nothing else.
+        let rules = generator::registry::default_rules().expect("the installed registry");
+        let verdict = model::rules::validate(&rules, &lavapipe_profile(), &case);
+        assert_eq!(
+            verdict.vuids().into_iter().collect::<Vec<_>>(),
+            ["VUID-vkCmdTraceRaysIndirectKHR-commandBuffer-recording"],
+            "{}",
+            case.name
+        );
+        let obs = execute(&case, &mut ctx);
+        // Realised (submitted once with ONE_TIME_SUBMIT, so invalid), not refused; the 1.3.239 layer
+        // names the direct command's VUID for the indirect call (triaged as a layer mislabel).
+        assert_eq!(obs.status, Status::Ran, "{}: {obs:?}", case.name);
+        assert_eq!(obs.words(), None, "{}: never submitted", case.name);
+        assert!(
+            obs.layer_vuids.len() == 1 && obs.layer_vuids[0].ends_with("-commandBuffer-recording"),
+            "{}: {:#?}",
+            case.name,
+            obs.layer_messages
+        );
+    }
+    // The command buffers left invalid are begun again: a valid case right after runs correctly.
     check(&mut ctx, &valid_case(), &[]);
 }

@@ -305,6 +305,13 @@ pub fn mutate(
             access_mut(st).push(a);
         }
         "02696" => {
+            // A corner-sampled image needs VK_NV_corner_sampled_image on the device, whatever the
+            // VUID's listed dependencies (1.4.309 lists it as core).
+            const EXTENSION: &str = "VK_NV_corner_sampled_image";
+            if !profile.has_extension(EXTENSION) {
+                return Err(format!("the device lacks {EXTENSION}"));
+            }
+            dev.extensions.insert(EXTENSION.into());
             let mode = [
                 AddressMode::Repeat,
                 AddressMode::ClampToBorder,

@@ -170,38 +170,7 @@ fn record_indirect(
                 Step::End => d
                     .end_command_buffer(cb)
                     .map_err(vkfail("vkEndCommandBuffer"))?,
-                Step::SubmitToInvalidate => {
-                    // A ONE_TIME_SUBMIT buffer moves to the invalid state once its submission completes;
-                    // a secondary one is executed once from the primary.
-                    let submit_cb = if secondary {
-                        d.reset_command_buffer(cmds.cb, vk::CommandBufferResetFlags::empty())
-                            .map_err(vkfail("vkResetCommandBuffer"))?;
-                        d.begin_command_buffer(
-                            cmds.cb,
-                            &vk::CommandBufferBeginInfo::default()
-                                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
-                        )
-                        .map_err(vkfail("vkBeginCommandBuffer"))?;
-                        if let Some(pass) = rp {
-                            begin_render_pass(
-                                d,
-                                cmds.cb,
-                                pass,
-                                vk::SubpassContents::SECONDARY_COMMAND_BUFFERS,
-                            );
-                            d.cmd_execute_commands(cmds.cb, &[cb]);
-                            d.cmd_end_render_pass(cmds.cb);
-                        } else {
-                            d.cmd_execute_commands(cmds.cb, &[cb]);
-                        }
-                        d.end_command_buffer(cmds.cb)
-                            .map_err(vkfail("vkEndCommandBuffer"))?;
-                        cmds.cb
-                    } else {
-                        cb
-                    };
-                    cmds.submit_and_wait(dev, submit_cb)?;
-                }
+                Step::SubmitToInvalidate => cmds.submit_to_invalidate(dev, cb, secondary, rp)?,
                 Step::Call { .. } => {
                     inst.collector.clear();
                     inst.collector.set_abort(true);

@@ -385,7 +385,7 @@ fn run(
             if let Some(pass) = render_pass {
                 begin_render_pass(d, cb, pass, vk::SubpassContents::INLINE);
             }
-            if cbs.lifecycle == CommandBufferLifecycle::Executable {
+            if step(Step::End) {
                 if render_pass.is_some() {
                     d.cmd_end_render_pass(cb);
                 }
@@ -393,6 +393,11 @@ fn run(
                     .map_err(|r| HarnessError::Failed(format!("vkEndCommandBuffer: {r:?}")))?;
             }
         }
+    }
+    if step(Step::SubmitToInvalidate) {
+        // The binds and transitions recorded above run once; the buffer is then invalid. (The plan
+        // realises no secondary inside a render pass.)
+        cmds.submit_to_invalidate(&cache.dev, cb, secondary, None)?;
     }
     // The call's arguments, resolved before collecting so only the call's own messages are kept.
     enum Resolved {

@@ -354,15 +354,22 @@ impl TracePlan {
     pub fn of(case: &model::TraceBody, run_valid: bool) -> Result<TracePlan, HarnessError> {
         let world = &case.world;
         let cbs = &world.command_buffer;
-        if cbs.in_video_coding || cbs.protected || cbs.lifecycle == CommandBufferLifecycle::Invalid
-        {
+        if cbs.in_video_coding || cbs.protected {
             return Err(HarnessError::NotRealised(
-                "video coding scopes, protected and invalid command buffers are not realised by the harness yet".into(),
+                "video coding scopes and protected command buffers are not realised by the harness yet"
+                    .into(),
             ));
         }
         let pool_family =
             (!cbs.pool_queue.contains(QueueFlags::COMPUTE_BIT)).then_some(cbs.pool_queue);
         if pool_family.is_some() {
+            if cbs.lifecycle == CommandBufferLifecycle::Invalid {
+                return Err(HarnessError::NotRealised(
+                    "an invalid command buffer of a pool without compute is not realised: a buffer becomes invalid \
+                     through a submission, and the harness submits only on its compute queue"
+                        .into(),
+                ));
+            }
             // The command buffer comes from a pool of a family without compute, where nothing but the
             // call is recorded: the world is realised on the compute queue first, and every command the
             // harness records around a call needs compute or graphics in the pool's family.
@@ -539,11 +546,17 @@ impl TracePlan {
             if cbs.in_render_pass {
                 steps.push(Step::BeginRenderPass);
             }
-            if cbs.lifecycle == CommandBufferLifecycle::Executable {
+            if matches!(
+                cbs.lifecycle,
+                CommandBufferLifecycle::Executable | CommandBufferLifecycle::Invalid
+            ) {
                 if cbs.in_render_pass {
                     steps.push(Step::EndRenderPass);
                 }
                 steps.push(Step::End);
+            }
+            if cbs.lifecycle == CommandBufferLifecycle::Invalid {
+                steps.push(Step::SubmitToInvalidate);
             }
         }
         steps.push(Step::Call {

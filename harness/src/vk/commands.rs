@@ -102,6 +102,52 @@ impl Commands {
                 .map_err(vkfail("vkResetFences"))
         }
     }
+    /// Submits `cb` once and waits: a command buffer begun with ONE_TIME_SUBMIT and ended moves to
+    /// the invalid state when that submission completes (spec, "Command Buffer Lifecycle"). A
+    /// secondary one is executed once from this pool's primary, inside `render_pass` (continuing it)
+    /// where one is given.
+    pub(crate) fn submit_to_invalidate(
+        &self,
+        dev: &VkDevice,
+        cb: vk::CommandBuffer,
+        secondary: bool,
+        render_pass: Option<(vk::RenderPass, vk::Framebuffer)>,
+    ) -> Result<(), HarnessError> {
+        let d = &dev.device;
+        let submitted = if secondary {
+            // SAFETY: the primary is idle (every submission of this pool is waited for); `cb` is an
+            // executable secondary of the same pool, and the render pass objects are live.
+            unsafe {
+                d.reset_command_buffer(self.cb, vk::CommandBufferResetFlags::empty())
+                    .map_err(vkfail("vkResetCommandBuffer"))?;
+                d.begin_command_buffer(
+                    self.cb,
+                    &vk::CommandBufferBeginInfo::default()
+                        .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+                )
+                .map_err(vkfail("vkBeginCommandBuffer"))?;
+                if let Some(pass) = render_pass {
+                    begin_render_pass(
+                        d,
+                        self.cb,
+                        pass,
+                        vk::SubpassContents::SECONDARY_COMMAND_BUFFERS,
+                    );
+                    d.cmd_execute_commands(self.cb, &[cb]);
+                    d.cmd_end_render_pass(self.cb);
+                } else {
+                    d.cmd_execute_commands(self.cb, &[cb]);
+                }
+                d.end_command_buffer(self.cb)
+                    .map_err(vkfail("vkEndCommandBuffer"))?;
+            }
+            self.cb
+        } else {
+            cb
+        };
+        self.submit_and_wait(dev, submitted)
+    }
+
     /// Makes a build's writes visible to later builds and to the shaders that trace the result: the
     /// compute stage only when rayQuery is enabled (acceleration structure reads from other shader
     /// stages need it, VUID-vkCmdPipelineBarrier-dstAccessMask-06257), the ray tracing stage with

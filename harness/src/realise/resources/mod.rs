@@ -116,7 +116,7 @@ pub(crate) fn unsupported(world: &World) -> Option<String> {
         );
     }
     if st.images.iter().any(|i| i.corner_sampled) {
-        return Some("corner-sampled images (VK_NV_corner_sampled_image) are not realised: the harness creates none yet (the extension is NVIDIA's; lavapipe lacks it)".into());
+        return Some("corner-sampled images (VK_NV_corner_sampled_image) are not realised: the harness creates none yet".into());
     }
     if st.descriptor_source == DescriptorSource::Buffers
         && st
