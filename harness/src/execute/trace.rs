@@ -23,7 +23,10 @@ use std::time::Duration;
 pub(super) fn trace(ctx: &mut Executor, case: &model::TraceBody, run_valid: bool) -> Observation {
     // Resource states are realised by `crate::realise::resources`; what it cannot realise is unsupported
     // (running without it would show the layer a call that violates nothing).
-    if let Some(why) = crate::realise::resources::unsupported(&case.world) {
+    let layer_spec = ctx.inst.layer_build.map(|(spec, _)| spec);
+    if let Some(why) = crate::realise::resources::unsupported(&case.world)
+        .or_else(|| crate::realise::resources::unbound_set(&case.world, layer_spec))
+    {
         return Observation::not_realised(why);
     }
     let timeout = ctx.gpu_timeout;

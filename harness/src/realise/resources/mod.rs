@@ -43,8 +43,9 @@
 //! What is not realised is reported not realised by [`unsupported`] with the reason (vendor objects,
 //! sparse images and tile memory, cubic filters, implicit-LOD sampling, which ray
 //! tracing stages cannot do, 64-bit float images, 64-bit samplers and textures, 64-bit integer images on
-//! a device that does not enable shaderImageInt64Atomics, accesses in a stage the pipeline lacks, sets
-//! statically used but never bound, descriptors of the wrong kind).
+//! a device that does not enable shaderImageInt64Atomics, accesses in a stage the pipeline lacks,
+//! descriptors of the wrong kind); [`unbound_set`] refuses sets statically used but never bound under a
+//! layer older than the first seen to validate them.
 
 mod descriptor_buffer;
 mod glsl;
@@ -179,13 +180,37 @@ pub(crate) fn unsupported(world: &World) -> Option<String> {
             return Some(why);
         }
     }
-    if let Some(n) = st.used_sets().into_iter().find(|&n| st.bound(n).is_none()) {
-        return Some(format!(
-            "set {n} is statically used but never bound: VK_LAYER_KHRONOS_validation 1.3.239 crashes (SIGSEGV, or an \
-             uncaught C++ exception) validating such a trace call on lavapipe, so the harness does not record it"
-        ));
-    }
     None
+}
+
+/// The first validation layer seen to validate a trace call whose shaders statically use a set that
+/// was never bound (1.4.309 reports VUID-...-None-08600 for it).
+const UNBOUND_SET_VALIDATED_SINCE: u32 = vk::make_api_version(0, 1, 4, 309);
+
+/// Why a call whose shaders statically use a set nothing bound is not recorded under the loaded
+/// layer (`layer_spec`: its spec version, None without a layer): VK_LAYER_KHRONOS_validation 1.3.239
+/// crashes validating it, so a layer older than the first seen to validate it (or none, which would
+/// hand the call to the driver) is not shown it.
+pub(crate) fn unbound_set(world: &World, layer_spec: Option<u32>) -> Option<String> {
+    let st = &world.resources;
+    let n = st
+        .used_sets()
+        .into_iter()
+        .find(|&n| st.bound(n).is_none())?;
+    let layer = match layer_spec {
+        Some(v) if v >= UNBOUND_SET_VALIDATED_SINCE => return None,
+        Some(v) => format!(
+            "VK_LAYER_KHRONOS_validation {}.{}.{}",
+            vk::api_version_major(v),
+            vk::api_version_minor(v),
+            vk::api_version_patch(v)
+        ),
+        None => "no validation layer (the call would reach the driver)".into(),
+    };
+    Some(format!(
+        "set {n} is statically used but never bound: not recorded under {layer}, older than 1.4.309, the first \
+         layer seen to validate such a trace call (1.3.239 crashes with SIGSEGV or an uncaught C++ exception)"
+    ))
 }
 
 /// Why an access whose image type or view format is 64-bit is not realised: a 64-bit float
@@ -630,5 +655,63 @@ mod tests {
         assert_ne!(pipeline_layout_key(harness, &["a", "b"], &[]), key);
         let other = vk::DescriptorSetLayout::from_raw(8);
         assert_ne!(pipeline_layout_key(other, &["a", "b"], &ranges), key);
+    }
+
+    /// The world of the committed hand-made indirect case (no resource state).
+    fn hand_world() -> World {
+        let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../cases/hand/trace-indirect-basic.yaml");
+        let text = std::fs::read_to_string(&p).expect("the hand-made case");
+        let case = model::Case::from_yaml(&p.display().to_string(), &text).expect("a case file");
+        case.as_trace().expect("a trace case").world.clone()
+    }
+
+    /// A world whose shaders load from set 0 with nothing bound (the generator's mutation for
+    /// VUID-vkCmdTraceRaysKHR-None-08600, bound sets cleared).
+    fn unbound_world() -> World {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../profiles/lavapipe.json");
+        let text = std::fs::read_to_string(path).expect("profiles/lavapipe.json");
+        let profile =
+            model::DeviceProfile::from_profiles_json("lavapipe", &text).expect("a profile");
+        let m = generator::resources::mutation_for("VUID-vkCmdTraceRaysKHR-None-08600")
+            .expect("a resource rule");
+        let mut world = hand_world();
+        let mut st = generator::resources::valid_state(&profile, 0, 0x1ff);
+        generator::resources::mutate(
+            m,
+            &mut st,
+            &mut world.device,
+            &mut world.command_buffer,
+            &profile,
+            0,
+        )
+        .expect("lavapipe expresses it");
+        world.resources = st;
+        world
+    }
+
+    #[test]
+    fn an_unbound_set_is_recorded_only_under_a_layer_that_validates_it() {
+        let world = unbound_world();
+        assert!(unsupported(&world).is_none(), "nothing else refused");
+        let old = vk::make_api_version(0, 1, 3, 239);
+        let why = unbound_set(&world, Some(old)).expect("refused under 1.3.239");
+        assert!(
+            why.contains("set 0") && why.contains("1.3.239") && why.contains("1.4.309"),
+            "{why}"
+        );
+        assert!(
+            unbound_set(&world, None).is_some(),
+            "refused without a layer"
+        );
+        for since in [
+            vk::make_api_version(0, 1, 4, 309),
+            vk::make_api_version(0, 1, 4, 330),
+        ] {
+            assert_eq!(unbound_set(&world, Some(since)), None);
+        }
+        // A world whose sets are all bound is never refused for this.
+        assert_eq!(unbound_set(&hand_world(), Some(old)), None);
     }
 }
