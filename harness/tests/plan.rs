@@ -316,13 +316,18 @@ fn committed_trace_cases_are_described_by_the_call_plan() {
     );
 }
 
-#[test]
-fn every_generated_trace_case_of_the_committed_profiles_is_planned() {
+/// The rule table of the installed registry.
+fn installed_rules() -> model::RuleSet {
     let set = vk_registry::source::load_union(&[std::path::PathBuf::from(
         vk_registry::source::DEFAULT_REGISTRY_DIR,
     )])
     .expect("the installed registry");
-    let rules = model::RuleSet::from_vuids(&set);
+    model::RuleSet::from_vuids(&set)
+}
+
+#[test]
+fn every_generated_trace_case_of_the_committed_profiles_is_planned() {
+    let rules = installed_rules();
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../profiles");
     let mut totals: BTreeMap<String, (usize, usize)> = BTreeMap::new();
     let mut refused: BTreeMap<String, usize> = BTreeMap::new();
@@ -474,11 +479,7 @@ fn trace_buffers_are_written_where_the_world_says() {
 /// recorded; run as valid, it is refused.
 #[test]
 fn an_nv_table_naming_a_missing_buffer_gets_a_destroyed_handle() {
-    let set = vk_registry::source::load_union(&[std::path::PathBuf::from(
-        vk_registry::source::DEFAULT_REGISTRY_DIR,
-    )])
-    .expect("the installed registry");
-    let rules = model::RuleSet::from_vuids(&set);
+    let rules = installed_rules();
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../profiles");
     let text = std::fs::read_to_string(dir.join("nvidia-h200.json")).unwrap();
     let profile = model::DeviceProfile::from_profiles_json("nvidia-h200", &text).unwrap();
