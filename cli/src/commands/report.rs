@@ -17,11 +17,11 @@ const NAMED: usize = 20;
 /// run stopped before it finished; either makes the exit status 2 (the input was not whole), the
 /// report of what there is written all the same.
 pub fn run(a: ReportArgs) -> super::Exit {
-    let page = session::html::write_report(&a.dir)?;
+    let (page, finished) = session::html::write_report_of_folder(&a.dir)?;
     println!("{}", page.display());
     // A run that stopped before its summary: the report of its results so far, and the input named
     // as not whole.
-    let unfinished = !a.dir.join("summary.json").exists();
+    let unfinished = !finished;
     if unfinished {
         eprintln!(
             "rtconf: {}; the report shows the results it has",

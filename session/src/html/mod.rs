@@ -73,6 +73,12 @@ fn anchor(name: &str) -> String {
 /// Writes `out/report/index.html` (and the pictures it shows into `out/report/img/`) from the run
 /// folder's `summary.json`, `results.jsonl`, details and case files; returns the page's path.
 pub fn write_report(out: &Path) -> Result<PathBuf, SessionError> {
+    write_report_of_folder(out).map(|(page, _)| page)
+}
+
+/// [`write_report`], and whether the run in `out` finished ([`Summary::of_folder`]: a run stopped
+/// before its `summary.json` is reported from the results it has, marked unfinished).
+pub fn write_report_of_folder(out: &Path) -> Result<(PathBuf, bool), SessionError> {
     let (summary, finished) = Summary::of_folder(out)?;
     let dir = out.join("report");
     let img = dir.join("img");
@@ -141,7 +147,7 @@ pub fn write_report(out: &Path) -> Result<PathBuf, SessionError> {
     let page = render(&summary, finished, &entries, &out.display().to_string());
     let path = dir.join("index.html");
     std::fs::write(&path, page).map_err(|e| SessionError::io(path.display().to_string(), e))?;
-    Ok(path)
+    Ok((path, finished))
 }
 
 fn render(s: &Summary, finished: bool, entries: &[Entry], run_dir: &str) -> String {
