@@ -473,3 +473,60 @@ fn trace_buffers_are_written_where_the_world_says() {
         }
     }
 }
+
+/// An NV table naming a buffer the world lacks (`*ShaderBindingTableBuffer-parameter`: a handle that
+/// is no valid VkBuffer) is planned as a buffer created and destroyed before the call, for a case only
+/// recorded; run as valid, it is refused.
+#[test]
+fn an_nv_table_naming_a_missing_buffer_gets_a_destroyed_handle() {
+    let rules = installed_rules();
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../profiles");
+    let text = std::fs::read_to_string(dir.join("nvidia-h200.json")).unwrap();
+    let profile = model::DeviceProfile::from_profiles_json("nvidia-h200", &text).unwrap();
+    let mut planned = 0;
+    for table in ["raygen", "miss", "hit", "callable"] {
+        let vuid = format!("VUID-vkCmdTraceRaysNV-{table}ShaderBindingTableBuffer-parameter");
+        let spec = generator::CaseSpec::violate(model::CommandId::TraceRaysNv, &vuid);
+        let cases = generator::generate(&profile, "nvidia-h200", &rules, &spec, 4, 11)
+            .unwrap_or_else(|e| panic!("{vuid}: {e}"));
+        for case in &cases {
+            let body = case.as_trace().expect("a trace case");
+            let model::Call::TraceRaysNv(c) = &body.call else {
+                panic!("{}: an NV call", case.name)
+            };
+            let missing: Vec<String> = [&c.raygen, &c.miss, &c.hit, &c.callable]
+                .into_iter()
+                .filter_map(|t| t.buffer.clone())
+                .filter(|n| !body.world.buffers.iter().any(|b| &b.name == n))
+                .collect();
+            let plan = TracePlan::of(body, false).unwrap_or_else(|e| panic!("{}: {e}", case.name));
+            let mut expected = missing.clone();
+            expected.dedup();
+            assert_eq!(plan.destroyed_buffers, expected, "{}", case.name);
+            if missing.is_empty() {
+                // The raygen table's null handle: nothing to destroy.
+                continue;
+            }
+            planned += 1;
+            let exec = Execution {
+                run_valid: false,
+                ..Default::default()
+            };
+            let lines = CallPlan::of(case, &exec)
+                .unwrap_or_else(|e| panic!("{}: {e}", case.name))
+                .describe();
+            assert!(
+                lines.iter().any(|l| l.contains("then vkDestroyBuffer")),
+                "{}: {lines:#?}",
+                case.name
+            );
+            let valid = TracePlan::of(body, true);
+            assert!(
+                matches!(&valid, Err(harness::HarnessError::NotRealised(why)) if why.contains("which the world lacks")),
+                "{}: {valid:?}",
+                case.name
+            );
+        }
+    }
+    assert!(planned >= 8, "{planned} cases name a missing buffer");
+}

@@ -295,6 +295,25 @@ fn run(
                 }),
         }
     };
+    // The handles of the plan's destroyed buffers: each made and destroyed at once (an invalid case's
+    // call, which the layer drops, is all that names them).
+    let mut destroyed: Vec<(&str, vk::Buffer)> = Vec::new();
+    for name in &plan.destroyed_buffers {
+        let info = vk::BufferCreateInfo::default()
+            .size(64)
+            .usage(vk::BufferUsageFlags::SHADER_BINDING_TABLE_KHR);
+        // SAFETY: a valid create info; the buffer is destroyed before anything uses it.
+        let handle = unsafe {
+            let b = cache
+                .dev
+                .device
+                .create_buffer(&info, None)
+                .map_err(|r| HarnessError::Failed(format!("vkCreateBuffer: {r:?}")))?;
+            cache.dev.device.destroy_buffer(b, None);
+            b
+        };
+        destroyed.push((name, handle));
+    }
     let buffer_named = |name: &Option<String>| -> Result<vk::Buffer, HarnessError> {
         match name {
             None => Ok(vk::Buffer::null()),
@@ -302,6 +321,7 @@ fn run(
                 .iter()
                 .find(|(b, _)| b == n)
                 .map(|(_, a)| a.buffer)
+                .or_else(|| destroyed.iter().find(|(b, _)| b == n).map(|&(_, h)| h))
                 .ok_or_else(|| {
                     HarnessError::NotRealised(format!(
                         "the call names buffer `{n}`, which the world lacks"

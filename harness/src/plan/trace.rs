@@ -123,6 +123,9 @@ pub struct TracePlan {
     pub resources: bool,
     /// Launch IDs of the call (its dimensions' product; 0 when unknown).
     pub launch_ids: usize,
+    /// Buffers an NV call's tables name that the world lacks (an invalid case's handle that is no
+    /// valid VkBuffer): each is created and destroyed before the call, which gets its handle.
+    pub destroyed_buffers: Vec<String>,
 }
 
 /// Launch IDs are read back only up to this many output words.
@@ -569,6 +572,27 @@ impl TracePlan {
                 words: records * RayRecord::WORDS,
             });
         }
+        // An NV table naming a buffer the world lacks: a handle that is not a valid VkBuffer, made by
+        // destroying a buffer (the layer knows every handle it gave out; an invalid case's call is
+        // dropped before the driver sees it). A valid case names none.
+        let mut destroyed_buffers: Vec<String> = Vec::new();
+        if let Call::TraceRaysNv(c) = &case.call {
+            for name in [&c.raygen, &c.miss, &c.hit, &c.callable]
+                .into_iter()
+                .filter_map(|t| t.buffer.as_ref())
+            {
+                if !world.buffers.iter().any(|b| &b.name == name)
+                    && !destroyed_buffers.contains(name)
+                {
+                    if run_valid {
+                        return Err(HarnessError::NotRealised(format!(
+                            "a valid call names buffer `{name}`, which the world lacks"
+                        )));
+                    }
+                    destroyed_buffers.push(name.clone());
+                }
+            }
+        }
         let call = match &case.call {
             Call::TraceRays(c) => TraceCall::TraceRays {
                 regions: [
@@ -614,6 +638,7 @@ impl TracePlan {
             call,
             resources: !world.resources.is_empty(),
             launch_ids,
+            destroyed_buffers,
         })
     }
 
@@ -662,6 +687,11 @@ impl TracePlan {
                     ),
                 });
             }
+        }
+        for name in &self.destroyed_buffers {
+            out.push(format!(
+                "vkCreateBuffer `{name}`, then vkDestroyBuffer: the call gets a handle that is no longer valid"
+            ));
         }
         if let Some(p) = &self.pipeline {
             out.push(format!(
