@@ -116,6 +116,7 @@ fn flaws_of_value(case: &Case) -> Vec<Flaw> {
     second_names("buffers", buffers.iter().copied(), &mut out);
     second_names("structures", structures.iter().copied(), &mut out);
     nv_dynamic_stack_size(case, &mut out);
+    scopes_outside_recording(case, &mut out);
     let scope = Scope {
         buffers: buffers.into_iter().map(|(_, n)| n).collect(),
         structures: structures.into_iter().map(|(_, n)| n).collect(),
@@ -152,6 +153,7 @@ fn streamed(case: &Case) -> Result<Vec<Flaw>, Unmirrored> {
         &mut out,
     );
     nv_dynamic_stack_size(case, &mut out);
+    scopes_outside_recording(case, &mut out);
     let scope = Scope {
         buffers: buffers.iter().copied().collect(),
         structures: structures.iter().copied().collect(),
@@ -203,6 +205,51 @@ fn nv_dynamic_stack_size(case: &Case, out: &mut Vec<Flaw>) {
             out.push(Flaw {
                 at: "world.pipeline.dynamic_stack_size".into(),
                 problem: "an NV pipeline (vkCreateRayTracingPipelinesNV) has no dynamic states, so no dynamic stack size".into(),
+            });
+        }
+    }
+}
+
+/// A render pass instance, a video coding scope and the span between suspended render pass instances
+/// are opened and closed by commands recorded into the command buffer, so only a command buffer in the
+/// recording state can be inside one: a world stating one for a command buffer in another state
+/// describes nothing a driver can be given (and no rule reads it: both layers report the lifecycle
+/// alone for such a call).
+fn scopes_outside_recording(case: &Case, out: &mut Vec<Flaw>) {
+    use crate::world::CommandBufferLifecycle as L;
+    let cb = match &case.body {
+        Body::Trace(t) => &t.world.command_buffer,
+        Body::Accel(a) => &a.world.command_buffer,
+    };
+    let state = match cb.lifecycle {
+        L::Recording => return,
+        L::Initial => "initial",
+        L::Executable => "executable",
+        L::Invalid => "invalid",
+    };
+    for (field, inside, scope) in [
+        (
+            "in_render_pass",
+            cb.in_render_pass,
+            "a render pass instance",
+        ),
+        (
+            "in_video_coding",
+            cb.in_video_coding,
+            "a video coding scope",
+        ),
+        (
+            "between_suspended_render_passes",
+            cb.between_suspended_render_passes,
+            "the span between suspended render pass instances",
+        ),
+    ] {
+        if inside {
+            out.push(Flaw {
+                at: format!("world.command_buffer.{field}"),
+                problem: format!(
+                    "the command buffer is in the {state} state, yet inside {scope}: only a command buffer being recorded can be inside one"
+                ),
             });
         }
     }
