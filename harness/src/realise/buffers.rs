@@ -202,7 +202,9 @@ impl DeviceCache {
                             "buffer `{}` is not sparse and has no memory bound: vkGetBufferDeviceAddress on it is \
                              itself invalid (VUID-VkBufferDeviceAddressInfo-buffer-02600: a non-sparse buffer must be \
                              bound completely and contiguously to a single VkDeviceMemory object), so the harness \
-                             cannot give it the address the call uses",
+                             cannot give it the address the call uses (binding memory, taking the address and \
+                             freeing the memory is no stand-in: layers 1.3.239 and 1.4.309 then find no buffer at \
+                             the address and report its usage and size rules as well)",
                             b.name
                         )))
                     }
