@@ -558,19 +558,38 @@ pub(crate) fn instructions(words: &[u32]) -> impl Iterator<Item = (usize, &[u32]
 /// once, when it is made (layer 1.3.239 on lavapipe: more than half of a ray tracing pipeline's
 /// creation went there).
 pub(crate) fn with_spec_values(words: &[u32], values: &[u32]) -> Vec<u32> {
+    constants_for_spec(words, |id| values.get(id as usize).copied().map(Some))
+}
+
+/// The first SpecId of the specialisation constants the harness's GLSL declares only to be made
+/// ordinary constants of their default values ([`with_fixed_spec_defaults`]); its own shaders' IDs
+/// (group index, any-hit rule) lie below it.
+pub(crate) const FIXED_SPEC_ID_BASE: u32 = 100;
+
+/// The module with each 32-bit specialisation constant whose SpecId is at least
+/// [`FIXED_SPEC_ID_BASE`] made an ordinary constant of its default value: how a module gets a constant
+/// that GLSL refuses to write as one (an array index past the array's end, which the compiler
+/// rejects as a constant but accepts as a specialisation constant's default).
+pub(crate) fn with_fixed_spec_defaults(words: &[u32]) -> Vec<u32> {
+    constants_for_spec(words, |id| (id >= FIXED_SPEC_ID_BASE).then_some(None))
+}
+
+/// The module with the 32-bit specialisation constants `value_of` picks made ordinary constants:
+/// `value_of(spec_id)` is None to keep the constant, `Some(None)` to keep its default value and
+/// `Some(Some(v))` to give it value `v` (its OpSpecConstant an OpConstant of the same words, its
+/// SpecId decoration removed). Every other instruction is kept.
+fn constants_for_spec(words: &[u32], value_of: impl Fn(u32) -> Option<Option<u32>>) -> Vec<u32> {
     const OP_CONSTANT: u32 = 43;
     const OP_SPEC_CONSTANT: u32 = 50;
     const OP_DECORATE: u32 = 71;
     const SPEC_ID: u32 = 1;
-    // Result id → SpecId, for the IDs `values` names.
-    let mut spec_of: BTreeMap<u32, u32> = BTreeMap::new();
+    // Result id → the value it gets (None: its default).
+    let mut value_for: BTreeMap<u32, Option<u32>> = BTreeMap::new();
     for (_, inst) in instructions(words) {
-        if inst[0] & 0xFFFF == OP_DECORATE
-            && inst.len() == 4
-            && inst[2] == SPEC_ID
-            && (inst[3] as usize) < values.len()
-        {
-            spec_of.insert(inst[1], inst[3]);
+        if inst[0] & 0xFFFF == OP_DECORATE && inst.len() == 4 && inst[2] == SPEC_ID {
+            if let Some(v) = value_of(inst[3]) {
+                value_for.insert(inst[1], v);
+            }
         }
     }
     let mut out = Vec::with_capacity(words.len());
@@ -583,18 +602,18 @@ pub(crate) fn with_spec_values(words: &[u32], values: &[u32]) -> Vec<u32> {
         if op == OP_DECORATE
             && inst.len() == 4
             && inst[2] == SPEC_ID
-            && spec_of.contains_key(&inst[1])
+            && value_for.contains_key(&inst[1])
         {
             continue;
         }
         // OpSpecConstant %type %id value: one word for a 32-bit constant, laid out as OpConstant.
-        match spec_of.get(&inst.get(2).copied().unwrap_or(0)) {
-            Some(&id) if op == OP_SPEC_CONSTANT && inst.len() == 4 => {
+        match value_for.get(&inst.get(2).copied().unwrap_or(0)) {
+            Some(&v) if op == OP_SPEC_CONSTANT && inst.len() == 4 => {
                 out.extend_from_slice(&[
                     (inst[0] & !0xFFFF) | OP_CONSTANT,
                     inst[1],
                     inst[2],
-                    values[id as usize],
+                    v.unwrap_or(inst[3]),
                 ]);
             }
             _ => out.extend_from_slice(inst),

@@ -192,3 +192,56 @@ fn the_spirv_disk_cache_holds_whole_modules_and_serves_a_second_process() {
     let text = child_run(tmp.path(), true, Some(&suffix), true);
     assert!(text.contains("execution model"), "{text}");
 }
+
+/// An access past its binding's end, which GLSL refuses as a constant index, compiles to a module that
+/// indexes the binding with that element as an ordinary constant: no specialisation constant of the
+/// harness's fixed range is left, and an OpAccessChain takes an OpConstant of the element's value.
+#[test]
+fn an_index_past_a_bindings_end_is_an_ordinary_constant_of_the_module() {
+    const PAST: u32 = 4099;
+    let profile = lavapipe_profile();
+    let mut st = valid_state(&profile, 3, 0x1ff);
+    move_to_stage(&mut st, Stage::Raygen);
+    let stage = st
+        .stages
+        .iter_mut()
+        .find(|s| s.stage == Stage::Raygen)
+        .expect("the raygen stage");
+    stage.accesses.first_mut().expect("an access").element = PAST;
+    let (glsl, _) = stage_glsl(&st, Stage::Raygen, stage_source(Stage::Raygen).0)
+        .expect("an index past the end is expressed");
+    let words = compile_stage(
+        &glsl,
+        Stage::Raygen,
+        false,
+        PipelineApi::Khr,
+        ShaderBody::Full,
+    )
+    .expect("compiles");
+    let mut insts = Vec::new();
+    let mut i = 5;
+    while i < words.len() {
+        let n = (words[i] >> 16).max(1) as usize;
+        insts.push(&words[i..(i + n).min(words.len())]);
+        i += n;
+    }
+    let op = |inst: &[u32]| inst[0] & 0xFFFF;
+    assert!(
+        !insts
+            .iter()
+            .any(|inst| op(inst) == 71 && inst.len() == 4 && inst[2] == 1 && inst[3] >= 100),
+        "a fixed specialisation constant is left"
+    );
+    let past: Vec<u32> = insts
+        .iter()
+        .filter(|inst| op(inst) == 43 && inst.len() == 4 && inst[3] == PAST)
+        .map(|inst| inst[2])
+        .collect();
+    assert!(!past.is_empty(), "no constant {PAST}");
+    assert!(
+        insts
+            .iter()
+            .any(|inst| op(inst) == 65 && inst.len() > 4 && past.contains(&inst[4])),
+        "no access chain indexes with {PAST}"
+    );
+}

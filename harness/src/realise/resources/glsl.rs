@@ -259,15 +259,25 @@ pub fn stage_glsl(
     for (i, a) in accesses.iter().enumerate() {
         let set = a.set + 1;
         let (ty, count) = binding_of(st, a);
-        if a.element >= count {
-            return Err(HarnessError::NotRealised(format!("access {i} indexes element {} of a binding of {count}: GLSL refuses a constant index out of bounds", a.element)));
-        }
-        let arr = if count > 1 {
+        let past_end = a.element >= count;
+        let arr = if count > 1 || past_end {
             format!("[{count}]")
         } else {
             String::new()
         };
-        let idx = if count > 1 {
+        let idx = if past_end {
+            // GLSL refuses a constant index past the array's end but takes it as a specialisation
+            // constant's default, which `compile_stage` makes an ordinary constant: the module
+            // indexes the binding with the constant element the access states.
+            writeln!(
+                decls,
+                "layout(constant_id = {}) const uint E{i} = {}u;",
+                shaders::FIXED_SPEC_ID_BASE as usize + i,
+                a.element
+            )
+            .unwrap();
+            format!("[E{i}]")
+        } else if count > 1 {
             format!("[{}]", a.element)
         } else {
             String::new()
@@ -709,7 +719,8 @@ pub(crate) fn patch_narrow_writes(
 
 /// Compiles a stage's GLSL to SPIR-V words (with `-DTRACE` when `trace`, `-DNV` for
 /// VK_NV_ray_tracing pipelines and `-DINTERFACE_ONLY` for the interface-only body, as build.rs
-/// compiles the harness's own shaders) through the one shader path, [`shaders::compile_glsl`]. The
+/// compiles the harness's own shaders) through the one shader path, [`shaders::compile_glsl`], its
+/// fixed specialisation constants made ordinary ones ([`shaders::with_fixed_spec_defaults`]). The
 /// injected accesses come before the body, whichever it is.
 pub fn compile_stage(
     glsl: &str,
@@ -733,7 +744,7 @@ pub fn compile_stage(
         glsl,
         &defines,
     )
-    .map(|w| body.module_words(w))
+    .map(|w| body.module_words(shaders::with_fixed_spec_defaults(&w)))
 }
 
 // ---------------------------------------------------------------------------------------------
