@@ -118,6 +118,32 @@ impl Realised {
             if views.iter().any(|v| v.format != img.format) {
                 flags |= vk::ImageCreateFlags::MUTABLE_FORMAT;
             }
+            let mut extent = extent;
+            if img.corner_sampled {
+                // A corner-sampled image is 2D or 3D, not cube compatible, at least 2 texels along
+                // each of its dimensions, and has at most ceil(log2(largest dimension)) levels
+                // (VUID-VkImageCreateInfo-flags-02050 to -02053; the complete chain of -mipLevels-00958).
+                if !matches!(vt, ViewType::TwoD | ViewType::TwoDArray | ViewType::ThreeD) {
+                    return unsup(format!(
+                        "image `{}` is corner-sampled but viewed as {vt:?}: such an image is 2D or 3D and not cube compatible",
+                        img.name
+                    ));
+                }
+                extent.width = extent.width.max(2);
+                extent.height = extent.height.max(2);
+                if ty == vk::ImageType::TYPE_3D {
+                    extent.depth = extent.depth.max(2);
+                }
+                let largest = extent.width.max(extent.height).max(extent.depth);
+                let corner_levels = u32::BITS - (largest - 1).leading_zeros();
+                if levels > corner_levels {
+                    return unsup(format!(
+                        "image `{}` is corner-sampled with {levels} levels, more than its {largest} texels allow ({corner_levels})",
+                        img.name
+                    ));
+                }
+                flags |= vk::ImageCreateFlags::CORNER_SAMPLED_NV;
+            }
             // The usage its descriptors need, and the one its layout needs to be entered validly.
             let usage = image_usage
                 .get(img.name.as_str())
