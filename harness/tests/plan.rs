@@ -530,3 +530,48 @@ fn an_nv_table_naming_a_missing_buffer_gets_a_destroyed_handle() {
     }
     assert!(planned >= 8, "{planned} cases name a missing buffer");
 }
+
+/// A primary command buffer stated executable or invalid inside a render pass instance is refused with
+/// the End command's rule, for a build as for a trace: the harness reaches those states by ending the
+/// command buffer, which a primary one cannot do inside a render pass instance, and ending the render
+/// pass first would record the call outside it. The same states of a secondary command buffer that
+/// continues a render pass are planned.
+#[test]
+fn a_primary_ended_inside_a_render_pass_is_not_realised() {
+    use model::world::{CommandBufferLevel as V, CommandBufferLifecycle as L};
+    let mut checked = 0;
+    for mut case in committed("build")
+        .into_iter()
+        .filter(|c| c.name.contains("renderpass"))
+        .chain(committed("hand").into_iter().take(1))
+    {
+        for lifecycle in [L::Executable, L::Invalid] {
+            for level in [V::Primary, V::Secondary] {
+                let cb = match &mut case.body {
+                    model::case::Body::Trace(t) => &mut t.world.command_buffer,
+                    model::case::Body::Accel(a) => &mut a.world.command_buffer,
+                };
+                cb.in_render_pass = true;
+                cb.lifecycle = lifecycle;
+                cb.level = level;
+                let plan = CallPlan::of(&case, &Execution::default());
+                let trace = case.as_trace().is_some();
+                match (level, plan) {
+                    (V::Primary, Err(harness::HarnessError::NotRealised(why))) => {
+                        assert!(why.contains("00060"), "{}: {why}", case.name)
+                    }
+                    (V::Primary, other) => panic!("{} {lifecycle:?}: {other:?}", case.name),
+                    // Traces leave every secondary inside a render pass to a later harness.
+                    (V::Secondary, Err(harness::HarnessError::NotRealised(why))) if trace => {
+                        assert!(why.contains("secondary"), "{why}")
+                    }
+                    (V::Secondary, plan) => {
+                        assert!(plan.is_ok(), "{} {lifecycle:?}: {plan:?}", case.name)
+                    }
+                }
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked >= 8, "{checked}");
+}

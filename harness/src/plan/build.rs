@@ -401,6 +401,16 @@ impl BuildPlan {
             .collect();
         let secondary = cbs.level == CommandBufferLevel::Secondary;
         let primary_pass = cbs.in_render_pass && !secondary;
+        if primary_pass
+            && matches!(
+                cbs.lifecycle,
+                CommandBufferLifecycle::Executable | CommandBufferLifecycle::Invalid
+            )
+        {
+            return Err(HarnessError::NotRealised(
+                super::ENDED_INSIDE_RENDER_PASS.into(),
+            ));
+        }
         let mut steps = vec![Step::Reset { level: cbs.level }];
         if cbs.lifecycle != CommandBufferLifecycle::Initial {
             steps.push(Step::Begin {
@@ -414,9 +424,6 @@ impl BuildPlan {
                 cbs.lifecycle,
                 CommandBufferLifecycle::Executable | CommandBufferLifecycle::Invalid
             ) {
-                if primary_pass {
-                    steps.push(Step::EndRenderPass);
-                }
                 steps.push(Step::End);
             }
             if cbs.lifecycle == CommandBufferLifecycle::Invalid {

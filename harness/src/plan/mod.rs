@@ -25,6 +25,10 @@ use model::case::Case;
 use model::world::{CommandBufferLevel, PipelineApi};
 use model::CommandId;
 
+/// Why a primary command buffer stated executable or invalid inside a render pass instance is not
+/// realised (trace and build plans alike).
+pub(crate) const ENDED_INSIDE_RENDER_PASS: &str = "a primary command buffer stated executable or invalid inside a render pass instance is not realised: the harness makes it so by ending it (and submitting it), and a primary command buffer cannot end inside a render pass instance (VUID-vkEndCommandBuffer-commandBuffer-00060); ending the render pass first would leave the call outside it";
+
 /// A case's plan: what the harness makes and records for it.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct CallPlan {

@@ -405,6 +405,16 @@ impl TracePlan {
                 "secondary command buffers inside a render pass are not realised yet".into(),
             ));
         }
+        if cbs.in_render_pass
+            && matches!(
+                cbs.lifecycle,
+                CommandBufferLifecycle::Executable | CommandBufferLifecycle::Invalid
+            )
+        {
+            return Err(HarnessError::NotRealised(
+                super::ENDED_INSIDE_RENDER_PASS.into(),
+            ));
+        }
         let nv_call = matches!(case.call, Call::TraceRaysNv(_));
         let traces = world.launch.traces();
         // What the case's device (exactly its extensions and features) cannot do, as the realisation
@@ -553,9 +563,6 @@ impl TracePlan {
                 cbs.lifecycle,
                 CommandBufferLifecycle::Executable | CommandBufferLifecycle::Invalid
             ) {
-                if cbs.in_render_pass {
-                    steps.push(Step::EndRenderPass);
-                }
                 steps.push(Step::End);
             }
             if cbs.lifecycle == CommandBufferLifecycle::Invalid {

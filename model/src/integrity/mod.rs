@@ -210,46 +210,44 @@ fn nv_dynamic_stack_size(case: &Case, out: &mut Vec<Flaw>) {
     }
 }
 
-/// A render pass instance, a video coding scope and the span between suspended render pass instances
-/// are opened and closed by commands recorded into the command buffer, so only a command buffer in the
-/// recording state can be inside one: a world stating one for a command buffer in another state
-/// describes nothing a driver can be given (and no rule reads it: both layers report the lifecycle
-/// alone for such a call).
+/// Scopes a command buffer in its state cannot be inside. One never begun (initial) has recorded
+/// nothing and inherited nothing: no render pass instance, video coding scope or suspended render
+/// pass instance. A primary one that was ended (executable) ended outside any render pass instance and
+/// with no video session bound (VUID-vkEndCommandBuffer-commandBuffer-00060, -None-06991). A world
+/// stating one of these describes nothing a driver can be given. A secondary command buffer begun with
+/// RENDER_PASS_CONTINUE_BIT stays inside its render pass whatever its state, and an invalid one may
+/// have been made invalid inside a scope: neither is a flaw.
 fn scopes_outside_recording(case: &Case, out: &mut Vec<Flaw>) {
-    use crate::world::CommandBufferLifecycle as L;
+    use crate::world::{CommandBufferLevel, CommandBufferLifecycle as L};
     let cb = match &case.body {
         Body::Trace(t) => &t.world.command_buffer,
         Body::Accel(a) => &a.world.command_buffer,
     };
-    let state = match cb.lifecycle {
-        L::Recording => return,
-        L::Initial => "initial",
-        L::Executable => "executable",
-        L::Invalid => "invalid",
+    let (state, scopes): (&str, &[&str]) = match (cb.lifecycle, cb.level) {
+        (L::Initial, _) => (
+            "initial: never begun, it has recorded and inherited nothing",
+            &[
+                "in_render_pass",
+                "in_video_coding",
+                "between_suspended_render_passes",
+            ],
+        ),
+        (L::Executable, CommandBufferLevel::Primary) => (
+            "executable: a primary command buffer ends outside any render pass instance and video coding scope (VUID-vkEndCommandBuffer-commandBuffer-00060, -None-06991)",
+            &["in_render_pass", "in_video_coding"],
+        ),
+        _ => return,
     };
-    for (field, inside, scope) in [
-        (
-            "in_render_pass",
-            cb.in_render_pass,
-            "a render pass instance",
-        ),
-        (
-            "in_video_coding",
-            cb.in_video_coding,
-            "a video coding scope",
-        ),
-        (
-            "between_suspended_render_passes",
-            cb.between_suspended_render_passes,
-            "the span between suspended render pass instances",
-        ),
-    ] {
+    for &field in scopes {
+        let inside = match field {
+            "in_render_pass" => cb.in_render_pass,
+            "in_video_coding" => cb.in_video_coding,
+            _ => cb.between_suspended_render_passes,
+        };
         if inside {
             out.push(Flaw {
                 at: format!("world.command_buffer.{field}"),
-                problem: format!(
-                    "the command buffer is in the {state} state, yet inside {scope}: only a command buffer being recorded can be inside one"
-                ),
+                problem: format!("`{field}` cannot hold for a command buffer that is {state}"),
             });
         }
     }

@@ -106,8 +106,8 @@ fn a_dangling_address_is_found_in_a_trace_world() {
 }
 
 #[test]
-fn a_scope_of_a_command_buffer_not_being_recorded_is_refused_with_its_place() {
-    use crate::world::CommandBufferLifecycle as L;
+fn a_scope_a_command_buffer_cannot_be_inside_is_refused_with_its_place() {
+    use crate::world::{CommandBufferLevel as V, CommandBufferLifecycle as L};
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../cases");
     for file in [
         "hand/trace-indirect-records-32.yaml",
@@ -116,47 +116,61 @@ fn a_scope_of_a_command_buffer_not_being_recorded_is_refused_with_its_place() {
         let text = std::fs::read_to_string(dir.join(file)).expect("the case reads");
         let case = Case::from_yaml(file, &text).expect("the case parses");
         assert!(flaws(&case).is_empty(), "{file}");
-        let cb = |c: &mut Case| match &mut c.body {
-            Body::Trace(t) => t.world.command_buffer.clone(),
-            Body::Accel(a) => a.world.command_buffer.clone(),
-        };
-        let set = |c: &mut Case, state: crate::world::CommandBufferState| match &mut c.body {
-            Body::Trace(t) => t.world.command_buffer = state,
-            Body::Accel(a) => a.world.command_buffer = state,
-        };
+        let set =
+            |c: &mut Case, f: &dyn Fn(&mut crate::world::CommandBufferState)| match &mut c.body {
+                Body::Trace(t) => f(&mut t.world.command_buffer),
+                Body::Accel(a) => f(&mut a.world.command_buffer),
+            };
         for lifecycle in [L::Recording, L::Initial, L::Executable, L::Invalid] {
-            for field in [
-                "in_render_pass",
-                "in_video_coding",
-                "between_suspended_render_passes",
-            ] {
-                let mut c = case.clone();
-                let mut state = cb(&mut c);
-                state.lifecycle = lifecycle;
-                state.in_render_pass = field == "in_render_pass";
-                state.in_video_coding = field == "in_video_coding";
-                state.between_suspended_render_passes = field == "between_suspended_render_passes";
-                set(&mut c, state);
-                let found = flaws(&c);
-                if lifecycle == L::Recording {
-                    assert!(found.is_empty(), "{file} {field}: {found:?}");
-                    continue;
+            for level in [V::Primary, V::Secondary] {
+                for field in [
+                    "in_render_pass",
+                    "in_video_coding",
+                    "between_suspended_render_passes",
+                ] {
+                    let mut c = case.clone();
+                    set(&mut c, &|cb| {
+                        cb.lifecycle = lifecycle;
+                        cb.level = level;
+                        cb.in_render_pass = field == "in_render_pass";
+                        cb.in_video_coding = field == "in_video_coding";
+                        cb.between_suspended_render_passes =
+                            field == "between_suspended_render_passes";
+                    });
+                    let found = flaws(&c);
+                    // Never begun: nothing; ended as a primary: outside render passes and video
+                    // coding scopes. A secondary's inherited render pass and an invalid command
+                    // buffer's scopes are states a case may state.
+                    let refused = lifecycle == L::Initial
+                        || (lifecycle == L::Executable
+                            && level == V::Primary
+                            && field != "between_suspended_render_passes");
+                    if !refused {
+                        assert!(
+                            found.is_empty(),
+                            "{file} {lifecycle:?} {level:?} {field}: {found:?}"
+                        );
+                        continue;
+                    }
+                    assert_eq!(
+                        found.len(),
+                        1,
+                        "{file} {lifecycle:?} {level:?} {field}: {found:?}"
+                    );
+                    assert_eq!(found[0].at, format!("world.command_buffer.{field}"));
+                    // Read from its YAML, the case is refused at the field's line.
+                    let yaml = c.to_yaml();
+                    let err = Case::read(file, &yaml).expect_err("refused");
+                    let line = yaml
+                        .lines()
+                        .position(|l| l.trim_start().starts_with(&format!("{field}:")))
+                        .expect("the field is written")
+                        + 1;
+                    assert!(
+                        err.to_string().starts_with(&format!("{file}:{line}:")),
+                        "{err} (field on line {line})"
+                    );
                 }
-                assert_eq!(found.len(), 1, "{file} {lifecycle:?} {field}: {found:?}");
-                assert_eq!(found[0].at, format!("world.command_buffer.{field}"));
-                assert!(found[0].problem.contains("being recorded"), "{found:?}");
-                // Read from its YAML, the case is refused at the field's line.
-                let yaml = c.to_yaml();
-                let err = Case::read(file, &yaml).expect_err("refused");
-                let line = yaml
-                    .lines()
-                    .position(|l| l.trim_start().starts_with(&format!("{field}:")))
-                    .expect("the field is written")
-                    + 1;
-                assert!(
-                    err.to_string().starts_with(&format!("{file}:{line}:")),
-                    "{err} (field on line {line})"
-                );
             }
         }
     }
