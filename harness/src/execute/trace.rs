@@ -299,19 +299,14 @@ fn run(
     // call, which the layer drops, is all that names them).
     let mut destroyed: Vec<(&str, vk::Buffer)> = Vec::new();
     for name in &plan.destroyed_buffers {
-        let info = vk::BufferCreateInfo::default()
-            .size(64)
-            .usage(vk::BufferUsageFlags::SHADER_BINDING_TABLE_KHR);
-        // SAFETY: a valid create info; the buffer is destroyed before anything uses it.
-        let handle = unsafe {
-            let b = cache
-                .dev
-                .device
-                .create_buffer(&info, None)
-                .map_err(|r| HarnessError::Failed(format!("vkCreateBuffer: {r:?}")))?;
-            cache.dev.device.destroy_buffer(b, None);
-            b
-        };
+        let handle = crate::vk::memory::create_buffer(
+            &cache.dev,
+            64,
+            vk::BufferUsageFlags::SHADER_BINDING_TABLE_KHR,
+            vk::BufferCreateFlags::empty(),
+        )?;
+        // SAFETY: the buffer was just made and nothing uses it.
+        unsafe { cache.dev.device.destroy_buffer(handle, None) };
         destroyed.push((name, handle));
     }
     let buffer_named = |name: &Option<String>| -> Result<vk::Buffer, HarnessError> {
