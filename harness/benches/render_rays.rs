@@ -8,7 +8,10 @@
 //! back to back, so a change in the machine's load between passes moves both sides alike), with
 //! their interquartile range beside it (`paired IQR`: how far one run's ratio can be trusted on a
 //! machine whose speed moves). Also the share of ray/primitive tests that needed the exact
-//! fallback, and whether lavapipe's records pass the judgement. Lavapipe runs llvmpipe on every core, and the model
+//! fallback, and whether lavapipe's records pass the judgement. `judged ratio` adds what a run's
+//! oracle also spends on a launch: the judgement of the records lavapipe wrote
+//! (`rendered::judge_records`, each pass on that pass's records), its time added to the tracer's
+//! before the rate is taken (median of the passes' own ratios). Lavapipe runs llvmpipe on every core, and the model
 //! traces a launch's distinct rays on every core too (`expected_launch`), so the ratio compares the
 //! two on the same machine; `cargo bench -p rtconf-model --bench expected_launch` gives the model's
 //! CPU time per ray beside it.
@@ -48,7 +51,7 @@ fn main() {
         }
     };
     println!(
-        "{:<24} {:>7} {:>7} {:>14} {:>14} {:>8} {:>8} {:>11} {:>9} {:>8}",
+        "{:<24} {:>7} {:>7} {:>14} {:>14} {:>8} {:>8} {:>11} {:>13} {:>9} {:>8}",
         "workload",
         "prims",
         "rays",
@@ -57,6 +60,7 @@ fn main() {
         "ratio",
         "paired",
         "paired IQR",
+        "judged ratio",
         "exact %",
         "judged"
     );
@@ -112,6 +116,7 @@ fn main() {
         let mut lvp = Vec::new();
         let mut oracle = Vec::new();
         let mut paired = Vec::new();
+        let mut with_judgement = Vec::new();
         let mut last = warm;
         for _ in 0..passes {
             let t = Instant::now();
@@ -119,11 +124,18 @@ fn main() {
             let l = ids / t.elapsed().as_secs_f64();
             let t = Instant::now();
             let e = model::semantics::expected_launch(&body.world, &body.call);
-            let o = ids / t.elapsed().as_secs_f64();
+            let traced = t.elapsed().as_secs_f64();
+            let o = ids / traced;
             assert!(e.is_some());
+            let words = last.words().expect("lavapipe's records");
+            let t = Instant::now();
+            let j = model::rendered::judge_records(&body, words);
+            let judging = t.elapsed().as_secs_f64();
+            assert!(j.is_ok());
             lvp.push(l);
             oracle.push(o);
             paired.push(o / l);
+            with_judgement.push(ids / (traced + judging) / l);
         }
         let judged = match last
             .words()
@@ -142,7 +154,7 @@ fn main() {
             quantile(paired.clone(), 0.75)
         );
         println!(
-            "{:<24} {:>7} {:>7} {:>14.0} {:>14.0} {:>8.2} {:>8.2} {:>11} {:>9.4} {:>8}",
+            "{:<24} {:>7} {:>7} {:>14.0} {:>14.0} {:>8.2} {:>8.2} {:>11} {:>13.2} {:>9.4} {:>8}",
             w.name,
             prims,
             SIDE * SIDE,
@@ -151,6 +163,7 @@ fn main() {
             o / l,
             median(paired),
             spread,
+            median(with_judgement),
             100.0 * expected.stats.exact_share(),
             judged
         );

@@ -15,8 +15,8 @@ use std::marker::PhantomData;
 pub trait Plain: Sized {
     /// Its size in bytes.
     const BYTES: usize;
-    /// Appends its bytes.
-    fn put(&self, out: &mut Vec<u8>);
+    /// Writes its bytes into `out`, exactly [`Plain::BYTES`] of them.
+    fn put(&self, out: &mut [u8]);
     /// Reads it back from exactly [`Plain::BYTES`] bytes.
     fn take(bytes: &[u8]) -> Self;
 }
@@ -30,16 +30,17 @@ fn f32_at(bytes: &[u8], k: usize) -> f32 {
     ])
 }
 
-fn put_f32s(values: &[f32], out: &mut Vec<u8>) {
-    for v in values {
-        out.extend_from_slice(&v.to_le_bytes());
+/// Writes `values` into the first `4 * values.len()` bytes of `out`.
+fn put_f32s(values: &[f32], out: &mut [u8]) {
+    for (o, v) in out.chunks_exact_mut(4).zip(values) {
+        o.copy_from_slice(&v.to_le_bytes());
     }
 }
 
 impl Plain for u32 {
     const BYTES: usize = 4;
-    fn put(&self, out: &mut Vec<u8>) {
-        out.extend_from_slice(&self.to_le_bytes());
+    fn put(&self, out: &mut [u8]) {
+        out.copy_from_slice(&self.to_le_bytes());
     }
     fn take(b: &[u8]) -> Self {
         u32::from_le_bytes([b[0], b[1], b[2], b[3]])
@@ -48,8 +49,8 @@ impl Plain for u32 {
 
 impl Plain for u16 {
     const BYTES: usize = 2;
-    fn put(&self, out: &mut Vec<u8>) {
-        out.extend_from_slice(&self.to_le_bytes());
+    fn put(&self, out: &mut [u8]) {
+        out.copy_from_slice(&self.to_le_bytes());
     }
     fn take(b: &[u8]) -> Self {
         u16::from_le_bytes([b[0], b[1]])
@@ -58,7 +59,7 @@ impl Plain for u16 {
 
 impl Plain for [f32; 3] {
     const BYTES: usize = 12;
-    fn put(&self, out: &mut Vec<u8>) {
+    fn put(&self, out: &mut [u8]) {
         put_f32s(self, out);
     }
     fn take(b: &[u8]) -> Self {
@@ -68,9 +69,9 @@ impl Plain for [f32; 3] {
 
 impl Plain for Aabb {
     const BYTES: usize = 24;
-    fn put(&self, out: &mut Vec<u8>) {
-        put_f32s(&self.min, out);
-        put_f32s(&self.max, out);
+    fn put(&self, out: &mut [u8]) {
+        put_f32s(&self.min, &mut out[..12]);
+        put_f32s(&self.max, &mut out[12..]);
     }
     fn take(b: &[u8]) -> Self {
         Aabb {
@@ -82,9 +83,9 @@ impl Plain for Aabb {
 
 impl Plain for Sphere {
     const BYTES: usize = 16;
-    fn put(&self, out: &mut Vec<u8>) {
-        put_f32s(&self.center, out);
-        put_f32s(&[self.radius], out);
+    fn put(&self, out: &mut [u8]) {
+        put_f32s(&self.center, &mut out[..12]);
+        put_f32s(&[self.radius], &mut out[12..]);
     }
     fn take(b: &[u8]) -> Self {
         Sphere {
@@ -96,18 +97,19 @@ impl Plain for Sphere {
 
 impl Plain for Ray {
     const BYTES: usize = 52;
-    fn put(&self, out: &mut Vec<u8>) {
-        put_f32s(&self.origin, out);
-        put_f32s(&self.direction, out);
-        put_f32s(&[self.tmin, self.tmax], out);
-        for w in [
+    fn put(&self, out: &mut [u8]) {
+        put_f32s(&self.origin, &mut out[..12]);
+        put_f32s(&self.direction, &mut out[12..24]);
+        put_f32s(&[self.tmin, self.tmax], &mut out[24..32]);
+        let words = [
             self.flags.0,
             self.cull_mask,
             self.sbt_offset,
             self.sbt_stride,
             self.miss_index,
-        ] {
-            w.put(out);
+        ];
+        for (o, w) in out[32..].chunks_exact_mut(4).zip(words) {
+            w.put(o);
         }
     }
     fn take(b: &[u8]) -> Self {
@@ -134,9 +136,10 @@ pub fn serialize<T: Plain + Serialize, S: Serializer>(
     if s.is_human_readable() {
         return values.serialize(s);
     }
-    let mut bytes = Vec::with_capacity(values.len() * T::BYTES);
-    for v in values {
-        v.put(&mut bytes);
+    // Written in place, one fixed-size slot per value.
+    let mut bytes = vec![0u8; values.len() * T::BYTES];
+    for (slot, v) in bytes.chunks_exact_mut(T::BYTES).zip(values) {
+        v.put(slot);
     }
     s.serialize_bytes(&bytes)
 }

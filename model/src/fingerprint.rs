@@ -20,10 +20,19 @@ const WORD_CHUNK: usize = 1024;
 /// gate, the rules and the judgement of one case each fingerprint them again to find what the
 /// first one derived.
 pub fn of_with_words<T: serde::Serialize + ?Sized>(value: &T, words: &[u32]) -> Option<u128> {
-    let mut bytes = Vec::new();
-    ciborium::into_writer(value, &mut bytes).ok()?;
-    let mut hash = xxhash_rust::xxh3::Xxh3::new();
-    hash.update(&bytes);
+    let mut sink = HashSink {
+        hash: xxhash_rust::xxh3::Xxh3::new(),
+        held: [0; HELD],
+        len: 0,
+    };
+    ciborium::into_writer(value, &mut sink).ok()?;
+    let HashSink {
+        mut hash,
+        held,
+        len,
+        ..
+    } = sink;
+    hash.update(&held[..len]);
     hash.update(&(words.len() as u64).to_le_bytes());
     let mut chunk = [0u8; WORD_CHUNK];
     for part in words.chunks(WORD_CHUNK / 4) {
@@ -33,6 +42,38 @@ pub fn of_with_words<T: serde::Serialize + ?Sized>(value: &T, words: &[u32]) -> 
         hash.update(&chunk[..part.len() * 4]);
     }
     Some(hash.digest128())
+}
+
+/// Bytes of CBOR a [`HashSink`] holds before handing them to the hash.
+const HELD: usize = 4096;
+
+/// The CBOR of a value handed to the hash as it is written, never held whole: the encoder's many
+/// short writes (an item's header, a small number) gathered into `held`, a long one (a bulk byte
+/// string) hashed where it lies. The hash of the bytes is the same however they are split.
+struct HashSink {
+    hash: xxhash_rust::xxh3::Xxh3,
+    held: [u8; HELD],
+    len: usize,
+}
+
+impl std::io::Write for HashSink {
+    fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+        if self.len + bytes.len() > HELD {
+            self.hash.update(&self.held[..self.len]);
+            self.len = 0;
+        }
+        if bytes.len() >= HELD {
+            self.hash.update(bytes);
+        } else {
+            self.held[self.len..self.len + bytes.len()].copy_from_slice(bytes);
+            self.len += bytes.len();
+        }
+        Ok(bytes.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
 }
 
 /// Values kept by fingerprint, at most `KEPT` of them (all forgotten when full): a memo for `static`s.
@@ -89,6 +130,51 @@ mod tests {
             super::of_with_words(&a, &[]),
             super::of_with_words(&a, &[0])
         );
+    }
+
+    /// The fingerprint as the hash of the whole CBOR held at once, then the words.
+    fn of_whole<T: serde::Serialize>(value: &T, words: &[u32]) -> u128 {
+        let mut bytes = Vec::new();
+        ciborium::into_writer(value, &mut bytes).expect("serialises");
+        let mut hash = xxhash_rust::xxh3::Xxh3::new();
+        hash.update(&bytes);
+        hash.update(&(words.len() as u64).to_le_bytes());
+        for w in words {
+            hash.update(&w.to_le_bytes());
+        }
+        hash.digest128()
+    }
+
+    #[test]
+    fn the_streamed_fingerprint_is_the_hash_of_the_whole_cbor() {
+        #[derive(serde::Serialize)]
+        struct Mixed {
+            names: Vec<String>,
+            #[serde(with = "crate::bulk")]
+            positions: Vec<[f32; 3]>,
+            small: Vec<u8>,
+        }
+        // Short items around byte strings shorter than, as long as, and longer than what the sink
+        // holds, so every path of its write is taken.
+        for n in [
+            0,
+            1,
+            super::HELD / 12,
+            super::HELD / 12 + 1,
+            3 * super::HELD,
+        ] {
+            let value = Mixed {
+                names: (0..40).map(|i| "x".repeat(i * 7)).collect(),
+                positions: (0..n).map(|i| [i as f32, -0.5, f32::NAN]).collect(),
+                small: (0..=255).collect(),
+            };
+            let words: Vec<u32> = (0..n as u32).collect();
+            assert_eq!(
+                super::of_with_words(&value, &words),
+                Some(of_whole(&value, &words)),
+                "{n} positions"
+            );
+        }
     }
 
     #[test]

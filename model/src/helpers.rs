@@ -127,6 +127,13 @@ fn helper_loop(h: &'static Helpers) {
     }
 }
 
+/// The cores this process may use (at least 1), asked once: the standard library reads the
+/// cgroup's quota files at each call.
+pub(crate) fn cores() -> usize {
+    static CORES: OnceLock<usize> = OnceLock::new();
+    *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+}
+
 /// Runs `work` on the calling thread and on `extra` more threads at once, and returns when every one
 /// of those runs has returned (a panic in any is resumed here). `work` shares its work out itself
 /// (each run takes what is left): a helper that starts late may find nothing to do.

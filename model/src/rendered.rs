@@ -6,12 +6,14 @@
 
 use crate::call::Call;
 use crate::semantics::ExpectedLaunch;
-use crate::tracer::judge::{judge, RayJudgement, RayVerdict};
+use crate::tracer::judge::{judge, judge_into, RayJudgement, RayVerdict};
 use crate::tracer::record::{RayRecord, RecordOutcome};
 use crate::tracer::summary::Summary;
 use crate::tracer::{AllowedOutcomes, PrimitiveRef};
 use crate::TraceBody;
 use serde::{Deserialize, Serialize};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
 
 /// How many failures and warnings a result keeps in words.
 const KEPT: usize = 5;
@@ -62,6 +64,18 @@ pub struct IdJudgement {
     pub ray: Option<usize>,
     pub judgement: Option<RayJudgement>,
     pub verdict: RayVerdict,
+}
+
+impl IdJudgement {
+    /// The slot of a launch ID not judged yet: no record, ray or judgement, verdict Pass.
+    fn unjudged() -> IdJudgement {
+        IdJudgement {
+            record: None,
+            ray: None,
+            judgement: None,
+            verdict: RayVerdict::Pass,
+        }
+    }
 }
 
 /// Every launch ID of a case judged, and what the model allowed.
@@ -162,15 +176,60 @@ pub fn judge_records(body: &TraceBody, words: &[u32]) -> Result<LaunchJudgement,
     }
     let ids = words.len() / RayRecord::WORDS;
     let nv = matches!(body.call, Call::TraceRaysNv(_));
+    // Fixed chunks of launch IDs, judged on every core and put together in launch order: the
+    // result is the same whichever thread judged a chunk, and however many did.
+    let chunks = ids.div_ceil(IDS_PER_CHUNK);
+    // Every ID's judgement made in its place here (each chunk's part of it lent to one run).
+    let mut out: Vec<IdJudgement> = std::iter::repeat_with(IdJudgement::unjudged)
+        .take(ids)
+        .collect();
+    let parts: Vec<Mutex<(&mut [IdJudgement], Option<RenderedResult>)>> = out
+        .chunks_mut(IDS_PER_CHUNK)
+        .map(|slots| Mutex::new((slots, None)))
+        .collect();
+    let next = AtomicUsize::new(0);
+    let work = || loop {
+        let c = next.fetch_add(1, Ordering::Relaxed);
+        let Some(part) = parts.get(c) else { break };
+        let mut part = part.lock().unwrap_or_else(|e| e.into_inner());
+        let (slots, judged) = &mut *part;
+        *judged = Some(judge_ids(&expected, words, c * IDS_PER_CHUNK, slots, nv));
+    };
+    crate::helpers::run_beside(crate::helpers::cores().min(chunks).max(1) - 1, &work);
     let mut result = RenderedResult {
         distinct_rays: expected.stats.rays,
         pair_tests: expected.stats.pair_tests,
         exact_evaluations: expected.stats.exact_evaluations,
         ..RenderedResult::default()
     };
-    let mut out = Vec::with_capacity(ids);
+    for part in parts {
+        let (_, judged) = part.into_inner().unwrap_or_else(|e| e.into_inner());
+        absorb(&mut result, judged.expect("every chunk is judged"));
+    }
+    Ok(LaunchJudgement {
+        result,
+        expected,
+        ids: out,
+    })
+}
+
+/// Launch IDs judged together by one thread (enough that taking a chunk costs nothing beside
+/// judging it; few enough that a launch of a few thousand IDs keeps every core busy).
+const IDS_PER_CHUNK: usize = 512;
+
+/// The launch IDs from `first` on, one per slot of `out`, judged into their slots (each
+/// [`IdJudgement::unjudged`]): their counts, worst errors, first
+/// failures and summary (none of the launch's own numbers).
+fn judge_ids(
+    expected: &ExpectedLaunch,
+    words: &[u32],
+    first: usize,
+    out: &mut [IdJudgement],
+    nv: bool,
+) -> RenderedResult {
+    let mut result = RenderedResult::default();
     let no_shader = RayRecord::no_shader().to_words();
-    for id in 0..ids {
+    for (slot, id) in out.iter_mut().zip(first..) {
         let w = &words[id * RayRecord::WORDS..(id + 1) * RayRecord::WORDS];
         result.rays += 1;
         let Some(k) = expected.ray_of(id) else {
@@ -185,39 +244,32 @@ pub fn judge_records(body: &TraceBody, words: &[u32]) -> Result<LaunchJudgement,
             };
             result.req += 1;
             note(&mut result, id, None, &verdict);
-            out.push(IdJudgement {
-                record: RayRecord::from_words(w).ok(),
-                ray: None,
-                judgement: None,
-                verdict,
-            });
+            slot.record = RayRecord::from_words(w).ok();
+            slot.verdict = verdict;
             continue;
         };
         let allowed = &expected.allowed[k];
-        let (record, judgement) = match RayRecord::from_words(w) {
+        // Made in its slot (a judgement is a few hundred bytes; moving each one into place
+        // several times cost about as much as judging it).
+        slot.ray = Some(k);
+        match RayRecord::from_words(w) {
             Ok(r) => {
-                let j = if nv {
-                    judge_nv(allowed, &r)
+                let j = slot.judgement.insert(RayJudgement::blank(allowed.vary));
+                if nv {
+                    *j = judge_nv(allowed, &r);
                 } else {
-                    judge(allowed, &r)
-                };
-                (Some(r), Some(j))
+                    judge_into(allowed, &r, j);
+                }
+                slot.verdict = j.verdict.clone();
+                slot.record = Some(r);
             }
-            Err(_) => (None, None),
-        };
-        let verdict = match &judgement {
-            Some(j) => j.verdict.clone(),
-            None => RayVerdict::Fail(format!(
-                "unreadable record {w:x?}: {}",
-                RayRecord::from_words(w)
-                    .err()
-                    .map(|e| e.to_string())
-                    .unwrap_or_default()
-            )),
-        };
+            Err(e) => {
+                slot.verdict = RayVerdict::Fail(format!("unreadable record {w:x?}: {e}"));
+            }
+        }
         if allowed.vary {
             result.vary += 1;
-            match record.as_ref().map(|r| r.outcome) {
+            match slot.record.as_ref().map(|r| r.outcome) {
                 Some(RecordOutcome::Hit) => result.vary_hit += 1,
                 Some(_) => result.vary_miss += 1,
                 None => {}
@@ -225,7 +277,7 @@ pub fn judge_records(body: &TraceBody, words: &[u32]) -> Result<LaunchJudgement,
         } else {
             result.req += 1;
         }
-        if let Some(j) = &judgement {
+        if let Some(j) = &slot.judgement {
             result.summary.add(j);
             if j.t_error_rel.unwrap_or(0.0) >= result.worst_t_rel.unwrap_or(0.0)
                 && j.t_error_rel.is_some()
@@ -241,19 +293,45 @@ pub fn judge_records(body: &TraceBody, words: &[u32]) -> Result<LaunchJudgement,
                 result.worst_bary_bound = j.bary_bound;
             }
         }
-        note(&mut result, id, Some(&expected.rays[k]), &verdict);
-        out.push(IdJudgement {
-            record,
-            ray: Some(k),
-            judgement,
-            verdict,
-        });
+        note(&mut result, id, Some(&expected.rays[k]), &slot.verdict);
     }
-    Ok(LaunchJudgement {
-        result,
-        expected,
-        ids: out,
-    })
+    result
+}
+
+/// Adds the judgement of the launch IDs after those `total` holds, as if judged one by one after
+/// them: counts and summaries added, the worst errors the later where they tie, the first
+/// failures and warnings still the first [`KEPT`].
+fn absorb(total: &mut RenderedResult, part: RenderedResult) {
+    total.rays += part.rays;
+    total.req += part.req;
+    total.vary += part.vary;
+    total.vary_hit += part.vary_hit;
+    total.vary_miss += part.vary_miss;
+    total.warnings += part.warnings;
+    total.failures += part.failures;
+    if part
+        .worst_t_rel
+        .is_some_and(|w| w >= total.worst_t_rel.unwrap_or(0.0))
+    {
+        total.worst_t_rel = part.worst_t_rel;
+        total.worst_t_ulps = part.worst_t_ulps;
+        total.worst_t_bound = part.worst_t_bound;
+    }
+    if part
+        .worst_bary_abs
+        .is_some_and(|w| w >= total.worst_bary_abs.unwrap_or(0.0))
+    {
+        total.worst_bary_abs = part.worst_bary_abs;
+        total.worst_bary_bound = part.worst_bary_bound;
+    }
+    for (kept, more) in [
+        (&mut total.first_failures, part.first_failures),
+        (&mut total.first_warnings, part.first_warnings),
+    ] {
+        kept.extend(more);
+        kept.truncate(KEPT);
+    }
+    total.summary.merge(&part.summary);
 }
 
 /// Counts a verdict and keeps its words while there are few (the ray described only for those).
@@ -323,5 +401,81 @@ fn double_hit_shape(text: &str) -> Option<&'static str> {
         Some("closed-fan")
     } else {
         None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tracer::record::RecordOutcome;
+
+    /// A 48x48 launch of the closed icosphere (2,304 IDs, five chunks) with records the model's own
+    /// choice where a candidate may be committed (its t nudged by a few ULPs, more for later IDs),
+    /// a miss elsewhere, and every 97th ID a record that did not run: failures in every chunk, and
+    /// worst errors late in the launch.
+    fn launch_with_records() -> (TraceBody, Vec<u32>) {
+        let w = crate::tracer::workload::standard_workload(48, "icosphere");
+        let case = w.as_launch_of(crate::test_cases::hand_case(), 48);
+        let body = case.as_trace().expect("a trace case").clone();
+        let expected = crate::expected::of(&body.world, &body.call).expect("defined");
+        let ids = expected.invocations() as usize;
+        let mut words = Vec::with_capacity(ids * RayRecord::WORDS);
+        for id in 0..ids {
+            let allowed = &expected.allowed[expected.ray_of(id).expect("a ray per ID")];
+            let mut record = RayRecord::miss(allowed.miss_shader.group);
+            if let Some(&i) = allowed.committable.first() {
+                let c = &allowed.candidates[i];
+                let r = &c.reports[0];
+                let t = r.t_exact as f32;
+                record = RayRecord {
+                    outcome: RecordOutcome::Hit,
+                    group: Some(c.shaders.group),
+                    instance_id: c.primitive.instance,
+                    custom_index: c.custom_index,
+                    geometry_index: c.primitive.geometry,
+                    primitive_id: c.primitive.primitive,
+                    hit_kind: r.hit_kind,
+                    t: f32::from_bits(t.to_bits() + (id as u32 * 7) % 5),
+                    barycentrics: r.barycentrics_exact.expect("a triangle").map(|b| b as f32),
+                    ..record
+                };
+            }
+            if id % 97 == 3 {
+                record.outcome = RecordOutcome::NotRun;
+            }
+            words.extend(record.to_words());
+        }
+        (body, words)
+    }
+
+    #[test]
+    fn a_launch_judged_in_chunks_is_judged_as_one_id_after_another() {
+        let (body, words) = launch_with_records();
+        let whole = judge_records(&body, &words).expect("judged");
+        let ids = whole.ids.len();
+        assert!(ids > 4 * IDS_PER_CHUNK, "{ids} IDs");
+        let mut judged: Vec<IdJudgement> = (0..ids).map(|_| IdJudgement::unjudged()).collect();
+        let mut one_by_one = judge_ids(&whole.expected, &words, 0, &mut judged, false);
+        one_by_one.distinct_rays = whole.expected.stats.rays;
+        one_by_one.pair_tests = whole.expected.stats.pair_tests;
+        one_by_one.exact_evaluations = whole.expected.stats.exact_evaluations;
+        assert_eq!(whole.result, one_by_one);
+        assert_eq!(
+            format!(
+                "{:?}",
+                whole.ids.iter().map(|j| &j.verdict).collect::<Vec<_>>()
+            ),
+            format!(
+                "{:?}",
+                judged.iter().map(|j| &j.verdict).collect::<Vec<_>>()
+            )
+        );
+        // What the comparison must see: failures in every chunk, more than are kept in words, and
+        // measured errors.
+        assert_eq!(whole.result.failures, ids.div_ceil(97) as u64);
+        assert_eq!(whole.result.first_failures.len(), KEPT);
+        assert!(whole.result.first_failures[0].starts_with("launch ID 3 "));
+        assert!(whole.result.worst_t_rel.is_some_and(|w| w > 0.0));
+        assert!(whole.result.summary.t_error_ulps.count > 100);
     }
 }

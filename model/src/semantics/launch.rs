@@ -519,10 +519,9 @@ const RAYS_PER_WORKER: usize = 256;
 /// How many threads trace a launch of `distinct` distinct rays: every core the process may use, one per
 /// [`RAYS_PER_WORKER`] rays at most.
 fn workers_for(distinct: usize) -> usize {
-    // Asked once per process: the standard library reads the cgroup's quota files at each call.
-    static CORES: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
-    let cores = *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    cores.min(distinct / RAYS_PER_WORKER).max(1)
+    crate::helpers::cores()
+        .min(distinct / RAYS_PER_WORKER)
+        .max(1)
 }
 
 /// The outcomes of `rays[distinct[k]]` for each k, or None when one is undefined, traced on the

@@ -61,22 +61,36 @@ fn prim_name(p: &PrimitiveRef) -> String {
     )
 }
 
+impl RayJudgement {
+    /// A judgement with nothing found or measured yet.
+    pub fn blank(vary: bool) -> RayJudgement {
+        RayJudgement {
+            verdict: RayVerdict::Pass,
+            findings: Vec::new(),
+            chosen: None,
+            vary,
+            t_error_ulps: None,
+            t_error_rel: None,
+            bary_error_abs: None,
+            bary_error_ulps: None,
+            t_bound: None,
+            bary_bound: None,
+        }
+    }
+}
+
 /// Judges one record.
 pub fn judge(allowed: &AllowedOutcomes, record: &RayRecord) -> RayJudgement {
+    let mut j = RayJudgement::blank(allowed.vary);
+    judge_into(allowed, record, &mut j);
+    j
+}
+
+/// [`judge`] written into `j`, a [`RayJudgement::blank`] of `allowed.vary` (a launch's judgements
+/// are made where they are kept, not moved there).
+pub fn judge_into(allowed: &AllowedOutcomes, record: &RayRecord, j: &mut RayJudgement) {
     let mut findings: Vec<RayVerdict> = Vec::new();
     let fail = |f: &mut Vec<RayVerdict>, s: String| f.push(RayVerdict::Fail(s));
-    let mut j = RayJudgement {
-        verdict: RayVerdict::Pass,
-        findings: Vec::new(),
-        chosen: None,
-        vary: allowed.vary,
-        t_error_ulps: None,
-        t_error_rel: None,
-        bary_error_abs: None,
-        bary_error_ulps: None,
-        t_bound: None,
-        bary_bound: None,
-    };
     if record.outcome == RecordOutcome::NotRun {
         fail(&mut findings, "the launch ID did not run".into());
         return finish(j, findings);
@@ -266,7 +280,7 @@ pub fn judge(allowed: &AllowedOutcomes, record: &RayRecord) -> RayJudgement {
                             ),
                         );
                     }
-                    judge_hit(c, record, &mut j, &mut findings);
+                    judge_hit(c, record, j, &mut findings);
                     if let Some(w) = hole(Some(record.t as f64), Some(&p)) {
                         findings.push(RayVerdict::Warn(w));
                     }
@@ -373,7 +387,7 @@ fn measure(
     }
 }
 
-fn finish(mut j: RayJudgement, findings: Vec<RayVerdict>) -> RayJudgement {
+fn finish(j: &mut RayJudgement, findings: Vec<RayVerdict>) {
     j.verdict = findings
         .iter()
         .find(|f| matches!(f, RayVerdict::Fail(_)))
@@ -381,5 +395,4 @@ fn finish(mut j: RayJudgement, findings: Vec<RayVerdict>) -> RayJudgement {
         .cloned()
         .unwrap_or(RayVerdict::Pass);
     j.findings = findings;
-    j
 }
