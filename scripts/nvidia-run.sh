@@ -6,8 +6,8 @@
 # usage: scripts/nvidia-run.sh [--layer 1.3.239|1.4.309] [--] RTCONF-ARGS...
 #   --layer 1.3.239  (default) bookworm's layer from .gl/debs, unpacked into /
 #   --layer 1.4.309  trixie's layer from .gl-1.4.309/debs, unpacked into target/layers/1.4.309-carried
-#                    and selected with VK_LAYER_PATH + LD_LIBRARY_PATH; a `run` or `stress` without
-#                    --from gets --from with that layer's own registry (1.4.309)
+#                    and selected with VK_LAYER_PATH + LD_LIBRARY_PATH; a `run`, `stress`, `replay` or
+#                    `detect` without --from gets --from with that layer's own registry (1.4.309)
 # example:
 #   bash scripts/nvidia-run.sh --layer 1.4.309 run --driver nvidia --profile nvidia-h100 --out out/nvidia-1.4.309
 #   bash scripts/nvidia-run.sh stress --driver nvidia --profile nvidia-h200 --out out/nvidia-stress
@@ -110,7 +110,7 @@ fi
 [[ -x "$bin" ]] || { echo "nvidia-run: no rtconf binary ($bin)" >&2; exit 1; }
 
 args=("$@")
-if [[ "${args[0]}" == run || "${args[0]}" == stress ]] && ! printf '%s\n' "${args[@]}" | grep -q -- '^--from'; then
+if [[ " run stress replay detect " == *" ${args[0]} "* ]] && ! printf '%s\n' "${args[@]}" | grep -q -- '^--from'; then
     args=("${args[0]}" --from "$registry" "${args[@]:1}")
 fi
 echo "nvidia-run: layer $got ($VK_LAYER_PATH), ICD $VK_DRIVER_FILES, registry $registry" >&2
