@@ -2,7 +2,7 @@
 //! primitive, opacity and facing culling (spec, "Ray Culling"), each remaining pair's reports and
 //! confirmation, the watertight groups, and `conclude.rs`'s committed hits.
 
-use super::arith::{BoundedF64, Dyadic, Num, PlainF32};
+use super::arith::{Dyadic, Num, PlainF32};
 use super::conclude::conclude;
 use super::prepare::{PreparedScene, RayF64};
 use super::sphere::{
@@ -36,6 +36,7 @@ pub(super) fn outcomes_of_near(
         near,
         hits,
         outcomes,
+        scaled,
     } = scratch;
     if near.is_empty() {
         // Nothing near the ray (every near item has its outcome, so there is none to forget).
@@ -78,8 +79,9 @@ pub(super) fn outcomes_of_near(
         r.tmax = shaderless_cut;
         r
     });
-    // The ray in the space of the last instance whose spheres it met ([`ScaledRay`]).
-    let mut scaled: Option<(u32, ScaledRay<BoundedF64>)> = None;
+    // The ray in the space of each instance whose spheres it met ([`ScaledRay`]), made once per
+    // instance: the walk meets the boxes of instances that overlap in turn.
+    scaled.clear();
     for NearItem {
         item,
         outcome: near_outcome,
@@ -277,14 +279,16 @@ pub(super) fn outcomes_of_near(
                 let signs = match config.precision {
                     Precision::ExactOnly => exact(stats),
                     Precision::F64WithExactFallback => {
-                        // The ray in the instance's space, made again only when the instance
-                        // changes (the walk meets an instance's boxes together, mostly).
-                        if scaled.as_ref().is_none_or(|(i, _)| *i != w.instance) {
-                            scaled =
-                                Some((w.instance, ScaledRay::of(m, ray.origin, ray.direction)));
-                        }
-                        let (_, scaled) = scaled.as_ref().expect("made above");
-                        match sphere_signs_scaled(scaled, &sphere, ray.tmin, ray.tmax, &band) {
+                        let at = match scaled.iter().position(|(i, _)| *i == w.instance) {
+                            Some(at) => at,
+                            None => {
+                                let made = ScaledRay::of(m, ray.origin, ray.direction);
+                                scaled.push((w.instance, made));
+                                scaled.len() - 1
+                            }
+                        };
+                        let (_, in_instance) = &scaled[at];
+                        match sphere_signs_scaled(in_instance, &sphere, ray.tmin, ray.tmax, &band) {
                             Some(s) => {
                                 stats.filter_decided += 1;
                                 s

@@ -733,6 +733,8 @@ pub(super) struct Scratch {
     pub(super) hits: Vec<TriangleHit>,
     /// The near items' classifications.
     pub(super) outcomes: Vec<TriangleOutcome>,
+    /// The ray in the space of each instance whose spheres it met, by instance.
+    pub(super) scaled: Vec<(u32, super::sphere::ScaledRay<BoundedF64>)>,
 }
 
 thread_local! {
