@@ -6,7 +6,8 @@
 #
 #   bash scripts/bench-ab.sh BENCH BIN_A BIN_B [ROUNDS] [WORKLOAD]
 #
-# BENCH is `render_rays` (oracle rays/s and the oracle/lavapipe ratio; lavapipe through
+# BENCH is `render_rays` (oracle rays/s, the oracle/lavapipe ratio and, where the build prints it,
+# the ratio with the judgement of the records included; lavapipe through
 # VK_DRIVER_FILES, set to Mesa's lvp_icd.json when unset) or `expected_launch` (the oracle's
 # launch rays/s alone). BIN_A and BIN_B are the bench executables of the two builds, e.g. copies of
 # the path `cargo bench -p rtconf-harness --bench render_rays --no-run` prints, taken before and
@@ -15,7 +16,7 @@
 set -euo pipefail
 
 if [[ $# -lt 3 ]]; then
-    sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//' >&2
+    sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//' >&2
     exit 2
 fi
 bench=$1 bin_a=$2 bin_b=$3 rounds=${4:-8} workload=${5:-instanced}
@@ -38,11 +39,12 @@ run_once() {
     local out
     out=$("$1" 2>/dev/null) || { echo "bench-ab.sh: $1 failed" >&2; return 1; }
     awk -v bench="$bench" '
-        /^workload/ { header = 1; next }
+        # A build whose render_rays prints the judged ratio has one column more before "exact %".
+        /^workload/ { header = 1; judged = index($0, "judged ratio") > 0; next }
         header && NF >= 8 {
             # The name has spaces; the numbers are counted from the end of the row.
             if (bench == "render_rays" && $NF != "pass") { print "lavapipe not judged pass: " $0 > "/dev/stderr"; exit 1 }
-            if (bench == "render_rays") print $(NF-6), $(NF-4), $(NF-3)
+            if (bench == "render_rays") print $(NF-6-judged), $(NF-4-judged), $(NF-3-judged), (judged ? $(NF-2) : "-")
             else print $(NF-10)
             found = 1
             exit
@@ -65,12 +67,16 @@ awk -v bench="$bench" '
         for (i = 2; i <= n; i++) for (j = i; j > 1 && a[j-1] + 0 > a[j] + 0; j--) { t = a[j]; a[j] = a[j-1]; a[j-1] = t }
         return n % 2 ? a[(n + 1) / 2] : (a[n / 2] + a[n / 2 + 1]) / 2
     }
-    { rate[$1] = rate[$1] " " $2; ratio[$1] = ratio[$1] " " $3; paired[$1] = paired[$1] " " $4 }
+    { rate[$1] = rate[$1] " " $2; ratio[$1] = ratio[$1] " " $3; paired[$1] = paired[$1] " " $4; judged[$1] = judged[$1] " " $5 }
     END {
         for (s = 0; s < 2; s++) {
             k = s ? "B" : "A"
             printf "%s rates:%s\n", k, rate[k]
-            if (bench == "render_rays") printf "%s median rate %.0f, ratio %.3f, paired %.3f\n", k, median(rate[k]), median(ratio[k]), median(paired[k])
+            if (bench == "render_rays") {
+                printf "%s median rate %.0f, ratio %.3f, paired %.3f", k, median(rate[k]), median(ratio[k]), median(paired[k])
+                if (judged[k] !~ /-/) printf ", judged ratio %.3f", median(judged[k])
+                printf "\n"
+            }
             else printf "%s median rate %.0f\n", k, median(rate[k])
         }
         printf "B/A median rate: %.4f\n", median(rate["B"]) / median(rate["A"])
