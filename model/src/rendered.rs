@@ -425,20 +425,8 @@ mod tests {
             let mut record = RayRecord::miss(allowed.miss_shader.group);
             if let Some(&i) = allowed.committable.first() {
                 let c = &allowed.candidates[i];
-                let r = &c.reports[0];
-                let t = r.t_exact as f32;
-                record = RayRecord {
-                    outcome: RecordOutcome::Hit,
-                    group: Some(c.shaders.group),
-                    instance_id: c.primitive.instance,
-                    custom_index: c.custom_index,
-                    geometry_index: c.primitive.geometry,
-                    primitive_id: c.primitive.primitive,
-                    hit_kind: r.hit_kind,
-                    t: f32::from_bits(t.to_bits() + (id as u32 * 7) % 5),
-                    barycentrics: r.barycentrics_exact.expect("a triangle").map(|b| b as f32),
-                    ..record
-                };
+                record = RayRecord::hit_on(c, &c.reports[0]);
+                record.t = f32::from_bits(record.t.to_bits() + (id as u32 * 7) % 5);
             }
             if id % 97 == 3 {
                 record.outcome = RecordOutcome::NotRun;

@@ -118,6 +118,26 @@ impl RayRecord {
         }
     }
 
+    /// The record of a committed hit on candidate `c` as its `report` states it: the candidate's
+    /// group and ids, the report's hit kind, its exact t and barycentrics rounded to f32 (zeros
+    /// for a box's hit); no invocation counted, nothing seen.
+    pub fn hit_on(c: &super::Candidate, report: &super::AllowedReport) -> RayRecord {
+        RayRecord {
+            outcome: RecordOutcome::Hit,
+            group: Some(c.shaders.group),
+            instance_id: c.primitive.instance,
+            custom_index: c.custom_index,
+            geometry_index: c.primitive.geometry,
+            primitive_id: c.primitive.primitive,
+            hit_kind: report.hit_kind,
+            t: report.t_exact as f32,
+            barycentrics: report
+                .barycentrics_exact
+                .map_or([0.0; 2], |b| b.map(|x| x as f32)),
+            ..RayRecord::empty()
+        }
+    }
+
     /// A record with nothing written but the outcome NoShader.
     pub fn no_shader() -> RayRecord {
         RayRecord {

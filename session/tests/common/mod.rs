@@ -129,7 +129,7 @@ pub fn world(case: &mut Case) -> &mut model::World {
 /// Records as a device that builds the model's structure writes them: each ray's required hit at the
 /// exact t and barycentrics, or a miss.
 pub fn model_records(check: &model::accel::check::BuildCheck) -> Vec<u32> {
-    use model::tracer::record::{RayRecord, RecordOutcome};
+    use model::tracer::record::RayRecord;
     check
         .allowed
         .iter()
@@ -141,23 +141,7 @@ pub fn model_records(check: &model::accel::check::BuildCheck) -> Vec<u32> {
                 .filter(|c| c.presence == model::tracer::Presence::Required)
                 .min_by(|x, y| x.t_hull().lo.total_cmp(&y.t_hull().lo));
             let r = match hit {
-                Some(c) => {
-                    let rep = &c.reports[0];
-                    RayRecord {
-                        outcome: RecordOutcome::Hit,
-                        group: Some(c.shaders.group),
-                        instance_id: c.primitive.instance,
-                        custom_index: c.custom_index,
-                        geometry_index: c.primitive.geometry,
-                        primitive_id: c.primitive.primitive,
-                        hit_kind: rep.hit_kind,
-                        t: rep.t_exact as f32,
-                        barycentrics: rep
-                            .barycentrics_exact
-                            .map_or([0.0; 2], |b| b.map(|x| x as f32)),
-                        ..RayRecord::miss(0)
-                    }
-                }
+                Some(c) => RayRecord::hit_on(c, &c.reports[0]),
                 _ => RayRecord::miss(a.miss_shader.group),
             };
             let mut w = r.to_words();
