@@ -300,7 +300,9 @@ fn judge_ids(
 
 /// Adds the judgement of the launch IDs after those `total` holds, as if judged one by one after
 /// them: counts and summaries added, the worst errors the later where they tie, the first
-/// failures and warnings still the first [`KEPT`].
+/// failures and warnings still the first [`KEPT`]. (One difference: a histogram counts a
+/// non-finite error in its last bucket at the time, so such an error may sit in another bucket
+/// than one thread would have put it in; its count and the maximum are the same.)
 fn absorb(total: &mut RenderedResult, part: RenderedResult) {
     total.rays += part.rays;
     total.req += part.req;
@@ -410,9 +412,9 @@ mod tests {
     use crate::tracer::record::RecordOutcome;
 
     /// A 48x48 launch of the closed icosphere (2,304 IDs, five chunks) with records the model's own
-    /// choice where a candidate may be committed (its t nudged by a few ULPs, more for later IDs),
-    /// a miss elsewhere, and every 97th ID a record that did not run: failures in every chunk, and
-    /// worst errors late in the launch.
+    /// choice where a candidate may be committed (its t nudged by 0 to 4 ULPs, varying with the
+    /// ID), a miss elsewhere, and every 97th ID a record that did not run: failures in every chunk,
+    /// and errors measured in each.
     fn launch_with_records() -> (TraceBody, Vec<u32>) {
         let w = crate::tracer::workload::standard_workload(48, "icosphere");
         let case = w.as_launch_of(crate::test_cases::hand_case(), 48);
