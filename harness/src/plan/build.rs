@@ -401,16 +401,7 @@ impl BuildPlan {
             .collect();
         let secondary = cbs.level == CommandBufferLevel::Secondary;
         let primary_pass = cbs.in_render_pass && !secondary;
-        if primary_pass
-            && matches!(
-                cbs.lifecycle,
-                CommandBufferLifecycle::Executable | CommandBufferLifecycle::Invalid
-            )
-        {
-            return Err(HarnessError::NotRealised(
-                super::ENDED_INSIDE_RENDER_PASS.into(),
-            ));
-        }
+        super::refuse_ended_inside_render_pass(cbs)?;
         let mut steps = vec![Step::Reset { level: cbs.level }];
         if cbs.lifecycle != CommandBufferLifecycle::Initial {
             steps.push(Step::Begin {

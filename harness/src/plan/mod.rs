@@ -25,9 +25,25 @@ use model::case::Case;
 use model::world::{CommandBufferLevel, PipelineApi};
 use model::CommandId;
 
-/// Why a primary command buffer stated executable or invalid inside a render pass instance is not
-/// realised (trace and build plans alike).
-pub(crate) const ENDED_INSIDE_RENDER_PASS: &str = "a primary command buffer stated executable or invalid inside a render pass instance is not realised: the harness makes it so by ending it (and submitting it), and a primary command buffer cannot end inside a render pass instance (VUID-vkEndCommandBuffer-commandBuffer-00060); ending the render pass first would leave the call outside it";
+/// Refuses a primary command buffer stated executable or invalid inside a render pass instance
+/// (trace and build plans alike): the harness makes those states by ending the command buffer (and
+/// submitting it), a primary command buffer cannot end inside a render pass instance
+/// (VUID-vkEndCommandBuffer-commandBuffer-00060), and ending the render pass first would leave the
+/// call outside it.
+pub(crate) fn refuse_ended_inside_render_pass(
+    cbs: &model::world::CommandBufferState,
+) -> Result<(), HarnessError> {
+    use model::world::CommandBufferLifecycle as L;
+    if cbs.level == CommandBufferLevel::Primary
+        && cbs.in_render_pass
+        && matches!(cbs.lifecycle, L::Executable | L::Invalid)
+    {
+        return Err(HarnessError::NotRealised(
+            "a primary command buffer stated executable or invalid inside a render pass instance is not realised: the harness makes it so by ending it (and submitting it), and a primary command buffer cannot end inside a render pass instance (VUID-vkEndCommandBuffer-commandBuffer-00060); ending the render pass first would leave the call outside it".into(),
+        ));
+    }
+    Ok(())
+}
 
 /// A case's plan: what the harness makes and records for it.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]

@@ -405,16 +405,7 @@ impl TracePlan {
                 "secondary command buffers inside a render pass are not realised yet".into(),
             ));
         }
-        if cbs.in_render_pass
-            && matches!(
-                cbs.lifecycle,
-                CommandBufferLifecycle::Executable | CommandBufferLifecycle::Invalid
-            )
-        {
-            return Err(HarnessError::NotRealised(
-                super::ENDED_INSIDE_RENDER_PASS.into(),
-            ));
-        }
+        super::refuse_ended_inside_render_pass(cbs)?;
         let nv_call = matches!(case.call, Call::TraceRaysNv(_));
         let traces = world.launch.traces();
         // What the case's device (exactly its extensions and features) cannot do, as the realisation

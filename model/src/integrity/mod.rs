@@ -223,27 +223,27 @@ fn scopes_outside_recording(case: &Case, out: &mut Vec<Flaw>) {
         Body::Trace(t) => &t.world.command_buffer,
         Body::Accel(a) => &a.world.command_buffer,
     };
-    let (state, scopes): (&str, &[&str]) = match (cb.lifecycle, cb.level) {
+    // The scopes, the first `count` of which the state rules out.
+    let scopes = [
+        ("in_render_pass", cb.in_render_pass),
+        ("in_video_coding", cb.in_video_coding),
+        (
+            "between_suspended_render_passes",
+            cb.between_suspended_render_passes,
+        ),
+    ];
+    let (state, count) = match (cb.lifecycle, cb.level) {
         (L::Initial, _) => (
             "initial: never begun, it has recorded and inherited nothing",
-            &[
-                "in_render_pass",
-                "in_video_coding",
-                "between_suspended_render_passes",
-            ],
+            3,
         ),
         (L::Executable, CommandBufferLevel::Primary) => (
             "executable: a primary command buffer ends outside any render pass instance and video coding scope (VUID-vkEndCommandBuffer-commandBuffer-00060, -None-06991)",
-            &["in_render_pass", "in_video_coding"],
+            2,
         ),
         _ => return,
     };
-    for &field in scopes {
-        let inside = match field {
-            "in_render_pass" => cb.in_render_pass,
-            "in_video_coding" => cb.in_video_coding,
-            _ => cb.between_suspended_render_passes,
-        };
+    for &(field, inside) in &scopes[..count] {
         if inside {
             out.push(Flaw {
                 at: format!("world.command_buffer.{field}"),
