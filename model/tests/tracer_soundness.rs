@@ -397,3 +397,171 @@ fn f32_only_mode_runs_and_counts() {
     assert_eq!(stats.f32_evaluations, stats.pair_tests);
     assert!(stats.pair_tests > 0);
 }
+
+/// Spheres in boxes far larger than they are (each side of a box `r/2` to `3r` beyond its sphere,
+/// so most of a box is empty), under the random instance transforms above.
+fn roomy_spheres(rng: &mut SceneRng) -> Scene {
+    let mut boxes = Vec::new();
+    let mut spheres = Vec::new();
+    for _ in 0..6 {
+        let c = [0, 1, 2].map(|_| rng.fraction(-3.0, 3.0, 4));
+        let r = rng.fraction(0.125, 0.75, 6);
+        let mut slack = || r * rng.fraction(0.5, 3.0, 2);
+        boxes.push(Aabb {
+            min: [0, 1, 2].map(|k| c[k] - r - slack()),
+            max: [0, 1, 2].map(|k| c[k] + r + slack()),
+        });
+        spheres.push(Sphere {
+            center: c,
+            radius: r,
+        });
+    }
+    let level = BottomLevel {
+        geometries: vec![Geometry {
+            flags: GeometryFlags::default(),
+            data: GeometryData::Aabbs(Aabbs { boxes, spheres }),
+        }],
+    };
+    let instances = (0..2 + rng.below(2) as u32)
+        .map(|_| SceneInstance {
+            transform: random_transform(rng),
+            ..SceneInstance::of(0)
+        })
+        .collect();
+    Scene {
+        bottom_levels: vec![level],
+        instances,
+    }
+}
+
+/// Rays at the spheres of [`roomy_spheres`]: most aimed at a point of a sphere's surface moved in
+/// or out by a relative 10⁻⁹ to 10⁻² (grazing rays, within and beyond the band), some at a box's
+/// corner region (through the box, clear of its sphere), some anywhere.
+fn rays_at_spheres(rng: &mut SceneRng, scene: &Scene, count: usize) -> Vec<Ray> {
+    let GeometryData::Aabbs(a) = &scene.bottom_levels[0].geometries[0].data else {
+        unreachable!()
+    };
+    (0..count)
+        .map(|_| {
+            let inst = &scene.instances[rng.below(scene.instances.len() as u64) as usize];
+            let k = rng.below(a.spheres.len() as u64) as usize;
+            let (s, b) = (&a.spheres[k], &a.boxes[k]);
+            let object: [f64; 3] = match rng.below(5) {
+                0 => rng.point(-4.0, 4.0).map(f64::from),
+                1 => [0, 1, 2].map(|j| {
+                    let t = rng.range(0.0, 0.1);
+                    f64::from(b.min[j]) * (1.0 - t) + f64::from(b.max[j]) * t
+                }),
+                2 => {
+                    // A pole (where the sphere touches its own box), moved out or in.
+                    let mut u = [0.0; 3];
+                    u[rng.below(3) as usize] = [1.0, -1.0][rng.below(2) as usize];
+                    let nudge =
+                        10f64.powf(rng.range(-9.0, -2.0)) * [1.0, -1.0][rng.below(2) as usize];
+                    let r = f64::from(s.radius) * (1.0 + nudge);
+                    [0, 1, 2].map(|j| f64::from(s.center[j]) + r * u[j])
+                }
+                _ => {
+                    let u = [0; 3].map(|_| rng.range(-1.0, 1.0));
+                    let n = (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt().max(1e-3);
+                    let nudge =
+                        10f64.powf(rng.range(-9.0, -2.0)) * [1.0, -1.0][rng.below(2) as usize];
+                    let r = f64::from(s.radius) * (1.0 + nudge);
+                    [0, 1, 2].map(|j| f64::from(s.center[j]) + r * u[j] / n)
+                }
+            };
+            let target = inst.transform.apply_f64(object).map(|x| x as f32);
+            let dir = [0; 3].map(|_| rng.fraction(-1.0, 1.0, 8));
+            let dir = if dir == [0.0; 3] {
+                [0.0, 0.0, 1.0]
+            } else {
+                dir
+            };
+            let dist = [0.5f32, 2.0, 8.0][rng.below(3) as usize];
+            let origin = [0, 1, 2].map(|j| target[j] - dist * dir[j]);
+            let tmax = if rng.below(4) == 0 {
+                dist
+            } else {
+                f32::INFINITY
+            };
+            Ray::new(origin, dir, 0.0, tmax)
+        })
+        .collect()
+}
+
+#[test]
+fn a_sphere_far_box_leaves_out_only_pairs_that_give_nothing() {
+    // The far box of a procedural primitive is its sphere's, padded: the sphere is all the
+    // intersection shader reports and all that makes it required to run. Every outcome with the far
+    // test (and the BVH) is the outcome of classifying every pair in full, on grazing rays and on
+    // rays through the empty part of a box.
+    let mut rng = SceneRng(0x5fe7_e5b0);
+    let mut tested = TracerStats::default();
+    let mut full = TracerStats::default();
+    let (mut reports, mut must_run) = (0, 0);
+    for case in 0..200 {
+        let scene = roomy_spheres(&mut rng);
+        let prepared = PreparedScene::new(&scene).expect("defined");
+        // Any-hit on half the scenes: every intersection along the ray is then observable.
+        let any_hit = (case % 2 == 0).then_some(model::tracer::AnyHitRule::Ignore);
+        let hit = move |i: u32, _g: u32| HitShaders::procedural(i, any_hit);
+        let table = ShaderTable {
+            hit: &hit,
+            miss: MissShader {
+                zero_group: false,
+                group: 7,
+            },
+        };
+        for ray in rays_at_spheres(&mut rng, &scene, 50) {
+            let a = trace_ray(
+                &prepared,
+                &ray,
+                &table,
+                &TracerConfig::default(),
+                &mut tested,
+            )
+            .expect("defined ray");
+            let b = trace_ray(
+                &prepared,
+                &ray,
+                &table,
+                &TracerConfig {
+                    far_test: false,
+                    use_bvh: false,
+                    ..TracerConfig::default()
+                },
+                &mut full,
+            )
+            .expect("defined ray");
+            // What the far test keeps is classified as in full; what it leaves out is nothing
+            // required, and nothing a shader could report between tmin and tmax (the full
+            // classification allows a grazing pair's reports wherever its line passes).
+            for x in &a.candidates {
+                assert_eq!(b.candidate(&x.primitive), Some(x), "{ray:?} in {scene:?}");
+            }
+            for x in &b.candidates {
+                if a.candidate(&x.primitive).is_none() {
+                    assert!(
+                        x.presence != model::tracer::Presence::Required
+                            && x.reports
+                                .iter()
+                                .all(|r| r.t.hi < f64::from(ray.tmin)
+                                    || r.t.lo > f64::from(ray.tmax)),
+                        "far test left out {x:?} for {ray:?} in {scene:?}"
+                    );
+                }
+            }
+            assert_eq!(a.intersection, b.intersection, "{ray:?} in {scene:?}");
+            reports += a.candidates.len();
+            must_run += usize::from(a.intersection.min > 0);
+        }
+    }
+    eprintln!("{reports} candidates, {must_run} must run; {tested:?} against {full:?}");
+    // The rays meet spheres, some must run the shader, and the far test left out many pairs.
+    assert!(reports > 3000, "{reports} candidates");
+    assert!(must_run > 2000, "{must_run} rays must run an intersection");
+    assert!(
+        tested.pair_tests * 2 < full.pair_tests,
+        "{tested:?} against {full:?}"
+    );
+}

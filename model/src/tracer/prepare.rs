@@ -656,20 +656,30 @@ impl PreparedScene {
                     GeometryData::Aabbs(a) => {
                         let k = band.kappa;
                         let sse = BAND_SAFETY_FACTOR * SPHERE_SHADER_ERROR;
-                        for (prim, bx) in a.boxes.iter().enumerate() {
+                        for (prim, (bx, sphere)) in a.boxes.iter().zip(&a.spheres).enumerate() {
                             if bx.is_inactive() {
                                 continue;
                             }
+                            // The far box is that of the box's sphere, not of the box: the
+                            // intersection shader reports the sphere alone, and whether it must
+                            // run is decided by the sphere too (`sphere::SphereSigns::must_run`),
+                            // so a ray that misses the sphere's padded box gets nothing from the
+                            // pair however the box is enlarged. Every bound below is one over the
+                            // sphere's points (the sphere lies in its box, see
+                            // `Scene::undefined`): `extent`, the largest corner norm of the
+                            // sphere's box, is at least |c| + r. The corners `c ± r` are rounded
+                            // in f64, within 2⁻⁵³·extent, far below `slack`.
+                            let (c, r) = (sphere.center.map(f64::from), f64::from(sphere.radius));
                             let mut lo = [f64::INFINITY; 3];
                             let mut hi = [f64::NEG_INFINITY; 3];
                             let mut extent: f64 = 0.0;
                             for corner in 0..8 {
                                 let p = [0, 1, 2].map(|k| {
-                                    (if corner >> k & 1 == 1 {
-                                        bx.max[k]
+                                    if corner >> k & 1 == 1 {
+                                        c[k] + r
                                     } else {
-                                        bx.min[k]
-                                    }) as f64
+                                        c[k] - r
+                                    }
                                 });
                                 extent = extent.max(norm3(p));
                                 let w = inst.transform.apply_f64(p);
