@@ -527,6 +527,54 @@ fn a_ray_outside_the_box_may_run_the_shader_but_never_hits() {
 }
 
 #[test]
+fn a_grazing_ray_reports_nothing_behind_its_origin_or_beyond_tmax() {
+    // Along x = 1, tangent to the unit sphere where it touches z = 0: its line lies within the band
+    // of the surface, so the shader may find the sphere or not. Every pair is classified in full
+    // (no far test, no BVH): the classification alone decides.
+    let prepared = model::tracer::PreparedScene::new(&sphere_scene()).expect("defined");
+    let proc = |_: u32, _: u32| HitShaders::procedural(7, None);
+    let table = model::tracer::ShaderTable {
+        hit: &proc,
+        miss: model::tracer::MissShader {
+            zero_group: false,
+            group: MISS_GROUP,
+        },
+    };
+    let config = model::tracer::TracerConfig {
+        far_test: false,
+        use_bvh: false,
+        ..Default::default()
+    };
+    let trace = |origin_z: f32, tmin: f32, tmax: f32| {
+        let ray = Ray::new([1.0, 0.0, origin_z], [0.0, 0.0, -1.0], tmin, tmax);
+        let mut stats = model::tracer::TracerStats::default();
+        model::tracer::trace_ray(&prepared, &ray, &table, &config, &mut stats).expect("defined")
+    };
+    // Touching at t = 4: a possible hit there, nothing required.
+    let touch = trace(4.0, 0.0, f32::INFINITY);
+    assert_eq!(touch.candidates.len(), 1, "{touch:?}");
+    let c = &touch.candidates[0];
+    assert_eq!(c.presence, Presence::Possible);
+    assert!(!c.reports.is_empty() && c.reports.iter().any(|r| r.t.contains(4.0)));
+    assert_eq!(touch.intersection.min, 0);
+    assert!(touch.miss.allowed && !touch.miss.required);
+    // So too where tmax is the touch itself.
+    assert_eq!(trace(4.0, 0.0, 4.0).candidates.len(), 1);
+    // Where the touch lies beyond tmax, behind the origin, or before tmin, no report can be made.
+    for (origin_z, tmin, tmax) in [
+        (4.0, 0.0, 3.0),
+        (-4.0, 0.0, f32::INFINITY),
+        (4.0, 5.0, f32::INFINITY),
+    ] {
+        let out = trace(origin_z, tmin, tmax);
+        assert!(
+            out.candidates.is_empty() && out.miss.required,
+            "{origin_z} {tmin} {tmax}: {out:?}"
+        );
+    }
+}
+
+#[test]
 fn t_exactly_at_tmin_or_tmax_is_vary() {
     let scene = one_instance(unit_triangle());
     let mut ray = down(0.25, 0.25);

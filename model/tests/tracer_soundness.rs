@@ -565,3 +565,105 @@ fn a_sphere_far_box_leaves_out_only_pairs_that_give_nothing() {
         "{tested:?} against {full:?}"
     );
 }
+
+/// The harness's intersection shader (see `model::tracer::sphere`) run in f32 on the ray as one
+/// conformant implementation hands it over: the instance's inverse rounded to f32 and applied in
+/// f32. The report it makes, if any, as (HitKind, t), kept only where `reportIntersectionEXT`
+/// accepts it (tmin ≤ t ≤ tmax).
+fn f32_shader(transform: &Transform3x4, sphere: &Sphere, ray: &Ray) -> Option<(u32, f32)> {
+    let m = transform.0.map(|r| r.map(f64::from));
+    let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+    let cof = |r: usize, c: usize| {
+        let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
+        let (c1, c2) = ((c + 1) % 3, (c + 2) % 3);
+        m[r1][c1] * m[r2][c2] - m[r1][c2] * m[r2][c1]
+    };
+    // inv[i][j] = cofactor(j, i) / det.
+    let inv: [[f32; 3]; 3] = [0, 1, 2].map(|i| [0, 1, 2].map(|j| (cof(j, i) / det) as f32));
+    let t = [0, 1, 2].map(|k| transform.0[k][3]);
+    let mul =
+        |v: [f32; 3]| [0, 1, 2].map(|i| inv[i][0] * v[0] + inv[i][1] * v[1] + inv[i][2] * v[2]);
+    let o = mul([0, 1, 2].map(|k| ray.origin[k] - t[k]));
+    let d = mul(ray.direction);
+    let dot = |a: [f32; 3], b: [f32; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let oc = [0, 1, 2].map(|k| o[k] - sphere.center[k]);
+    let a = dot(d, d);
+    let tc = -dot(oc, d) / a;
+    let pc = [0, 1, 2].map(|k| oc[k] + tc * d[k]);
+    let disc = sphere.radius * sphere.radius - dot(pc, pc);
+    if disc < 0.0 {
+        return None;
+    }
+    let s = (disc / a).sqrt();
+    let (kind, t_hit) = if tc - s >= ray.tmin {
+        (0, tc - s)
+    } else {
+        (1, tc + s)
+    };
+    (ray.tmin <= t_hit && t_hit <= ray.tmax).then_some((kind, t_hit))
+}
+
+#[test]
+fn an_f32_sphere_shader_reports_only_what_the_outcomes_allow() {
+    // On grazing rays, rays through a box's empty part and random ones, under rotation, scale,
+    // mirror and translation: every report the f32 shader makes is among the pair's allowed
+    // reports, its t inside the report's enclosure — grazing pairs included, whose reports the
+    // outcomes allow only between tmin and tmax.
+    let mut rng = SceneRng(0x6772_617a);
+    let proc = |i: u32, _g: u32| HitShaders::procedural(i, None);
+    let table = ShaderTable {
+        hit: &proc,
+        miss: MissShader {
+            zero_group: false,
+            group: 7,
+        },
+    };
+    let (mut made, mut grazing) = (0, 0);
+    for _ in 0..150 {
+        let scene = roomy_spheres(&mut rng);
+        let prepared = PreparedScene::new(&scene).expect("defined");
+        let GeometryData::Aabbs(a) = &scene.bottom_levels[0].geometries[0].data else {
+            unreachable!()
+        };
+        for ray in rays_at_spheres(&mut rng, &scene, 40) {
+            let mut stats = TracerStats::default();
+            let out = trace_ray(
+                &prepared,
+                &ray,
+                &table,
+                &TracerConfig::default(),
+                &mut stats,
+            )
+            .expect("defined ray");
+            for (i, inst) in scene.instances.iter().enumerate() {
+                for (k, sphere) in a.spheres.iter().enumerate() {
+                    let Some((kind, t)) = f32_shader(&inst.transform, sphere, &ray) else {
+                        continue;
+                    };
+                    made += 1;
+                    let p = model::tracer::PrimitiveRef {
+                        instance: i as u32,
+                        geometry: 0,
+                        primitive: k as u32,
+                    };
+                    let c = out.candidate(&p);
+                    grazing += usize::from(
+                        c.is_some_and(|c| c.presence == model::tracer::Presence::Possible),
+                    );
+                    assert!(
+                        c.is_some_and(|c| c
+                            .reports
+                            .iter()
+                            .any(|r| r.hit_kind == kind && r.t.contains(f64::from(t)))),
+                        "kind {kind} at t = {t} of {p:?} for {ray:?}: {c:?} in {scene:?}"
+                    );
+                }
+            }
+        }
+    }
+    eprintln!("{made} reports, {grazing} of pairs the outcomes allow but do not require");
+    assert!(made > 2000, "{made} reports");
+    assert!(grazing > 20, "{grazing} grazing reports");
+}

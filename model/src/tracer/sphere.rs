@@ -237,16 +237,19 @@ pub fn sphere_signs_scaled<T: Num>(
     let r_out = r + band.margin;
     let hit_no = gt0(&h2.sub(&T::from_f64(r_out * r_out).mul(&det2a)))?;
     let hit = side(Some(hit_yes), Some(hit_no))?;
-    let band_signs = SphereSigns {
-        hit,
-        must_run: false,
-        entry_after_tmin: Side::Band,
-        entry_before_tmax: Side::Band,
-        exit_after_tmin: Side::Band,
-        exit_before_tmax: Side::Band,
-    };
-    if hit != Side::Yes {
-        return Some(band_signs);
+    match hit {
+        Side::Yes => {}
+        Side::No => {
+            return Some(SphereSigns {
+                hit,
+                must_run: false,
+                entry_after_tmin: Side::Band,
+                entry_before_tmax: Side::Band,
+                exit_after_tmin: Side::Band,
+                exit_before_tmax: Side::Band,
+            })
+        }
+        Side::Band => return Some(grazing_signs(band, tmin, tmax)),
     }
     let rr = T::from_f32(sphere.radius);
     let delta = det2a.mul(&rr).mul(&rr).sub(&h2);
@@ -309,6 +312,34 @@ pub fn sphere_signs_scaled<T: Num>(
         exit_after_tmin,
         exit_before_tmax,
     })
+}
+
+/// The signs of a grazing pair (its line within the band of the sphere's surface): the shader may
+/// find the sphere or not, and where it does, the t it computes lies in the band's enclosure of its
+/// kind ([`SphereBand::t0`], [`SphereBand::t1`]), so a comparison with `tmin` or `tmax` that every
+/// point of the enclosure settles the same way is settled for every report the shader may make (a
+/// grazing ray whose line passes the sphere behind its origin or beyond `tmax` reports nothing).
+/// Nothing is required of a grazing pair: the shader need not run.
+fn grazing_signs(band: &SphereBand, tmin: f32, tmax: f32) -> SphereSigns {
+    let (tmin, tmax) = (f64::from(tmin), f64::from(tmax));
+    let settled = |yes: bool, no: bool| {
+        if yes {
+            Side::Yes
+        } else if no {
+            Side::No
+        } else {
+            Side::Band
+        }
+    };
+    let (t0, t1) = (band.t0, band.t1);
+    SphereSigns {
+        hit: Side::Band,
+        must_run: false,
+        entry_after_tmin: settled(t0.lo >= tmin, t0.hi < tmin),
+        entry_before_tmax: settled(t0.hi <= tmax, t0.lo > tmax),
+        exit_after_tmin: settled(t1.lo >= tmin, t1.hi < tmin),
+        exit_before_tmax: settled(t1.hi <= tmax, t1.lo > tmax),
+    }
 }
 
 /// One report the intersection shader may make: its HitKind, t enclosure, and whether it is
