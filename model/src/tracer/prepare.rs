@@ -665,10 +665,9 @@ impl PreparedScene {
                             // run is decided by the sphere too (`sphere::SphereSigns::must_run`),
                             // so a ray that misses the sphere's padded box gets nothing from the
                             // pair however the box is enlarged. Every bound below is one over the
-                            // sphere's points (the sphere lies in its box, see
-                            // `Scene::undefined`): `extent`, the largest corner norm of the
-                            // sphere's box, is at least |c| + r. The corners `c ± r` are rounded
-                            // in f64, within 2⁻⁵³·extent, far below `slack`.
+                            // sphere's points: `extent`, the largest corner norm of the sphere's
+                            // box, is at least |c| + r. The corners `c ± r` are rounded in f64,
+                            // within 2⁻⁵³·extent, far below `slack`.
                             let (c, r) = (sphere.center.map(f64::from), f64::from(sphere.radius));
                             let mut lo = [f64::INFINITY; 3];
                             let mut hi = [f64::NEG_INFINITY; 3];
