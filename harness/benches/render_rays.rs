@@ -1,6 +1,7 @@
 //! Rays per second of the reference tracer against lavapipe on the same scenes and rays, measured in
-//! one run: the triangle workloads of `model::tracer::workload` (a 64x64 pinhole camera each) traced
-//! as a vkCmdTraceRaysIndirectKHR launch of the hand-made case on lavapipe (structures, pipeline and
+//! one run: the workloads of `model::tracer::workload` (a 64x64 pinhole camera each; the spheres in
+//! boxes through a procedural hit group, `Workload::as_launch_of`) traced as a
+//! vkCmdTraceRaysIndirectKHR launch of the hand-made case on lavapipe (structures, pipeline and
 //! shader table cached after a warm-up, so a pass is record, submit and read back the 28-word
 //! records), and by the model (`expected_launch`: the allowed outcomes of every launch ID, the
 //! prepared scene cached likewise). Each rate is the median of the passes; the ratio is the oracle's
@@ -72,8 +73,8 @@ fn main() {
     let only = std::env::var("RTCONF_BENCH_ONLY").unwrap_or_default();
     let mut ratios = Vec::new();
     for w in standard_workloads(SIDE, false) {
-        // The hand case's pipeline has one triangle hit group: the triangle workloads only.
-        if !w.triangles_only() || !w.name.contains(&only) {
+        // The hand case's pipeline has one hit group: workloads of one kind of geometry.
+        if !w.launchable() || !w.name.contains(&only) {
             continue;
         }
         let mut case = w.as_launch_of(hand_case(), SIDE);

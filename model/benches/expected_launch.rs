@@ -1,6 +1,6 @@
 //! Rays per second of `model::semantics::expected_launch` — the oracle the session judges rendered
-//! cases with, shader binding table resolution and prepared-scene memo included — on the triangle
-//! workloads of `model::tracer::workload` as a 64x64 launch of the hand-made indirect case (the
+//! cases with, shader binding table resolution and prepared-scene memo included — on the workloads
+//! of `model::tracer::workload` (triangles, and spheres in boxes) as a 64x64 launch of the hand-made indirect case (the
 //! scene and rays `harness/benches/render_rays.rs` gives lavapipe), beside the bare tracer
 //! (`workload::run`, one shader table for every ray) on the same rays as the peer in the same run,
 //! and the launch's CPU time per ray (all threads). The bare tracer's rays are also timed apart by
@@ -74,7 +74,7 @@ fn main() {
         "hit time %"
     );
     for w in standard_workloads(SIDE, false) {
-        if !w.triangles_only() || !w.name.contains(only.as_str()) {
+        if !w.launchable() || !w.name.contains(only.as_str()) {
             continue;
         }
         let case = w.as_launch_of(hand_case(), SIDE);

@@ -1,4 +1,4 @@
-//! A fixed amount of `model::semantics::expected_launch` work per triangle workload, for counting
+//! A fixed amount of `model::semantics::expected_launch` work per standard workload, for counting
 //! instructions per ray under callgrind: the 64x64 launch of the hand-made indirect case (as in
 //! `expected_launch.rs`), warmed once (prepared scene and its topology made), then
 //! `RTCONF_BENCH_PASSES` launches (default 4) inside [`measured`], the one function to collect.
@@ -40,7 +40,7 @@ fn main() {
         .unwrap_or(4);
     let only = std::env::var("RTCONF_BENCH_ONLY").unwrap_or_default();
     for w in standard_workloads(SIDE, false) {
-        if !w.triangles_only() || !w.name.contains(only.as_str()) {
+        if !w.launchable() || !w.name.contains(only.as_str()) {
             continue;
         }
         let case = w.as_launch_of(hand_case(), SIDE);

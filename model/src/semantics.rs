@@ -724,8 +724,8 @@ mod hit_reach_tests {
         }
         // The standard workloads as launches of the hand-made case, with rays that cull, skip, end
         // at their first hit or are forced opaque or non-opaque, so the cut and the culling vary;
-        // and with an any-hit shader in the triangle hit group, so that non-opaque triangles take
-        // the launch's own cut away where the generic table keeps it.
+        // and with an any-hit shader in the hit group (procedural for the spheres), so that
+        // non-opaque triangles take the launch's own cut away where the generic table keeps it.
         use crate::tracer::AnyHitRule;
         for w in crate::tracer::workload::standard_workloads(8, false) {
             for any_hit in [None, Some(AnyHitRule::Accept), Some(AnyHitRule::Terminate)] {
@@ -741,6 +741,11 @@ mod hit_reach_tests {
                         let pipeline = t.world.pipeline.as_mut().expect("a pipeline");
                         for g in &mut pipeline.groups {
                             if let crate::world::ShaderGroup::TrianglesHit {
+                                any_hit,
+                                any_hit_rule,
+                                ..
+                            }
+                            | crate::world::ShaderGroup::ProceduralHit {
                                 any_hit,
                                 any_hit_rule,
                                 ..

@@ -18,20 +18,52 @@ pub struct Workload {
 }
 
 impl Workload {
-    /// Whether every geometry of the workload is triangles (the hand-made trace case's pipeline has
-    /// one triangle hit group).
+    /// Whether every geometry of the workload is triangles.
     pub fn triangles_only(&self) -> bool {
-        self.scene.bottom_levels.iter().all(|b| {
-            b.geometries
-                .iter()
-                .all(|g| matches!(g.data, crate::scene::GeometryData::Triangles(_)))
-        })
+        self.every_geometry(|d| matches!(d, crate::scene::GeometryData::Triangles(_)))
+    }
+
+    /// Whether every geometry of the workload is boxes with spheres.
+    pub fn procedural_only(&self) -> bool {
+        self.every_geometry(|d| matches!(d, crate::scene::GeometryData::Aabbs(_)))
+    }
+
+    /// Whether the hand-made trace case, whose pipeline has one hit group, can launch the workload
+    /// ([`Workload::as_launch_of`]): one kind of geometry throughout.
+    pub fn launchable(&self) -> bool {
+        self.triangles_only() || self.procedural_only()
+    }
+
+    fn every_geometry(&self, kind: impl Fn(&crate::scene::GeometryData) -> bool) -> bool {
+        self.scene
+            .bottom_levels
+            .iter()
+            .all(|b| b.geometries.iter().all(|g| kind(&g.data)))
     }
 
     /// The workload as a launch of `case` (a vkCmdTraceRaysIndirectKHR case): its scene and rays
-    /// put into the case's world and every indirect command of its buffers set to `side` x `side`.
+    /// put into the case's world and every indirect command of its buffers set to `side` x `side`;
+    /// for a workload of boxes, the case's triangle hit groups become procedural ones with the same
+    /// shaders and an intersection shader (the harness's, which reports each box's sphere).
     pub fn as_launch_of(&self, mut case: crate::Case, side: u32) -> crate::Case {
         if let Some(t) = case.as_trace_mut() {
+            if let Some(pipeline) = t.world.pipeline.as_mut().filter(|_| self.procedural_only()) {
+                for g in &mut pipeline.groups {
+                    if let crate::world::ShaderGroup::TrianglesHit {
+                        closest_hit,
+                        any_hit,
+                        any_hit_rule,
+                    } = *g
+                    {
+                        *g = crate::world::ShaderGroup::ProceduralHit {
+                            closest_hit,
+                            any_hit,
+                            any_hit_rule,
+                            intersection: true,
+                        };
+                    }
+                }
+            }
             t.world.launch.scene = self.scene.clone();
             t.world.launch.rays = self.rays.clone();
             for b in &mut t.world.buffers {
