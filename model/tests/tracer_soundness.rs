@@ -13,7 +13,7 @@ use model::scene::{
     Sphere, Transform3x4, Triangles,
 };
 use model::tracer::arith::{v3, BoundedF64, Dyadic, Num};
-use model::tracer::band::TriangleBand;
+use model::tracer::band::{InstanceBand, TriangleBand};
 use model::tracer::triangle::triangle_signs;
 use model::tracer::{
     trace_ray, AllowedOutcomes, HitShaders, MissShader, Precision, PreparedScene, ShaderTable,
@@ -573,17 +573,10 @@ fn a_sphere_far_box_leaves_out_only_pairs_that_give_nothing() {
 /// f32. The report it makes, if any, as (HitKind, t), kept only where `reportIntersectionEXT`
 /// accepts it (tmin ≤ t ≤ tmax).
 fn f32_shader(transform: &Transform3x4, sphere: &Sphere, ray: &Ray) -> Option<(u32, f32)> {
-    let m = transform.0.map(|r| r.map(f64::from));
-    let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
-    let cof = |r: usize, c: usize| {
-        let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
-        let (c1, c2) = ((c + 1) % 3, (c + 2) % 3);
-        m[r1][c1] * m[r2][c2] - m[r1][c2] * m[r2][c1]
-    };
-    // inv[i][j] = cofactor(j, i) / det.
-    let inv: [[f32; 3]; 3] = [0, 1, 2].map(|i| [0, 1, 2].map(|j| (cof(j, i) / det) as f32));
+    // The instance's f64 inverse (as the band takes it), rounded to f32.
+    let inv = InstanceBand::new(transform)
+        .a_inv
+        .map(|r| r.map(|x| x as f32));
     let t = [0, 1, 2].map(|k| transform.0[k][3]);
     let mul =
         |v: [f32; 3]| [0, 1, 2].map(|i| inv[i][0] * v[0] + inv[i][1] * v[1] + inv[i][2] * v[2]);
