@@ -31,6 +31,10 @@ pub struct RenderedResult {
     /// What the driver chose on the VARY launch IDs: a hit, or a miss (or no shader).
     pub vary_hit: u64,
     pub vary_miss: u64,
+    /// Launch IDs whose ray must run an intersection shader at least once (a box it robustly
+    /// crosses, or whose sphere it does, before anything may end its trace).
+    #[serde(default)]
+    pub shader_required: u64,
     pub warnings: u64,
     pub failures: u64,
     /// The worst t error (f32 ULPs, and relative to its bound) and the bound it was judged by.
@@ -277,6 +281,7 @@ fn judge_ids(
         } else {
             result.req += 1;
         }
+        result.shader_required += u64::from(allowed.intersection.min > 0);
         if let Some(j) = &slot.judgement {
             result.summary.add(j);
             if j.t_error_rel.unwrap_or(0.0) >= result.worst_t_rel.unwrap_or(0.0)
@@ -309,6 +314,7 @@ fn absorb(total: &mut RenderedResult, part: RenderedResult) {
     total.vary += part.vary;
     total.vary_hit += part.vary_hit;
     total.vary_miss += part.vary_miss;
+    total.shader_required += part.shader_required;
     total.warnings += part.warnings;
     total.failures += part.failures;
     if part

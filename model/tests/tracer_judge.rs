@@ -503,3 +503,53 @@ fn summaries_count_verdicts_and_errors() {
     let back: Summary = serde_json::from_str(&text).unwrap();
     assert_eq!(back, s);
 }
+
+/// A driver that skips a box the ray crosses (its intersection shader never run) is caught, though
+/// the box's sphere is missed and so nothing is hit: the box [−1, 1]³ around the unit sphere,
+/// crossed through its corner region; one the ray passes beside may run the shader or not.
+#[test]
+fn a_skipped_box_fails_and_an_enlarged_one_passes() {
+    use model::scene::{Aabb, Aabbs, Geometry, GeometryData, GeometryFlags, Sphere};
+    let scene = one_instance(BottomLevel {
+        geometries: vec![Geometry {
+            flags: GeometryFlags {
+                opaque: true,
+                no_duplicate_any_hit: false,
+            },
+            data: GeometryData::Aabbs(Aabbs {
+                boxes: vec![Aabb {
+                    min: [-1.0; 3],
+                    max: [1.0; 3],
+                }],
+                spheres: vec![Sphere {
+                    center: [0.0; 3],
+                    radius: 1.0,
+                }],
+            }),
+        }],
+    });
+    let proc = |_: u32, _: u32| HitShaders::procedural(7, None);
+    let down_at = |x: f32| Ray::new([x, 0.95, 4.0], [0.0, 0.0, -1.0], 0.0, f32::INFINITY);
+    let miss_with = |count: u32| RayRecord {
+        intersection_count: count,
+        ..RayRecord::miss(MISS_GROUP)
+    };
+    let crossing = trace_with(
+        &scene,
+        &down_at(0.95),
+        &proc,
+        Precision::F64WithExactFallback,
+    );
+    assert!(is_fail(&verdict(&crossing, &miss_with(0))));
+    assert_eq!(verdict(&crossing, &miss_with(1)), RayVerdict::Pass);
+    assert_eq!(verdict(&crossing, &miss_with(3)), RayVerdict::Pass);
+    let beside = trace_with(
+        &scene,
+        &down_at(1.5),
+        &proc,
+        Precision::F64WithExactFallback,
+    );
+    for count in [0, 1] {
+        assert_eq!(verdict(&beside, &miss_with(count)), RayVerdict::Pass);
+    }
+}

@@ -493,7 +493,7 @@ fn a_ray_through_the_sphere_is_a_required_hit_entry_or_inside() {
 }
 
 #[test]
-fn a_ray_outside_the_box_may_run_the_shader_but_never_hits() {
+fn a_box_the_ray_crosses_must_run_its_shader_one_it_passes_may() {
     let proc = |_: u32, _: u32| HitShaders::procedural(7, None);
     // Passes beside the box at x = 1.5: the shader may run (enlarged box), reports nothing.
     let out = trace_with(
@@ -505,15 +505,39 @@ fn a_ray_outside_the_box_may_run_the_shader_but_never_hits() {
     assert!(out.miss.required);
     assert_eq!(out.intersection.min, 0);
     assert_eq!(out.intersection.max, None);
-    // A ray through a box corner region outside the sphere: same.
-    let out = trace_with(
+    // A ray through a box corner region outside the sphere: the box is a candidate (spec, "Ray
+    // Intersection Candidate Determination"), so the shader must run, and reports nothing.
+    let corner = |origin_z: f32, tmin: f32, tmax: f32| {
+        trace_with(
+            &sphere_scene(),
+            &Ray::new([0.95, 0.95, origin_z], [0.0, 0.0, -1.0], tmin, tmax),
+            &proc,
+            Precision::F64WithExactFallback,
+        )
+    };
+    let out = corner(4.0, 0.0, f32::INFINITY);
+    assert!(out.miss.required);
+    assert_eq!(out.intersection.min, 1);
+    assert_eq!(out.intersection.max, None);
+    // So too from inside the box, and where the segment ends inside it.
+    assert_eq!(corner(0.5, 0.0, f32::INFINITY).intersection.min, 1);
+    assert_eq!(corner(4.0, 0.0, 3.5).intersection.min, 1);
+    // A segment that ends before the box (z = 1 at t = 3), starts past it, or only touches its
+    // face: nothing required.
+    for (tmin, tmax) in [(0.0, 2.5), (5.5, f32::INFINITY), (0.0, 3.0)] {
+        let out = corner(4.0, tmin, tmax);
+        assert_eq!(out.intersection.min, 0, "[{tmin}, {tmax}]");
+        assert!(out.miss.required);
+    }
+    // Along the box's face x = 1 (outside the sphere but for the touch at z = 0): the box may or
+    // may not be met.
+    let face = trace_with(
         &sphere_scene(),
-        &Ray::new([0.95, 0.95, 4.0], [0.0, 0.0, -1.0], 0.0, f32::INFINITY),
+        &Ray::new([1.0, 0.5, 4.0], [0.0, 0.0, -1.0], 0.0, f32::INFINITY),
         &proc,
         Precision::F64WithExactFallback,
     );
-    assert!(out.miss.required);
-    assert_eq!(out.intersection.max, None);
+    assert_eq!(face.intersection.min, 0);
     // Skipping AABBs: the shader can never run.
     let out = trace_with(
         &sphere_scene(),

@@ -88,6 +88,9 @@ pub struct RenderedTotals {
     /// What the driver chose where the spec let it.
     pub vary_hit: u64,
     pub vary_miss: u64,
+    /// Launch IDs that had to run an intersection shader.
+    #[serde(default)]
+    pub shader_required: u64,
     pub warnings: u64,
     pub failures: u64,
     /// Share of ray/primitive tests that needed exact arithmetic.
@@ -111,6 +114,7 @@ impl RenderedTotals {
         self.vary += r.vary;
         self.vary_hit += r.vary_hit;
         self.vary_miss += r.vary_miss;
+        self.shader_required += r.shader_required;
         self.warnings += r.warnings;
         self.failures += r.failures;
         self.pairs.0 += r.pair_tests;

@@ -394,8 +394,8 @@ pub fn print_summary(s: &Summary, out: &Path, not_expressible: usize, verbose: b
             )
         };
         println!(
-            "rendered {command}: {} cases, {} launch IDs ({} REQ, {} VARY = {:.2} %: {} hit, {} missed), {} failures, {} warnings, exact fallback {:.4} % of pairs",
-            r.cases, r.rays, r.req, r.vary, 100.0 * r.vary_share, r.vary_hit, r.vary_miss, r.failures, r.warnings, 100.0 * r.exact_share
+            "rendered {command}: {} cases, {} launch IDs ({} REQ, {} VARY = {:.2} %: {} hit, {} missed; {} must run an intersection shader), {} failures, {} warnings, exact fallback {:.4} % of pairs",
+            r.cases, r.rays, r.req, r.vary, 100.0 * r.vary_share, r.vary_hit, r.vary_miss, r.shader_required, r.failures, r.warnings, 100.0 * r.exact_share
         );
         println!(
             "  t error ulps: {}; relative to bound: {}",

@@ -15,8 +15,7 @@ use crate::scene::{Ray, Scene};
 use crate::tracer::judge::{judge, RayVerdict};
 use crate::tracer::record::{RayRecord, RecordOutcome};
 use crate::tracer::{
-    trace_ray, AllowedOutcomes, PreparedScene, Presence, PrimitiveKind, PrimitiveRef, ShaderTable,
-    TracerConfig, TracerStats,
+    trace_ray, AllowedOutcomes, PreparedScene, PrimitiveRef, ShaderTable, TracerConfig, TracerStats,
 };
 
 /// What each ray hit: `(instance, geometry, primitive)`, or None for a miss.
@@ -191,6 +190,7 @@ pub fn judge_against(
         } else {
             result.req += 1;
         }
+        result.shader_required += u64::from(a.intersection.min > 0);
         let at = || {
             let r = &rays[k];
             format!(
@@ -364,20 +364,27 @@ fn fewest_drops(scene: &Scene, rays: &[Ray], records: &[RayRecord]) -> Option<us
                 RecordOutcome::Hit => r.t as f64,
                 _ => f64::INFINITY,
             };
-            let must_run = a.candidates.iter().enumerate().filter_map(|(i, c)| {
-                (c.kind == PrimitiveKind::Aabb && c.presence == Presence::Required).then_some(i)
-            });
-            for i in a.committable.iter().copied().chain(must_run) {
-                let c = &a.candidates[i];
-                let chosen = r.outcome == RecordOutcome::Hit
-                    && c.primitive
+            let chosen = |p: &PrimitiveRef| {
+                r.outcome == RecordOutcome::Hit
+                    && *p
                         == (PrimitiveRef {
                             instance: r.instance_id,
                             geometry: r.geometry_index,
                             primitive: r.primitive_id,
-                        });
-                if !chosen && c.t_hull().lo < reach && !dropped.contains(&c.primitive) {
+                        })
+            };
+            for &i in a.committable.iter() {
+                let c = &a.candidates[i];
+                if !chosen(&c.primitive) && c.t_hull().lo < reach && !dropped.contains(&c.primitive)
+                {
                     dropped.push(c.primitive);
+                }
+            }
+            // Every box whose shader must run lies before anything that may end the trace or
+            // shrink tmax, so before the record's hit too.
+            for p in &a.must_run {
+                if !chosen(p) && !dropped.contains(p) {
+                    dropped.push(*p);
                 }
             }
         }

@@ -3,6 +3,7 @@
 //! confirmation, the watertight groups, and `conclude.rs`'s committed hits.
 
 use super::arith::{Dyadic, Num, PlainF32};
+use super::box_crossing::BoxRay;
 use super::conclude::conclude;
 use super::prepare::{PreparedScene, RayF64};
 use super::sphere::{
@@ -37,6 +38,7 @@ pub(super) fn outcomes_of_near(
         hits,
         outcomes,
         scaled,
+        box_rays,
     } = scratch;
     if near.is_empty() {
         // Nothing near the ray (every near item has its outcome, so there is none to forget).
@@ -82,6 +84,8 @@ pub(super) fn outcomes_of_near(
     // The ray in the space of each instance whose spheres it met ([`ScaledRay`]), made once per
     // instance: the walk meets the boxes of instances that overlap in turn.
     scaled.clear();
+    // Likewise the ray as the box test takes it ([`BoxRay`]).
+    box_rays.clear();
     for NearItem {
         item,
         outcome: near_outcome,
@@ -126,9 +130,9 @@ pub(super) fn outcomes_of_near(
         let opaque = opacity(ray, inst, geometry.flags.opaque);
         // Resolved where a candidate needs it (most near pairs are misses).
         let hit_shaders = || (shaders.hit)(w.instance, w.geometry);
-        stats.pair_tests += 1;
         match w.kind {
             PrimitiveKind::Triangle => {
+                stats.pair_tests += 1;
                 // Spec, "Ray Opacity Culling": a culled triangle is a REQ-miss whatever its
                 // intersection, counted as a culled box is, and not tested (the traversal
                 // classified only unculled ones).
@@ -257,12 +261,43 @@ pub(super) fn outcomes_of_near(
             PrimitiveKind::Aabb => {
                 let hit_shaders = hit_shaders();
                 if opacity_culled(ray, opaque) || !hit_shaders.has_intersection() {
+                    stats.pair_tests += 1;
                     stats.req_miss += 1;
                     continue;
                 }
                 let GeometryData::Aabbs(a) = &geometry.data else {
                     unreachable!()
                 };
+                // A box the ray robustly crosses is a candidate: its shader must run (up to
+                // where a confirmed hit may end the trace or shrink tmax first).
+                let box_ray = match box_rays.iter().position(|(i, _)| *i == w.instance) {
+                    Some(at) => &box_rays[at].1,
+                    None => {
+                        let made = BoxRay::new(
+                            &scene.instances[w.instance as usize].band,
+                            rf.origin,
+                            rf.direction,
+                            rf.tmin,
+                            rf.tmax,
+                        );
+                        box_rays.push((w.instance, made));
+                        &box_rays[box_rays.len() - 1].1
+                    }
+                };
+                let box_entry = box_ray.entry(&a.boxes[item.primitive as usize]);
+                // The sphere's far box missed: the shader reports nothing, whatever it is run for.
+                if config.far_test && scene.sphere_far[index as usize].entry(rf).is_none() {
+                    if let Some(t_hi) = box_entry {
+                        must_run.push(MustRun {
+                            primitive: prim,
+                            t_hi,
+                            candidate: None,
+                        });
+                    }
+                    stats.far_rejections += 1;
+                    continue;
+                }
+                stats.pair_tests += 1;
                 let sphere = a.spheres[item.primitive as usize];
                 let band = sphere_band(
                     &scene.instances[w.instance as usize].band,
@@ -302,9 +337,18 @@ pub(super) fn outcomes_of_near(
                             .expect("f32 signs are taken at face value")
                     }
                 };
-                if signs.must_run {
+                // Run for the sphere it crosses or the box it crosses, whichever is met first.
+                let must = match (
+                    signs.must_run.then(|| band.t0.hi.max(band.t1.lo)),
+                    box_entry,
+                ) {
+                    (Some(s), Some(b)) => Some(s.min(b)),
+                    (s, b) => s.or(b),
+                };
+                if let Some(t_hi) = must {
                     must_run.push(MustRun {
-                        t_hi: band.t0.hi.max(band.t1.lo),
+                        primitive: prim,
+                        t_hi,
                         candidate: None,
                     });
                 }
@@ -324,7 +368,7 @@ pub(super) fn outcomes_of_near(
                     stats.req_miss += 1;
                     continue;
                 }
-                if signs.must_run {
+                if must.is_some() {
                     if let Some(m) = must_run.last_mut() {
                         // Pushed next: its index among the candidates.
                         m.candidate = Some(candidates.len());

@@ -63,6 +63,7 @@ fn without_candidates(
         },
         watertight,
         vary: false,
+        must_run: Vec::new(),
     }
 }
 
@@ -159,10 +160,14 @@ fn conclude_candidates(
     }
     // Intersection shaders may run for any reachable box (boxes may be enlarged without bound).
     let reachable_procedural = reachable_procedural(scene, ray, shaders);
-    let intersection_min = must_run
+    let mut must_run: Vec<PrimitiveRef> = must_run
         .iter()
         .filter(|m| must_process(m.candidate, m.t_hi))
-        .count() as u32;
+        .map(|m| m.primitive)
+        .collect();
+    // In primitive order, as the candidates: the walk's order is the BVH's.
+    must_run.sort_unstable();
+    let intersection_min = must_run.len() as u32;
     let discouraged = no_required && watertight.iter().any(|g| g.expect_hit);
     let vary = candidates.iter().any(|c| c.presence == Presence::Possible)
         || committable.len() > 1
@@ -188,6 +193,7 @@ fn conclude_candidates(
         },
         watertight,
         vary,
+        must_run,
     }
 }
 

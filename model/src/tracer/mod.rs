@@ -9,6 +9,7 @@
 
 pub mod arith;
 pub mod band;
+mod box_crossing;
 mod bvh;
 mod candidates;
 mod conclude;
@@ -410,6 +411,11 @@ pub struct AllowedOutcomes {
     pub watertight: Vec<WatertightGroup>,
     /// Whether any part of the answer was VARY.
     pub vary: bool,
+    /// The boxes whose intersection shader must run (those `intersection.min` counts): each the
+    /// ray robustly crosses, or whose sphere it does, before anything may end the trace or shrink
+    /// tmax below it; in primitive order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub must_run: Vec<PrimitiveRef>,
 }
 
 impl AllowedOutcomes {

@@ -11,7 +11,7 @@ use super::band::{
 };
 use super::bvh::{build_bvh, WideTree};
 use super::pages::PageBacked;
-use crate::scene::{GeometryData, Problem, Scene, Transform3x4};
+use crate::scene::{Aabb, GeometryData, Problem, Scene, Sphere, Transform3x4};
 use std::collections::HashMap;
 use std::sync::OnceLock;
 
@@ -104,6 +104,17 @@ impl FarBox {
             pad_base,
             pad_slope,
         }
+    }
+
+    /// [`ItemFar::entry`] of this box uncompacted.
+    pub(crate) fn entry(&self, ray: &RayF64) -> Option<FarEntry> {
+        far_entry(
+            ray,
+            &self.lo,
+            &self.hi,
+            self.static_pad,
+            &FarConstants::of(self),
+        )
     }
 
     pub(crate) fn union(&self, o: &FarBox) -> FarBox {
@@ -495,6 +506,10 @@ pub struct PreparedScene {
     pub(crate) item_far: PageBacked<ItemFar>,
     /// The pad constants the items' far tests share.
     pub(crate) far_constants: Vec<FarConstants>,
+    /// Per item, where the scene has AABBs, the far box of the box's sphere (a triangle's own far
+    /// box): a ray that misses it gets no report from the intersection shader, however the box
+    /// is enlarged. Empty where every item is a triangle.
+    pub(crate) sphere_far: Vec<FarBox>,
     /// The four-wide tree over `items` (see [`super::bvh`]).
     pub(crate) tree: WideTree,
     /// `(instance, geometry)` of every AABB geometry with an active box, in instance order.
@@ -530,6 +545,70 @@ impl std::fmt::Debug for PreparedScene {
             self.tree.len()
         )
     }
+}
+
+/// The far box of the sphere an AABB's intersection shader reports: the intersection shader reports
+/// the sphere alone, so a ray that misses the sphere's padded box gets no report from the pair
+/// however the box is enlarged. Every bound is one over the sphere's points: `extent`, the largest
+/// corner norm of the sphere's box, is at least |c| + r. The corners `c ± r` are rounded in f64,
+/// within 2⁻⁵³·extent, far below `slack`.
+fn sphere_far_box(transform: &Transform3x4, band: &InstanceBand, sphere: &Sphere) -> FarBox {
+    let k = band.kappa;
+    let sse = BAND_SAFETY_FACTOR * SPHERE_SHADER_ERROR;
+    let (c, r) = (sphere.center.map(f64::from), f64::from(sphere.radius));
+    let (lo, hi, extent) = world_bounds(transform, |corner, k| {
+        if corner >> k & 1 == 1 {
+            c[k] + r
+        } else {
+            c[k] - r
+        }
+    });
+    let slack = 1e-9 * (extent * band.norm_a + band.norm_t);
+    FarBox::new(
+        lo,
+        hi,
+        2.0 * band.norm_a * sse * 2.0 * extent + slack,
+        // Dobj ≤ 2‖A⁻¹‖·M (centre and radius seen from the origin).
+        4.0 * k * (band.direction_rel * k + sse) * 1.01,
+        2.0 * k * (band.origin_coef + sse) * 1.01,
+        band.norm_t,
+    )
+}
+
+/// The far box of an AABB itself, for the exact ray: [`super::box_crossing`] requires a crossing
+/// of the exact object-space ray through the box, which then meets the box's world image, inside
+/// the world bounds of its eight corners (computed in f64, within `slack` of the exact ones).
+fn box_far_box(transform: &Transform3x4, band: &InstanceBand, bx: &Aabb) -> FarBox {
+    let (lo, hi, extent) = world_bounds(transform, |corner, k| {
+        f64::from(if corner >> k & 1 == 1 {
+            bx.max[k]
+        } else {
+            bx.min[k]
+        })
+    });
+    let slack = 1e-9 * (extent * band.norm_a + band.norm_t);
+    FarBox::new(lo, hi, slack, 0.0, 0.0, band.norm_t)
+}
+
+/// The world bounds of the eight object-space corners `corner(i, axis)` (i in 0..8) under
+/// `transform`, and the largest corner norm in object space.
+fn world_bounds(
+    transform: &Transform3x4,
+    corner: impl Fn(usize, usize) -> f64,
+) -> ([f64; 3], [f64; 3], f64) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    let mut extent: f64 = 0.0;
+    for i in 0..8 {
+        let p = [0, 1, 2].map(|k| corner(i, k));
+        extent = extent.max(norm3(p));
+        let w = transform.apply_f64(p);
+        for k in 0..3 {
+            lo[k] = lo[k].min(w[k]);
+            hi[k] = hi[k].max(w[k]);
+        }
+    }
+    (lo, hi, extent)
 }
 
 fn effective(m: Option<&Transform3x4>) -> Transform3x4 {
@@ -654,49 +733,21 @@ impl PreparedScene {
                         });
                     }
                     GeometryData::Aabbs(a) => {
-                        let k = band.kappa;
-                        let sse = BAND_SAFETY_FACTOR * SPHERE_SHADER_ERROR;
                         for (prim, (bx, sphere)) in a.boxes.iter().zip(&a.spheres).enumerate() {
                             if bx.is_inactive() {
                                 continue;
                             }
-                            // The far box is that of the box's sphere, not of the box: the
-                            // intersection shader reports the sphere alone, and whether it must
-                            // run is decided by the sphere too (`sphere::SphereSigns::must_run`),
-                            // so a ray that misses the sphere's padded box gets nothing from the
-                            // pair however the box is enlarged. Every bound below is one over the
-                            // sphere's points: `extent`, the largest corner norm of the sphere's
-                            // box, is at least |c| + r. The corners `c ± r` are rounded in f64,
-                            // within 2⁻⁵³·extent, far below `slack`.
-                            let (c, r) = (sphere.center.map(f64::from), f64::from(sphere.radius));
-                            let mut lo = [f64::INFINITY; 3];
-                            let mut hi = [f64::NEG_INFINITY; 3];
-                            let mut extent: f64 = 0.0;
-                            for corner in 0..8 {
-                                let p = [0, 1, 2].map(|k| {
-                                    if corner >> k & 1 == 1 {
-                                        c[k] + r
-                                    } else {
-                                        c[k] - r
-                                    }
-                                });
-                                extent = extent.max(norm3(p));
-                                let w = inst.transform.apply_f64(p);
-                                for k in 0..3 {
-                                    lo[k] = lo[k].min(w[k]);
-                                    hi[k] = hi[k].max(w[k]);
-                                }
-                            }
-                            let slack = 1e-9 * (extent * band.norm_a + band.norm_t);
-                            boxes.push(FarBox::new(
-                                lo,
-                                hi,
-                                2.0 * band.norm_a * sse * 2.0 * extent + slack,
-                                // Dobj ≤ 2‖A⁻¹‖·M (centre and radius seen from the origin).
-                                4.0 * k * (band.direction_rel * k + sse) * 1.01,
-                                2.0 * k * (band.origin_coef + sse) * 1.01,
-                                band.norm_t,
-                            ));
+                            // The walk must reach every box a ray robustly crosses (its shader
+                            // must run, see `box_crossing`) and every sphere a ray may hit: the far
+                            // box holds both. Which pairs reach the sphere's classification is
+                            // decided by the sphere's own far box (`PreparedScene::sphere_far`).
+                            boxes.push(
+                                sphere_far_box(&inst.transform, &band, sphere).union(&box_far_box(
+                                    &inst.transform,
+                                    &band,
+                                    bx,
+                                )),
+                            );
                             items.push(Item {
                                 geometry: gi,
                                 primitive: prim as u32,
@@ -722,6 +773,27 @@ impl PreparedScene {
             .map(|it: &Item| geometries[it.geometry as usize].kind == PrimitiveKind::Triangle)
             .collect();
         let (items, item_boxes, nodes) = build_bvh(items, boxes, &triangle);
+        // Each AABB item's sphere far box, by item (none where the scene has no AABB).
+        let sphere_far: Vec<FarBox> = if triangle.iter().all(|&t| t) {
+            Vec::new()
+        } else {
+            items
+                .iter()
+                .zip(&item_boxes)
+                .map(|(it, own): (&Item, &FarBox)| {
+                    let w = &geometries[it.geometry as usize];
+                    let GeometryData::Aabbs(a) = &scene.bottom_levels[w.bottom_level as usize]
+                        .geometries[w.geometry as usize]
+                        .data
+                    else {
+                        return *own;
+                    };
+                    let inst = &scene.instances[w.instance as usize];
+                    let band = &instances[w.instance as usize].band;
+                    sphere_far_box(&inst.transform, band, &a.spheres[it.primitive as usize])
+                })
+                .collect()
+        };
         let item_bounds: Vec<BoundBox> = item_boxes.iter().map(BoundBox::of).collect();
         let (item_far, far_constants) = compact_far_boxes(&item_boxes);
         let item_triangles: Vec<bool> = items
@@ -783,6 +855,7 @@ impl PreparedScene {
             static_radius: PageBacked::new(radius),
             item_far: PageBacked::new(item_far),
             far_constants,
+            sphere_far,
             tree,
             procedural,
             topology,

@@ -14,8 +14,9 @@
 //! ```
 //! (closest-approach form, so the discriminant does not cancel when the ray starts far away).
 //!
-//! Boxes may be enlarged without bound, so the shader may run for any box and a box is never
-//! REQ-missed; only the reported sphere hit is classified. Exactly, without inverting: with
+//! Boxes may be enlarged without bound, so the shader may run for any box; it must run for a box
+//! the ray robustly crosses (`box_crossing.rs`) or whose sphere it robustly crosses. Here the
+//! reported sphere hit is classified. Exactly, without inverting: with
 //! `adj = adj(A)`, `O = adj·(o − T) − det(A)·c` and `D = adj·d` (both `det(A)` times the object-space
 //! quantities), the object-space distance `h` of the ray's line from the centre has
 //! `h² = |O × D|² / (det² |D|²)` and the roots `t0 ≤ t1` of `|O + t·D|² = det² r²` are

@@ -395,6 +395,7 @@ pub(super) enum NearOutcome {
 
 /// A procedural primitive the intersection shader must run for.
 pub(super) struct MustRun {
+    pub primitive: PrimitiveRef,
     pub t_hi: f64,
     /// Its index among the ray's candidates, None where it is none (its sphere is missed).
     pub candidate: Option<usize>,
@@ -735,6 +736,8 @@ pub(super) struct Scratch {
     pub(super) outcomes: Vec<TriangleOutcome>,
     /// The ray in the space of each instance whose spheres it met, by instance.
     pub(super) scaled: Vec<(u32, super::sphere::ScaledRay<BoundedF64>)>,
+    /// The ray as the box test takes it in each instance whose boxes it met, by instance.
+    pub(super) box_rays: Vec<(u32, super::box_crossing::BoxRay)>,
 }
 
 thread_local! {
