@@ -509,25 +509,7 @@ fn summaries_count_verdicts_and_errors() {
 /// crossed through its corner region; one the ray passes beside may run the shader or not.
 #[test]
 fn a_skipped_box_fails_and_an_enlarged_one_passes() {
-    use model::scene::{Aabb, Aabbs, Geometry, GeometryData, GeometryFlags, Sphere};
-    let scene = one_instance(BottomLevel {
-        geometries: vec![Geometry {
-            flags: GeometryFlags {
-                opaque: true,
-                no_duplicate_any_hit: false,
-            },
-            data: GeometryData::Aabbs(Aabbs {
-                boxes: vec![Aabb {
-                    min: [-1.0; 3],
-                    max: [1.0; 3],
-                }],
-                spheres: vec![Sphere {
-                    center: [0.0; 3],
-                    radius: 1.0,
-                }],
-            }),
-        }],
-    });
+    let scene = sphere_scene();
     let proc = |_: u32, _: u32| HitShaders::procedural(7, None);
     let down_at = |x: f32| Ray::new([x, 0.95, 4.0], [0.0, 0.0, -1.0], 0.0, f32::INFINITY);
     let miss_with = |count: u32| RayRecord {

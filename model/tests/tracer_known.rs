@@ -444,29 +444,6 @@ fn a_ray_in_the_plane_of_a_triangle_is_culled() {
     assert!(trace(&one_instance(unit_triangle()), &ray).miss.required);
 }
 
-/// One box [−1, 1]³ with the unit sphere, procedural shaders.
-fn sphere_scene() -> Scene {
-    let bl = BottomLevel {
-        geometries: vec![Geometry {
-            flags: GeometryFlags {
-                opaque: true,
-                no_duplicate_any_hit: false,
-            },
-            data: GeometryData::Aabbs(Aabbs {
-                boxes: vec![Aabb {
-                    min: [-1.0; 3],
-                    max: [1.0; 3],
-                }],
-                spheres: vec![Sphere {
-                    center: [0.0; 3],
-                    radius: 1.0,
-                }],
-            }),
-        }],
-    };
-    one_instance(bl)
-}
-
 #[test]
 fn a_ray_through_the_sphere_is_a_required_hit_entry_or_inside() {
     let proc = |_: u32, _: u32| HitShaders::procedural(7, None);

@@ -83,3 +83,26 @@ pub fn trace(scene: &Scene, ray: &Ray) -> AllowedOutcomes {
         Precision::F64WithExactFallback,
     )
 }
+
+/// One box [−1, 1]³ with the unit sphere in it.
+pub fn sphere_scene() -> Scene {
+    let bl = BottomLevel {
+        geometries: vec![Geometry {
+            flags: GeometryFlags {
+                opaque: true,
+                no_duplicate_any_hit: false,
+            },
+            data: GeometryData::Aabbs(model::scene::Aabbs {
+                boxes: vec![model::scene::Aabb {
+                    min: [-1.0; 3],
+                    max: [1.0; 3],
+                }],
+                spheres: vec![model::scene::Sphere {
+                    center: [0.0; 3],
+                    radius: 1.0,
+                }],
+            }),
+        }],
+    };
+    one_instance(bl)
+}
