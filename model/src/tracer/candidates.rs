@@ -270,20 +270,15 @@ pub(super) fn outcomes_of_near(
                 };
                 // A box the ray robustly crosses is a candidate: its shader must run (up to
                 // where a confirmed hit may end the trace or shrink tmax first).
-                let box_ray = match box_rays.iter().position(|(i, _)| *i == w.instance) {
-                    Some(at) => &box_rays[at].1,
-                    None => {
-                        let made = BoxRay::new(
-                            &scene.instances[w.instance as usize].band,
-                            rf.origin,
-                            rf.direction,
-                            rf.tmin,
-                            rf.tmax,
-                        );
-                        box_rays.push((w.instance, made));
-                        &box_rays[box_rays.len() - 1].1
-                    }
-                };
+                let box_ray = of_instance(box_rays, w.instance, || {
+                    BoxRay::new(
+                        &scene.instances[w.instance as usize].band,
+                        rf.origin,
+                        rf.direction,
+                        rf.tmin,
+                        rf.tmax,
+                    )
+                });
                 let box_entry = box_ray.entry(&a.boxes[item.primitive as usize]);
                 // The sphere's far box missed: the shader reports nothing, whatever it is run for.
                 if config.far_test && scene.sphere_far[index as usize].entry(rf).is_none() {
@@ -314,15 +309,9 @@ pub(super) fn outcomes_of_near(
                 let signs = match config.precision {
                     Precision::ExactOnly => exact(stats),
                     Precision::F64WithExactFallback => {
-                        let at = match scaled.iter().position(|(i, _)| *i == w.instance) {
-                            Some(at) => at,
-                            None => {
-                                let made = ScaledRay::of(m, ray.origin, ray.direction);
-                                scaled.push((w.instance, made));
-                                scaled.len() - 1
-                            }
-                        };
-                        let (_, in_instance) = &scaled[at];
+                        let in_instance = of_instance(scaled, w.instance, || {
+                            ScaledRay::of(m, ray.origin, ray.direction)
+                        });
                         match sphere_signs_scaled(in_instance, &sphere, ray.tmin, ray.tmax, &band) {
                             Some(s) => {
                                 stats.filter_decided += 1;
@@ -417,6 +406,19 @@ pub(super) fn outcomes_of_near(
 /// Puts a ray's candidates in (instance, geometry, primitive) order, an order independent of the BVH
 /// (unique per candidate), renumbering the triangle hits and must-run intersections that point at
 /// them; the hits go in their candidates' order, as if made in it.
+/// The entry of `instance` in a ray's per-instance cache, made by `make` where there is none yet (a
+/// ray meets the primitives of a few instances, in turn where they overlap).
+fn of_instance<T>(cache: &mut Vec<(u32, T)>, instance: u32, make: impl FnOnce() -> T) -> &T {
+    let at = match cache.iter().position(|(i, _)| *i == instance) {
+        Some(at) => at,
+        None => {
+            cache.push((instance, make()));
+            cache.len() - 1
+        }
+    };
+    &cache[at].1
+}
+
 fn in_key_order(
     candidates: &mut Vec<Candidate>,
     hits: &mut [TriangleHit],
