@@ -5,6 +5,12 @@
 //! opposite, so the full classification (filter or exact) is `ReqMiss(Outside)` too; otherwise it
 //! decides nothing and the full classification runs.
 //!
+//! A pair of mixed signs at face value that the upper bound leaves undecided (about one in fifty on
+//! the standard workloads, mostly rays passing near an edge line of a triangle they miss) is tried
+//! once more against the pair's own bands `B_i` ([`super::band::triangle_band`], which the full
+//! classification computes first anyway), before the error-tracked edge functions:
+//! [`PlainEdges::outside_of`].
+//!
 //! The error bound. World vertices `ŵ_k` are f64 values within `ε` (the largest error bound of their
 //! coordinates) of the exact `w_k`; `o`, `d` are exact. `â_k = fl(ŵ_k − o)` is within
 //! `δ = ε + u·|â|/(1 − u) ≤ ε + 2u·A` of `a_k = w_k − o`, componentwise, with `A` the largest
@@ -37,10 +43,12 @@
 //!
 //! The test. `T = (B̄ + E)·(1 + 10⁻⁹) ≥ B̄ + E`; `ê_i > T` gives `e_i ≥ ê_i − E > B̄ ≥ B_i`
 //! (the band's Positive side), `ê_i < −T` gives `e_i < −B_i` (Negative). Non-finite values fail
-//! every comparison or are refused, so overflow and NaN decide nothing.
+//! every comparison or are refused, so overflow and NaN decide nothing. The second test is the
+//! same with each edge's own computed band: `T_i = (B_i + E)·(1 + 10⁻⁹)`, `ê_i > T_i` gives
+//! `e_i > B_i`; the full classification compares the same `e_i` with the same `B_i`.
 
 use super::arith::BoundedF64;
-use super::band::{norm3, underflow_floor, InstanceBand};
+use super::band::{norm3, underflow_floor, InstanceBand, TriangleBand};
 
 /// Unit roundoff of f64.
 const U: f64 = f64::EPSILON / 2.0;
@@ -48,10 +56,49 @@ const U: f64 = f64::EPSILON / 2.0;
 /// Relative slack on each bound computed here (see the module comment).
 const GROW: f64 = 1.0 + 1e-9;
 
-/// Whether the exact edge functions of the pair are robustly on opposite sides of the bands of two
-/// of its edges (then the pair is `ReqMiss(Outside)` in every certified classification).
+/// What the pre-test found of a pair.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum PreTest {
+    /// The exact edge functions are robustly on opposite sides of the bands of two of its edges
+    /// (the pair is `ReqMiss(Outside)` in every certified classification).
+    Outside,
+    /// Signs of both kinds at face value, the upper bound of the bands too wide to certify them:
+    /// the edge functions, for the test against the pair's own bands.
+    Mixed(PlainEdges),
+    /// Nothing certified (no two signs opposite at face value, or a value not finite).
+    Undecided,
+}
+
+/// A pair's edge functions in plain f64 and their a-priori error bound `E` (see the module comment).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct PlainEdges {
+    edge: [f64; 3],
+    error: f64,
+}
+
+impl PlainEdges {
+    /// Whether two of the exact edge functions are robustly on opposite sides of their bands `band`
+    /// (the pair's own, as [`super::band::triangle_band`] computes them from the same world
+    /// vertices and ray): then the pair is `ReqMiss(Outside)` in every certified classification.
+    #[inline]
+    pub(crate) fn outside_of(&self, band: &TriangleBand) -> bool {
+        self.outside_of_scaled(band, 1.0)
+    }
+
+    /// [`PlainEdges::outside_of`] with the bounds multiplied by `scale` (1 is the proven test).
+    #[inline(always)]
+    fn outside_of_scaled(&self, band: &TriangleBand, scale: f64) -> bool {
+        let t = |i: usize| (band.edge[i] + self.error) * GROW * scale;
+        // Also false where a bound is NaN or infinite.
+        let positive = (0..3).any(|i| self.edge[i] > t(i));
+        let negative = (0..3).any(|i| self.edge[i] < -t(i));
+        positive && negative
+    }
+}
+
+/// The pre-test of a pair.
 #[inline]
-pub(crate) fn robustly_outside(
+pub(crate) fn pre_test(
     band: &InstanceBand,
     world: [&[BoundedF64; 3]; 3],
     static_radius: &[f64; 3],
@@ -59,7 +106,7 @@ pub(crate) fn robustly_outside(
     origin_norm: f64,
     direction: [f64; 3],
     direction_norm: f64,
-) -> bool {
+) -> PreTest {
     outside_with(
         band,
         world,
@@ -72,10 +119,10 @@ pub(crate) fn robustly_outside(
     )
 }
 
-/// [`robustly_outside`] (`origin_norm` is `norm3(origin)`, `direction_norm` `norm3(direction)`) with both bounds multiplied by `scale` (1 is the proven test; a test's
-/// planted fault shrinks them).
+/// [`pre_test`] (`origin_norm` is `norm3(origin)`, `direction_norm` `norm3(direction)`) with both
+/// bounds multiplied by `scale` (1 is the proven test; a test's planted fault shrinks them).
 #[inline(always)]
-#[allow(clippy::too_many_arguments)] // `robustly_outside`'s arguments and the test's scale
+#[allow(clippy::too_many_arguments)] // `pre_test`'s arguments and the test's scale
 fn outside_with(
     band: &InstanceBand,
     world: [&[BoundedF64; 3]; 3],
@@ -85,7 +132,7 @@ fn outside_with(
     direction: [f64; 3],
     direction_norm: f64,
     scale: f64,
-) -> bool {
+) -> PreTest {
     let mut a = [[0f64; 3]; 3];
     let (mut big, mut eps) = (0f64, 0f64);
     for k in 0..3 {
@@ -108,7 +155,7 @@ fn outside_with(
     let mixed = (edge[0] > 0.0 || edge[1] > 0.0 || edge[2] > 0.0)
         && (edge[0] < 0.0 || edge[1] < 0.0 || edge[2] < 0.0);
     if !(mixed && edge[0].is_finite() && edge[1].is_finite() && edge[2].is_finite()) {
-        return false;
+        return PreTest::Undecided;
     }
     let d1_norm = d0.abs() + d1.abs() + d2.abs();
     let delta = (eps + 2.0 * U * big) * GROW;
@@ -140,7 +187,11 @@ fn outside_with(
     // Also false where `t` is NaN or infinite.
     let positive = edge[0] > t || edge[1] > t || edge[2] > t;
     let negative = edge[0] < -t || edge[1] < -t || edge[2] < -t;
-    positive && negative
+    if positive && negative {
+        PreTest::Outside
+    } else {
+        PreTest::Mixed(PlainEdges { edge, error })
+    }
 }
 
 #[cfg(test)]
@@ -167,13 +218,23 @@ mod tests {
         }
     }
 
+    /// What [`verdicts`] counts: pairs called outside by the upper bound of the bands, by the
+    /// pair's own bands after it, and of all those the ones unsound.
+    #[derive(Debug, Default)]
+    struct Verdicts {
+        by_upper_bound: usize,
+        by_own_bands: usize,
+        unsound: usize,
+    }
+
     /// Over random triangles (random similarity-like instance transforms, scales from 1e-3 to 1e3)
     /// and rays aimed at points near their edge lines — just inside and just outside the band —,
-    /// the pairs the pre-test with bounds scaled by `scale` calls outside, and of those the ones
-    /// whose exact edge signs against the band are not opposite on two edges (unsound).
-    fn verdicts(scale: f64, cases: usize) -> (usize, usize) {
+    /// the pairs the pre-test calls outside (by the upper bound of the bands scaled by `upper`, or
+    /// where that leaves mixed signs, by the pair's own bands scaled by `own`), and of those the
+    /// ones whose exact edge signs against the band are not opposite on two edges (unsound).
+    fn verdicts([upper, own]: [f64; 2], cases: usize) -> Verdicts {
         let mut rng = Lcg(0x5eed_0017);
-        let (mut certified, mut unsound) = (0, 0);
+        let mut v = Verdicts::default();
         for case in 0..cases {
             let s = [1e-3, 1.0, 1e3][case % 3];
             let transform = if case % 2 == 0 {
@@ -208,7 +269,8 @@ mod tests {
             }
             let direction: [f32; 3] = [0, 1, 2].map(|c| (target[c] - origin[c] as f64) as f32);
             let (o64, d64) = (origin.map(|x| x as f64), direction.map(|x| x as f64));
-            if !outside_with(
+            let b = triangle_band(&band, &wv, &radius, o64, d64, norm3(d64));
+            match outside_with(
                 &band,
                 [&world[0], &world[1], &world[2]],
                 &radius,
@@ -216,12 +278,12 @@ mod tests {
                 norm3(o64),
                 d64,
                 norm3(d64),
-                scale,
+                upper,
             ) {
-                continue;
+                PreTest::Outside => v.by_upper_bound += 1,
+                PreTest::Mixed(edges) if edges.outside_of_scaled(&b, own) => v.by_own_bands += 1,
+                _ => continue,
             }
-            certified += 1;
-            let b = triangle_band(&band, &wv, &radius, o64, d64, norm3(d64));
             let exact: [[Dyadic; 3]; 3] = obj.map(|p| affine(&transform.0, &v3::<Dyadic>(p)));
             let a = [0, 1, 2].map(|k| sub3(&exact[k], &v3(origin)));
             let d = v3::<Dyadic>(direction);
@@ -241,25 +303,31 @@ mod tests {
             };
             let sides = [side(0), side(1), side(2)];
             if !(sides.contains(&1) && sides.contains(&-1)) {
-                unsound += 1;
+                v.unsound += 1;
             }
         }
-        (certified, unsound)
+        v
     }
 
     #[test]
     fn what_the_pre_test_calls_outside_is_outside_exactly() {
-        let (certified, unsound) = verdicts(1.0, 20_000);
-        assert_eq!(unsound, 0);
-        // Most rays miss the edge line by more than the bounds: the test decides them.
-        assert!(certified > 5_000, "{certified}");
+        let v = verdicts([1.0, 1.0], 20_000);
+        assert_eq!(v.unsound, 0, "{v:?}");
+        // Most rays miss the edge line by more than the bounds: the upper bound decides them, and
+        // the pair's own bands some of those it leaves.
+        assert!(v.by_upper_bound > 5_000, "{v:?}");
+        assert!(v.by_own_bands > 50, "{v:?}");
     }
 
     #[test]
     fn the_pre_test_without_its_bounds_calls_band_pairs_outside() {
-        // The planted fault: bounds shrunk to 0 take the sign of the f64 value at face value.
-        let (_, unsound) = verdicts(0.0, 20_000);
-        assert!(unsound > 100, "{unsound}");
+        // The planted faults: bounds shrunk to 0 take the sign of the f64 value at face value,
+        // the upper bound's (which then decides every pair of mixed signs), or the pair's own
+        // bands' (the upper bound made infinite, so that it decides none).
+        for scales in [[0.0, 1.0], [f64::INFINITY, 0.0]] {
+            let v = verdicts(scales, 20_000);
+            assert!(v.unsound > 100, "{scales:?}: {v:?}");
+        }
     }
 
     #[test]
@@ -267,7 +335,7 @@ mod tests {
         use crate::tracer::prepare::{PreparedScene, RayF64};
         use crate::tracer::triangle::{classify, triangle_signs, MissReason, PairClass};
         use crate::tracer::PrimitiveKind;
-        let (mut certified, mut pairs) = (0, 0);
+        let (mut certified, mut by_own_bands, mut pairs) = (0, 0, 0);
         for w in crate::tracer::workload::standard_workloads(12, false) {
             let scene = PreparedScene::new(&w.scene).expect("a defined workload");
             for ray in &w.rays {
@@ -293,18 +361,6 @@ mod tests {
                     let radius = ids.map(|k| scene.static_radius(g, k));
                     let inst = &scene.instances[g.instance as usize];
                     pairs += 1;
-                    if !robustly_outside(
-                        &inst.band,
-                        [&world[0], &world[1], &world[2]],
-                        &radius,
-                        rf.origin,
-                        rf.origin_norm,
-                        rf.direction,
-                        rf.direction_norm,
-                    ) {
-                        continue;
-                    }
-                    certified += 1;
                     let band = triangle_band(
                         &inst.band,
                         &world.map(|v| v.map(|x| x.value)),
@@ -313,6 +369,19 @@ mod tests {
                         rf.direction,
                         rf.direction_norm,
                     );
+                    match pre_test(
+                        &inst.band,
+                        [&world[0], &world[1], &world[2]],
+                        &radius,
+                        rf.origin,
+                        rf.origin_norm,
+                        rf.direction,
+                        rf.direction_norm,
+                    ) {
+                        PreTest::Outside => certified += 1,
+                        PreTest::Mixed(edges) if edges.outside_of(&band) => by_own_bands += 1,
+                        _ => continue,
+                    }
                     let (signs, _) = triangle_signs::<BoundedF64>(
                         &world,
                         &v3(ray.origin),
@@ -332,5 +401,6 @@ mod tests {
             }
         }
         assert!(certified * 4 > pairs, "{certified} of {pairs}");
+        assert!(by_own_bands > 0, "{by_own_bands} of {pairs}");
     }
 }

@@ -6,7 +6,7 @@
 use super::arith::{affine, map3, v3, BoundedF64, Dyadic, Num, PlainF32, V3};
 use super::band::{cross_f64, triangle_band, within_f32_range};
 use super::candidates::outcomes_of_near;
-use super::outside::robustly_outside;
+use super::outside::{pre_test, PreTest};
 use super::prepare::{FarEntry, Item, PreparedScene, RayF64, WorldGeometry};
 use super::triangle::{
     classify, triangle_intervals, triangle_signs, EdgeSide, MissReason, PairClass, TriangleSigns,
@@ -130,8 +130,8 @@ pub(super) fn classify_triangle(
     let radius = map3(ids, |i| scene.static_radius(w, i));
     // The commonest miss, robustly outside two edges, certified before the band and the
     // error-tracked edge functions (see `outside.rs`); the full classification finds it too.
-    if precision == Precision::F64WithExactFallback
-        && robustly_outside(
+    let pre = if precision == Precision::F64WithExactFallback {
+        pre_test(
             &inst.band,
             world_at,
             &radius,
@@ -140,11 +140,15 @@ pub(super) fn classify_triangle(
             rf.direction,
             rf.direction_norm,
         )
-    {
-        return TriangleOutcome {
-            evaluation: Evaluation::Filter,
-            ..miss(MissReason::Outside)
-        };
+    } else {
+        PreTest::Undecided
+    };
+    let outside = TriangleOutcome {
+        evaluation: Evaluation::Filter,
+        ..miss(MissReason::Outside)
+    };
+    if pre == PreTest::Outside {
+        return outside;
     }
     let world = world_at.map(|v| *v);
     let world_f64 = values();
@@ -156,6 +160,12 @@ pub(super) fn classify_triangle(
         rf.direction,
         rf.direction_norm,
     );
+    // Near an edge line: tried against the pair's own bands before the error-tracked signs.
+    if let PreTest::Mixed(edges) = pre {
+        if edges.outside_of(&band) {
+            return outside;
+        }
+    }
     let evaluate_exact = || {
         let world = pos().map(|p| world_in::<Dyadic>(scene, w, p));
         triangle_signs::<Dyadic>(
