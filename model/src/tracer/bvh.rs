@@ -454,9 +454,8 @@ impl PreparedScene {
         }
     }
 
-    /// Asks the cache for the world vertices and static radii of triangle item `i` (a hint: no
-    /// effect on any result; it reads the item, which the walk asked for earlier, and its
-    /// geometry).
+    /// Asks the cache for the world vertex records of triangle item `i` (a hint: no effect on any
+    /// result; it reads the item, which the walk asked for earlier, and its geometry).
     #[inline]
     fn prefetch_vertices(&self, i: usize) {
         #[cfg(target_arch = "x86_64")]
@@ -464,20 +463,13 @@ impl PreparedScene {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
             let item = &self.items[i];
             let w = &self.geometries[item.geometry as usize];
-            let (vertices, radii) = self.vertex_addresses(w);
-            // The vertex records' first and last bytes and the radii, addresses computed without
-            // bounds checks (the item's vertex indices index its geometry's vertices).
-            let record = std::mem::size_of::<[super::arith::BoundedF64; 3]>();
-            let last = record - 1;
+            let vertices = self.vertex_address(w);
+            // Each vertex record's one line, its address computed without a bounds check (the
+            // item's vertex indices index its geometry's vertices).
             for v in item.vertices {
-                let p = vertices.wrapping_add(v as usize * record) as *const i8;
-                let r = radii.wrapping_add(v as usize * std::mem::size_of::<f64>()) as *const i8;
+                let p = vertices.wrapping_add(v as usize) as *const i8;
                 // SAFETY: a prefetch reads nothing and never faults, whatever the address.
-                unsafe {
-                    _mm_prefetch(p, _MM_HINT_T0);
-                    _mm_prefetch(p.wrapping_add(last), _MM_HINT_T0);
-                    _mm_prefetch(r, _MM_HINT_T0);
-                }
+                unsafe { _mm_prefetch(p, _MM_HINT_T0) };
             }
         }
     }

@@ -30,8 +30,8 @@ pub(crate) struct WorldGeometry {
     pub geometry: u32,
     pub bottom_level: u32,
     pub kind: PrimitiveKind,
-    /// Triangles: where the geometry's world vertices and their static radii start in the
-    /// scene's arrays ([`PreparedScene::world_vertex`]), and how many there are (its vertex
+    /// Triangles: where the geometry's world vertices with their static radii start in the
+    /// scene's array ([`PreparedScene::world_vertex`]), and how many there are (its vertex
     /// order; none for boxes).
     pub first_vertex: usize,
     pub vertex_count: usize,
@@ -492,16 +492,31 @@ pub(crate) fn position_key(p: [f32; 3]) -> [u32; 3] {
     p.map(|x| if x == 0.0 { 0 } else { x.to_bits() })
 }
 
+/// A triangle geometry's world vertex (each coordinate with its error bound) and its
+/// ray-independent error radius: what a triangle's pre-test and classification read of each of its
+/// vertices, in one cache line (a vertex read costs one line, where separate arrays of coordinates
+/// and radii cost two or three).
+#[derive(Debug, Clone, Copy)]
+#[repr(C, align(64))]
+pub(crate) struct WorldVertex {
+    coords: [BoundedF64; 3],
+    radius: f64,
+}
+
+const _: () = assert!(
+    std::mem::size_of::<WorldVertex>() == 64,
+    "a world vertex is one cache line"
+);
+
 /// A scene ready for tracing. Build once, trace many rays (`Sync`: rays may be traced in parallel).
 pub struct PreparedScene {
     pub(crate) scene: Scene,
     pub(crate) instances: Vec<PreparedInstance>,
     pub(crate) geometries: Vec<WorldGeometry>,
     pub(crate) items: PageBacked<Item>,
-    /// The triangle geometries' world vertices (see [`WorldGeometry::first_vertex`]).
-    vertices: PageBacked<[BoundedF64; 3]>,
-    /// Their ray-independent error radii.
-    static_radius: PageBacked<f64>,
+    /// The triangle geometries' world vertices with their radii (see
+    /// [`WorldGeometry::first_vertex`]).
+    vertices: PageBacked<WorldVertex>,
     /// The far test of each item, in `items` order.
     pub(crate) item_far: PageBacked<ItemFar>,
     /// The pad constants the items' far tests share.
@@ -851,8 +866,13 @@ impl PreparedScene {
             instances,
             geometries,
             items: PageBacked::new(items),
-            vertices: PageBacked::new(vertices),
-            static_radius: PageBacked::new(radius),
+            vertices: PageBacked::new(
+                vertices
+                    .into_iter()
+                    .zip(radius)
+                    .map(|(coords, radius)| WorldVertex { coords, radius })
+                    .collect(),
+            ),
             item_far: PageBacked::new(item_far),
             far_constants,
             sphere_far,
@@ -889,24 +909,21 @@ impl PreparedScene {
     #[inline]
     pub(crate) fn world_vertex(&self, w: &WorldGeometry, i: usize) -> &[BoundedF64; 3] {
         debug_assert!(i < w.vertex_count, "a vertex of the geometry");
-        &self.vertices[w.first_vertex + i]
+        &self.vertices[w.first_vertex + i].coords
     }
 
     /// The static radius of world vertex `i` of a triangle geometry.
     #[inline]
     pub(crate) fn static_radius(&self, w: &WorldGeometry, i: usize) -> f64 {
         debug_assert!(i < w.vertex_count, "a vertex of the geometry");
-        self.static_radius[w.first_vertex + i]
+        self.vertices[w.first_vertex + i].radius
     }
 
-    /// Where a triangle geometry's world vertices and static radii start, as addresses for the
-    /// cache to be asked for (computed without a bounds check; never read through here).
+    /// Where a triangle geometry's world vertex records start, as an address for the cache to be
+    /// asked for (computed without a bounds check; never read through here).
     #[inline]
-    pub(crate) fn vertex_addresses(&self, w: &WorldGeometry) -> (*const u8, *const u8) {
-        (
-            self.vertices.as_ptr().wrapping_add(w.first_vertex) as *const u8,
-            self.static_radius.as_ptr().wrapping_add(w.first_vertex) as *const u8,
-        )
+    pub(crate) fn vertex_address(&self, w: &WorldGeometry) -> *const WorldVertex {
+        self.vertices.as_ptr().wrapping_add(w.first_vertex)
     }
 
     /// The scene this was prepared from.
