@@ -455,7 +455,8 @@ impl PreparedScene {
     }
 
     /// Asks the cache for the world vertex records of triangle item `i` (a hint: no effect on any
-    /// result; it reads the item, which the walk asked for earlier, and its geometry).
+    /// result; it reads the item, which the walk asked for earlier, and its geometry; for a box
+    /// item the addresses are some vertex's or none's, which a prefetch takes without fault).
     #[inline]
     fn prefetch_vertices(&self, i: usize) {
         #[cfg(target_arch = "x86_64")]
@@ -637,12 +638,15 @@ impl PreparedScene {
             // The leaf's items arrived: ask the cache for what their triangles' classification
             // reads first, and visit them at the next step (at once where none is a triangle).
             walk.pending_fetched = true;
+            let len = walk.pending_len as usize;
             let mut asked = false;
-            for &(_, i, triangle) in &walk.pending[..walk.pending_len as usize] {
-                if triangle {
-                    self.prefetch_vertices(i as usize);
-                    asked = true;
-                }
+            // Four asked for whatever the count and kind (a lane past the count asks for the first
+            // lane's again; a box item's vertex indices name some vertex, a harmless hint): no
+            // branch on how many items there are or which are triangles.
+            for j in 0..4 {
+                let (_, i, triangle) = walk.pending[if j < len { j } else { 0 }];
+                self.prefetch_vertices(i as usize);
+                asked |= triangle;
             }
             if asked {
                 return true;
@@ -685,8 +689,15 @@ impl PreparedScene {
             // walks step.
             let len = self.lane_entries(n as usize, ray, &walk.lane_ray, None, &mut walk.pending);
             *far_rejections += node.count as u64 - len as u64;
-            for &(_, i, _) in &walk.pending[..len] {
-                self.prefetch_item(i as usize);
+            // Four asked for whatever the count (a lane past it asks for the first lane's item
+            // again): no branch on how many items were met.
+            for j in 0..4 {
+                let asked = if j < len {
+                    walk.pending[j].1
+                } else {
+                    walk.pending[0].1
+                };
+                self.prefetch_item(asked as usize);
             }
             walk.pending_len = len as u8;
             walk.pending_fetched = false;
@@ -701,13 +712,26 @@ impl PreparedScene {
             &mut lanes,
         );
         // The nearest child is popped first; the others are fetched while it is traversed.
-        for &(e, child, triangles_only) in lanes[..len].iter().rev() {
-            self.tree.prefetch(child);
-            if walk.depth < walk.stack.len() {
-                walk.stack[walk.depth] = (child, triangles_only, e);
-                walk.depth += 1;
-            } else {
-                walk.spill.push((child, triangles_only, e));
+        if walk.depth + 4 <= walk.stack.len() {
+            // Four slots written whatever the count, the nearest child last, and the depth moved by
+            // the count: no branch on how many lanes were met (a slot past the count is garbage
+            // the next push overwrites). A lane past the count asks for the first lane's child.
+            for j in 0..4 {
+                let (e, child, triangles_only) = lanes[len.wrapping_sub(1 + j) & 3];
+                walk.stack[walk.depth + j] = (child, triangles_only, e);
+                let asked = if j < len { lanes[j].1 } else { lanes[0].1 };
+                self.tree.prefetch(asked);
+            }
+            walk.depth += len;
+        } else {
+            for &(e, child, triangles_only) in lanes[..len].iter().rev() {
+                self.tree.prefetch(child);
+                if walk.depth < walk.stack.len() {
+                    walk.stack[walk.depth] = (child, triangles_only, e);
+                    walk.depth += 1;
+                } else {
+                    walk.spill.push((child, triangles_only, e));
+                }
             }
         }
         true
