@@ -564,8 +564,8 @@ impl PreparedScene {
     /// may lower as it goes; see `traverse::trace_ray`). Nodes are tested with their bounds (the
     /// lane test, or [`BoundBox::entry`]), so a node is skipped only where every item below it is
     /// far; items are first tested so too, and those found far (counted in `far_rejections`) or
-    /// behind the cut are not visited. (The tracer walks with [`PreparedScene::walk_step`], several
-    /// rays in turn.)
+    /// behind the cut are not visited. (The tracer walks with [`PreparedScene::walk_advance`] and
+    /// [`PreparedScene::walk_fetch_pending`], several rays in turn.)
     #[cfg(test)]
     pub(crate) fn for_each_near(
         &self,
@@ -619,12 +619,10 @@ impl PreparedScene {
         true
     }
 
-    /// One step of the walk: a leaf's pending triangles' vertices asked of the cache, or its items
-    /// visited and then the next node's lanes tested (a leaf's items met by the ray made pending,
-    /// an interior node's children pushed; each asked of the cache); false when nothing is left.
-    /// Several rays' walks stepped in turn each find what they asked for fetched while the others'
-    /// were tested.
-    #[inline(always)]
+    /// One step of one walk alone ([`PreparedScene::for_each_near`]'s): the pending items' vertices
+    /// asked for, or else [`PreparedScene::walk_advance`]; false when nothing is left. (The tracer
+    /// steps several walks in turn, each kind of step in a batch: `traverse::trace_rays`.)
+    #[cfg(test)]
     pub(crate) fn walk_step(
         &self,
         walk: &mut Walk,
@@ -634,24 +632,49 @@ impl PreparedScene {
         cut: &std::cell::Cell<f64>,
         visit: &mut impl FnMut(usize),
     ) -> bool {
-        if walk.pending_len > 0 && !walk.pending_fetched {
-            // The leaf's items arrived: ask the cache for what their triangles' classification
-            // reads first, and visit them at the next step (at once where none is a triangle).
-            walk.pending_fetched = true;
-            let len = walk.pending_len as usize;
-            let mut asked = false;
-            // Four asked for whatever the count and kind (a lane past the count asks for the first
-            // lane's again; a box item's vertex indices name some vertex, a harmless hint): no
-            // branch on how many items there are or which are triangles.
-            for j in 0..4 {
-                let (_, i, triangle) = walk.pending[if j < len { j } else { 0 }];
-                self.prefetch_vertices(i as usize);
-                asked |= triangle;
-            }
-            if asked {
-                return true;
-            }
+        if walk.pending_len > 0 && !walk.pending_fetched && self.walk_fetch_pending(walk) {
+            return true;
         }
+        !matches!(
+            self.walk_advance(walk, ray, nodes_visited, far_rejections, cut, visit),
+            Stepped::Done
+        )
+    }
+
+    /// The step after a leaf whose items the ray met ([`Stepped::Pending`]): the items' records
+    /// arrived, their triangles' vertices are asked of the cache, for [`PreparedScene::walk_advance`]
+    /// to visit them at the ray's next step. Whether any is a triangle (else there is nothing to
+    /// wait for).
+    #[inline(always)]
+    pub(crate) fn walk_fetch_pending(&self, walk: &mut Walk) -> bool {
+        walk.pending_fetched = true;
+        let len = walk.pending_len as usize;
+        let mut asked = false;
+        // Four asked for whatever the count and kind (a lane past the count asks for the first
+        // lane's again; a box item's vertex indices name some vertex, a harmless hint): no branch
+        // on how many items there are or which are triangles.
+        for j in 0..4 {
+            let (_, i, triangle) = walk.pending[if j < len { j } else { 0 }];
+            self.prefetch_vertices(i as usize);
+            asked |= triangle;
+        }
+        asked
+    }
+
+    /// A step of the walk other than [`PreparedScene::walk_fetch_pending`]: the pending items (if
+    /// any, their vertices asked for) visited, then the next node's lanes tested (a leaf's items
+    /// met by the ray made pending, their far lines and records asked of the cache; an interior
+    /// node's children pushed, each asked of the cache); where that leaves the walk.
+    #[inline(always)]
+    pub(crate) fn walk_advance(
+        &self,
+        walk: &mut Walk,
+        ray: &RayF64,
+        nodes_visited: &mut u64,
+        far_rejections: &mut u64,
+        cut: &std::cell::Cell<f64>,
+        visit: &mut impl FnMut(usize),
+    ) -> Stepped {
         if walk.pending_len > 0 {
             let len = walk.pending_len as usize;
             walk.pending_len = 0;
@@ -674,7 +697,7 @@ impl PreparedScene {
                 walk.depth -= 1;
                 walk.stack[walk.depth]
             } else {
-                return false;
+                return Stepped::Done;
             };
             if !(triangles_only && entry > c) {
                 break n;
@@ -701,7 +724,11 @@ impl PreparedScene {
             }
             walk.pending_len = len as u8;
             walk.pending_fetched = false;
-            return true;
+            return if len > 0 {
+                Stepped::Pending
+            } else {
+                Stepped::Walking
+            };
         }
         *nodes_visited += node.count as u64;
         let len = self.lane_entries(
@@ -734,8 +761,18 @@ impl PreparedScene {
                 }
             }
         }
-        true
+        Stepped::Walking
     }
+}
+
+/// Where a step of [`PreparedScene::walk_advance`] left the walk: a leaf's items pending (their
+/// vertices to be asked for at the ray's next step, [`PreparedScene::walk_fetch_pending`]), the
+/// next node to be tested, or over.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Stepped {
+    Walking,
+    Pending,
+    Done,
 }
 
 /// Where one ray's walk through the tree stands: the nodes still to visit, each with whether every
