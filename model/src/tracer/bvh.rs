@@ -576,15 +576,26 @@ impl PreparedScene {
         mut visit: impl FnMut(usize),
     ) {
         let mut walk = Walk::default();
-        if self.walk_start(&mut walk, ray, nodes_visited, cut) {
-            while self.walk_step(
+        if !self.walk_start(&mut walk, ray, nodes_visited, cut) {
+            return;
+        }
+        // One walk alone: each step the pending items' vertices asked for, or else the next
+        // advance (the tracer steps several walks in turn, each kind of step in a batch).
+        loop {
+            if walk.pending_len > 0 && !walk.pending_fetched && self.walk_fetch_pending(&mut walk) {
+                continue;
+            }
+            let stepped = self.walk_advance(
                 &mut walk,
                 ray,
                 nodes_visited,
                 far_rejections,
                 cut,
                 &mut visit,
-            ) {}
+            );
+            if stepped == Stepped::Done {
+                break;
+            }
         }
     }
 
@@ -617,28 +628,6 @@ impl PreparedScene {
         walk.stack[0] = (0, false, entry);
         walk.depth = 1;
         true
-    }
-
-    /// One step of one walk alone ([`PreparedScene::for_each_near`]'s): the pending items' vertices
-    /// asked for, or else [`PreparedScene::walk_advance`]; false when nothing is left. (The tracer
-    /// steps several walks in turn, each kind of step in a batch: `traverse::trace_rays`.)
-    #[cfg(test)]
-    pub(crate) fn walk_step(
-        &self,
-        walk: &mut Walk,
-        ray: &RayF64,
-        nodes_visited: &mut u64,
-        far_rejections: &mut u64,
-        cut: &std::cell::Cell<f64>,
-        visit: &mut impl FnMut(usize),
-    ) -> bool {
-        if walk.pending_len > 0 && !walk.pending_fetched && self.walk_fetch_pending(walk) {
-            return true;
-        }
-        !matches!(
-            self.walk_advance(walk, ray, nodes_visited, far_rejections, cut, visit),
-            Stepped::Done
-        )
     }
 
     /// The step after a leaf whose items the ray met ([`Stepped::Pending`]): the items' records
