@@ -521,9 +521,9 @@ pub fn trace_rays(
         let (nodes_now, fetches_now) = (node_steps.take(), fetch_steps.take());
         for &k in nodes_now.slots() {
             let k = k as usize;
-            let Some((i, ray, shaders)) = held[k] else {
-                continue;
-            };
+            // Only a slot with a ray is queued (a slot left out would keep `walking` above zero
+            // for ever).
+            let (i, ray, shaders) = held[k].expect("a queued slot walks a ray");
             let slot = &mut slots[k];
             let Slot {
                 rf,
