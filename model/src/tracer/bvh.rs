@@ -476,8 +476,27 @@ impl PreparedScene {
     }
 }
 
+/// A lane of a node that a ray may meet: the ray's entry t, the child node (interior) or item
+/// (leaf) it leads to, and whether every item below it is a triangle. The walk's stack holds the
+/// same records, so a push copies each whole (16 bytes), not field by field.
+#[derive(Debug, Clone, Copy)]
+#[repr(C)]
+pub(crate) struct Met {
+    entry: f64,
+    index: u32,
+    triangles: bool,
+}
+
+impl Met {
+    const NONE: Met = Met {
+        entry: 0.0,
+        index: 0,
+        triangles: false,
+    };
+}
+
 /// Items of a leaf, or children of a node, a ray may meet: at most four.
-type Lanes = [(f64, u32, bool); 4];
+type Lanes = [Met; 4];
 
 impl PreparedScene {
     /// Per lane of tree node `n` the ray's entry t and whether it may meet the lane's bound over
@@ -498,11 +517,15 @@ impl PreparedScene {
         let mut len = 0;
         let mut push = |e: f64, l: usize| {
             let mut at = len;
-            while at > 0 && out[at - 1].0 > e {
+            while at > 0 && out[at - 1].entry > e {
                 out[at] = out[at - 1];
                 at -= 1;
             }
-            out[at] = (e, node.child[l], node.lane_triangles & (1 << l) != 0);
+            out[at] = Met {
+                entry: e,
+                index: node.child[l],
+                triangles: node.lane_triangles & (1 << l) != 0,
+            };
             len += 1;
         };
         if lane_ray.fast && node.fast {
@@ -530,11 +553,11 @@ impl PreparedScene {
                 let swap = (usize::from(rest != 0) & usize::from(near[b] < near[a])).wrapping_neg();
                 let (first, second) = (a ^ ((a ^ b) & swap), b ^ ((a ^ b) & swap));
                 for (o, l) in out.iter_mut().zip([first, second]) {
-                    *o = (
-                        near[l] as f64,
-                        node.child[l],
-                        node.lane_triangles & (1 << l) != 0,
-                    );
+                    *o = Met {
+                        entry: near[l] as f64,
+                        index: node.child[l],
+                        triangles: node.lane_triangles & (1 << l) != 0,
+                    };
                 }
                 return hit.count_ones() as usize;
             }
@@ -625,7 +648,11 @@ impl PreparedScene {
             return false;
         };
         walk.lane_ray = LaneRay::of(ray);
-        walk.stack[0] = (0, false, entry);
+        walk.stack[0] = Met {
+            entry,
+            index: 0,
+            triangles: false,
+        };
         walk.depth = 1;
         true
     }
@@ -643,9 +670,9 @@ impl PreparedScene {
         // lane's again; a box item's vertex indices name some vertex, a harmless hint): no branch
         // on how many items there are or which are triangles.
         for j in 0..4 {
-            let (_, i, triangle) = walk.pending[if j < len { j } else { 0 }];
-            self.prefetch_vertices(i as usize);
-            asked |= triangle;
+            let met = walk.pending[if j < len { j } else { 0 }];
+            self.prefetch_vertices(met.index as usize);
+            asked |= met.triangles;
         }
         asked
     }
@@ -667,12 +694,12 @@ impl PreparedScene {
         if walk.pending_len > 0 {
             let len = walk.pending_len as usize;
             walk.pending_len = 0;
-            for &(e, i, triangle) in &walk.pending[..len] {
+            for met in &walk.pending[..len] {
                 // Behind the cut: `visit` would leave the triangle out as well.
-                if triangle && e > cut.get() {
+                if met.triangles && met.entry > cut.get() {
                     continue;
                 }
-                visit(i as usize);
+                visit(met.index as usize);
             }
             // On to the next node in the same step: it was asked of the cache when pushed.
         }
@@ -680,7 +707,11 @@ impl PreparedScene {
         // The cut may have fallen since a node was pushed: a node of triangles only whose entry t
         // is past the cut is a miss of the cut ray, left without reading it.
         let n = loop {
-            let (n, triangles_only, entry) = if let Some(x) = walk.spill.pop() {
+            let Met {
+                entry,
+                index: n,
+                triangles: triangles_only,
+            } = if let Some(x) = walk.spill.pop() {
                 x
             } else if walk.depth > 0 {
                 walk.depth -= 1;
@@ -693,7 +724,7 @@ impl PreparedScene {
             }
         };
         let node = &self.tree.nodes[n as usize];
-        let mut lanes: Lanes = [(0.0, 0, false); 4];
+        let mut lanes: Lanes = [Met::NONE; 4];
         if node.leaf {
             // The leaf's items by entry t, nearer first (a nearer required hit may cut the
             // others before they are classified), visited two steps on: their bounds are asked
@@ -705,9 +736,9 @@ impl PreparedScene {
             // again): no branch on how many items were met.
             for j in 0..4 {
                 let asked = if j < len {
-                    walk.pending[j].1
+                    walk.pending[j].index
                 } else {
-                    walk.pending[0].1
+                    walk.pending[0].index
                 };
                 self.prefetch_item(asked as usize);
             }
@@ -728,25 +759,33 @@ impl PreparedScene {
             &mut lanes,
         );
         // The nearest child is popped first; the others are fetched while it is traversed.
-        if walk.depth + 4 <= walk.stack.len() {
+        let depth = walk.depth;
+        if let Some(slots) = walk
+            .stack
+            .get_mut(depth..depth + 4)
+            .and_then(|s| <&mut [Met; 4]>::try_from(s).ok())
+        {
             // Four slots written whatever the count, the nearest child last, and the depth moved by
             // the count: no branch on how many lanes were met (a slot past the count is garbage
             // the next push overwrites). A lane past the count asks for the first lane's child.
-            for j in 0..4 {
-                let (e, child, triangles_only) = lanes[len.wrapping_sub(1 + j) & 3];
-                walk.stack[walk.depth + j] = (child, triangles_only, e);
-                let asked = if j < len { lanes[j].1 } else { lanes[0].1 };
-                self.tree.prefetch(asked);
+            for (j, slot) in slots.iter_mut().enumerate() {
+                *slot = lanes[len.wrapping_sub(1 + j) & 3];
             }
-            walk.depth += len;
+            for j in 0..4 {
+                // `j` below the count, else 0, by a mask (a select the compiler keeps free of
+                // branches).
+                let lane = j & usize::from(j < len).wrapping_neg();
+                self.tree.prefetch(lanes[lane].index);
+            }
+            walk.depth = depth + len;
         } else {
-            for &(e, child, triangles_only) in lanes[..len].iter().rev() {
-                self.tree.prefetch(child);
+            for met in lanes[..len].iter().rev() {
+                self.tree.prefetch(met.index);
                 if walk.depth < walk.stack.len() {
-                    walk.stack[walk.depth] = (child, triangles_only, e);
+                    walk.stack[walk.depth] = *met;
                     walk.depth += 1;
                 } else {
-                    walk.spill.push((child, triangles_only, e));
+                    walk.spill.push(*met);
                 }
             }
         }
@@ -770,9 +809,9 @@ pub(crate) struct Walk {
     lane_ray: LaneRay,
     /// Each level leaves at most three nodes on the stack: a fixed stack holds any tree up to 21
     /// levels deep (4^21 leaves), `spill` takes any excess.
-    stack: [(u32, bool, f64); 64],
+    stack: [Met; 64],
     depth: usize,
-    spill: Vec<(u32, bool, f64)>,
+    spill: Vec<Met>,
     /// The items of the last leaf reached, nearer first, to visit two steps on.
     pending: Lanes,
     pending_len: u8,
@@ -784,10 +823,10 @@ impl Default for Walk {
     fn default() -> Walk {
         Walk {
             lane_ray: LaneRay::default(),
-            stack: [(0, false, 0.0); 64],
+            stack: [Met::NONE; 64],
             depth: 0,
             spill: Vec::new(),
-            pending: [(0.0, 0, false); 4],
+            pending: [Met::NONE; 4],
             pending_len: 0,
             pending_fetched: false,
         }
