@@ -92,10 +92,11 @@ impl LaneBounds {
     }
 
     /// Per lane, the entry t (the f32 slab test's near value), and as bit `lane` whether the lane
-    /// is hit, for the segment `[tmin, far[lane]]`.
+    /// is hit, for the segment `[tmin, far]`: `far` is `cut` for a lane whose bit is set in
+    /// `triangles`, the ray's tmax for any other (selected lane by lane without a branch).
     #[inline]
     #[cfg(target_arch = "x86_64")]
-    fn entries(&self, r: &LaneRay, far: [f32; 4]) -> ([f32; 4], u32) {
+    fn entries(&self, r: &LaneRay, cut: f32, triangles: u8) -> ([f32; 4], u32) {
         use std::arch::x86_64::*;
         // SAFETY: SSE is part of x86_64; the unaligned loads read four f32 lanes of `self` (a
         // face index of `LaneRay::of` is 4k or 12 + 4k (k < 3), within the 24 floats of `lo`, `hi`)
@@ -103,7 +104,15 @@ impl LaneBounds {
         unsafe {
             let pad = _mm_set1_ps(self.pad_base + self.pad_slope * r.origin_norm);
             let mut near = _mm_loadu_ps(r.tmin.as_ptr());
-            let mut far = _mm_loadu_ps(far.as_ptr());
+            // All ones in a lane whose bit of `triangles` is clear.
+            let other = _mm_castsi128_ps(_mm_cmpeq_epi32(
+                _mm_and_si128(_mm_set1_epi32(triangles as i32), _mm_setr_epi32(1, 2, 4, 8)),
+                _mm_setzero_si128(),
+            ));
+            let mut far = _mm_or_ps(
+                _mm_and_ps(other, _mm_set1_ps(r.tmax)),
+                _mm_andnot_ps(other, _mm_set1_ps(cut)),
+            );
             // The faces in one row: `lo`'s three axes, then `hi`'s (`repr(C)`, no padding).
             let faces = self.lo.as_ptr() as *const f32;
             for k in 0..3 {
@@ -131,8 +140,8 @@ impl LaneBounds {
     /// [`LaneBounds::entries`] where there is no SSE.
     #[inline]
     #[cfg(not(target_arch = "x86_64"))]
-    fn entries(&self, r: &LaneRay, far: [f32; 4]) -> ([f32; 4], u32) {
-        self.entries_portable(r, far)
+    fn entries(&self, r: &LaneRay, cut: f32, triangles: u8) -> ([f32; 4], u32) {
+        self.entries_portable(r, cut, triangles)
     }
 
     /// [`LaneBounds::entries`] without SSE: the same operations lane by lane, in the same order
@@ -140,7 +149,9 @@ impl LaneBounds {
     #[inline]
     #[cfg(any(test, not(target_arch = "x86_64")))]
     #[allow(clippy::needless_range_loop)] // lanes of several arrays indexed together
-    fn entries_portable(&self, r: &LaneRay, mut far: [f32; 4]) -> ([f32; 4], u32) {
+    fn entries_portable(&self, r: &LaneRay, cut: f32, triangles: u8) -> ([f32; 4], u32) {
+        let mut far: [f32; 4] =
+            std::array::from_fn(|l| if triangles >> l & 1 != 0 { cut } else { r.tmax });
         let pad = [self.pad_base + self.pad_slope * r.origin_norm; 4];
         let mut near = r.tmin;
         // A face index of `LaneRay::of` counts floats through `lo`'s rows, then `hi`'s.
@@ -500,16 +511,17 @@ type Lanes = [Met; 4];
 
 impl PreparedScene {
     /// Per lane of tree node `n` the ray's entry t and whether it may meet the lane's bound over
-    /// `[tmin, limit]`, `limit` the cut for a lane of triangles only where `cut` is given, `tmax`
-    /// otherwise (f32 lanes where they decide, else the f64 [`BoundBox::entry`]); the lanes met,
-    /// nearer first, in `out`, and their number.
+    /// `[tmin, limit]`, `limit` the cut `cut` (at most the ray's tmax; `cut_f32` is `f32_up(cut)`)
+    /// for a lane of triangles only, `tmax` for any other (f32 lanes where they decide, else the
+    /// f64 [`BoundBox::entry`]); the lanes met, nearer first, in `out`, and their number. A `cut`
+    /// of tmax is no cut: every lane's limit is tmax then, with no branch on whether there is one.
     #[inline(always)]
     fn lane_entries(
         &self,
         n: usize,
         ray: &RayF64,
         lane_ray: &LaneRay,
-        cut: Option<f64>,
+        (cut, cut_f32): (f64, f32),
         out: &mut Lanes,
     ) -> usize {
         let node = &self.tree.nodes[n];
@@ -529,16 +541,8 @@ impl PreparedScene {
             len += 1;
         };
         if lane_ray.fast && node.fast {
-            let mut far = [lane_ray.tmax; 4];
-            if let Some(c) = cut {
-                let (c, tmax) = (f32_up(c).to_bits(), lane_ray.tmax.to_bits());
-                for (l, f) in far.iter_mut().enumerate() {
-                    // The cut for a lane of triangles only, selected without a branch.
-                    let triangles = u32::from(node.lane_triangles >> l & 1).wrapping_neg();
-                    *f = f32::from_bits((c & triangles) | (tmax & !triangles));
-                }
-            }
-            let (near, hit) = node.bounds.entries(lane_ray, far);
+            // The lane ray's tmax is `f32_up(tmax)`: a cut of tmax gives every lane the limit tmax.
+            let (near, hit) = node.bounds.entries(lane_ray, cut_f32, node.lane_triangles);
             let mut hit = hit & ((1u32 << count) - 1);
             let rest = hit & hit.wrapping_sub(1);
             if rest & rest.wrapping_sub(1) == 0 {
@@ -569,9 +573,10 @@ impl PreparedScene {
         } else {
             let boxes = &self.tree.boxes[n];
             for (l, b) in boxes.iter().enumerate().take(count) {
-                let limit = match cut {
-                    Some(c) if node.lane_triangles & (1 << l) != 0 => c,
-                    _ => ray.tmax,
+                let limit = if node.lane_triangles & (1 << l) != 0 {
+                    cut
+                } else {
+                    ray.tmax
                 };
                 if let Some(e) = b.entry(ray, limit) {
                     push(e, l);
@@ -730,7 +735,8 @@ impl PreparedScene {
             // others before they are classified), visited two steps on: their bounds are asked
             // of the cache now, their vertices at the next step, each arriving while other rays'
             // walks step.
-            let len = self.lane_entries(n as usize, ray, &walk.lane_ray, None, &mut walk.pending);
+            let no_cut = (ray.tmax, walk.lane_ray.tmax);
+            let len = self.lane_entries(n as usize, ray, &walk.lane_ray, no_cut, &mut walk.pending);
             *far_rejections += node.count as u64 - len as u64;
             // Four asked for whatever the count (a lane past it asks for the first lane's item
             // again): no branch on how many items were met.
@@ -755,7 +761,11 @@ impl PreparedScene {
             n as usize,
             ray,
             &walk.lane_ray,
-            (c < ray.tmax).then_some(c),
+            // No cut where it has not fallen below tmax (`min` takes tmax for a NaN).
+            {
+                let c = c.min(ray.tmax);
+                (c, f32_up(c))
+            },
             &mut lanes,
         );
         // The nearest child is popped first; the others are fetched while it is traversed.
@@ -767,15 +777,14 @@ impl PreparedScene {
         {
             // Four slots written whatever the count, the nearest child last, and the depth moved by
             // the count: no branch on how many lanes were met (a slot past the count is garbage
-            // the next push overwrites). A lane past the count asks for the first lane's child.
+            // the next push overwrites).
             for (j, slot) in slots.iter_mut().enumerate() {
                 *slot = lanes[len.wrapping_sub(1 + j) & 3];
             }
-            for j in 0..4 {
-                // `j` below the count, else 0, by a mask (a select the compiler keeps free of
-                // branches).
-                let lane = j & usize::from(j < len).wrapping_neg();
-                self.tree.prefetch(lanes[lane].index);
+            // Each of the four lanes' children asked for, met or not: a lane past the count
+            // holds the root (as `lanes` starts) or a child of this node, a harmless hint.
+            for met in &lanes {
+                self.tree.prefetch(met.index);
             }
             walk.depth = depth + len;
         } else {

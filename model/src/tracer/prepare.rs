@@ -350,18 +350,22 @@ pub(crate) struct BoundBox {
     pub pad_slope: f32,
 }
 
-/// The greatest f32 at most `x` (NaN stays NaN).
+/// The greatest f32 at most `x` (NaN stays NaN). Without a branch: the walk rounds each ray's cut
+/// with it at every node, where whether the nearest f32 lies above is a coin toss.
+#[inline]
 pub(crate) fn f32_down(x: f64) -> f32 {
     let y = x as f32;
-    if (y as f64) <= x || y.is_nan() {
-        y
-    } else if y == 0.0 {
-        -f32::from_bits(1)
-    } else if y > 0.0 {
-        f32::from_bits(y.to_bits() - 1)
+    let bits = y.to_bits();
+    // The next f32 below `y`: one step towards zero for a positive `y`, else (either zero or a
+    // negative `y`) one step away from zero on the negative side; +inf steps to f32::MAX.
+    let below = if (bits as i32) > 0 {
+        bits.wrapping_sub(1)
     } else {
-        f32::from_bits(y.to_bits() + 1)
-    }
+        (bits | 0x8000_0000).wrapping_add(1)
+    };
+    // All ones where `y` rounded up (never for a NaN, whose comparison is false).
+    let above = u32::from((y as f64) > x).wrapping_neg();
+    f32::from_bits((below & above) | (bits & !above))
 }
 
 /// The least f32 at least `x`.
@@ -989,3 +993,88 @@ impl BoundedF64 {
 /// Relative slack on the pad bound of [`BoundBox`], far above the rounding of it and of the pad
 /// it bounds.
 const BOUND_SLACK: f64 = 1.0 + 1e-10;
+
+#[cfg(test)]
+mod tests {
+    use super::{f32_down, f32_up};
+
+    /// The f32 just above a finite `y` (+0 and −0 alike step to the least positive subnormal).
+    fn step_up(y: f32) -> f32 {
+        if y == 0.0 {
+            f32::from_bits(1)
+        } else if y > 0.0 {
+            f32::from_bits(y.to_bits() + 1)
+        } else {
+            f32::from_bits(y.to_bits() - 1)
+        }
+    }
+
+    /// Values near every kind of boundary: zeros, subnormals, powers of two, values between two
+    /// f32s, the ends of the f32 range and beyond, infinities; and a spread of random ones.
+    fn samples() -> Vec<f64> {
+        let mut v = vec![
+            0.0,
+            -0.0,
+            f64::MIN_POSITIVE,
+            -f64::MIN_POSITIVE,
+            f32::from_bits(1) as f64,
+            f32::from_bits(1) as f64 * 0.5,
+            -(f32::from_bits(1) as f64) * 0.5,
+            f32::MIN_POSITIVE as f64,
+            1.0,
+            -1.0,
+            1.0 + 2f64.powi(-30),
+            -(1.0 + 2f64.powi(-30)),
+            1.0 - 2f64.powi(-30),
+            f32::MAX as f64,
+            f32::MAX as f64 * (1.0 + 2f64.powi(-40)),
+            -(f32::MAX as f64) * (1.0 + 2f64.powi(-40)),
+            f64::MAX,
+            f64::MIN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        let mut state = 0x5eed_u64;
+        for _ in 0..20_000 {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            // Random mantissa bits, exponent within the f32 range and a little past it, either sign.
+            let bits = (state >> 12) | ((1023 - 160 + (state >> 56) % 300) << 52);
+            let x = f64::from_bits(bits);
+            v.push(if state & 1 == 0 { x } else { -x });
+        }
+        v
+    }
+
+    #[test]
+    fn f32_down_is_the_greatest_f32_at_most_x_and_f32_up_the_least_at_least() {
+        for x in samples() {
+            let d = f32_down(x);
+            assert!(d as f64 <= x, "{x:e}: {d:e} is above");
+            if d.is_finite() {
+                assert!(step_up(d) as f64 > x, "{x:e}: {d:e} is not the greatest");
+            } else {
+                // −inf only where x is below every finite f32, +inf only for +inf.
+                assert!(
+                    (d == f32::NEG_INFINITY && x < f32::MIN as f64) || x == f64::INFINITY,
+                    "{x:e}: {d:e}"
+                );
+            }
+            let u = f32_up(x);
+            assert!(u as f64 >= x, "{x:e}: {u:e} is below");
+            if u.is_finite() {
+                assert!((-step_up(-u) as f64) < x, "{x:e}: {u:e} is not the least");
+            } else {
+                assert!(
+                    (u == f32::INFINITY && x > f32::MAX as f64) || x == f64::NEG_INFINITY,
+                    "{x:e}: {u:e}"
+                );
+            }
+        }
+        // A zero keeps its sign, and NaN stays NaN.
+        assert_eq!(f32_down(0.0).to_bits(), 0.0f32.to_bits());
+        assert_eq!(f32_down(-0.0).to_bits(), (-0.0f32).to_bits());
+        assert!(f32_down(f64::NAN).is_nan() && f32_up(f64::NAN).is_nan());
+    }
+}

@@ -70,7 +70,7 @@ fn disagreements(margin: f64, cases: usize) -> (usize, usize, usize) {
         }
         decided += 1;
         let f64_meets = b.entry(&rf, rf.tmax).is_some();
-        let (_, hit) = lanes.entries(&lane_ray, [lane_ray.tmax; 4]);
+        let (_, hit) = lanes.entries(&lane_ray, lane_ray.tmax, 0);
         let lane_meets = hit & 1 == 1;
         if f64_meets && !lane_meets {
             unsound += 1;
@@ -133,7 +133,7 @@ fn the_lane_test_misses_boxes_far_from_the_ray() {
         let rf = RayF64::of(&ray);
         let lane_ray = LaneRay::of(&rf);
         assert!(lane_ray.fast);
-        let (near, hit) = lanes.entries(&lane_ray, [lane_ray.tmax; 4]);
+        let (near, hit) = lanes.entries(&lane_ray, lane_ray.tmax, 0);
         assert_eq!(hit == 0b1111, meets, "{ray:?}");
         assert_eq!(b.entry(&rf, rf.tmax).is_some(), meets, "{ray:?}");
         if meets {
@@ -182,12 +182,16 @@ fn the_portable_lane_test_computes_what_the_vector_one_does() {
         if direction.contains(&0.0) {
             continue;
         }
-        let ray = Ray::new(origin, direction, rng.range(0.0, 1.0) as f32, f32::INFINITY);
+        // A finite tmax or none, and a cut for the lanes of triangles (any set of lanes).
+        let tmax =
+            [rng.range(0.0, 100.0 * scale) as f32, f32::INFINITY][(rng.unit() * 2.0) as usize];
+        let ray = Ray::new(origin, direction, rng.range(0.0, 1.0) as f32, tmax);
         let lane_ray = LaneRay::of(&RayF64::of(&ray));
         let (lanes, _) = LaneBounds::new(&boxes);
-        let far = [0; 4].map(|_| rng.range(0.0, 100.0 * scale) as f32);
-        let (near, hit) = lanes.entries(&lane_ray, far);
-        let (near_portable, hit_portable) = lanes.entries_portable(&lane_ray, far);
+        let cut = rng.range(0.0, 100.0 * scale) as f32;
+        let triangles = (rng.unit() * 16.0) as u8;
+        let (near, hit) = lanes.entries(&lane_ray, cut, triangles);
+        let (near_portable, hit_portable) = lanes.entries_portable(&lane_ray, cut, triangles);
         assert_eq!(hit, hit_portable, "{ray:?} {boxes:?}");
         for lane in 0..4 {
             if hit >> lane & 1 == 1 {
