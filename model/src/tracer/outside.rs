@@ -151,10 +151,11 @@ fn outside_with(
     };
     let edge = [e(&a[1], &a[2]), e(&a[2], &a[0]), e(&a[0], &a[1])];
     // Signs that are not opposite at face value are not opposite certified either (and NaN
-    // compares false).
-    let mixed = (edge[0] > 0.0 || edge[1] > 0.0 || edge[2] > 0.0)
-        && (edge[0] < 0.0 || edge[1] < 0.0 || edge[2] < 0.0);
-    if !(mixed && edge[0].is_finite() && edge[1].is_finite() && edge[2].is_finite()) {
+    // compares false). The comparisons are joined bit by bit, not short-circuited: one branch on
+    // the verdict rather than one per comparison, each as hard to predict as the pair's outcome.
+    let mixed = ((edge[0] > 0.0) | (edge[1] > 0.0) | (edge[2] > 0.0))
+        & ((edge[0] < 0.0) | (edge[1] < 0.0) | (edge[2] < 0.0));
+    if !(mixed & edge[0].is_finite() & edge[1].is_finite() & edge[2].is_finite()) {
         return PreTest::Undecided;
     }
     let d1_norm = d0.abs() + d1.abs() + d2.abs();
@@ -184,10 +185,10 @@ fn outside_with(
         * (1.0 + 1e-9)
         * GROW;
     let t = (edge_band + error) * GROW * scale;
-    // Also false where `t` is NaN or infinite.
-    let positive = edge[0] > t || edge[1] > t || edge[2] > t;
-    let negative = edge[0] < -t || edge[1] < -t || edge[2] < -t;
-    if positive && negative {
+    // Also false where `t` is NaN or infinite (joined bit by bit, as above).
+    let positive = (edge[0] > t) | (edge[1] > t) | (edge[2] > t);
+    let negative = (edge[0] < -t) | (edge[1] < -t) | (edge[2] < -t);
+    if positive & negative {
         PreTest::Outside
     } else {
         PreTest::Mixed(PlainEdges { edge, error })
