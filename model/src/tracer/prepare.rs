@@ -350,8 +350,9 @@ pub(crate) struct BoundBox {
     pub pad_slope: f32,
 }
 
-/// The greatest f32 at most `x` (NaN stays NaN). Without a branch: the walk rounds each ray's cut
-/// with it at every node, where whether the nearest f32 lies above is a coin toss.
+/// The greatest f32 at most `x` (NaN stays NaN). The step below, where the nearest f32 lies above
+/// `x`, is chosen by a mask rather than by nested branches on the sign and on the rounding (the walk
+/// rounds each ray's cut with it at every node).
 #[inline]
 pub(crate) fn f32_down(x: f64) -> f32 {
     let y = x as f32;
