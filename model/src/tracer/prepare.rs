@@ -350,9 +350,10 @@ pub(crate) struct BoundBox {
     pub pad_slope: f32,
 }
 
-/// The greatest f32 at most `x` (NaN stays NaN). The step below, where the nearest f32 lies above
-/// `x`, is chosen by a mask rather than by nested branches on the sign and on the rounding (the walk
-/// rounds each ray's cut with it at every node).
+/// The greatest f32 at most `x` (NaN stays NaN). The step below is found whatever the rounding and
+/// taken by a mask where the nearest f32 lies above `x`, not by a branch on it: the walk rounds each
+/// ray's cut with it at every node, where that is a coin toss (the sign, which sets the step's
+/// direction, is the same for every cut).
 #[inline]
 pub(crate) fn f32_down(x: f64) -> f32 {
     let y = x as f32;
