@@ -607,22 +607,21 @@ impl PreparedScene {
         if !self.walk_start(&mut walk, ray, nodes_visited, cut) {
             return;
         }
-        // One walk alone: each step the pending items' vertices asked for, or else the next
-        // advance (the tracer steps several walks in turn, each kind of step in a batch).
+        // One walk alone, its steps in the order the tracer takes them (which steps several walks
+        // in turn, each kind of step in a batch): after a leaf whose items were met, their
+        // vertices asked for, then the next advance, which visits them.
         loop {
-            if walk.pending_len > 0 && !walk.pending_fetched && self.walk_fetch_pending(&mut walk) {
-                continue;
-            }
-            let stepped = self.walk_advance(
+            match self.walk_advance(
                 &mut walk,
                 ray,
                 nodes_visited,
                 far_rejections,
                 cut,
                 &mut visit,
-            );
-            if stepped == Stepped::Done {
-                break;
+            ) {
+                Stepped::Walking => {}
+                Stepped::Pending => self.walk_fetch_pending(&walk),
+                Stepped::Done => break,
             }
         }
     }
@@ -664,22 +663,17 @@ impl PreparedScene {
 
     /// The step after a leaf whose items the ray met ([`Stepped::Pending`]): the items' records
     /// arrived, their triangles' vertices are asked of the cache, for [`PreparedScene::walk_advance`]
-    /// to visit them at the ray's next step. Whether any is a triangle (else there is nothing to
-    /// wait for).
+    /// to visit them at the ray's next step (a box item's asks are harmless hints).
     #[inline(always)]
-    pub(crate) fn walk_fetch_pending(&self, walk: &mut Walk) -> bool {
-        walk.pending_fetched = true;
+    pub(crate) fn walk_fetch_pending(&self, walk: &Walk) {
         let len = walk.pending_len as usize;
-        let mut asked = false;
         // Four asked for whatever the count and kind (a lane past the count asks for the first
         // lane's again; a box item's vertex indices name some vertex, a harmless hint): no branch
         // on how many items there are or which are triangles.
         for j in 0..4 {
             let met = walk.pending[if j < len { j } else { 0 }];
             self.prefetch_vertices(met.index as usize);
-            asked |= met.triangles;
         }
-        asked
     }
 
     /// A step of the walk other than [`PreparedScene::walk_fetch_pending`]: the pending items (if
@@ -749,7 +743,6 @@ impl PreparedScene {
                 self.prefetch_item(asked as usize);
             }
             walk.pending_len = len as u8;
-            walk.pending_fetched = false;
             return if len > 0 {
                 Stepped::Pending
             } else {
@@ -824,8 +817,6 @@ pub(crate) struct Walk {
     /// The items of the last leaf reached, nearer first, to visit two steps on.
     pending: Lanes,
     pending_len: u8,
-    /// The pending items' vertices were asked of the cache.
-    pending_fetched: bool,
 }
 
 impl Default for Walk {
@@ -837,7 +828,6 @@ impl Default for Walk {
             spill: Vec::new(),
             pending: [Met::NONE; 4],
             pending_len: 0,
-            pending_fetched: false,
         }
     }
 }

@@ -554,7 +554,7 @@ pub fn trace_rays(
             let k = k as usize;
             // Where none of the items is a triangle they are visited at the next node step all
             // the same (nothing to wait for, one step later).
-            scene.walk_fetch_pending(&mut slots[k].walk);
+            scene.walk_fetch_pending(&slots[k].walk);
             node_steps.push(k);
         }
     }
