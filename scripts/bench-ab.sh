@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Compares two builds of a rate benchmark on one workload by running them in turn, round after
 # round, so a change in the machine's load moves both alike; prints each build's rates and their
-# medians. A change of a few percent needs many rounds on a shared machine: one run's spread is
-# often wider than that.
+# medians, and the median of each round's B/A. A change of a few percent needs many rounds on a
+# shared machine: one run's spread is often wider than that.
 #
 #   bash scripts/bench-ab.sh BENCH BIN_A BIN_B [ROUNDS] [WORKLOAD]
 #
@@ -54,11 +54,15 @@ run_once() {
 
 results=$(mktemp)
 trap 'rm -f "$results"' EXIT
+# The two builds take turns going first (A B, then B A), so neither always runs on a machine the
+# other has just warmed. One build against a copy of itself, 24 rounds: within about 1 %.
 for ((r = 1; r <= rounds; r++)); do
-    for side in A B; do
+    order="A B"
+    ((r % 2 == 0)) && order="B A"
+    for side in $order; do
         bin=$bin_a
         [[ $side == B ]] && bin=$bin_b
-        echo "$side $(run_once "$bin")" >>"$results"
+        echo "$side $r $(run_once "$bin")" >>"$results"
     done
 done
 awk -v bench="$bench" '
@@ -67,7 +71,7 @@ awk -v bench="$bench" '
         for (i = 2; i <= n; i++) for (j = i; j > 1 && a[j-1] + 0 > a[j] + 0; j--) { t = a[j]; a[j] = a[j-1]; a[j-1] = t }
         return n % 2 ? a[(n + 1) / 2] : (a[n / 2] + a[n / 2 + 1]) / 2
     }
-    { rate[$1] = rate[$1] " " $2; ratio[$1] = ratio[$1] " " $3; paired[$1] = paired[$1] " " $4; judged[$1] = judged[$1] " " $5 }
+    { rate[$1] = rate[$1] " " $3; ratio[$1] = ratio[$1] " " $4; paired[$1] = paired[$1] " " $5; judged[$1] = judged[$1] " " $6; of[$1, $2] = $3 }
     END {
         for (s = 0; s < 2; s++) {
             k = s ? "B" : "A"
@@ -80,4 +84,8 @@ awk -v bench="$bench" '
             else printf "%s median rate %.0f\n", k, median(rate[k])
         }
         printf "B/A median rate: %.4f\n", median(rate["B"]) / median(rate["A"])
+        # In each round B over A (the two run back to back), then the median of those: steadier
+        # where the speed of the machine drifts over the rounds.
+        for (r = 1; (("A", r) in of) && (("B", r) in of); r++) rounds = rounds " " of["B", r] / of["A", r]
+        printf "B/A median of the ratios in each round: %.4f\n", median(rounds)
     }' "$results"
