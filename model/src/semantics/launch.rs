@@ -83,6 +83,21 @@ pub(super) fn allowed_for_rays_memo(
             }
         }
     };
+    // Mostly every ray of a launch has the same shader binding table offsets and miss index: then
+    // one table serves all, without a table and a hit-group lookup made per ray.
+    let key = |r: &Ray| (r.sbt_offset, r.sbt_stride, r.miss_index);
+    if let Some((&first, rest)) = rays.split_first() {
+        if rest.iter().all(|r| key(r) == key(first)) {
+            let hit = hit_for(first);
+            let table = ShaderTable {
+                hit: &hit,
+                miss: miss_for(first),
+            };
+            let pairs: Vec<(&Ray, &ShaderTable)> = rays.iter().map(|&r| (r, &table)).collect();
+            trace_rays(prepared, &pairs, config, stats, |k, a| answer(k, a.ok()));
+            return;
+        }
+    }
     let hits: Vec<_> = rays.iter().map(|r| hit_for(r)).collect();
     let tables: Vec<ShaderTable> = rays
         .iter()
@@ -971,6 +986,52 @@ mod shared_out_tests {
 mod per_ray_tests {
     use super::*;
     use crate::test_cases::hand_case;
+
+    /// Rays of one launch with different shader binding table offsets or miss indices (the launch's
+    /// rays traced with a table each) and with the same (one table for all) get the outcomes each
+    /// ray traced alone gets: a launch whose rays differ in the miss index alone, in the offset
+    /// alone, or in neither.
+    #[test]
+    fn rays_of_other_tables_in_one_launch_get_their_own_tables() {
+        let workload = crate::tracer::workload::standard_workload(64, "icosphere");
+        let patterns: [fn(usize) -> (u32, u32); 3] = [
+            |k| (0, (k / 5 % 2) as u32),
+            |k| ((k / 7 % 2) as u32, 0),
+            |_| (1, 1),
+        ];
+        for (n, pattern) in patterns.iter().enumerate() {
+            let mut case = workload.as_launch_of(hand_case(), 64);
+            let body = case.as_trace_mut().expect("a trace case");
+            for (k, ray) in body.world.launch.rays.iter_mut().enumerate() {
+                (ray.sbt_offset, ray.miss_index) = pattern(k);
+            }
+            let launch = expected_launch(&body.world, &body.call).expect("a defined launch");
+            let p = prepared(&body.world.launch.scene).expect("a defined scene");
+            let mut alone = TracerStats::default();
+            // What each table reaches: the miss shaders, and the hit groups of rays that hit.
+            let (mut misses, mut hits) = (Vec::new(), Vec::new());
+            for (k, ray) in body.world.launch.rays.iter().enumerate().step_by(3) {
+                let own = allowed_for_ray(&body.world, &body.call, &p, ray, &mut alone)
+                    .expect("a defined ray");
+                assert_eq!(launch.allowed[k], own, "pattern {n}, ray {k}");
+                if !misses.contains(&own.miss_shader) {
+                    misses.push(own.miss_shader);
+                }
+                if let Some(c) = own.candidates.first() {
+                    if !hits.contains(&c.shaders) {
+                        hits.push(c.shaders);
+                    }
+                }
+            }
+            // Miss indices 0 and 1 reach two miss records, offsets 0 and 1 a hit group and the
+            // zero group: each pattern's rays were told apart.
+            assert_eq!(
+                (misses.len(), hits.len()),
+                [(2, 1), (1, 2), (1, 1)][n],
+                "pattern {n}"
+            );
+        }
+    }
 
     /// A launch of many copies of a few rays keeps one outcome set per distinct ray, and each copy
     /// reads the set its own ray traced alone gives.
