@@ -86,28 +86,29 @@ pub(super) fn allowed_for_rays_memo(
     // Mostly every ray of a launch has the same shader binding table offsets and miss index: then
     // one table serves all, without a table and a hit-group lookup made per ray.
     let key = |r: &Ray| (r.sbt_offset, r.sbt_stride, r.miss_index);
-    if let Some((&first, rest)) = rays.split_first() {
-        if rest.iter().all(|r| key(r) == key(first)) {
-            let hit = hit_for(first);
-            let table = ShaderTable {
-                hit: &hit,
+    let (shared_hit, hits, tables, shared);
+    let pairs: Vec<(&Ray, &ShaderTable)> = match rays.split_first() {
+        Some((&first, rest)) if rest.iter().all(|r| key(r) == key(first)) => {
+            shared_hit = hit_for(first);
+            shared = ShaderTable {
+                hit: &shared_hit,
                 miss: miss_for(first),
             };
-            let pairs: Vec<(&Ray, &ShaderTable)> = rays.iter().map(|&r| (r, &table)).collect();
-            trace_rays(prepared, &pairs, config, stats, |k, a| answer(k, a.ok()));
-            return;
+            rays.iter().map(|&r| (r, &shared)).collect()
         }
-    }
-    let hits: Vec<_> = rays.iter().map(|r| hit_for(r)).collect();
-    let tables: Vec<ShaderTable> = rays
-        .iter()
-        .zip(&hits)
-        .map(|(r, hit)| ShaderTable {
-            hit,
-            miss: miss_for(r),
-        })
-        .collect();
-    let pairs: Vec<(&Ray, &ShaderTable)> = rays.iter().copied().zip(&tables).collect();
+        _ => {
+            hits = rays.iter().map(|r| hit_for(r)).collect::<Vec<_>>();
+            tables = rays
+                .iter()
+                .zip(&hits)
+                .map(|(r, hit)| ShaderTable {
+                    hit,
+                    miss: miss_for(r),
+                })
+                .collect::<Vec<_>>();
+            rays.iter().copied().zip(&tables).collect()
+        }
+    };
     trace_rays(prepared, &pairs, config, stats, |k, a| answer(k, a.ok()));
 }
 
