@@ -22,6 +22,8 @@ use super::prepare::{f32_up, BoundBox, FarBox, Item, PreparedScene, RayF64};
 mod collapse_tests;
 #[cfg(test)]
 mod lane_tests;
+#[cfg(test)]
+mod order_tests;
 
 /// A node as the build makes it.
 #[derive(Debug, Clone, Copy)]
@@ -489,7 +491,8 @@ impl PreparedScene {
 
 /// A lane of a node that a ray may meet: the ray's entry t, the child node (interior) or item
 /// (leaf) it leads to, and whether every item below it is a triangle. The walk's stack holds the
-/// same records, so a push copies each whole (16 bytes), not field by field.
+/// same records: a node's lanes are written to it where they are made (see
+/// [`PreparedScene::lanes_to_stack`]), and a pop, steps later, reads one whole (16 bytes).
 #[derive(Debug, Clone, Copy)]
 #[repr(C)]
 pub(crate) struct Met {
@@ -509,6 +512,89 @@ impl Met {
 /// Items of a leaf, or children of a node, a ray may meet: at most four.
 type Lanes = [Met; 4];
 
+/// The lanes of a node's lane test where at most two met (most nodes), ordered without a branch on
+/// which or how many: `first` the nearer (a tie kept in lane order, as the insertion of
+/// [`PreparedScene::lane_entries`] keeps it), `second` the other; a lane past the met ones is
+/// whichever the bits give, a lane of the node all the same.
+struct TwoMet {
+    first: usize,
+    second: usize,
+    count: usize,
+}
+
+impl TwoMet {
+    /// From the lanes met (`hit`, a bit a lane) and their entry t: None where more than two met.
+    #[inline(always)]
+    fn of(hit: u32, near: &[f32; 4]) -> Option<TwoMet> {
+        let rest = hit & hit.wrapping_sub(1);
+        if rest & rest.wrapping_sub(1) != 0 {
+            return None;
+        }
+        let (a, b) = (
+            hit.trailing_zeros() as usize & 3,
+            rest.trailing_zeros() as usize & 3,
+        );
+        // All ones where the second lane met is the nearer.
+        let swap = (usize::from(rest != 0) & usize::from(near[b] < near[a])).wrapping_neg();
+        Some(TwoMet {
+            first: a ^ ((a ^ b) & swap),
+            second: b ^ ((a ^ b) & swap),
+            count: hit.count_ones() as usize,
+        })
+    }
+
+    /// The lanes for the two stack slots above the depth, bottom then top, as the stack takes
+    /// them: two met, the farther below the nearer (popped first); one met, it in the bottom slot
+    /// (the slot above is garbage then, as are both where none met). No branch on the count.
+    #[inline(always)]
+    fn on_stack(&self) -> [usize; 2] {
+        let two = (self.count >> 1).wrapping_neg();
+        [self.first ^ ((self.first ^ self.second) & two), self.first]
+    }
+}
+
+impl WideNode {
+    /// Lane `l`'s record for the walk, its entry t from the lane test.
+    #[inline(always)]
+    fn met(&self, near: &[f32; 4], l: usize) -> Met {
+        self.met_at(near[l] as f64, l)
+    }
+
+    /// Lane `l`'s record for the walk, with entry t `entry`.
+    #[inline(always)]
+    fn met_at(&self, entry: f64, l: usize) -> Met {
+        Met {
+            entry,
+            index: self.child[l],
+            triangles: self.lane_triangles & (1 << l) != 0,
+        }
+    }
+
+    /// The lanes met (`hit`, a bit a lane; `near` their entry t from the lane test), in lane order,
+    /// each put in order into `out`'s first `len` records ([`insert_sorted`]).
+    #[inline(always)]
+    fn insert_met(&self, mut hit: u32, near: &[f32; 4], out: &mut Lanes, len: &mut usize) {
+        while hit != 0 {
+            let l = hit.trailing_zeros() as usize;
+            hit &= hit - 1;
+            insert_sorted(out, len, self.met(near, l));
+        }
+    }
+}
+
+/// `m` put among the first `len` records of `out` (ordered by entry t) after every record whose
+/// entry is not above its own, so that records of equal entry keep the order they came in.
+#[inline(always)]
+fn insert_sorted(out: &mut Lanes, len: &mut usize, m: Met) {
+    let mut at = *len;
+    while at > 0 && out[at - 1].entry > m.entry {
+        out[at] = out[at - 1];
+        at -= 1;
+    }
+    out[at] = m;
+    *len += 1;
+}
+
 impl PreparedScene {
     /// Per lane of tree node `n` the ray's entry t and whether it may meet the lane's bound over
     /// `[tmin, limit]`, `limit` the cut `cut` (at most the ray's tmax; `cut_f32` is `f32_up(cut)`)
@@ -525,63 +611,87 @@ impl PreparedScene {
         out: &mut Lanes,
     ) -> usize {
         let node = &self.tree.nodes[n];
-        let count = node.count as usize;
         let mut len = 0;
-        let mut push = |e: f64, l: usize| {
-            let mut at = len;
-            while at > 0 && out[at - 1].entry > e {
-                out[at] = out[at - 1];
-                at -= 1;
-            }
-            out[at] = Met {
-                entry: e,
-                index: node.child[l],
-                triangles: node.lane_triangles & (1 << l) != 0,
-            };
-            len += 1;
-        };
         if lane_ray.fast && node.fast {
             // The lane ray's tmax is `f32_up(tmax)`: a cut of tmax gives every lane the limit tmax.
             let (near, hit) = node.bounds.entries(lane_ray, cut_f32, node.lane_triangles);
-            let mut hit = hit & ((1u32 << count) - 1);
-            let rest = hit & hit.wrapping_sub(1);
-            if rest & rest.wrapping_sub(1) == 0 {
-                // At most two lanes met: ordered without a branch on which or how many, a tie
-                // kept in lane order as `push` keeps it; a lane past the met ones is left as it
-                // falls.
-                let (a, b) = (
-                    hit.trailing_zeros() as usize & 3,
-                    rest.trailing_zeros() as usize & 3,
-                );
-                // All ones where the second lane met is the nearer.
-                let swap = (usize::from(rest != 0) & usize::from(near[b] < near[a])).wrapping_neg();
-                let (first, second) = (a ^ ((a ^ b) & swap), b ^ ((a ^ b) & swap));
-                for (o, l) in out.iter_mut().zip([first, second]) {
-                    *o = Met {
-                        entry: near[l] as f64,
-                        index: node.child[l],
-                        triangles: node.lane_triangles & (1 << l) != 0,
-                    };
+            let hit = hit & ((1u32 << node.count) - 1);
+            if let Some(two) = TwoMet::of(hit, &near) {
+                for (o, l) in out.iter_mut().zip([two.first, two.second]) {
+                    *o = node.met(&near, l);
                 }
-                return hit.count_ones() as usize;
+                return two.count;
             }
-            while hit != 0 {
-                let l = hit.trailing_zeros() as usize;
-                hit &= hit - 1;
-                push(near[l] as f64, l);
-            }
+            node.insert_met(hit, &near, out, &mut len);
         } else {
             let boxes = &self.tree.boxes[n];
-            for (l, b) in boxes.iter().enumerate().take(count) {
+            for (l, b) in boxes.iter().enumerate().take(node.count as usize) {
                 let limit = if node.lane_triangles & (1 << l) != 0 {
                     cut
                 } else {
                     ray.tmax
                 };
                 if let Some(e) = b.entry(ray, limit) {
-                    push(e, l);
+                    insert_sorted(out, &mut len, node.met_at(e, l));
                 }
             }
+        }
+        len
+    }
+
+    /// [`PreparedScene::lane_entries`] of interior node `n` written to the four stack slots above
+    /// the walk's depth as the stack takes them, the nearest lane last (popped first), a slot past
+    /// the count left as garbage the next push overwrites; the number of lanes met, and their
+    /// children asked of the cache. Where at most two lanes met (most nodes) each slot is written
+    /// once from the lane test's registers: ordered in a list first, a record would be stored field
+    /// by field and then loaded whole for its slot, and a load of what smaller stores have just
+    /// written waits until they reach the cache (no store forwarding), four times a node.
+    #[inline(always)]
+    fn lanes_to_stack(
+        &self,
+        n: usize,
+        ray: &RayF64,
+        lane_ray: &LaneRay,
+        cut: (f64, f32),
+        slots: &mut [Met; 4],
+    ) -> usize {
+        let node = &self.tree.nodes[n];
+        if lane_ray.fast && node.fast {
+            let (near, hit) = node.bounds.entries(lane_ray, cut.1, node.lane_triangles);
+            let hit = hit & ((1u32 << node.count) - 1);
+            if let Some(two) = TwoMet::of(hit, &near) {
+                let [bottom, top] = two.on_stack();
+                slots[0] = node.met(&near, bottom);
+                slots[1] = node.met(&near, top);
+                // Both lanes' children asked for, met or not (a lane not met is a child of this
+                // node, a harmless hint).
+                self.tree.prefetch(node.child[two.first]);
+                self.tree.prefetch(node.child[two.second]);
+                return two.count;
+            }
+            // Three or four met: ordered in a list first, from the same test.
+            let mut lanes: Lanes = [Met::NONE; 4];
+            let mut len = 0;
+            node.insert_met(hit, &near, &mut lanes, &mut len);
+            return self.lanes_copied_to_stack(&lanes, len, slots);
+        }
+        let mut lanes: Lanes = [Met::NONE; 4];
+        let len = self.lane_entries(n, ray, lane_ray, cut, &mut lanes);
+        self.lanes_copied_to_stack(&lanes, len, slots)
+    }
+
+    /// `len` lanes of `lanes` (nearer first) copied to the stack slots `slots` (nearest last), and
+    /// their number; the lanes' children asked of the cache.
+    #[inline(always)]
+    fn lanes_copied_to_stack(&self, lanes: &Lanes, len: usize, slots: &mut [Met; 4]) -> usize {
+        // Four slots written whatever the count, and no branch on how many lanes were met.
+        for (j, slot) in slots.iter_mut().enumerate() {
+            *slot = lanes[len.wrapping_sub(1 + j) & 3];
+        }
+        // Each of the four lanes' children asked for, met or not: a lane past the count holds the
+        // root (as `lanes` starts) or a child of this node, a harmless hint.
+        for met in lanes {
+            self.tree.prefetch(met.index);
         }
         len
     }
@@ -723,7 +833,6 @@ impl PreparedScene {
             }
         };
         let node = &self.tree.nodes[n as usize];
-        let mut lanes: Lanes = [Met::NONE; 4];
         if node.leaf {
             // The leaf's items by entry t, nearer first (a nearer required hit may cut the
             // others before they are classified), visited two steps on: their bounds are asked
@@ -750,17 +859,11 @@ impl PreparedScene {
             };
         }
         *nodes_visited += node.count as u64;
-        let len = self.lane_entries(
-            n as usize,
-            ray,
-            &walk.lane_ray,
-            // No cut where it has not fallen below tmax (`min` takes tmax for a NaN).
-            {
-                let c = c.min(ray.tmax);
-                (c, f32_up(c))
-            },
-            &mut lanes,
-        );
+        // No cut where it has not fallen below tmax (`min` takes tmax for a NaN).
+        let cut = {
+            let c = c.min(ray.tmax);
+            (c, f32_up(c))
+        };
         // The nearest child is popped first; the others are fetched while it is traversed.
         let depth = walk.depth;
         if let Some(slots) = walk
@@ -768,19 +871,10 @@ impl PreparedScene {
             .get_mut(depth..depth + 4)
             .and_then(|s| <&mut [Met; 4]>::try_from(s).ok())
         {
-            // Four slots written whatever the count, the nearest child last, and the depth moved by
-            // the count: no branch on how many lanes were met (a slot past the count is garbage
-            // the next push overwrites).
-            for (j, slot) in slots.iter_mut().enumerate() {
-                *slot = lanes[len.wrapping_sub(1 + j) & 3];
-            }
-            // Each of the four lanes' children asked for, met or not: a lane past the count
-            // holds the root (as `lanes` starts) or a child of this node, a harmless hint.
-            for met in &lanes {
-                self.tree.prefetch(met.index);
-            }
-            walk.depth = depth + len;
+            walk.depth = depth + self.lanes_to_stack(n as usize, ray, &walk.lane_ray, cut, slots);
         } else {
+            let mut lanes: Lanes = [Met::NONE; 4];
+            let len = self.lane_entries(n as usize, ray, &walk.lane_ray, cut, &mut lanes);
             for met in lanes[..len].iter().rev() {
                 self.tree.prefetch(met.index);
                 if walk.depth < walk.stack.len() {
