@@ -341,7 +341,7 @@ pub(super) fn outcomes_of_near(
                         candidate: None,
                     });
                 }
-                let reports: few::Few<AllowedReport, 2> = sphere_reports(&signs, &band)
+                let reports: few::Few<AllowedReport, 1> = sphere_reports(&signs, &band)
                     .into_iter()
                     .map(|r| AllowedReport {
                         hit_kind: r.hit_kind,

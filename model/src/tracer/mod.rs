@@ -327,8 +327,12 @@ pub struct Candidate {
     pub confirmation: Confirmation,
     pub shaders: HitShaders,
     pub no_duplicate_any_hit: bool,
-    /// At most two for a triangle (its facings) or a sphere (entry and exit), kept inline.
-    pub reports: few::Few<AllowedReport, 2>,
+    /// At most two for a triangle (its facings) or a sphere (entry and exit). The first is kept
+    /// inline, two go to the heap: most triangles have one report, and a candidate with room for
+    /// two inline is 248 bytes, copied with the call at every move of it and of its ray's outcomes
+    /// (room for one, 144 bytes: launch rates +1 to +3 % on the standard workloads, the spheres'
+    /// included, `RTCONF_BENCH_PASSES=15 bash scripts/bench-ab.sh expected_launch A B 8 NAME`).
+    pub reports: few::Few<AllowedReport, 1>,
     /// A triangle the trace would have left out had no primitive of the scene run any-hit for the
     /// ray: behind the cut the ray then gets (see `traverse`), which the ray's own shader table did
     /// not allow. Such a table is the one a launch's hit reach is traced with
