@@ -17,6 +17,7 @@ pub mod few;
 pub mod judge;
 mod outside;
 mod pages;
+mod plain;
 mod prepare;
 pub mod record;
 pub mod sphere;

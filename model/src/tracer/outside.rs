@@ -3,7 +3,9 @@
 //! functions in plain f64 with one a-priori error bound, against one upper bound of the three edge
 //! bands. Where it certifies, the exact signs of two edge functions against their bands are
 //! opposite, so the full classification (filter or exact) is `ReqMiss(Outside)` too; otherwise it
-//! decides nothing and the full classification runs.
+//! decides nothing, and its edge functions and their bound go on to [`super::plain`], which
+//! classifies the pair from them where its own bounds decide, before the filter's error-tracked
+//! evaluation does.
 //!
 //! A pair of mixed signs at face value that the upper bound leaves undecided (about one in fifty on
 //! the standard workloads, mostly rays passing near an edge line of a triangle they miss) is tried
@@ -63,17 +65,26 @@ pub(crate) enum PreTest {
     /// (the pair is `ReqMiss(Outside)` in every certified classification).
     Outside,
     /// Signs of both kinds at face value, the upper bound of the bands too wide to certify them:
-    /// the edge functions, for the test against the pair's own bands.
+    /// the edge functions, for the test against the pair's own bands (and then for the rest of
+    /// the classification in plain f64, [`PlainEdges::signs`]).
     Mixed(PlainEdges),
-    /// Nothing certified (no two signs opposite at face value, or a value not finite).
+    /// No two signs opposite at face value (mostly a ray through the triangle): the edge functions,
+    /// for the rest of the classification in plain f64.
+    SameSide(PlainEdges),
+    /// Nothing certified, and nothing to go on with (a value not finite).
     Undecided,
 }
 
-/// A pair's edge functions in plain f64 and their a-priori error bound `E` (see the module comment).
+/// A pair's edge functions in plain f64 and their a-priori error bound `E` (see the module
+/// comment), with what they were computed from: the vertices less the origin `â_k` (as the filter
+/// computes them), their largest magnitude `A` and their componentwise error bound `δ`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct PlainEdges {
-    edge: [f64; 3],
-    error: f64,
+    pub(super) edge: [f64; 3],
+    pub(super) error: f64,
+    pub(super) a: [[f64; 3]; 3],
+    pub(super) big: f64,
+    pub(super) delta: f64,
 }
 
 impl PlainEdges {
@@ -150,18 +161,28 @@ fn outside_with(
             + d2 * (x[0] * y[1] - x[1] * y[0])
     };
     let edge = [e(&a[1], &a[2]), e(&a[2], &a[0]), e(&a[0], &a[1])];
-    // Signs that are not opposite at face value are not opposite certified either (and NaN
-    // compares false). The comparisons are joined bit by bit, not short-circuited: one branch on
-    // the verdict rather than one per comparison, each as hard to predict as the pair's outcome.
-    let mixed = ((edge[0] > 0.0) | (edge[1] > 0.0) | (edge[2] > 0.0))
-        & ((edge[0] < 0.0) | (edge[1] < 0.0) | (edge[2] < 0.0));
-    if !(mixed & edge[0].is_finite() & edge[1].is_finite() & edge[2].is_finite()) {
+    if !(edge[0].is_finite() & edge[1].is_finite() & edge[2].is_finite()) {
         return PreTest::Undecided;
     }
     let d1_norm = d0.abs() + d1.abs() + d2.abs();
     let delta = (eps + 2.0 * U * big) * GROW;
     let error = d1_norm * (2.0 * (2.0 * big * delta + delta * delta) + 16.0 * U * big * big) * GROW
         + 1e-300;
+    let plain = PlainEdges {
+        edge,
+        error,
+        a,
+        big,
+        delta,
+    };
+    // Signs that are not opposite at face value are not opposite certified either. The
+    // comparisons are joined bit by bit, not short-circuited: one branch on the verdict rather
+    // than one per comparison, each as hard to predict as the pair's outcome.
+    let mixed = ((edge[0] > 0.0) | (edge[1] > 0.0) | (edge[2] > 0.0))
+        & ((edge[0] < 0.0) | (edge[1] < 0.0) | (edge[2] < 0.0));
+    if !mixed {
+        return PreTest::SameSide(plain);
+    }
     let square = |v: [f64; 3]| v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
     // The largest of the three `norm3`s: the square root is monotone.
     let len = square(a[0]).max(square(a[1])).max(square(a[2])).sqrt();
@@ -191,7 +212,7 @@ fn outside_with(
     if positive & negative {
         PreTest::Outside
     } else {
-        PreTest::Mixed(PlainEdges { edge, error })
+        PreTest::Mixed(plain)
     }
 }
 

@@ -166,6 +166,12 @@ pub(super) fn classify_triangle(
             return outside;
         }
     }
+    // The rest in plain f64 with a-priori bounds where they decide (see `plain.rs`): the filter's
+    // signs, without its running bounds.
+    let plain = match &pre {
+        PreTest::Mixed(edges) | PreTest::SameSide(edges) => edges.signs(ray.tmin, ray.tmax, &band),
+        _ => None,
+    };
     let evaluate_exact = || {
         let world = pos().map(|p| world_in::<Dyadic>(scene, w, p));
         triangle_signs::<Dyadic>(
@@ -180,8 +186,9 @@ pub(super) fn classify_triangle(
     };
     let ((signs, values), evaluation) = match precision {
         Precision::ExactOnly => (evaluate_exact(), Evaluation::Exact),
-        Precision::F64WithExactFallback => {
-            match triangle_signs::<BoundedF64>(
+        Precision::F64WithExactFallback => match plain {
+            Some(x) => (x, Evaluation::Filter),
+            None => match triangle_signs::<BoundedF64>(
                 &world,
                 &v3(ray.origin),
                 &v3(ray.direction),
@@ -191,8 +198,8 @@ pub(super) fn classify_triangle(
             ) {
                 Some(x) => (x, Evaluation::Filter),
                 None => (evaluate_exact(), Evaluation::Exact),
-            }
-        }
+            },
+        },
         Precision::F32FilterOnly => {
             let world = pos().map(|p| world_in::<PlainF32>(scene, w, p));
             let x = triangle_signs::<PlainF32>(
