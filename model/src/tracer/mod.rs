@@ -22,6 +22,8 @@ mod prepare;
 pub mod record;
 pub mod sphere;
 pub mod summary;
+#[cfg(test)]
+mod test_support;
 mod traverse;
 pub mod triangle;
 mod watertight;

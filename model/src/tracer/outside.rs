@@ -219,26 +219,10 @@ fn outside_with(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::Transform3x4;
     use crate::tracer::arith::{affine, sub3, triple, v3, Dyadic, Num};
-    use crate::tracer::band::{triangle_band, vertex_static_radius};
+    use crate::tracer::band::triangle_band;
+    use crate::tracer::test_support::{for_each_workload_pair, Lcg, RandomTriangle};
     use std::cmp::Ordering;
-
-    /// A deterministic generator (64-bit LCG, high bits).
-    struct Lcg(u64);
-
-    impl Lcg {
-        fn unit(&mut self) -> f64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
-        }
-        fn range(&mut self, lo: f64, hi: f64) -> f64 {
-            lo + (hi - lo) * self.unit()
-        }
-    }
 
     /// What [`verdicts`] counts: pairs called outside by the upper bound of the bands, by the
     /// pair's own bands after it, and of all those the ones unsound.
@@ -259,25 +243,13 @@ mod tests {
         let mut v = Verdicts::default();
         for case in 0..cases {
             let s = [1e-3, 1.0, 1e3][case % 3];
-            let transform = if case % 2 == 0 {
-                Transform3x4::IDENTITY
-            } else {
-                let (sn, cs) = rng.range(0.0, 6.0).sin_cos();
-                let t = [0; 3].map(|_| rng.range(-5.0, 5.0) * s);
-                Transform3x4([
-                    [cs as f32, -sn as f32, 0.0, t[0] as f32],
-                    [sn as f32, cs as f32, 0.0, t[1] as f32],
-                    [0.0, 0.0, 1.3, t[2] as f32],
-                ])
-            };
-            let band = InstanceBand::new(&transform);
-            let obj: [[f32; 3]; 3] =
-                [0; 3].map(|_| [0; 3].map(|_| (rng.range(-1.0, 1.0) * s) as f32));
-            let world = obj.map(|p| affine(&transform.0, &v3::<BoundedF64>(p)));
-            let radius = obj.map(|p| {
-                let o = p.map(|x| x as f64);
-                vertex_static_radius(&band, None, o, o)
-            });
+            let RandomTriangle {
+                transform,
+                band,
+                obj,
+                world,
+                radius,
+            } = RandomTriangle::new(&mut rng, case, s);
             let origin: [f32; 3] = [0; 3].map(|_| (rng.range(-8.0, 8.0) * s) as f32);
             // A point on an edge line, nudged across it by a few band widths either way.
             let (i, j) = [(0, 1), (1, 2), (2, 0)][(rng.unit() * 3.0) as usize];
@@ -354,74 +326,24 @@ mod tests {
 
     #[test]
     fn on_the_standard_workloads_what_the_pre_test_calls_outside_the_filter_does() {
-        use crate::tracer::prepare::{PreparedScene, RayF64};
-        use crate::tracer::triangle::{classify, triangle_signs, MissReason, PairClass};
-        use crate::tracer::PrimitiveKind;
+        use crate::tracer::triangle::{classify, MissReason, PairClass};
         let (mut certified, mut by_own_bands, mut pairs) = (0, 0, 0);
-        for w in crate::tracer::workload::standard_workloads(12, false) {
-            let scene = PreparedScene::new(&w.scene).expect("a defined workload");
-            for ray in &w.rays {
-                let rf = RayF64::of(ray);
-                let mut near = Vec::new();
-                let cut = std::cell::Cell::new(f64::INFINITY);
-                scene.for_each_near(&rf, &mut 0, &mut 0, &cut, |i| near.push(i));
-                for i in near {
-                    let item = scene.items[i];
-                    let g = &scene.geometries[item.geometry as usize];
-                    if g.kind != PrimitiveKind::Triangle {
-                        continue;
-                    }
-                    let crate::scene::GeometryData::Triangles(t) = &scene.scene.bottom_levels
-                        [g.bottom_level as usize]
-                        .geometries[g.geometry as usize]
-                        .data
-                    else {
-                        unreachable!()
-                    };
-                    let ids = t.vertex_indices(item.primitive as usize);
-                    let world = ids.map(|k| *scene.world_vertex(g, k));
-                    let radius = ids.map(|k| scene.static_radius(g, k));
-                    let inst = &scene.instances[g.instance as usize];
-                    pairs += 1;
-                    let band = triangle_band(
-                        &inst.band,
-                        &world.map(|v| v.map(|x| x.value)),
-                        &radius,
-                        rf.origin,
-                        rf.direction,
-                        rf.direction_norm,
-                    );
-                    match pre_test(
-                        &inst.band,
-                        [&world[0], &world[1], &world[2]],
-                        &radius,
-                        rf.origin,
-                        rf.origin_norm,
-                        rf.direction,
-                        rf.direction_norm,
-                    ) {
-                        PreTest::Outside => certified += 1,
-                        PreTest::Mixed(edges) if edges.outside_of(&band) => by_own_bands += 1,
-                        _ => continue,
-                    }
-                    let (signs, _) = triangle_signs::<BoundedF64>(
-                        &world,
-                        &v3(ray.origin),
-                        &v3(ray.direction),
-                        ray.tmin,
-                        ray.tmax,
-                        &band,
-                    )
-                    .expect("the filter decides the workloads' pairs");
-                    assert_eq!(
-                        classify(&signs),
-                        PairClass::ReqMiss(MissReason::Outside),
-                        "{}: {ray:?}",
-                        w.name
-                    );
-                }
+        for_each_workload_pair(|p| {
+            pairs += 1;
+            match p.pre_test() {
+                PreTest::Outside => certified += 1,
+                PreTest::Mixed(edges) if edges.outside_of(&p.band) => by_own_bands += 1,
+                _ => return,
             }
-        }
+            let ray = p.ray;
+            let (signs, _) = p.filter();
+            assert_eq!(
+                classify(&signs),
+                PairClass::ReqMiss(MissReason::Outside),
+                "{}: {ray:?}",
+                p.workload
+            );
+        });
         assert!(certified * 4 > pairs, "{certified} of {pairs}");
         assert!(by_own_bands > 0, "{by_own_bands} of {pairs}");
     }

@@ -247,31 +247,11 @@ impl PlainEdges {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::Transform3x4;
     use crate::tracer::arith::{affine, sub3, triple, v3, BoundedF64, Dyadic, Num};
-    use crate::tracer::band::{norm3, triangle_band, vertex_static_radius, InstanceBand};
+    use crate::tracer::band::{norm3, triangle_band};
     use crate::tracer::outside::{pre_test, PreTest};
+    use crate::tracer::test_support::{for_each_workload_pair, Lcg, RandomTriangle};
     use crate::tracer::triangle::triangle_signs;
-
-    /// A deterministic generator (64-bit LCG, high bits).
-    struct Lcg(u64);
-
-    impl Lcg {
-        fn unit(&mut self) -> f64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
-        }
-        fn range(&mut self, lo: f64, hi: f64) -> f64 {
-            lo + (hi - lo) * self.unit()
-        }
-        /// One of `xs`, uniformly.
-        fn pick(&mut self, xs: &[f64]) -> f64 {
-            xs[((self.unit() * xs.len() as f64) as usize).min(xs.len() - 1)]
-        }
-    }
 
     /// What [`verdicts`] counts.
     #[derive(Debug, Default)]
@@ -311,26 +291,14 @@ mod tests {
         let mut v = Verdicts::default();
         for case in 0..cases {
             let s = [1e-3, 1.0, 1e3][case % 3];
-            let transform = if case % 2 == 0 {
-                Transform3x4::IDENTITY
-            } else {
-                let (sn, cs) = rng.range(0.0, 6.0).sin_cos();
-                let t = [0; 3].map(|_| rng.range(-5.0, 5.0) * s);
-                Transform3x4([
-                    [cs as f32, -sn as f32, 0.0, t[0] as f32],
-                    [sn as f32, cs as f32, 0.0, t[1] as f32],
-                    [0.0, 0.0, 1.3, t[2] as f32],
-                ])
-            };
-            let band = InstanceBand::new(&transform);
-            let obj: [[f32; 3]; 3] =
-                [0; 3].map(|_| [0; 3].map(|_| (rng.range(-1.0, 1.0) * s) as f32));
-            let world = obj.map(|p| affine(&transform.0, &v3::<BoundedF64>(p)));
+            let RandomTriangle {
+                transform,
+                band,
+                obj,
+                world,
+                radius,
+            } = RandomTriangle::new(&mut rng, case, s);
             let wv = world.map(|p| p.map(|x| x.value));
-            let radius = obj.map(|p| {
-                let o = p.map(|x| x as f64);
-                vertex_static_radius(&band, None, o, o)
-            });
             // A point of the plane: inside, or on an edge line nudged across it.
             let mut w = [rng.unit(), rng.unit(), rng.unit()];
             if case % 4 == 1 {
@@ -497,81 +465,31 @@ mod tests {
 
     #[test]
     fn on_the_standard_workloads_the_plain_path_gives_the_filters_signs_and_values() {
-        use crate::tracer::prepare::{PreparedScene, RayF64};
-        use crate::tracer::PrimitiveKind;
         let (mut certified, mut pairs) = (0, 0);
-        for w in crate::tracer::workload::standard_workloads(12, false) {
-            let scene = PreparedScene::new(&w.scene).expect("a defined workload");
-            for ray in &w.rays {
-                let rf = RayF64::of(ray);
-                let mut near = Vec::new();
-                let cut = std::cell::Cell::new(f64::INFINITY);
-                scene.for_each_near(&rf, &mut 0, &mut 0, &cut, |i| near.push(i));
-                for i in near {
-                    let item = scene.items[i];
-                    let g = &scene.geometries[item.geometry as usize];
-                    if g.kind != PrimitiveKind::Triangle {
-                        continue;
-                    }
-                    let crate::scene::GeometryData::Triangles(t) = &scene.scene.bottom_levels
-                        [g.bottom_level as usize]
-                        .geometries[g.geometry as usize]
-                        .data
-                    else {
-                        unreachable!()
-                    };
-                    let ids = t.vertex_indices(item.primitive as usize);
-                    let world = ids.map(|k| *scene.world_vertex(g, k));
-                    let radius = ids.map(|k| scene.static_radius(g, k));
-                    let inst = &scene.instances[g.instance as usize];
-                    let band = triangle_band(
-                        &inst.band,
-                        &world.map(|v| v.map(|x| x.value)),
-                        &radius,
-                        rf.origin,
-                        rf.direction,
-                        rf.direction_norm,
-                    );
-                    let edges = match pre_test(
-                        &inst.band,
-                        [&world[0], &world[1], &world[2]],
-                        &radius,
-                        rf.origin,
-                        rf.origin_norm,
-                        rf.direction,
-                        rf.direction_norm,
-                    ) {
-                        PreTest::Mixed(e) if !e.outside_of(&band) => e,
-                        PreTest::SameSide(e) => e,
-                        _ => continue,
-                    };
-                    pairs += 1;
-                    let Some((signs, values)) = edges.signs(ray.tmin, ray.tmax, &band) else {
-                        continue;
-                    };
-                    certified += 1;
-                    let (filter, filter_values) = triangle_signs::<BoundedF64>(
-                        &world,
-                        &v3(ray.origin),
-                        &v3(ray.direction),
-                        ray.tmin,
-                        ray.tmax,
-                        &band,
-                    )
-                    .expect("the filter decides the workloads' pairs");
-                    assert_eq!(signs, filter, "{}: {ray:?}", w.name);
-                    for (x, y) in [
-                        (values.edge[0], filter_values.edge[0]),
-                        (values.edge[1], filter_values.edge[1]),
-                        (values.edge[2], filter_values.edge[2]),
-                        (values.sum, filter_values.sum),
-                        (values.plane, filter_values.plane),
-                    ] {
-                        assert_eq!(x.0.to_bits(), y.0.to_bits(), "{}: {ray:?}", w.name);
-                    }
-                }
+        for_each_workload_pair(|p| {
+            let edges = match p.pre_test() {
+                PreTest::Mixed(e) if !e.outside_of(&p.band) => e,
+                PreTest::SameSide(e) => e,
+                _ => return,
+            };
+            pairs += 1;
+            let ray = p.ray;
+            let Some((signs, values)) = edges.signs(ray.tmin, ray.tmax, &p.band) else {
+                return;
+            };
+            certified += 1;
+            let (filter, filter_values) = p.filter();
+            assert_eq!(signs, filter, "{}: {ray:?}", p.workload);
+            for (x, y) in [
+                (values.edge[0], filter_values.edge[0]),
+                (values.edge[1], filter_values.edge[1]),
+                (values.edge[2], filter_values.edge[2]),
+                (values.sum, filter_values.sum),
+                (values.plane, filter_values.plane),
+            ] {
+                assert_eq!(x.0.to_bits(), y.0.to_bits(), "{}: {ray:?}", p.workload);
             }
-        }
+        });
         assert!(
             certified > 0 && certified == pairs,
             "{certified} of {pairs}"

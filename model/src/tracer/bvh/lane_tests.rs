@@ -6,22 +6,7 @@
 use super::{LaneBounds, LaneRay, LANE_MARGIN};
 use crate::scene::Ray;
 use crate::tracer::prepare::{BoundBox, RayF64};
-
-/// A deterministic generator (64-bit LCG, high bits).
-struct Lcg(u64);
-
-impl Lcg {
-    fn unit(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
-}
+use crate::tracer::test_support::Lcg;
 
 /// Counts, over rays aimed at the boundary of padded boxes, the cases where the lane test with
 /// `margin` misses a box the f64 test meets (unsound), and where it meets a box the f64 test
