@@ -237,8 +237,8 @@ pub fn ray_key(r: &Ray) -> [u32; 13] {
 }
 
 /// Prepared scenes by content, shared by every judgement of a case (the generator, the gate, the rules
-/// and the comparison each ask), the most recently asked kept within [`KEPT_SCENES`] and
-/// [`KEPT_ITEMS`]: a run generates a spec's cases (up to 512) before its gate traces them, so a
+/// and the comparison each ask), the most recently asked kept within `KEPT_SCENES` and
+/// `KEPT_ITEMS`: a run generates a spec's cases (up to 512) before its gate traces them, so a
 /// budget of a few scenes had each scene prepared twice. A scene is found by comparing it bit for
 /// bit with the prepared ones' (one pass over its data, no hash to collide).
 pub fn prepared(scene: &Scene) -> Option<Arc<PreparedScene>> {

@@ -249,7 +249,7 @@ const DEVIATIONS: &[(&str, RangeRewrite)] = &[
 /// for a four-component vertex format, A its fourth component, with no divide — the transform's
 /// translation weighted by A — where the model reads the position as the first three components and
 /// transforms that point (lavapipe, Mesa 25.0.7: src/gallium/frontends/lavapipe/
-/// lvp_acceleration_structure.c sums matrix[comp][col] × coords[col] over four columns, coords[3] the
+/// lvp_acceleration_structure.c sums `matrix[comp][col] × coords[col]` over four columns, `coords[3]` the
 /// format's fourth component). The specification gives that component no meaning; no reading of it
 /// as part of the position (ignored, or a homogeneous coordinate) gives this.
 pub const FOURTH_COMPONENT_WEIGHTS_TRANSLATION: &str = "fourth-component-weights-translation";
@@ -446,7 +446,7 @@ fn drop_primitive(scene: &mut Scene, p: &PrimitiveRef) {
 }
 
 /// The names, joined by `|` (each alternative explains the records on its own), of the deviations
-/// that explain a valid case's failing records: first those (see [`DEVIATIONS`], each also read as
+/// that explain a valid case's failing records: first those (see `DEVIATIONS`, each also read as
 /// [`FOURTH_COMPONENT_WEIGHTS_TRANSLATION`] where that differs, named `X+fourth-component-weights-
 /// translation`) that explain them exactly — the same rays judged against the structure built under
 /// the deviation all pass —, then,

@@ -36,7 +36,7 @@ fn fingerprint(scene: &Scene, bottom_level: u32) -> Fingerprint {
 /// The triangles around each vertex (by its bits) of a bottom level, built once and asked per
 /// vertex claim: a fan's "every triangle around the vertex" check is then the vertex's list, not
 /// a pass over a million triangles per ray. Rebuilt whenever the bottom level it was built from
-/// is not the one asked about (see [`Fingerprint`]); [`super::StressCase::check_claims`] uses a
+/// is not the one asked about (see `Fingerprint`); [`super::StressCase::check_claims`] uses a
 /// fresh one, so the final proof never rests on a stale index.
 #[derive(Debug, Default)]
 pub struct FanIndex {

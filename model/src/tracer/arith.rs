@@ -53,7 +53,7 @@ fn up(e: f64) -> f64 {
 /// - `x ± y`: `|fl(x̂ ± ŷ) − (x ± y)| ≤ ex + ey + u·|x̂ ± ŷ|` and `u·|x̂ ± ŷ| ≤ 2u·|fl(x̂ ± ŷ)|`;
 /// - `x·y`: `|x̂ŷ − xy| ≤ |x̂|·ey + |ŷ|·ex + ex·ey`, plus the rounding `2u·|fl(x̂ŷ)|`.
 ///
-/// [`up`] covers the rounding of the bound's own evaluation and underflow. A non-finite value
+/// `up` covers the rounding of the bound's own evaluation and underflow. A non-finite value
 /// or bound makes `sign` uncertain, so overflow falls back to exact arithmetic.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BoundedF64 {

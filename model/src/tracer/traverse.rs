@@ -478,7 +478,7 @@ pub fn trace_ray(
 const INTERLEAVED: usize = 12;
 
 /// [`trace_ray`] of each ray with its shader table, the answers handed to `answer` with the ray's
-/// index as each ray finishes (not in order). Up to [`INTERLEAVED`] rays walk the BVH together, one
+/// index as each ray finishes (not in order). Up to `INTERLEAVED` rays walk the BVH together, one
 /// node of each in turn: while one ray's nodes and items are tested, the next node of each other ray,
 /// asked of the cache when it was pushed, arrives from memory (one walk alone waits for each of its
 /// nodes). A slot whose ray finishes takes the next ray at once, so as many walks stay under way until
