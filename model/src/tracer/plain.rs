@@ -71,12 +71,21 @@ impl Plain {
     /// The certified sign of `exact + b`.
     #[inline(always)]
     fn below(self, b: f64, scale: f64) -> Option<Ordering> {
-        Plain {
-            value: -self.value,
-            error: self.error,
-        }
-        .above(b, scale)
-        .map(Ordering::reverse)
+        self.neg().above(b, scale).map(Ordering::reverse)
+    }
+
+    /// Where the exact value stands against the band `[−b, b]`, as the filter's edge sides and
+    /// orientation decide it: above `b`, below `−b`, or neither (each comparison certified, in
+    /// that order).
+    #[inline(always)]
+    fn side(self, b: f64, scale: f64) -> Option<EdgeSide> {
+        Some(if self.above(b, scale)? == Ordering::Greater {
+            EdgeSide::Positive
+        } else if self.below(b, scale)? == Ordering::Less {
+            EdgeSide::Negative
+        } else {
+            EdgeSide::Band
+        })
     }
 
     #[inline(always)]
@@ -116,15 +125,7 @@ impl PlainEdges {
             value,
             error: self.error,
         });
-        let side = |x: Plain, b: f64| -> Option<EdgeSide> {
-            Some(if x.above(b, scale)? == Ordering::Greater {
-                EdgeSide::Positive
-            } else if x.below(b, scale)? == Ordering::Less {
-                EdgeSide::Negative
-            } else {
-                EdgeSide::Band
-            })
-        };
+        let side = |x: Plain, b: f64| x.side(b, scale);
         let mut values = TriangleValues {
             edge: [
                 (e[0].value, e[0].error),
@@ -139,18 +140,12 @@ impl PlainEdges {
             side(e[1], band.edge[1])?,
             EdgeSide::Band,
         ];
-        let opposite = |x: EdgeSide, y: EdgeSide| {
-            matches!(
-                (x, y),
-                (EdgeSide::Positive, EdgeSide::Negative) | (EdgeSide::Negative, EdgeSide::Positive)
-            )
-        };
         let undecided_window = |edges| TriangleSigns {
             edges,
             orientation: None,
             window: WindowSide::Band,
         };
-        if opposite(edges[0], edges[1]) {
+        if edges[0].opposite(edges[1]) {
             return Some((undecided_window(edges), values));
         }
         values.edge[2] = (e[2].value, e[2].error);
@@ -168,12 +163,10 @@ impl PlainEdges {
         let n = self.plane();
         values.sum = (s.value, s.error);
         values.plane = (n.value, n.error);
-        let orientation = if s.above(band.sum, scale)? == Ordering::Greater {
-            Some(Ordering::Greater)
-        } else if s.below(band.sum, scale)? == Ordering::Less {
-            Some(Ordering::Less)
-        } else {
-            None
+        let orientation = match s.side(band.sum, scale)? {
+            EdgeSide::Positive => Some(Ordering::Greater),
+            EdgeSide::Negative => Some(Ordering::Less),
+            EdgeSide::Band => None,
         };
         let window = match orientation {
             None => WindowSide::Band,
@@ -422,10 +415,14 @@ mod tests {
             1 => band.sum = near(rng, s, 3.0 * edges.error),
             _ => {
                 // Oriented as the classification orients N and S (the sum's band is 0).
-                let n = edges.plane().value;
-                let (n, s) = if s < 0.0 { (-n, -s) } else { (n, s) };
+                let plane = edges.plane();
+                let (n, s) = if s < 0.0 {
+                    (-plane.value, -s)
+                } else {
+                    (plane.value, s)
+                };
                 let gap = n - tmin as f64 * s;
-                band.plane = gap + (near(rng, gap, edges.plane().error) - gap.abs());
+                band.plane = gap + (near(rng, gap, plane.error) - gap.abs());
             }
         }
         band

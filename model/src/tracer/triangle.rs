@@ -27,6 +27,17 @@ pub enum EdgeSide {
     Band,
 }
 
+impl EdgeSide {
+    /// Robustly on the other side of its edge line than `o` is of its own.
+    #[inline]
+    pub fn opposite(self, o: EdgeSide) -> bool {
+        matches!(
+            (self, o),
+            (EdgeSide::Positive, EdgeSide::Negative) | (EdgeSide::Negative, EdgeSide::Positive)
+        )
+    }
+}
+
 /// Where the exact t stands against the ray interval.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -100,13 +111,7 @@ pub fn triangle_signs<T: Num>(
         side(&e1, band.edge[1])?,
         EdgeSide::Band,
     ];
-    let opposite = |x: EdgeSide, y: EdgeSide| {
-        matches!(
-            (x, y),
-            (EdgeSide::Positive, EdgeSide::Negative) | (EdgeSide::Negative, EdgeSide::Positive)
-        )
-    };
-    if opposite(edges[0], edges[1]) {
+    if edges[0].opposite(edges[1]) {
         // Robustly on different sides of two edge lines: no perturbation can hit, whatever the
         // third edge (its value is not evaluated: NaN with an infinite bound, its side Band).
         let signs = TriangleSigns {
