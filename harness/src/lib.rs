@@ -3,9 +3,10 @@
 //! [`Observation`] per case: what the layer said and what the device produced. It judges nothing.
 //!
 //! Layout: [`plan`] (what a case makes and records, as data: realised here, exported as C, printed by
-//! replay), [`vk`] (Vulkan plumbing), [`shaders`] (the one shader path), [`realise`] (worlds on the
-//! device), [`execute`] (one [`Executor`] for every command), [`accel_check`] (the traced check of a
-//! build), [`worker`] (worker processes), [`observe`] (what came back), [`probe`] (device profiles).
+//! replay), `vk` (Vulkan plumbing), `shaders` (the one shader path), `realise` (worlds on the
+//! device), `execute` (one [`Executor`] for every command), `accel_check` (the traced check of a
+//! build), [`worker`] (worker processes), [`observe`] (what came back), [`probe`](mod@probe)
+//! (device profiles).
 
 pub(crate) mod accel_check;
 pub mod driver_check;

@@ -13,7 +13,7 @@ use std::sync::Mutex;
 include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
 
 /// Shader kinds: one SPIR-V module each per API, made per group by constant 0 (the group index), written
-/// into the module ([`with_spec_values`]).
+/// into the module (`with_spec_values`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
 pub enum ShaderKind {
     /// Raygen that traces into the scene at binding 0.
@@ -35,7 +35,7 @@ pub enum ShaderKind {
 /// uses, its capabilities), never its code's effects; lavapipe's pipeline creation time grows with the
 /// code. So such a case gets the interface-only body (`-DINTERFACE_ONLY`): one use of each variable
 /// the full body uses, nothing computed, and no trace: the source traces the scene once, and
-/// [`ShaderBody::module_words`] removes the instruction, keeping the scene's load. A test compares
+/// `ShaderBody::module_words` removes the instruction, keeping the scene's load. A test compares
 /// the two bodies' interfaces for every kind and API.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
 pub enum ShaderBody {

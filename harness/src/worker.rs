@@ -380,7 +380,7 @@ fn exit_or_kill(mut child: Child, closed: Instant, grace: Duration) -> bool {
 /// Workers that have given every answer and whose stdin is closed, still exiting: a worker's exit
 /// releases what its driver made (on lavapipe tens of milliseconds of the kernel freeing its
 /// memory), which the caller need not wait for before its own last work (a run's summary and
-/// report). Each is reaped when this is dropped, killed if it still runs [`EXIT_GRACE`] after its
+/// report). Each is reaped when this is dropped, killed if it still runs `EXIT_GRACE` after its
 /// stdin closed.
 #[must_use = "dropping it waits for the workers to exit"]
 #[derive(Default)]
@@ -683,7 +683,7 @@ impl<J> Lookahead<J> {
 }
 
 /// [`run_stream`] on workers already started, one job slot each; `affinity` keys the jobs whose
-/// device or pipeline a worker keeps for later jobs ([`Lookahead`]: such jobs go to one worker
+/// device or pipeline a worker keeps for later jobs (`Lookahead`: such jobs go to one worker
 /// where that costs no worker a wait).
 pub fn run_stream_on<J: Send>(
     mut started: StartedWorkers,

@@ -140,7 +140,7 @@ pub(crate) fn as_run<'a>(case: &'a Case, obs: &Observation) -> std::borrow::Cow<
     }
 }
 
-/// Compares one case's observation with the model's verdict (judged on [`as_run`]'s case). A case run as
+/// Compares one case's observation with the model's verdict (judged on `as_run`'s case). A case run as
 /// valid ([`Case::runs_as_valid`]) must draw no more than what the device makes unavoidable, from the
 /// model and from the layer, and its output must be the model's.
 pub fn compare(

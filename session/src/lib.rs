@@ -1,8 +1,9 @@
 //! rtconf's run session: where the model and the device meet. A run plans its specs, generates cases
-//! a chunk at a time, gates them (the case's own errors, [`model::Case::runnable`], the profile's limits), dispatches them to worker processes
-//! ([`harness::run_in_workers`]), judges each result once ([`run::Judging`]), compares it with the
-//! observation ([`compare`]) against the triage files, and streams `results.jsonl`; then the summary,
-//! the JUnit report and shrunk regressions. A replay does the same for one case, through one worker process.
+//! a chunk at a time, gates them (the case's own errors, [`model::Case::runnable`], the profile's
+//! limits), dispatches them to worker processes ([`harness::run_in_workers`]), judges each result
+//! once ([`run::Judging`]), compares it with the observation ([`compare`](mod@compare)) against the
+//! triage files, and streams `results.jsonl`; then the summary, the JUnit report and shrunk
+//! regressions. A replay does the same for one case, through one worker process.
 //!
 //! The command line, the tests and the benches call this crate instead of copying its pieces.
 

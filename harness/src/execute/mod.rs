@@ -65,7 +65,7 @@ pub(crate) fn pool_without_compute(
 
 /// Runs cases on one driver, caching a device per distinct enabled (extensions, features) set and
 /// pool family without compute — and, on a driver that numbers shader group handles in creation
-/// order, a device per valid pipeline (see [`Executor::handles_by_creation_order`]).
+/// order, a device per valid pipeline (see `Executor::handles_by_creation_order`).
 pub struct Executor {
     inst: Arc<VkInstance>,
     devices: HashMap<String, Result<DeviceCache, HarnessError>>,
@@ -123,7 +123,7 @@ impl Executor {
         }
     }
 
-    /// What a worker keeps from `case` for later cases: the key of its device ([`Executor::device_key`])
+    /// What a worker keeps from `case` for later cases: the key of its device (`Executor::device_key`)
     /// and of its pipeline on that device, hashed; None for a case that keeps nothing (a build case
     /// makes its own device). Cases of one key are best run by one worker (see
     /// [`crate::worker::run_stream_on`]): a second worker would make the device, its first views of
@@ -147,7 +147,7 @@ impl Executor {
     }
 
     /// Runs one case and reports what the layer said and what the device produced (see
-    /// [`Executor::execute_trace`] and the build path).
+    /// `Executor::execute_trace` and the build path).
     pub fn execute(&mut self, case: &Case, exec: &Execution) -> Observation {
         let _turn = crate::vk::turn::take();
         if case.as_trace().is_some() {

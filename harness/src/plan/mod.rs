@@ -2,7 +2,7 @@
 //! plain data — the device's extensions and features, buffers with their bytes, shader binding table
 //! writes as group handles, the pipeline's stages and groups, the scene's geometry and instance
 //! records, a build's memory images with the addresses they hold, the command buffer's steps and the
-//! call. The ash executor realises it ([`crate::execute`]); `rtconf export` writes it as a standalone C
+//! call. The ash executor realises it (`crate::execute`); `rtconf export` writes it as a standalone C
 //! program; `rtconf replay` prints its steps. A case has one description of what runs.
 
 pub mod build;

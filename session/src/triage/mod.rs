@@ -2,7 +2,7 @@
 //! (`triage/*.yaml`). An entry states what was observed — the layer silent where the model reports a
 //! VUID, the layer reporting one the model does not, the layer naming W where the model names V (one
 //! pair), or the device's output deviating as a named deviation says — with its kind, its reason and
-//! its evidence. A disagreement is `triaged` only by an entry of its own direction ([`explain`]); an
+//! its evidence. A disagreement is `triaged` only by an entry of its own direction (`explain`); an
 //! entry that nothing matched in a full run is stale ([`unused`]).
 
 mod explain;

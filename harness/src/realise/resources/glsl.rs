@@ -719,8 +719,8 @@ pub(crate) fn patch_narrow_writes(
 
 /// Compiles a stage's GLSL to SPIR-V words (with `-DTRACE` when `trace`, `-DNV` for
 /// VK_NV_ray_tracing pipelines and `-DINTERFACE_ONLY` for the interface-only body, as build.rs
-/// compiles the harness's own shaders) through the one shader path, [`shaders::compile_glsl`], its
-/// fixed specialisation constants made ordinary ones ([`shaders::with_fixed_spec_defaults`]). The
+/// compiles the harness's own shaders) through the one shader path, `shaders::compile_glsl`, its
+/// fixed specialisation constants made ordinary ones (`shaders::with_fixed_spec_defaults`). The
 /// injected accesses come before the body, whichever it is.
 pub fn compile_stage(
     glsl: &str,
